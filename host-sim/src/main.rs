@@ -1,0 +1,2 @@
+//! host-sim: runs the odocal library against a simulated robot.
+fn main() {}

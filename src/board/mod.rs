@@ -1,0 +1,1 @@
+//! Board support for the STM32F407 (target only): pin map and HAL adapters.

@@ -1,0 +1,29 @@
+//! odocal: odometry and odometry calibration for two-wheel differential-drive robots.
+//!
+//! Everything in this crate except [`board`] is portable `no_std` logic that is compiled for the
+//! STM32F4 target and for the host, where the tests and `host-sim` drive exactly the same code.
+//!
+//! Conventions used throughout:
+//! - the robot frame starts at the origin heading +x, y to the left, angles CCW positive;
+//! - tick totals are `i64`; positive ticks mean the wheel rolls forward;
+//! - measured errors are `true − odometry`;
+//! - `E_d = D_R / D_L`, `E_b = b_actual / b_nominal`.
+#![cfg_attr(not(test), no_std)]
+#![warn(missing_docs)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
+
+#[macro_use]
+pub mod fmt;
+
+pub mod angle;
+pub mod encoder;
+pub mod geometry;
+pub mod odometry;
+pub mod reference;
+pub mod run;
+
+#[cfg(target_os = "none")]
+pub mod board;
