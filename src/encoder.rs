@@ -27,9 +27,13 @@ impl WheelTicks {
     pub const fn new(right: i64, left: i64) -> Self {
         WheelTicks { right, left }
     }
+}
 
-    /// Component-wise `self - other`.
-    pub fn sub(self, other: WheelTicks) -> WheelTicks {
+impl core::ops::Sub for WheelTicks {
+    type Output = WheelTicks;
+
+    /// Component-wise difference (wrapping).
+    fn sub(self, other: WheelTicks) -> WheelTicks {
         WheelTicks::new(
             self.right.wrapping_sub(other.right),
             self.left.wrapping_sub(other.left),
@@ -212,7 +216,11 @@ mod tests {
                 truth += d;
                 assert_eq!(enc.update(raw as u32), Ok(d));
             }
-            assert_eq!(enc.total(), truth, "width {width:?} boundary {boundary:#x} dir {dir}");
+            assert_eq!(
+                enc.total(),
+                truth,
+                "width {width:?} boundary {boundary:#x} dir {dir}"
+            );
         }
     }
 

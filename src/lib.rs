@@ -21,6 +21,7 @@ pub mod fmt;
 pub mod angle;
 pub mod encoder;
 pub mod geometry;
+pub mod motor;
 pub mod odometry;
 pub mod reference;
 pub mod run;

@@ -152,7 +152,7 @@ impl Odometry {
     /// Heading for tick totals in the frame of `state`.
     #[inline]
     fn heading(&self, state: &OdometryState, totals: WheelTicks) -> Angle {
-        let n = totals.sub(state.origin);
+        let n = totals - state.origin;
         let turns = self
             .turn_right_q64
             .wrapping_mul(n.right as u64)
@@ -163,7 +163,7 @@ impl Odometry {
     /// Advances the pose to the new tick totals (one control period) and returns it.
     #[inline]
     pub fn update(&self, state: &mut OdometryState, totals: WheelTicks) -> Pose {
-        let d = totals.sub(state.last);
+        let d = totals - state.last;
         let heading = self.heading(state, totals);
         let dtheta = heading.delta(state.pose.heading);
         let mid = state.pose.heading.add_q64(dtheta >> 1);
@@ -236,8 +236,14 @@ mod tests {
         let (odo, mut st) = setup(&g);
         // Quarter turn: each wheel travels π b / 4.
         let ticks = (PI * g.wheelbase_m / 4.0 / g.meters_per_tick_right()).round() as i64;
-        let p = drive(&odo, &mut st, WheelTicks::new(ticks / 1000, -(ticks / 1000)), 1000);
-        let expected = 2.0 * (ticks / 1000 * 1000) as f64 * g.meters_per_tick_right() / g.wheelbase_m;
+        let p = drive(
+            &odo,
+            &mut st,
+            WheelTicks::new(ticks / 1000, -(ticks / 1000)),
+            1000,
+        );
+        let expected =
+            2.0 * (ticks / 1000 * 1000) as f64 * g.meters_per_tick_right() / g.wheelbase_m;
         assert!((p.theta_rad - expected).abs() < 1e-12, "{p:?}");
         assert!(p.x_m.abs() < 1e-9 && p.y_m.abs() < 1e-9);
     }
@@ -257,7 +263,11 @@ mod tests {
         assert!((p.y_m - r * (1.0 - theta.cos())).abs() < 1e-7, "{p:?}");
         let wrapped = (theta + PI).rem_euclid(2.0 * PI) - PI;
         // 1.7e7 ticks × ≤ 2^-65 turn rounding of the per-tick constants ≤ 5.8e-12 rad.
-        assert!((p.theta_rad - wrapped).abs() < 6e-12, "{} vs {wrapped}", p.theta_rad);
+        assert!(
+            (p.theta_rad - wrapped).abs() < 6e-12,
+            "{} vs {wrapped}",
+            p.theta_rad
+        );
     }
 
     #[test]
@@ -276,7 +286,11 @@ mod tests {
         let (odo, mut st) = setup(&g);
         drive(&odo, &mut st, WheelTicks::new(100, 300), 100);
         let here = st.last_ticks();
-        odo.reset(&mut st, here, Pose::from_f64(&PoseF64::new(1.0, 2.0, PI / 2.0)));
+        odo.reset(
+            &mut st,
+            here,
+            Pose::from_f64(&PoseF64::new(1.0, 2.0, PI / 2.0)),
+        );
         let p = drive(&odo, &mut st, WheelTicks::new(424, 424), 1000);
         assert!((p.x_m - 1.0).abs() < 1e-9);
         assert!((p.y_m - 2.0 - 424_000.0 * g.meters_per_tick_right()).abs() < 1e-9);

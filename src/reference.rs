@@ -49,7 +49,11 @@ impl PoseF64 {
         let (s, c) = libm::sincos(self.theta_rad);
         let dx = world.x_m - self.x_m;
         let dy = world.y_m - self.y_m;
-        PoseF64::new(c * dx + s * dy, -s * dx + c * dy, world.theta_rad - self.theta_rad)
+        PoseF64::new(
+            c * dx + s * dy,
+            -s * dx + c * dy,
+            world.theta_rad - self.theta_rad,
+        )
     }
 }
 
@@ -103,8 +107,8 @@ impl ArcModel {
         let mut prev = *first;
         let mut theta_prev = start.theta_rad;
         for &k in &knots[1..] {
-            let theta = start.theta_rad + self.heading(k.sub(*first));
-            let d = k.sub(prev);
+            let theta = start.theta_rad + self.heading(k - *first);
+            let d = k - prev;
             let ds = 0.5
                 * (self.right_m_per_tick * d.right as f64 + self.left_m_per_tick * d.left as f64);
             let dtheta = theta - theta_prev;
