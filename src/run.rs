@@ -12,8 +12,12 @@ use crate::encoder::WheelTicks;
 use crate::geometry::Geometry;
 use crate::reference::PoseF64;
 
-/// Maximum number of knots kept for one run (8 segments × 24 knots + margin).
-pub const MAX_KNOTS: usize = 200;
+/// Maximum number of knots kept for one run: 8 segments × 12 knots + 4 spare.
+///
+/// A knot costs 16 bytes, so one record is about 1.7 KiB and a session of 12 runs about 20 KiB of
+/// static RAM. Between knots the wheels turn at a nearly constant ratio (both follow one motion
+/// profile), which is all the arc model needs; more knots add RAM, not accuracy.
+pub const MAX_KNOTS: usize = 100;
 
 /// Direction of travel around a closed path.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
