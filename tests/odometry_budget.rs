@@ -89,7 +89,7 @@ fn wrap(a: f64) -> f64 {
 #[test]
 fn one_km_of_mixed_driving_within_0_1_mm_of_f64_exact_arcs() {
     let g = Geometry::PAPER_NOMINAL.with_factors(0.995, 1.010, 1.0);
-    let totals = mixed_drive(&g, 1000.0, 0x0d0c_a1);
+    let totals = mixed_drive(&g, 1000.0, 0x000d_0ca1);
     let reference = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &totals);
 
     for integration in [Integration::ExactArc, Integration::Midpoint] {
