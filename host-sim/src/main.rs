@@ -6,6 +6,9 @@
 
 use clap::{Parser, Subcommand};
 
+mod plot;
+mod rectangle;
+
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
 #[command(name = "host-sim", version, about)]
@@ -28,6 +31,25 @@ enum Command {
         #[arg(long, default_value_t = odocal::geometry::DEFAULT_COUNTS_PER_REV)]
         counts_per_rev: u32,
     },
+    /// Drive 4 CCW laps of a 3.6 m × 8.7 m rectangle exactly (paper §4.3) and report the
+    /// odometry's position error with a believed geometry.
+    Rectangle {
+        /// True E_b of the simulated robot.
+        #[arg(long, default_value_t = 1.010)]
+        eb: f64,
+        /// True E_d of the simulated robot.
+        #[arg(long, default_value_t = 0.995)]
+        ed: f64,
+        /// E_b the odometry believes (1 = nominal).
+        #[arg(long, default_value_t = 1.0)]
+        belief_eb: f64,
+        /// E_d the odometry believes (1 = nominal).
+        #[arg(long, default_value_t = 1.0)]
+        belief_ed: f64,
+        /// Write the paths and the error growth as SVG files with this prefix.
+        #[arg(long)]
+        svg: Option<std::path::PathBuf>,
+    },
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -38,6 +60,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             wheelbase,
             counts_per_rev,
         } => print_geometry(diameter, wheelbase, counts_per_rev),
+        Command::Rectangle {
+            eb,
+            ed,
+            belief_eb,
+            belief_ed,
+            svg,
+        } => run_rectangle(eb, ed, belief_eb, belief_ed, svg),
     }
 }
 
@@ -62,5 +91,62 @@ fn print_geometry(
         "glitch limit @1 kHz  {} counts/period (16-bit timer, 2 m/s)",
         max_step_for(CounterWidth::Bits16, counts_per_rev, diameter, 2.0, 1e-3)
     );
+    Ok(())
+}
+
+/// The rectangle subcommand.
+fn run_rectangle(
+    eb: f64,
+    ed: f64,
+    belief_eb: f64,
+    belief_ed: f64,
+    svg: Option<std::path::PathBuf>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    use odocal::geometry::Geometry;
+    let truth = Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0);
+    let belief = Geometry::PAPER_NOMINAL.with_factors(belief_ed, belief_eb, 1.0);
+    let spec = rectangle::RectangleSpec::default();
+    let r = rectangle::run(&spec, &truth, &belief)?;
+    println!(
+        "rectangle {} x {} m, {} CCW laps, truth E_b={eb} E_d={ed}, belief E_b={belief_eb} E_d={belief_ed}",
+        spec.side_a_m, spec.side_b_m, spec.laps
+    );
+    println!("final position error: {:.4} m", r.final_error_m);
+    if let Some(prefix) = svg {
+        use plot::{Figure, Series, Style, write_svg};
+        let paths = prefix.with_extension("paths.svg");
+        write_svg(
+            &paths,
+            &Figure {
+                title: "Rectangle test: true path vs odometry".into(),
+                x_label: "x [m]".into(),
+                y_label: "y [m]".into(),
+                equal_aspect: true,
+                series: vec![
+                    Series::new("true", r.true_path.clone(), Style::Line, 0),
+                    Series::new("odometry", r.odometry_path.clone(), Style::ThinLine, 1),
+                    Series::new(
+                        "odometry end",
+                        r.odometry_path.last().copied().into_iter().collect(),
+                        Style::Points,
+                        1,
+                    ),
+                ],
+                ..Figure::default()
+            },
+        )?;
+        let growth = prefix.with_extension("growth.svg");
+        write_svg(
+            &growth,
+            &Figure {
+                title: "Odometry error over distance".into(),
+                x_label: "distance travelled [m]".into(),
+                y_label: "position error [m]".into(),
+                series: vec![Series::new("odometry", r.growth.clone(), Style::Line, 1)],
+                ..Figure::default()
+            },
+        )?;
+        println!("wrote {} and {}", paths.display(), growth.display());
+    }
     Ok(())
 }
