@@ -95,14 +95,15 @@ pub fn run(
             // Straight leg along the current (exact) heading.
             let steps = (side / (spec.speed_mps * dt)).round() as u64;
             let step_m = side / steps as f64;
-            for _ in 0..steps {
+            for i in 0..steps {
                 advance(step_m, step_m, &mut totals);
                 x += step_m * heading.cos();
                 y += step_m * heading.sin();
                 travelled += step_m;
                 let p = odo.update(&mut state, totals).to_f64();
-                if travelled >= next_sample {
-                    next_sample += 0.5;
+                // Samples every 0.5 m and at every corner.
+                if travelled >= next_sample || i + 1 == steps {
+                    next_sample = travelled + 0.5;
                     let err = ((p.x_m - x).powi(2) + (p.y_m - y).powi(2)).sqrt();
                     result.growth.push((travelled, err));
                     result.true_path.push((x, y));
