@@ -19,12 +19,17 @@
 pub mod fmt;
 
 pub mod angle;
+pub mod button;
+pub mod controller;
 pub mod encoder;
 pub mod geometry;
 pub mod motor;
 pub mod odometry;
+pub mod profile;
 pub mod reference;
+pub mod routine;
 pub mod run;
+pub mod speed;
 
 #[cfg(target_os = "none")]
 pub mod board;
