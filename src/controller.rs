@@ -539,7 +539,9 @@ impl Controller {
         let r = count(&mut self.stall_count.0, self.last_duty.0, dr);
         let l = count(&mut self.stall_count.1, self.last_duty.1, dl);
         if r >= self.stall_periods {
-            self.latch(Fault::Stall { wheel: Wheel::Right });
+            self.latch(Fault::Stall {
+                wheel: Wheel::Right,
+            });
         } else if l >= self.stall_periods {
             self.latch(Fault::Stall { wheel: Wheel::Left });
         }
@@ -612,7 +614,8 @@ impl Controller {
         let w = ramp(prev.1, d.target.1, l.max_turn_accel_radps2);
         d.current = (v, w);
         let half_b = 0.5 * g.wheelbase_m;
-        let wheel = |(v, w): (f64, f64), sign: f64, m_per_tick: f64| (v + sign * w * half_b) / m_per_tick;
+        let wheel =
+            |(v, w): (f64, f64), sign: f64, m_per_tick: f64| (v + sign * w * half_b) / m_per_tick;
         let reference = |sign: f64, k: f64| {
             let old = wheel(prev, sign, k);
             let new = wheel((v, w), sign, k);

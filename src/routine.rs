@@ -362,8 +362,7 @@ impl Routine {
 
         // Interior knots at evenly spaced fractions of the profile's distance.
         let per = self.knots_per_segment;
-        if a.next_knot < per
-            && s.position * per as f64 >= a.profile.distance() * a.next_knot as f64
+        if a.next_knot < per && s.position * per as f64 >= a.profile.distance() * a.next_knot as f64
         {
             let _ = self.knots.push(measured);
             a.next_knot += 1;
@@ -510,7 +509,7 @@ mod tests {
             // f32 increments differ in rounding (≪ 1 tick).
             assert!(sync < 0.01, "sync {sync}");
             let knots = r.knots();
-            assert_eq!(knots.len(), 1 + 8 * 24);
+            assert_eq!(knots.len(), 1 + 8 * ((MAX_KNOTS - 1) / 8));
             let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), knots);
             // Whole-tick rounding of each target: ≤ 0.5 tick (1.2 µm) per wheel per segment,
             // i.e. ≤ 3e-6 rad per turn, × 2 m lever arm ≈ 6 µm per corner; 50 µm allows all.

@@ -50,6 +50,10 @@ enum Command {
         #[arg(long)]
         svg: Option<std::path::PathBuf>,
     },
+    /// Drive a scripted velocity profile (line, turn, arc) closed-loop; odometry vs true pose.
+    Drive(host_sim::drive::DriveArgs),
+    /// Drive UMBmark squares CW and CCW closed-loop; end errors and wheel synchronisation.
+    Square(host_sim::square::SquareArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -67,6 +71,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             belief_ed,
             svg,
         } => run_rectangle(eb, ed, belief_eb, belief_ed, svg),
+        Command::Drive(args) => Ok(host_sim::drive::run(&args)?),
+        Command::Square(args) => Ok(host_sim::square::run(&args)?),
     }
 }
 

@@ -1,0 +1,8 @@
+//! host-sim library: the simulated robot and the scenarios that drive the odocal library with it.
+//!
+//! The binary (`main.rs`) is a thin CLI over these modules; closed-loop integration tests use
+//! them directly.
+
+pub mod drive;
+pub mod robot;
+pub mod square;
