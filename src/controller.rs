@@ -413,7 +413,7 @@ impl Controller {
         config.limits.validate()?;
         config.speed.validate()?;
         let s = &config.stall;
-        if !(s.min_duty > 0.0 && s.min_duty <= 1.0) || !(1..=10_000).contains(&s.time_ms) {
+        if !(s.min_duty > 0.0 && s.min_duty <= 1.0 && (1..=10_000).contains(&s.time_ms)) {
             return Err(ConfigError::Stall);
         }
         if !(1..=10_000).contains(&config.deadman_ms) {

@@ -103,7 +103,7 @@ pub fn segment_count(path: &PathKind) -> usize {
 pub fn segment(path: &PathKind, index: usize) -> SegmentKind {
     match *path {
         PathKind::Square { direction, side_m } => {
-            if index % 2 == 0 {
+            if index.is_multiple_of(2) {
                 SegmentKind::Straight { length_m: side_m }
             } else {
                 SegmentKind::Turn {

@@ -1,0 +1,228 @@
+//! Controller API tests against a small plant model: each wheel is the first-order motor the
+//! default speed tuning assumes (1 m/s at full duty, τ = 50 ms), integrated exactly per period.
+//! The closed-loop behaviour with sub-stepping, slip, true geometry and motor mismatch is
+//! tested in `host-sim/tests/closed_loop.rs`.
+
+use odocal::controller::{
+    ConfigError, Controller, ControllerConfig, DriveError, Fault, MotorCommand, SetError,
+    StartError, Status, Wheel,
+};
+use odocal::geometry::Geometry;
+use odocal::profile::MotionLimits;
+use odocal::run::{Direction, MAX_KNOTS, PathKind};
+
+/// Two lagged motors; positions and speeds in ticks and ticks/s.
+struct Plant {
+    pos: [f64; 2],
+    vel: [f64; 2],
+    dt: f64,
+}
+
+impl Plant {
+    fn new(rate_hz: u32) -> Self {
+        Plant {
+            pos: [0.0; 2],
+            vel: [0.0; 2],
+            dt: 1.0 / f64::from(rate_hz),
+        }
+    }
+
+    /// Raw counters like the board's: right 32-bit, left 16-bit counting down.
+    fn raw(&self) -> (u32, u32) {
+        let r = self.pos[0].floor() as i64;
+        let l = self.pos[1].floor() as i64;
+        (r as u32, u32::from((l as u16).wrapping_neg()))
+    }
+
+    fn step(&mut self, c: &mut Controller) -> odocal::controller::StepOutput {
+        let (r, l) = self.raw();
+        let out = c.step(r, l);
+        let duty = match out.command {
+            MotorCommand::Duty { right, left } => [right, left],
+            MotorCommand::Stop(_) => [0.0, 0.0],
+        };
+        let k = 1.0 / Geometry::PAPER_NOMINAL.meters_per_tick_right(); // ticks/s at duty 1
+        let tau = 0.05;
+        let e = (-self.dt / tau).exp();
+        for i in 0..2 {
+            let target = k * f64::from(duty[i]);
+            self.pos[i] += target * self.dt + (self.vel[i] - target) * tau * (1.0 - e);
+            self.vel[i] = target + (self.vel[i] - target) * e;
+        }
+        out
+    }
+}
+
+fn controller() -> Controller {
+    Controller::new(ControllerConfig::new(Geometry::PAPER_NOMINAL, 1000)).unwrap()
+}
+
+#[test]
+fn config_is_validated() {
+    let g = Geometry::PAPER_NOMINAL;
+    assert_eq!(
+        Controller::new(ControllerConfig::new(g, 500)).err(),
+        Some(ConfigError::Rate)
+    );
+    assert_eq!(
+        Controller::new(ControllerConfig::new(g, 20_000)).err(),
+        Some(ConfigError::Rate)
+    );
+    let mut cfg = ControllerConfig::new(g, 1000);
+    cfg.limits.max_accel_mps2 = 0.0;
+    assert!(matches!(
+        Controller::new(cfg).err(),
+        Some(ConfigError::Limits(_))
+    ));
+    let mut cfg = ControllerConfig::new(g, 1000);
+    cfg.geometry.wheelbase_m = f64::NAN;
+    assert!(matches!(
+        Controller::new(cfg).err(),
+        Some(ConfigError::Geometry(_))
+    ));
+    let mut cfg = ControllerConfig::new(g, 1000);
+    cfg.deadman_ms = 0;
+    assert_eq!(Controller::new(cfg).err(), Some(ConfigError::Deadman));
+}
+
+#[test]
+fn refusals_while_not_ready_busy_or_faulted() {
+    let mut c = controller();
+    let line = PathKind::Line { length_m: 0.5 };
+    assert_eq!(c.start(line), Err(StartError::NotReady));
+    assert_eq!(c.drive(0.1, 0.0), Err(DriveError::NotReady));
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    assert_eq!(
+        c.start(PathKind::Line { length_m: f64::NAN }),
+        Err(StartError::Path(odocal::routine::PathError::Size))
+    );
+    c.start(line).unwrap();
+    assert_eq!(c.start(line), Err(StartError::Busy));
+    assert_eq!(c.drive(0.1, 0.0), Err(DriveError::Busy));
+    assert_eq!(c.set_geometry(Geometry::PAPER_NOMINAL), Err(SetError::Busy));
+    assert_eq!(c.set_limits(MotionLimits::DEFAULT), Err(SetError::Busy));
+    assert!(matches!(c.status(), Status::Running { segment: 0, .. }));
+    c.abort();
+    assert_eq!(c.status(), Status::Idle);
+    assert_eq!(c.drive(f32::NAN, 0.0), Err(DriveError::NotFinite));
+}
+
+#[test]
+fn line_run_produces_a_record_once() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    c.start(PathKind::Line { length_m: 0.5 }).unwrap();
+    let mut periods = 0;
+    while c.status() != Status::Idle {
+        plant.step(&mut c);
+        periods += 1;
+        assert!(periods < 10_000, "the line never finished");
+    }
+    let record = c.take_finished_run().expect("a record");
+    assert!(c.take_finished_run().is_none());
+    assert_eq!(record.knots.len(), MAX_KNOTS);
+    assert_eq!(record.path, PathKind::Line { length_m: 0.5 });
+    // The odometry end pose in the run's frame: 0.5 m ahead, within the 20-tick settle
+    // tolerance (47 µm).
+    assert!((record.odometry_end.x_m - 0.5).abs() < 5e-5, "{record:?}");
+    assert!(record.odometry_end.y_m.abs() < 1e-6);
+}
+
+#[test]
+fn abort_stops_in_the_next_period() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    c.start(PathKind::Square {
+        direction: Direction::Cw,
+        side_m: 1.0,
+    })
+    .unwrap();
+    for _ in 0..1500 {
+        assert!(!plant.step(&mut c).command.is_stop());
+    }
+    c.abort();
+    assert!(plant.step(&mut c).command.is_stop());
+}
+
+#[test]
+fn deadman_counts_control_periods() {
+    for rate in [1000, 4000] {
+        let mut c = Controller::new(ControllerConfig::new(Geometry::PAPER_NOMINAL, rate)).unwrap();
+        let mut plant = Plant::new(rate);
+        plant.step(&mut c);
+        c.drive(0.2, 0.0).unwrap();
+        let mut driving = 0;
+        while !plant.step(&mut c).command.is_stop() {
+            driving += 1;
+            assert!(driving <= rate, "no stop");
+        }
+        // 500 ms of driving periods; the next period stops.
+        assert_eq!(driving, rate / 2, "rate {rate}");
+        assert_eq!(c.status(), Status::Idle);
+    }
+}
+
+#[test]
+fn glitch_latches_and_stops_in_the_same_period() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    c.drive(0.2, 0.0).unwrap();
+    for _ in 0..100 {
+        plant.step(&mut c);
+    }
+    plant.pos[0] += 1e6;
+    let out = plant.step(&mut c);
+    assert!(out.command.is_stop());
+    assert!(matches!(
+        out.fault,
+        Some(Fault::EncoderGlitch {
+            wheel: Wheel::Right,
+            ..
+        })
+    ));
+    assert_eq!(c.drive(0.2, 0.0), Err(DriveError::Faulted));
+    c.clear_fault();
+    assert_eq!(c.status(), Status::Idle);
+    c.drive(0.2, 0.0).unwrap();
+}
+
+#[test]
+fn motors_stopped_after_a_tenth_of_a_second_at_rest() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    // The first step synchronises the encoders; 100 motionless periods follow it.
+    for _ in 0..100 {
+        plant.step(&mut c);
+    }
+    assert!(!c.motors_stopped());
+    plant.step(&mut c);
+    assert!(c.motors_stopped());
+    c.drive(0.2, 0.0).unwrap();
+    assert!(!c.motors_stopped());
+}
+
+#[test]
+fn new_geometry_applies_and_pose_continues() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    for k in 0..2000 {
+        if k % 100 == 0 {
+            c.drive(0.3, 0.0).unwrap();
+        }
+        plant.step(&mut c);
+    }
+    let before = c.pose().to_f64();
+    let g = Geometry::PAPER_NOMINAL.with_factors(0.99, 1.02, 1.0);
+    assert_eq!(c.set_geometry(g), Err(SetError::Busy));
+    while !plant.step(&mut c).command.is_stop() {}
+    let rest = c.pose().to_f64();
+    assert!(rest.x_m > before.x_m);
+    c.set_geometry(g).unwrap();
+    assert_eq!(c.pose().to_f64(), rest);
+    assert_eq!(c.config().geometry, g);
+}
