@@ -44,8 +44,8 @@ impl Plant {
         let k = 1.0 / Geometry::PAPER_NOMINAL.meters_per_tick_right(); // ticks/s at duty 1
         let tau = 0.05;
         let e = (-self.dt / tau).exp();
-        for i in 0..2 {
-            let target = k * f64::from(duty[i]);
+        for (i, d) in duty.iter().enumerate() {
+            let target = k * f64::from(*d);
             self.pos[i] += target * self.dt + (self.vel[i] - target) * tau * (1.0 - e);
             self.vel[i] = target + (self.vel[i] - target) * e;
         }
