@@ -17,6 +17,7 @@
 
 use core::fmt;
 
+use crate::button::Press;
 use crate::encoder::{
     CounterWidth, Encoder, EncoderConfig, EncoderGlitch, Polarity, WheelTicks, max_step_for,
 };
@@ -24,7 +25,7 @@ use crate::geometry::{Geometry, GeometryError};
 use crate::motor::{MotorDriver, StopMode};
 use crate::odometry::{Integration, Odometry, OdometryState, Pose};
 use crate::profile::{LimitsError, MotionLimits};
-use crate::routine::{PathError, Routine, SegmentKind, SettleConfig, validate_path};
+use crate::routine::{PathError, Routine, RunPlan, SegmentKind, SettleConfig, validate_path};
 use crate::run::{PathKind, RunRecord};
 use crate::speed::{SpeedPi, SpeedPiState, SpeedTuning, TuningError, WheelReference};
 
@@ -355,6 +356,20 @@ pub struct StepOutput {
     pub tracking: Option<Tracking>,
     /// Tick totals since power-up.
     pub totals: WheelTicks,
+}
+
+/// What a button press did (see [`Controller::on_press`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ButtonAction {
+    /// A short press started this run.
+    Started(PathKind),
+    /// A short press could not start a run.
+    StartRefused(StartError),
+    /// A short press cleared a latched fault (the next short press starts).
+    ClearedFault,
+    /// A long press aborted any motion.
+    Aborted,
 }
 
 /// A routine in progress.
@@ -722,6 +737,31 @@ impl Controller {
             }
         }
         Ok(())
+    }
+
+    /// The user button: a short press starts the next planned run (and advances the plan so
+    /// runs alternate CW/CCW) or, while a fault is latched, clears it; a long press aborts.
+    pub fn on_press(&mut self, press: Press, plan: &mut RunPlan) -> ButtonAction {
+        match press {
+            Press::Long => {
+                self.abort();
+                ButtonAction::Aborted
+            }
+            Press::Short if self.fault.is_some() => {
+                self.clear_fault();
+                ButtonAction::ClearedFault
+            }
+            Press::Short => {
+                let path = plan.next_path();
+                match self.start(path) {
+                    Ok(()) => {
+                        plan.advance();
+                        ButtonAction::Started(path)
+                    }
+                    Err(e) => ButtonAction::StartRefused(e),
+                }
+            }
+        }
     }
 
     /// The record of the last completed run, once.

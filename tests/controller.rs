@@ -3,12 +3,14 @@
 //! The closed-loop behaviour with sub-stepping, slip, true geometry and motor mismatch is
 //! tested in `host-sim/tests/closed_loop.rs`.
 
+use odocal::button::Press;
 use odocal::controller::{
-    ConfigError, Controller, ControllerConfig, DriveError, Fault, MotorCommand, SetError,
-    StartError, Status, Wheel,
+    ButtonAction, ConfigError, Controller, ControllerConfig, DriveError, Fault, MotorCommand,
+    SetError, StartError, Status, Wheel,
 };
 use odocal::geometry::Geometry;
 use odocal::profile::MotionLimits;
+use odocal::routine::RunPlan;
 use odocal::run::{Direction, MAX_KNOTS, PathKind};
 
 /// Two lagged motors; positions and speeds in ticks and ticks/s.
@@ -225,4 +227,42 @@ fn new_geometry_applies_and_pose_continues() {
     c.set_geometry(g).unwrap();
     assert_eq!(c.pose().to_f64(), rest);
     assert_eq!(c.config().geometry, g);
+}
+
+#[test]
+fn button_starts_alternating_runs_and_aborts() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    let mut plan = RunPlan::new(1.0, Direction::Cw);
+    let square = |direction| PathKind::Square {
+        direction,
+        side_m: 1.0,
+    };
+    assert_eq!(
+        c.on_press(Press::Short, &mut plan),
+        ButtonAction::Started(square(Direction::Cw))
+    );
+    // Busy: refused, and the plan does not advance.
+    assert_eq!(
+        c.on_press(Press::Short, &mut plan),
+        ButtonAction::StartRefused(StartError::Busy)
+    );
+    assert_eq!(c.on_press(Press::Long, &mut plan), ButtonAction::Aborted);
+    assert!(plant.step(&mut c).command.is_stop());
+    assert_eq!(
+        c.on_press(Press::Short, &mut plan),
+        ButtonAction::Started(square(Direction::Ccw))
+    );
+    // A glitch latches a fault: the first short press clears it, the next one starts.
+    plant.pos[1] += 1e6;
+    assert!(plant.step(&mut c).fault.is_some());
+    assert_eq!(
+        c.on_press(Press::Short, &mut plan),
+        ButtonAction::ClearedFault
+    );
+    assert_eq!(
+        c.on_press(Press::Short, &mut plan),
+        ButtonAction::Started(square(Direction::Cw))
+    );
 }
