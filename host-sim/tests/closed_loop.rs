@@ -290,3 +290,31 @@ fn slip_noise_moves_the_true_end_but_not_the_knot_model() {
     let gap = a.knot_error_m();
     assert!(gap > 1e-6 && gap < 5e-3, "gap {gap} m");
 }
+
+#[test]
+fn circles_and_line_close_on_a_nominal_robot() {
+    let g = Geometry::PAPER_NOMINAL;
+    for direction in [Direction::Cw, Direction::Ccw] {
+        let path = PathKind::Circle {
+            direction,
+            radius_m: 1.0,
+        };
+        let r = drive_path(SimConfig::new(g, RATE), g, path).unwrap();
+        print_result(&r);
+        // Same budget as the square: back at the start within 1 mm.
+        let miss = r.true_rest.distance_to(&PoseF64::default());
+        assert!(miss < 1e-3, "{direction:?}: missed by {miss} m");
+        // The knots (99 along the circle) reproduce the true end: the wheel-speed ratio is
+        // constant on an arc apart from the ramps, so the arc model is nearly exact.
+        assert!(
+            r.knot_error_m() < 1e-5,
+            "knots miss by {} m",
+            r.knot_error_m()
+        );
+    }
+    let r = drive_path(SimConfig::new(g, RATE), g, PathKind::Line { length_m: 3.0 }).unwrap();
+    print_result(&r);
+    let p = r.true_rest;
+    // 20-tick settle tolerance = 47 µm of travel; the lateral offset stays at the µm level.
+    assert!((p.x_m - 3.0).abs() < 5e-5 && p.y_m.abs() < 1e-5, "{p:?}");
+}
