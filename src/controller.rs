@@ -386,8 +386,10 @@ struct ActiveRun {
 struct DriveState {
     /// Commanded centre speed (m/s) and turn rate (rad/s), clamped to the limits.
     target: (f64, f64),
-    /// Ramped speed and turn rate of the previous period.
-    current: (f64, f64),
+    /// Ramped reference speed and turn rate at the previous and at the current step.
+    previous: (f64, f64),
+    /// See `previous`.
+    now: (f64, f64),
     /// Periods left before the deadman stops the motors.
     remaining: u32,
 }
@@ -624,20 +626,29 @@ impl Controller {
             let step = f64::from(max_accel) / rate;
             cur + (target - cur).clamp(-step, step)
         };
-        let prev = d.current;
-        let v = ramp(prev.0, d.target.0, l.max_accel_mps2);
-        let w = ramp(prev.1, d.target.1, l.max_turn_accel_radps2);
-        d.current = (v, w);
+        // The reference ramps linearly between steps: the period that just ended went from
+        // `previous` to `now` (its increment is compared with the encoders'); the one that
+        // starts goes from `now` to `next` (its midpoint speed is the feed-forward).
+        let (prev, now) = (d.previous, d.now);
+        let next = (
+            ramp(now.0, d.target.0, l.max_accel_mps2),
+            ramp(now.1, d.target.1, l.max_turn_accel_radps2),
+        );
+        d.previous = now;
+        d.now = next;
         let half_b = 0.5 * g.wheelbase_m;
         let wheel =
             |(v, w): (f64, f64), sign: f64, m_per_tick: f64| (v + sign * w * half_b) / m_per_tick;
         let reference = |sign: f64, k: f64| {
-            let old = wheel(prev, sign, k);
-            let new = wheel((v, w), sign, k);
+            let (a, b, c) = (
+                wheel(prev, sign, k),
+                wheel(now, sign, k),
+                wheel(next, sign, k),
+            );
             WheelReference {
-                delta_ticks: (0.5 * (old + new) / rate) as f32,
-                velocity_tps: new as f32,
-                accel_tps2: ((new - old) * rate) as f32,
+                delta_ticks: (0.5 * (a + b) / rate) as f32,
+                velocity_tps: (0.5 * (b + c)) as f32,
+                accel_tps2: ((c - b) * rate) as f32,
             }
         };
         let r = reference(1.0, g.meters_per_tick_right());
@@ -731,7 +742,8 @@ impl Controller {
                 self.reset_loops();
                 self.drive = Some(DriveState {
                     target,
-                    current: (0.0, 0.0),
+                    previous: (0.0, 0.0),
+                    now: (0.0, 0.0),
                     remaining,
                 });
             }

@@ -165,7 +165,7 @@ pub struct RoutineStep {
     pub segment: usize,
     /// The segment being driven.
     pub kind: SegmentKind,
-    /// Reference minus measured ticks, right and left, at this step (before the new period).
+    /// Reference minus measured ticks, right and left, at the instant of the measurement.
     pub error: (f64, f64),
     /// The path is complete: the knots are final, the motors should stop.
     pub finished: bool,
@@ -335,10 +335,13 @@ impl Routine {
             ));
         }
         let a = &mut self.active;
+        // `now` is the instant of the measurement; the period that starts now is driven with
+        // the feed-forward of its midpoint.
         a.periods = a.periods.saturating_add(1);
-        let t = f64::from(a.periods) / self.rate_hz;
-        let done = t >= a.profile.duration();
-        let s = a.profile.sample(t);
+        let now = f64::from(a.periods - 1) / self.rate_hz;
+        let done = now >= a.profile.duration();
+        let s = a.profile.sample(now);
+        let ff = a.profile.sample(now + 0.5 / self.rate_hz);
         let (pos_r, pos_l) = if done {
             (a.end.right as f64, a.end.left as f64)
         } else {
@@ -349,13 +352,13 @@ impl Routine {
         };
         let right = WheelReference {
             delta_ticks: (pos_r - self.prev_ref.0) as f32,
-            velocity_tps: (a.scale_right * s.velocity) as f32,
-            accel_tps2: (a.scale_right * s.accel) as f32,
+            velocity_tps: (a.scale_right * ff.velocity) as f32,
+            accel_tps2: (a.scale_right * ff.accel) as f32,
         };
         let left = WheelReference {
             delta_ticks: (pos_l - self.prev_ref.1) as f32,
-            velocity_tps: (a.scale_left * s.velocity) as f32,
-            accel_tps2: (a.scale_left * s.accel) as f32,
+            velocity_tps: (a.scale_left * ff.velocity) as f32,
+            accel_tps2: (a.scale_left * ff.accel) as f32,
         };
         self.prev_ref = (pos_r, pos_l);
         let error = (pos_r - measured.right as f64, pos_l - measured.left as f64);
@@ -383,7 +386,7 @@ impl Routine {
         let in_tol = libm::fabs(a.end.right as f64 - measured.right as f64) <= tol
             && libm::fabs(a.end.left as f64 - measured.left as f64) <= tol;
         a.settled = if in_tol { a.settled + 1 } else { 0 };
-        let after_end = a.periods as f64 - a.profile.duration() * self.rate_hz;
+        let after_end = now * self.rate_hz - a.profile.duration() * self.rate_hz;
         if a.settled < self.settle.periods && after_end < f64::from(self.settle.timeout_periods) {
             return step;
         }
