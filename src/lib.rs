@@ -25,6 +25,7 @@ pub mod motor;
 pub mod odometry;
 pub mod reference;
 pub mod run;
+pub mod storage;
 
 #[cfg(target_os = "none")]
 pub mod board;
