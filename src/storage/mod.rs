@@ -27,8 +27,7 @@ use sequential_storage::cache::{Cache, Uncached};
 use sequential_storage::map::{MapConfig, MapStorage};
 
 pub use self::record::{
-    Calibration, FormatError, METHOD_NAME_MAX, MethodName, MotionSettings, ParamRecord,
-    RecordError,
+    Calibration, FormatError, METHOD_NAME_MAX, MethodName, MotionSettings, ParamRecord, RecordError,
 };
 
 /// Map key under which the parameter record is stored.
@@ -126,9 +125,10 @@ impl<E: NorFlashError> From<sequential_storage::Error<E>> for StoreError {
         match e {
             S::Storage { value, .. } => StoreError::Flash(value.kind().into()),
             S::FullStorage => StoreError::Full,
-            S::Corrupted { .. } => StoreError::Corrupted,
-            S::LogicBug { .. } => StoreError::Internal,
-            _ => StoreError::Encoding,
+            // A buffer too small for a stored item means a garbage header passed its CRC.
+            S::Corrupted { .. } | S::BufferTooSmall(_) => StoreError::Corrupted,
+            S::SerializationError(_) => StoreError::Encoding,
+            _ => StoreError::Internal,
         }
     }
 }
@@ -182,6 +182,7 @@ pub struct LoadOutcome {
 pub struct ParamStore<F: MultiwriteNorFlash> {
     map: Map<F>,
     buf: AlignedBuf,
+    wipes: u32,
 }
 
 impl<F: MultiwriteNorFlash> ParamStore<F> {
@@ -194,6 +195,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         Ok(ParamStore {
             map: MapStorage::new(flash, config, Cache::new_uncached()),
             buf: AlignedBuf([0; BUF_LEN]),
+            wipes: 0,
         })
     }
 
@@ -233,8 +235,10 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
 
     /// Saves `record` (validated first). Refuses while the motors run.
     ///
-    /// If the flash is damaged beyond `sequential-storage`'s own repair, the range is erased
-    /// (logged) and the save retried once, so a corrupt flash never blocks saving.
+    /// If the store fails (flash damaged beyond `sequential-storage`'s own repair, garbage in
+    /// the free space, a driver error), the range is erased (logged) and the save retried once,
+    /// so a damaged flash never blocks saving. A power cut is not an error the code sees: it
+    /// leaves the old or the new record (see the module docs).
     ///
     /// # Errors
     /// [`StoreError::MotorsRunning`] if `motors_stopped` is false, [`StoreError::InvalidRecord`]
@@ -248,22 +252,24 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             return Err(StoreError::MotorsRunning);
         }
         record.validate().map_err(StoreError::InvalidRecord)?;
-        match self
+        let first = self
             .map
             .store_item(&mut self.buf.0, &PARAMS_KEY, record)
             .await
+            .map_err(StoreError::from);
+        let Err(e) = first else {
+            return Ok(());
+        };
+        warn!(
+            "saving parameters failed ({}); erasing the parameter flash and retrying",
+            e
+        );
+        self.wipes = self.wipes.saturating_add(1);
+        self.map.erase_all().await.map_err(StoreError::from)?;
+        self.map
+            .store_item(&mut self.buf.0, &PARAMS_KEY, record)
+            .await
             .map_err(StoreError::from)
-        {
-            Err(StoreError::Corrupted | StoreError::Internal | StoreError::Full) => {
-                warn!("parameter flash damaged; erasing it before saving");
-                self.map.erase_all().await.map_err(StoreError::from)?;
-                self.map
-                    .store_item(&mut self.buf.0, &PARAMS_KEY, record)
-                    .await
-                    .map_err(StoreError::from)
-            }
-            other => other,
-        }
     }
 
     /// Saves [`ParamRecord::DEFAULT`] (forgets the calibration and motion settings); the next
@@ -298,6 +304,11 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     /// As [`Self::save`].
     pub fn reset_to_defaults_blocking(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
         embassy_futures::block_on(self.reset_to_defaults(motors_stopped))
+    }
+
+    /// How many saves of this store had to erase the whole range to recover from a failure.
+    pub fn wipes(&self) -> u32 {
+        self.wipes
     }
 
     /// The flash, e.g. to inspect a simulated one.

@@ -20,7 +20,8 @@
 //! [`RamFlashError::PowerCut`] until [`RamFlash::restore_power`] (the "reboot"). Half done is the
 //! harsher of the realistic models: a torn write programs only the zero bits of the byte's low
 //! nibble (so the torn word holds neither the old nor the new value, and its write count is
-//! used up); a torn erase sets only the low nibble to ones, the bytes before it are erased and
+//! used up, unless no bit of it changed: without ECC an operation that programmed nothing
+//! leaves no trace); a torn erase sets only the low nibble to ones, the bytes before it are erased and
 //! the bytes after it keep their old contents (a partially erased page). This is within the
 //! `embedded-storage` contract ("contents of the written words are undefined", "contents of the
 //! page are undefined") and exercises more states than a clean cut between bytes would.
@@ -110,8 +111,12 @@ impl<const PAGES: usize, const PAGE_BYTES: usize, const WORD: usize>
     pub const CAPACITY: usize = PAGES * PAGE_BYTES;
 
     const GEOMETRY_OK: () = assert!(
-        WORD > 0 && PAGES > 0 && PAGE_BYTES.is_multiple_of(WORD) && PAGES * PAGE_BYTES <= 1 << 31,
-        "RamFlash: page size must be a multiple of the word size"
+        WORD > 0
+            && WORD <= 32
+            && PAGES > 0
+            && PAGE_BYTES.is_multiple_of(WORD)
+            && PAGES * PAGE_BYTES <= 1 << 31,
+        "RamFlash: word 1..=32 bytes, page a multiple of the word, at most 2 GiB"
     );
 
     /// An erased flash (all bytes 0xFF) with the given write rule and no power cut pending.
@@ -231,7 +236,9 @@ impl<const PAGES: usize, const PAGE_BYTES: usize, const WORD: usize>
         if old.iter().zip(word).any(|(&o, &n)| n & !o != 0) {
             return Err(RamFlashError::ZeroToOne(addr as u32));
         }
-        // The word counts as written from its first programmed bit on.
+        let mut before = [0xFFu8; 32];
+        let keep = WORD.min(before.len());
+        before[..keep].copy_from_slice(&self.data[page][at..at + keep]);
         self.writes[page][at] = if count == ERASED {
             WRITTEN_ONCE
         } else {
@@ -241,6 +248,11 @@ impl<const PAGES: usize, const PAGE_BYTES: usize, const WORD: usize>
             if !self.spend_byte() {
                 // Torn byte: only the zero bits of its low nibble get programmed.
                 self.data[page][at + i] &= new | 0xF0;
+                // A program operation that changed no bit leaves no trace (no ECC): the word
+                // stays as writable as it was. Otherwise its write is used up.
+                if self.data[page][at..at + keep] == before[..keep] {
+                    self.writes[page][at] = count;
+                }
                 return Err(RamFlashError::PowerCut);
             }
             self.data[page][at + i] &= new;
@@ -361,9 +373,18 @@ mod tests {
     fn enforces_alignment_and_bounds() {
         let mut f = Small::default();
         let mut buf = [0u8; 4];
-        assert_eq!(block_on(f.read(2, &mut buf)), Err(RamFlashError::NotAligned));
-        assert_eq!(block_on(f.write(4, &[0; 3])), Err(RamFlashError::NotAligned));
-        assert_eq!(block_on(f.write(128, &[0; 4])), Err(RamFlashError::OutOfBounds));
+        assert_eq!(
+            block_on(f.read(2, &mut buf)),
+            Err(RamFlashError::NotAligned)
+        );
+        assert_eq!(
+            block_on(f.write(4, &[0; 3])),
+            Err(RamFlashError::NotAligned)
+        );
+        assert_eq!(
+            block_on(f.write(128, &[0; 4])),
+            Err(RamFlashError::OutOfBounds)
+        );
         assert_eq!(block_on(f.erase(0, 32)), Err(RamFlashError::NotAligned));
         assert_eq!(block_on(f.erase(64, 0)), Err(RamFlashError::OutOfBounds));
         assert_eq!(block_on(f.erase(0, 192)), Err(RamFlashError::OutOfBounds));
@@ -440,6 +461,26 @@ mod tests {
         f.restore_power();
         let got: [u8; 6] = core::array::from_fn(|i| f.byte(i).unwrap());
         assert_eq!(got, [0xFF, 0xFF, 0xFF, 0x0F, 0x00, 0xF0]);
+    }
+
+    #[test]
+    fn a_torn_write_that_changed_nothing_leaves_the_word_writable() {
+        let mut f = RamFlash::<2, 64, 1>::default();
+        // Byte 0 is cut at once; its target 0x0F has an all-ones low nibble, so nothing changed.
+        f.cut_power_after(Some(0));
+        assert_eq!(block_on(f.write(0, &[0x0F])), Err(RamFlashError::PowerCut));
+        f.restore_power();
+        assert_eq!(f.byte(0), Some(0xFF));
+        block_on(f.write(0, &[0x12])).unwrap();
+        // Byte 1's target 0xF0 does change its low nibble: the write is used up.
+        f.cut_power_after(Some(0));
+        assert_eq!(block_on(f.write(1, &[0xF0])), Err(RamFlashError::PowerCut));
+        f.restore_power();
+        assert_eq!(f.byte(1), Some(0xF0));
+        assert_eq!(
+            block_on(f.write(1, &[0xF0])),
+            Err(RamFlashError::WrittenTwice(1))
+        );
     }
 
     #[test]

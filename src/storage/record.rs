@@ -244,9 +244,7 @@ impl fmt::Display for RecordError {
                 f.write_str("max turn acceleration must be within 0.001..100 rad/s2")
             }
             RecordError::SquareSide => f.write_str("square side must be within 0.1..20 m"),
-            RecordError::RunsPerDirection => {
-                f.write_str("runs per direction must be within 1..50")
-            }
+            RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
         }
     }
 }
@@ -616,10 +614,7 @@ mod tests {
     fn validation_rejects_every_bad_field() {
         let good = calibrated();
         let cases: [(fn(&mut ParamRecord), RecordError); 9] = [
-            (
-                |r| r.calibration.e_d = f64::NAN,
-                RecordError::Factor,
-            ),
+            (|r| r.calibration.e_d = f64::NAN, RecordError::Factor),
             (
                 |r| r.calibration.geometry.wheelbase_m = f64::INFINITY,
                 RecordError::CalibratedGeometry(GeometryError::Wheelbase),
@@ -656,7 +651,10 @@ mod tests {
         assert_eq!(MethodName::new("lee-x").unwrap().as_str(), "lee-x");
         assert_eq!(MethodName::new("exactly12chr").unwrap().as_str().len(), 12);
         assert_eq!(MethodName::new(""), Err(RecordError::MethodName));
-        assert_eq!(MethodName::new("thirteen-char"), Err(RecordError::MethodName));
+        assert_eq!(
+            MethodName::new("thirteen-char"),
+            Err(RecordError::MethodName)
+        );
         assert_eq!(MethodName::new("a b"), Err(RecordError::MethodName));
         assert_eq!(MethodName::new("é"), Err(RecordError::MethodName));
         assert_eq!(MethodName::new("none"), Ok(MethodName::NONE));
