@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 mod plot;
 mod rectangle;
+mod flash;
 
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
@@ -50,6 +51,8 @@ enum Command {
         #[arg(long)]
         svg: Option<std::path::PathBuf>,
     },
+    /// Simulated parameter flash: boots, saves, reboots, wear, damage (see `flash --help`).
+    Flash(flash::FlashArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -67,6 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             belief_ed,
             svg,
         } => run_rectangle(eb, ed, belief_eb, belief_ed, svg),
+        Command::Flash(args) => flash::run(args),
     }
 }
 

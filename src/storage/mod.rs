@@ -79,6 +79,8 @@ impl fmt::Display for FlashFault {
     }
 }
 
+impl core::error::Error for FlashFault {}
+
 /// Why the store could not be created or a save failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -118,6 +120,8 @@ impl fmt::Display for StoreError {
         }
     }
 }
+
+impl core::error::Error for StoreError {}
 
 impl<E: NorFlashError> From<sequential_storage::Error<E>> for StoreError {
     fn from(e: sequential_storage::Error<E>) -> Self {
@@ -168,6 +172,8 @@ impl fmt::Display for LoadWarning {
         }
     }
 }
+
+impl core::error::Error for LoadWarning {}
 
 /// What boot gets: the record to use, and why it is the default one if it is.
 #[derive(Clone, Copy, Debug, PartialEq)]

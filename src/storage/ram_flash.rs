@@ -74,6 +74,8 @@ impl fmt::Display for RamFlashError {
     }
 }
 
+impl core::error::Error for RamFlashError {}
+
 impl NorFlashError for RamFlashError {
     fn kind(&self) -> NorFlashErrorKind {
         match self {
@@ -177,6 +179,31 @@ impl<const PAGES: usize, const PAGE_BYTES: usize, const WORD: usize>
             }
             None => false,
         }
+    }
+
+    /// Copies the contents into `out` (a flash image, e.g. to keep in a file). Copies
+    /// `min(out.len(), CAPACITY)` bytes and returns that count.
+    pub fn copy_image(&self, out: &mut [u8]) -> usize {
+        let n = out.len().min(Self::CAPACITY);
+        for (i, b) in out[..n].iter_mut().enumerate() {
+            *b = self.data[i / PAGE_BYTES][i % PAGE_BYTES];
+        }
+        n
+    }
+
+    /// Replaces the contents with an image from [`Self::copy_image`] (missing bytes read as
+    /// erased). Words that are not all 0xFF count as written once; wear statistics restart.
+    pub fn restore_image(&mut self, image: &[u8]) {
+        for i in 0..Self::CAPACITY {
+            self.data[i / PAGE_BYTES][i % PAGE_BYTES] = image.get(i).copied().unwrap_or(0xFF);
+        }
+        for page in 0..PAGES {
+            for at in (0..PAGE_BYTES).step_by(WORD) {
+                let erased = self.data[page][at..at + WORD].iter().all(|&b| b == 0xFF);
+                self.writes[page][at] = if erased { ERASED } else { WRITTEN_ONCE };
+            }
+        }
+        self.erases = [0; PAGES];
     }
 
     /// Checks alignment and bounds of a word access.
@@ -298,10 +325,15 @@ impl<const PAGES: usize, const PAGE_BYTES: usize, const WORD: usize> ReadNorFlas
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         self.check_power()?;
-        let start = Self::check_words(offset, bytes.len())?;
-        for (i, out) in bytes.iter_mut().enumerate() {
-            let addr = start + i;
-            *out = self.data[addr / PAGE_BYTES][addr % PAGE_BYTES];
+        let mut addr = Self::check_words(offset, bytes.len())?;
+        let mut out = bytes;
+        while !out.is_empty() {
+            let (page, at) = (addr / PAGE_BYTES, addr % PAGE_BYTES);
+            let n = out.len().min(PAGE_BYTES - at);
+            let (head, tail) = out.split_at_mut(n);
+            head.copy_from_slice(&self.data[page][at..at + n]);
+            out = tail;
+            addr += n;
         }
         Ok(())
     }
@@ -481,6 +513,24 @@ mod tests {
             block_on(f.write(1, &[0xF0])),
             Err(RamFlashError::WrittenTwice(1))
         );
+    }
+
+    #[test]
+    fn images_round_trip_and_keep_words_written() {
+        let mut a = Small::default();
+        block_on(a.write(4, &[1, 2, 3, 4])).unwrap();
+        let mut image = [0u8; 128];
+        assert_eq!(a.copy_image(&mut image), 128);
+        let mut b = Small::default();
+        b.restore_image(&image);
+        assert_eq!(b.byte(5), Some(2));
+        assert_eq!(b.byte(8), Some(0xFF));
+        // The programmed word is not blank any more; an erased one still is.
+        assert_eq!(
+            block_on(b.write(4, &[1, 2, 3, 4])),
+            Err(RamFlashError::WrittenTwice(4))
+        );
+        block_on(b.write(8, &[9; 4])).unwrap();
     }
 
     #[test]

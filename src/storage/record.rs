@@ -249,6 +249,8 @@ impl fmt::Display for RecordError {
     }
 }
 
+impl core::error::Error for RecordError {}
+
 /// Why bytes could not be decoded into a [`ParamRecord`] (or a record not encoded).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -288,6 +290,8 @@ impl fmt::Display for FormatError {
         }
     }
 }
+
+impl core::error::Error for FormatError {}
 
 /// `SerializationError::Custom` code base for [`FormatError::UnsupportedVersion`] (+ version).
 const CUSTOM_VERSION_BASE: i32 = 0x100;
@@ -613,7 +617,8 @@ mod tests {
     #[test]
     fn validation_rejects_every_bad_field() {
         let good = calibrated();
-        let cases: [(fn(&mut ParamRecord), RecordError); 9] = [
+        type Spoil = fn(&mut ParamRecord);
+        let cases: [(Spoil, RecordError); 9] = [
             (|r| r.calibration.e_d = f64::NAN, RecordError::Factor),
             (
                 |r| r.calibration.geometry.wheelbase_m = f64::INFINITY,
