@@ -21,6 +21,8 @@ use embedded_storage_async::nor_flash::{
 use stm32f4xx_hal::flash::{self as hal_flash, FlashExt, LockedFlash};
 use stm32f4xx_hal::pac::FLASH;
 
+use crate::storage::{MapConfig, ParamStore};
+
 /// Base address of the internal flash in the memory map.
 pub const FLASH_BASE: u32 = 0x0800_0000;
 /// Total internal flash of the STM32F407VG, bytes.
@@ -50,6 +52,15 @@ const _: () = assert!(
 
 /// The parameter area as the store's range (offsets understood by [`BoardFlash`]).
 pub const PARAMS_RANGE: Range<u32> = PARAMS_START..PARAMS_END;
+
+/// The parameter store on sectors 10–11. The range is checked when the firmware is built
+/// (`MapConfig::new` in a const block), so this cannot fail at run time.
+pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
+    ParamStore::from_config(
+        BoardFlash::new(flash),
+        const { MapConfig::<BoardFlash>::new(PARAMS_RANGE) },
+    )
+}
 
 /// Why a [`BoardFlash`] access failed.
 #[derive(Clone, Copy, Debug)]

@@ -24,7 +24,8 @@ use core::ops::Range;
 
 use embedded_storage_async::nor_flash::{MultiwriteNorFlash, NorFlashError, NorFlashErrorKind};
 use sequential_storage::cache::{Cache, Uncached};
-use sequential_storage::map::{MapConfig, MapStorage};
+pub use sequential_storage::map::MapConfig;
+use sequential_storage::map::MapStorage;
 
 pub use self::record::{
     Calibration, FormatError, METHOD_NAME_MAX, MethodName, MotionSettings, ParamRecord, RecordError,
@@ -198,11 +199,18 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     /// [`StoreError::BadRange`] if the range is misaligned or too small.
     pub fn new(flash: F, range: Range<u32>) -> Result<Self, StoreError> {
         let config = MapConfig::<F>::try_new(range).map_err(|_| StoreError::BadRange)?;
-        Ok(ParamStore {
+        Ok(Self::from_config(flash, config))
+    }
+
+    /// A store with a configuration checked at compile time, e.g.
+    /// `ParamStore::from_config(flash, const { MapConfig::new(RANGE) })` (an invalid range is
+    /// then a build error, so this cannot fail).
+    pub fn from_config(flash: F, config: MapConfig<F>) -> Self {
+        ParamStore {
             map: MapStorage::new(flash, config, Cache::new_uncached()),
             buf: AlignedBuf([0; BUF_LEN]),
             wipes: 0,
-        })
+        }
     }
 
     /// Loads the stored record; falls back to [`ParamRecord::DEFAULT`] with a logged warning
