@@ -131,3 +131,91 @@ fn every_cut_during_a_save_leaves_old_or_new_word_words() {
     let tally = sweep::<4>(24);
     check(&tally, 4);
 }
+
+/// A second cut while the next boot repairs the flash: after an interrupted save,
+/// `sequential-storage` may write or erase during the first load. Cut that repair too; the boot
+/// after it must still load old or new. Every first cut is tried; of the second cuts, the first
+/// and last 64 bytes of each repair and every 13th byte in between (a repair is mostly one page
+/// erase, whose cut points all leave the same kind of partially erased page).
+#[test]
+fn a_second_cut_during_the_boot_repair_still_leaves_old_or_new() {
+    double_cut(13);
+}
+
+/// The same with every second cut point (about 10^6 boots; run with `--ignored`).
+#[test]
+#[ignore]
+fn a_second_cut_at_every_byte_of_the_boot_repair() {
+    double_cut(1);
+}
+
+fn double_cut(stride: u64) {
+    type F = RamFlash<2, PAGE, 1>;
+    let range = 0..(2 * PAGE) as u32;
+    let (mut first_cuts, mut repairs, mut second_cuts, mut bad) = (0u64, 0u64, 0u64, 0u64);
+    let mut base = F::default();
+    let mut old: Option<ParamRecord> = None;
+    for p in 0..16u32 {
+        let new = calibrated(2000 + p);
+        let mut probe = base.clone();
+        let before = probe.bytes_touched();
+        ParamStore::new(&mut probe, range.clone())
+            .unwrap()
+            .save_blocking(&new, true)
+            .unwrap();
+        let len = probe.bytes_touched() - before;
+        for cut in 0..len {
+            first_cuts += 1;
+            let mut cut_once = base.clone();
+            cut_once.cut_power_after(Some(cut as u32));
+            let _ = ParamStore::new(&mut cut_once, range.clone())
+                .unwrap()
+                .save_blocking(&new, true);
+            cut_once.restore_power();
+            // How many bytes does the repairing boot write or erase?
+            let mut probe = cut_once.clone();
+            let before = probe.bytes_touched();
+            ParamStore::new(&mut probe, range.clone())
+                .unwrap()
+                .load_blocking();
+            let repair_len = probe.bytes_touched() - before;
+            if repair_len > 0 {
+                repairs += 1;
+            }
+            let sampled = |c: u64| c < 64 || c + 64 >= repair_len || c.is_multiple_of(stride);
+            for cut2 in (0..repair_len).filter(|&c| sampled(c)) {
+                second_cuts += 1;
+                let mut flash = cut_once.clone();
+                flash.cut_power_after(Some(cut2 as u32));
+                ParamStore::new(&mut flash, range.clone())
+                    .unwrap()
+                    .load_blocking();
+                flash.restore_power();
+                let out = ParamStore::new(&mut flash, range.clone())
+                    .unwrap()
+                    .load_blocking();
+                let ok_old = match old {
+                    Some(o) => out.record == o && out.warning.is_none(),
+                    None => out.warning == Some(LoadWarning::Missing),
+                };
+                let ok_new = out.record == new && out.warning.is_none();
+                if !(ok_old || ok_new) {
+                    eprintln!(
+                        "p={p} cut={cut} cut2={cut2}/{repair_len}: {:?}",
+                        out.warning
+                    );
+                    bad += 1;
+                }
+            }
+        }
+        ParamStore::new(&mut base, range.clone())
+            .unwrap()
+            .save_blocking(&new, true)
+            .unwrap();
+        old = Some(new);
+    }
+    println!(
+        "double cut: {first_cuts} first cuts, {repairs} boots repaired, {second_cuts} second cuts, {bad} not old-or-new"
+    );
+    assert_eq!(bad, 0);
+}

@@ -9,8 +9,9 @@
 //! traits that `sequential-storage` needs. It unlocks the flash controller only for the duration
 //! of one erase or write, and refuses any access outside the parameter sectors, so a logic error
 //! can never erase the program. Erase and program busy-wait inside the HAL: a 128 KiB sector
-//! erase stalls instruction fetches (and so every interrupt) for 1–4 s (RM0090 t_ERASE128KB at
-//! x8 parallelism), which is why the store only writes while the motors are stopped.
+//! erase stalls instruction fetches (and so every interrupt) for about 2 s, up to 4 s (datasheet
+//! t_ERASE128KB at x8 parallelism, which the HAL uses), which is why the store only writes while
+//! the motors are stopped.
 
 use core::ops::Range;
 
