@@ -6,9 +6,9 @@
 
 use clap::{Parser, Subcommand};
 
+mod flash;
 mod plot;
 mod rectangle;
-mod flash;
 
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
