@@ -30,6 +30,7 @@ pub mod reference;
 pub mod routine;
 pub mod run;
 pub mod speed;
+pub mod storage;
 
 #[cfg(target_os = "none")]
 pub mod board;

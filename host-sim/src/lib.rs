@@ -4,5 +4,8 @@
 //! them directly.
 
 pub mod drive;
+pub mod flash;
+pub mod plot;
+pub mod rectangle;
 pub mod robot;
 pub mod square;

@@ -6,9 +6,6 @@
 
 use clap::{Parser, Subcommand};
 
-mod plot;
-mod rectangle;
-
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
 #[command(name = "host-sim", version, about)]
@@ -54,6 +51,8 @@ enum Command {
     Drive(host_sim::drive::DriveArgs),
     /// Drive UMBmark squares CW and CCW closed-loop; end errors and wheel synchronisation.
     Square(host_sim::square::SquareArgs),
+    /// Simulated parameter flash: boots, saves, reboots, wear, damage (see `flash --help`).
+    Flash(host_sim::flash::FlashArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -73,6 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         } => run_rectangle(eb, ed, belief_eb, belief_ed, svg),
         Command::Drive(args) => Ok(host_sim::drive::run(&args)?),
         Command::Square(args) => Ok(host_sim::square::run(&args)?),
+        Command::Flash(args) => host_sim::flash::run(args),
     }
 }
 
@@ -111,15 +111,15 @@ fn run_rectangle(
     use odocal::geometry::Geometry;
     let truth = Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0);
     let belief = Geometry::PAPER_NOMINAL.with_factors(belief_ed, belief_eb, 1.0);
-    let spec = rectangle::RectangleSpec::default();
-    let r = rectangle::run(&spec, &truth, &belief)?;
+    let spec = host_sim::rectangle::RectangleSpec::default();
+    let r = host_sim::rectangle::run(&spec, &truth, &belief)?;
     println!(
         "rectangle {} x {} m, {} CCW laps, truth E_b={eb} E_d={ed}, belief E_b={belief_eb} E_d={belief_ed}",
         spec.side_a_m, spec.side_b_m, spec.laps
     );
     println!("final position error: {:.4} m", r.final_error_m);
     if let Some(prefix) = svg {
-        use plot::{Figure, Series, Style, write_svg};
+        use host_sim::plot::{Figure, Series, Style, write_svg};
         let paths = prefix.with_extension("paths.svg");
         write_svg(
             &paths,

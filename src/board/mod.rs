@@ -18,6 +18,7 @@
 //!
 //! Everything `unsafe` in the firmware lives here and carries a `// SAFETY:` note.
 
+pub mod flash;
 pub mod motors;
 
 /// Core clock, Hz.

@@ -1,0 +1,667 @@
+//! The one record the board persists: geometry, calibration result and motion settings.
+//!
+//! [`ParamRecord`] is what `save` writes and what boot loads. Its stored form is a hand-written,
+//! fixed-length little-endian layout ([`ParamRecord::ENCODED_LEN`] bytes, byte 0 = format
+//! version, see `docs/storage.md` for the table). Lengths are metres, speeds m/s, accelerations
+//! m/s², turn rates rad/s, turn accelerations rad/s²; calibration factors are dimensionless
+//! (`E_d = D_R / D_L`, `E_b = b_actual / b_nominal`, `E_s` = mean-diameter scale).
+//!
+//! Decoding ([`ParamRecord::decode`]) only checks the layout (version, length, method name);
+//! [`ParamRecord::validate`] checks every value (finite, plausible range). A stored record is used
+//! only when both pass.
+
+use core::fmt;
+
+use sequential_storage::map::{SerializationError, Value};
+
+use crate::geometry::{Geometry, GeometryError};
+
+/// Longest calibration method name, bytes of ASCII.
+pub const METHOD_NAME_MAX: usize = 12;
+
+/// Name of the method that produced a calibration (`exact`, `lee-x`, `umbmark-x`, `none`, …).
+///
+/// Short printable ASCII (1 ..= [`METHOD_NAME_MAX`] bytes, no spaces) so the storage format does
+/// not depend on the calibration module's types. Unused bytes are always zero.
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MethodName {
+    len: u8,
+    bytes: [u8; METHOD_NAME_MAX],
+}
+
+impl MethodName {
+    /// The method name of an uncalibrated robot.
+    pub const NONE: MethodName = MethodName {
+        len: 4,
+        bytes: *b"none\0\0\0\0\0\0\0\0",
+    };
+
+    /// A method name from text.
+    ///
+    /// # Errors
+    /// [`RecordError::MethodName`] if `name` is empty, longer than [`METHOD_NAME_MAX`] bytes, or
+    /// contains anything but printable ASCII without spaces.
+    pub fn new(name: &str) -> Result<Self, RecordError> {
+        Self::from_bytes(name.as_bytes())
+    }
+
+    fn from_bytes(name: &[u8]) -> Result<Self, RecordError> {
+        let printable = name.iter().all(|c| c.is_ascii_graphic());
+        if name.is_empty() || name.len() > METHOD_NAME_MAX || !printable {
+            return Err(RecordError::MethodName);
+        }
+        let mut bytes = [0u8; METHOD_NAME_MAX];
+        bytes[..name.len()].copy_from_slice(name);
+        Ok(MethodName {
+            len: name.len() as u8,
+            bytes,
+        })
+    }
+
+    /// The name as text.
+    pub fn as_str(&self) -> &str {
+        let len = usize::from(self.len).min(METHOD_NAME_MAX);
+        core::str::from_utf8(&self.bytes[..len]).unwrap_or("?")
+    }
+}
+
+impl fmt::Debug for MethodName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:?}", self.as_str())
+    }
+}
+
+impl fmt::Display for MethodName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+#[cfg(target_os = "none")]
+impl defmt::Format for MethodName {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "{=str}", self.as_str())
+    }
+}
+
+/// A calibration result as stored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Calibration {
+    /// Diameter ratio factor `E_d = D_R / D_L` (dimensionless).
+    pub e_d: f64,
+    /// Wheelbase factor `E_b = b_actual / b_nominal` (dimensionless).
+    pub e_b: f64,
+    /// Mean-diameter (distance) scale `E_s` (dimensionless).
+    pub e_s: f64,
+    /// The resulting absolute geometry that odometry and the routine use.
+    pub geometry: Geometry,
+    /// Which method produced it.
+    pub method: MethodName,
+    /// Number of square runs used (CW + CCW); 0 for no calibration.
+    pub runs: u16,
+    /// Predicted worst return-position error `E_max` after the correction, metres.
+    pub predicted_e_max_m: f64,
+}
+
+impl Calibration {
+    /// "No calibration" for a robot with the given nominal geometry: all factors 1.
+    pub const fn none(nominal: Geometry) -> Self {
+        Calibration {
+            e_d: 1.0,
+            e_b: 1.0,
+            e_s: 1.0,
+            geometry: nominal,
+            method: MethodName::NONE,
+            runs: 0,
+            predicted_e_max_m: 0.0,
+        }
+    }
+}
+
+/// Motion settings an operator can `set` and `save`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionSettings {
+    /// Maximum straight-line speed, m/s.
+    pub max_speed_mps: f32,
+    /// Maximum straight-line acceleration, m/s².
+    pub max_accel_mps2: f32,
+    /// Maximum in-place turn rate, rad/s.
+    pub max_turn_rate_radps: f32,
+    /// Maximum in-place turn acceleration, rad/s².
+    pub max_turn_accel_radps2: f32,
+    /// Side length of the calibration square, metres.
+    pub square_side_m: f32,
+    /// Square runs per direction (CW and CCW each) for a calibration.
+    pub runs_per_direction: u8,
+}
+
+impl MotionSettings {
+    /// Factory settings: 0.3 m/s, 0.3 m/s², 1 rad/s, 2 rad/s², 2 m square, 5 runs per direction.
+    pub const DEFAULT: MotionSettings = MotionSettings {
+        max_speed_mps: 0.3,
+        max_accel_mps2: 0.3,
+        max_turn_rate_radps: 1.0,
+        max_turn_accel_radps2: 2.0,
+        square_side_m: 2.0,
+        runs_per_direction: 5,
+    };
+
+    /// Checks that every setting is finite and within its plausible range.
+    ///
+    /// # Errors
+    /// The first offending setting, as a [`RecordError`].
+    pub fn validate(&self) -> Result<(), RecordError> {
+        let within = |v: f32, lo: f32, hi: f32| v.is_finite() && v >= lo && v <= hi;
+        if !within(self.max_speed_mps, 0.001, 5.0) {
+            return Err(RecordError::MaxSpeed);
+        }
+        if !within(self.max_accel_mps2, 0.001, 20.0) {
+            return Err(RecordError::MaxAccel);
+        }
+        if !within(self.max_turn_rate_radps, 0.001, 20.0) {
+            return Err(RecordError::MaxTurnRate);
+        }
+        if !within(self.max_turn_accel_radps2, 0.001, 100.0) {
+            return Err(RecordError::MaxTurnAccel);
+        }
+        if !within(self.square_side_m, 0.1, 20.0) {
+            return Err(RecordError::SquareSide);
+        }
+        if !(1..=50).contains(&self.runs_per_direction) {
+            return Err(RecordError::RunsPerDirection);
+        }
+        Ok(())
+    }
+}
+
+impl Default for MotionSettings {
+    fn default() -> Self {
+        MotionSettings::DEFAULT
+    }
+}
+
+/// Everything the board persists, as one stored record.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamRecord {
+    /// Nominal geometry (design values: D_R = D_L = D, b, counts per revolution).
+    pub nominal: Geometry,
+    /// Calibration result; [`Calibration::none`] of the nominal geometry when uncalibrated.
+    pub calibration: Calibration,
+    /// Operator motion settings.
+    pub motion: MotionSettings,
+}
+
+/// Why a record was rejected by [`ParamRecord::validate`] or [`MethodName::new`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RecordError {
+    /// The nominal geometry is invalid.
+    NominalGeometry(GeometryError),
+    /// The calibrated geometry is invalid.
+    CalibratedGeometry(GeometryError),
+    /// The calibrated geometry has another encoder resolution than the nominal one, or a
+    /// diameter or wheelbase outside 0.8 ..= 1.25 × nominal.
+    CalibrationMismatch,
+    /// `E_d`, `E_b` or `E_s` is not finite or outside 0.8 ..= 1.25.
+    Factor,
+    /// The method name is empty, too long, or not printable ASCII.
+    MethodName,
+    /// More than 1000 runs.
+    Runs,
+    /// The predicted `E_max` is not finite or outside 0 ..= 10 m.
+    PredictedError,
+    /// The maximum speed is not finite or outside 0.001 ..= 5 m/s.
+    MaxSpeed,
+    /// The maximum acceleration is not finite or outside 0.001 ..= 20 m/s².
+    MaxAccel,
+    /// The maximum turn rate is not finite or outside 0.001 ..= 20 rad/s.
+    MaxTurnRate,
+    /// The maximum turn acceleration is not finite or outside 0.001 ..= 100 rad/s².
+    MaxTurnAccel,
+    /// The square side is not finite or outside 0.1 ..= 20 m.
+    SquareSide,
+    /// Runs per direction outside 1 ..= 50.
+    RunsPerDirection,
+}
+
+impl fmt::Display for RecordError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RecordError::NominalGeometry(e) => write!(f, "nominal geometry: {e}"),
+            RecordError::CalibratedGeometry(e) => write!(f, "calibrated geometry: {e}"),
+            RecordError::CalibrationMismatch => {
+                f.write_str("calibrated geometry must be within 0.8..1.25 x nominal")
+            }
+            RecordError::Factor => f.write_str("E_d, E_b and E_s must be within 0.8..1.25"),
+            RecordError::MethodName => f.write_str("method name must be 1..12 printable ASCII"),
+            RecordError::Runs => f.write_str("run count must be at most 1000"),
+            RecordError::PredictedError => f.write_str("predicted E_max must be within 0..10 m"),
+            RecordError::MaxSpeed => f.write_str("max speed must be within 0.001..5 m/s"),
+            RecordError::MaxAccel => f.write_str("max acceleration must be within 0.001..20 m/s2"),
+            RecordError::MaxTurnRate => f.write_str("max turn rate must be within 0.001..20 rad/s"),
+            RecordError::MaxTurnAccel => {
+                f.write_str("max turn acceleration must be within 0.001..100 rad/s2")
+            }
+            RecordError::SquareSide => f.write_str("square side must be within 0.1..20 m"),
+            RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
+        }
+    }
+}
+
+impl core::error::Error for RecordError {}
+
+/// Why bytes could not be decoded into a [`ParamRecord`] (or a record not encoded).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum FormatError {
+    /// The output buffer is shorter than [`ParamRecord::ENCODED_LEN`].
+    BufferTooSmall,
+    /// The stored bytes have the wrong length for their version.
+    Length {
+        /// Length the version requires, bytes.
+        expected: u16,
+        /// Length found, bytes.
+        found: u16,
+    },
+    /// The stored format version is not one this firmware reads.
+    UnsupportedVersion {
+        /// Version byte found.
+        found: u8,
+    },
+    /// The stored method name is not printable ASCII.
+    MethodName,
+}
+
+impl fmt::Display for FormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FormatError::BufferTooSmall => f.write_str("buffer too small for a parameter record"),
+            FormatError::Length { expected, found } => {
+                write!(f, "record is {found} bytes, expected {expected}")
+            }
+            FormatError::UnsupportedVersion { found } => write!(
+                f,
+                "record format version {found} is not supported (this firmware reads {})",
+                ParamRecord::FORMAT_VERSION
+            ),
+            FormatError::MethodName => f.write_str("stored method name is not printable ASCII"),
+        }
+    }
+}
+
+impl core::error::Error for FormatError {}
+
+/// `SerializationError::Custom` code base for [`FormatError::UnsupportedVersion`] (+ version).
+const CUSTOM_VERSION_BASE: i32 = 0x100;
+
+impl From<FormatError> for SerializationError {
+    fn from(e: FormatError) -> Self {
+        match e {
+            FormatError::BufferTooSmall => SerializationError::BufferTooSmall,
+            FormatError::UnsupportedVersion { found } => {
+                SerializationError::Custom(CUSTOM_VERSION_BASE + i32::from(found))
+            }
+            FormatError::Length { .. } | FormatError::MethodName => {
+                SerializationError::InvalidFormat
+            }
+        }
+    }
+}
+
+/// Little-endian writer over a fixed buffer whose length was checked up front.
+struct Writer<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl Writer<'_> {
+    fn bytes(&mut self, b: &[u8]) {
+        if let Some(dst) = self.buf.get_mut(self.pos..self.pos + b.len()) {
+            dst.copy_from_slice(b);
+        }
+        self.pos += b.len();
+    }
+    fn f64(&mut self, v: f64) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn f32(&mut self, v: f32) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn geometry(&mut self, g: &Geometry) {
+        self.f64(g.diameter_right_m);
+        self.f64(g.diameter_left_m);
+        self.f64(g.wheelbase_m);
+        self.bytes(&g.counts_per_rev.to_le_bytes());
+    }
+}
+
+/// Little-endian reader over a buffer whose length was checked up front.
+struct Reader<'a> {
+    buf: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn array<const N: usize>(&mut self) -> [u8; N] {
+        let mut out = [0u8; N];
+        if let Some(src) = self.buf.get(self.pos..self.pos + N) {
+            out.copy_from_slice(src);
+        }
+        self.pos += N;
+        out
+    }
+    fn f64(&mut self) -> f64 {
+        f64::from_le_bytes(self.array())
+    }
+    fn f32(&mut self) -> f32 {
+        f32::from_le_bytes(self.array())
+    }
+    fn geometry(&mut self) -> Geometry {
+        Geometry {
+            diameter_right_m: self.f64(),
+            diameter_left_m: self.f64(),
+            wheelbase_m: self.f64(),
+            counts_per_rev: u32::from_le_bytes(self.array()),
+        }
+    }
+}
+
+impl ParamRecord {
+    /// Format version written by this firmware (byte 0 of the stored record).
+    ///
+    /// Version history: 1 = first format. A future format bumps this and adds a migration arm
+    /// for the old version in [`ParamRecord::decode`]; until then any other version is rejected.
+    pub const FORMAT_VERSION: u8 = 1;
+
+    /// Length of the stored record, bytes.
+    ///
+    /// version 1 + nominal geometry 28 + `E_d, E_b, E_s` 24 + calibrated geometry 28 + method
+    /// 1 + 12 + runs 2 + `E_max` 8 + motion 5 × 4 + 1.
+    pub const ENCODED_LEN: usize = 1 + 28 + 24 + 28 + 1 + METHOD_NAME_MAX + 2 + 8 + 20 + 1;
+
+    /// The paper's nominal robot (D = 150 mm, b = 385 mm, 200,000 counts/rev), uncalibrated,
+    /// factory motion settings.
+    pub const DEFAULT: ParamRecord = ParamRecord {
+        nominal: Geometry::PAPER_NOMINAL,
+        calibration: Calibration::none(Geometry::PAPER_NOMINAL),
+        motion: MotionSettings::DEFAULT,
+    };
+
+    /// The geometry odometry and the routine use: the calibrated one.
+    pub fn active_geometry(&self) -> Geometry {
+        self.calibration.geometry
+    }
+
+    /// Checks every field: finite, plausible ranges, calibrated geometry consistent with the
+    /// nominal one.
+    ///
+    /// # Errors
+    /// The first offending field, as a [`RecordError`].
+    pub fn validate(&self) -> Result<(), RecordError> {
+        self.nominal
+            .validate()
+            .map_err(RecordError::NominalGeometry)?;
+        let c = &self.calibration;
+        c.geometry
+            .validate()
+            .map_err(RecordError::CalibratedGeometry)?;
+        let factor_ok = |e: f64| e.is_finite() && (0.8..=1.25).contains(&e);
+        if !(factor_ok(c.e_d) && factor_ok(c.e_b) && factor_ok(c.e_s)) {
+            return Err(RecordError::Factor);
+        }
+        let n = &self.nominal;
+        if c.geometry.counts_per_rev != n.counts_per_rev
+            || !factor_ok(c.geometry.diameter_right_m / n.diameter_right_m)
+            || !factor_ok(c.geometry.diameter_left_m / n.diameter_left_m)
+            || !factor_ok(c.geometry.wheelbase_m / n.wheelbase_m)
+        {
+            return Err(RecordError::CalibrationMismatch);
+        }
+        MethodName::from_bytes(c.method.as_str().as_bytes())?;
+        if c.runs > 1000 {
+            return Err(RecordError::Runs);
+        }
+        if !(c.predicted_e_max_m.is_finite() && (0.0..=10.0).contains(&c.predicted_e_max_m)) {
+            return Err(RecordError::PredictedError);
+        }
+        self.motion.validate()
+    }
+
+    /// Writes the stored form into `buf`; returns the number of bytes written
+    /// ([`Self::ENCODED_LEN`]).
+    ///
+    /// # Errors
+    /// [`FormatError::BufferTooSmall`] if `buf` is shorter than [`Self::ENCODED_LEN`].
+    pub fn encode(&self, buf: &mut [u8]) -> Result<usize, FormatError> {
+        let Some(buf) = buf.get_mut(..Self::ENCODED_LEN) else {
+            return Err(FormatError::BufferTooSmall);
+        };
+        let mut w = Writer { buf, pos: 0 };
+        w.bytes(&[Self::FORMAT_VERSION]);
+        w.geometry(&self.nominal);
+        let c = &self.calibration;
+        w.f64(c.e_d);
+        w.f64(c.e_b);
+        w.f64(c.e_s);
+        w.geometry(&c.geometry);
+        w.bytes(&[c.method.len]);
+        w.bytes(&c.method.bytes);
+        w.bytes(&c.runs.to_le_bytes());
+        w.f64(c.predicted_e_max_m);
+        let m = &self.motion;
+        w.f32(m.max_speed_mps);
+        w.f32(m.max_accel_mps2);
+        w.f32(m.max_turn_rate_radps);
+        w.f32(m.max_turn_accel_radps2);
+        w.f32(m.square_side_m);
+        w.bytes(&[m.runs_per_direction]);
+        Ok(w.pos)
+    }
+
+    /// Reads a stored record. Checks the layout only; call [`Self::validate`] on the result.
+    ///
+    /// # Errors
+    /// [`FormatError::UnsupportedVersion`] for any version other than
+    /// [`Self::FORMAT_VERSION`], [`FormatError::Length`] for a wrong length,
+    /// [`FormatError::MethodName`] for a method name that is not printable ASCII.
+    pub fn decode(bytes: &[u8]) -> Result<ParamRecord, FormatError> {
+        let found_len = u16::try_from(bytes.len()).unwrap_or(u16::MAX);
+        let Some(&version) = bytes.first() else {
+            return Err(FormatError::Length {
+                expected: Self::ENCODED_LEN as u16,
+                found: 0,
+            });
+        };
+        // Migration arms for older versions go here, each producing a current record.
+        if version != Self::FORMAT_VERSION {
+            return Err(FormatError::UnsupportedVersion { found: version });
+        }
+        if bytes.len() != Self::ENCODED_LEN {
+            return Err(FormatError::Length {
+                expected: Self::ENCODED_LEN as u16,
+                found: found_len,
+            });
+        }
+        let mut r = Reader { buf: bytes, pos: 1 };
+        let nominal = r.geometry();
+        let e_d = r.f64();
+        let e_b = r.f64();
+        let e_s = r.f64();
+        let geometry = r.geometry();
+        let [name_len] = r.array::<1>();
+        let name: [u8; METHOD_NAME_MAX] = r.array();
+        let name_len = usize::from(name_len);
+        let (used, unused) = name.split_at(name_len.min(METHOD_NAME_MAX));
+        if name_len > METHOD_NAME_MAX || unused.iter().any(|&b| b != 0) {
+            return Err(FormatError::MethodName);
+        }
+        let method = MethodName::from_bytes(used).map_err(|_| FormatError::MethodName)?;
+        let runs = u16::from_le_bytes(r.array());
+        let predicted_e_max_m = r.f64();
+        let motion = MotionSettings {
+            max_speed_mps: r.f32(),
+            max_accel_mps2: r.f32(),
+            max_turn_rate_radps: r.f32(),
+            max_turn_accel_radps2: r.f32(),
+            square_side_m: r.f32(),
+            runs_per_direction: r.array::<1>()[0],
+        };
+        Ok(ParamRecord {
+            nominal,
+            calibration: Calibration {
+                e_d,
+                e_b,
+                e_s,
+                geometry,
+                method,
+                runs,
+                predicted_e_max_m,
+            },
+            motion,
+        })
+    }
+}
+
+impl Default for ParamRecord {
+    fn default() -> Self {
+        ParamRecord::DEFAULT
+    }
+}
+
+impl<'a> Value<'a> for ParamRecord {
+    fn serialize_into(&self, buffer: &mut [u8]) -> Result<usize, SerializationError> {
+        Ok(self.encode(buffer)?)
+    }
+
+    fn deserialize_from(buffer: &'a [u8]) -> Result<(Self, usize), SerializationError> {
+        Ok((ParamRecord::decode(buffer)?, buffer.len()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn calibrated() -> ParamRecord {
+        let nominal = Geometry::PAPER_NOMINAL;
+        ParamRecord {
+            nominal,
+            calibration: Calibration {
+                e_d: 0.998_765_432_1,
+                e_b: 1.012_345_678_9,
+                e_s: 1.000_5,
+                geometry: nominal.with_factors(0.998_765_432_1, 1.012_345_678_9, 1.000_5),
+                method: MethodName::new("umbmark-x").unwrap(),
+                runs: 10,
+                predicted_e_max_m: 0.004_2,
+            },
+            motion: MotionSettings {
+                square_side_m: 4.0,
+                runs_per_direction: 7,
+                ..MotionSettings::DEFAULT
+            },
+        }
+    }
+
+    #[test]
+    fn encode_decode_is_bit_exact() {
+        let rec = calibrated();
+        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+        assert_eq!(rec.encode(&mut buf), Ok(ParamRecord::ENCODED_LEN));
+        assert_eq!(buf[0], ParamRecord::FORMAT_VERSION);
+        let back = ParamRecord::decode(&buf).unwrap();
+        // Exact equality: the layout stores the IEEE bits, so nothing may be lost.
+        assert_eq!(back, rec);
+        assert_eq!(back.validate(), Ok(()));
+    }
+
+    #[test]
+    fn default_is_the_uncalibrated_paper_robot() {
+        let d = ParamRecord::default();
+        assert_eq!(d.nominal, Geometry::PAPER_NOMINAL);
+        assert_eq!(d.active_geometry(), Geometry::PAPER_NOMINAL);
+        assert_eq!(d.calibration.method.as_str(), "none");
+        assert_eq!(d.motion.max_speed_mps, 0.3);
+        assert_eq!(d.motion.runs_per_direction, 5);
+        assert_eq!(d.validate(), Ok(()));
+    }
+
+    #[test]
+    fn version_and_length_are_checked() {
+        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+        calibrated().encode(&mut buf).unwrap();
+        buf[0] = 2;
+        assert_eq!(
+            ParamRecord::decode(&buf),
+            Err(FormatError::UnsupportedVersion { found: 2 })
+        );
+        buf[0] = 0;
+        assert_eq!(
+            ParamRecord::decode(&buf),
+            Err(FormatError::UnsupportedVersion { found: 0 })
+        );
+        buf[0] = ParamRecord::FORMAT_VERSION;
+        assert!(matches!(
+            ParamRecord::decode(&buf[..ParamRecord::ENCODED_LEN - 1]),
+            Err(FormatError::Length { .. })
+        ));
+        let mut short = [0u8; 10];
+        assert_eq!(
+            calibrated().encode(&mut short),
+            Err(FormatError::BufferTooSmall)
+        );
+    }
+
+    #[test]
+    fn validation_rejects_every_bad_field() {
+        let good = calibrated();
+        type Spoil = fn(&mut ParamRecord);
+        let cases: [(Spoil, RecordError); 9] = [
+            (|r| r.calibration.e_d = f64::NAN, RecordError::Factor),
+            (
+                |r| r.calibration.geometry.wheelbase_m = f64::INFINITY,
+                RecordError::CalibratedGeometry(GeometryError::Wheelbase),
+            ),
+            (
+                |r| r.nominal.diameter_right_m = 0.0,
+                RecordError::NominalGeometry(GeometryError::Diameter),
+            ),
+            (
+                |r| r.calibration.geometry.wheelbase_m *= 1.5,
+                RecordError::CalibrationMismatch,
+            ),
+            (
+                |r| r.calibration.predicted_e_max_m = -1.0,
+                RecordError::PredictedError,
+            ),
+            (|r| r.calibration.runs = 5000, RecordError::Runs),
+            (|r| r.motion.max_speed_mps = f32::NAN, RecordError::MaxSpeed),
+            (|r| r.motion.square_side_m = 0.0, RecordError::SquareSide),
+            (
+                |r| r.motion.runs_per_direction = 0,
+                RecordError::RunsPerDirection,
+            ),
+        ];
+        for (spoil, expected) in cases {
+            let mut r = good;
+            spoil(&mut r);
+            assert_eq!(r.validate(), Err(expected));
+        }
+    }
+
+    #[test]
+    fn method_names_are_short_printable_ascii() {
+        assert_eq!(MethodName::new("lee-x").unwrap().as_str(), "lee-x");
+        assert_eq!(MethodName::new("exactly12chr").unwrap().as_str().len(), 12);
+        assert_eq!(MethodName::new(""), Err(RecordError::MethodName));
+        assert_eq!(
+            MethodName::new("thirteen-char"),
+            Err(RecordError::MethodName)
+        );
+        assert_eq!(MethodName::new("a b"), Err(RecordError::MethodName));
+        assert_eq!(MethodName::new("é"), Err(RecordError::MethodName));
+        assert_eq!(MethodName::new("none"), Ok(MethodName::NONE));
+    }
+}

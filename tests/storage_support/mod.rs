@@ -1,0 +1,59 @@
+//! Shared pieces of the storage integration tests: flash types, records, a small PRNG.
+#![allow(dead_code)]
+
+use odocal::geometry::Geometry;
+use odocal::storage::ram_flash::RamFlash;
+use odocal::storage::{Calibration, MethodName, MotionSettings, ParamRecord};
+
+/// Sector size of the STM32F407's sectors 10 and 11, bytes.
+pub const SECTOR: usize = 128 * 1024;
+
+/// The board's parameter area: two 128 KiB sectors, byte-programmable (as the HAL drives it).
+pub type BoardFlash = RamFlash<2, SECTOR, 1>;
+
+/// The whole of a [`BoardFlash`] as the store's range.
+pub const BOARD_RANGE: core::ops::Range<u32> = 0..(2 * SECTOR) as u32;
+
+/// A valid, calibrated record that differs from every other `n` in every calibration field.
+pub fn calibrated(n: u32) -> ParamRecord {
+    let k = f64::from(n % 1000);
+    let e_d = 0.99 + 1e-5 * k;
+    let e_b = 1.01 - 7e-6 * k;
+    let e_s = 1.0 + 3e-6 * k;
+    let nominal = Geometry::PAPER_NOMINAL;
+    let methods = ["exact", "lee-x", "umbmark-x"];
+    ParamRecord {
+        nominal,
+        calibration: Calibration {
+            e_d,
+            e_b,
+            e_s,
+            geometry: nominal.with_factors(e_d, e_b, e_s),
+            method: MethodName::new(methods[(n % 3) as usize]).unwrap(),
+            runs: 10 + (n % 7) as u16,
+            predicted_e_max_m: 1e-4 * (1.0 + k),
+        },
+        motion: MotionSettings {
+            max_speed_mps: 0.2 + 0.0001 * (n % 1000) as f32,
+            runs_per_direction: 1 + (n % 9) as u8,
+            ..MotionSettings::DEFAULT
+        },
+    }
+}
+
+/// SplitMix64: a tiny deterministic PRNG so every failure is reproducible from its seed.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+}
