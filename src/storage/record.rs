@@ -174,6 +174,18 @@ impl MotionSettings {
     }
 }
 
+impl MotionSettings {
+    /// The speed and acceleration limits the controller uses.
+    pub fn limits(&self) -> crate::profile::MotionLimits {
+        crate::profile::MotionLimits {
+            max_speed_mps: self.max_speed_mps,
+            max_accel_mps2: self.max_accel_mps2,
+            max_turn_rate_radps: self.max_turn_rate_radps,
+            max_turn_accel_radps2: self.max_turn_accel_radps2,
+        }
+    }
+}
+
 impl Default for MotionSettings {
     fn default() -> Self {
         MotionSettings::DEFAULT
