@@ -21,6 +21,7 @@ pub mod fmt;
 pub mod angle;
 pub mod button;
 pub mod controller;
+pub mod calibration;
 pub mod encoder;
 pub mod geometry;
 pub mod motor;
