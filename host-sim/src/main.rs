@@ -6,6 +6,10 @@
 
 use clap::{Parser, Subcommand};
 
+mod plot;
+mod rectangle;
+mod paper;
+
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
 #[command(name = "host-sim", version, about)]
@@ -53,6 +57,8 @@ enum Command {
     Square(host_sim::square::SquareArgs),
     /// Simulated parameter flash: boots, saves, reboots, wear, damage (see `flash --help`).
     Flash(host_sim::flash::FlashArgs),
+    /// Lee, Jung & Chung 2011 §3 simulation: ideal kinematics, every calibration method.
+    Paper(paper::PaperArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -73,6 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Drive(args) => Ok(host_sim::drive::run(&args)?),
         Command::Square(args) => Ok(host_sim::square::run(&args)?),
         Command::Flash(args) => host_sim::flash::run(args),
+        Command::Paper(args) => paper::run(&args),
     }
 }
 
