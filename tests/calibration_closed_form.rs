@@ -71,7 +71,10 @@ fn lee_extra_term_is_pi_over_4_times_ed_minus_1_to_first_order() {
         let first_order = PI / 4.0 * (ed - 1.0);
         let rel = (term / first_order - 1.0).abs();
         // Relative difference bounded by β² (it is ≈ b²β²/(4L²) + β²/24 here).
-        assert!(rel <= beta * beta, "β = {beta}: {term} vs {first_order} ({rel})");
+        assert!(
+            rel <= beta * beta,
+            "β = {beta}: {term} vs {first_order} ({rel})"
+        );
     }
 }
 
@@ -155,5 +158,8 @@ fn calibrate_error_cases() {
         calibrate(&good, &g, Method::JungChung),
         Err(CalibrationError::NoHeading)
     );
-    assert_eq!(calibrate(&[], &g, Method::Exact), Err(CalibrationError::NoRuns));
+    assert_eq!(
+        calibrate(&[], &g, Method::Exact),
+        Err(CalibrationError::NoRuns)
+    );
 }

@@ -71,8 +71,16 @@ fn exact_recovers_the_paper_truth_at_every_side() {
         let obs: Vec<_> = runs.iter().map(Run::obs).collect();
         let c = calibrate(&obs, &NOMINAL, Method::Exact).unwrap();
         // The requirement is 1e-5; noiseless data fits to rounding (~1e-12).
-        assert!((c.e_b / 1.010 - 1.0).abs() <= 1e-5, "L={side}: E_b {}", c.e_b);
-        assert!((c.e_d / 0.995 - 1.0).abs() <= 1e-5, "L={side}: E_d {}", c.e_d);
+        assert!(
+            (c.e_b / 1.010 - 1.0).abs() <= 1e-5,
+            "L={side}: E_b {}",
+            c.e_b
+        );
+        assert!(
+            (c.e_d / 0.995 - 1.0).abs() <= 1e-5,
+            "L={side}: E_d {}",
+            c.e_d
+        );
         // No line run: the scale is not fitted and stays at the driving value (1 up to rounding).
         assert!((c.e_s - 1.0).abs() < 1e-15);
         // Re-integrating the recorded ticks with the fit leaves (almost) no systematic error.
@@ -110,7 +118,10 @@ fn closed_form_calibrations_compose_iteratively() {
         let obs: Vec<_> = runs.iter().map(Run::obs).collect();
         let c = calibrate(&obs, &NOMINAL, Method::UmbmarkX).unwrap();
         let err = (c.e_b / 1.010 - 1.0).abs() + (c.e_d / 0.995 - 1.0).abs();
-        assert!(err < last, "iteration error {err} did not shrink from {last}");
+        assert!(
+            err < last,
+            "iteration error {err} did not shrink from {last}"
+        );
         last = err;
         belief = c.geometry;
     }

@@ -8,7 +8,10 @@ use clap::{Parser, Subcommand};
 
 mod plot;
 mod rectangle;
+mod montecarlo;
+mod optiodom;
 mod paper;
+mod replay;
 
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
@@ -59,6 +62,10 @@ enum Command {
     Flash(host_sim::flash::FlashArgs),
     /// Lee, Jung & Chung 2011 §3 simulation: ideal kinematics, every calibration method.
     Paper(paper::PaperArgs),
+    /// Calibrate on one OptiOdom session, evaluate on others.
+    Replay(replay::ReplayArgs),
+    /// Paper-mode Monte Carlo with measurement and slip noise.
+    Montecarlo(montecarlo::MonteCarloArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -80,6 +87,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Square(args) => Ok(host_sim::square::run(&args)?),
         Command::Flash(args) => host_sim::flash::run(args),
         Command::Paper(args) => paper::run(&args),
+        Command::Replay(args) => replay::run(&args),
+        Command::Montecarlo(args) => montecarlo::run(&args),
     }
 }
 

@@ -20,6 +20,9 @@
 //! smallest. Normal equations are accumulated run by run (3×3), so memory does not grow with the
 //! number of runs or knots. 1σ uncertainty: `(JᵀJ)⁻¹ σ²` with `σ² = Σr² / (m − n)`.
 
+// Dense 3×3 linear algebra reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
 use super::quality::Quality;
 use super::stats::SquareStats;
 use super::{
@@ -216,9 +219,7 @@ pub fn calibrate_exact(
         .iter()
         .find(|r| Problem::usable(r))
         .ok_or(CalibrationError::NoRuns)?;
-    let has_line = runs
-        .iter()
-        .any(|r| matches!(r.path, PathKind::Line { .. }));
+    let has_line = runs.iter().any(|r| matches!(r.path, PathKind::Line { .. }));
     let fit_scale = match options.scale {
         ScaleFit::Auto => has_line,
         ScaleFit::Always => true,
@@ -250,7 +251,9 @@ pub fn calibrate_exact(
                 row[i] += lambda * a[i][i];
             }
             let delta = solve(aug, g, n).ok_or(CalibrationError::Degenerate)?;
-            let step = delta[..n].iter().fold(0.0, |s, v| libm::fmax(s, libm::fabs(*v)));
+            let step = delta[..n]
+                .iter()
+                .fold(0.0, |s, v| libm::fmax(s, libm::fabs(*v)));
             let mut q = p;
             for i in 0..n {
                 q[i] += delta[i];
@@ -301,7 +304,9 @@ pub fn calibrate_exact(
             *s = Some(libm::sqrt(libm::fmax(col[i], 0.0) * sigma2));
         }
     }
-    let sigma_out = sigma[0].zip(sigma[1]).map(|(d, b)| [d, b, sigma[2].unwrap_or(0.0)]);
+    let sigma_out = sigma[0]
+        .zip(sigma[1])
+        .map(|(d, b)| [d, b, sigma[2].unwrap_or(0.0)]);
     let stats = SquareStats::from_runs(runs, false).ok();
     let rms = libm::sqrt(cost / m as f64);
     let quality = Quality::from_runs(runs, &geometry, stats.as_ref(), sigma_out, Some(rms));

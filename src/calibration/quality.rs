@@ -9,6 +9,9 @@
 //!   the standard errors of the centres of gravity through the formula (central differences),
 //!   for the exact method from the residuals, `(JᵀJ)⁻¹ σ²`.
 
+// Dense 3×3 linear algebra reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
 use super::stats::{SquareStats, Welford};
 use super::{ClosedFormInputs, Method, RunObservation, closed_form, square_direction};
 use crate::geometry::Geometry;

@@ -152,7 +152,12 @@ impl SquareStats {
             }
             return Ok([self.cw.theta.mean, 0.0, self.ccw.theta.mean, 0.0]);
         }
-        Ok([self.cw.x.mean, self.cw.y.mean, self.ccw.x.mean, self.ccw.y.mean])
+        Ok([
+            self.cw.x.mean,
+            self.cw.y.mean,
+            self.ccw.x.mean,
+            self.ccw.y.mean,
+        ])
     }
 
     /// Variances of the mean of each input of [`SquareStats::inputs`] (sample variance / n);
@@ -183,7 +188,8 @@ impl SquareStats {
         if n < 3 {
             return None;
         }
-        let ss = self.cw.x.sum_sq() + self.cw.y.sum_sq() + self.ccw.x.sum_sq() + self.ccw.y.sum_sq();
+        let ss =
+            self.cw.x.sum_sq() + self.cw.y.sum_sq() + self.ccw.x.sum_sq() + self.ccw.y.sum_sq();
         Some(libm::sqrt(ss / f64::from(n - 2)))
     }
 }

@@ -52,14 +52,21 @@ pub fn square_knots(
     side_m: f64,
 ) -> [WheelTicks; SQUARE_KNOTS] {
     let mut k = [WheelTicks::default(); SQUARE_KNOTS];
-    for (i, s) in square_segments(belief, direction, side_m).iter().enumerate() {
+    for (i, s) in square_segments(belief, direction, side_m)
+        .iter()
+        .enumerate()
+    {
         k[i + 1] = WheelTicks::new(k[i].right + s.right, k[i].left + s.left);
     }
     k
 }
 
 /// Odometry end pose (belief) and true end pose (truth, θ included) of a knot record.
-pub fn end_poses(belief: &Geometry, truth: &Geometry, knots: &[WheelTicks]) -> (PoseF64, Measurement) {
+pub fn end_poses(
+    belief: &Geometry,
+    truth: &Geometry,
+    knots: &[WheelTicks],
+) -> (PoseF64, Measurement) {
     let odo = ArcModel::from_geometry(belief).integrate(PoseF64::default(), knots);
     let t = ArcModel::from_geometry(truth).integrate(PoseF64::default(), knots);
     (

@@ -17,6 +17,9 @@
 //! - **expected error** `sqrt(bias_b² + σ_b² + bias_d² + σ_d²)` of the relative errors of
 //!   `E_b` and `E_d`.
 
+// Dense 3×3 linear algebra reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
 use super::exact::solve;
 use super::quality::propagate;
 use super::synth::{end_poses, square_knots};
@@ -120,8 +123,7 @@ pub fn evaluate(input: &TrackAdviceInput, method: Method, side_m: f64) -> Option
             sd * belief.diameter_ratio() / truth.diameter_ratio(),
         )
     };
-    let expected =
-        libm::sqrt(bias_b * bias_b + sig_b * sig_b + bias_d * bias_d + sig_d * sig_d);
+    let expected = libm::sqrt(bias_b * bias_b + sig_b * sig_b + bias_d * bias_d + sig_d * sig_d);
     Some(TrackAdvice {
         method,
         side_m,
