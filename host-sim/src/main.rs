@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 mod plot;
 mod rectangle;
+mod advice;
 mod montecarlo;
 mod optiodom;
 mod paper;
@@ -66,6 +67,8 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Paper-mode Monte Carlo with measurement and slip noise.
     Montecarlo(montecarlo::MonteCarloArgs),
+    /// Track-size advice (paper §2.3) per calibration method.
+    Advice(advice::AdviceArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -89,6 +92,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Paper(args) => paper::run(&args),
         Command::Replay(args) => replay::run(&args),
         Command::Montecarlo(args) => montecarlo::run(&args),
+        Command::Advice(args) => advice::run(&args),
     }
 }
 

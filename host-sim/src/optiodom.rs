@@ -192,3 +192,49 @@ impl OptiRun {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_a_session_and_moves_truth_into_the_start_frame() {
+        let dir = std::env::temp_dir().join(format!("odocal-optiodom-{}", std::process::id()));
+        let dir = dir.join("1234");
+        fs::create_dir_all(&dir).unwrap();
+        fs::write(
+            dir.join("1234_metadata.csv"),
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,2,,\nL,0.75,,\n",
+        )
+        .unwrap();
+        // Start at (1, 2) heading +y; the robot ends 1 m ahead (world (1, 3)), heading −x.
+        let run = "0,1,2,1.5707963267948966,0,0\n0.05,1,2.5,1.5707963267948966,3,4\n0.1,1,3,3.141592653589793,-2,5\n";
+        fs::write(dir.join("1234_run-01.csv"), run).unwrap();
+        fs::write(dir.join("1234_run-02.csv"), run).unwrap();
+        let s = read_session(&dir).unwrap();
+        fs::remove_dir_all(dir.parent().unwrap()).unwrap();
+        assert_eq!(s.tick_scale, 10);
+        assert_eq!(s.nominal.counts_per_rev, 27_968);
+        assert_eq!(s.nominal.diameter_left_m, 0.083);
+        assert_eq!(s.runs[0].direction, Direction::Cw);
+        assert_eq!(s.runs[1].direction, Direction::Ccw);
+        assert_eq!(
+            s.runs[0].knots,
+            [
+                WheelTicks::new(0, 0),
+                WheelTicks::new(30, 40),
+                WheelTicks::new(10, 90)
+            ]
+        );
+        let e = s.runs[0].truth_end;
+        // In the start frame: 1 m ahead along +x, turned +90°. Exact up to f64 rounding.
+        assert!((e.x_m - 1.0).abs() < 1e-12 && e.y_m.abs() < 1e-12, "{e:?}");
+        assert!((e.theta_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn absent_folder_is_a_clear_error() {
+        let err = read_session(Path::new("/nonexistent/optiodom/xyz")).unwrap_err();
+        assert!(err.contains("does not exist"), "{err}");
+    }
+}

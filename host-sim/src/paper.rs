@@ -256,3 +256,58 @@ pub fn run(args: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_has_exactly_the_issue_keys() {
+        let row = Row {
+            side: 2.0,
+            method: Method::LeeX,
+            cg: [0.1, 0.2, 0.3, 0.4],
+            result: Ok((1.01, 0.995, 0.001)),
+            truth: (1.01, 0.995),
+        };
+        let json = row.json();
+        let keys: Vec<&str> = json
+            .trim_matches(|c| c == '{' || c == '}')
+            .split(',')
+            .map(|kv| kv.split(':').next().unwrap().trim_matches('"'))
+            .collect();
+        assert_eq!(
+            keys,
+            [
+                "L",
+                "method",
+                "x_cw",
+                "y_cw",
+                "x_ccw",
+                "y_ccw",
+                "E_b",
+                "E_d",
+                "E_b_err",
+                "E_d_err",
+                "E_max_after"
+            ]
+        );
+        assert!(json.contains("\"method\":\"lee-x\""));
+    }
+
+    #[test]
+    fn exact_method_reruns_to_zero_error() {
+        // Re-driving with the exact fit leaves only tick rounding: one pulse is 2.4 µm, so after
+        // a 4 × 2 m square the end error stays far below 0.1 mm.
+        let nominal = Geometry::PAPER_NOMINAL;
+        let truth = true_geometry(&nominal, 1.010, 0.995, TruthModel::Mean);
+        let runs = [
+            IdealRun::square(&nominal, &truth, Direction::Cw, 2.0),
+            IdealRun::square(&nominal, &truth, Direction::Ccw, 2.0),
+        ];
+        let obs: Vec<_> = runs.iter().map(IdealRun::observation).collect();
+        let c = calibrate(&obs, &nominal, Method::Exact).unwrap();
+        assert!(e_max(&c.geometry, &truth, 2.0) < 1e-4);
+        assert!(e_max(&nominal, &truth, 2.0) > 0.1);
+    }
+}
