@@ -199,11 +199,7 @@ mod tests {
             .map(|r| r.observation(&cal.nominal, cal.side_m))
             .collect();
         let c = calibrate(&obs, &cal.nominal, Method::Exact).unwrap();
-        let emax = |s: &[DirSummary; 2]| {
-            s.iter()
-                .map(|d| d.cg.0.hypot(d.cg.1))
-                .fold(0.0, f64::max)
-        };
+        let emax = |s: &[DirSummary; 2]| s.iter().map(|d| d.cg.0.hypot(d.cg.1)).fold(0.0, f64::max);
         let before = emax(&summarize(&ev, &ev.nominal));
         let after = emax(&summarize(&ev, &c.geometry));
         // Measured: 30.5 mm before, 9.0 mm after, with a run-to-run scatter of 2–3 mm. A
