@@ -6,12 +6,12 @@
 
 use clap::{Parser, Subcommand};
 
-mod plot;
-mod rectangle;
 mod advice;
 mod montecarlo;
 mod optiodom;
 mod paper;
+mod plot;
+mod rectangle;
 mod replay;
 
 /// Simulated odocal robot.
