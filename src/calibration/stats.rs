@@ -193,3 +193,21 @@ impl SquareStats {
         Some(libm::sqrt(ss / f64::from(n - 2)))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn welford_matches_two_pass() {
+        let v = [1.0, 2.0, 4.0, 7.0];
+        let mut w = Welford::default();
+        v.iter().for_each(|&x| w.push(x));
+        // mean 3.5, sample variance (6.25 + 2.25 + 0.25 + 12.25)/3 = 7.
+        assert!((w.mean - 3.5).abs() < 1e-15);
+        assert!((w.variance().unwrap() - 7.0).abs() < 1e-14);
+        let mut one = Welford::default();
+        one.push(1.0);
+        assert_eq!(one.variance(), None);
+    }
+}
