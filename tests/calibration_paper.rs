@@ -224,3 +224,21 @@ fn umbmark_beta_zero_is_unit_ratio() {
     let f = umbmark::umbmark_x(-0.01, -0.01, 1.0, 0.385).unwrap();
     assert_eq!(f.e_d, 1.0);
 }
+
+#[test]
+fn one_line_summary() {
+    let truth = NOMINAL.with_factors(0.995, 1.010, 1.0);
+    let runs = pair(&NOMINAL, &truth, 2.0);
+    let obs: Vec<_> = runs.iter().map(Run::obs).collect();
+    let c = calibrate(&obs, &NOMINAL, Method::Exact).unwrap();
+    let line = format!("{c}");
+    // Noiseless runs: the fit residuals, and so the exact method's 1σ, are zero. E_max before
+    // is |cg_ccw| at L = 2 m = 238.5 mm (paper table in docs/calibration.md).
+    assert!(
+        line.starts_with(
+            "exact E_b=1.010000+-0.000000 E_d=0.995000+-0.000000 E_s=1.000000 D_R=149.6241mm"
+        ),
+        "{line}"
+    );
+    assert!(line.ends_with("E_max=238.5->0.0mm"), "{line}");
+}

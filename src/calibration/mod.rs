@@ -234,6 +234,33 @@ pub struct Calibration {
     pub iterations: u32,
 }
 
+impl fmt::Display for Calibration {
+    /// One line for the serial console: method, factors with 1σ, geometry in mm, E_max in mm.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let q = &self.quality;
+        write!(f, "{} E_b={:.6}", self.method, self.e_b)?;
+        if let Some(s) = q.sigma_e_b {
+            write!(f, "+-{s:.6}")?;
+        }
+        write!(f, " E_d={:.6}", self.e_d)?;
+        if let Some(s) = q.sigma_e_d {
+            write!(f, "+-{s:.6}")?;
+        }
+        write!(
+            f,
+            " E_s={:.6} D_R={:.4}mm D_L={:.4}mm b={:.3}mm",
+            self.e_s,
+            self.geometry.diameter_right_m * 1e3,
+            self.geometry.diameter_left_m * 1e3,
+            self.geometry.wheelbase_m * 1e3
+        )?;
+        if let (Some(b), Some(a)) = (q.e_max_before_m, q.e_max_after_m) {
+            write!(f, " E_max={:.1}->{:.1}mm", b * 1e3, a * 1e3)?;
+        }
+        Ok(())
+    }
+}
+
 /// Why a calibration failed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
