@@ -7,6 +7,7 @@
 use clap::{Parser, Subcommand};
 
 mod advice;
+mod closedloop;
 mod montecarlo;
 mod optiodom;
 mod paper;
@@ -69,6 +70,12 @@ enum Command {
     Montecarlo(montecarlo::MonteCarloArgs),
     /// Track-size advice (paper §2.3) per calibration method.
     Advice(advice::AdviceArgs),
+    /// Calibration from squares driven closed-loop (motor dynamics), optional noise.
+    Closedloop(closedloop::ClosedLoopArgs),
+    /// Drive a scripted velocity profile (line, turn, arc) closed-loop; odometry vs true pose.
+    Drive(host_sim::drive::DriveArgs),
+    /// Drive UMBmark squares CW and CCW closed-loop; end errors and wheel synchronisation.
+    Square(host_sim::square::SquareArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -93,6 +100,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Replay(args) => replay::run(&args),
         Command::Montecarlo(args) => montecarlo::run(&args),
         Command::Advice(args) => advice::run(&args),
+        Command::Closedloop(args) => closedloop::run(&args),
+        Command::Drive(args) => Ok(host_sim::drive::run(&args)?),
+        Command::Square(args) => Ok(host_sim::square::run(&args)?),
     }
 }
 
