@@ -20,8 +20,8 @@ pub mod fmt;
 
 pub mod angle;
 pub mod button;
-pub mod controller;
 pub mod calibration;
+pub mod controller;
 pub mod encoder;
 pub mod geometry;
 pub mod motor;

@@ -7,13 +7,13 @@
 //! x and y (and on θ with `--heading`).
 
 use clap::Args;
-use host_sim::robot::SimConfig;
-use host_sim::square::drive_path;
 use odocal::calibration::{Method, RunObservation, calibrate};
 use odocal::geometry::Geometry;
 use odocal::run::{Direction, Measurement, PathKind, RunRecord};
 
 use crate::montecarlo::Rng;
+use crate::robot::SimConfig;
+use crate::square::drive_path;
 
 /// Arguments of `host-sim closedloop`.
 #[derive(Args, Debug)]

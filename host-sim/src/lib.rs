@@ -3,9 +3,15 @@
 //! The binary (`main.rs`) is a thin CLI over these modules; closed-loop integration tests use
 //! them directly.
 
+pub mod advice;
+pub mod closedloop;
 pub mod drive;
 pub mod flash;
+pub mod montecarlo;
+pub mod optiodom;
+pub mod paper;
 pub mod plot;
 pub mod rectangle;
+pub mod replay;
 pub mod robot;
 pub mod square;

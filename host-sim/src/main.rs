@@ -6,15 +6,6 @@
 
 use clap::{Parser, Subcommand};
 
-mod advice;
-mod closedloop;
-mod montecarlo;
-mod optiodom;
-mod paper;
-mod plot;
-mod rectangle;
-mod replay;
-
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
 #[command(name = "host-sim", version, about)]
@@ -63,19 +54,15 @@ enum Command {
     /// Simulated parameter flash: boots, saves, reboots, wear, damage (see `flash --help`).
     Flash(host_sim::flash::FlashArgs),
     /// Lee, Jung & Chung 2011 §3 simulation: ideal kinematics, every calibration method.
-    Paper(paper::PaperArgs),
+    Paper(host_sim::paper::PaperArgs),
     /// Calibrate on one OptiOdom session, evaluate on others.
-    Replay(replay::ReplayArgs),
+    Replay(host_sim::replay::ReplayArgs),
     /// Paper-mode Monte Carlo with measurement and slip noise.
-    Montecarlo(montecarlo::MonteCarloArgs),
+    Montecarlo(host_sim::montecarlo::MonteCarloArgs),
     /// Track-size advice (paper §2.3) per calibration method.
-    Advice(advice::AdviceArgs),
+    Advice(host_sim::advice::AdviceArgs),
     /// Calibration from squares driven closed-loop (motor dynamics), optional noise.
-    Closedloop(closedloop::ClosedLoopArgs),
-    /// Drive a scripted velocity profile (line, turn, arc) closed-loop; odometry vs true pose.
-    Drive(host_sim::drive::DriveArgs),
-    /// Drive UMBmark squares CW and CCW closed-loop; end errors and wheel synchronisation.
-    Square(host_sim::square::SquareArgs),
+    Closedloop(host_sim::closedloop::ClosedLoopArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -96,13 +83,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Drive(args) => Ok(host_sim::drive::run(&args)?),
         Command::Square(args) => Ok(host_sim::square::run(&args)?),
         Command::Flash(args) => host_sim::flash::run(args),
-        Command::Paper(args) => paper::run(&args),
-        Command::Replay(args) => replay::run(&args),
-        Command::Montecarlo(args) => montecarlo::run(&args),
-        Command::Advice(args) => advice::run(&args),
-        Command::Closedloop(args) => closedloop::run(&args),
-        Command::Drive(args) => Ok(host_sim::drive::run(&args)?),
-        Command::Square(args) => Ok(host_sim::square::run(&args)?),
+        Command::Paper(args) => host_sim::paper::run(&args),
+        Command::Replay(args) => host_sim::replay::run(&args),
+        Command::Montecarlo(args) => host_sim::montecarlo::run(&args),
+        Command::Advice(args) => host_sim::advice::run(&args),
+        Command::Closedloop(args) => host_sim::closedloop::run(&args),
     }
 }
 
