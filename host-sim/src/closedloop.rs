@@ -11,7 +11,7 @@ use odocal::calibration::{Method, RunObservation, calibrate};
 use odocal::geometry::Geometry;
 use odocal::run::{Direction, Measurement, PathKind, RunRecord};
 
-use crate::montecarlo::Rng;
+use crate::montecarlo::{Acc, Rng};
 use crate::robot::SimConfig;
 use crate::square::drive_path;
 
@@ -102,8 +102,8 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
         .validate()
         .map_err(|e| format!("invalid truth: {e}"))?;
     let mut rng = Rng::new(args.seed);
-    // Per method: sums of relative errors and their squares, failures.
-    let mut acc = [([0.0f64; 2], [0.0f64; 2], 0u32, 0u32); 6];
+    // Per method: relative E_b and E_d errors over the trials.
+    let mut acc = [Acc::default(); 6];
     println!(
         "closed loop: {} trial(s), L = {} m, {}+{} runs, slip σ = {}/period, σ_meas = {} mm{}, truth E_b = {}, E_d = {}",
         args.trials,
@@ -126,11 +126,7 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
             match calibrate(&obs, &nominal, *m) {
                 Ok(c) => {
                     let e = [c.e_b / args.eb - 1.0, c.e_d / truth.diameter_ratio() - 1.0];
-                    for (j, v) in e.iter().enumerate() {
-                        acc[k].0[j] += v;
-                        acc[k].1[j] += v * v;
-                    }
-                    acc[k].2 += 1;
+                    acc[k].push(e[0], e[1]);
                     if args.trials == 1 {
                         println!(
                             "{:>11}  E_b = {:.7} ({:+.2e})  E_d = {:.7} ({:+.2e})  E_max {:.2} → {:.3} mm (predicted)",
@@ -145,7 +141,7 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
                     }
                 }
                 Err(e) => {
-                    acc[k].3 += 1;
+                    acc[k].fail();
                     if args.trials == 1 {
                         println!("{:>11}  error: {e}", m.as_str());
                     }
@@ -158,14 +154,8 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
             "{:>11} {:>12} {:>12} {:>12} {:>12} {:>7}",
             "method", "E_b_err mean", "E_b_err std", "E_d_err mean", "E_d_err std", "failed"
         );
-        for (m, (s, s2, n, failed)) in METHODS.iter().zip(acc.iter()) {
-            let nf = f64::from((*n).max(1));
-            let stat = |j: usize| {
-                let mean = s[j] / nf;
-                let var = (s2[j] - nf * mean * mean) / (nf - 1.0).max(1.0);
-                (mean, var.max(0.0).sqrt())
-            };
-            let ((mb, sb), (md, sd)) = (stat(0), stat(1));
+        for (m, a) in METHODS.iter().zip(acc.iter()) {
+            let ((mb, sb), (md, sd)) = (a.mean_std(0), a.mean_std(1));
             println!(
                 "{:>11} {:>12.3e} {:>12.3e} {:>12.3e} {:>12.3e} {:>7}",
                 m.as_str(),
@@ -173,7 +163,7 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
                 sb,
                 md,
                 sd,
-                failed
+                a.failed()
             );
         }
     }

@@ -121,8 +121,9 @@ pub fn noisy_square(
     (knots, odo, measured)
 }
 
+/// Mean and standard deviation of the relative E_b and E_d errors of one method over trials.
 #[derive(Default, Clone, Copy)]
-struct Acc {
+pub struct Acc {
     n: u32,
     sum: [f64; 2],
     sum2: [f64; 2],
@@ -130,7 +131,8 @@ struct Acc {
 }
 
 impl Acc {
-    fn push(&mut self, eb: f64, ed: f64) {
+    /// Adds one trial's relative errors.
+    pub fn push(&mut self, eb: f64, ed: f64) {
         self.n += 1;
         for (i, v) in [eb, ed].into_iter().enumerate() {
             self.sum[i] += v;
@@ -138,7 +140,18 @@ impl Acc {
         }
     }
 
-    fn mean_std(&self, i: usize) -> (f64, f64) {
+    /// Records a failed trial.
+    pub fn fail(&mut self) {
+        self.failed += 1;
+    }
+
+    /// Failed trials.
+    pub fn failed(&self) -> u32 {
+        self.failed
+    }
+
+    /// Mean and sample standard deviation of component `i` (0 = E_b, 1 = E_d).
+    pub fn mean_std(&self, i: usize) -> (f64, f64) {
         let n = f64::from(self.n.max(1));
         let mean = self.sum[i] / n;
         let var = (self.sum2[i] - n * mean * mean) / (n - 1.0).max(1.0);

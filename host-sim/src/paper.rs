@@ -52,16 +52,6 @@ pub struct PaperArgs {
     pub format: Format,
 }
 
-/// Methods reported by `paper`.
-pub const PAPER_METHODS: [Method; 6] = [
-    Method::UmbmarkX,
-    Method::UmbmarkY,
-    Method::LeeX,
-    Method::LeeY,
-    Method::JungChung,
-    Method::Exact,
-];
-
 /// The true geometry for `E_b`, `E_d` under `model`.
 pub fn true_geometry(nominal: &Geometry, eb: f64, ed: f64, model: TruthModel) -> Geometry {
     match model {
@@ -221,7 +211,7 @@ pub fn run(args: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
         let obs: Vec<_> = runs.iter().map(IdealRun::observation).collect();
         let (xc, yc) = runs[0].error();
         let (xa, ya) = runs[1].error();
-        for method in PAPER_METHODS {
+        for method in Method::ALL {
             let result = calibrate(&obs, &nominal, method)
                 .map(|c| (c.e_b, c.e_d, e_max(&c.geometry, &truth, side)))
                 .map_err(|e| e.to_string());
