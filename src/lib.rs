@@ -27,9 +27,11 @@ pub mod geometry;
 pub mod motor;
 pub mod odometry;
 pub mod profile;
+pub mod protocol;
 pub mod reference;
 pub mod routine;
 pub mod run;
+pub mod session;
 pub mod speed;
 pub mod storage;
 

@@ -1,0 +1,398 @@
+//! Command parser: one text line in, one validated [`Command`] out.
+//!
+//! Tokens are separated by ASCII whitespace; keywords are ASCII case-insensitive. Every number is
+//! checked here: malformed text, NaN/infinity (including overflow such as `1e999`) and values
+//! outside the documented ranges are distinct errors, so nothing downstream ever sees a
+//! non-finite or absurd value. Units on the wire: metres, m/s, rad/s, degrees (headings), Hz.
+
+use core::fmt;
+
+use super::param::ParamName;
+use crate::run::Direction;
+
+/// Largest accepted `|x|`, `|y|` of a measurement, metres.
+pub const MEASURE_LIMIT_M: f64 = 100.0;
+/// Largest accepted `|θ|` of a measurement, degrees.
+pub const MEASURE_LIMIT_DEG: f64 = 360.0;
+/// Accepted square side / line length / circle radius, metres.
+pub const PATH_RANGE_M: (f64, f64) = (0.1, 10.0);
+/// Largest accepted `|v|` of `drive`, m/s (the controller applies its own, tighter limits).
+pub const DRIVE_LIMIT_MPS: f64 = 2.0;
+/// Largest accepted `|ω|` of `drive`, rad/s.
+pub const DRIVE_LIMIT_RADPS: f64 = 10.0;
+/// Accepted pose-stream rates, Hz.
+pub const STREAM_RANGE_HZ: (u32, u32) = (1, 100);
+/// Longest accepted calibration method name, bytes.
+pub const METHOD_NAME_MAX: usize = 16;
+
+/// A parsed command. Optional arguments are `None` when omitted (the session fills defaults).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command<'a> {
+    /// `help`: list the commands.
+    Help,
+    /// `status`: state, pose, faults, session progress.
+    Status,
+    /// `params`: list every parameter and the active calibration.
+    Params,
+    /// `set <name> <value>`: change one parameter (validated range).
+    Set {
+        /// Which parameter.
+        name: ParamName,
+        /// The new value, within `name.range()`.
+        value: f64,
+    },
+    /// `run cw|ccw [L]`: drive one UMBmark square.
+    Run {
+        /// Turn direction.
+        direction: Direction,
+        /// Side, metres; `None` = the planned side.
+        side_m: Option<f64>,
+    },
+    /// `next`: start the next planned square run (what the button's short press does).
+    Next,
+    /// `line [d]`: drive straight for `d` metres.
+    Line {
+        /// Length, metres; `None` = the planned square side.
+        length_m: Option<f64>,
+    },
+    /// `circle cw|ccw [r]`: drive one full circle.
+    Circle {
+        /// Turn direction.
+        direction: Direction,
+        /// Radius, metres; `None` = half the planned square side.
+        radius_m: Option<f64>,
+    },
+    /// `stop`: abort any motion now.
+    Stop,
+    /// `measure <x_m> <y_m> [theta_deg]`: the true end pose of the last finished run.
+    Measure {
+        /// True x in the run's start frame, metres.
+        x_m: f64,
+        /// True y in the run's start frame, metres.
+        y_m: f64,
+        /// True heading, degrees, if measured.
+        theta_deg: Option<f64>,
+    },
+    /// `runs`: list the stored runs.
+    Runs,
+    /// `drop <n>`: delete stored run number `n` (1-based, as `runs` shows).
+    Drop {
+        /// 1-based run number.
+        index: usize,
+    },
+    /// `calibrate [method]`: compute every method (or one) from the measured runs.
+    Calibrate {
+        /// Method name as typed (the session checks it), `None` = all.
+        method: Option<&'a str>,
+    },
+    /// `apply <method>`: use that method's result as the active geometry (not yet saved).
+    Apply {
+        /// Method name as typed (the session checks it).
+        method: &'a str,
+    },
+    /// `save`: write the parameters to flash (motors must be stopped).
+    Save,
+    /// `reset-params`: restore and store the defaults.
+    ResetParams,
+    /// `pose`: the odometry pose.
+    Pose,
+    /// `odom reset`: set the odometry pose to the origin.
+    OdomReset,
+    /// `stream on [hz]` / `stream off`.
+    Stream {
+        /// `Some(rate)` to start (rate `None` = default), `None` to stop.
+        on: Option<Option<u32>>,
+    },
+    /// `drive <v_mps> <w_radps>`: velocity command with a 500 ms deadman.
+    Drive {
+        /// Forward speed, m/s.
+        v_mps: f32,
+        /// Turn rate, rad/s, CCW positive.
+        w_radps: f32,
+    },
+}
+
+/// Why a line did not parse. Each variant maps to one error code (see `docs/protocol.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum ParseError {
+    /// The line holds no command (only whitespace); the session ignores it silently.
+    Empty,
+    /// The first word is not a command.
+    UnknownCommand,
+    /// A required argument is missing.
+    MissingArgument {
+        /// Name of the missing argument.
+        what: &'static str,
+    },
+    /// More arguments than the command takes.
+    TooManyArguments,
+    /// A number could not be read.
+    BadNumber {
+        /// Name of the argument.
+        what: &'static str,
+    },
+    /// A number is NaN or infinite (or overflows to infinity).
+    NotFinite {
+        /// Name of the argument.
+        what: &'static str,
+    },
+    /// A number is outside its accepted range.
+    OutOfRange {
+        /// Name of the argument.
+        what: &'static str,
+        /// Smallest accepted value.
+        min: f64,
+        /// Largest accepted value.
+        max: f64,
+    },
+    /// A keyword argument is not one of the accepted words.
+    BadKeyword {
+        /// Name of the argument.
+        what: &'static str,
+        /// The accepted words, `|`-separated.
+        expected: &'static str,
+    },
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParseError::Empty => f.write_str("empty line"),
+            ParseError::UnknownCommand => f.write_str("unknown command (try help)"),
+            ParseError::MissingArgument { what } => write!(f, "missing argument <{what}>"),
+            ParseError::TooManyArguments => f.write_str("too many arguments"),
+            ParseError::BadNumber { what } => write!(f, "<{what}> is not a number"),
+            ParseError::NotFinite { what } => write!(f, "<{what}> must be finite"),
+            ParseError::OutOfRange { what, min, max } => {
+                write!(f, "<{what}> must be within {min}..{max}")
+            }
+            ParseError::BadKeyword { what, expected } => {
+                write!(f, "<{what}> must be one of {expected}")
+            }
+        }
+    }
+}
+
+/// Cursor over the whitespace-separated words of a line.
+struct Words<'a> {
+    inner: core::str::SplitAsciiWhitespace<'a>,
+}
+
+impl<'a> Words<'a> {
+    fn next(&mut self) -> Option<&'a str> {
+        self.inner.next()
+    }
+
+    fn required(&mut self, what: &'static str) -> Result<&'a str, ParseError> {
+        self.next().ok_or(ParseError::MissingArgument { what })
+    }
+
+    fn end(&mut self) -> Result<(), ParseError> {
+        match self.next() {
+            None => Ok(()),
+            Some(_) => Err(ParseError::TooManyArguments),
+        }
+    }
+}
+
+/// Reads a finite `f64` within `[min, max]`.
+fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
+    let value: f64 = word.parse().map_err(|_| ParseError::BadNumber { what })?;
+    if !value.is_finite() {
+        return Err(ParseError::NotFinite { what });
+    }
+    if !(min..=max).contains(&value) {
+        return Err(ParseError::OutOfRange { what, min, max });
+    }
+    Ok(value)
+}
+
+/// Reads a whole number within `[min, max]` (written without sign, fraction or exponent).
+fn whole(word: &str, what: &'static str, min: u32, max: u32) -> Result<u32, ParseError> {
+    if word.is_empty() || !word.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(ParseError::BadNumber { what });
+    }
+    let out_of_range = ParseError::OutOfRange {
+        what,
+        min: f64::from(min),
+        max: f64::from(max),
+    };
+    // All digits: the only possible parse failure is overflow, which is out of range.
+    let value: u32 = word.parse().map_err(|_| out_of_range)?;
+    if !(min..=max).contains(&value) {
+        return Err(out_of_range);
+    }
+    Ok(value)
+}
+
+fn optional_number(
+    words: &mut Words<'_>,
+    what: &'static str,
+    (min, max): (f64, f64),
+) -> Result<Option<f64>, ParseError> {
+    words.next().map(|w| number(w, what, min, max)).transpose()
+}
+
+fn direction(word: &str) -> Result<Direction, ParseError> {
+    if word.eq_ignore_ascii_case("cw") {
+        Ok(Direction::Cw)
+    } else if word.eq_ignore_ascii_case("ccw") {
+        Ok(Direction::Ccw)
+    } else {
+        Err(ParseError::BadKeyword {
+            what: "direction",
+            expected: "cw|ccw",
+        })
+    }
+}
+
+/// A method name: 1..=16 bytes of `[a-z0-9_-]` (any case).
+fn method_name(word: &str) -> Result<&str, ParseError> {
+    let ok = word.len() <= METHOD_NAME_MAX
+        && word
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if ok {
+        Ok(word)
+    } else {
+        Err(ParseError::BadKeyword {
+            what: "method",
+            expected: "a method name listed by calibrate",
+        })
+    }
+}
+
+impl<'a> Command<'a> {
+    /// Parses one line (without its terminator).
+    ///
+    /// # Errors
+    /// A [`ParseError`] naming the first problem found; [`ParseError::Empty`] for a blank line.
+    pub fn parse(line: &'a str) -> Result<Command<'a>, ParseError> {
+        let mut words = Words {
+            inner: line.split_ascii_whitespace(),
+        };
+        let Some(head) = words.next() else {
+            return Err(ParseError::Empty);
+        };
+        let is = |name: &str| head.eq_ignore_ascii_case(name);
+        let cmd = if is("help") || head == "?" {
+            Command::Help
+        } else if is("status") {
+            Command::Status
+        } else if is("params") {
+            Command::Params
+        } else if is("set") {
+            let name_word = words.required("name")?;
+            let name = ParamName::from_name(name_word).ok_or(ParseError::BadKeyword {
+                what: "name",
+                expected: "a parameter listed by params",
+            })?;
+            let value_word = words.required("value")?;
+            let (min, max) = name.range();
+            let value = if name.is_integer() {
+                // Integer ranges are small enough to be exact in f64 and u32.
+                f64::from(whole(value_word, "value", min as u32, max as u32)?)
+            } else {
+                number(value_word, "value", min, max)?
+            };
+            Command::Set { name, value }
+        } else if is("run") {
+            let direction = direction(words.required("direction")?)?;
+            let side_m = optional_number(&mut words, "side_m", PATH_RANGE_M)?;
+            Command::Run { direction, side_m }
+        } else if is("next") {
+            Command::Next
+        } else if is("line") {
+            Command::Line {
+                length_m: optional_number(&mut words, "length_m", PATH_RANGE_M)?,
+            }
+        } else if is("circle") {
+            let direction = direction(words.required("direction")?)?;
+            let radius_m = optional_number(&mut words, "radius_m", PATH_RANGE_M)?;
+            Command::Circle {
+                direction,
+                radius_m,
+            }
+        } else if is("stop") {
+            Command::Stop
+        } else if is("measure") {
+            let lim = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
+            let x_m = number(words.required("x_m")?, "x_m", lim.0, lim.1)?;
+            let y_m = number(words.required("y_m")?, "y_m", lim.0, lim.1)?;
+            let theta_deg = optional_number(
+                &mut words,
+                "theta_deg",
+                (-MEASURE_LIMIT_DEG, MEASURE_LIMIT_DEG),
+            )?;
+            Command::Measure {
+                x_m,
+                y_m,
+                theta_deg,
+            }
+        } else if is("runs") {
+            Command::Runs
+        } else if is("drop") {
+            let max = crate::session::MAX_RUNS as u32;
+            let index = whole(words.required("n")?, "n", 1, max)? as usize;
+            Command::Drop { index }
+        } else if is("calibrate") {
+            let method = words.next().map(method_name).transpose()?;
+            Command::Calibrate { method }
+        } else if is("apply") {
+            Command::Apply {
+                method: method_name(words.required("method")?)?,
+            }
+        } else if is("save") {
+            Command::Save
+        } else if is("reset-params") {
+            Command::ResetParams
+        } else if is("pose") {
+            Command::Pose
+        } else if is("odom") {
+            let what = words.required("action")?;
+            if !what.eq_ignore_ascii_case("reset") {
+                return Err(ParseError::BadKeyword {
+                    what: "action",
+                    expected: "reset",
+                });
+            }
+            Command::OdomReset
+        } else if is("stream") {
+            let mode = words.required("mode")?;
+            if mode.eq_ignore_ascii_case("on") {
+                let (min, max) = STREAM_RANGE_HZ;
+                let hz = words.next().map(|w| whole(w, "hz", min, max)).transpose()?;
+                Command::Stream { on: Some(hz) }
+            } else if mode.eq_ignore_ascii_case("off") {
+                Command::Stream { on: None }
+            } else {
+                return Err(ParseError::BadKeyword {
+                    what: "mode",
+                    expected: "on|off",
+                });
+            }
+        } else if is("drive") {
+            let v = number(
+                words.required("v_mps")?,
+                "v_mps",
+                -DRIVE_LIMIT_MPS,
+                DRIVE_LIMIT_MPS,
+            )?;
+            let w = number(
+                words.required("w_radps")?,
+                "w_radps",
+                -DRIVE_LIMIT_RADPS,
+                DRIVE_LIMIT_RADPS,
+            )?;
+            Command::Drive {
+                v_mps: v as f32,
+                w_radps: w as f32,
+            }
+        } else {
+            return Err(ParseError::UnknownCommand);
+        };
+        words.end()?;
+        Ok(cmd)
+    }
+}

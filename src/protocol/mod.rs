@@ -1,0 +1,20 @@
+//! The serial line protocol (USART2, 115200 8N1): pure parsing and formatting.
+//!
+//! - [`line::LineAssembler`] turns received bytes into lines (`\n` or `\r\n`), rejecting
+//!   over-long lines as a whole;
+//! - [`Command::parse`] turns a line into a validated [`Command`] (units: metres, m/s, rad/s,
+//!   degrees for measured headings, Hz);
+//! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`.
+//!
+//! Nothing here touches hardware or allocates; [`crate::session`] executes the commands. The
+//! command table and error codes are documented in `docs/protocol.md`.
+
+pub mod command;
+pub mod line;
+pub mod param;
+pub mod reply;
+
+pub use command::{Command, ParseError};
+pub use line::{LINE_MAX, LineAssembler, LineError};
+pub use param::ParamName;
+pub use reply::{EOL, ErrorCode, ReplyLine};

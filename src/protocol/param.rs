@@ -1,0 +1,110 @@
+//! Operator-settable parameters: names, units and accepted ranges of `set <name> <value>`.
+//!
+//! Geometry values are the *nominal* geometry (metres, counts per wheel revolution); motion limits
+//! are magnitudes (always positive). The ranges here are the protocol's hard bounds: a value
+//! outside them is rejected by the parser before anything else sees it.
+
+/// A parameter an operator may `set`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ParamName {
+    /// Nominal right wheel diameter `D_R`, metres.
+    DiameterRight,
+    /// Nominal left wheel diameter `D_L`, metres.
+    DiameterLeft,
+    /// Nominal wheelbase `b`, metres.
+    Wheelbase,
+    /// Encoder counts per wheel revolution (integer).
+    CountsPerRev,
+    /// Maximum wheel-centre speed on legs, m/s.
+    MaxSpeed,
+    /// Maximum linear acceleration, m/s².
+    MaxAccel,
+    /// Maximum turn rate of in-place turns, rad/s.
+    MaxTurnRate,
+    /// Maximum angular acceleration of in-place turns, rad/s².
+    MaxTurnAccel,
+    /// Side `L` of the planned calibration squares, metres.
+    SquareSide,
+    /// Planned square runs per direction (integer).
+    RunsPerDirection,
+}
+
+impl ParamName {
+    /// Every parameter, in the order `params` lists them.
+    pub const ALL: [ParamName; 10] = [
+        ParamName::DiameterRight,
+        ParamName::DiameterLeft,
+        ParamName::Wheelbase,
+        ParamName::CountsPerRev,
+        ParamName::MaxSpeed,
+        ParamName::MaxAccel,
+        ParamName::MaxTurnRate,
+        ParamName::MaxTurnAccel,
+        ParamName::SquareSide,
+        ParamName::RunsPerDirection,
+    ];
+
+    /// The name used on the wire.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ParamName::DiameterRight => "d_right",
+            ParamName::DiameterLeft => "d_left",
+            ParamName::Wheelbase => "wheelbase",
+            ParamName::CountsPerRev => "counts_per_rev",
+            ParamName::MaxSpeed => "max_speed",
+            ParamName::MaxAccel => "max_accel",
+            ParamName::MaxTurnRate => "max_turn_rate",
+            ParamName::MaxTurnAccel => "max_turn_accel",
+            ParamName::SquareSide => "square_side",
+            ParamName::RunsPerDirection => "runs_per_direction",
+        }
+    }
+
+    /// Looks a wire name up (ASCII case-insensitive).
+    pub fn from_name(name: &str) -> Option<ParamName> {
+        ParamName::ALL
+            .iter()
+            .copied()
+            .find(|p| p.as_str().eq_ignore_ascii_case(name))
+    }
+
+    /// Unit shown after the value.
+    pub fn unit(self) -> &'static str {
+        match self {
+            ParamName::DiameterRight
+            | ParamName::DiameterLeft
+            | ParamName::Wheelbase
+            | ParamName::SquareSide => "m",
+            ParamName::CountsPerRev => "counts/rev",
+            ParamName::MaxSpeed => "m/s",
+            ParamName::MaxAccel => "m/s^2",
+            ParamName::MaxTurnRate => "rad/s",
+            ParamName::MaxTurnAccel => "rad/s^2",
+            ParamName::RunsPerDirection => "runs",
+        }
+    }
+
+    /// Inclusive accepted range `(min, max)`.
+    ///
+    /// Geometry ranges are those of [`crate::geometry::Geometry::validate`]; the run count is
+    /// bounded by the run store ([`crate::session::MAX_RUNS`] holds both directions).
+    pub fn range(self) -> (f64, f64) {
+        match self {
+            ParamName::DiameterRight | ParamName::DiameterLeft => (0.001, 2.0),
+            ParamName::Wheelbase => (0.01, 5.0),
+            ParamName::CountsPerRev => (1.0, 100_000_000.0),
+            ParamName::MaxSpeed => (0.01, 2.0),
+            ParamName::MaxAccel => (0.01, 5.0),
+            ParamName::MaxTurnRate => (0.05, 10.0),
+            ParamName::MaxTurnAccel => (0.05, 20.0),
+            ParamName::SquareSide => (0.1, 10.0),
+            ParamName::RunsPerDirection => (1.0, (crate::session::MAX_RUNS / 2) as f64),
+        }
+    }
+
+    /// Whether the value must be a whole number.
+    pub fn is_integer(self) -> bool {
+        matches!(self, ParamName::CountsPerRev | ParamName::RunsPerDirection)
+    }
+}

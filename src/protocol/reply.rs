@@ -1,0 +1,136 @@
+//! Reply formatting and the error-code table.
+//!
+//! Every command is answered by exactly one final line, `ok[ <text>]` or
+//! `err <code>: <message>`, possibly preceded by data lines (which never start with `ok` or
+//! `err`). Lines end with `\r\n`. Unsolicited lines start with `event ` (session events such as a
+//! finished run) or `stream ` (the pose stream). Everything is written through
+//! `core::fmt::Write`, so a `heapless::String<N>`, a transmit queue or a `std::String` can
+//! receive it; a full `heapless::String` makes the write return `Err`, never panic.
+
+use core::fmt::{self, Write};
+
+use super::command::ParseError;
+use super::line::LineError;
+
+/// Line terminator of every reply line.
+pub const EOL: &str = "\r\n";
+
+/// Capacity that fits any single reply line, bytes.
+pub const REPLY_LINE_MAX: usize = 160;
+
+/// One reply line.
+pub type ReplyLine = heapless::String<REPLY_LINE_MAX>;
+
+/// Numeric error codes of `err <code>: <message>`; stable across versions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ErrorCode {
+    /// 1: the first word is not a command.
+    UnknownCommand = 1,
+    /// 2: a required argument is missing.
+    MissingArgument = 2,
+    /// 3: more arguments than the command takes.
+    TooManyArguments = 3,
+    /// 4: a number could not be read.
+    BadNumber = 4,
+    /// 5: a number is NaN or infinite.
+    NotFinite = 5,
+    /// 6: a number is outside its range.
+    OutOfRange = 6,
+    /// 7: a keyword argument is not one of the accepted words.
+    BadKeyword = 7,
+    /// 8: the line was longer than the line buffer and was ignored.
+    LineTooLong = 8,
+    /// 9: the line is not valid UTF-8.
+    NotUtf8 = 9,
+    /// 10: the robot is busy (a run or drive is in progress) or refused to start.
+    Busy = 10,
+    /// 11: the controller has a latched fault.
+    Fault = 11,
+    /// 12: `measure` without a finished run.
+    NoRun = 12,
+    /// 13: `calibrate`/`apply` without measured runs in both directions.
+    NotEnoughRuns = 13,
+    /// 14: `drop` of a run number that does not exist.
+    NoSuchRun = 14,
+    /// 15: the run store is full (drop runs first).
+    StoreFull = 15,
+    /// 16: a calibration method failed (degenerate data, no convergence, unknown method).
+    CalibrationFailed = 16,
+    /// 17: a parameter change was refused (inconsistent geometry or limits).
+    InvalidParams = 17,
+    /// 18: `save`/`reset-params` while the motors run.
+    MotorsRunning = 18,
+    /// 19: the flash operation failed.
+    Storage = 19,
+    /// 20: the planned runs are all done (`next`).
+    PlanComplete = 20,
+}
+
+impl ErrorCode {
+    /// The number on the wire.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+}
+
+impl From<&ParseError> for ErrorCode {
+    fn from(e: &ParseError) -> Self {
+        match e {
+            ParseError::Empty | ParseError::UnknownCommand => ErrorCode::UnknownCommand,
+            ParseError::MissingArgument { .. } => ErrorCode::MissingArgument,
+            ParseError::TooManyArguments => ErrorCode::TooManyArguments,
+            ParseError::BadNumber { .. } => ErrorCode::BadNumber,
+            ParseError::NotFinite { .. } => ErrorCode::NotFinite,
+            ParseError::OutOfRange { .. } => ErrorCode::OutOfRange,
+            ParseError::BadKeyword { .. } => ErrorCode::BadKeyword,
+        }
+    }
+}
+
+impl From<&LineError> for ErrorCode {
+    fn from(e: &LineError) -> Self {
+        match e {
+            LineError::TooLong => ErrorCode::LineTooLong,
+            LineError::NotUtf8 => ErrorCode::NotUtf8,
+        }
+    }
+}
+
+/// Writes `err <code>: <message>\r\n`.
+///
+/// # Errors
+/// Only if `out` refuses the text (e.g. a full buffer).
+pub fn write_err(out: &mut dyn Write, code: ErrorCode, message: &dyn fmt::Display) -> fmt::Result {
+    write!(out, "err {}: {}{}", code.code(), message, EOL)
+}
+
+/// Writes `ok\r\n` or `ok <text>\r\n`.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_ok(out: &mut dyn Write, text: fmt::Arguments<'_>) -> fmt::Result {
+    let mut line = ReplyLine::new();
+    // A too-long text is cut at the line capacity rather than lost.
+    let _ = line.write_fmt(text);
+    if line.is_empty() {
+        write!(out, "ok{EOL}")
+    } else {
+        write!(out, "ok {line}{EOL}")
+    }
+}
+
+/// Formats the error reply for a line the assembler rejected into one [`ReplyLine`].
+pub fn line_error_reply(e: &LineError) -> ReplyLine {
+    let mut line = ReplyLine::new();
+    let _ = write_err(&mut line, ErrorCode::from(e), e);
+    line
+}
+
+/// Formats the error reply for a line that did not parse into one [`ReplyLine`].
+pub fn parse_error_reply(e: &ParseError) -> ReplyLine {
+    let mut line = ReplyLine::new();
+    let _ = write_err(&mut line, ErrorCode::from(e), e);
+    line
+}

@@ -1,0 +1,579 @@
+//! The calibration session: executes protocol commands and button presses against the robot.
+//!
+//! The session owns the run store (up to [`MAX_RUNS`] [`RunRecord`]s, measured or not), the
+//! [`Settings`] and the pose-stream schedule. It never owns the hardware: every call takes the
+//! [`Robot`] (one short controller operation per method) and, where needed, the
+//! [`ParamStorage`], so the firmware can lock its control task's controller per call and never
+//! holds that lock during a calibration solve.
+//!
+//! Workflow: the plan is `runs_per_direction` squares per direction with side `square_side`;
+//! `next` (or the button's short press) starts the next planned run, alternating CW/CCW. After
+//! each run the operator enters `measure x y [θ]` (true end pose in the run's start frame,
+//! metres/degrees; it attaches to the last finished run). `calibrate` needs at least one measured
+//! square in each direction; runs stay stored across `calibrate`, so a bad one can be dropped and
+//! the calibration recomputed. `apply` makes a result active, `save` stores it.
+//!
+//! RAM: one [`RunRecord`] is ~3.3 KB (200 knots × 16 B plus header), so the store costs
+//! `MAX_RUNS` × that ≈ 40 KB (see the `run_store_ram` test for the exact figure).
+
+mod report;
+pub mod settings;
+pub mod traits;
+
+use core::fmt::{self, Write};
+
+use heapless::Vec;
+
+use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::{Command, ParseError};
+use crate::run::{Direction, Measurement, PathKind, RunRecord};
+pub use settings::{AppliedCalibration, Changed, MotionSettings, Settings, SettingsError};
+pub use traits::{
+    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
+    StorageError,
+};
+
+/// Capacity of the run store (both directions, all path kinds).
+pub const MAX_RUNS: usize = 12;
+
+/// Default pose-stream rate, Hz.
+pub const DEFAULT_STREAM_HZ: u32 = 10;
+
+/// Pose-stream schedule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Stream {
+    period_us: u64,
+    /// Time of the next line; `None` = emit at the next poll.
+    next_due_us: Option<u64>,
+}
+
+/// Session state: run store, settings, stream schedule.
+#[derive(Debug)]
+pub struct Session<C> {
+    calibrator: C,
+    settings: Settings,
+    runs: Vec<RunRecord, MAX_RUNS>,
+    stream: Option<Stream>,
+}
+
+fn robot_err(out: &mut dyn Write, e: RobotError) -> fmt::Result {
+    let code = match e {
+        RobotError::Fault(_) => ErrorCode::Fault,
+        RobotError::Busy | RobotError::Rejected(_) => ErrorCode::Busy,
+    };
+    write_err(out, code, &e)
+}
+
+fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
+    let code = match e {
+        StorageError::MotorsRunning => ErrorCode::MotorsRunning,
+        StorageError::Flash(_) | StorageError::Invalid(_) => ErrorCode::Storage,
+    };
+    write_err(out, code, &e)
+}
+
+/// Counts of square runs per direction: `(stored, measured)` for CW and CCW.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    /// CW squares stored.
+    pub cw: usize,
+    /// CCW squares stored.
+    pub ccw: usize,
+    /// CW squares measured.
+    pub cw_measured: usize,
+    /// CCW squares measured.
+    pub ccw_measured: usize,
+}
+
+impl<C: Calibrator> Session<C> {
+    /// A session with `settings` (as loaded at boot) and no runs.
+    pub fn new(settings: Settings, calibrator: C) -> Self {
+        Session {
+            calibrator,
+            settings,
+            runs: Vec::new(),
+            stream: None,
+        }
+    }
+
+    /// The current settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The stored runs, oldest first.
+    pub fn runs(&self) -> &[RunRecord] {
+        &self.runs
+    }
+
+    /// Square-run counts per direction.
+    pub fn progress(&self) -> Progress {
+        let mut p = Progress::default();
+        for r in &self.runs {
+            if let PathKind::Square { direction, .. } = r.path {
+                let measured = usize::from(r.measured.is_some());
+                match direction {
+                    Direction::Cw => {
+                        p.cw += 1;
+                        p.cw_measured += measured;
+                    }
+                    Direction::Ccw => {
+                        p.ccw += 1;
+                        p.ccw_measured += measured;
+                    }
+                }
+            }
+        }
+        p
+    }
+
+    /// The direction of the next planned square, or `None` when the plan is complete.
+    /// Alternates CW/CCW, starting with CW.
+    pub fn next_planned(&self) -> Option<Direction> {
+        let p = self.progress();
+        let n = usize::from(self.settings.runs_per_direction);
+        match (p.cw < n, p.ccw < n) {
+            (true, true) if p.cw <= p.ccw => Some(Direction::Cw),
+            (_, true) => Some(Direction::Ccw),
+            (true, false) => Some(Direction::Cw),
+            (false, false) => None,
+        }
+    }
+
+    /// Collects a finished run from the robot into the store and announces it.
+    fn collect_finished(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        while let Some(run) = robot.take_finished_run() {
+            let end = run.odometry_end;
+            let path = run.path;
+            // Starting a run is refused while the store is full, so this only fails if runs
+            // were started behind the session's back; the oldest unmeasured data is then lost.
+            if self.runs.is_full() {
+                write!(out, "event run discarded: run store full{EOL}")?;
+                continue;
+            }
+            let _ = self.runs.push(run);
+            let n = self.runs.len();
+            write!(out, "event run {n} finished: ")?;
+            report::write_path(out, &path)?;
+            write!(
+                out,
+                " odometry end x={:+.6} y={:+.6} theta_deg={:+.4}; measure it{EOL}",
+                end.x_m,
+                end.y_m,
+                libm::fmod(end.theta_rad.to_degrees(), 360.0),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Periodic work: collects finished runs (announcing them with `event` lines) and writes a
+    /// `stream` line when one is due at `now_us` (a monotonic time, microseconds).
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn poll(&mut self, now_us: u64, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        self.collect_finished(robot, out)?;
+        if self.stream_due(now_us) {
+            let pose = robot.pose();
+            let (vr, vl) = robot.wheel_speeds_mps();
+            report::write_stream_line(out, now_us, &pose, vr, vl)?;
+        }
+        Ok(())
+    }
+
+    /// Whether a stream line is due at `now_us`; if so, schedules the next one. The schedule
+    /// advances by whole periods (no drift); after a stall longer than one period it restarts
+    /// from `now_us` instead of bursting.
+    pub fn stream_due(&mut self, now_us: u64) -> bool {
+        let Some(stream) = self.stream.as_mut() else {
+            return false;
+        };
+        match stream.next_due_us {
+            Some(due) if now_us < due => false,
+            Some(due) if now_us < due + stream.period_us => {
+                stream.next_due_us = Some(due + stream.period_us);
+                true
+            }
+            _ => {
+                stream.next_due_us = Some(now_us + stream.period_us);
+                true
+            }
+        }
+    }
+
+    /// The button's short press: stops a moving robot, otherwise starts the next planned run.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn button_short(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        self.collect_finished(robot, out)?;
+        if robot.status().activity != Activity::Idle {
+            robot.abort();
+            return write!(out, "event button: stopped{EOL}");
+        }
+        write!(out, "event button: ")?;
+        self.start_next(robot, out)
+    }
+
+    /// Parses and executes one line, writing the reply (nothing for a blank line).
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn handle_line(
+        &mut self,
+        line: &str,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        match Command::parse(line) {
+            Ok(cmd) => self.execute(cmd, robot, storage, out),
+            Err(ParseError::Empty) => Ok(()),
+            Err(e) => write_err(out, ErrorCode::from(&e), &e),
+        }
+    }
+
+    fn start(&mut self, path: PathKind, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        if self.runs.is_full() {
+            let msg = "run store full (drop <n> first)";
+            return write_err(out, ErrorCode::StoreFull, &msg);
+        }
+        match robot.start(path) {
+            Ok(()) => {
+                write!(out, "ok run {} started: ", self.runs.len() + 1)?;
+                report::write_path(out, &path)?;
+                out.write_str(EOL)
+            }
+            Err(e) => robot_err(out, e),
+        }
+    }
+
+    fn start_next(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        match self.next_planned() {
+            Some(direction) => {
+                let path = PathKind::Square {
+                    direction,
+                    side_m: self.settings.square_side_m,
+                };
+                self.start(path, robot, out)
+            }
+            None => write_err(
+                out,
+                ErrorCode::PlanComplete,
+                &"all planned runs done (calibrate, or run cw|ccw for more)",
+            ),
+        }
+    }
+
+    /// Executes a parsed command.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn execute(
+        &mut self,
+        cmd: Command<'_>,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        self.collect_finished(robot, out)?;
+        let side = self.settings.square_side_m;
+        match cmd {
+            Command::Help => report::write_help(out),
+            Command::Status => {
+                let status = robot.status();
+                let pose = robot.pose();
+                report::write_status(out, &status, &pose, self)
+            }
+            Command::Params => report::write_params(out, &self.settings),
+            Command::Set { name, value } => self.set(name, value, robot, out),
+            Command::Run { direction, side_m } => {
+                let path = PathKind::Square {
+                    direction,
+                    side_m: side_m.unwrap_or(side),
+                };
+                self.start(path, robot, out)
+            }
+            Command::Next => self.start_next(robot, out),
+            Command::Line { length_m } => {
+                let path = PathKind::Line {
+                    length_m: length_m.unwrap_or(side),
+                };
+                self.start(path, robot, out)
+            }
+            Command::Circle {
+                direction,
+                radius_m,
+            } => {
+                let path = PathKind::Circle {
+                    direction,
+                    radius_m: radius_m.unwrap_or(0.5 * side),
+                };
+                self.start(path, robot, out)
+            }
+            Command::Stop => {
+                robot.abort();
+                write!(out, "ok stopped{EOL}")
+            }
+            Command::Measure {
+                x_m,
+                y_m,
+                theta_deg,
+            } => self.measure(x_m, y_m, theta_deg, out),
+            Command::Runs => report::write_runs(out, &self.runs),
+            Command::Drop { index } => {
+                if index == 0 || index > self.runs.len() {
+                    let n = self.runs.len();
+                    return write!(
+                        out,
+                        "err {}: no run {index} ({n} stored){EOL}",
+                        ErrorCode::NoSuchRun.code()
+                    );
+                }
+                let run = self.runs.remove(index - 1);
+                write!(out, "ok dropped run {index}: ")?;
+                report::write_path(out, &run.path)?;
+                write!(out, "; {} runs left{EOL}", self.runs.len())
+            }
+            Command::Calibrate { method } => self.calibrate(method, out),
+            Command::Apply { method } => self.apply(method, robot, out),
+            Command::Save => match storage.save(&self.settings, robot.motors_stopped()) {
+                Ok(()) => write!(out, "ok saved{EOL}"),
+                Err(e) => storage_err(out, e),
+            },
+            Command::ResetParams => self.reset_params(robot, storage, out),
+            Command::Pose => {
+                let p = robot.pose();
+                write!(out, "ok ")?;
+                report::write_pose(out, &p)?;
+                out.write_str(EOL)
+            }
+            Command::OdomReset => match robot.reset_odometry() {
+                Ok(()) => write!(out, "ok odometry reset{EOL}"),
+                Err(e) => robot_err(out, e),
+            },
+            Command::Stream { on: Some(hz) } => {
+                let hz = hz.unwrap_or(DEFAULT_STREAM_HZ).max(1);
+                self.stream = Some(Stream {
+                    period_us: 1_000_000 / u64::from(hz),
+                    next_due_us: None,
+                });
+                write!(out, "ok stream on {hz} Hz{EOL}")
+            }
+            Command::Stream { on: None } => {
+                self.stream = None;
+                write!(out, "ok stream off{EOL}")
+            }
+            Command::Drive { v_mps, w_radps } => match robot.drive(v_mps, w_radps) {
+                Ok(()) => write!(out, "ok{EOL}"),
+                Err(e) => robot_err(out, e),
+            },
+        }
+    }
+
+    fn set(
+        &mut self,
+        name: crate::protocol::ParamName,
+        value: f64,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let (new, changed) = match self.settings.with_value(name, value) {
+            Ok(x) => x,
+            Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
+        };
+        let pushed = match changed {
+            Changed::Geometry => robot.set_geometry(new.active),
+            Changed::Motion => robot.set_limits(&new.motion),
+            Changed::Plan => Ok(()),
+        };
+        if let Err(e) = pushed {
+            return robot_err(out, e);
+        }
+        let cleared = changed == Changed::Geometry && self.settings.calibration.is_some();
+        self.settings = new;
+        write!(out, "ok {} = ", name.as_str())?;
+        report::write_param_value(out, &self.settings, name)?;
+        if cleared {
+            write!(out, " (calibration cleared)")?;
+        }
+        out.write_str(EOL)
+    }
+
+    fn measure(
+        &mut self,
+        x_m: f64,
+        y_m: f64,
+        theta_deg: Option<f64>,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let n = self.runs.len();
+        let Some(run) = self.runs.last_mut() else {
+            return write_err(
+                out,
+                ErrorCode::NoRun,
+                &"no finished run to measure (run cw|ccw or next first)",
+            );
+        };
+        let replaced = run.measured.is_some();
+        run.measured = Some(Measurement {
+            x_m,
+            y_m,
+            theta_rad: theta_deg.map(f64::to_radians),
+        });
+        let odo = run.odometry_end;
+        write!(out, "ok run {n} ")?;
+        report::write_path(out, &run.path)?;
+        write!(
+            out,
+            " measured{}: error vs odometry dx={:+.6} dy={:+.6} m{EOL}",
+            if replaced { " (replaced)" } else { "" },
+            x_m - odo.x_m,
+            y_m - odo.y_m,
+        )
+    }
+
+    /// Why `calibrate`/`apply` cannot run yet, if so.
+    fn refuse_calibration(&self, out: &mut dyn Write) -> Option<fmt::Result> {
+        let p = self.progress();
+        if p.cw_measured == 0 || p.ccw_measured == 0 {
+            return Some(write!(
+                out,
+                "err {}: need measured square runs in both directions \
+                 (measured: cw {}, ccw {}){EOL}",
+                ErrorCode::NotEnoughRuns.code(),
+                p.cw_measured,
+                p.ccw_measured,
+            ));
+        }
+        None
+    }
+
+    fn calibrate(&mut self, method: Option<&str>, out: &mut dyn Write) -> fmt::Result {
+        if let Some(refused) = self.refuse_calibration(out) {
+            return refused;
+        }
+        let nominal = self.settings.nominal;
+        if let Some(m) = method
+            && !self
+                .calibrator
+                .methods()
+                .iter()
+                .any(|k| k.eq_ignore_ascii_case(m))
+        {
+            return self.unknown_method(out);
+        }
+        report::write_solution_header(out)?;
+        let mut solved = 0usize;
+        let methods: Vec<&'static str, 16> =
+            self.calibrator.methods().iter().take(16).copied().collect();
+        for name in methods {
+            if method.is_some_and(|m| !m.eq_ignore_ascii_case(name)) {
+                continue;
+            }
+            let result = self.calibrator.solve(&self.runs, &nominal, name);
+            if result.is_ok() {
+                solved += 1;
+            }
+            report::write_solution_row(out, name, &result)?;
+        }
+        self.calibrator.advice(&self.runs, &nominal, out)?;
+        let p = self.progress();
+        if solved == 0 {
+            return write_err(out, ErrorCode::CalibrationFailed, &"no method succeeded");
+        }
+        write!(
+            out,
+            "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one{EOL}",
+            p.cw_measured + p.ccw_measured,
+            p.cw_measured,
+            p.ccw_measured,
+        )
+    }
+
+    fn unknown_method(&self, out: &mut dyn Write) -> fmt::Result {
+        write!(
+            out,
+            "err {}: unknown method; one of ",
+            ErrorCode::BadKeyword.code()
+        )?;
+        for (i, m) in self.calibrator.methods().iter().enumerate() {
+            if i > 0 {
+                out.write_char('|')?;
+            }
+            out.write_str(m)?;
+        }
+        out.write_str(EOL)
+    }
+
+    fn apply(&mut self, method: &str, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        if let Some(refused) = self.refuse_calibration(out) {
+            return refused;
+        }
+        let Some(name) = self
+            .calibrator
+            .methods()
+            .iter()
+            .copied()
+            .find(|k| k.eq_ignore_ascii_case(method))
+        else {
+            return self.unknown_method(out);
+        };
+        let nominal = self.settings.nominal;
+        let sol = match self.calibrator.solve(&self.runs, &nominal, name) {
+            Ok(s) => s,
+            Err(e) => return write_err(out, ErrorCode::CalibrationFailed, &e),
+        };
+        if let Err(e) = sol.geometry.validate() {
+            return write_err(out, ErrorCode::CalibrationFailed, &e);
+        }
+        if let Err(e) = robot.set_geometry(sol.geometry) {
+            return robot_err(out, e);
+        }
+        let p = self.progress();
+        let mut method_name = heapless::String::new();
+        for c in name.chars() {
+            if method_name.push(c).is_err() {
+                break;
+            }
+        }
+        self.settings.active = sol.geometry;
+        self.settings.calibration = Some(AppliedCalibration {
+            method: method_name,
+            e_d: sol.e_d,
+            e_b: sol.e_b,
+            e_s: sol.e_s,
+            runs_used: (p.cw_measured + p.ccw_measured).min(usize::from(u8::MAX)) as u8,
+            e_max_m: sol.e_max_m.unwrap_or(0.0),
+        });
+        write!(
+            out,
+            "ok applied {name}: E_d={:.9} E_b={:.9} E_s={:.9} (not saved; save to keep){EOL}",
+            sol.e_d, sol.e_b, sol.e_s
+        )
+    }
+
+    fn reset_params(
+        &mut self,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let defaults = Settings::default();
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
+        if let Err(e) = storage.reset(robot.motors_stopped()) {
+            return storage_err(out, e);
+        }
+        // Idle was checked above, so the controller accepts both.
+        if let Err(e) = robot
+            .set_geometry(defaults.active)
+            .and_then(|()| robot.set_limits(&defaults.motion))
+        {
+            return robot_err(out, e);
+        }
+        self.settings = defaults;
+        write!(out, "ok parameters reset to defaults and stored{EOL}")
+    }
+}

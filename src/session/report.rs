@@ -1,0 +1,241 @@
+//! Text of the session's multi-line replies (help, status, params, runs, calibrate, stream).
+//!
+//! Positions in metres with 6 decimals (1 µm), headings in degrees, factors with 9 decimals
+//! (parameters carry 1e-9 relative precision), geometry in the `calibrate` table in millimetres.
+
+use core::fmt::{self, Write};
+
+use super::traits::{Activity, RobotStatus, Solution, SolveError};
+use super::{Calibrator, Session, Settings};
+use crate::protocol::{EOL, ParamName};
+use crate::reference::PoseF64;
+use crate::run::{PathKind, RunRecord};
+
+/// `help` text: one data line per command.
+const HELP: &[&str] = &[
+    "help                      this list",
+    "status                    state, pose, faults, session progress",
+    "params                    parameters and the active calibration",
+    "set <name> <value>        change a parameter (names as in params)",
+    "run cw|ccw [L]            drive a square of side L m (default: planned side)",
+    "next                      start the next planned run (button short press)",
+    "line [d]                  drive straight d m",
+    "circle cw|ccw [r]         drive a full circle of radius r m",
+    "stop                      stop now",
+    "measure <x> <y> [th_deg]  true end pose of the last run (start frame, m, deg)",
+    "runs                      list stored runs",
+    "drop <n>                  delete run n",
+    "calibrate [method]        compute all methods (or one) from measured runs",
+    "apply <method>            use a method's result (then save)",
+    "save                      store parameters in flash (motors stopped)",
+    "reset-params              restore and store defaults",
+    "pose                      odometry pose",
+    "odom reset                set the odometry pose to the origin",
+    "stream on [hz]|off        pose + wheel speed stream, 1..100 Hz",
+    "drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last",
+];
+
+pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
+    for line in HELP {
+        write!(out, "  {line}{EOL}")?;
+    }
+    write!(out, "ok {} commands{EOL}", HELP.len())
+}
+
+pub(super) fn write_path(out: &mut dyn Write, path: &PathKind) -> fmt::Result {
+    match path {
+        PathKind::Square { direction, side_m } => {
+            write!(out, "square {} L={side_m:.3} m", direction.as_str())
+        }
+        PathKind::Line { length_m } => write!(out, "line d={length_m:.3} m"),
+        PathKind::Circle {
+            direction,
+            radius_m,
+        } => write!(out, "circle {} r={radius_m:.3} m", direction.as_str()),
+    }
+}
+
+/// Heading in degrees wrapped into (-180, 180].
+fn wrapped_deg(theta_rad: f64) -> f64 {
+    let mut d = libm::fmod(theta_rad.to_degrees(), 360.0);
+    if d > 180.0 {
+        d -= 360.0;
+    } else if d <= -180.0 {
+        d += 360.0;
+    }
+    d
+}
+
+pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
+    write!(
+        out,
+        "x={:+.6} y={:+.6} theta_deg={:+.4}",
+        p.x_m,
+        p.y_m,
+        wrapped_deg(p.theta_rad)
+    )
+}
+
+pub(super) fn write_stream_line(
+    out: &mut dyn Write,
+    now_us: u64,
+    p: &PoseF64,
+    v_right: f64,
+    v_left: f64,
+) -> fmt::Result {
+    write!(
+        out,
+        "stream {}.{:06} {:+.6} {:+.6} {:+.4} {:+.4} {:+.4}{EOL}",
+        now_us / 1_000_000,
+        now_us % 1_000_000,
+        p.x_m,
+        p.y_m,
+        wrapped_deg(p.theta_rad),
+        v_right,
+        v_left
+    )
+}
+
+pub(super) fn write_status<C: Calibrator>(
+    out: &mut dyn Write,
+    status: &RobotStatus,
+    pose: &PoseF64,
+    session: &Session<C>,
+) -> fmt::Result {
+    write!(out, "ok state=")?;
+    match status.activity {
+        Activity::Idle => out.write_str("idle")?,
+        Activity::Driving => out.write_str("driving")?,
+        Activity::Running(path) => {
+            out.write_str("running ")?;
+            write_path(out, &path)?;
+        }
+    }
+    write!(out, " fault={} ", status.fault.unwrap_or("none"))?;
+    write_pose(out, pose)?;
+    let p = session.progress();
+    let n = session.settings.runs_per_direction;
+    write!(
+        out,
+        " plan cw {}/{n} ccw {}/{n} measured cw {} ccw {} runs {}/{} calibration={}{EOL}",
+        p.cw,
+        p.ccw,
+        p.cw_measured,
+        p.ccw_measured,
+        session.runs.len(),
+        super::MAX_RUNS,
+        session
+            .settings
+            .calibration
+            .as_ref()
+            .map_or("none", |c| c.method.as_str()),
+    )
+}
+
+pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
+    let v = s.value(name);
+    match name {
+        ParamName::CountsPerRev | ParamName::RunsPerDirection => write!(out, "{v:.0}")?,
+        ParamName::DiameterRight | ParamName::DiameterLeft | ParamName::Wheelbase => {
+            write!(out, "{v:.9}")?
+        }
+        _ => write!(out, "{v:.3}")?,
+    }
+    write!(out, " {}", name.unit())
+}
+
+pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
+    for name in ParamName::ALL {
+        write!(out, "  {} ", name.as_str())?;
+        write_param_value(out, s, name)?;
+        out.write_str(EOL)?;
+    }
+    let a = &s.active;
+    write!(
+        out,
+        "  active d_right={:.9} d_left={:.9} wheelbase={:.9} m{EOL}",
+        a.diameter_right_m, a.diameter_left_m, a.wheelbase_m
+    )?;
+    match &s.calibration {
+        None => write!(out, "  calibration none{EOL}")?,
+        Some(c) => write!(
+            out,
+            "  calibration {} E_d={:.9} E_b={:.9} E_s={:.9} runs={} E_max={:.3} mm{EOL}",
+            c.method,
+            c.e_d,
+            c.e_b,
+            c.e_s,
+            c.runs_used,
+            c.e_max_m * 1e3
+        )?,
+    }
+    write!(out, "ok{EOL}")
+}
+
+pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result {
+    let mut measured = 0;
+    for (i, r) in runs.iter().enumerate() {
+        write!(out, "  run {} ", i + 1)?;
+        write_path(out, &r.path)?;
+        let o = r.odometry_end;
+        write!(out, " odometry x={:+.6} y={:+.6}", o.x_m, o.y_m)?;
+        match r.measured {
+            None => write!(out, " not measured")?,
+            Some(m) => {
+                measured += 1;
+                write!(out, " measured x={:+.6} y={:+.6}", m.x_m, m.y_m)?;
+                if let Some(t) = m.theta_rad {
+                    write!(out, " theta_deg={:+.4}", t.to_degrees())?;
+                }
+            }
+        }
+        out.write_str(EOL)?;
+    }
+    write!(out, "ok {} runs, {measured} measured{EOL}", runs.len())
+}
+
+pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
+    write!(
+        out,
+        "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
+         E_max_mm  sd_E_d    sd_E_b{EOL}"
+    )
+}
+
+fn write_opt(out: &mut dyn Write, v: Option<f64>, scale: f64) -> fmt::Result {
+    match v {
+        Some(v) => write!(out, " {:<9.3e}", v * scale),
+        None => write!(out, " {:<9}", "-"),
+    }
+}
+
+pub(super) fn write_solution_row(
+    out: &mut dyn Write,
+    name: &str,
+    result: &Result<Solution, SolveError>,
+) -> fmt::Result {
+    write!(out, "  {name:<12}")?;
+    match result {
+        Err(e) => write!(out, " failed: {e}")?,
+        Ok(s) => {
+            let g = &s.geometry;
+            write!(
+                out,
+                " {:.9}  {:.9}  {:.9}  {:<10.4} {:<10.4} {:<10.4}",
+                s.e_d,
+                s.e_b,
+                s.e_s,
+                g.diameter_right_m * 1e3,
+                g.diameter_left_m * 1e3,
+                g.wheelbase_m * 1e3
+            )?;
+            match s.e_max_m {
+                Some(e) => write!(out, " {:<9.3}", e * 1e3)?,
+                None => write!(out, " {:<9}", "-")?,
+            }
+            write_opt(out, s.sd_e_d, 1.0)?;
+            write_opt(out, s.sd_e_b, 1.0)?;
+        }
+    }
+    out.write_str(EOL)
+}

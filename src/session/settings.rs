@@ -1,0 +1,191 @@
+//! The operator-editable parameters the session keeps and stores.
+//!
+//! [`Settings`] is everything `params` shows and `save` persists: the nominal geometry, the
+//! applied calibration (factors relative to nominal and the resulting absolute geometry), the
+//! motion limits and the calibration plan. Units: metres, seconds, radians.
+
+use core::fmt;
+
+use crate::geometry::{Geometry, GeometryError};
+use crate::protocol::ParamName;
+
+/// Longest stored method name, bytes.
+pub const METHOD_NAME_LEN: usize = 12;
+
+/// Motion limits used by routines and `drive` (magnitudes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotionSettings {
+    /// Maximum leg speed, m/s.
+    pub max_speed_mps: f64,
+    /// Maximum linear acceleration, m/s².
+    pub max_accel_mps2: f64,
+    /// Maximum in-place turn rate, rad/s.
+    pub max_turn_rate_radps: f64,
+    /// Maximum in-place angular acceleration, rad/s².
+    pub max_turn_accel_radps2: f64,
+}
+
+impl Default for MotionSettings {
+    fn default() -> Self {
+        MotionSettings {
+            max_speed_mps: 0.3,
+            max_accel_mps2: 0.3,
+            max_turn_rate_radps: 1.0,
+            max_turn_accel_radps2: 2.0,
+        }
+    }
+}
+
+/// A calibration result in use.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AppliedCalibration {
+    /// Method name (e.g. `exact`).
+    pub method: heapless::String<METHOD_NAME_LEN>,
+    /// `E_d = D_R / D_L`.
+    pub e_d: f64,
+    /// `E_b = b / b_nominal`.
+    pub e_b: f64,
+    /// `E_s = D_a / D_a,nominal`.
+    pub e_s: f64,
+    /// Number of measured runs it was computed from.
+    pub runs_used: u8,
+    /// Predicted worst square end error with it, metres (NaN-free; 0 when unknown).
+    pub e_max_m: f64,
+}
+
+/// Everything the session persists.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    /// Nominal geometry (as built / as specified).
+    pub nominal: Geometry,
+    /// Geometry in use: the calibrated one, or `nominal` when there is no calibration.
+    pub active: Geometry,
+    /// The calibration that produced `active`.
+    pub calibration: Option<AppliedCalibration>,
+    /// Motion limits.
+    pub motion: MotionSettings,
+    /// Planned square side `L`, metres.
+    pub square_side_m: f64,
+    /// Planned square runs per direction.
+    pub runs_per_direction: u8,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            nominal: Geometry::PAPER_NOMINAL,
+            active: Geometry::PAPER_NOMINAL,
+            calibration: None,
+            motion: MotionSettings::default(),
+            square_side_m: 2.0,
+            runs_per_direction: 5,
+        }
+    }
+}
+
+/// Why a parameter change was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SettingsError {
+    /// The resulting nominal geometry is invalid.
+    Geometry(GeometryError),
+}
+
+impl fmt::Display for SettingsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SettingsError::Geometry(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// What a successful [`Settings::with_value`] changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Changed {
+    /// The nominal geometry (the calibration was cleared: `active = nominal`).
+    Geometry,
+    /// A motion limit.
+    Motion,
+    /// The calibration plan.
+    Plan,
+}
+
+impl Settings {
+    /// Current value of a parameter.
+    pub fn value(&self, name: ParamName) -> f64 {
+        match name {
+            ParamName::DiameterRight => self.nominal.diameter_right_m,
+            ParamName::DiameterLeft => self.nominal.diameter_left_m,
+            ParamName::Wheelbase => self.nominal.wheelbase_m,
+            ParamName::CountsPerRev => f64::from(self.nominal.counts_per_rev),
+            ParamName::MaxSpeed => self.motion.max_speed_mps,
+            ParamName::MaxAccel => self.motion.max_accel_mps2,
+            ParamName::MaxTurnRate => self.motion.max_turn_rate_radps,
+            ParamName::MaxTurnAccel => self.motion.max_turn_accel_radps2,
+            ParamName::SquareSide => self.square_side_m,
+            ParamName::RunsPerDirection => f64::from(self.runs_per_direction),
+        }
+    }
+
+    /// A copy with one parameter changed. `value` must already be within `name.range()` (the
+    /// parser guarantees it); integer parameters are rounded. Changing the nominal geometry
+    /// drops the calibration, because its factors were relative to the old nominal.
+    ///
+    /// # Errors
+    /// [`SettingsError::Geometry`] if the nominal geometry would be invalid.
+    pub fn with_value(
+        &self,
+        name: ParamName,
+        value: f64,
+    ) -> Result<(Settings, Changed), SettingsError> {
+        let mut s = self.clone();
+        let changed = match name {
+            ParamName::DiameterRight => {
+                s.nominal.diameter_right_m = value;
+                Changed::Geometry
+            }
+            ParamName::DiameterLeft => {
+                s.nominal.diameter_left_m = value;
+                Changed::Geometry
+            }
+            ParamName::Wheelbase => {
+                s.nominal.wheelbase_m = value;
+                Changed::Geometry
+            }
+            ParamName::CountsPerRev => {
+                s.nominal.counts_per_rev = libm::round(value) as u32;
+                Changed::Geometry
+            }
+            ParamName::MaxSpeed => {
+                s.motion.max_speed_mps = value;
+                Changed::Motion
+            }
+            ParamName::MaxAccel => {
+                s.motion.max_accel_mps2 = value;
+                Changed::Motion
+            }
+            ParamName::MaxTurnRate => {
+                s.motion.max_turn_rate_radps = value;
+                Changed::Motion
+            }
+            ParamName::MaxTurnAccel => {
+                s.motion.max_turn_accel_radps2 = value;
+                Changed::Motion
+            }
+            ParamName::SquareSide => {
+                s.square_side_m = value;
+                Changed::Plan
+            }
+            ParamName::RunsPerDirection => {
+                s.runs_per_direction = libm::round(value) as u8;
+                Changed::Plan
+            }
+        };
+        if changed == Changed::Geometry {
+            s.nominal.validate().map_err(SettingsError::Geometry)?;
+            s.active = s.nominal;
+            s.calibration = None;
+        }
+        Ok((s, changed))
+    }
+}

@@ -1,0 +1,199 @@
+//! What the session needs from the rest of the system, as small traits.
+//!
+//! The firmware implements [`Robot`] by locking the control task's controller for the duration
+//! of *one* call (never across a calibration solve); host-sim implements it on the simulated
+//! controller directly. [`ParamStorage`] persists [`Settings`]; [`Calibrator`] runs the
+//! calibration methods. All units SI (metres, seconds, radians) unless a name says otherwise.
+
+use core::fmt;
+
+use super::settings::{MotionSettings, Settings};
+use crate::geometry::Geometry;
+use crate::reference::PoseF64;
+use crate::run::{PathKind, RunRecord};
+
+/// What the robot is doing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Activity {
+    /// Motors stopped, ready for a command.
+    Idle,
+    /// Driving a path routine.
+    Running(PathKind),
+    /// Following `drive` velocity commands.
+    Driving,
+}
+
+/// A snapshot of the controller's state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobotStatus {
+    /// Current activity.
+    pub activity: Activity,
+    /// The latched fault, if any (short lower-case name such as `stall`).
+    pub fault: Option<&'static str>,
+}
+
+/// Why the robot refused a request.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum RobotError {
+    /// A run or drive is in progress.
+    Busy,
+    /// A fault is latched (name as in [`RobotStatus::fault`]).
+    Fault(&'static str),
+    /// The request itself is invalid for the controller (e.g. a limit it cannot honour).
+    Rejected(&'static str),
+}
+
+impl fmt::Display for RobotError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RobotError::Busy => f.write_str("robot is busy (stop first)"),
+            RobotError::Fault(name) => write!(f, "fault latched: {name}"),
+            RobotError::Rejected(why) => write!(f, "refused: {why}"),
+        }
+    }
+}
+
+/// The controller operations the session uses. Every method is one short critical section.
+pub trait Robot {
+    /// Starts a path routine.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] while moving, [`RobotError::Fault`] with a latched fault.
+    fn start(&mut self, path: PathKind) -> Result<(), RobotError>;
+    /// Aborts any motion; the motors stop in the next control period.
+    fn abort(&mut self);
+    /// Velocity command (m/s, rad/s CCW positive), with the controller's 500 ms deadman.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] while a routine runs, [`RobotError::Fault`] with a latched fault.
+    fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError>;
+    /// The record of a routine that finished since the last call.
+    fn take_finished_run(&mut self) -> Option<RunRecord>;
+    /// Uses `geometry` for odometry and targets from now on (the pose continues).
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle.
+    fn set_geometry(&mut self, geometry: Geometry) -> Result<(), RobotError>;
+    /// Uses `limits` for the next routines and drive commands.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle; [`RobotError::Rejected`] if the controller cannot use them.
+    fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError>;
+    /// Current state.
+    fn status(&mut self) -> RobotStatus;
+    /// Odometry pose.
+    fn pose(&mut self) -> PoseF64;
+    /// Measured wheel speeds `(right, left)`, m/s.
+    fn wheel_speeds_mps(&mut self) -> (f64, f64);
+    /// Sets the odometry pose to the origin.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle.
+    fn reset_odometry(&mut self) -> Result<(), RobotError>;
+    /// Whether both motors are stopped (flash writes are allowed).
+    fn motors_stopped(&mut self) -> bool;
+}
+
+/// Why a flash operation failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum StorageError {
+    /// The motors are running; flash erases stall the CPU, so nothing was written.
+    MotorsRunning,
+    /// The flash layer failed (the message says how).
+    Flash(&'static str),
+    /// The settings cannot be stored (they fail the record's validation).
+    Invalid(&'static str),
+}
+
+impl fmt::Display for StorageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StorageError::MotorsRunning => f.write_str("motors running, flash not written"),
+            StorageError::Flash(why) => write!(f, "flash error: {why}"),
+            StorageError::Invalid(why) => write!(f, "parameters not storable: {why}"),
+        }
+    }
+}
+
+/// Persistent parameter storage.
+pub trait ParamStorage {
+    /// Writes `settings`.
+    ///
+    /// # Errors
+    /// [`StorageError`]; the previously stored settings stay intact.
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError>;
+    /// Stores the defaults.
+    ///
+    /// # Errors
+    /// [`StorageError`]; the previously stored settings stay intact.
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError>;
+}
+
+/// One method's calibration result, factors relative to the nominal geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Solution {
+    /// `E_d = D_R / D_L`.
+    pub e_d: f64,
+    /// `E_b = b / b_nominal`.
+    pub e_b: f64,
+    /// `E_s = D_a / D_a,nominal` (1 when the method does not estimate it).
+    pub e_s: f64,
+    /// Corrected absolute geometry.
+    pub geometry: Geometry,
+    /// Predicted worst end-position error of a square with this geometry, metres, if known.
+    pub e_max_m: Option<f64>,
+    /// One-sigma uncertainty of `E_d`, if known.
+    pub sd_e_d: Option<f64>,
+    /// One-sigma uncertainty of `E_b`, if known.
+    pub sd_e_b: Option<f64>,
+}
+
+/// Why a calibration method produced no result.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SolveError {
+    /// The method name is not known.
+    UnknownMethod,
+    /// The runs do not contain what this method needs.
+    NotEnoughRuns,
+    /// The computation failed (degenerate data, no convergence); the message says how.
+    Failed(&'static str),
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SolveError::UnknownMethod => f.write_str("unknown method"),
+            SolveError::NotEnoughRuns => f.write_str("not enough suitable measured runs"),
+            SolveError::Failed(why) => f.write_str(why),
+        }
+    }
+}
+
+/// The calibration methods.
+pub trait Calibrator {
+    /// Method names, in the order `calibrate` shows them.
+    fn methods(&self) -> &[&'static str];
+    /// Solves one method from the stored runs (unmeasured runs are ignored).
+    ///
+    /// # Errors
+    /// [`SolveError`].
+    fn solve(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        method: &str,
+    ) -> Result<Solution, SolveError>;
+    /// Writes track-size advice for these runs as data lines (each ending in `\r\n`).
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    fn advice(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        out: &mut dyn fmt::Write,
+    ) -> fmt::Result;
+}
