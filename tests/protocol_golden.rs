@@ -1,0 +1,283 @@
+//! Golden tests of the pure protocol layer: parsed commands, line assembly and the exact text of
+//! every parse/line error reply.
+
+use odocal::protocol::reply::{line_error_reply, parse_error_reply};
+use odocal::protocol::{Command, LINE_MAX, LineAssembler, LineError, ParamName, ParseError};
+use odocal::run::Direction;
+
+fn err_text(line: &str) -> String {
+    let e = Command::parse(line).expect_err("line should not parse");
+    parse_error_reply(&e).as_str().to_owned()
+}
+
+#[test]
+fn commands_parse_to_the_documented_values() {
+    let cases: &[(&str, Command<'_>)] = &[
+        ("help", Command::Help),
+        ("?", Command::Help),
+        ("status", Command::Status),
+        ("params", Command::Params),
+        (
+            "set wheelbase 0.4",
+            Command::Set {
+                name: ParamName::Wheelbase,
+                value: 0.4,
+            },
+        ),
+        (
+            "set counts_per_rev 4096",
+            Command::Set {
+                name: ParamName::CountsPerRev,
+                value: 4096.0,
+            },
+        ),
+        (
+            "run cw",
+            Command::Run {
+                direction: Direction::Cw,
+                side_m: None,
+            },
+        ),
+        (
+            "RUN CCW 1.5",
+            Command::Run {
+                direction: Direction::Ccw,
+                side_m: Some(1.5),
+            },
+        ),
+        ("next", Command::Next),
+        ("line", Command::Line { length_m: None }),
+        (
+            "line 3",
+            Command::Line {
+                length_m: Some(3.0),
+            },
+        ),
+        (
+            "circle ccw 0.75",
+            Command::Circle {
+                direction: Direction::Ccw,
+                radius_m: Some(0.75),
+            },
+        ),
+        ("stop", Command::Stop),
+        (
+            "measure 0.0123 -0.045",
+            Command::Measure {
+                x_m: 0.0123,
+                y_m: -0.045,
+                theta_deg: None,
+            },
+        ),
+        (
+            "measure\t-1e-3  2E-2   -1.5",
+            Command::Measure {
+                x_m: -0.001,
+                y_m: 0.02,
+                theta_deg: Some(-1.5),
+            },
+        ),
+        ("runs", Command::Runs),
+        ("drop 3", Command::Drop { index: 3 }),
+        ("calibrate", Command::Calibrate { method: None }),
+        (
+            "calibrate exact",
+            Command::Calibrate {
+                method: Some("exact"),
+            },
+        ),
+        ("apply lee-x", Command::Apply { method: "lee-x" }),
+        ("save", Command::Save),
+        ("reset-params", Command::ResetParams),
+        ("pose", Command::Pose),
+        ("odom reset", Command::OdomReset),
+        ("stream on", Command::Stream { on: Some(None) }),
+        (
+            "stream on 100",
+            Command::Stream {
+                on: Some(Some(100)),
+            },
+        ),
+        ("stream off", Command::Stream { on: None }),
+        (
+            "drive 0.25 -0.5",
+            Command::Drive {
+                v_mps: 0.25,
+                w_radps: -0.5,
+            },
+        ),
+        ("  stop  ", Command::Stop),
+    ];
+    for (line, expected) in cases {
+        assert_eq!(Command::parse(line).as_ref(), Ok(expected), "line {line:?}");
+    }
+}
+
+#[test]
+fn error_replies_are_exact() {
+    let cases: &[(&str, &str)] = &[
+        ("fly", "err 1: unknown command (try help)\r\n"),
+        ("run", "err 2: missing argument <direction>\r\n"),
+        ("measure 0.1", "err 2: missing argument <y_m>\r\n"),
+        ("stop now", "err 3: too many arguments\r\n"),
+        ("measure 0.1 0.2 3 4", "err 3: too many arguments\r\n"),
+        ("measure 0,1 0.2", "err 4: <x_m> is not a number\r\n"),
+        ("measure 0.1 0.2deg", "err 4: <y_m> is not a number\r\n"),
+        ("drop 1.5", "err 4: <n> is not a number\r\n"),
+        ("drop -1", "err 4: <n> is not a number\r\n"),
+        ("stream on 0x10", "err 4: <hz> is not a number\r\n"),
+        ("measure nan 0", "err 5: <x_m> must be finite\r\n"),
+        ("measure NaN 0", "err 5: <x_m> must be finite\r\n"),
+        ("measure 0 inf", "err 5: <y_m> must be finite\r\n"),
+        ("measure 0 -infinity", "err 5: <y_m> must be finite\r\n"),
+        ("drive 1e999 0", "err 5: <v_mps> must be finite\r\n"),
+        ("set max_speed inf", "err 5: <value> must be finite\r\n"),
+        ("measure 101 0", "err 6: <x_m> must be within -100..100\r\n"),
+        (
+            "measure 0 0 361",
+            "err 6: <theta_deg> must be within -360..360\r\n",
+        ),
+        ("run cw 0.05", "err 6: <side_m> must be within 0.1..10\r\n"),
+        (
+            "circle cw 11",
+            "err 6: <radius_m> must be within 0.1..10\r\n",
+        ),
+        ("drive 2.5 0", "err 6: <v_mps> must be within -2..2\r\n"),
+        (
+            "drive 0 -10.5",
+            "err 6: <w_radps> must be within -10..10\r\n",
+        ),
+        ("stream on 101", "err 6: <hz> must be within 1..100\r\n"),
+        ("stream on 0", "err 6: <hz> must be within 1..100\r\n"),
+        ("drop 0", "err 6: <n> must be within 1..12\r\n"),
+        ("drop 99999999999", "err 6: <n> must be within 1..12\r\n"),
+        (
+            "set wheelbase 0",
+            "err 6: <value> must be within 0.01..5\r\n",
+        ),
+        (
+            "set d_right -0.15",
+            "err 6: <value> must be within 0.001..2\r\n",
+        ),
+        (
+            "set runs_per_direction 7",
+            "err 6: <value> must be within 1..6\r\n",
+        ),
+        ("run left", "err 7: <direction> must be one of cw|ccw\r\n"),
+        ("stream maybe", "err 7: <mode> must be one of on|off\r\n"),
+        ("odom zero", "err 7: <action> must be one of reset\r\n"),
+        (
+            "set color red",
+            "err 7: <name> must be one of a parameter listed by params\r\n",
+        ),
+        (
+            "apply ex@ct",
+            "err 7: <method> must be one of a method name listed by calibrate\r\n",
+        ),
+    ];
+    for (line, expected) in cases {
+        assert_eq!(err_text(line), *expected, "line {line:?}");
+    }
+}
+
+#[test]
+fn blank_lines_are_empty_not_errors() {
+    assert_eq!(Command::parse(""), Err(ParseError::Empty));
+    assert_eq!(Command::parse(" \t "), Err(ParseError::Empty));
+}
+
+/// Feeds `bytes`, collecting each completed line (or error) as owned text.
+fn feed<const N: usize>(
+    asm: &mut LineAssembler<N>,
+    bytes: &[u8],
+) -> Vec<Result<String, LineError>> {
+    let mut out = Vec::new();
+    for &b in bytes {
+        if let Some(r) = asm.push(b) {
+            out.push(r.map(str::to_owned));
+        }
+    }
+    out
+}
+
+#[test]
+fn assembler_accepts_lf_and_crlf() {
+    let mut asm = LineAssembler::<LINE_MAX>::new();
+    let lines = feed(&mut asm, b"status\nrun cw 2\r\n\r\npose\r");
+    assert_eq!(
+        lines,
+        vec![
+            Ok("status".to_owned()),
+            Ok("run cw 2".to_owned()),
+            Ok(String::new())
+        ]
+    );
+    // "pose\r" is still waiting for its '\n'.
+    assert_eq!(feed(&mut asm, b"\n"), vec![Ok("pose".to_owned())]);
+    assert!(asm.is_empty());
+}
+
+#[test]
+fn assembler_backspace_erases() {
+    let mut asm = LineAssembler::<LINE_MAX>::new();
+    assert_eq!(feed(&mut asm, b"stoq\x08p\n"), vec![Ok("stop".to_owned())]);
+    assert_eq!(
+        feed(&mut asm, b"\x7f\x7fpose\n"),
+        vec![Ok("pose".to_owned())]
+    );
+}
+
+#[test]
+fn over_long_lines_are_rejected_whole_once() {
+    let mut asm = LineAssembler::<8>::new();
+    // Exactly 8 bytes fit, with either terminator.
+    assert_eq!(
+        feed(&mut asm, b"stop    \n"),
+        vec![Ok("stop    ".to_owned())]
+    );
+    assert_eq!(
+        feed(&mut asm, b"stop    \r\n"),
+        vec![Ok("stop    ".to_owned())]
+    );
+    // 9 bytes: rejected as a whole, once, at the terminator; never a truncated "drive 1 ".
+    assert_eq!(feed(&mut asm, b"drive 1 1"), vec![]);
+    assert!(asm.is_overflowed());
+    assert_eq!(
+        feed(&mut asm, b" more text\r\n"),
+        vec![Err(LineError::TooLong)]
+    );
+    // The next line is unaffected.
+    assert_eq!(feed(&mut asm, b"stop\n"), vec![Ok("stop".to_owned())]);
+}
+
+#[test]
+fn line_error_replies_are_exact() {
+    assert_eq!(
+        line_error_reply(&LineError::TooLong).as_str(),
+        "err 8: line too long (max 80 bytes), ignored\r\n"
+    );
+    let mut asm = LineAssembler::<LINE_MAX>::new();
+    let lines = feed(&mut asm, b"stop\xff\n");
+    assert_eq!(lines, vec![Err(LineError::NotUtf8)]);
+    assert_eq!(
+        line_error_reply(&LineError::NotUtf8).as_str(),
+        "err 9: line is not valid UTF-8, ignored\r\n"
+    );
+}
+
+#[test]
+fn every_parameter_name_round_trips() {
+    for p in ParamName::ALL {
+        assert_eq!(ParamName::from_name(p.as_str()), Some(p));
+        let (min, max) = p.range();
+        assert!(min < max, "{}", p.as_str());
+        let line = format!("set {} {}", p.as_str(), max);
+        assert_eq!(
+            Command::parse(&line),
+            Ok(Command::Set {
+                name: p,
+                value: max
+            })
+        );
+    }
+}
