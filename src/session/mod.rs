@@ -101,6 +101,11 @@ impl<C: Calibrator> Session<C> {
         &self.settings
     }
 
+    /// The calibrator.
+    pub fn calibrator(&self) -> &C {
+        &self.calibrator
+    }
+
     /// The stored runs, oldest first.
     pub fn runs(&self) -> &[RunRecord] {
         &self.runs

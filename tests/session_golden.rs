@@ -1,0 +1,575 @@
+//! Golden tests of the session: the exact reply text of every command, against a scripted robot,
+//! an in-memory parameter store and a calibrator with known answers.
+//!
+//! The doubles here only record what the session asked for and return scripted values; the
+//! closed-loop behaviour against the real controller and calibration is tested in host-sim.
+
+use std::fmt;
+
+use odocal::encoder::WheelTicks;
+use odocal::geometry::Geometry;
+use odocal::reference::PoseF64;
+use odocal::run::{PathKind, RunRecord};
+use odocal::session::{
+    Activity, Calibrator, MAX_RUNS, MotionSettings, ParamStorage, Robot, RobotError, RobotStatus,
+    Session, Settings, Solution, SolveError, StorageError,
+};
+
+#[derive(Default)]
+struct ScriptedRobot {
+    running: Option<PathKind>,
+    driving: bool,
+    fault: Option<&'static str>,
+    pose: PoseF64,
+    finished: Vec<RunRecord>,
+    geometry: Option<Geometry>,
+    limits: Option<MotionSettings>,
+    drives: Vec<(f32, f32)>,
+    aborts: usize,
+}
+
+impl ScriptedRobot {
+    /// Ends the current routine with the given odometry end pose.
+    fn finish(&mut self, x_m: f64, y_m: f64) {
+        let path = self.running.take().expect("a run is in progress");
+        let mut knots = heapless::Vec::new();
+        knots.push(WheelTicks::new(0, 0)).unwrap();
+        self.finished.push(RunRecord {
+            path,
+            geometry: self.geometry.unwrap_or(Geometry::PAPER_NOMINAL),
+            knots,
+            odometry_end: PoseF64::new(x_m, y_m, 0.0),
+            measured: None,
+        });
+    }
+    fn check_idle(&self) -> Result<(), RobotError> {
+        if let Some(f) = self.fault {
+            return Err(RobotError::Fault(f));
+        }
+        if self.running.is_some() || self.driving {
+            return Err(RobotError::Busy);
+        }
+        Ok(())
+    }
+}
+
+impl Robot for ScriptedRobot {
+    fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.running = Some(path);
+        Ok(())
+    }
+    fn abort(&mut self) {
+        self.aborts += 1;
+        self.running = None;
+        self.driving = false;
+    }
+    fn drive(&mut self, v: f32, w: f32) -> Result<(), RobotError> {
+        if self.running.is_some() {
+            return Err(RobotError::Busy);
+        }
+        self.drives.push((v, w));
+        self.driving = true;
+        Ok(())
+    }
+    fn take_finished_run(&mut self) -> Option<RunRecord> {
+        if self.finished.is_empty() {
+            None
+        } else {
+            Some(self.finished.remove(0))
+        }
+    }
+    fn set_geometry(&mut self, g: Geometry) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.geometry = Some(g);
+        Ok(())
+    }
+    fn set_limits(&mut self, l: &MotionSettings) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.limits = Some(*l);
+        Ok(())
+    }
+    fn status(&mut self) -> RobotStatus {
+        RobotStatus {
+            activity: match (self.running, self.driving) {
+                (Some(p), _) => Activity::Running(p),
+                (None, true) => Activity::Driving,
+                (None, false) => Activity::Idle,
+            },
+            fault: self.fault,
+        }
+    }
+    fn pose(&mut self) -> PoseF64 {
+        self.pose
+    }
+    fn wheel_speeds_mps(&mut self) -> (f64, f64) {
+        (0.25, -0.125)
+    }
+    fn reset_odometry(&mut self) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.pose = PoseF64::default();
+        Ok(())
+    }
+    fn motors_stopped(&mut self) -> bool {
+        self.running.is_none() && !self.driving
+    }
+}
+
+#[derive(Default)]
+struct MemoryStore {
+    saved: Option<Settings>,
+    resets: usize,
+}
+
+impl ParamStorage for MemoryStore {
+    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+        if !motors_stopped {
+            return Err(StorageError::MotorsRunning);
+        }
+        self.saved = Some(s.clone());
+        Ok(())
+    }
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+        if !motors_stopped {
+            return Err(StorageError::MotorsRunning);
+        }
+        self.resets += 1;
+        self.saved = Some(Settings::default());
+        Ok(())
+    }
+}
+
+/// Known answers: `alpha` succeeds with fixed factors, `beta` always fails.
+struct KnownCalibrator {
+    solves: usize,
+}
+
+impl Calibrator for KnownCalibrator {
+    fn methods(&self) -> &[&'static str] {
+        &["alpha", "beta"]
+    }
+    fn solve(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        method: &str,
+    ) -> Result<Solution, SolveError> {
+        self.solves += 1;
+        assert!(runs.iter().any(|r| r.measured.is_some()));
+        match method {
+            "alpha" => Ok(Solution {
+                e_d: 0.995,
+                e_b: 1.01,
+                e_s: 1.0,
+                geometry: nominal.with_factors(0.995, 1.01, 1.0),
+                e_max_m: Some(0.0012),
+                sd_e_d: Some(2.5e-4),
+                sd_e_b: None,
+            }),
+            "beta" => Err(SolveError::Failed("degenerate")),
+            _ => Err(SolveError::UnknownMethod),
+        }
+    }
+    fn advice(&mut self, _: &[RunRecord], _: &Geometry, out: &mut dyn fmt::Write) -> fmt::Result {
+        write!(out, "  advice L=2.000 m is adequate\r\n")
+    }
+}
+
+struct Bench {
+    session: Session<KnownCalibrator>,
+    robot: ScriptedRobot,
+    store: MemoryStore,
+}
+
+impl Bench {
+    fn new() -> Self {
+        Bench {
+            session: Session::new(Settings::default(), KnownCalibrator { solves: 0 }),
+            robot: ScriptedRobot::default(),
+            store: MemoryStore::default(),
+        }
+    }
+    fn send(&mut self, line: &str) -> String {
+        let mut out = String::new();
+        self.session
+            .handle_line(line, &mut self.robot, &mut self.store, &mut out)
+            .unwrap();
+        out
+    }
+    fn poll(&mut self, now_us: u64) -> String {
+        let mut out = String::new();
+        self.session
+            .poll(now_us, &mut self.robot, &mut out)
+            .unwrap();
+        out
+    }
+    /// Runs one square in `dir`, ending at odometry (x, y), and measures it at (mx, my).
+    fn measured_run(&mut self, dir: &str, x: f64, y: f64, mx: f64, my: f64) {
+        assert!(self.send(&format!("run {dir}")).starts_with("ok run"));
+        self.robot.finish(x, y);
+        assert!(self.poll(0).starts_with("event run"));
+        assert!(
+            self.send(&format!("measure {mx} {my}"))
+                .starts_with("ok run")
+        );
+    }
+}
+
+#[test]
+fn params_golden() {
+    let mut b = Bench::new();
+    assert_eq!(
+        b.send("params"),
+        "  d_right 0.150000000 m\r\n\
+         \x20 d_left 0.150000000 m\r\n\
+         \x20 wheelbase 0.385000000 m\r\n\
+         \x20 counts_per_rev 200000 counts/rev\r\n\
+         \x20 max_speed 0.300 m/s\r\n\
+         \x20 max_accel 0.300 m/s^2\r\n\
+         \x20 max_turn_rate 1.000 rad/s\r\n\
+         \x20 max_turn_accel 2.000 rad/s^2\r\n\
+         \x20 square_side 2.000 m\r\n\
+         \x20 runs_per_direction 5 runs\r\n\
+         \x20 active d_right=0.150000000 d_left=0.150000000 wheelbase=0.385000000 m\r\n\
+         \x20 calibration none\r\n\
+         ok\r\n"
+    );
+}
+
+#[test]
+fn help_lists_every_command_then_ok() {
+    let mut b = Bench::new();
+    let help = b.send("help");
+    let lines: Vec<&str> = help.split_terminator("\r\n").collect();
+    assert_eq!(lines.len(), 21);
+    assert_eq!(lines[0], "  help                      this list");
+    assert_eq!(lines[20], "ok 20 commands");
+    for cmd in [
+        "status",
+        "params",
+        "set",
+        "run",
+        "next",
+        "line",
+        "circle",
+        "stop",
+        "measure",
+        "runs",
+        "drop",
+        "calibrate",
+        "apply",
+        "save",
+        "reset-params",
+        "pose",
+        "odom",
+        "stream",
+        "drive",
+    ] {
+        assert!(
+            lines.iter().any(|l| l.trim_start().starts_with(cmd)),
+            "{cmd}"
+        );
+    }
+}
+
+#[test]
+fn set_golden_and_pushes_to_the_robot() {
+    let mut b = Bench::new();
+    assert_eq!(b.send("set max_speed 0.5"), "ok max_speed = 0.500 m/s\r\n");
+    assert_eq!(b.robot.limits.unwrap().max_speed_mps, 0.5);
+    assert_eq!(
+        b.send("set wheelbase 0.4"),
+        "ok wheelbase = 0.400000000 m\r\n"
+    );
+    assert_eq!(b.robot.geometry.unwrap().wheelbase_m, 0.4);
+    assert_eq!(
+        b.send("set runs_per_direction 3"),
+        "ok runs_per_direction = 3 runs\r\n"
+    );
+    assert_eq!(
+        b.send("set square_side 1.5"),
+        "ok square_side = 1.500 m\r\n"
+    );
+    // Out-of-range values never reach the settings.
+    assert_eq!(
+        b.send("set max_speed 2.01"),
+        "err 6: <value> must be within 0.01..2\r\n"
+    );
+    assert_eq!(b.session.settings().motion.max_speed_mps, 0.5);
+    // Busy robot: the change is refused and not kept.
+    b.send("run cw");
+    assert_eq!(
+        b.send("set max_speed 0.2"),
+        "err 10: robot is busy (stop first)\r\n"
+    );
+    assert_eq!(b.session.settings().motion.max_speed_mps, 0.5);
+}
+
+#[test]
+fn run_lifecycle_golden() {
+    let mut b = Bench::new();
+    assert_eq!(
+        b.send("measure 0.01 0.02"),
+        "err 12: no finished run to measure (run cw|ccw or next first)\r\n"
+    );
+    assert_eq!(
+        b.send("run cw"),
+        "ok run 1 started: square cw L=2.000 m\r\n"
+    );
+    assert_eq!(b.send("run ccw"), "err 10: robot is busy (stop first)\r\n");
+    assert_eq!(
+        b.send("status"),
+        "ok state=running square cw L=2.000 m fault=none x=+0.000000 y=+0.000000 \
+         theta_deg=+0.0000 plan cw 0/5 ccw 0/5 measured cw 0 ccw 0 runs 0/12 calibration=none\r\n"
+    );
+    b.robot.finish(0.0123, -0.0045);
+    assert_eq!(
+        b.poll(1_000),
+        "event run 1 finished: square cw L=2.000 m odometry end x=+0.012300 y=-0.004500 \
+         theta_deg=+0.0000; measure it\r\n"
+    );
+    assert_eq!(
+        b.send("measure 0.0223 -0.0145 0.5"),
+        "ok run 1 square cw L=2.000 m measured: error vs odometry dx=+0.010000 dy=-0.010000 m\r\n"
+    );
+    assert_eq!(
+        b.send("measure 0.0223 -0.0145"),
+        "ok run 1 square cw L=2.000 m measured (replaced): error vs odometry dx=+0.010000 \
+         dy=-0.010000 m\r\n"
+    );
+    assert_eq!(b.send("line 1"), "ok run 2 started: line d=1.000 m\r\n");
+    // A finished run is collected before the next command runs, without an explicit poll.
+    b.robot.finish(1.0, 0.0);
+    assert_eq!(
+        b.send("runs"),
+        "event run 2 finished: line d=1.000 m odometry end x=+1.000000 y=+0.000000 \
+         theta_deg=+0.0000; measure it\r\n\
+         \x20 run 1 square cw L=2.000 m odometry x=+0.012300 y=-0.004500 measured x=+0.022300 \
+         y=-0.014500\r\n\
+         \x20 run 2 line d=1.000 m odometry x=+1.000000 y=+0.000000 not measured\r\n\
+         ok 2 runs, 1 measured\r\n"
+    );
+    assert_eq!(b.send("drop 3"), "err 14: no run 3 (2 stored)\r\n");
+    assert_eq!(
+        b.send("drop 2"),
+        "ok dropped run 2: line d=1.000 m; 1 runs left\r\n"
+    );
+    assert_eq!(
+        b.send("circle ccw"),
+        "ok run 2 started: circle ccw r=1.000 m\r\n"
+    );
+    assert_eq!(b.send("stop"), "ok stopped\r\n");
+    assert_eq!(b.robot.aborts, 1);
+}
+
+#[test]
+fn calibrate_refused_until_both_directions_measured() {
+    let mut b = Bench::new();
+    assert_eq!(
+        b.send("calibrate"),
+        "err 13: need measured square runs in both directions (measured: cw 0, ccw 0)\r\n"
+    );
+    b.measured_run("cw", 0.01, 0.0, 0.02, 0.01);
+    b.measured_run("cw", 0.01, 0.0, 0.02, 0.01);
+    // An unmeasured CCW run does not count.
+    b.send("run ccw");
+    b.robot.finish(0.0, 0.0);
+    assert_eq!(
+        b.send("calibrate"),
+        "event run 3 finished: square ccw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
+         theta_deg=+0.0000; measure it\r\n\
+         err 13: need measured square runs in both directions (measured: cw 2, ccw 0)\r\n"
+    );
+    assert_eq!(
+        b.send("apply alpha"),
+        "err 13: need measured square runs in both directions (measured: cw 2, ccw 0)\r\n"
+    );
+    assert_eq!(b.session.calibrator().solves, 0);
+}
+
+#[test]
+fn calibrate_apply_save_golden() {
+    let mut b = Bench::new();
+    b.measured_run("cw", 0.01, 0.0, 0.02, 0.01);
+    b.measured_run("ccw", 0.01, 0.0, 0.02, 0.01);
+    let table = "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
+                 E_max_mm  sd_E_d    sd_E_b\r\n\
+                 \x20 alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   388.8500   \
+                 1.200     2.500e-4  -        \r\n\
+                 \x20 beta         failed: degenerate\r\n\
+                 \x20 advice L=2.000 m is adequate\r\n\
+                 ok 1 solved from 2 measured runs (cw 1, ccw 1); apply <method> to use one\r\n";
+    assert_eq!(b.send("calibrate"), table);
+    // Runs are kept across calibrate: the same answer again.
+    assert_eq!(b.send("calibrate"), table);
+    assert_eq!(b.send("runs").lines().count(), 3);
+    assert_eq!(
+        b.send("calibrate gamma"),
+        "err 7: unknown method; one of alpha|beta\r\n"
+    );
+    assert_eq!(b.send("apply beta"), "err 16: degenerate\r\n");
+    assert_eq!(
+        b.send("apply ALPHA"),
+        "ok applied alpha: E_d=0.995000000 E_b=1.010000000 E_s=1.000000000 (not saved; save to keep)\r\n"
+    );
+    let expected = Geometry::PAPER_NOMINAL.with_factors(0.995, 1.01, 1.0);
+    assert_eq!(b.robot.geometry, Some(expected));
+    let params = b.send("params");
+    assert!(params.contains(
+        "  active d_right=0.149624060 d_left=0.150375940 wheelbase=0.388850000 m\r\n\
+         \x20 calibration alpha E_d=0.995000000 E_b=1.010000000 E_s=1.000000000 runs=2 E_max=1.200 mm\r\n"
+    ), "{params}");
+    b.send("drive 0.1 0");
+    assert_eq!(
+        b.send("save"),
+        "err 18: motors running, flash not written\r\n"
+    );
+    assert!(b.store.saved.is_none());
+    b.send("stop");
+    assert_eq!(b.send("save"), "ok saved\r\n");
+    assert_eq!(b.store.saved.as_ref(), Some(b.session.settings()));
+    // A geometry change drops the calibration (its factors were relative to the old nominal).
+    assert_eq!(
+        b.send("set d_left 0.151"),
+        "ok d_left = 0.151000000 m (calibration cleared)\r\n"
+    );
+    assert_eq!(b.session.settings().calibration, None);
+    assert_eq!(
+        b.send("reset-params"),
+        "ok parameters reset to defaults and stored\r\n"
+    );
+    assert_eq!(b.session.settings(), &Settings::default());
+    assert_eq!(b.store.resets, 1);
+}
+
+#[test]
+fn next_alternates_and_completes_the_plan() {
+    let mut b = Bench::new();
+    b.send("set runs_per_direction 2");
+    let mut dirs = Vec::new();
+    for _ in 0..4 {
+        let reply = b.send("next");
+        dirs.push(reply.clone());
+        b.robot.finish(0.0, 0.0);
+    }
+    assert_eq!(
+        dirs,
+        [
+            "ok run 1 started: square cw L=2.000 m\r\n",
+            "event run 1 finished: square cw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
+             theta_deg=+0.0000; measure it\r\nok run 2 started: square ccw L=2.000 m\r\n",
+            "event run 2 finished: square ccw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
+             theta_deg=+0.0000; measure it\r\nok run 3 started: square cw L=2.000 m\r\n",
+            "event run 3 finished: square cw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
+             theta_deg=+0.0000; measure it\r\nok run 4 started: square ccw L=2.000 m\r\n",
+        ]
+    );
+    let done = b.send("next");
+    assert!(
+        done.ends_with("err 20: all planned runs done (calibrate, or run cw|ccw for more)\r\n"),
+        "{done}"
+    );
+    // Dropping a CCW run re-opens the plan for that direction.
+    b.send("drop 2");
+    assert!(
+        b.send("next")
+            .ends_with("ok run 4 started: square ccw L=2.000 m\r\n")
+    );
+}
+
+#[test]
+fn button_starts_next_or_stops() {
+    let mut b = Bench::new();
+    let mut out = String::new();
+    b.session.button_short(&mut b.robot, &mut out).unwrap();
+    assert_eq!(
+        out,
+        "event button: ok run 1 started: square cw L=2.000 m\r\n"
+    );
+    out.clear();
+    b.session.button_short(&mut b.robot, &mut out).unwrap();
+    assert_eq!(out, "event button: stopped\r\n");
+    assert_eq!(b.robot.aborts, 1);
+}
+
+#[test]
+fn store_full_refuses_new_runs() {
+    let mut b = Bench::new();
+    for _ in 0..MAX_RUNS {
+        b.send("line 0.5");
+        b.robot.finish(0.5, 0.0);
+    }
+    let reply = b.send("line 0.5");
+    assert!(
+        reply.ends_with("err 15: run store full (drop <n> first)\r\n"),
+        "{reply}"
+    );
+    assert_eq!(b.session.runs().len(), MAX_RUNS);
+}
+
+#[test]
+fn pose_odom_drive_golden() {
+    let mut b = Bench::new();
+    b.robot.pose = PoseF64::new(1.25, -0.5, -190f64.to_radians());
+    assert_eq!(
+        b.send("pose"),
+        "ok x=+1.250000 y=-0.500000 theta_deg=+170.0000\r\n"
+    );
+    assert_eq!(b.send("odom reset"), "ok odometry reset\r\n");
+    assert_eq!(b.robot.pose, PoseF64::default());
+    assert_eq!(b.send("drive 0.3 -0.25"), "ok\r\n");
+    assert_eq!(b.robot.drives, vec![(0.3, -0.25)]);
+    assert_eq!(
+        b.send("odom reset"),
+        "err 10: robot is busy (stop first)\r\n"
+    );
+    b.send("stop");
+    b.send("run cw");
+    assert_eq!(
+        b.send("drive 0.1 0"),
+        "err 10: robot is busy (stop first)\r\n"
+    );
+    b.robot.fault = Some("stall");
+    b.robot.running = None;
+    assert_eq!(b.send("run cw"), "err 11: fault latched: stall\r\n");
+    assert_eq!(b.send(""), "");
+    assert_eq!(b.send("warp 9"), "err 1: unknown command (try help)\r\n");
+}
+
+#[test]
+fn stream_schedule_and_text() {
+    let mut b = Bench::new();
+    b.robot.pose = PoseF64::new(0.5, 0.25, 0.1);
+    assert_eq!(b.poll(0), "");
+    assert_eq!(b.send("stream on 100"), "ok stream on 100 Hz\r\n");
+    // First line at the first poll, then one per 10 ms period.
+    assert_eq!(
+        b.poll(5_000),
+        "stream 0.005000 +0.500000 +0.250000 +5.7296 +0.2500 -0.1250\r\n"
+    );
+    let mut lines = 0;
+    // Poll every 1 ms for 1 s: exactly 100 more lines (due at 15 ms, 25 ms, … 1005 ms → 99 by
+    // t = 1000 ms plus the one at 1005 ms).
+    for t in (6_000..=1_005_000).step_by(1_000) {
+        lines += b.poll(t).lines().count();
+    }
+    assert_eq!(lines, 100);
+    // A stall of several periods restarts the schedule instead of bursting.
+    assert_eq!(b.poll(2_000_000).lines().count(), 1);
+    assert_eq!(b.poll(2_005_000).lines().count(), 0);
+    assert_eq!(b.poll(2_010_000).lines().count(), 1);
+    assert_eq!(b.send("stream on"), "ok stream on 10 Hz\r\n");
+    assert_eq!(b.send("stream off"), "ok stream off\r\n");
+    assert_eq!(b.poll(3_000_000), "");
+}
+
+#[test]
+fn run_store_ram() {
+    // The store holds MAX_RUNS records inline; report its size so the RAM budget is visible.
+    let record = size_of::<RunRecord>();
+    let session = size_of::<Session<KnownCalibrator>>();
+    println!("RunRecord {record} B, Session {session} B for {MAX_RUNS} runs");
+    // 200 knots × 16 B = 3200 B of knots, plus path, geometry, poses: under 3.5 KB per record.
+    assert!(record >= 3200 && record < 3500, "{record}");
+    assert!(session < MAX_RUNS * 3500 + 512, "{session}");
+}
