@@ -9,7 +9,7 @@ use std::fmt;
 use odocal::encoder::WheelTicks;
 use odocal::geometry::Geometry;
 use odocal::reference::PoseF64;
-use odocal::run::{PathKind, RunRecord};
+use odocal::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::session::{
     Activity, Calibrator, MAX_RUNS, MotionSettings, ParamStorage, Robot, RobotError, RobotStatus,
     Session, Settings, Solution, SolveError, StorageError,
@@ -26,6 +26,7 @@ struct ScriptedRobot {
     limits: Option<MotionSettings>,
     drives: Vec<(f32, f32)>,
     aborts: usize,
+    totals: WheelTicks,
 }
 
 impl ScriptedRobot {
@@ -102,8 +103,11 @@ impl Robot for ScriptedRobot {
     fn pose(&mut self) -> PoseF64 {
         self.pose
     }
-    fn wheel_speeds_mps(&mut self) -> (f64, f64) {
-        (0.25, -0.125)
+    fn totals(&mut self) -> WheelTicks {
+        self.totals
+    }
+    fn clear_fault(&mut self) {
+        self.fault = None;
     }
     fn reset_odometry(&mut self) -> Result<(), RobotError> {
         self.check_idle()?;
@@ -241,9 +245,9 @@ fn help_lists_every_command_then_ok() {
     let mut b = Bench::new();
     let help = b.send("help");
     let lines: Vec<&str> = help.split_terminator("\r\n").collect();
-    assert_eq!(lines.len(), 21);
+    assert_eq!(lines.len(), 22);
     assert_eq!(lines[0], "  help                      this list");
-    assert_eq!(lines[20], "ok 20 commands");
+    assert_eq!(lines[21], "ok 21 commands");
     for cmd in [
         "status",
         "params",
@@ -542,18 +546,25 @@ fn stream_schedule_and_text() {
     b.robot.pose = PoseF64::new(0.5, 0.25, 0.1);
     assert_eq!(b.poll(0), "");
     assert_eq!(b.send("stream on 100"), "ok stream on 100 Hz\r\n");
-    // First line at the first poll, then one per 10 ms period.
+    // First line at the first poll (no speed yet), then one per 10 ms period.
     assert_eq!(
         b.poll(5_000),
-        "stream 0.005000 +0.500000 +0.250000 +5.7296 +0.2500 -0.1250\r\n"
+        "stream 0.005000 +0.500000 +0.250000 +5.7296 +0.0000 +0.0000\r\n"
+    );
+    assert_eq!(b.poll(14_999), "");
+    // 2000 and -1000 ticks in 10 ms: v = ticks × π·0.150 m / 200000 / 0.01 s
+    // = +0.4712 and -0.2356 m/s.
+    b.robot.totals = WheelTicks::new(2000, -1000);
+    assert_eq!(
+        b.poll(15_000),
+        "stream 0.015000 +0.500000 +0.250000 +5.7296 +0.4712 -0.2356\r\n"
     );
     let mut lines = 0;
-    // Poll every 1 ms for 1 s: exactly 100 more lines (due at 15 ms, 25 ms, … 1005 ms → 99 by
-    // t = 1000 ms plus the one at 1005 ms).
-    for t in (6_000..=1_005_000).step_by(1_000) {
+    // Poll every 1 ms for 1 s: exactly 99 more lines (due at 25 ms, 35 ms, … 1005 ms).
+    for t in (16_000..=1_005_000).step_by(1_000) {
         lines += b.poll(t).lines().count();
     }
-    assert_eq!(lines, 100);
+    assert_eq!(lines, 99);
     // A stall of several periods restarts the schedule instead of bursting.
     assert_eq!(b.poll(2_000_000).lines().count(), 1);
     assert_eq!(b.poll(2_005_000).lines().count(), 0);
@@ -569,7 +580,9 @@ fn run_store_ram() {
     let record = size_of::<RunRecord>();
     let session = size_of::<Session<KnownCalibrator>>();
     println!("RunRecord {record} B, Session {session} B for {MAX_RUNS} runs");
-    // 200 knots × 16 B = 3200 B of knots, plus path, geometry, poses: under 3.5 KB per record.
-    assert!(record >= 3200 && record < 3500, "{record}");
-    assert!(session < MAX_RUNS * 3500 + 512, "{session}");
+    // MAX_KNOTS knots × 16 B, plus path, geometry, poses and measurement: under 300 B more.
+    let knots = MAX_KNOTS * size_of::<WheelTicks>();
+    assert!(record >= knots && record < knots + 300, "{record}");
+    // The session is the store plus settings and the stream state: under 512 B more.
+    assert!(session < MAX_RUNS * record + 512, "{session}");
 }

@@ -64,6 +64,8 @@ pub enum Command<'a> {
     },
     /// `stop`: abort any motion now.
     Stop,
+    /// `clear`: clear a latched fault.
+    Clear,
     /// `measure <x_m> <y_m> [theta_deg]`: the true end pose of the last finished run.
     Measure {
         /// True x in the run's start frame, metres.
@@ -316,6 +318,8 @@ impl<'a> Command<'a> {
             }
         } else if is("stop") {
             Command::Stop
+        } else if is("clear") {
+            Command::Clear
         } else if is("measure") {
             let lim = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
             let x_m = number(words.required("x_m")?, "x_m", lim.0, lim.1)?;

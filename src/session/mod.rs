@@ -13,8 +13,9 @@
 //! square in each direction; runs stay stored across `calibrate`, so a bad one can be dropped and
 //! the calibration recomputed. `apply` makes a result active, `save` stores it.
 //!
-//! RAM: one [`RunRecord`] is ~3.3 KB (200 knots × 16 B plus header), so the store costs
-//! `MAX_RUNS` × that ≈ 40 KB (see the `run_store_ram` test for the exact figure).
+//! RAM: one [`RunRecord`] is `MAX_KNOTS` × 16 B plus ~100 B (1,712 B with 100 knots), so the
+//! store costs `MAX_RUNS` × that, ≈ 20.8 KB for the whole session (the `run_store_ram` test
+//! prints the exact figures).
 
 mod report;
 pub mod settings;
@@ -24,6 +25,7 @@ use core::fmt::{self, Write};
 
 use heapless::Vec;
 
+use crate::encoder::WheelTicks;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
 use crate::run::{Direction, Measurement, PathKind, RunRecord};
@@ -45,6 +47,8 @@ struct Stream {
     period_us: u64,
     /// Time of the next line; `None` = emit at the next poll.
     next_due_us: Option<u64>,
+    /// Time and wheel tick totals of the previous line, for the wheel speeds.
+    last: Option<(u64, WheelTicks)>,
 }
 
 /// Session state: run store, settings, stream schedule.
@@ -180,10 +184,32 @@ impl<C: Calibrator> Session<C> {
         self.collect_finished(robot, out)?;
         if self.stream_due(now_us) {
             let pose = robot.pose();
-            let (vr, vl) = robot.wheel_speeds_mps();
+            let totals = robot.totals();
+            let (vr, vl) = self.wheel_speeds(now_us, totals);
             report::write_stream_line(out, now_us, &pose, vr, vl)?;
         }
         Ok(())
+    }
+
+    /// Mean wheel speeds `(right, left)` in m/s since the previous stream line (0 for the first
+    /// line), from the tick totals and the active geometry; remembers this sample.
+    fn wheel_speeds(&mut self, now_us: u64, totals: WheelTicks) -> (f64, f64) {
+        let g = self.settings.active;
+        let Some(stream) = self.stream.as_mut() else {
+            return (0.0, 0.0);
+        };
+        let speeds = match stream.last {
+            Some((t, prev)) if now_us > t => {
+                let dt = (now_us - t) as f64 * 1e-6;
+                (
+                    (totals.right - prev.right) as f64 * g.meters_per_tick_right() / dt,
+                    (totals.left - prev.left) as f64 * g.meters_per_tick_left() / dt,
+                )
+            }
+            _ => (0.0, 0.0),
+        };
+        stream.last = Some((now_us, totals));
+        speeds
     }
 
     /// Whether a stream line is due at `now_us`; if so, schedules the next one. The schedule
@@ -258,7 +284,7 @@ impl<C: Calibrator> Session<C> {
             Some(direction) => {
                 let path = PathKind::Square {
                     direction,
-                    side_m: self.settings.square_side_m,
+                    side_m: self.settings.square_side_f64(),
                 };
                 self.start(path, robot, out)
             }
@@ -282,7 +308,7 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         self.collect_finished(robot, out)?;
-        let side = self.settings.square_side_m;
+        let side = self.settings.square_side_f64();
         match cmd {
             Command::Help => report::write_help(out),
             Command::Status => {
@@ -319,6 +345,10 @@ impl<C: Calibrator> Session<C> {
             Command::Stop => {
                 robot.abort();
                 write!(out, "ok stopped{EOL}")
+            }
+            Command::Clear => {
+                robot.clear_fault();
+                write!(out, "ok fault cleared{EOL}")
             }
             Command::Measure {
                 x_m,
@@ -362,6 +392,7 @@ impl<C: Calibrator> Session<C> {
                 self.stream = Some(Stream {
                     period_us: 1_000_000 / u64::from(hz),
                     next_due_us: None,
+                    last: None,
                 });
                 write!(out, "ok stream on {hz} Hz{EOL}")
             }
@@ -548,7 +579,7 @@ impl<C: Calibrator> Session<C> {
             e_d: sol.e_d,
             e_b: sol.e_b,
             e_s: sol.e_s,
-            runs_used: (p.cw_measured + p.ccw_measured).min(usize::from(u8::MAX)) as u8,
+            runs_used: (p.cw_measured + p.ccw_measured).min(usize::from(u16::MAX)) as u16,
             e_max_m: sol.e_max_m.unwrap_or(0.0),
         });
         write!(

@@ -22,6 +22,7 @@ const HELP: &[&str] = &[
     "line [d]                  drive straight d m",
     "circle cw|ccw [r]         drive a full circle of radius r m",
     "stop                      stop now",
+    "clear                     clear a latched fault (stall, encoder glitch)",
     "measure <x> <y> [th_deg]  true end pose of the last run (start frame, m, deg)",
     "runs                      list stored runs",
     "drop <n>                  delete run n",

@@ -2,7 +2,8 @@
 //!
 //! [`Settings`] is everything `params` shows and `save` persists: the nominal geometry, the
 //! applied calibration (factors relative to nominal and the resulting absolute geometry), the
-//! motion limits and the calibration plan. Units: metres, seconds, radians.
+//! motion limits and the calibration plan. Units: metres, seconds, radians. Motion limits and the
+//! planned side are `f32` like the controller's limits and the stored record; geometry is `f64`.
 
 use core::fmt;
 
@@ -16,13 +17,13 @@ pub const METHOD_NAME_LEN: usize = 12;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotionSettings {
     /// Maximum leg speed, m/s.
-    pub max_speed_mps: f64,
+    pub max_speed_mps: f32,
     /// Maximum linear acceleration, m/s².
-    pub max_accel_mps2: f64,
+    pub max_accel_mps2: f32,
     /// Maximum in-place turn rate, rad/s.
-    pub max_turn_rate_radps: f64,
+    pub max_turn_rate_radps: f32,
     /// Maximum in-place angular acceleration, rad/s².
-    pub max_turn_accel_radps2: f64,
+    pub max_turn_accel_radps2: f32,
 }
 
 impl Default for MotionSettings {
@@ -48,7 +49,7 @@ pub struct AppliedCalibration {
     /// `E_s = D_a / D_a,nominal`.
     pub e_s: f64,
     /// Number of measured runs it was computed from.
-    pub runs_used: u8,
+    pub runs_used: u16,
     /// Predicted worst square end error with it, metres (NaN-free; 0 when unknown).
     pub e_max_m: f64,
 }
@@ -65,7 +66,7 @@ pub struct Settings {
     /// Motion limits.
     pub motion: MotionSettings,
     /// Planned square side `L`, metres.
-    pub square_side_m: f64,
+    pub square_side_m: f32,
     /// Planned square runs per direction.
     pub runs_per_direction: u8,
 }
@@ -111,6 +112,12 @@ pub enum Changed {
 }
 
 impl Settings {
+    /// The planned side as the `f64` nearest to its decimal value (to the micrometre), so a
+    /// planned run and `run cw <same value>` record exactly the same side.
+    pub fn square_side_f64(&self) -> f64 {
+        libm::round(f64::from(self.square_side_m) * 1e6) / 1e6
+    }
+
     /// Current value of a parameter.
     pub fn value(&self, name: ParamName) -> f64 {
         match name {
@@ -118,11 +125,11 @@ impl Settings {
             ParamName::DiameterLeft => self.nominal.diameter_left_m,
             ParamName::Wheelbase => self.nominal.wheelbase_m,
             ParamName::CountsPerRev => f64::from(self.nominal.counts_per_rev),
-            ParamName::MaxSpeed => self.motion.max_speed_mps,
-            ParamName::MaxAccel => self.motion.max_accel_mps2,
-            ParamName::MaxTurnRate => self.motion.max_turn_rate_radps,
-            ParamName::MaxTurnAccel => self.motion.max_turn_accel_radps2,
-            ParamName::SquareSide => self.square_side_m,
+            ParamName::MaxSpeed => f64::from(self.motion.max_speed_mps),
+            ParamName::MaxAccel => f64::from(self.motion.max_accel_mps2),
+            ParamName::MaxTurnRate => f64::from(self.motion.max_turn_rate_radps),
+            ParamName::MaxTurnAccel => f64::from(self.motion.max_turn_accel_radps2),
+            ParamName::SquareSide => f64::from(self.square_side_m),
             ParamName::RunsPerDirection => f64::from(self.runs_per_direction),
         }
     }
@@ -157,23 +164,23 @@ impl Settings {
                 Changed::Geometry
             }
             ParamName::MaxSpeed => {
-                s.motion.max_speed_mps = value;
+                s.motion.max_speed_mps = value as f32;
                 Changed::Motion
             }
             ParamName::MaxAccel => {
-                s.motion.max_accel_mps2 = value;
+                s.motion.max_accel_mps2 = value as f32;
                 Changed::Motion
             }
             ParamName::MaxTurnRate => {
-                s.motion.max_turn_rate_radps = value;
+                s.motion.max_turn_rate_radps = value as f32;
                 Changed::Motion
             }
             ParamName::MaxTurnAccel => {
-                s.motion.max_turn_accel_radps2 = value;
+                s.motion.max_turn_accel_radps2 = value as f32;
                 Changed::Motion
             }
             ParamName::SquareSide => {
-                s.square_side_m = value;
+                s.square_side_m = value as f32;
                 Changed::Plan
             }
             ParamName::RunsPerDirection => {

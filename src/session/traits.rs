@@ -8,6 +8,7 @@
 use core::fmt;
 
 use super::settings::{MotionSettings, Settings};
+use crate::encoder::WheelTicks;
 use crate::geometry::Geometry;
 use crate::reference::PoseF64;
 use crate::run::{PathKind, RunRecord};
@@ -84,8 +85,10 @@ pub trait Robot {
     fn status(&mut self) -> RobotStatus;
     /// Odometry pose.
     fn pose(&mut self) -> PoseF64;
-    /// Measured wheel speeds `(right, left)`, m/s.
-    fn wheel_speeds_mps(&mut self) -> (f64, f64);
+    /// Cumulative wheel tick totals (for the stream's wheel speeds).
+    fn totals(&mut self) -> WheelTicks;
+    /// Clears a latched fault (the motors stay stopped).
+    fn clear_fault(&mut self);
     /// Sets the odometry pose to the origin.
     ///
     /// # Errors
