@@ -17,6 +17,7 @@
 //! store costs `MAX_RUNS` × that, ≈ 20.8 KB for the whole session (the `run_store_ram` test
 //! prints the exact figures).
 
+pub mod library;
 mod report;
 pub mod settings;
 pub mod traits;

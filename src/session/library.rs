@@ -1,0 +1,479 @@
+//! The session traits implemented for the library's own types.
+//!
+//! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`Locked`], which wraps
+//!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
+//!   RTIC `Mutex<T = Controller>` is one), so the serial task holds the controller's lock for one
+//!   short operation at a time and never during a calibration solve;
+//! - [`ParamStorage`] for [`ParamStore`] (blocking; the motors must be stopped);
+//! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`];
+//! - conversions between [`Settings`] and the stored [`ParamRecord`] (lossless both ways).
+
+use core::fmt::{self, Write};
+
+use embedded_storage_async::nor_flash::MultiwriteNorFlash;
+use heapless::Vec;
+
+use super::MAX_RUNS;
+use super::settings::{AppliedCalibration, MotionSettings, Settings};
+use super::traits::{
+    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
+    StorageError,
+};
+use crate::calibration::track::{self, TrackAdviceInput};
+use crate::calibration::{self, CalibrationError, Method, RunObservation};
+use crate::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
+use crate::encoder::WheelTicks;
+use crate::geometry::Geometry;
+use crate::profile::MotionLimits;
+use crate::protocol::EOL;
+use crate::reference::PoseF64;
+use crate::run::{Direction, PathKind, RunRecord};
+use crate::storage::ParamStore;
+use crate::storage::record::{self, MethodName, ParamRecord};
+
+/// Short name of a fault as the protocol shows it.
+pub fn fault_name(f: &Fault) -> &'static str {
+    match f {
+        Fault::EncoderGlitch { .. } => "encoder-glitch",
+        Fault::Stall { .. } => "stall",
+        #[allow(unreachable_patterns)]
+        _ => "fault",
+    }
+}
+
+impl Controller {
+    fn fault_error(&self) -> RobotError {
+        RobotError::Fault(self.fault().as_ref().map_or("fault", fault_name))
+    }
+}
+
+impl Robot for Controller {
+    fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
+        Controller::start(self, path).map_err(|e| match e {
+            StartError::Busy => RobotError::Busy,
+            StartError::Faulted => self.fault_error(),
+            StartError::NotReady => RobotError::Rejected("encoders not read yet"),
+            StartError::Path(_) => RobotError::Rejected("path size not accepted by the routine"),
+            #[allow(unreachable_patterns)]
+            _ => RobotError::Rejected("start refused"),
+        })
+    }
+
+    fn abort(&mut self) {
+        Controller::abort(self);
+    }
+
+    fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError> {
+        Controller::drive(self, v_mps, w_radps).map_err(|e| match e {
+            DriveError::Busy => RobotError::Busy,
+            DriveError::Faulted => self.fault_error(),
+            DriveError::NotReady => RobotError::Rejected("encoders not read yet"),
+            DriveError::NotFinite => RobotError::Rejected("speeds must be finite"),
+            #[allow(unreachable_patterns)]
+            _ => RobotError::Rejected("drive refused"),
+        })
+    }
+
+    fn take_finished_run(&mut self) -> Option<RunRecord> {
+        Controller::take_finished_run(self)
+    }
+
+    fn set_geometry(&mut self, geometry: Geometry) -> Result<(), RobotError> {
+        Controller::set_geometry(self, geometry).map_err(set_error)
+    }
+
+    fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError> {
+        Controller::set_limits(self, motion_limits(limits)).map_err(set_error)
+    }
+
+    fn status(&mut self) -> RobotStatus {
+        match Controller::status(self) {
+            Status::Idle => RobotStatus {
+                activity: Activity::Idle,
+                fault: None,
+            },
+            Status::Running { path, .. } => RobotStatus {
+                activity: Activity::Running(path),
+                fault: None,
+            },
+            Status::Driving => RobotStatus {
+                activity: Activity::Driving,
+                fault: None,
+            },
+            Status::Faulted(f) => RobotStatus {
+                activity: Activity::Idle,
+                fault: Some(fault_name(&f)),
+            },
+        }
+    }
+
+    fn pose(&mut self) -> PoseF64 {
+        Controller::pose(self).to_f64()
+    }
+
+    fn totals(&mut self) -> WheelTicks {
+        Controller::totals(self)
+    }
+
+    fn clear_fault(&mut self) {
+        Controller::clear_fault(self);
+    }
+
+    fn reset_odometry(&mut self) -> Result<(), RobotError> {
+        match Controller::status(self) {
+            Status::Idle | Status::Faulted(_) => {
+                Controller::reset_odometry(self);
+                Ok(())
+            }
+            _ => Err(RobotError::Busy),
+        }
+    }
+
+    fn motors_stopped(&mut self) -> bool {
+        Controller::motors_stopped(self)
+    }
+}
+
+fn set_error(e: SetError) -> RobotError {
+    match e {
+        SetError::Busy => RobotError::Busy,
+        SetError::Geometry(_) => RobotError::Rejected("geometry not accepted by the controller"),
+        SetError::Limits(_) => RobotError::Rejected("limits not accepted by the controller"),
+        #[allow(unreachable_patterns)]
+        _ => RobotError::Rejected("setting refused"),
+    }
+}
+
+/// The controller's limits for the session's motion settings.
+pub fn motion_limits(m: &MotionSettings) -> MotionLimits {
+    MotionLimits {
+        max_speed_mps: m.max_speed_mps,
+        max_accel_mps2: m.max_accel_mps2,
+        max_turn_rate_radps: m.max_turn_rate_radps,
+        max_turn_accel_radps2: m.max_turn_accel_radps2,
+    }
+}
+
+/// Lends the controller for the duration of one closure call (e.g. an RTIC resource lock).
+pub trait ControllerLock {
+    /// Runs `f` with exclusive access to the controller.
+    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R;
+}
+
+#[cfg(target_os = "none")]
+impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
+    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
+        self.lock(f)
+    }
+}
+
+/// A [`Robot`] that locks the controller for each call separately.
+#[derive(Debug)]
+pub struct Locked<L>(pub L);
+
+impl<L: ControllerLock> Robot for Locked<L> {
+    fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::start(c, path))
+    }
+    fn abort(&mut self) {
+        self.0.with_controller(Robot::abort);
+    }
+    fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::drive(c, v_mps, w_radps))
+    }
+    fn take_finished_run(&mut self) -> Option<RunRecord> {
+        self.0.with_controller(Robot::take_finished_run)
+    }
+    fn set_geometry(&mut self, geometry: Geometry) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::set_geometry(c, geometry))
+    }
+    fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::set_limits(c, limits))
+    }
+    fn status(&mut self) -> RobotStatus {
+        self.0.with_controller(Robot::status)
+    }
+    fn pose(&mut self) -> PoseF64 {
+        self.0.with_controller(Robot::pose)
+    }
+    fn totals(&mut self) -> WheelTicks {
+        self.0.with_controller(Robot::totals)
+    }
+    fn clear_fault(&mut self) {
+        self.0.with_controller(Robot::clear_fault);
+    }
+    fn reset_odometry(&mut self) -> Result<(), RobotError> {
+        self.0.with_controller(Robot::reset_odometry)
+    }
+    fn motors_stopped(&mut self) -> bool {
+        self.0.with_controller(Robot::motors_stopped)
+    }
+}
+
+impl From<&ParamRecord> for Settings {
+    fn from(r: &ParamRecord) -> Self {
+        let c = &r.calibration;
+        let calibration = (c.method != MethodName::NONE).then(|| {
+            let mut method = heapless::String::new();
+            let _ = method.push_str(c.method.as_str());
+            AppliedCalibration {
+                method,
+                e_d: c.e_d,
+                e_b: c.e_b,
+                e_s: c.e_s,
+                runs_used: c.runs,
+                e_max_m: c.predicted_e_max_m,
+            }
+        });
+        Settings {
+            nominal: r.nominal,
+            active: r.active_geometry(),
+            calibration,
+            motion: MotionSettings {
+                max_speed_mps: r.motion.max_speed_mps,
+                max_accel_mps2: r.motion.max_accel_mps2,
+                max_turn_rate_radps: r.motion.max_turn_rate_radps,
+                max_turn_accel_radps2: r.motion.max_turn_accel_radps2,
+            },
+            square_side_m: r.motion.square_side_m,
+            runs_per_direction: r.motion.runs_per_direction,
+        }
+    }
+}
+
+impl Settings {
+    /// The stored form of these settings.
+    ///
+    /// # Errors
+    /// If the method name is not storable (empty, too long, not printable ASCII).
+    pub fn to_record(&self) -> Result<ParamRecord, record::RecordError> {
+        let calibration = match &self.calibration {
+            None => record::Calibration::none(self.nominal),
+            Some(c) => record::Calibration {
+                e_d: c.e_d,
+                e_b: c.e_b,
+                e_s: c.e_s,
+                geometry: self.active,
+                method: MethodName::new(&c.method)?,
+                runs: c.runs_used,
+                predicted_e_max_m: c.e_max_m,
+            },
+        };
+        Ok(ParamRecord {
+            nominal: self.nominal,
+            calibration,
+            motion: record::MotionSettings {
+                max_speed_mps: self.motion.max_speed_mps,
+                max_accel_mps2: self.motion.max_accel_mps2,
+                max_turn_rate_radps: self.motion.max_turn_rate_radps,
+                max_turn_accel_radps2: self.motion.max_turn_accel_radps2,
+                square_side_m: self.square_side_m,
+                runs_per_direction: self.runs_per_direction,
+            },
+        })
+    }
+}
+
+fn store_error(e: crate::storage::StoreError) -> StorageError {
+    use crate::storage::StoreError as E;
+    match e {
+        E::MotorsRunning => StorageError::MotorsRunning,
+        E::InvalidRecord(_) => StorageError::Invalid("record does not validate"),
+        E::BadRange => StorageError::Flash("bad parameter flash range"),
+        E::Flash(_) => StorageError::Flash("flash driver error"),
+        E::Corrupted => StorageError::Flash("parameter flash corrupted"),
+        E::Full => StorageError::Flash("parameter flash full"),
+        _ => StorageError::Flash("storage error"),
+    }
+}
+
+impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+        let record = settings
+            .to_record()
+            .map_err(|_| StorageError::Invalid("method name not storable"))?;
+        self.save_blocking(&record, motors_stopped)
+            .map_err(store_error)
+    }
+
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+        self.reset_to_defaults_blocking(motors_stopped)
+            .map_err(store_error)
+    }
+}
+
+/// Method names in [`Method::ALL`] order (`Method::as_str` is not `const`; a test checks them).
+const METHOD_NAMES: [&str; 6] = [
+    "umbmark-x",
+    "umbmark-y",
+    "lee-x",
+    "lee-y",
+    "jung-chung",
+    "exact",
+];
+
+/// [`Calibrator`] running [`crate::calibration`], with the assumptions of its track advice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LibraryCalibrator {
+    /// 1σ of one measured end coordinate (tape measure on the floor), metres.
+    pub measurement_sigma_m: f64,
+    /// 1σ of a measured end heading, radians.
+    pub measurement_sigma_rad: f64,
+    /// Largest square side that fits the floor, metres.
+    pub max_side_m: f64,
+}
+
+impl Default for LibraryCalibrator {
+    /// 1 mm and 0.2° measurement error, squares up to 4 m.
+    fn default() -> Self {
+        LibraryCalibrator {
+            measurement_sigma_m: 1e-3,
+            measurement_sigma_rad: 0.2f64.to_radians(),
+            max_side_m: 4.0,
+        }
+    }
+}
+
+fn observations(runs: &[RunRecord]) -> Vec<RunObservation<'_>, MAX_RUNS> {
+    runs.iter()
+        .filter_map(RunObservation::from_record)
+        .take(MAX_RUNS)
+        .collect()
+}
+
+fn solve_error(e: CalibrationError) -> SolveError {
+    use CalibrationError as E;
+    match e {
+        E::NoRuns | E::NoSquareRuns | E::NoCwRun | E::NoCcwRun => SolveError::NotEnoughRuns,
+        E::NoHeading => SolveError::Failed("needs measured headings (measure x y theta)"),
+        E::InvalidMeasurement { .. } => SolveError::Failed("a measurement is invalid or absurd"),
+        E::MixedSide => SolveError::Failed("squares differ in side (drop some runs)"),
+        E::MixedGeometry => {
+            SolveError::Failed("runs driven with different geometries (drop the older ones)")
+        }
+        E::InvalidGeometry => SolveError::Failed("invalid geometry"),
+        E::Degenerate => SolveError::Failed("degenerate configuration"),
+        E::NotConverged => SolveError::Failed("did not converge"),
+        E::OutOfRange => SolveError::Failed("factor outside 0.5..2"),
+        #[allow(unreachable_patterns)]
+        _ => SolveError::Failed("failed"),
+    }
+}
+
+impl Calibrator for LibraryCalibrator {
+    fn methods(&self) -> &[&'static str] {
+        &METHOD_NAMES
+    }
+
+    fn solve(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        method: &str,
+    ) -> Result<Solution, SolveError> {
+        let method = Method::parse(method).ok_or(SolveError::UnknownMethod)?;
+        let obs = observations(runs);
+        let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
+        Ok(Solution {
+            e_d: c.e_d,
+            e_b: c.e_b,
+            e_s: c.e_s,
+            geometry: c.geometry,
+            e_max_m: c.quality.e_max_after_m,
+            sd_e_d: c.quality.sigma_e_d,
+            sd_e_b: c.quality.sigma_e_b,
+        })
+    }
+
+    fn advice(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let obs = observations(runs);
+        // The side and driving geometry of the last measured square.
+        let Some((side, belief)) = obs.iter().rev().find_map(|o| match o.path {
+            PathKind::Square { side_m, .. } => Some((side_m, o.geometry)),
+            _ => None,
+        }) else {
+            return Ok(());
+        };
+        let exact = calibration::calibrate(&obs, nominal, Method::Exact).ok();
+        let per_direction = [Direction::Cw, Direction::Ccw].map(|d| {
+            obs.iter()
+                .filter(|o| matches!(o.path, PathKind::Square { direction, .. } if direction == d))
+                .count()
+        });
+        let input = TrackAdviceInput {
+            belief,
+            estimate: exact.map_or(belief, |c| c.geometry),
+            measurement_sigma_m: self.measurement_sigma_m,
+            measurement_sigma_rad: self.measurement_sigma_rad,
+            observed_scatter: exact.and_then(|c| c.quality.scatter_m).map(|s| (s, side)),
+            runs_per_direction: per_direction[0].min(per_direction[1]).max(1) as u32,
+            max_side_m: self.max_side_m,
+        };
+        for method in Method::ALL {
+            let now = track::evaluate(&input, method, side);
+            let best = track::advise(&input, method);
+            write!(out, "  advice {:<12}", method.as_str())?;
+            match now {
+                Some(a) => write!(
+                    out,
+                    " L={side:.3} m: expected error {:.4} %",
+                    a.expected_error * 100.0
+                )?,
+                None => write!(out, " L={side:.3} m: not usable")?,
+            }
+            match best {
+                Some(b) => write!(
+                    out,
+                    "; best L={:.3} m (<= {:.1} m): {:.4} %",
+                    b.side_m,
+                    self.max_side_m,
+                    b.expected_error * 100.0
+                )?,
+                None => write!(out, "; no usable side")?,
+            }
+            out.write_str(EOL)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_match_the_calibration_module() {
+        let names: [&str; 6] = Method::ALL.map(Method::as_str);
+        assert_eq!(names, METHOD_NAMES);
+    }
+
+    #[test]
+    fn settings_round_trip_through_the_record() {
+        let mut s = Settings::default();
+        s.motion.max_speed_mps = 0.45;
+        s.square_side_m = 1.7;
+        s.runs_per_direction = 4;
+        s.active = s.nominal.with_factors(0.995, 1.01, 1.0);
+        let mut method = heapless::String::new();
+        method.push_str("exact").unwrap();
+        s.calibration = Some(AppliedCalibration {
+            method,
+            e_d: 0.995,
+            e_b: 1.01,
+            e_s: 1.0,
+            runs_used: 10,
+            e_max_m: 0.0012,
+        });
+        let r = s.to_record().unwrap();
+        assert_eq!(r.validate(), Ok(()));
+        assert_eq!(Settings::from(&r), s);
+        let d = Settings::default().to_record().unwrap();
+        assert_eq!(d, ParamRecord::DEFAULT);
+        assert_eq!(Settings::from(&ParamRecord::DEFAULT), Settings::default());
+    }
+}
