@@ -14,4 +14,5 @@ pub mod plot;
 pub mod rectangle;
 pub mod replay;
 pub mod robot;
+pub mod serial;
 pub mod square;

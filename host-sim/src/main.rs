@@ -63,6 +63,8 @@ enum Command {
     Advice(host_sim::advice::AdviceArgs),
     /// Calibration from squares driven closed-loop (motor dynamics), optional noise.
     Closedloop(host_sim::closedloop::ClosedLoopArgs),
+    /// The simulated robot speaking the serial protocol on stdin/stdout or a pseudo-terminal.
+    Serial(host_sim::serial::SerialArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -88,6 +90,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Montecarlo(args) => host_sim::montecarlo::run(&args),
         Command::Advice(args) => host_sim::advice::run(&args),
         Command::Closedloop(args) => host_sim::closedloop::run(&args),
+        Command::Serial(args) => Ok(host_sim::serial::run(&args)?),
     }
 }
 

@@ -1,0 +1,148 @@
+//! The simulated board over the serial protocol: a full calibration session and the `drive`
+//! deadman, with the library's controller, session, calibration and storage.
+
+use host_sim::serial::{Board, new_flash, sim_config};
+use odocal::calibration::wrap_angle;
+use odocal::controller::Status;
+use odocal::geometry::Geometry;
+
+/// True robot: E_d = 0.995, E_b = 1.010 (the paper's example magnitudes), no slip.
+const TRUE_ED: f64 = 0.995;
+const TRUE_EB: f64 = 1.010;
+
+/// Longest run: a 2 m square at 0.3 m/s takes ~35 s; 120 s of periods is a generous cap.
+const MAX_RUN_PERIODS: u64 = 120_000;
+
+fn boot(flash: &'static mut host_sim::serial::SimFlash) -> (Board, String) {
+    let mut out = String::new();
+    let board = Board::boot(sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 1000), flash, &mut out)
+        .expect("boot");
+    (board, out)
+}
+
+/// The factors of one method's row of the `calibrate` table.
+fn row(table: &str, method: &str) -> (f64, f64) {
+    let line = table
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some(method))
+        .unwrap_or_else(|| panic!("no row {method} in\n{table}"));
+    let mut w = line.split_whitespace().skip(1);
+    let e_d: f64 = w.next().unwrap().parse().unwrap();
+    let e_b: f64 = w.next().unwrap().parse().unwrap();
+    (e_d, e_b)
+}
+
+#[test]
+fn scripted_session_calibrate_save_reboot() {
+    let (mut b, boot_msg) = boot(new_flash());
+    assert_eq!(boot_msg, "event boot: default parameters (no stored parameters)\r\n");
+    // Before any run: the refusals the protocol promises.
+    assert_eq!(
+        b.send("measure 0 0"),
+        "err 12: no finished run to measure (run cw|ccw or next first)\r\n"
+    );
+    let mut log = String::new();
+    for i in 0..10 {
+        let reply = b.send("next");
+        let dir = if i % 2 == 0 { "cw" } else { "ccw" };
+        assert_eq!(
+            reply,
+            format!("ok run {} started: square {dir} L=2.000 m\r\n", i + 1)
+        );
+        let periods = b.run_until_rest(MAX_RUN_PERIODS, &mut log);
+        assert!(periods < MAX_RUN_PERIODS, "run {i} did not finish");
+        assert!(log.contains(&format!("event run {} finished", i + 1)), "{log}");
+        // The operator measures the true end pose in the run's start frame.
+        let p = b.true_pose_in_run_frame().unwrap();
+        let reply = b.send(&format!(
+            "measure {:.6} {:.6} {:.4}",
+            p.x_m,
+            p.y_m,
+            wrap_angle(p.theta_rad).to_degrees()
+        ));
+        assert!(reply.starts_with(&format!("ok run {} square {dir}", i + 1)), "{reply}");
+        if i == 0 {
+            // Only CW measured so far: calibrate is refused with the documented message.
+            assert_eq!(
+                b.send("calibrate"),
+                "err 13: need measured square runs in both directions (measured: cw 1, ccw 0)\r\n"
+            );
+        }
+    }
+    assert!(b.send("next").starts_with("err 20: all planned runs done"));
+    let table = b.send("calibrate");
+    println!("{table}");
+    assert!(table.ends_with(
+        "ok 6 solved from 10 measured runs (cw 5, ccw 5); apply <method> to use one\r\n"
+    ));
+    // The exact method fits the recorded ticks with no small-angle approximation and the
+    // measurements are exact (no slip, true pose): it must recover the truth to within the
+    // 9-decimal print resolution plus encoder quantisation, far below 1e-5.
+    let (ed, eb) = row(&table, "exact");
+    assert!((ed - TRUE_ED).abs() < 1e-5, "exact E_d {ed} vs {TRUE_ED}");
+    assert!((eb - TRUE_EB).abs() < 1e-5, "exact E_b {eb} vs {TRUE_EB}");
+    // Every closed-form method must at least remove most of the 1 % errors. This is a sanity
+    // bound on the table's wiring (each row is that method's result), not an accuracy claim:
+    // the methods' own accuracy is tested with the calibration module.
+    for m in ["umbmark-x", "umbmark-y", "lee-x", "lee-y", "jung-chung"] {
+        let (ed, eb) = row(&table, m);
+        assert!((ed - TRUE_ED).abs() < 5e-3, "{m} E_d {ed}");
+        assert!((eb - TRUE_EB).abs() < 5e-3, "{m} E_b {eb}");
+    }
+    assert!(b.send("apply exact").starts_with("ok applied exact: "));
+    assert_eq!(b.send("save"), "ok saved\r\n");
+    let params_before = b.send("params");
+    let calibrated = b.controller_geometry();
+    assert_ne!(calibrated, Geometry::PAPER_NOMINAL);
+
+    // Simulated reboot: a new board (controller, session) over the same flash.
+    let flash = b.power_off();
+    let (mut b2, boot_msg) = boot(flash);
+    assert_eq!(boot_msg, "event boot: parameters loaded\r\n");
+    let params_after = b2.send("params");
+    println!("{params_after}");
+    assert_eq!(params_after, params_before);
+    assert!(params_after.contains("  calibration exact E_d="), "{params_after}");
+    // The controller runs with the stored calibration, bit for bit.
+    assert_eq!(b2.controller_geometry(), calibrated);
+    // The run store is RAM only: empty after the reboot.
+    assert_eq!(b2.send("runs"), "ok 0 runs, 0 measured\r\n");
+}
+
+#[test]
+fn drive_deadman_stops_within_500_ms_plus_one_period() {
+    let (mut b, _) = boot(new_flash());
+    let mut out = String::new();
+    // 1 kHz control: one period is 1 ms. Commands every 100 ms for 1 s keep the robot moving.
+    for _ in 0..10 {
+        assert_eq!(b.send("drive 0.2 0.3"), "ok\r\n");
+        for _ in 0..100 {
+            let step = b.step(&mut out);
+            assert!(
+                !step.command.is_stop() || b.controller.status() != Status::Driving,
+                "stopped while commands arrive"
+            );
+        }
+    }
+    assert_eq!(b.controller.status(), Status::Driving);
+    // Last command, then silence: count periods until the first stop command.
+    assert_eq!(b.send("drive 0.2 0.3"), "ok\r\n");
+    let mut periods = 0u64;
+    loop {
+        let step = b.step(&mut out);
+        periods += 1;
+        if step.command.is_stop() {
+            break;
+        }
+        assert!(periods <= 2_000, "deadman never fired");
+    }
+    println!("deadman: motors stopped {periods} periods (ms) after the last drive command");
+    // 500 ms deadman + one 1 ms control period.
+    assert!(periods <= 501, "stopped after {periods} ms");
+    // And not long before it: the deadman is 500 ms, not a shorter timeout.
+    assert!(periods >= 499, "stopped after {periods} ms");
+    // The robot comes to rest and accepts a run afterwards.
+    b.run_until_rest(5_000, &mut out);
+    assert!(b.at_rest());
+    assert!(b.send("run cw 0.5").starts_with("ok run 1 started"));
+}
