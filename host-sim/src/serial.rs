@@ -118,12 +118,9 @@ impl Board {
             };
             match line {
                 Ok(text) => {
-                    let _ = self.session.handle_line(
-                        text,
-                        &mut self.controller,
-                        &mut self.store,
-                        out,
-                    );
+                    let _ =
+                        self.session
+                            .handle_line(text, &mut self.controller, &mut self.store, out);
                 }
                 Err(e) => out.push_str(&line_error_reply(&e)),
             }
@@ -158,9 +155,7 @@ impl Board {
     pub fn step(&mut self, out: &mut String) -> StepOutput {
         let output = self.sim.step(&mut self.controller);
         self.now_us += self.period_us;
-        let _ = self
-            .session
-            .poll(self.now_us, &mut self.controller, out);
+        let _ = self.session.poll(self.now_us, &mut self.controller, out);
         self.running = matches!(self.controller.status(), Status::Running { .. });
         output
     }
@@ -259,7 +254,9 @@ fn open_pty() -> Result<(std::fs::File, String, std::fs::File), String> {
         if name.is_null() {
             return Err("ptsname failed".into());
         }
-        std::ffi::CStr::from_ptr(name).to_string_lossy().into_owned()
+        std::ffi::CStr::from_ptr(name)
+            .to_string_lossy()
+            .into_owned()
     };
     // SAFETY: both descriptors are open and owned by nothing else.
     let (m, s) = unsafe {

@@ -15,8 +15,8 @@ const MAX_RUN_PERIODS: u64 = 120_000;
 
 fn boot(flash: &'static mut host_sim::serial::SimFlash) -> (Board, String) {
     let mut out = String::new();
-    let board = Board::boot(sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 1000), flash, &mut out)
-        .expect("boot");
+    let board =
+        Board::boot(sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 1000), flash, &mut out).expect("boot");
     (board, out)
 }
 
@@ -35,7 +35,10 @@ fn row(table: &str, method: &str) -> (f64, f64) {
 #[test]
 fn scripted_session_calibrate_save_reboot() {
     let (mut b, boot_msg) = boot(new_flash());
-    assert_eq!(boot_msg, "event boot: default parameters (no stored parameters)\r\n");
+    assert_eq!(
+        boot_msg,
+        "event boot: default parameters (no stored parameters)\r\n"
+    );
     // Before any run: the refusals the protocol promises.
     assert_eq!(
         b.send("measure 0 0"),
@@ -51,7 +54,10 @@ fn scripted_session_calibrate_save_reboot() {
         );
         let periods = b.run_until_rest(MAX_RUN_PERIODS, &mut log);
         assert!(periods < MAX_RUN_PERIODS, "run {i} did not finish");
-        assert!(log.contains(&format!("event run {} finished", i + 1)), "{log}");
+        assert!(
+            log.contains(&format!("event run {} finished", i + 1)),
+            "{log}"
+        );
         // The operator measures the true end pose in the run's start frame.
         let p = b.true_pose_in_run_frame().unwrap();
         let reply = b.send(&format!(
@@ -60,7 +66,10 @@ fn scripted_session_calibrate_save_reboot() {
             p.y_m,
             wrap_angle(p.theta_rad).to_degrees()
         ));
-        assert!(reply.starts_with(&format!("ok run {} square {dir}", i + 1)), "{reply}");
+        assert!(
+            reply.starts_with(&format!("ok run {} square {dir}", i + 1)),
+            "{reply}"
+        );
         if i == 0 {
             // Only CW measured so far: calibrate is refused with the documented message.
             assert_eq!(
@@ -102,7 +111,10 @@ fn scripted_session_calibrate_save_reboot() {
     let params_after = b2.send("params");
     println!("{params_after}");
     assert_eq!(params_after, params_before);
-    assert!(params_after.contains("  calibration exact E_d="), "{params_after}");
+    assert!(
+        params_after.contains("  calibration exact E_d="),
+        "{params_after}"
+    );
     // The controller runs with the stored calibration, bit for bit.
     assert_eq!(b2.controller_geometry(), calibrated);
     // The run store is RAM only: empty after the reboot.

@@ -134,3 +134,46 @@ pub fn parse_error_reply(e: &ParseError) -> ReplyLine {
     let _ = write_err(&mut line, ErrorCode::from(e), e);
     line
 }
+
+/// A `core::fmt::Write` that hands every byte to `push` (e.g. a transmit-queue `enqueue`).
+///
+/// A byte that `push` refuses (queue full) is counted in [`ByteSink::dropped`] and skipped; the
+/// write still succeeds, so a full transmit queue never interrupts the command being executed.
+pub struct ByteSink<F> {
+    push: F,
+    /// Bytes refused by `push` so far.
+    pub dropped: usize,
+}
+
+impl<F: FnMut(u8) -> bool> ByteSink<F> {
+    /// A sink over `push`, which returns `false` when it cannot take the byte.
+    pub fn new(push: F) -> Self {
+        ByteSink { push, dropped: 0 }
+    }
+}
+
+impl<F: FnMut(u8) -> bool> Write for ByteSink<F> {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        for b in s.bytes() {
+            if !(self.push)(b) {
+                self.dropped += 1;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_sink_counts_refused_bytes_and_never_fails() {
+        let mut queue: heapless::Vec<u8, 8> = heapless::Vec::new();
+        let mut sink = ByteSink::new(|b| queue.push(b).is_ok());
+        // 13 bytes into an 8-byte queue: 8 taken, 5 dropped, and the write still succeeds.
+        assert_eq!(write_ok(&mut sink, format_args!("saved {}", 42)), Ok(()));
+        assert_eq!(sink.dropped, 13 - 8);
+        assert_eq!(&queue[..], b"ok saved");
+    }
+}
