@@ -61,6 +61,7 @@ fn commands_parse_to_the_documented_values() {
             },
         ),
         ("stop", Command::Stop),
+        ("clear", Command::Clear),
         (
             "measure 0.0123 -0.045",
             Command::Measure {
