@@ -393,7 +393,7 @@ fn calibrate_apply_save_golden() {
     let table = "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
                  E_max_mm  sd_E_d    sd_E_b\r\n\
                  \x20 alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   388.8500   \
-                 1.200     2.500e-4  -        \r\n\
+                 1.200     2.500e-4  -\r\n\
                  \x20 beta         failed: degenerate\r\n\
                  \x20 advice L=2.000 m is adequate\r\n\
                  ok 1 solved from 2 measured runs (cw 1, ccw 1); apply <method> to use one\r\n";

@@ -11,7 +11,7 @@
 //! in real time (in 10 ms slices) while commands arrive; with `--fast` it runs as fast as
 //! possible and takes each input line only once the robot is at rest (for scripts). After each
 //! run the true end pose in the run's start frame is printed on stderr, as the operator would
-//! measure it on the floor.
+//! measure it on the floor; `--auto-measure` enters it as a `measure` command.
 
 use std::fmt::Write as _;
 use std::io::{Read, Write};
@@ -213,6 +213,10 @@ pub struct SerialArgs {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000)]
     pub rate: u32,
+    /// After each run, enter `measure` with the true end pose as the operator would (the line
+    /// is echoed with a `> ` prefix), so a piped script can run a whole calibration.
+    #[arg(long)]
+    pub auto_measure: bool,
 }
 
 /// The simulated robot's configuration: the paper's nominal robot with true factors `ed`, `eb`.
@@ -327,7 +331,13 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         was_running = running;
         if report_at_rest && board.at_rest() {
             report_at_rest = false;
-            report_truth(&board);
+            if let Some(line) = measure_line(&board) {
+                eprintln!("sim: true end pose in the run's start frame: {line}");
+                if args.auto_measure {
+                    out.push_str(&format!("> {line}\r\n"));
+                    out.push_str(&board.send(&line));
+                }
+            }
         }
         if !out.is_empty() {
             writer
@@ -355,15 +365,16 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     }
 }
 
-fn report_truth(board: &Board) {
-    if let Some(p) = board.true_pose_in_run_frame() {
-        eprintln!(
-            "sim: true end pose in the run's start frame: measure {:.6} {:.6} {:.4}",
+/// The `measure` line for the true end pose of the last run (run start frame, heading wrapped).
+pub fn measure_line(board: &Board) -> Option<String> {
+    board.true_pose_in_run_frame().map(|p| {
+        format!(
+            "measure {:.6} {:.6} {:.4}",
             p.x_m,
             p.y_m,
             odocal::calibration::wrap_angle(p.theta_rad).to_degrees()
-        );
-    }
+        )
+    })
 }
 
 fn spawn_reader<R>(mut read: R, tx: mpsc::Sender<Option<Vec<u8>>>)

@@ -1,7 +1,7 @@
 //! The simulated board over the serial protocol: a full calibration session and the `drive`
 //! deadman, with the library's controller, session, calibration and storage.
 
-use host_sim::serial::{Board, new_flash, sim_config};
+use host_sim::serial::{Board, measure_line, new_flash, sim_config};
 use odocal::calibration::wrap_angle;
 use odocal::controller::Status;
 use odocal::geometry::Geometry;
@@ -60,12 +60,17 @@ fn scripted_session_calibrate_save_reboot() {
         );
         // The operator measures the true end pose in the run's start frame.
         let p = b.true_pose_in_run_frame().unwrap();
-        let reply = b.send(&format!(
-            "measure {:.6} {:.6} {:.4}",
-            p.x_m,
-            p.y_m,
-            wrap_angle(p.theta_rad).to_degrees()
-        ));
+        let line = measure_line(&b).unwrap();
+        assert_eq!(
+            line,
+            format!(
+                "measure {:.6} {:.6} {:.4}",
+                p.x_m,
+                p.y_m,
+                wrap_angle(p.theta_rad).to_degrees()
+            )
+        );
+        let reply = b.send(&line);
         assert!(
             reply.starts_with(&format!("ok run {} square {dir}", i + 1)),
             "{reply}"

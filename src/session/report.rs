@@ -203,10 +203,13 @@ pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
     )
 }
 
-fn write_opt(out: &mut dyn Write, v: Option<f64>, scale: f64) -> fmt::Result {
-    match v {
-        Some(v) => write!(out, " {:<9.3e}", v * scale),
-        None => write!(out, " {:<9}", "-"),
+/// One optional column, left-aligned to 9 characters (`pad`) or unpadded (last column).
+fn write_opt(out: &mut dyn Write, v: Option<f64>, pad: bool) -> fmt::Result {
+    match (v, pad) {
+        (Some(v), true) => write!(out, " {v:<9.3e}"),
+        (Some(v), false) => write!(out, " {v:.3e}"),
+        (None, true) => write!(out, " {:<9}", "-"),
+        (None, false) => write!(out, " -"),
     }
 }
 
@@ -234,8 +237,8 @@ pub(super) fn write_solution_row(
                 Some(e) => write!(out, " {:<9.3}", e * 1e3)?,
                 None => write!(out, " {:<9}", "-")?,
             }
-            write_opt(out, s.sd_e_d, 1.0)?;
-            write_opt(out, s.sd_e_b, 1.0)?;
+            write_opt(out, s.sd_e_d, true)?;
+            write_opt(out, s.sd_e_b, false)?;
         }
     }
     out.write_str(EOL)
