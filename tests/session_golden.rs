@@ -476,7 +476,7 @@ fn next_alternates_and_completes_the_plan() {
 }
 
 #[test]
-fn button_starts_next_or_stops() {
+fn button_starts_next_clears_faults_and_stops() {
     let mut b = Bench::new();
     let mut out = String::new();
     b.session.button_short(&mut b.robot, &mut out).unwrap();
@@ -486,8 +486,16 @@ fn button_starts_next_or_stops() {
     );
     out.clear();
     b.session.button_short(&mut b.robot, &mut out).unwrap();
-    assert_eq!(out, "event button: stopped\r\n");
+    assert_eq!(out, "event button: err 10: robot is busy (stop first)\r\n");
+    out.clear();
+    b.session.button_long(&mut b.robot, &mut out).unwrap();
+    assert_eq!(out, "event button: ok stopped\r\n");
     assert_eq!(b.robot.aborts, 1);
+    out.clear();
+    b.robot.fault = Some("stall");
+    b.session.button_short(&mut b.robot, &mut out).unwrap();
+    assert_eq!(out, "event button: ok fault cleared\r\n");
+    assert_eq!(b.robot.fault, None);
 }
 
 #[test]

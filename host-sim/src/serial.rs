@@ -136,9 +136,13 @@ impl Board {
         out
     }
 
-    /// The button's short press.
-    pub fn press_button(&mut self, out: &mut String) {
-        let _ = self.session.button_short(&mut self.controller, out);
+    /// The button: a short press (next planned run, or clear a fault) or a long one (stop).
+    pub fn press_button(&mut self, long: bool, out: &mut String) {
+        let _ = if long {
+            self.session.button_long(&mut self.controller, out)
+        } else {
+            self.session.button_short(&mut self.controller, out)
+        };
         self.note_run_start();
     }
 

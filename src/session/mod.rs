@@ -7,7 +7,8 @@
 //! holds that lock during a calibration solve.
 //!
 //! Workflow: the plan is `runs_per_direction` squares per direction with side `square_side`;
-//! `next` (or the button's short press) starts the next planned run, alternating CW/CCW. After
+//! `next` (or the button's short press) starts the next planned run, alternating CW/CCW; the
+//! plan is counted from the run store, so a dropped run is planned again. After
 //! each run the operator enters `measure x y [θ]` (true end pose in the run's start frame,
 //! metres/degrees; it attaches to the last finished run). `calibrate` needs at least one measured
 //! square in each direction; runs stay stored across `calibrate`, so a bad one can be dropped and
@@ -233,18 +234,29 @@ impl<C: Calibrator> Session<C> {
         }
     }
 
-    /// The button's short press: stops a moving robot, otherwise starts the next planned run.
+    /// The button's short press: clears a latched fault, otherwise starts the next planned run
+    /// (refused with the usual error while the robot moves). The outcome is written as an
+    /// `event button: …` line.
     ///
     /// # Errors
     /// Only if `out` refuses the text.
     pub fn button_short(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         self.collect_finished(robot, out)?;
-        if robot.status().activity != Activity::Idle {
-            robot.abort();
-            return write!(out, "event button: stopped{EOL}");
-        }
         write!(out, "event button: ")?;
+        if robot.status().fault.is_some() {
+            robot.clear_fault();
+            return write!(out, "ok fault cleared{EOL}");
+        }
         self.start_next(robot, out)
+    }
+
+    /// The button's long press: stops any motion.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn button_long(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        robot.abort();
+        write!(out, "event button: ok stopped{EOL}")
     }
 
     /// Parses and executes one line, writing the reply (nothing for a blank line).
