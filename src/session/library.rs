@@ -41,17 +41,16 @@ pub fn fault_name(f: &Fault) -> &'static str {
     }
 }
 
-impl Controller {
-    fn fault_error(&self) -> RobotError {
-        RobotError::Fault(self.fault().as_ref().map_or("fault", fault_name))
-    }
+/// The latched fault of `c` as a [`RobotError`].
+fn fault_error(c: &Controller) -> RobotError {
+    RobotError::Fault(c.fault().as_ref().map_or("fault", fault_name))
 }
 
 impl Robot for Controller {
     fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
         Controller::start(self, path).map_err(|e| match e {
             StartError::Busy => RobotError::Busy,
-            StartError::Faulted => self.fault_error(),
+            StartError::Faulted => fault_error(self),
             StartError::NotReady => RobotError::Rejected("encoders not read yet"),
             StartError::Path(_) => RobotError::Rejected("path size not accepted by the routine"),
             #[allow(unreachable_patterns)]
@@ -66,7 +65,7 @@ impl Robot for Controller {
     fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError> {
         Controller::drive(self, v_mps, w_radps).map_err(|e| match e {
             DriveError::Busy => RobotError::Busy,
-            DriveError::Faulted => self.fault_error(),
+            DriveError::Faulted => fault_error(self),
             DriveError::NotReady => RobotError::Rejected("encoders not read yet"),
             DriveError::NotFinite => RobotError::Rejected("speeds must be finite"),
             #[allow(unreachable_patterns)]
