@@ -2,9 +2,10 @@
 //!
 //! [`Board`] is the simulated board: the library's [`Controller`] stepping the simulated robot
 //! at the control rate, the library's [`Session`] executing protocol lines, and the library's
-//! [`ParamStore`] on a simulated flash (two 128 KiB pages, like sectors 10–11 of the F407) that
-//! survives a simulated reboot ([`Board::power_off`] / [`Board::boot`]). Bytes go through the
-//! library's [`LineAssembler`], exactly as the USART2 RX interrupt feeds it on the board.
+//! [`ParamStore`] on the simulated parameter flash ([`SimParamFlash`], sectors 10–11), which
+//! outlives the board: dropping a `Board` and booting a new one over the same flash is a
+//! simulated reboot. Bytes go through the library's [`LineAssembler`], exactly as the USART2 RX
+//! interrupt feeds it on the board.
 //!
 //! [`run`] connects a board to stdin/stdout or, with `--pty`, to a pseudo-terminal whose path it
 //! prints, so picocom/minicom or a script can connect as to the real board. The simulation runs
@@ -26,21 +27,12 @@ use odocal::reference::PoseF64;
 use odocal::session::library::{LibraryCalibrator, motion_limits};
 use odocal::session::{Session, Settings};
 use odocal::storage::ParamStore;
-use odocal::storage::ram_flash::{RamFlash, WriteRule};
 
+use crate::flash::{SimFlash, SimParamFlash};
 use crate::robot::{Sim, SimConfig, default_controller};
 
-/// The simulated parameter flash: 2 pages of 128 KiB, 4-byte words, STM32 write rule.
-pub type SimFlash = RamFlash<2, { 128 * 1024 }, 4>;
-
-/// A fresh (erased) simulated flash. It is leaked so that it outlives every simulated boot, like
-/// the chip's flash outlives the firmware's RAM.
-pub fn new_flash() -> &'static mut SimFlash {
-    Box::leak(Box::new(SimFlash::new(WriteRule::TwiceWithZero)))
-}
-
-/// The simulated board.
-pub struct Board {
+/// The simulated board, over a simulated parameter flash that outlives it.
+pub struct Board<'f> {
     /// The simulated robot.
     pub sim: Sim,
     /// The library's controller, stepped once per control period.
@@ -48,7 +40,7 @@ pub struct Board {
     /// The protocol session.
     pub session: Session<LibraryCalibrator>,
     /// Parameter storage on the simulated flash.
-    pub store: ParamStore<&'static mut SimFlash>,
+    pub store: ParamStore<&'f mut SimFlash>,
     assembler: LineAssembler,
     now_us: u64,
     period_us: u64,
@@ -57,7 +49,7 @@ pub struct Board {
     running: bool,
 }
 
-impl Board {
+impl<'f> Board<'f> {
     /// Boots: loads the parameters from `flash` (defaults and a warning if there are none),
     /// configures the controller with them and reads the encoders once. The boot message (an
     /// `event` line) is appended to `out`.
@@ -66,11 +58,10 @@ impl Board {
     /// An invalid controller configuration or flash range, as text.
     pub fn boot(
         config: SimConfig,
-        flash: &'static mut SimFlash,
+        flash: &'f mut SimParamFlash,
         out: &mut String,
-    ) -> Result<Board, String> {
-        let range = 0..SimFlash::CAPACITY as u32;
-        let mut store = ParamStore::new(flash, range).map_err(|e| format!("flash: {e}"))?;
+    ) -> Result<Board<'f>, String> {
+        let mut store = flash.store();
         let loaded = store.load_blocking();
         let settings = Settings::from(&loaded.record);
         let mut controller = default_controller(settings.active, config.rate_hz)?;
@@ -97,11 +88,6 @@ impl Board {
         // The control task runs from boot on; the controller needs one encoder read to start.
         board.sim.step(&mut board.controller);
         Ok(board)
-    }
-
-    /// Simulated power-off: the flash is all that survives.
-    pub fn power_off(self) -> &'static mut SimFlash {
-        self.store.into_flash()
     }
 
     /// Simulated time since boot, microseconds.
@@ -217,6 +203,10 @@ pub struct SerialArgs {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000)]
     pub rate: u32,
+    /// Flash image file: loaded at boot (missing = erased flash) and written back after every
+    /// command that changed the flash, so `save` survives a restart of the simulator.
+    #[arg(long)]
+    pub image: Option<std::path::PathBuf>,
     /// After each run, enter `measure` with the true end pose as the operator would (the line
     /// is echoed with a `> ` prefix), so a piped script can run a whole calibration.
     #[arg(long)]
@@ -284,7 +274,11 @@ fn open_pty() -> Result<(std::fs::File, String, std::fs::File), String> {
 pub fn run(args: &SerialArgs) -> Result<(), String> {
     let config = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
     let mut out = String::new();
-    let mut board = Board::boot(config, new_flash(), &mut out)?;
+    let mut flash = match &args.image {
+        Some(path) => SimParamFlash::open(path).map_err(|e| format!("{}: {e}", path.display()))?,
+        None => SimParamFlash::erased(),
+    };
+    let mut board = Board::boot(config, &mut flash, &mut out)?;
     let (tx, rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
         let (master, path, slave) = open_pty()?;
@@ -315,6 +309,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                 Err(mpsc::TryRecvError::Empty) => break,
             }
         }
+        let touched = board.store.flash().bytes_touched();
         if args.fast {
             // One line at a time, each once the robot is at rest.
             if board.at_rest()
@@ -326,6 +321,13 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         } else {
             board.receive(&pending, &mut out);
             pending.clear();
+        }
+        if let Some(path) = &args.image
+            && board.store.flash().bytes_touched() != touched
+        {
+            let mut image = vec![0u8; SimFlash::CAPACITY];
+            board.store.flash().copy_image(&mut image);
+            std::fs::write(path, image).map_err(|e| format!("{}: {e}", path.display()))?;
         }
         for _ in 0..slice_periods {
             board.step(&mut out);

@@ -1,7 +1,8 @@
 //! Random protocol traffic against the whole simulated board (controller, session, calibration,
 //! storage): no panic, exactly one final `ok`/`err` line per non-blank command, bounded state.
 
-use host_sim::serial::{Board, new_flash, sim_config};
+use host_sim::flash::SimParamFlash;
+use host_sim::serial::{Board, sim_config};
 use odocal::session::MAX_RUNS;
 
 struct Rng(u64);
@@ -63,8 +64,9 @@ const LINES: &[&str] = &[
 #[test]
 fn random_commands_against_the_simulated_board() {
     let mut out = String::new();
+    let mut flash = SimParamFlash::erased();
     let mut b =
-        Board::boot(sim_config(0.995, 1.01, 0.0, 7, 1000), new_flash(), &mut out).expect("boot");
+        Board::boot(sim_config(0.995, 1.01, 0.0, 7, 1000), &mut flash, &mut out).expect("boot");
     let mut rng = Rng(0x1234_5678_9ABC_DEF1);
     let mut replies = 0;
     for i in 0..3_000 {

@@ -1,7 +1,8 @@
 //! The simulated board over the serial protocol: a full calibration session and the `drive`
 //! deadman, with the library's controller, session, calibration and storage.
 
-use host_sim::serial::{Board, measure_line, new_flash, sim_config};
+use host_sim::flash::SimParamFlash;
+use host_sim::serial::{Board, measure_line, sim_config};
 use odocal::calibration::wrap_angle;
 use odocal::controller::Status;
 use odocal::geometry::Geometry;
@@ -13,7 +14,7 @@ const TRUE_EB: f64 = 1.010;
 /// Longest run: a 2 m square at 0.3 m/s takes ~35 s; 120 s of periods is a generous cap.
 const MAX_RUN_PERIODS: u64 = 120_000;
 
-fn boot(flash: &'static mut host_sim::serial::SimFlash) -> (Board, String) {
+fn boot(flash: &mut SimParamFlash) -> (Board<'_>, String) {
     let mut out = String::new();
     let board =
         Board::boot(sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 1000), flash, &mut out).expect("boot");
@@ -34,7 +35,8 @@ fn row(table: &str, method: &str) -> (f64, f64) {
 
 #[test]
 fn scripted_session_calibrate_save_reboot() {
-    let (mut b, boot_msg) = boot(new_flash());
+    let mut flash = SimParamFlash::erased();
+    let (mut b, boot_msg) = boot(&mut flash);
     assert_eq!(
         boot_msg,
         "event boot: default parameters (no stored parameters)\r\n"
@@ -114,8 +116,8 @@ fn scripted_session_calibrate_save_reboot() {
     assert_ne!(calibrated, Geometry::PAPER_NOMINAL);
 
     // Simulated reboot: a new board (controller, session) over the same flash.
-    let flash = b.power_off();
-    let (mut b2, boot_msg) = boot(flash);
+    drop(b);
+    let (mut b2, boot_msg) = boot(&mut flash);
     assert_eq!(boot_msg, "event boot: parameters loaded\r\n");
     let params_after = b2.send("params");
     println!("{params_after}");
@@ -132,7 +134,8 @@ fn scripted_session_calibrate_save_reboot() {
 
 #[test]
 fn drive_deadman_stops_within_500_ms_plus_one_period() {
-    let (mut b, _) = boot(new_flash());
+    let mut flash = SimParamFlash::erased();
+    let (mut b, _) = boot(&mut flash);
     let mut out = String::new();
     // 1 kHz control: one period is 1 ms. Commands every 100 ms for 1 s keep the robot moving.
     for _ in 0..10 {
