@@ -577,6 +577,10 @@ fn stream_schedule_and_text() {
     assert_eq!(b.poll(2_000_000).lines().count(), 1);
     assert_eq!(b.poll(2_005_000).lines().count(), 0);
     assert_eq!(b.poll(2_010_000).lines().count(), 1);
+    // The clock going backwards (a wrapped timer) restarts the schedule too.
+    assert_eq!(b.poll(1_000).lines().count(), 1);
+    assert_eq!(b.poll(5_000).lines().count(), 0);
+    assert_eq!(b.poll(11_000).lines().count(), 1);
     assert_eq!(b.send("stream on"), "ok stream on 10 Hz\r\n");
     assert_eq!(b.send("stream off"), "ok stream off\r\n");
     assert_eq!(b.poll(3_000_000), "");

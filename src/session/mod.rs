@@ -215,20 +215,22 @@ impl<C: Calibrator> Session<C> {
     }
 
     /// Whether a stream line is due at `now_us`; if so, schedules the next one. The schedule
-    /// advances by whole periods (no drift); after a stall longer than one period it restarts
-    /// from `now_us` instead of bursting.
+    /// advances by whole periods (no drift); after a stall longer than one period, or if the
+    /// clock went backwards (a wrapped timer), it restarts from `now_us` instead of bursting or
+    /// falling silent.
     pub fn stream_due(&mut self, now_us: u64) -> bool {
         let Some(stream) = self.stream.as_mut() else {
             return false;
         };
+        let period = stream.period_us;
         match stream.next_due_us {
-            Some(due) if now_us < due => false,
-            Some(due) if now_us < due + stream.period_us => {
-                stream.next_due_us = Some(due + stream.period_us);
+            Some(due) if now_us < due && due - now_us <= period => false,
+            Some(due) if now_us >= due && now_us - due < period => {
+                stream.next_due_us = Some(due + period);
                 true
             }
             _ => {
-                stream.next_due_us = Some(now_us + stream.period_us);
+                stream.next_due_us = Some(now_us + period);
                 true
             }
         }
