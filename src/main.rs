@@ -20,25 +20,32 @@ rtic_monotonics::systick_monotonic!(Mono, 1000);
 #[cfg(target_os = "none")]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
+    use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::board::flash::{BoardFlash, param_store};
     use odocal::board::motors::BoardMotors;
     use odocal::board::{CONTROL_HZ, HSE_HZ, PWM_HZ, SYSCLK_HZ, WATCHDOG_MS};
     use odocal::button::{Button, ButtonConfig, Press};
     use odocal::controller::{Controller, ControllerConfig};
     use odocal::geometry::Geometry;
-    use odocal::routine::RunPlan;
-    use odocal::run::Direction;
+    use odocal::protocol::reply::{ByteSink, line_error_reply};
+    use odocal::protocol::{LINE_MAX, LineAssembler, LineError};
+    use odocal::session::library::{LibraryCalibrator, Locked};
+    use odocal::session::{Session, Settings};
     use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
     use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
-    use stm32f4xx_hal::pac::{TIM2, TIM3, TIM7};
+    use stm32f4xx_hal::pac::{Interrupt, TIM2, TIM3, TIM7, USART2};
     use stm32f4xx_hal::prelude::*;
     use stm32f4xx_hal::qei::Qei;
     use stm32f4xx_hal::rcc::Config;
+    use stm32f4xx_hal::serial::{self, Rx, RxISR, RxListen, Serial, Tx, TxISR, TxListen};
     use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
     use super::Mono;
+
+    /// A received line (or why it was rejected), from the USART2 interrupt to the console task.
+    type LineItem = Result<heapless::String<LINE_MAX>, LineError>;
 
     #[shared]
     struct Shared {
@@ -53,11 +60,20 @@ mod app {
         tick: CounterHz<TIM7>,
         motors: BoardMotors,
         watchdog: IndependentWatchdog,
-        plan: RunPlan,
         button_pin: PA0<Input>,
         heartbeat: PD12<Output>,
         fault_led: PD14<Output>,
         params_store: ParamStore<BoardFlash>,
+        session: Session<LibraryCalibrator>,
+        usart_rx: Rx<USART2>,
+        usart_tx: Tx<USART2>,
+        assembler: LineAssembler,
+        line_in: Producer<'static, LineItem>,
+        line_out: Consumer<'static, LineItem>,
+        tx_in: Producer<'static, u8>,
+        tx_out: Consumer<'static, u8>,
+        press_in: Producer<'static, Press>,
+        press_out: Consumer<'static, Press>,
     }
 
     /// Milliseconds since boot (wrapping), from the SysTick monotonic.
@@ -82,7 +98,11 @@ mod app {
         }
     }
 
-    #[init]
+    #[init(local = [
+        lines: Queue<LineItem, 4> = Queue::new(),
+        tx_bytes: Queue<u8, 2048> = Queue::new(),
+        presses: Queue<Press, 4> = Queue::new(),
+    ])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         let mut rcc = cx.device.RCC.freeze(
             Config::hse(HSE_HZ.Hz())
@@ -98,7 +118,7 @@ mod app {
         if let Err(e) = controller.set_limits(params.motion.limits()) {
             defmt::warn!("stored motion limits refused ({}), using defaults", e);
         }
-        let plan = RunPlan::new(f64::from(params.motion.square_side_m), Direction::Cw);
+        let session = Session::new(Settings::from(&params), LibraryCalibrator::default());
 
         let gpioa = cx.device.GPIOA.split(&mut rcc);
         let gpiob = cx.device.GPIOB.split(&mut rcc);
@@ -144,10 +164,27 @@ mod app {
         let mut watchdog = IndependentWatchdog::new(cx.device.IWDG);
         watchdog.start(WATCHDOG_MS.millis());
 
+        // Serial console: USART2 on PA2/PA3 (ST-LINK VCP), RX interrupt, TX from a queue.
+        let usart = Serial::new(
+            cx.device.USART2,
+            (gpioa.pa2, gpioa.pa3),
+            serial::Config::default().baudrate(115_200.bps()),
+            &mut rcc,
+        );
+        let (usart_tx, mut usart_rx) = match usart {
+            Ok(s) => s.split(),
+            Err(_) => defmt::panic!("USART2 configuration rejected"),
+        };
+        usart_rx.listen();
+        let (line_in, line_out) = cx.local.lines.split();
+        let (tx_in, tx_out) = cx.local.tx_bytes.split();
+        let (press_in, press_out) = cx.local.presses.split();
+
         let heartbeat = gpiod.pd12.into_push_pull_output();
         let fault_led = gpiod.pd14.into_push_pull_output();
 
         report::spawn().ok();
+        console::spawn().ok();
         defmt::info!(
             "odocal up: control at {} Hz, calibration '{}'",
             CONTROL_HZ,
@@ -165,18 +202,27 @@ mod app {
                 tick,
                 motors,
                 watchdog,
-                plan,
                 button_pin,
                 heartbeat,
                 fault_led,
                 params_store,
+                session,
+                usart_rx,
+                usart_tx,
+                assembler: LineAssembler::new(),
+                line_in,
+                line_out,
+                tx_in,
+                tx_out,
+                press_in,
+                press_out,
             },
         )
     }
 
     /// Control period: encoders → odometry → routine → speed loops → motors; button actions.
     #[task(binds = TIM7, priority = 3,
-           local = [qei_right, qei_left, tick, motors, watchdog, plan],
+           local = [qei_right, qei_left, tick, motors, watchdog, press_in],
            shared = [controller, button])]
     fn control(cx: control::Context) {
         cx.local.tick.clear_flags(Flag::Update);
@@ -192,12 +238,13 @@ mod app {
             let out = c.step(raw_right, raw_left);
             out.command.apply(cx.local.motors);
             if let Some(p) = press {
-                let action = c.on_press(p, cx.local.plan);
-                defmt::info!("button {}: {}", p, action);
                 if p == Press::Long {
                     // The abort takes effect now, not one period later.
+                    c.abort();
                     c.step(raw_right, raw_left).command.apply(cx.local.motors);
                 }
+                // The session (console task) acts on the press: next planned run, clear, stop.
+                let _ = cx.local.press_in.enqueue(p);
             }
         });
     }
@@ -211,7 +258,7 @@ mod app {
     }
 
     /// Heartbeat LED, fault LED and a 2 Hz pose log.
-    #[task(priority = 1, local = [heartbeat, fault_led, params_store], shared = [controller])]
+    #[task(priority = 1, local = [heartbeat, fault_led], shared = [controller])]
     async fn report(mut cx: report::Context) {
         loop {
             Mono::delay(500.millis()).await;
@@ -225,6 +272,72 @@ mod app {
                 pose.heading.to_radians() as f32,
                 fault
             );
+        }
+    }
+
+    /// USART2: received bytes → line assembly → line queue; transmit queue → TX register.
+    #[task(binds = USART2, priority = 2, local = [usart_rx, usart_tx, assembler, line_in, tx_out])]
+    fn usart2(cx: usart2::Context) {
+        while cx.local.usart_rx.is_rx_not_empty() {
+            // A framing/overrun error drops the byte; the line then fails to parse or is cut
+            // short and rejected by its terminator.
+            let Ok(byte) = cx.local.usart_rx.read() else {
+                continue;
+            };
+            if let Some(line) = cx.local.assembler.push(byte) {
+                let item = line.map(|text| {
+                    let mut owned = heapless::String::new();
+                    // `text` is at most LINE_MAX bytes, so it always fits.
+                    let _ = owned.push_str(text);
+                    owned
+                });
+                // A full queue (4 pending lines) drops the line.
+                let _ = cx.local.line_in.enqueue(item);
+            }
+        }
+        while cx.local.usart_tx.is_tx_empty() {
+            let Some(byte) = cx.local.tx_out.dequeue() else {
+                break;
+            };
+            let _ = cx.local.usart_tx.write(byte);
+        }
+        if cx.local.tx_out.ready() {
+            cx.local.usart_tx.listen();
+        } else {
+            cx.local.usart_tx.unlisten();
+        }
+    }
+
+    /// The serial console: executes received lines and button presses on the session, and
+    /// writes events and the pose stream. Locks the controller for one call at a time.
+    #[task(priority = 1, shared = [controller],
+           local = [session, params_store, line_out, tx_in, press_out])]
+    async fn console(mut cx: console::Context) {
+        loop {
+            Mono::delay(1.millis()).await;
+            let session = &mut *cx.local.session;
+            let store = &mut *cx.local.params_store;
+            let tx_in = &mut *cx.local.tx_in;
+            let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
+            let mut robot = Locked(&mut cx.shared.controller);
+            while let Some(item) = cx.local.line_out.dequeue() {
+                let _ = match item {
+                    Ok(line) => session.handle_line(&line, &mut robot, store, &mut out),
+                    Err(e) => core::fmt::Write::write_str(&mut out, &line_error_reply(&e)),
+                };
+            }
+            while let Some(press) = cx.local.press_out.dequeue() {
+                let _ = match press {
+                    Press::Short => session.button_short(&mut robot, &mut out),
+                    Press::Long => session.button_long(&mut robot, &mut out),
+                };
+            }
+            let now_us = u64::from(Mono::now().ticks()) * 1_000;
+            let _ = session.poll(now_us, &mut robot, &mut out);
+            if out.dropped > 0 {
+                defmt::warn!("serial transmit queue full: {} bytes dropped", out.dropped);
+            }
+            rtic::pend(Interrupt::USART2);
         }
     }
 }
