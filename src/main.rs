@@ -23,14 +23,14 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::board::flash::{BoardFlash, param_store};
     use odocal::board::motors::BoardMotors;
-    use odocal::board::{CONTROL_HZ, HSE_HZ, PWM_HZ, SYSCLK_HZ, WATCHDOG_MS};
+    use odocal::board::{CONTROL_HZ, FLASH_WATCHDOG_MS, HSE_HZ, PWM_HZ, SYSCLK_HZ, WATCHDOG_MS};
     use odocal::button::{Button, ButtonConfig, Press};
     use odocal::controller::{Controller, ControllerConfig};
     use odocal::geometry::Geometry;
     use odocal::protocol::reply::{ByteSink, line_error_reply};
     use odocal::protocol::{LINE_MAX, LineAssembler, LineError};
     use odocal::session::library::{LibraryCalibrator, Locked};
-    use odocal::session::{Session, Settings};
+    use odocal::session::{ParamStorage, Session, Settings, StorageError};
     use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
     use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
@@ -49,6 +49,7 @@ mod app {
 
     #[shared]
     struct Shared {
+        watchdog: IndependentWatchdog,
         controller: Controller,
         button: Button,
     }
@@ -59,7 +60,6 @@ mod app {
         qei_left: Qei<TIM3>,
         tick: CounterHz<TIM7>,
         motors: BoardMotors,
-        watchdog: IndependentWatchdog,
         button_pin: PA0<Input>,
         heartbeat: PD12<Output>,
         fault_led: PD14<Output>,
@@ -95,6 +95,37 @@ mod app {
                     Err(_) => defmt::panic!("built-in controller defaults rejected"),
                 }
             }
+        }
+    }
+
+    /// Parameter storage with the watchdog relaxed while the flash is written: a sector erase
+    /// stalls every instruction fetch (the control task included) for up to 2 s, so the
+    /// timeout is lengthened for the operation and restored right after. Saves are refused
+    /// unless the motors are stopped, so nothing moves while the control task is stalled.
+    struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
+        store: &'a mut ParamStore<BoardFlash>,
+        watchdog: W,
+    }
+
+    impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
+        fn relaxed<R>(&mut self, f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R) -> R {
+            self.watchdog.lock(|w| w.start(FLASH_WATCHDOG_MS.millis()));
+            let result = f(self.store);
+            self.watchdog.lock(|w| {
+                w.start(WATCHDOG_MS.millis());
+                w.feed();
+            });
+            result
+        }
+    }
+
+    impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'_, W> {
+        fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+            self.relaxed(|s| ParamStorage::save(s, settings, motors_stopped))
+        }
+
+        fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+            self.relaxed(|s| ParamStorage::reset(s, motors_stopped))
         }
     }
 
@@ -193,6 +224,7 @@ mod app {
 
         (
             Shared {
+                watchdog,
                 controller,
                 button: Button::new(ButtonConfig::DEFAULT),
             },
@@ -201,7 +233,6 @@ mod app {
                 qei_left,
                 tick,
                 motors,
-                watchdog,
                 button_pin,
                 heartbeat,
                 fault_led,
@@ -222,11 +253,12 @@ mod app {
 
     /// Control period: encoders → odometry → routine → speed loops → motors; button actions.
     #[task(binds = TIM7, priority = 3,
-           local = [qei_right, qei_left, tick, motors, watchdog, press_in],
-           shared = [controller, button])]
+           local = [qei_right, qei_left, tick, motors, press_in],
+           shared = [controller, button, watchdog])]
     fn control(cx: control::Context) {
         cx.local.tick.clear_flags(Flag::Update);
-        cx.local.watchdog.feed();
+        let mut watchdog = cx.shared.watchdog;
+        watchdog.lock(|w| w.feed());
         let raw_right = cx.local.qei_right.count();
         let raw_left = u32::from(cx.local.qei_left.count());
         let press = {
@@ -310,13 +342,16 @@ mod app {
 
     /// The serial console: executes received lines and button presses on the session, and
     /// writes events and the pose stream. Locks the controller for one call at a time.
-    #[task(priority = 1, shared = [controller],
+    #[task(priority = 1, shared = [controller, watchdog],
            local = [session, params_store, line_out, tx_in, press_out])]
     async fn console(mut cx: console::Context) {
         loop {
             Mono::delay(1.millis()).await;
             let session = &mut *cx.local.session;
-            let store = &mut *cx.local.params_store;
+            let store = &mut RelaxedWatchdog {
+                store: &mut *cx.local.params_store,
+                watchdog: &mut cx.shared.watchdog,
+            };
             let tx_in = &mut *cx.local.tx_in;
             let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
             let mut robot = Locked(&mut cx.shared.controller);

@@ -31,3 +31,6 @@ pub const PWM_HZ: u32 = 20_000;
 pub const CONTROL_HZ: u32 = 1_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
 pub const WATCHDOG_MS: u32 = 50;
+/// Watchdog timeout while the parameter flash is written, ms: a 128 KiB sector erase takes up to
+/// 2 s on the STM32F407 (datasheet t_ERASE128KB, x32 parallelism) and stalls the CPU.
+pub const FLASH_WATCHDOG_MS: u32 = 4_000;
