@@ -1,0 +1,73 @@
+//! The host side of the benchmark: the reference result lines, and the accuracy of the
+//! fixed-point odometry on the standard trace against the `f64` exact-arc reference.
+
+use std::process::ExitCode;
+
+use odocal::encoder::WheelTicks;
+use odocal::odometry::{Integration, Pose};
+use odocal::reference::{ArcModel, PoseF64};
+use qemu_bench::report;
+use qemu_bench::trace::Trace;
+
+/// Steps of the midpoint run (as on the target).
+const MIDPOINT_STEPS: u32 = 100_000;
+
+/// Accuracy budget of the odometry: 0.1 mm from the exact-arc reference after 1 km.
+const BUDGET_M: f64 = 1e-4;
+
+fn integrate(integration: Integration, trace: Trace) -> Result<(Pose, Vec<WheelTicks>), String> {
+    let (odo, mut state) = qemu_bench::odometry(integration).map_err(|e| e.to_string())?;
+    let mut knots = vec![WheelTicks::default()];
+    let mut pose = state.pose();
+    for totals in trace {
+        pose = odo.update(&mut state, totals);
+        knots.push(totals);
+    }
+    Ok((pose, knots))
+}
+
+/// Runs the host reference; prints result and info lines; fails when the budget is not met.
+pub fn run() -> ExitCode {
+    match run_inner() {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::FAILURE,
+        Err(e) => {
+            eprintln!("error {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run_inner() -> Result<bool, String> {
+    let mut out = String::new();
+    let (pose, knots) = integrate(Integration::ExactArc, Trace::standard())?;
+    report::pose_line(&mut out, "odometry_exact_arc", &pose).map_err(|e| e.to_string())?;
+
+    // Accuracy against the f64 exact-arc integration of the same knots.
+    let geometry = qemu_bench::geometry();
+    let model = ArcModel::from_geometry(&geometry);
+    let reference = model.integrate(PoseF64::default(), &knots);
+    let fixed = pose.to_f64();
+    let error_m = fixed.distance_to(&reference);
+    let heading_error = {
+        let d = fixed.theta_rad - reference.theta_rad;
+        // Wrap into [-π, π): the fixed-point heading is wrapped, the reference is not.
+        (d + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
+    };
+    let mut path_m = 0.0;
+    for w in knots.windows(2) {
+        let d = w[1] - w[0];
+        path_m += 0.5
+            * (geometry.meters_per_tick_right() * d.right.unsigned_abs() as f64
+                + geometry.meters_per_tick_left() * d.left.unsigned_abs() as f64);
+    }
+    let (mid, _) = integrate(Integration::Midpoint, Trace::with_steps(MIDPOINT_STEPS))?;
+    report::pose_line(&mut out, "odometry_midpoint", &mid).map_err(|e| e.to_string())?;
+    print!("{out}");
+    println!(
+        "info accuracy steps={} path_m={path_m:.1} position_error_m={error_m:.3e} \
+         heading_error_rad={heading_error:.3e} budget_m={BUDGET_M:e}",
+        knots.len() - 1
+    );
+    Ok(error_m <= BUDGET_M)
+}

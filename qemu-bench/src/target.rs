@@ -1,0 +1,297 @@
+//! The QEMU side of the benchmark (netduinoplus2, Cortex-M4F, semihosting output).
+//!
+//! Instruction counts come from the `insnwin` TCG plugin: it counts every executed guest
+//! instruction and attributes the count between a call of [`bench_start`] and the next call of
+//! [`bench_end`] to the window chosen by the last `bench_select_*` call. A window therefore
+//! also contains the marker call overhead (measured by the `empty` window, which `run.sh`
+//! subtracts). The SysTick block is an independent cross-check that needs no plugin: under
+//! `-icount shift=0` one instruction takes 1 ns of virtual time and the netduinoplus2 SysTick
+//! runs at 168 MHz.
+//!
+//! The stack is painted with a pattern from `_stack_end` (the lowest address the stack may
+//! reach) up to the current stack pointer before each workload and scanned afterwards; the
+//! high-water mark is the distance from `_stack_start` to the lowest overwritten word, so it
+//! includes `main`'s own frames.
+
+use core::arch::asm;
+use core::fmt::Write;
+use core::hint::black_box;
+use core::ptr::{addr_of, addr_of_mut};
+
+use cortex_m::peripheral::SYST;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::{ExceptionFrame, entry, exception};
+use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
+use cortex_m_semihosting::hio;
+use odocal::encoder::WheelTicks;
+use odocal::odometry::{Integration, Odometry, OdometryState, Pose};
+use qemu_bench::report;
+use qemu_bench::trace::Trace;
+// Interrupt vector table (see Cargo.toml).
+use stm32f4xx_hal as _;
+
+/// Steps of the SysTick cross-check block (about 3.5 M instructions: no 24-bit wrap).
+const BLOCK_STEPS: u32 = 10_000;
+/// Steps integrated with the midpoint rule (a shorter second run).
+const MIDPOINT_STEPS: u32 = 100_000;
+/// Repetitions of the empty window.
+const EMPTY_WINDOWS: u32 = 1_000;
+/// Stack paint pattern.
+const PAINT: u32 = 0xA5A5_A5A5;
+
+unsafe extern "C" {
+    /// Lowest address the stack may grow to (cortex-m-rt: the end of .bss/.uninit).
+    static mut _stack_end: u32;
+    /// Initial stack pointer (cortex-m-rt: the top of RAM).
+    static _stack_start: u32;
+    /// Defined only by the bench's memory.x (proves which memory.x was linked).
+    static _qemu_bench_layout: u8;
+}
+
+/// Start of a counted window.
+#[unsafe(no_mangle)]
+#[inline(never)]
+pub extern "C" fn bench_start() {
+    // SAFETY: a no-op instruction; the asm has no outputs and may be treated as touching
+    // memory, which keeps the compiler from moving work across the marker.
+    unsafe { asm!("nop") }
+}
+
+/// End of a counted window.
+#[unsafe(no_mangle)]
+#[inline(never)]
+pub extern "C" fn bench_end() {
+    // SAFETY: as in `bench_start`; two nops keep the two markers at different addresses.
+    unsafe { asm!("nop", "nop") }
+}
+
+/// Generates a selector marker with `n` nops (distinct bodies, distinct addresses).
+macro_rules! selector {
+    ($name:ident, $($nop:literal),+) => {
+        /// Selects the window the following `bench_start`/`bench_end` pairs are counted in.
+        #[unsafe(no_mangle)]
+        #[inline(never)]
+        pub extern "C" fn $name() {
+            // SAFETY: no-op instructions only, as in `bench_start`.
+            unsafe { asm!($($nop),+) }
+        }
+    };
+}
+
+selector!(bench_select_empty, "nop", "nop", "nop");
+selector!(bench_select_block, "nop", "nop", "nop", "nop");
+selector!(bench_select_odometry, "nop", "nop", "nop", "nop", "nop");
+selector!(
+    bench_select_midpoint,
+    "nop",
+    "nop",
+    "nop",
+    "nop",
+    "nop",
+    "nop"
+);
+
+/// One control period of odometry, as the firmware's control task performs it.
+#[inline(never)]
+fn odometry_step(odo: &Odometry, state: &mut OdometryState, totals: WheelTicks) -> Pose {
+    odo.update(state, totals)
+}
+
+/// Bytes left unpainted just below the stack pointer: this function's own frame (it saves
+/// registers after reading SP). The high-water mark can therefore read at most this much high
+/// for a workload that stays shallower than the caller's frame plus this margin.
+const PAINT_MARGIN: usize = 64;
+
+/// Paints the free stack below the current stack pointer.
+#[inline(never)]
+fn paint_stack() {
+    let sp = cortex_m::register::msp::read() as usize - PAINT_MARGIN;
+    // SAFETY: `_stack_end .. sp` is unused stack (nothing below the stack pointer is live and
+    // no interrupt is enabled); the writes stay inside RAM and are word aligned (cortex-m-rt
+    // asserts `_stack_end % 4 == 0`).
+    unsafe {
+        let mut p = addr_of_mut!(_stack_end);
+        while (p as usize) < sp {
+            p.write_volatile(PAINT);
+            p = p.add(1);
+        }
+    }
+}
+
+/// Stack high-water mark since the last [`paint_stack`], bytes below `_stack_start`.
+#[inline(never)]
+fn stack_used() -> usize {
+    // SAFETY: reads words of the stack region `_stack_end .. _stack_start`, all in RAM.
+    unsafe {
+        let top = addr_of!(_stack_start) as usize;
+        let mut p = addr_of_mut!(_stack_end) as *const u32;
+        while (p as usize) < top && p.read_volatile() == PAINT {
+            p = p.add(1);
+        }
+        top - p as usize
+    }
+}
+
+/// Integrates `trace` with one counted window per step; returns the final pose.
+fn run_windows(odo: &Odometry, state: &mut OdometryState, trace: Trace) -> Pose {
+    let mut pose = state.pose();
+    for totals in trace {
+        let totals = black_box(totals);
+        bench_start();
+        pose = odometry_step(black_box(odo), state, totals);
+        bench_end();
+        black_box(&pose);
+    }
+    pose
+}
+
+/// Prints one line; a host that has gone away cannot be reported to, so errors are ignored.
+fn out(args: core::fmt::Arguments<'_>) {
+    if let Ok(mut stdout) = hio::hstdout() {
+        let _ = stdout.write_fmt(args);
+    }
+}
+
+fn fail(what: &str) -> ! {
+    out(format_args!("error {what}\n"));
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let Some(cp) = cortex_m::Peripherals::take() else {
+        fail("core peripherals taken twice")
+    };
+    let layout = addr_of!(_qemu_bench_layout) as usize;
+    out(format_args!(
+        "info memory_layout ram_origin=0x{layout:08x}\n"
+    ));
+
+    // Marker overhead: an empty window.
+    bench_select_empty();
+    for _ in 0..EMPTY_WINDOWS {
+        bench_start();
+        bench_end();
+    }
+
+    // SysTick cross-check: one window over a block of steps, trace generation included.
+    let mut syst: SYST = cp.SYST;
+    syst.set_clock_source(SystClkSource::Core);
+    syst.set_reload(0x00FF_FFFF);
+    syst.clear_current();
+    syst.enable_counter();
+    let Ok((odo, mut state)) = qemu_bench::odometry(Integration::ExactArc) else {
+        fail("bench geometry rejected")
+    };
+    bench_select_block();
+    let t0 = SYST::get_current();
+    bench_start();
+    for totals in Trace::with_steps(BLOCK_STEPS) {
+        black_box(odometry_step(black_box(&odo), &mut state, totals));
+    }
+    bench_end();
+    let t1 = SYST::get_current();
+    let ticks = t0.wrapping_sub(t1) & 0x00FF_FFFF;
+    out(format_args!(
+        "info systick_block steps={BLOCK_STEPS} ticks={ticks}\n"
+    ));
+
+    // The standard trace, exact-arc rule (the firmware's default), one window per step.
+    let Ok((odo, mut state)) = qemu_bench::odometry(Integration::ExactArc) else {
+        fail("bench geometry rejected")
+    };
+    paint_stack();
+    bench_select_odometry();
+    let pose = run_windows(&odo, &mut state, Trace::standard());
+    let stack = stack_used();
+    let mut line: heapless_line::Line = heapless_line::Line::new();
+    let _ = report::pose_line(&mut line, "odometry_exact_arc", &pose);
+    out(format_args!("{}", line.as_str()));
+    out(format_args!("info stack odometry bytes={stack}\n"));
+
+    // A shorter run with the midpoint rule.
+    let Ok((odo, mut state)) = qemu_bench::odometry(Integration::Midpoint) else {
+        fail("bench geometry rejected")
+    };
+    bench_select_midpoint();
+    let pose = run_windows(&odo, &mut state, Trace::with_steps(MIDPOINT_STEPS));
+    let mut line = heapless_line::Line::new();
+    let _ = report::pose_line(&mut line, "odometry_midpoint", &pose);
+    out(format_args!("{}", line.as_str()));
+
+    out(format_args!("info done\n"));
+    debug::exit(EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+/// A fixed-capacity line buffer, so that a result line reaches the host in one write.
+mod heapless_line {
+    /// Up to 256 bytes of text.
+    pub struct Line {
+        buf: [u8; 256],
+        len: usize,
+    }
+
+    impl Line {
+        pub const fn new() -> Self {
+            Line {
+                buf: [0; 256],
+                len: 0,
+            }
+        }
+
+        pub fn as_str(&self) -> &str {
+            core::str::from_utf8(&self.buf[..self.len]).unwrap_or("<invalid utf-8>\n")
+        }
+    }
+
+    impl core::fmt::Write for Line {
+        fn write_str(&mut self, s: &str) -> core::fmt::Result {
+            let end = self.len + s.len();
+            if end > self.buf.len() {
+                return Err(core::fmt::Error);
+            }
+            self.buf[self.len..end].copy_from_slice(s.as_bytes());
+            self.len = end;
+            Ok(())
+        }
+    }
+}
+
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    out(format_args!(
+        "error hard fault at pc=0x{:08x}\n",
+        frame.pc()
+    ));
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
+    out(format_args!("error panic: {info}\n"));
+    debug::exit(EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+/// Library log output is encoded (so it costs what it costs on the board) and discarded.
+#[defmt::global_logger]
+struct Discard;
+
+// SAFETY: the logger keeps no state, so acquire/release need no critical section.
+unsafe impl defmt::Logger for Discard {
+    fn acquire() {}
+    unsafe fn flush() {}
+    unsafe fn release() {}
+    unsafe fn write(_bytes: &[u8]) {}
+}
