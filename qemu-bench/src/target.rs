@@ -102,20 +102,23 @@ fn odometry_step(odo: &Odometry, state: &mut OdometryState, totals: WheelTicks) 
 /// for a workload that stays shallower than the caller's frame plus this margin.
 const PAINT_MARGIN: usize = 64;
 
-/// Paints the free stack below the current stack pointer.
+/// Paints the free stack below the current stack pointer; returns the stack depth of the
+/// caller (bytes from `_stack_start` to the stack pointer at the call).
 #[inline(never)]
-fn paint_stack() {
-    let sp = cortex_m::register::msp::read() as usize - PAINT_MARGIN;
-    // SAFETY: `_stack_end .. sp` is unused stack (nothing below the stack pointer is live and
+fn paint_stack() -> usize {
+    let sp = cortex_m::register::msp::read() as usize;
+    let limit = sp - PAINT_MARGIN;
+    // SAFETY: `_stack_end .. limit` is unused stack (nothing below the stack pointer is live and
     // no interrupt is enabled); the writes stay inside RAM and are word aligned (cortex-m-rt
     // asserts `_stack_end % 4 == 0`).
     unsafe {
         let mut p = addr_of_mut!(_stack_end);
-        while (p as usize) < sp {
+        while (p as usize) < limit {
             p.write_volatile(PAINT);
             p = p.add(1);
         }
     }
+    addr_of!(_stack_start) as usize - sp
 }
 
 /// Stack high-water mark since the last [`paint_stack`], bytes below `_stack_start`.
@@ -203,14 +206,16 @@ fn main() -> ! {
     let Ok((odo, mut state)) = qemu_bench::odometry(Integration::ExactArc) else {
         fail("bench geometry rejected")
     };
-    paint_stack();
+    let caller = paint_stack();
     bench_select_odometry();
     let pose = run_windows(&odo, &mut state, Trace::standard());
     let stack = stack_used();
     let mut line: heapless_line::Line = heapless_line::Line::new();
     let _ = report::pose_line(&mut line, "odometry_exact_arc", &pose);
     out(format_args!("{}", line.as_str()));
-    out(format_args!("info stack odometry bytes={stack}\n"));
+    out(format_args!(
+        "info stack odometry high_water={stack} at_call={caller}\n"
+    ));
 
     // A shorter run with the midpoint rule.
     let Ok((odo, mut state)) = qemu_bench::odometry(Integration::Midpoint) else {

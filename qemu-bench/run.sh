@@ -1,0 +1,152 @@
+#!/usr/bin/env bash
+# Builds the QEMU benchmark, runs it on the netduinoplus2 model (STM32F405, Cortex-M4F) with the
+# instruction-counting plugin, runs the same workloads on the host, and
+#   - fails if any `result` line (raw bits of final poses / calibration results) differs,
+#   - fails if the host's odometry misses the accuracy budget (0.1 mm after 1 km),
+#   - fails if the SysTick cross-check disagrees with the plugin,
+#   - fails if an odometry step needs more than ODOMETRY_GOAL instructions,
+#   - prints a table of instruction counts, CPU load and stack.
+# Needs: qemu-system-arm, binutils-arm-none-eabi (nm), gcc, the thumbv7em-none-eabihf target.
+# Method and limits: docs/performance.md.
+set -euo pipefail
+
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+ROOT="$(cd "$HERE/.." && pwd)"
+# Share the repository's target directory: the bench's thumb dependencies are the firmware's.
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
+OUT="$CARGO_TARGET_DIR/qemu-bench"
+mkdir -p "$OUT"
+ODOMETRY_GOAL="${ODOMETRY_GOAL:-500}"
+TARGET=thumbv7em-none-eabihf
+ELF="$CARGO_TARGET_DIR/$TARGET/release/qemu-bench"
+HOST_BIN="$CARGO_TARGET_DIR/release/qemu-bench"
+
+for tool in qemu-system-arm arm-none-eabi-nm gcc cargo; do
+    command -v "$tool" >/dev/null || {
+        echo "qemu-bench: $tool not found (apt-get install -y qemu-system-arm binutils-arm-none-eabi gcc)" >&2
+        exit 1
+    }
+done
+
+cd "$HERE"
+
+# 1. The plugin.
+gcc -shared -fPIC -O2 -Wall -Werror -fvisibility=hidden -o "$OUT/libinsnwin.so" plugin/insnwin.c
+
+# 2. The target binary. The flags are pinned here rather than inherited from the repository's
+#    .cargo/config.toml (which cargo merges with qemu-bench/.cargo/config.toml): cortex-m-rt's
+#    link.x, defmt's section script, and --nmagic. The linker (rust-lld, not flip-link) comes from
+#    qemu-bench/.cargo/config.toml.
+SEP=$'\x1f'
+CARGO_ENCODED_RUSTFLAGS="-Clink-arg=-Tlink.x${SEP}-Clink-arg=-Tdefmt.x${SEP}-Clink-arg=--nmagic" \
+    cargo build --quiet --release --target "$TARGET"
+
+# 3. The host reference (std build of the same crate).
+cargo build --quiet --release
+host_status=0
+"$HOST_BIN" >"$OUT/host.out" || host_status=$?
+
+# 4. QEMU with the plugin (exact counts) and -icount shift=0 (for the SysTick cross-check).
+addr() {
+    local a
+    a="$(arm-none-eabi-nm "$ELF" | awk -v s="$1" '$3 == s { print "0x" $1 }')"
+    [ -n "$a" ] || { echo "qemu-bench: symbol $1 not found in $ELF" >&2; exit 1; }
+    echo "$a"
+}
+PLUGIN_ARGS="start=$(addr bench_start),end=$(addr bench_end)"
+for sel in $(arm-none-eabi-nm "$ELF" | awk '$3 ~ /^bench_select_/ { sub("bench_select_", "", $3); print $3 }'); do
+    PLUGIN_ARGS="$PLUGIN_ARGS,sel=$sel@$(addr "bench_select_$sel")"
+done
+qemu_status=0
+timeout 300 qemu-system-arm -M netduinoplus2 -nographic -icount shift=0 \
+    -semihosting-config enable=on,target=native \
+    -plugin "$OUT/libinsnwin.so,$PLUGIN_ARGS" \
+    -kernel "$ELF" >"$OUT/qemu.out" 2>"$OUT/plugin.out" || qemu_status=$?
+
+fail=0
+fidelity=ok
+if [ "$qemu_status" -ne 0 ] || ! grep -q '^info done' "$OUT/qemu.out"; then
+    echo "qemu-bench: FAILED: the QEMU run did not finish (status $qemu_status)" >&2
+    cat "$OUT/qemu.out" "$OUT/plugin.out" >&2
+    exit 1
+fi
+
+# 5. Fidelity: every result line must be identical, and there must be some.
+grep '^result ' "$OUT/host.out" >"$OUT/host.result" || true
+grep '^result ' "$OUT/qemu.out" >"$OUT/qemu.result" || true
+n_results=$(wc -l <"$OUT/host.result")
+if [ "$n_results" -eq 0 ] || ! diff -u "$OUT/host.result" "$OUT/qemu.result" >"$OUT/result.diff"; then
+    echo "qemu-bench: FAILED: host and QEMU results differ" >&2
+    cat "$OUT/result.diff" >&2
+    fidelity=DIFFER
+    fail=1
+fi
+if [ "$host_status" -ne 0 ]; then
+    echo "qemu-bench: FAILED: host reference run (accuracy budget) exited with $host_status" >&2
+    fail=1
+fi
+
+# 6. The table.
+awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity="$fidelity" '
+    FNR == 1 { file++ }
+    file == 1 && $1 == "insnwin" {
+        name = $2
+        for (i = 3; i <= NF; i++) { split($i, kv, "="); w[name, kv[1]] = kv[2] }
+        names[++nn] = name
+    }
+    file == 2 && $1 == "info" && $2 == "systick_block" {
+        for (i = 3; i <= NF; i++) { split($i, kv, "="); sys[kv[1]] = kv[2] }
+    }
+    file == 2 && $1 == "info" && $2 == "stack" {
+        for (i = 4; i <= NF; i++) { split($i, kv, "="); stack[$3, kv[1]] = kv[2] }
+        stacks[++ns] = $3
+    }
+    file == 3 && $1 == "info" && $2 == "accuracy" {
+        for (i = 3; i <= NF; i++) { split($i, kv, "="); acc[kv[1]] = kv[2] }
+    }
+    END {
+        fail = fail_in
+        empty = w["empty", "min"]
+        if (empty == "" || w["empty", "max"] != empty) { print "qemu-bench: FAILED: no constant empty window"; fail = 1 }
+        printf "\nqemu-bench: instructions per call (netduinoplus2, QEMU TCG plugin; marker overhead of %d subtracted)\n", empty
+        printf "%-12s %10s %8s %8s %8s %12s %12s\n", "window", "calls", "mean", "min", "max", "load@1kHz", "load@10kHz"
+        for (k = 1; k <= nn; k++) {
+            name = names[k]
+            if (name == "empty" || name == "block" || name == "total") continue
+            n = w[name, "n"]
+            if (n == 0) { printf "%-12s %10s\n", name, "not run"; continue }
+            mean = w[name, "sum"] / n - empty
+            mn = w[name, "min"] - empty; mx = w[name, "max"] - empty
+            # Load at 168 MHz if every instruction took one cycle (a lower bound; see docs).
+            printf "%-12s %10d %8.1f %8d %8d %11.3f%% %11.3f%%\n", name, n, mean, mn, mx,
+                100 * mx * 1000 / 168e6, 100 * mx * 10000 / 168e6
+            if (name == "odometry" && mx > goal) {
+                printf "qemu-bench: FAILED: odometry step needs %d instructions (goal %d)\n", mx, goal
+                fail = 1
+            }
+        }
+        if (w["odometry", "n"] == 0) { print "qemu-bench: FAILED: no odometry windows counted"; fail = 1 }
+        # SysTick cross-check: 1 instruction = 1 ns under -icount shift=0; SysTick at 168 MHz.
+        est = sys["ticks"] * 1e9 / 168e6
+        diff = est - w["block", "sum"]
+        printf "\ncross-check, %d steps incl. trace generation: plugin %d, SysTick %d ticks = %.0f instructions (diff %.0f)\n",
+            sys["steps"], w["block", "sum"], sys["ticks"], est, diff
+        # One SysTick tick is 5.95 instructions; the two windows differ by the SysTick reads.
+        if (diff < -60 || diff > 60) { print "qemu-bench: FAILED: SysTick cross-check"; fail = 1 }
+        for (k = 1; k <= ns; k++) {
+            s = stacks[k]
+            printf "stack high-water (%s): %d bytes from reset, %d bytes below the caller of the workload\n",
+                s, stack[s, "high_water"], stack[s, "high_water"] - stack[s, "at_call"]
+        }
+        printf "odometry accuracy (host, %s steps, %s m): position %s m, heading %s rad (budget %s m)\n",
+            acc["steps"], acc["path_m"], acc["position_error_m"], acc["heading_error_rad"], acc["budget_m"]
+        printf "fidelity: %d result lines, host and QEMU %s\n", nres, (fidelity == "ok" ? "bit-identical" : "DIFFER")
+        exit fail
+    }
+' "$OUT/plugin.out" "$OUT/qemu.out" "$OUT/host.out" || fail=1
+
+if [ "$fail" -ne 0 ]; then
+    echo "qemu-bench: FAILED" >&2
+    exit 1
+fi
+echo "qemu-bench: OK"
