@@ -33,12 +33,22 @@ cd "$HERE"
 # 1. The plugin.
 gcc -shared -fPIC -O2 -Wall -Werror -fvisibility=hidden -o "$OUT/libinsnwin.so" plugin/insnwin.c
 
+# Lints of the bench crate itself (it is not a workspace member, so the repository-wide fmt and
+# clippy steps do not see it). QEMU_BENCH_LINT=0 skips them.
+SEP=$'\x1f'
+TARGET_RUSTFLAGS="-Clink-arg=-Tlink.x${SEP}-Clink-arg=-Tdefmt.x${SEP}-Clink-arg=--nmagic"
+if [ "${QEMU_BENCH_LINT:-1}" != 0 ]; then
+    cargo fmt -- --check
+    cargo clippy --quiet --all-targets -- -D warnings
+    CARGO_ENCODED_RUSTFLAGS="$TARGET_RUSTFLAGS" \
+        cargo clippy --quiet --release --target "$TARGET" -- -D warnings
+fi
+
 # 2. The target binary. The flags are pinned here rather than inherited from the repository's
 #    .cargo/config.toml (which cargo merges with qemu-bench/.cargo/config.toml): cortex-m-rt's
 #    link.x, defmt's section script, and --nmagic. The linker (rust-lld, not flip-link) comes from
 #    qemu-bench/.cargo/config.toml.
-SEP=$'\x1f'
-CARGO_ENCODED_RUSTFLAGS="-Clink-arg=-Tlink.x${SEP}-Clink-arg=-Tdefmt.x${SEP}-Clink-arg=--nmagic" \
+CARGO_ENCODED_RUSTFLAGS="$TARGET_RUSTFLAGS" \
     cargo build --quiet --release --target "$TARGET"
 
 # 3. The host reference (std build of the same crate).
