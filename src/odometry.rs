@@ -285,6 +285,18 @@ mod tests {
     }
 
     #[test]
+    fn sinc_correction_fits_u32_at_the_clamp() {
+        // `update` divides Δθ² (Q32) as a u32; that equals the i64 division only while
+        // Δθ² < 2^32. At the clamp |Δθ| = 2π/2^9 rad, Δθ² = 1.5e-4 rad² = 6.5e5 in Q32; the
+        // bound 2^20 leaves a factor 1.6 of margin and fails if the clamp is ever widened 1.3×.
+        for extreme in [i64::MAX, i64::MIN, 1 << 55, -(1 << 55)] {
+            let dt = Angle::small_q64_to_rad_q32(extreme);
+            let dt2 = (dt * dt) >> 32;
+            assert!((0..1 << 20).contains(&dt2), "{extreme}: {dt2}");
+        }
+    }
+
+    #[test]
     fn reset_starts_a_new_frame() {
         let g = Geometry::PAPER_NOMINAL;
         let (odo, mut st) = setup(&g);
