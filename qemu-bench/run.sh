@@ -6,7 +6,8 @@
 #   - fails if the SysTick cross-check disagrees with the plugin,
 #   - fails if an odometry step needs more than ODOMETRY_GOAL instructions,
 #   - prints a table of instruction counts, CPU load and stack.
-# Needs: qemu-system-arm, binutils-arm-none-eabi (nm), gcc, the thumbv7em-none-eabihf target.
+# Needs: qemu-system-arm, binutils-arm-none-eabi (nm), gcc, flip-link, the thumbv7em-none-eabihf
+# target.
 # Method and limits: docs/performance.md.
 set -euo pipefail
 
@@ -21,7 +22,7 @@ TARGET=thumbv7em-none-eabihf
 ELF="$CARGO_TARGET_DIR/$TARGET/release/qemu-bench"
 HOST_BIN="$CARGO_TARGET_DIR/release/qemu-bench"
 
-for tool in qemu-system-arm arm-none-eabi-nm gcc cargo; do
+for tool in qemu-system-arm arm-none-eabi-nm gcc cargo flip-link; do
     command -v "$tool" >/dev/null || {
         echo "qemu-bench: $tool not found (apt-get install -y qemu-system-arm binutils-arm-none-eabi gcc)" >&2
         exit 1
@@ -36,7 +37,9 @@ gcc -shared -fPIC -O2 -Wall -Werror -fvisibility=hidden -o "$OUT/libinsnwin.so" 
 # Lints of the bench crate itself (it is not a workspace member, so the repository-wide fmt and
 # clippy steps do not see it). QEMU_BENCH_LINT=0 skips them.
 SEP=$'\x1f'
-TARGET_RUSTFLAGS="-Clink-arg=-Tlink.x${SEP}-Clink-arg=-Tdefmt.x${SEP}-Clink-arg=--nmagic"
+# The same tokens as the repository's config (not merely the same flags), so that the bench's
+# dependencies are the firmware's compiled ones rather than a second copy.
+TARGET_RUSTFLAGS="-C${SEP}link-arg=-Tlink.x${SEP}-C${SEP}link-arg=-Tdefmt.x${SEP}-C${SEP}link-arg=--nmagic"
 if [ "${QEMU_BENCH_LINT:-1}" != 0 ]; then
     cargo fmt -- --check
     cargo clippy --quiet --all-targets -- -D warnings
@@ -46,10 +49,12 @@ fi
 
 # 2. The target binary. The flags are pinned here rather than inherited from the repository's
 #    .cargo/config.toml (which cargo merges with qemu-bench/.cargo/config.toml): cortex-m-rt's
-#    link.x, defmt's section script, and --nmagic. The linker (rust-lld, not flip-link) comes from
-#    qemu-bench/.cargo/config.toml.
+#    link.x, defmt's section script, and --nmagic. The linker (flip-link, as for the firmware)
+#    comes from qemu-bench/.cargo/config.toml. With the same linker and the same flag tokens the
+#    thumb dependencies are the ones `cargo fw` compiled (a different linker or a different
+#    spelling of the flags would give every dependency a second, rebuilt copy).
 CARGO_ENCODED_RUSTFLAGS="$TARGET_RUSTFLAGS" \
-    cargo build --quiet --release --target "$TARGET"
+    cargo build --quiet --release --target "$TARGET" --bin qemu-bench
 
 # 3. The host reference (std build of the same crate).
 cargo build --quiet --release

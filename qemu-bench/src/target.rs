@@ -40,11 +40,12 @@ const EMPTY_WINDOWS: u32 = 1_000;
 const PAINT: u32 = 0xA5A5_A5A5;
 
 unsafe extern "C" {
-    /// Lowest address the stack may grow to (cortex-m-rt: the end of .bss/.uninit).
+    /// Lowest address the stack may grow to (flip-link: ORIGIN(RAM)).
     static mut _stack_end: u32;
-    /// Initial stack pointer (cortex-m-rt: the top of RAM).
+    /// Initial stack pointer (flip-link: just below .data).
     static _stack_start: u32;
-    /// Defined only by the bench's memory.x (proves which memory.x was linked).
+    /// Defined only by the bench's memory.x (proves which memory.x was linked); after flip-link's
+    /// relink, the start of RAM above the stack.
     static _qemu_bench_layout: u8;
 }
 
@@ -168,9 +169,11 @@ fn main() -> ! {
     let Some(cp) = cortex_m::Peripherals::take() else {
         fail("core peripherals taken twice")
     };
-    let layout = addr_of!(_qemu_bench_layout) as usize;
+    let data = addr_of!(_qemu_bench_layout) as usize;
+    let stack_bottom = addr_of!(_stack_end) as usize;
+    let stack_top = addr_of!(_stack_start) as usize;
     out(format_args!(
-        "info memory_layout ram_origin=0x{layout:08x}\n"
+        "info memory_layout stack=0x{stack_bottom:08x}..0x{stack_top:08x} data=0x{data:08x}\n"
     ));
 
     // Marker overhead: an empty window.
