@@ -7,7 +7,8 @@
 # adds its format string index and encoding code, so measure the build that is flashed.
 # flash      = text + data  (code, read-only data, vector table, .data's initial values)
 # static RAM = data + bss   (includes the defmt-rtt buffer and RTIC's task state; the stack is
-#                            the rest of RAM and is reported by qemu-bench/run.sh)
+#                            the rest of RAM: a static estimate is printed here, measured
+#                            high-water marks of the library workloads by qemu-bench/run.sh)
 # Needs binutils-arm-none-eabi (arm-none-eabi-size, arm-none-eabi-nm).
 set -euo pipefail
 
@@ -36,6 +37,12 @@ printf "  static RAM %6d bytes = %6s KiB (goal <= %d KiB)\n" "$ram" "$(kib "$ram
 echo "  largest symbols (bytes, type, name):"
 arm-none-eabi-nm --size-sort -S -C -t d --reverse-sort "$ELF" | awk '$3 ~ /^[tTrRdDbB]$/' | head -8 |
     awk '{ printf "    %6d %s ", $2, $3; for (i = 4; i <= NF; i++) printf "%s ", $i; print "" }'
+
+# Static worst-case stack (call graph of the disassembly; see the script for what it cannot see).
+if command -v python3 >/dev/null; then
+    echo "  stack (static estimate):"
+    python3 "$ROOT/.ci/stack_estimate.py" "$ELF" | sed 's/^/    /'
+fi
 
 status=0
 if [ "$flash" -gt "$FLASH_GOAL" ]; then

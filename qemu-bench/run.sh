@@ -164,6 +164,11 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
     }
 ' "$OUT/plugin.out" "$OUT/qemu.out" "$OUT/host.out" || fail=1
 
+# The static estimate of the same binary, for comparison with the measured high-water marks.
+if command -v python3 >/dev/null; then
+    echo "static stack estimate of the bench binary: $(python3 "$ROOT/.ci/stack_estimate.py" "$ELF" | head -n 1)"
+fi
+
 if [ "$fail" -ne 0 ]; then
     echo "qemu-bench: FAILED" >&2
     exit 1
