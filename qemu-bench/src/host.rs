@@ -63,6 +63,7 @@ fn run_inner() -> Result<bool, String> {
     }
     let (mid, _) = integrate(Integration::Midpoint, Trace::with_steps(MIDPOINT_STEPS))?;
     report::pose_line(&mut out, "odometry_midpoint", &mid).map_err(|e| e.to_string())?;
+    solve(&mut out)?;
     print!("{out}");
     println!(
         "info accuracy steps={} path_m={path_m:.1} position_error_m={error_m:.3e} \
@@ -70,4 +71,26 @@ fn run_inner() -> Result<bool, String> {
         knots.len() - 1
     );
     Ok(error_m <= BUDGET_M)
+}
+
+/// The exact calibration of the recorded squares: result lines plus the estimate vs the truth.
+pub fn solve(out: &mut String) -> Result<(), String> {
+    use odocal::calibration::{Method, calibrate};
+    use qemu_bench::squares::{self, SquareRuns};
+
+    let runs = SquareRuns::generate();
+    report::bits_line(out, "squares_fixture", &[("checksum", runs.checksum())])
+        .map_err(|e| e.to_string())?;
+    let result = calibrate(&runs.observations(), &squares::nominal(), Method::Exact);
+    report::calibration_line(out, "solve_exact", &result).map_err(|e| e.to_string())?;
+    let c = result.map_err(|e| format!("exact calibration failed: {e}"))?;
+    out.push_str(&format!(
+        "info solve e_d={:.6} (true {}) e_b={:.6} (true {}) iterations={}\n",
+        c.e_d,
+        squares::TRUE_E_D,
+        c.e_b,
+        squares::TRUE_E_B,
+        c.iterations
+    ));
+    Ok(())
 }

@@ -8,6 +8,7 @@
 #![warn(missing_docs)]
 
 pub mod report;
+pub mod squares;
 pub mod trace;
 
 use odocal::geometry::Geometry;

@@ -5,6 +5,7 @@
 
 use core::fmt::{self, Write};
 
+use odocal::calibration::{Calibration, CalibrationError};
 use odocal::odometry::Pose;
 
 /// Writes `result <label> x=<bits> y=<bits> heading=<bits>`: the raw `i64` bits of the Q40
@@ -22,14 +23,37 @@ pub fn pose_line<W: Write>(w: &mut W, label: &str, pose: &Pose) -> fmt::Result {
     )
 }
 
-/// Writes `result <label> <name>=<bits> ...` for `f64` values (raw IEEE-754 bits in hex).
+/// Writes `result <label> <name>=<hex> ...` for raw 64-bit values.
 ///
 /// # Errors
 /// Whatever the writer returns.
-pub fn f64_line<W: Write>(w: &mut W, label: &str, values: &[(&str, f64)]) -> fmt::Result {
+pub fn bits_line<W: Write>(w: &mut W, label: &str, values: &[(&str, u64)]) -> fmt::Result {
     write!(w, "result {label}")?;
     for (name, v) in values {
-        write!(w, " {name}=0x{:016x}", v.to_bits())?;
+        write!(w, " {name}=0x{v:016x}")?;
     }
     writeln!(w)
+}
+
+/// Writes the result line of a calibration: the bits of `E_d`, `E_b`, `E_s`, the RMS residual and
+/// the iteration count, or the error.
+///
+/// # Errors
+/// Whatever the writer returns.
+pub fn calibration_line<W: Write>(
+    w: &mut W,
+    label: &str,
+    result: &Result<Calibration, CalibrationError>,
+) -> fmt::Result {
+    match result {
+        Ok(c) => {
+            write!(w, "result {label} iterations={}", c.iterations)?;
+            let rms = c.quality.rms_residual_m.unwrap_or(f64::NAN);
+            for (name, v) in [("e_d", c.e_d), ("e_b", c.e_b), ("e_s", c.e_s), ("rms", rms)] {
+                write!(w, " {name}=0x{:016x}", v.to_bits())?;
+            }
+            writeln!(w)
+        }
+        Err(e) => writeln!(w, "result {label} error={e}"),
+    }
 }

@@ -23,9 +23,13 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use cortex_m_semihosting::hio;
+use odocal::calibration::{Calibration, CalibrationError, Method, RunObservation, calibrate};
 use odocal::encoder::WheelTicks;
+use odocal::geometry::Geometry;
 use odocal::odometry::{Integration, Odometry, OdometryState, Pose};
+use odocal::reference::{ArcModel, PoseF64};
 use qemu_bench::report;
+use qemu_bench::squares::{self, SquareRuns};
 use qemu_bench::trace::Trace;
 // Interrupt vector table (see Cargo.toml).
 use stm32f4xx_hal as _;
@@ -68,29 +72,23 @@ pub extern "C" fn bench_end() {
 
 /// Generates a selector marker with `n` nops (distinct bodies, distinct addresses).
 macro_rules! selector {
-    ($name:ident, $($nop:literal),+) => {
+    ($name:ident, $n:literal) => {
         /// Selects the window the following `bench_start`/`bench_end` pairs are counted in.
         #[unsafe(no_mangle)]
         #[inline(never)]
         pub extern "C" fn $name() {
             // SAFETY: no-op instructions only, as in `bench_start`.
-            unsafe { asm!($($nop),+) }
+            unsafe { asm!(".rept {n}", "nop", ".endr", n = const $n) }
         }
     };
 }
 
-selector!(bench_select_empty, "nop", "nop", "nop");
-selector!(bench_select_block, "nop", "nop", "nop", "nop");
-selector!(bench_select_odometry, "nop", "nop", "nop", "nop", "nop");
-selector!(
-    bench_select_midpoint,
-    "nop",
-    "nop",
-    "nop",
-    "nop",
-    "nop",
-    "nop"
-);
+selector!(bench_select_empty, 3);
+selector!(bench_select_block, 4);
+selector!(bench_select_odometry, 5);
+selector!(bench_select_midpoint, 6);
+selector!(bench_select_solve, 7);
+selector!(bench_select_arc_run, 8);
 
 /// One control period of odometry, as the firmware's control task performs it.
 #[inline(never)]
@@ -102,6 +100,15 @@ fn odometry_step(odo: &Odometry, state: &mut OdometryState, totals: WheelTicks) 
 /// registers after reading SP). The high-water mark can therefore read at most this much high
 /// for a workload that stays shallower than the caller's frame plus this margin.
 const PAINT_MARGIN: usize = 64;
+
+/// The exact calibration of the recorded squares, as the firmware's `calibrate` command runs it.
+#[inline(never)]
+fn exact_solve(
+    runs: &[RunObservation<'_>],
+    nominal: &Geometry,
+) -> Result<Calibration, CalibrationError> {
+    calibrate(runs, nominal, Method::Exact)
+}
 
 /// Paints the free stack below the current stack pointer; returns the stack depth of the
 /// caller (bytes from `_stack_start` to the stack pointer at the call).
@@ -229,6 +236,41 @@ fn main() -> ! {
     let mut line = heapless_line::Line::new();
     let _ = report::pose_line(&mut line, "odometry_midpoint", &pose);
     out(format_args!("{}", line.as_str()));
+
+    // The exact calibration of the recorded squares.
+    let runs = SquareRuns::generate();
+    let mut line = heapless_line::Line::new();
+    let _ = report::bits_line(
+        &mut line,
+        "squares_fixture",
+        &[("checksum", runs.checksum())],
+    );
+    out(format_args!("{}", line.as_str()));
+    let observations = runs.observations();
+    let nominal = squares::nominal();
+    // One re-integration of a recorded run (what the solver repeats for every run and every
+    // evaluation of its cost function).
+    let model = ArcModel::from_geometry(&nominal);
+    bench_select_arc_run();
+    for o in &observations {
+        let knots = black_box(o.knots);
+        bench_start();
+        let end = model.integrate(PoseF64::default(), knots);
+        bench_end();
+        black_box(end);
+    }
+    let caller = paint_stack();
+    bench_select_solve();
+    bench_start();
+    let result = exact_solve(black_box(&observations), black_box(&nominal));
+    bench_end();
+    let stack = stack_used();
+    let mut line = heapless_line::Line::new();
+    let _ = report::calibration_line(&mut line, "solve_exact", &result);
+    out(format_args!("{}", line.as_str()));
+    out(format_args!(
+        "info stack solve high_water={stack} at_call={caller}\n"
+    ));
 
     out(format_args!("info done\n"));
     debug::exit(EXIT_SUCCESS);
