@@ -34,8 +34,8 @@ cd "$HERE"
 # 1. The plugin.
 gcc -shared -fPIC -O2 -Wall -Werror -fvisibility=hidden -o "$OUT/libinsnwin.so" plugin/insnwin.c
 
-# Lints of the bench crate itself (it is not a workspace member, so the repository-wide fmt and
-# clippy steps do not see it). QEMU_BENCH_LINT=0 skips them.
+# Lints and unit tests of the bench crate itself (it is not a workspace member, so the
+# repository-wide fmt, clippy and test steps do not see it). QEMU_BENCH_LINT=0 skips them.
 SEP=$'\x1f'
 # The same tokens as the repository's config (not merely the same flags), so that the bench's
 # dependencies are the firmware's compiled ones rather than a second copy.
@@ -43,6 +43,7 @@ TARGET_RUSTFLAGS="-C${SEP}link-arg=-Tlink.x${SEP}-C${SEP}link-arg=-Tdefmt.x${SEP
 if [ "${QEMU_BENCH_LINT:-1}" != 0 ]; then
     cargo fmt -- --check
     cargo clippy --quiet --all-targets -- -D warnings
+    cargo test --quiet
     CARGO_ENCODED_RUSTFLAGS="$TARGET_RUSTFLAGS" \
         cargo clippy --quiet --release --target "$TARGET" -- -D warnings
 fi

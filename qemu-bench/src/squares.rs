@@ -154,7 +154,7 @@ impl SquareRuns {
 }
 
 fn direction(run: usize) -> Direction {
-    if run % 2 == 0 {
+    if run.is_multiple_of(2) {
         Direction::Cw
     } else {
         Direction::Ccw
