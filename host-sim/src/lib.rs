@@ -4,6 +4,7 @@
 //! them directly.
 
 pub mod advice;
+pub mod bench;
 pub mod closedloop;
 pub mod drive;
 pub mod flash;

@@ -65,6 +65,8 @@ enum Command {
     Closedloop(host_sim::closedloop::ClosedLoopArgs),
     /// The simulated robot speaking the serial protocol on stdin/stdout or a pseudo-terminal.
     Serial(host_sim::serial::SerialArgs),
+    /// Host speed: a full simulated 5 + 5 session and a 1,000-trial Monte Carlo.
+    Bench(host_sim::bench::BenchArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -91,6 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Advice(args) => host_sim::advice::run(&args),
         Command::Closedloop(args) => host_sim::closedloop::run(&args),
         Command::Serial(args) => Ok(host_sim::serial::run(&args)?),
+        Command::Bench(args) => host_sim::bench::run(&args),
     }
 }
 
