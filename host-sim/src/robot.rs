@@ -277,17 +277,33 @@ impl Sim {
             w.counts += dphi / (2.0 * std::f64::consts::PI) * cpr;
             dphi
         };
+        // Heading at the period start; within the period the substeps rotate it by small
+        // angles δ (|δ| < 0.01 rad), whose sine and cosine come from their Taylor series
+        // (error < δ⁷/5040 + δ⁸/40320 < 1e-18), so one sincos per period suffices.
+        let theta0 = self.pose.theta_rad;
+        let (s0, c0) = theta0.sin_cos();
+        let mut offset = 0.0f64;
         for _ in 0..n {
             let ds_r = turn(&mut self.right, target_r) * 0.5 * g.diameter_right_m * slip_r;
             let ds_l = turn(&mut self.left, target_l) * 0.5 * g.diameter_left_m * slip_l;
             let ds = 0.5 * (ds_r + ds_l);
             let dtheta = (ds_r - ds_l) / g.wheelbase_m;
             let chord = ds * sinc(0.5 * dtheta);
-            let mid = self.pose.theta_rad + 0.5 * dtheta;
-            self.pose.x_m += chord * mid.cos();
-            self.pose.y_m += chord * mid.sin();
-            self.pose.theta_rad += dtheta;
+            let d = offset + 0.5 * dtheta;
+            let (sd, cd) = if d.abs() < 0.01 {
+                let d2 = d * d;
+                (
+                    d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0))),
+                    1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0)),
+                )
+            } else {
+                d.sin_cos()
+            };
+            self.pose.x_m += chord * (c0 * cd - s0 * sd);
+            self.pose.y_m += chord * (s0 * cd + c0 * sd);
+            offset += dtheta;
         }
+        self.pose.theta_rad = theta0 + offset;
         self.periods += 1;
     }
 
