@@ -24,7 +24,7 @@ HOST_BIN="$CARGO_TARGET_DIR/release/qemu-bench"
 
 for tool in qemu-system-arm arm-none-eabi-nm gcc cargo flip-link; do
     command -v "$tool" >/dev/null || {
-        echo "qemu-bench: $tool not found (apt-get install -y qemu-system-arm binutils-arm-none-eabi gcc)" >&2
+        echo "qemu-bench: $tool not found (apt-get install -y qemu-system-arm binutils-arm-none-eabi gcc; cargo install flip-link)" >&2
         exit 1
     }
 done
