@@ -5,7 +5,8 @@
 #   - fails if the host's odometry misses the accuracy budget (0.1 mm after 1 km),
 #   - fails if the SysTick cross-check disagrees with the plugin,
 #   - fails if an odometry step needs more than ODOMETRY_GOAL instructions,
-#   - prints a table of instruction counts, CPU load and stack.
+#   - prints a table of instruction counts, CPU load, the share of float-library and libm
+#     instructions, and stack.
 # Needs: qemu-system-arm, binutils-arm-none-eabi (nm), gcc, flip-link, the thumbv7em-none-eabihf
 # target.
 # Method and limits: docs/performance.md.
@@ -73,6 +74,16 @@ PLUGIN_ARGS="start=$(addr bench_start),end=$(addr bench_end)"
 for sel in $(arm-none-eabi-nm "$ELF" | awk '$3 ~ /^bench_select_/ { sub("bench_select_", "", $3); print $3 }'); do
     PLUGIN_ARGS="$PLUGIN_ARGS,sel=$sel@$(addr "bench_select_$sel")"
 done
+# Instruction groups: the float support library (f64 arithmetic in software — the M4F's FPU is
+# single precision — and 64-bit integer <-> float conversions) and libm.
+while read -r lo size group; do
+    PLUGIN_ARGS="$PLUGIN_ARGS,grp=$group@0x$lo-$(printf '0x%x' $((0x$lo + 0x$size)))"
+done < <(arm-none-eabi-nm -S -C --defined-only "$ELF" | awk '
+    $3 ~ /^[tT]$/ {
+        name = $4
+        if (name ~ /^compiler_builtins::float::/ || name ~ /^__aeabi_(d|f2d|l2d|ul2d|i2d|ui2d|l2f|ul2f|f2lz|f2ulz)/) print $1, $2, "softfloat"
+        else if (name ~ /^libm::/) print $1, $2, "libm"
+    }')
 qemu_status=0
 timeout 300 qemu-system-arm -M netduinoplus2 -nographic -icount shift=0 \
     -semihosting-config enable=on,target=native \
@@ -125,8 +136,8 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
         empty = w["empty", "min"]
         if (empty == "" || w["empty", "max"] != empty) { print "qemu-bench: FAILED: no constant empty window"; fail = 1 }
         printf "\nqemu-bench: instructions per call (netduinoplus2, QEMU TCG plugin; marker overhead of %d subtracted)\n", empty
-        printf "%-10s %8s %11s %11s %11s %11s %10s %10s\n", "window", "calls", "mean", "min", "max",
-            "max_us", "load@1kHz", "load@10kHz"
+        printf "%-10s %8s %11s %11s %11s %11s %10s %10s %9s %6s\n", "window", "calls", "mean", "min", "max",
+            "max_us", "load@1kHz", "load@10kHz", "softfloat", "libm"
         for (k = 1; k <= nn; k++) {
             name = names[k]
             if (name == "empty" || name == "block") continue
@@ -136,10 +147,11 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
             mn = w[name, "min"] - empty; mx = w[name, "max"] - empty
             # Time and load at 168 MHz if every instruction took one cycle (a lower bound; see
             # docs/performance.md). Load only for the per-period workloads.
-            periodic = (name == "odometry" || name == "midpoint")
-            printf "%-10s %8d %11.1f %11d %11d %11.2f %10s %10s\n", name, n, mean, mn, mx, mx / 168,
+            periodic = (name == "odometry" || name == "midpoint" || name == "control")
+            printf "%-10s %8d %11.1f %11d %11d %11.2f %10s %10s %8.1f%% %5.1f%%\n", name, n, mean, mn, mx, mx / 168,
                 periodic ? sprintf("%.3f%%", 100 * mx * 1000 / 168e6) : "-",
-                periodic ? sprintf("%.3f%%", 100 * mx * 10000 / 168e6) : "-"
+                periodic ? sprintf("%.3f%%", 100 * mx * 10000 / 168e6) : "-",
+                100 * w[name, "softfloat"] / w[name, "sum"], 100 * w[name, "libm"] / w[name, "sum"]
             if (name == "odometry" && mx > goal) {
                 printf "qemu-bench: FAILED: odometry step needs %d instructions (goal %d)\n", mx, goal
                 fail = 1

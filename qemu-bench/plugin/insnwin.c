@@ -8,13 +8,16 @@
  *   start=0xADDR        first instruction of the window-start marker function
  *   end=0xADDR          first instruction of the window-end marker function
  *   sel=NAME@0xADDR     a selector function: executing it makes NAME the current window
+ *   grp=NAME@0xLO-0xHI  attribute instructions at addresses LO <= pc < HI to group NAME
+ *                       (repeat for more ranges of the same group; at most 4 groups)
  *
  * Every executed instruction adds 1 to a counter (inline, no callback). When `start` executes
  * the counter is remembered; when `end` executes the difference is added to the current
  * window's statistics (count, sum, min, max). A window therefore holds the instructions from
  * the first instruction of the start marker up to, not including, the first instruction of the
- * end marker. At exit one line per window is printed to stderr:
- *   insnwin NAME n=<windows> sum=<instructions> min=<..> max=<..>
+ * end marker. Instructions inside a group's ranges are also summed per window and group. At
+ * exit one line per window is printed to stderr:
+ *   insnwin NAME n=<windows> sum=<instructions> min=<..> max=<..> [GROUP=<instructions> ...]
  *
  * Build: gcc -shared -fPIC -O2 -fvisibility=hidden -o libinsnwin.so insnwin.c
  */
@@ -45,12 +48,26 @@ void qemu_plugin_register_atexit_cb(qemu_plugin_id_t, exit_cb, void *);
 __attribute__((visibility("default"))) int qemu_plugin_version = 1;
 
 #define MAX_WINDOWS 16
+#define MAX_GROUPS 4
+#define MAX_RANGES 256
 
 struct window {
     char name[48];
     uint64_t pc;
     uint64_t n, sum, min, max;
+    uint64_t group_sum[MAX_GROUPS];
 };
+
+struct range {
+    uint64_t lo, hi;
+    int group;
+};
+
+static char group_names[MAX_GROUPS][48];
+static uint64_t group_insns[MAX_GROUPS], group_t0[MAX_GROUPS];
+static int n_groups;
+static struct range ranges[MAX_RANGES];
+static int n_ranges;
 
 static struct window windows[MAX_WINDOWS];
 static int n_windows;
@@ -61,6 +78,9 @@ static int open_window;
 static void on_start(unsigned int vcpu, void *u)
 {
     t0 = insns;
+    for (int g = 0; g < n_groups; g++) {
+        group_t0[g] = group_insns[g];
+    }
     open_window = 1;
 }
 
@@ -80,6 +100,9 @@ static void on_end(unsigned int vcpu, void *u)
     }
     w->n++;
     w->sum += d;
+    for (int g = 0; g < n_groups; g++) {
+        w->group_sum[g] += group_insns[g] - group_t0[g];
+    }
 }
 
 static void on_select(unsigned int vcpu, void *u)
@@ -106,6 +129,12 @@ static void on_trans(qemu_plugin_id_t id, struct qemu_plugin_tb *tb)
             }
         }
         qemu_plugin_register_vcpu_insn_exec_inline(in, 0, &insns, 1);
+        for (int r = 0; r < n_ranges; r++) {
+            if (pc >= ranges[r].lo && pc < ranges[r].hi) {
+                qemu_plugin_register_vcpu_insn_exec_inline(in, 0, &group_insns[ranges[r].group], 1);
+                break;
+            }
+        }
     }
 }
 
@@ -113,9 +142,13 @@ static void at_exit(qemu_plugin_id_t id, void *u)
 {
     for (int k = 0; k < n_windows; k++) {
         struct window *w = &windows[k];
-        fprintf(stderr, "insnwin %s n=%llu sum=%llu min=%llu max=%llu\n", w->name,
+        fprintf(stderr, "insnwin %s n=%llu sum=%llu min=%llu max=%llu", w->name,
                 (unsigned long long)w->n, (unsigned long long)w->sum,
                 (unsigned long long)w->min, (unsigned long long)w->max);
+        for (int g = 0; g < n_groups; g++) {
+            fprintf(stderr, " %s=%llu", group_names[g], (unsigned long long)w->group_sum[g]);
+        }
+        fprintf(stderr, "\n");
     }
     fprintf(stderr, "insnwin total n=1 sum=%llu min=%llu max=%llu\n", (unsigned long long)insns,
             (unsigned long long)insns, (unsigned long long)insns);
@@ -140,6 +173,35 @@ __attribute__((visibility("default"))) int qemu_plugin_install(qemu_plugin_id_t 
             memcpy(windows[n_windows].name, argv[i] + 4, len);
             windows[n_windows].pc = strtoull(at + 1, NULL, 0) & ~1ULL;
             n_windows++;
+        } else if (!strncmp(argv[i], "grp=", 4)) {
+            const char *at = strchr(argv[i] + 4, '@');
+            size_t len = at ? (size_t)(at - (argv[i] + 4)) : 0;
+            char *dash = NULL;
+            if (!at || len == 0 || len >= sizeof group_names[0] || n_ranges == MAX_RANGES) {
+                fprintf(stderr, "insnwin: bad argument %s\n", argv[i]);
+                return -1;
+            }
+            int g = 0;
+            while (g < n_groups && (strlen(group_names[g]) != len ||
+                                    strncmp(group_names[g], argv[i] + 4, len))) {
+                g++;
+            }
+            if (g == n_groups) {
+                if (n_groups == MAX_GROUPS) {
+                    fprintf(stderr, "insnwin: too many groups\n");
+                    return -1;
+                }
+                memcpy(group_names[g], argv[i] + 4, len);
+                n_groups++;
+            }
+            ranges[n_ranges].lo = strtoull(at + 1, &dash, 0) & ~1ULL;
+            if (!dash || *dash != '-') {
+                fprintf(stderr, "insnwin: bad range %s\n", argv[i]);
+                return -1;
+            }
+            ranges[n_ranges].hi = strtoull(dash + 1, NULL, 0);
+            ranges[n_ranges].group = g;
+            n_ranges++;
         } else {
             fprintf(stderr, "insnwin: unknown argument %s\n", argv[i]);
             return -1;

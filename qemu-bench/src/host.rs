@@ -64,6 +64,7 @@ fn run_inner() -> Result<bool, String> {
     let (mid, _) = integrate(Integration::Midpoint, Trace::with_steps(MIDPOINT_STEPS))?;
     report::pose_line(&mut out, "odometry_midpoint", &mid).map_err(|e| e.to_string())?;
     solve(&mut out)?;
+    control(&mut out)?;
     print!("{out}");
     println!(
         "info accuracy steps={} path_m={path_m:.1} position_error_m={error_m:.3e} \
@@ -93,4 +94,13 @@ pub fn solve(out: &mut String) -> Result<(), String> {
         c.iterations
     ));
     Ok(())
+}
+
+/// The control task driving a square with the simulated plant: the result line.
+pub fn control(out: &mut String) -> Result<(), String> {
+    use qemu_bench::plant;
+
+    let mut c = plant::controller().map_err(|e| e.to_string())?;
+    let (periods, record) = plant::drive_square(&mut c, |c, r, l| c.step(r, l))?;
+    report::run_line(out, "control_square", periods, &record).map_err(|e| e.to_string())
 }

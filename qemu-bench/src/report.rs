@@ -7,6 +7,7 @@ use core::fmt::{self, Write};
 
 use odocal::calibration::{Calibration, CalibrationError};
 use odocal::odometry::Pose;
+use odocal::run::RunRecord;
 
 /// Writes `result <label> x=<bits> y=<bits> heading=<bits>`: the raw `i64` bits of the Q40
 /// position and the `u64` binary heading, in hex.
@@ -56,4 +57,24 @@ pub fn calibration_line<W: Write>(
         }
         Err(e) => writeln!(w, "result {label} error={e}"),
     }
+}
+
+/// Writes the result line of a driven run: periods, knot count, last knot and the bits of the
+/// recorded odometry end pose.
+///
+/// # Errors
+/// Whatever the writer returns.
+pub fn run_line<W: Write>(w: &mut W, label: &str, periods: u32, record: &RunRecord) -> fmt::Result {
+    let last = record.knots.last().copied().unwrap_or_default();
+    let end = &record.odometry_end;
+    writeln!(
+        w,
+        "result {label} periods={periods} knots={} last=({},{}) x=0x{:016x} y=0x{:016x} theta=0x{:016x}",
+        record.knots.len(),
+        last.right,
+        last.left,
+        end.x_m.to_bits(),
+        end.y_m.to_bits(),
+        end.theta_rad.to_bits()
+    )
 }

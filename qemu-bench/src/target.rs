@@ -24,10 +24,12 @@ use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use cortex_m_semihosting::hio;
 use odocal::calibration::{Calibration, CalibrationError, Method, RunObservation, calibrate};
+use odocal::controller::{Controller, StepOutput};
 use odocal::encoder::WheelTicks;
 use odocal::geometry::Geometry;
 use odocal::odometry::{Integration, Odometry, OdometryState, Pose};
 use odocal::reference::{ArcModel, PoseF64};
+use qemu_bench::plant;
 use qemu_bench::report;
 use qemu_bench::squares::{self, SquareRuns};
 use qemu_bench::trace::Trace;
@@ -89,6 +91,7 @@ selector!(bench_select_odometry, 5);
 selector!(bench_select_midpoint, 6);
 selector!(bench_select_solve, 7);
 selector!(bench_select_arc_run, 8);
+selector!(bench_select_control, 9);
 
 /// One control period of odometry, as the firmware's control task performs it.
 #[inline(never)]
@@ -108,6 +111,12 @@ fn exact_solve(
     nominal: &Geometry,
 ) -> Result<Calibration, CalibrationError> {
     calibrate(runs, nominal, Method::Exact)
+}
+
+/// One period of the control task: encoders, odometry, routine, speed loops (`TIM7`'s work).
+#[inline(never)]
+fn control_step(controller: &mut Controller, raw_right: u32, raw_left: u32) -> StepOutput {
+    controller.step(raw_right, raw_left)
 }
 
 /// Paints the free stack below the current stack pointer; returns the stack depth of the
@@ -270,6 +279,30 @@ fn main() -> ! {
     out(format_args!("{}", line.as_str()));
     out(format_args!(
         "info stack solve high_water={stack} at_call={caller}\n"
+    ));
+
+    // The control task: a 1 m square with the simulated plant, one window per period.
+    let Ok(mut controller) = plant::controller() else {
+        fail("controller configuration rejected")
+    };
+    let caller = paint_stack();
+    bench_select_control();
+    let driven = plant::drive_square(&mut controller, |c, r, l| {
+        bench_start();
+        let out = control_step(black_box(c), black_box(r), black_box(l));
+        bench_end();
+        out
+    });
+    let stack = stack_used();
+    let (periods, record) = match driven {
+        Ok(v) => v,
+        Err(e) => fail(e),
+    };
+    let mut line = heapless_line::Line::new();
+    let _ = report::run_line(&mut line, "control_square", periods, &record);
+    out(format_args!("{}", line.as_str()));
+    out(format_args!(
+        "info stack control high_water={stack} at_call={caller}\n"
     ));
 
     out(format_args!("info done\n"));
