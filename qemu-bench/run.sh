@@ -179,7 +179,8 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
 
 # The static estimate of the same binary, for comparison with the measured high-water marks.
 if command -v python3 >/dev/null; then
-    echo "static stack estimate of the bench binary: $(python3 "$ROOT/.ci/stack_estimate.py" "$ELF" | head -n 1)"
+    estimate="$(python3 "$ROOT/.ci/stack_estimate.py" "$ELF")"
+    echo "static stack estimate of the bench binary: ${estimate%%$'\n'*}"
 fi
 
 if [ "$fail" -ne 0 ]; then

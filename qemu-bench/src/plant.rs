@@ -82,10 +82,15 @@ impl Plant {
             MotorCommand::Stop(StopMode::Brake) => ([0.0; 2], ALPHA_BRAKE),
             MotorCommand::Stop(StopMode::Coast) => ([0.0; 2], ALPHA_COAST),
         };
-        for wheel in 0..2 {
-            let before = self.speed[wheel];
-            self.speed[wheel] += (target[wheel] - before) * alpha;
-            self.position[wheel] += 0.5 * (before + self.speed[wheel]);
+        for ((speed, position), target) in self
+            .speed
+            .iter_mut()
+            .zip(self.position.iter_mut())
+            .zip(target)
+        {
+            let before = *speed;
+            *speed += (target - before) * alpha;
+            *position += 0.5 * (before + *speed);
         }
     }
 }
