@@ -9,6 +9,7 @@
 # static RAM = data + bss   (includes the defmt-rtt buffer and RTIC's task state; the stack is
 #                            the rest of RAM: a static estimate is printed here, measured
 #                            high-water marks of the library workloads by qemu-bench/run.sh)
+# FOOTPRINT_GOALS=warn reports a missed goal without failing (exit status 0).
 # Needs binutils-arm-none-eabi (arm-none-eabi-size, arm-none-eabi-nm).
 set -euo pipefail
 
@@ -35,8 +36,11 @@ kib() { awk -v v="$1" 'BEGIN { printf "%.1f", v / 1024 }'; }
 printf "  flash      %6d bytes = %6s KiB (goal <= %d KiB)\n" "$flash" "$(kib "$flash")" $((FLASH_GOAL / 1024))
 printf "  static RAM %6d bytes = %6s KiB (goal <= %d KiB)\n" "$ram" "$(kib "$ram")" $((RAM_GOAL / 1024))
 echo "  largest symbols (bytes, type, name):"
-arm-none-eabi-nm --size-sort -S -C -t d --reverse-sort "$ELF" | awk '$3 ~ /^[tTrRdDbB]$/' | head -8 |
-    awk '{ printf "    %6d %s ", $2, $3; for (i = 4; i <= NF; i++) printf "%s ", $i; print "" }'
+# (awk reads all of nm's output: an early-closing `head` would kill nm with SIGPIPE under pipefail)
+arm-none-eabi-nm --size-sort -S -C -t d --reverse-sort "$ELF" | awk '
+    $3 ~ /^[tTrRdDbB]$/ && shown++ < 8 {
+        printf "    %6d %s", $2, $3; for (i = 4; i <= NF; i++) printf " %s", $i; print ""
+    }'
 
 # Static worst-case stack (call graph of the disassembly; see the script for what it cannot see).
 if command -v python3 >/dev/null; then
@@ -53,5 +57,10 @@ if [ "$ram" -gt "$RAM_GOAL" ]; then
     echo "footprint: FAILED: static RAM $ram > $RAM_GOAL" >&2
     status=1
 fi
-[ "$status" -eq 0 ] && echo "footprint: OK"
+if [ "$status" -eq 0 ]; then
+    echo "footprint: OK"
+elif [ "${FOOTPRINT_GOALS:-enforce}" = warn ]; then
+    echo "footprint: goals missed (FOOTPRINT_GOALS=warn: not failing)" >&2
+    status=0
+fi
 exit "$status"
