@@ -9,7 +9,8 @@
 # static RAM = data + bss   (includes the defmt-rtt buffer and RTIC's task state; the stack is
 #                            the rest of RAM: a static estimate is printed here, measured
 #                            high-water marks of the library workloads by qemu-bench/run.sh)
-# FOOTPRINT_GOALS=warn reports a missed goal without failing (exit status 0).
+# The goals are reported, not enforced: a build over them is a finding, not a broken build.
+# FOOTPRINT_GOALS=enforce makes a missed goal fail (exit status 1).
 # Needs binutils-arm-none-eabi (arm-none-eabi-size, arm-none-eabi-nm).
 set -euo pipefail
 
@@ -50,17 +51,17 @@ fi
 
 status=0
 if [ "$flash" -gt "$FLASH_GOAL" ]; then
-    echo "footprint: FAILED: flash $flash > $FLASH_GOAL" >&2
+    echo "footprint: flash $flash > $FLASH_GOAL" >&2
     status=1
 fi
 if [ "$ram" -gt "$RAM_GOAL" ]; then
-    echo "footprint: FAILED: static RAM $ram > $RAM_GOAL" >&2
+    echo "footprint: static RAM $ram > $RAM_GOAL" >&2
     status=1
 fi
 if [ "$status" -eq 0 ]; then
     echo "footprint: OK"
-elif [ "${FOOTPRINT_GOALS:-enforce}" = warn ]; then
-    echo "footprint: goals missed (FOOTPRINT_GOALS=warn: not failing)" >&2
+elif [ "${FOOTPRINT_GOALS:-report}" != enforce ]; then
+    echo "  NOTE: over the footprint goal (reported, not enforced; FOOTPRINT_GOALS=enforce fails)"
     status=0
 fi
 exit "$status"
