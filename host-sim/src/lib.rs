@@ -17,3 +17,4 @@ pub mod replay;
 pub mod robot;
 pub mod serial;
 pub mod square;
+pub mod sweep;

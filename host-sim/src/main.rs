@@ -67,6 +67,8 @@ enum Command {
     Serial(host_sim::serial::SerialArgs),
     /// Host speed: a full simulated 5 + 5 session and a 1,000-trial Monte Carlo.
     Bench(host_sim::bench::BenchArgs),
+    /// Monte Carlo over square sides and noise levels: validates the track-size advice.
+    Sweep(host_sim::sweep::SweepArgs),
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -94,6 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Closedloop(args) => host_sim::closedloop::run(&args),
         Command::Serial(args) => Ok(host_sim::serial::run(&args)?),
         Command::Bench(args) => host_sim::bench::run(&args),
+        Command::Sweep(args) => host_sim::sweep::run(&args),
     }
 }
 
