@@ -16,5 +16,6 @@ pub mod rectangle;
 pub mod replay;
 pub mod robot;
 pub mod serial;
+pub mod session;
 pub mod square;
 pub mod sweep;

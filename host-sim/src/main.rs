@@ -9,13 +9,19 @@ use clap::{Parser, Subcommand};
 /// Simulated odocal robot.
 #[derive(Parser, Debug)]
 #[command(name = "host-sim", version, about)]
+#[command(args_conflicts_with_subcommands = true)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    /// Without a subcommand: the full simulated calibration session (as `session`).
+    #[command(flatten)]
+    session: host_sim::session::SessionArgs,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The full simulated calibration session through the serial protocol (the default).
+    Session(host_sim::session::SessionArgs),
     /// Print the odometry constants derived from a geometry.
     Geometry {
         /// Wheel diameter, metres.
@@ -73,7 +79,11 @@ enum Command {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cli = Cli::parse();
-    match cli.command {
+    let Some(command) = cli.command else {
+        return host_sim::session::run(&cli.session);
+    };
+    match command {
+        Command::Session(args) => host_sim::session::run(&args),
         Command::Geometry {
             diameter,
             wheelbase,

@@ -144,22 +144,35 @@ where
                     .iter()
                     .copied()
                     .filter(|(x, y)| x.is_finite() && y.is_finite());
+                // A series with an empty label gets no legend entry (e.g. the 2nd..nth run
+                // of a group that shares one label).
+                let labelled = !s.label.is_empty();
                 match s.style {
-                    Style::Line => chart
-                        .draw_series(LineSeries::new(pts, c.stroke_width(2)))?
-                        .label(s.label.as_str())
-                        .legend(move |(x, y)| {
-                            PathElement::new([(x, y), (x + 16, y)], c.stroke_width(2))
-                        }),
-                    Style::ThinLine => chart
-                        .draw_series(LineSeries::new(pts, c.mix(0.6).stroke_width(1)))?
-                        .label(s.label.as_str())
-                        .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], c.mix(0.6))),
-                    Style::Points => chart
-                        .draw_series(pts.map(|p| Circle::new(p, 3, c.filled())))?
-                        .label(s.label.as_str())
-                        .legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled())),
-                };
+                    Style::Line => {
+                        let a = chart.draw_series(LineSeries::new(pts, c.stroke_width(2)))?;
+                        if labelled {
+                            a.label(s.label.as_str()).legend(move |(x, y)| {
+                                PathElement::new([(x, y), (x + 16, y)], c.stroke_width(2))
+                            });
+                        }
+                    }
+                    Style::ThinLine => {
+                        let a =
+                            chart.draw_series(LineSeries::new(pts, c.mix(0.6).stroke_width(1)))?;
+                        if labelled {
+                            a.label(s.label.as_str()).legend(move |(x, y)| {
+                                PathElement::new([(x, y), (x + 16, y)], c.mix(0.6))
+                            });
+                        }
+                    }
+                    Style::Points => {
+                        let a = chart.draw_series(pts.map(|p| Circle::new(p, 3, c.filled())))?;
+                        if labelled {
+                            a.label(s.label.as_str())
+                                .legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled()));
+                        }
+                    }
+                }
             }
             chart
                 .configure_series_labels()

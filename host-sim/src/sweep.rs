@@ -49,7 +49,11 @@ pub const PILOT_SIDE_M: f64 = 2.0;
 #[derive(Args, Debug, Clone)]
 pub struct SweepArgs {
     /// Square sides L, metres.
-    #[arg(long, value_delimiter = ',', default_value = "0.5,0.75,1,1.5,2,3,4,6,8")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0.5,0.75,1,1.5,2,3,4,6,8"
+    )]
     pub sides: Vec<f64>,
     /// 1σ of a measured coordinate, metres (one noise level per value × slip value).
     #[arg(long, value_delimiter = ',', default_value = "0.002,0.01")]
@@ -254,14 +258,17 @@ fn stats(samples: &[[Option<(f64, f64)>; 5]], k: usize) -> MethodStats {
 
 /// The scatter an operator would observe: `runs`×5 slip-only squares per direction at
 /// [`PILOT_SIDE_M`] (no measurement noise), pooled around their centres of gravity.
-fn pilot_scatter(a: &SweepArgs, truth: &Geometry, slip: f64, seed: u64) -> Option<f64> {
+pub fn pilot_scatter(a: &SweepArgs, truth: &Geometry, slip: f64, seed: u64) -> Option<f64> {
     let nominal = Geometry::PAPER_NOMINAL;
     let mc = mc_args(a, PILOT_SIDE_M, 0.0, slip);
     let mut rng = Rng::new(seed);
     let mut recs = Vec::new();
     for d in [Direction::Cw, Direction::Ccw] {
         for _ in 0..(5 * a.runs.max(1)) {
-            recs.push((d, noisy_square(&nominal, truth, d, PILOT_SIDE_M, &mc, &mut rng)));
+            recs.push((
+                d,
+                noisy_square(&nominal, truth, d, PILOT_SIDE_M, &mc, &mut rng),
+            ));
         }
     }
     let obs: Vec<_> = recs
@@ -288,7 +295,9 @@ fn pilot_scatter(a: &SweepArgs, truth: &Geometry, slip: f64, seed: u64) -> Optio
 pub fn sweep(a: &SweepArgs, progress: &ProgressBar) -> Result<SweepResult, String> {
     let nominal = Geometry::PAPER_NOMINAL;
     let truth = true_geometry(&nominal, a.eb, a.ed, TruthModel::Mean);
-    truth.validate().map_err(|e| format!("invalid truth: {e}"))?;
+    truth
+        .validate()
+        .map_err(|e| format!("invalid truth: {e}"))?;
     if a.sides.is_empty() || a.meas_sigmas.is_empty() || a.slips.is_empty() || a.trials == 0 {
         return Err("empty grid: need sides, noise levels and trials ≥ 1".into());
     }
@@ -497,7 +506,9 @@ pub fn run(a: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
         rayon::current_num_threads(),
         started.elapsed().as_secs_f64()
     );
-    println!("error = RMS over trials of sqrt(ΔE_b² + ΔE_d²); advice = expected error of track::evaluate");
+    println!(
+        "error = RMS over trials of sqrt(ΔE_b² + ΔE_d²); advice = expected error of track::evaluate"
+    );
     let mut last = (f64::NAN, f64::NAN);
     for c in &result.cells {
         if (c.meas_sigma_m, c.slip) != last {
@@ -515,9 +526,7 @@ pub fn run(a: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
         print!("{:>6}", c.side_m);
         for st in &c.methods {
-            let p = st
-                .predicted
-                .map_or("-".to_string(), |p| format!("{p:.1e}"));
+            let p = st.predicted.map_or("-".to_string(), |p| format!("{p:.1e}"));
             print!("{:>21}", format!("{:.1e} ({p})", st.rms_error));
         }
         println!();
@@ -535,7 +544,8 @@ pub fn run(a: &SweepArgs) -> Result<(), Box<dyn std::error::Error>> {
         "advise() L (pred)"
     );
     for b in &result.best {
-        let f = |v: Option<(f64, f64)>| v.map_or("-".to_string(), |(l, e)| format!("{l} m ({e:.1e})"));
+        let f =
+            |v: Option<(f64, f64)>| v.map_or("-".to_string(), |(l, e)| format!("{l} m ({e:.1e})"));
         println!(
             "{:>9} {:>7} {:>9.2} {:>11} | {:>18} | {:>18} {:>12} | {:>18}",
             b.meas_sigma_m * 1e3,
