@@ -22,6 +22,7 @@ pub mod angle;
 pub mod button;
 pub mod calibration;
 pub mod controller;
+pub mod decimal;
 pub mod encoder;
 pub mod geometry;
 pub mod motor;

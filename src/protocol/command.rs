@@ -7,7 +7,9 @@
 
 use core::fmt;
 
+use super::number::parse_f64;
 use super::param::ParamName;
+use crate::decimal::Plain;
 use crate::run::Direction;
 
 /// Largest accepted `|x|`, `|y|` of a measurement, metres.
@@ -167,7 +169,12 @@ impl fmt::Display for ParseError {
             ParseError::BadNumber { what } => write!(f, "<{what}> is not a number"),
             ParseError::NotFinite { what } => write!(f, "<{what}> must be finite"),
             ParseError::OutOfRange { what, min, max } => {
-                write!(f, "<{what}> must be within {min}..{max}")
+                write!(
+                    f,
+                    "<{what}> must be within {}..{}",
+                    Plain(*min),
+                    Plain(*max)
+                )
             }
             ParseError::BadKeyword { what, expected } => {
                 write!(f, "<{what}> must be one of {expected}")
@@ -200,7 +207,7 @@ impl<'a> Words<'a> {
 
 /// Reads a finite `f64` within `[min, max]`.
 fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
-    let value: f64 = word.parse().map_err(|_| ParseError::BadNumber { what })?;
+    let value = parse_f64(word).map_err(|_| ParseError::BadNumber { what })?;
     if !value.is_finite() {
         return Err(ParseError::NotFinite { what });
     }

@@ -11,6 +11,7 @@
 
 pub mod command;
 pub mod line;
+pub mod number;
 pub mod param;
 pub mod reply;
 
