@@ -23,6 +23,7 @@ use crate::encoder::{
 };
 use crate::geometry::{Geometry, GeometryError};
 use crate::motor::{MotorDriver, StopMode};
+use crate::num::clamp;
 use crate::odometry::{Integration, Odometry, OdometryState, Pose};
 use crate::profile::{LimitsError, MotionLimits};
 use crate::routine::{PathError, Routine, RunPlan, SegmentKind, SettleConfig, validate_path};
@@ -624,7 +625,7 @@ impl Controller {
         d.remaining -= 1;
         let ramp = |cur: f64, target: f64, max_accel: f32| {
             let step = f64::from(max_accel) / rate;
-            cur + (target - cur).clamp(-step, step)
+            cur + clamp(target - cur, -step, step)
         };
         // The reference ramps linearly between steps: the period that just ended went from
         // `previous` to `now` (its increment is compared with the encoders'); the one that
@@ -729,8 +730,12 @@ impl Controller {
         }
         let l = &self.config.limits;
         let target = (
-            f64::from(v_mps.clamp(-l.max_speed_mps, l.max_speed_mps)),
-            f64::from(w_radps.clamp(-l.max_turn_rate_radps, l.max_turn_rate_radps)),
+            f64::from(clamp(v_mps, -l.max_speed_mps, l.max_speed_mps)),
+            f64::from(clamp(
+                w_radps,
+                -l.max_turn_rate_radps,
+                l.max_turn_rate_radps,
+            )),
         );
         let remaining = self.deadman_periods;
         match self.drive.as_mut() {

@@ -26,6 +26,7 @@ pub mod decimal;
 pub mod encoder;
 pub mod geometry;
 pub mod motor;
+pub mod num;
 pub mod odometry;
 pub mod profile;
 pub mod protocol;

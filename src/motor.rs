@@ -26,7 +26,11 @@ pub trait MotorDriver {
 /// Clamps a duty to `[-1, 1]`, mapping NaN to 0.
 #[inline]
 pub fn clamp_duty(d: f32) -> f32 {
-    if d.is_nan() { 0.0 } else { d.clamp(-1.0, 1.0) }
+    if d.is_nan() {
+        0.0
+    } else {
+        crate::num::clamp(d, -1.0, 1.0)
+    }
 }
 
 #[cfg(test)]

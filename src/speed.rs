@@ -32,6 +32,8 @@
 
 use core::fmt;
 
+use crate::num::clamp;
+
 /// Gains of one wheel's controller (ticks-based units, see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PiGains {
@@ -219,17 +221,17 @@ impl SpeedPi {
         // Clamp: an integral alone never needs more than the full output.
         if g.ki > 0.0 {
             let m = limit / g.ki;
-            state.integral_ticks = state.integral_ticks.clamp(-m, m);
+            state.integral_ticks = clamp(state.integral_ticks, -m, m);
         }
         if g.kii > 0.0 {
             let m = limit / g.kii;
-            state.integral2 = state.integral2.clamp(-m, m);
+            state.integral2 = clamp(state.integral2, -m, m);
         }
         let out = ff + p + g.ki * state.integral_ticks + g.kii * state.integral2;
         if out.is_nan() {
             0.0
         } else {
-            out.clamp(-limit, limit)
+            clamp(out, -limit, limit)
         }
     }
 }

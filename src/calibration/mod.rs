@@ -23,6 +23,7 @@
 
 use core::fmt;
 
+use crate::decimal::Decimal;
 use crate::encoder::WheelTicks;
 use crate::geometry::Geometry;
 use crate::reference::PoseF64;
@@ -238,24 +239,29 @@ impl fmt::Display for Calibration {
     /// One line for the serial console: method, factors with 1σ, geometry in mm, E_max in mm.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let q = &self.quality;
-        write!(f, "{} E_b={:.6}", self.method, self.e_b)?;
+        write!(f, "{} E_b={}", self.method, Decimal::fixed(self.e_b, 6))?;
         if let Some(s) = q.sigma_e_b {
-            write!(f, "+-{s:.6}")?;
+            write!(f, "+-{}", Decimal::fixed(s, 6))?;
         }
-        write!(f, " E_d={:.6}", self.e_d)?;
+        write!(f, " E_d={}", Decimal::fixed(self.e_d, 6))?;
         if let Some(s) = q.sigma_e_d {
-            write!(f, "+-{s:.6}")?;
+            write!(f, "+-{}", Decimal::fixed(s, 6))?;
         }
         write!(
             f,
-            " E_s={:.6} D_R={:.4}mm D_L={:.4}mm b={:.3}mm",
-            self.e_s,
-            self.geometry.diameter_right_m * 1e3,
-            self.geometry.diameter_left_m * 1e3,
-            self.geometry.wheelbase_m * 1e3
+            " E_s={} D_R={}mm D_L={}mm b={}mm",
+            Decimal::fixed(self.e_s, 6),
+            Decimal::fixed(self.geometry.diameter_right_m * 1e3, 4),
+            Decimal::fixed(self.geometry.diameter_left_m * 1e3, 4),
+            Decimal::fixed(self.geometry.wheelbase_m * 1e3, 3)
         )?;
         if let (Some(b), Some(a)) = (q.e_max_before_m, q.e_max_after_m) {
-            write!(f, " E_max={:.1}->{:.1}mm", b * 1e3, a * 1e3)?;
+            write!(
+                f,
+                " E_max={}->{}mm",
+                Decimal::fixed(b * 1e3, 1),
+                Decimal::fixed(a * 1e3, 1)
+            )?;
         }
         Ok(())
     }

@@ -22,6 +22,7 @@ use super::traits::{
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, CalibrationError, Method, RunObservation};
 use crate::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
+use crate::decimal::Decimal;
 use crate::encoder::WheelTicks;
 use crate::geometry::Geometry;
 use crate::profile::MotionLimits;
@@ -420,18 +421,19 @@ impl Calibrator for LibraryCalibrator {
             match now {
                 Some(a) => write!(
                     out,
-                    " L={side:.3} m: expected error {:.4} %",
-                    a.expected_error * 100.0
+                    " L={} m: expected error {} %",
+                    Decimal::fixed(side, 3),
+                    Decimal::fixed(a.expected_error * 100.0, 4)
                 )?,
-                None => write!(out, " L={side:.3} m: not usable")?,
+                None => write!(out, " L={} m: not usable", Decimal::fixed(side, 3))?,
             }
             match best {
                 Some(b) => write!(
                     out,
-                    "; best L={:.3} m (<= {:.1} m): {:.4} %",
-                    b.side_m,
-                    self.max_side_m,
-                    b.expected_error * 100.0
+                    "; best L={} m (<= {} m): {} %",
+                    Decimal::fixed(b.side_m, 3),
+                    Decimal::fixed(self.max_side_m, 1),
+                    Decimal::fixed(b.expected_error * 100.0, 4)
                 )?,
                 None => write!(out, "; no usable side")?,
             }

@@ -27,6 +27,7 @@ use core::fmt::{self, Write};
 
 use heapless::Vec;
 
+use crate::decimal::Decimal;
 use crate::encoder::WheelTicks;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
@@ -168,10 +169,10 @@ impl<C: Calibrator> Session<C> {
             report::write_path(out, &path)?;
             write!(
                 out,
-                " odometry end x={:+.6} y={:+.6} theta_deg={:+.4}; measure it{EOL}",
-                end.x_m,
-                end.y_m,
-                libm::fmod(end.theta_rad.to_degrees(), 360.0),
+                " odometry end x={} y={} theta_deg={}; measure it{EOL}",
+                Decimal::signed(end.x_m, 6),
+                Decimal::signed(end.y_m, 6),
+                Decimal::signed(libm::fmod(end.theta_rad.to_degrees(), 360.0), 4),
             )?;
         }
         Ok(())
@@ -477,10 +478,10 @@ impl<C: Calibrator> Session<C> {
         report::write_path(out, &run.path)?;
         write!(
             out,
-            " measured{}: error vs odometry dx={:+.6} dy={:+.6} m{EOL}",
+            " measured{}: error vs odometry dx={} dy={} m{EOL}",
             if replaced { " (replaced)" } else { "" },
-            x_m - odo.x_m,
-            y_m - odo.y_m,
+            Decimal::signed(x_m - odo.x_m, 6),
+            Decimal::signed(y_m - odo.y_m, 6),
         )
     }
 
@@ -599,8 +600,10 @@ impl<C: Calibrator> Session<C> {
         });
         write!(
             out,
-            "ok applied {name}: E_d={:.9} E_b={:.9} E_s={:.9} (not saved; save to keep){EOL}",
-            sol.e_d, sol.e_b, sol.e_s
+            "ok applied {name}: E_d={} E_b={} E_s={} (not saved; save to keep){EOL}",
+            Decimal::fixed(sol.e_d, 9),
+            Decimal::fixed(sol.e_b, 9),
+            Decimal::fixed(sol.e_s, 9)
         )
     }
 

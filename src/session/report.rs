@@ -7,6 +7,7 @@ use core::fmt::{self, Write};
 
 use super::traits::{Activity, RobotStatus, Solution, SolveError};
 use super::{Calibrator, Session, Settings};
+use crate::decimal::{Decimal, Scientific};
 use crate::protocol::{EOL, ParamName};
 use crate::reference::PoseF64;
 use crate::run::{PathKind, RunRecord};
@@ -46,13 +47,23 @@ pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
 pub(super) fn write_path(out: &mut dyn Write, path: &PathKind) -> fmt::Result {
     match path {
         PathKind::Square { direction, side_m } => {
-            write!(out, "square {} L={side_m:.3} m", direction.as_str())
+            write!(
+                out,
+                "square {} L={} m",
+                direction.as_str(),
+                Decimal::fixed(*side_m, 3)
+            )
         }
-        PathKind::Line { length_m } => write!(out, "line d={length_m:.3} m"),
+        PathKind::Line { length_m } => write!(out, "line d={} m", Decimal::fixed(*length_m, 3)),
         PathKind::Circle {
             direction,
             radius_m,
-        } => write!(out, "circle {} r={radius_m:.3} m", direction.as_str()),
+        } => write!(
+            out,
+            "circle {} r={} m",
+            direction.as_str(),
+            Decimal::fixed(*radius_m, 3)
+        ),
     }
 }
 
@@ -70,10 +81,10 @@ fn wrapped_deg(theta_rad: f64) -> f64 {
 pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
     write!(
         out,
-        "x={:+.6} y={:+.6} theta_deg={:+.4}",
-        p.x_m,
-        p.y_m,
-        wrapped_deg(p.theta_rad)
+        "x={} y={} theta_deg={}",
+        Decimal::signed(p.x_m, 6),
+        Decimal::signed(p.y_m, 6),
+        Decimal::signed(wrapped_deg(p.theta_rad), 4)
     )
 }
 
@@ -86,14 +97,14 @@ pub(super) fn write_stream_line(
 ) -> fmt::Result {
     write!(
         out,
-        "stream {}.{:06} {:+.6} {:+.6} {:+.4} {:+.4} {:+.4}{EOL}",
+        "stream {}.{:06} {} {} {} {} {}{EOL}",
         now_us / 1_000_000,
         now_us % 1_000_000,
-        p.x_m,
-        p.y_m,
-        wrapped_deg(p.theta_rad),
-        v_right,
-        v_left
+        Decimal::signed(p.x_m, 6),
+        Decimal::signed(p.y_m, 6),
+        Decimal::signed(wrapped_deg(p.theta_rad), 4),
+        Decimal::signed(v_right, 4),
+        Decimal::signed(v_left, 4)
     )
 }
 
@@ -135,14 +146,12 @@ pub(super) fn write_status<C: Calibrator>(
 
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
     let v = s.value(name);
-    match name {
-        ParamName::CountsPerRev | ParamName::RunsPerDirection => write!(out, "{v:.0}")?,
-        ParamName::DiameterRight | ParamName::DiameterLeft | ParamName::Wheelbase => {
-            write!(out, "{v:.9}")?
-        }
-        _ => write!(out, "{v:.3}")?,
-    }
-    write!(out, " {}", name.unit())
+    let places = match name {
+        ParamName::CountsPerRev | ParamName::RunsPerDirection => 0,
+        ParamName::DiameterRight | ParamName::DiameterLeft | ParamName::Wheelbase => 9,
+        _ => 3,
+    };
+    write!(out, "{} {}", Decimal::fixed(v, places), name.unit())
 }
 
 pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
@@ -154,20 +163,22 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
     let a = &s.active;
     write!(
         out,
-        "  active d_right={:.9} d_left={:.9} wheelbase={:.9} m{EOL}",
-        a.diameter_right_m, a.diameter_left_m, a.wheelbase_m
+        "  active d_right={} d_left={} wheelbase={} m{EOL}",
+        Decimal::fixed(a.diameter_right_m, 9),
+        Decimal::fixed(a.diameter_left_m, 9),
+        Decimal::fixed(a.wheelbase_m, 9)
     )?;
     match &s.calibration {
         None => write!(out, "  calibration none{EOL}")?,
         Some(c) => write!(
             out,
-            "  calibration {} E_d={:.9} E_b={:.9} E_s={:.9} runs={} E_max={:.3} mm{EOL}",
+            "  calibration {} E_d={} E_b={} E_s={} runs={} E_max={} mm{EOL}",
             c.method,
-            c.e_d,
-            c.e_b,
-            c.e_s,
+            Decimal::fixed(c.e_d, 9),
+            Decimal::fixed(c.e_b, 9),
+            Decimal::fixed(c.e_s, 9),
             c.runs_used,
-            c.e_max_m * 1e3
+            Decimal::fixed(c.e_max_m * 1e3, 3)
         )?,
     }
     write!(out, "ok{EOL}")
@@ -179,14 +190,24 @@ pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result
         write!(out, "  run {} ", i + 1)?;
         write_path(out, &r.path)?;
         let o = r.odometry_end;
-        write!(out, " odometry x={:+.6} y={:+.6}", o.x_m, o.y_m)?;
+        write!(
+            out,
+            " odometry x={} y={}",
+            Decimal::signed(o.x_m, 6),
+            Decimal::signed(o.y_m, 6)
+        )?;
         match r.measured {
             None => write!(out, " not measured")?,
             Some(m) => {
                 measured += 1;
-                write!(out, " measured x={:+.6} y={:+.6}", m.x_m, m.y_m)?;
+                write!(
+                    out,
+                    " measured x={} y={}",
+                    Decimal::signed(m.x_m, 6),
+                    Decimal::signed(m.y_m, 6)
+                )?;
                 if let Some(t) = m.theta_rad {
-                    write!(out, " theta_deg={:+.4}", t.to_degrees())?;
+                    write!(out, " theta_deg={}", Decimal::signed(t.to_degrees(), 4))?;
                 }
             }
         }
@@ -206,8 +227,8 @@ pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
 /// One optional column, left-aligned to 9 characters (`pad`) or unpadded (last column).
 fn write_opt(out: &mut dyn Write, v: Option<f64>, pad: bool) -> fmt::Result {
     match (v, pad) {
-        (Some(v), true) => write!(out, " {v:<9.3e}"),
-        (Some(v), false) => write!(out, " {v:.3e}"),
+        (Some(v), true) => write!(out, " {:<9}", Scientific::new(v, 3)),
+        (Some(v), false) => write!(out, " {}", Scientific::new(v, 3)),
         (None, true) => write!(out, " {:<9}", "-"),
         (None, false) => write!(out, " -"),
     }
@@ -225,16 +246,16 @@ pub(super) fn write_solution_row(
             let g = &s.geometry;
             write!(
                 out,
-                " {:.9}  {:.9}  {:.9}  {:<10.4} {:<10.4} {:<10.4}",
-                s.e_d,
-                s.e_b,
-                s.e_s,
-                g.diameter_right_m * 1e3,
-                g.diameter_left_m * 1e3,
-                g.wheelbase_m * 1e3
+                " {}  {}  {}  {:<10} {:<10} {:<10}",
+                Decimal::fixed(s.e_d, 9),
+                Decimal::fixed(s.e_b, 9),
+                Decimal::fixed(s.e_s, 9),
+                Decimal::fixed(g.diameter_right_m * 1e3, 4),
+                Decimal::fixed(g.diameter_left_m * 1e3, 4),
+                Decimal::fixed(g.wheelbase_m * 1e3, 4)
             )?;
             match s.e_max_m {
-                Some(e) => write!(out, " {:<9.3}", e * 1e3)?,
+                Some(e) => write!(out, " {:<9}", Decimal::fixed(e * 1e3, 3))?,
                 None => write!(out, " {:<9}", "-")?,
             }
             write_opt(out, s.sd_e_d, true)?;

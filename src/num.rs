@@ -1,0 +1,52 @@
+//! Small numeric helpers shared by the control code.
+//!
+//! [`clamp`] replaces `f32::clamp`/`f64::clamp`: those assert `min <= max` with a message that
+//! formats both bounds with `Debug`, which alone links `core`'s float formatting (about 10 KB of
+//! flash) into the firmware. Callers pass bounds that are ordered by construction.
+
+/// `x` limited to `[lo, hi]`; NaN stays NaN (like `f64::clamp`). Bounds out of order or NaN do
+/// not panic: the result is then `lo` when `x < lo`, else `hi` when `x > hi`, else `x`.
+#[inline]
+pub fn clamp<T: PartialOrd>(x: T, lo: T, hi: T) -> T {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::clamp;
+
+    #[test]
+    fn same_as_core_for_ordered_bounds() {
+        // Every pairing of values below, inside, at and above the bounds, plus NaN and -0.0:
+        // the result must be bit-identical to core's clamp.
+        let xs = [
+            -3.0,
+            -1.0,
+            -0.5,
+            -0.0,
+            0.0,
+            0.5,
+            1.0,
+            3.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for &x in &xs {
+            for (lo, hi) in [(-1.0, 1.0), (0.0, 0.0), (-0.5, 2.0)] {
+                assert_eq!(
+                    clamp(x, lo, hi).to_bits(),
+                    x.clamp(lo, hi).to_bits(),
+                    "{x} {lo} {hi}"
+                );
+            }
+        }
+        assert!(clamp(f64::NAN, -1.0, 1.0).is_nan());
+        assert_eq!(clamp(2.5f32, -1.0, 1.0), 1.0);
+    }
+}
