@@ -176,7 +176,7 @@ impl Method {
     pub fn parse(name: &str) -> Option<Method> {
         Method::ALL
             .into_iter()
-            .find(|m| m.as_str().eq_ignore_ascii_case(name))
+            .find(|m| crate::protocol::command::keyword_eq(m.as_str(), name))
     }
 
     /// Whether this is one of the closed-form square-path formulas.

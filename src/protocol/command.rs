@@ -205,6 +205,13 @@ impl<'a> Words<'a> {
     }
 }
 
+/// ASCII case-insensitive word comparison, kept out of line: the parser compares a word
+/// with some 25 keywords, and inlining the comparison loop at each of them costs flash.
+#[inline(never)]
+pub fn keyword_eq(word: &str, keyword: &str) -> bool {
+    word.eq_ignore_ascii_case(keyword)
+}
+
 /// Reads a finite `f64` within `[min, max]`.
 fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
     let value = parse_f64(word).map_err(|_| ParseError::BadNumber { what })?;
@@ -244,9 +251,9 @@ fn optional_number(
 }
 
 fn direction(word: &str) -> Result<Direction, ParseError> {
-    if word.eq_ignore_ascii_case("cw") {
+    if keyword_eq(word, "cw") {
         Ok(Direction::Cw)
-    } else if word.eq_ignore_ascii_case("ccw") {
+    } else if keyword_eq(word, "ccw") {
         Ok(Direction::Ccw)
     } else {
         Err(ParseError::BadKeyword {
@@ -284,7 +291,7 @@ impl<'a> Command<'a> {
         let Some(head) = words.next() else {
             return Err(ParseError::Empty);
         };
-        let is = |name: &str| head.eq_ignore_ascii_case(name);
+        let is = |name: &str| keyword_eq(head, name);
         let cmd = if is("help") || head == "?" {
             Command::Help
         } else if is("status") {
@@ -362,7 +369,7 @@ impl<'a> Command<'a> {
             Command::Pose
         } else if is("odom") {
             let what = words.required("action")?;
-            if !what.eq_ignore_ascii_case("reset") {
+            if !keyword_eq(what, "reset") {
                 return Err(ParseError::BadKeyword {
                     what: "action",
                     expected: "reset",
@@ -371,11 +378,11 @@ impl<'a> Command<'a> {
             Command::OdomReset
         } else if is("stream") {
             let mode = words.required("mode")?;
-            if mode.eq_ignore_ascii_case("on") {
+            if keyword_eq(mode, "on") {
                 let (min, max) = STREAM_RANGE_HZ;
                 let hz = words.next().map(|w| whole(w, "hz", min, max)).transpose()?;
                 Command::Stream { on: Some(hz) }
-            } else if mode.eq_ignore_ascii_case("off") {
+            } else if keyword_eq(mode, "off") {
                 Command::Stream { on: None }
             } else {
                 return Err(ParseError::BadKeyword {

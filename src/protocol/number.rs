@@ -20,6 +20,8 @@
 
 use core::fmt;
 
+use super::command::keyword_eq;
+
 /// Largest number of significant digits accepted (all of them fit in a `u64`).
 pub const MAX_DIGITS: u32 = 19;
 
@@ -84,18 +86,16 @@ impl Mantissa {
 /// [`NumberError::Malformed`] for text outside the grammar, [`NumberError::TooManyDigits`] for
 /// more than [`MAX_DIGITS`] significant digits.
 pub fn parse_f64(word: &str) -> Result<f64, NumberError> {
-    let bytes = word.as_bytes();
-    let (negative, rest) = match bytes.first() {
-        Some(b'-') => (true, &bytes[1..]),
-        Some(b'+') => (false, &bytes[1..]),
-        _ => (false, bytes),
+    let (negative, rest) = match word.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, word.strip_prefix('+').unwrap_or(word)),
     };
-    let magnitude = if rest.eq_ignore_ascii_case(b"inf") || rest.eq_ignore_ascii_case(b"infinity") {
+    let magnitude = if keyword_eq(rest, "inf") || keyword_eq(rest, "infinity") {
         f64::INFINITY
-    } else if rest.eq_ignore_ascii_case(b"nan") {
+    } else if keyword_eq(rest, "nan") {
         f64::NAN
     } else {
-        finite_magnitude(rest)?
+        finite_magnitude(rest.as_bytes())?
     };
     Ok(if negative { -magnitude } else { magnitude })
 }

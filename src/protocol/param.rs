@@ -66,7 +66,7 @@ impl ParamName {
         ParamName::ALL
             .iter()
             .copied()
-            .find(|p| p.as_str().eq_ignore_ascii_case(name))
+            .find(|p| super::command::keyword_eq(p.as_str(), name))
     }
 
     /// Unit shown after the value.

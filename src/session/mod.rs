@@ -29,6 +29,7 @@ use heapless::Vec;
 
 use crate::decimal::Decimal;
 use crate::encoder::WheelTicks;
+use crate::protocol::command::keyword_eq;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
 use crate::run::{Direction, Measurement, PathKind, RunRecord};
@@ -507,11 +508,7 @@ impl<C: Calibrator> Session<C> {
         }
         let nominal = self.settings.nominal;
         if let Some(m) = method
-            && !self
-                .calibrator
-                .methods()
-                .iter()
-                .any(|k| k.eq_ignore_ascii_case(m))
+            && !self.calibrator.methods().iter().any(|k| keyword_eq(k, m))
         {
             return self.unknown_method(out);
         }
@@ -520,7 +517,7 @@ impl<C: Calibrator> Session<C> {
         let methods: Vec<&'static str, 16> =
             self.calibrator.methods().iter().take(16).copied().collect();
         for name in methods {
-            if method.is_some_and(|m| !m.eq_ignore_ascii_case(name)) {
+            if method.is_some_and(|m| !keyword_eq(m, name)) {
                 continue;
             }
             let result = self.calibrator.solve(&self.runs, &nominal, name);
@@ -567,7 +564,7 @@ impl<C: Calibrator> Session<C> {
             .methods()
             .iter()
             .copied()
-            .find(|k| k.eq_ignore_ascii_case(method))
+            .find(|k| keyword_eq(k, method))
         else {
             return self.unknown_method(out);
         };
