@@ -623,10 +623,8 @@ impl Controller {
             return MotorCommand::Stop(self.config.stop_mode);
         }
         d.remaining -= 1;
-        let ramp = |cur: f64, target: f64, max_accel: f32| {
-            let step = f64::from(max_accel) / rate;
-            cur + clamp(target - cur, -step, step)
-        };
+        let ramp =
+            |cur: f64, target: f64, max_accel: f32| ramp_toward(cur, target, max_accel, rate);
         // The reference ramps linearly between steps: the period that just ended went from
         // `previous` to `now` (its increment is compared with the encoders'); the one that
         // starts goes from `now` to `next` (its midpoint speed is the feed-forward).
@@ -876,4 +874,12 @@ impl Controller {
     pub fn totals(&self) -> WheelTicks {
         self.totals
     }
+}
+
+/// One period of a velocity ramp: `cur` moved toward `target` by at most `max_accel / rate_hz`.
+/// Out of line: inlined at both call sites it would exist twice in flash.
+#[inline(never)]
+fn ramp_toward(cur: f64, target: f64, max_accel: f32, rate_hz: f64) -> f64 {
+    let step = f64::from(max_accel) / rate_hz;
+    cur + clamp(target - cur, -step, step)
 }

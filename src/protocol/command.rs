@@ -189,6 +189,8 @@ struct Words<'a> {
 }
 
 impl<'a> Words<'a> {
+    // Out of line: called from a dozen argument readers.
+    #[inline(never)]
     fn next(&mut self) -> Option<&'a str> {
         self.inner.next()
     }
@@ -213,6 +215,7 @@ pub fn keyword_eq(word: &str, keyword: &str) -> bool {
 }
 
 /// Reads a finite `f64` within `[min, max]`.
+#[inline(never)]
 fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
     let value = parse_f64(word).map_err(|_| ParseError::BadNumber { what })?;
     if !value.is_finite() {

@@ -102,6 +102,8 @@ impl From<&LineError> for ErrorCode {
 ///
 /// # Errors
 /// Only if `out` refuses the text (e.g. a full buffer).
+// Out of line: a dozen reply paths share one copy of the formatting call.
+#[inline(never)]
 pub fn write_err(out: &mut dyn Write, code: ErrorCode, message: &dyn fmt::Display) -> fmt::Result {
     write!(out, "err {}: {}{}", code.code(), message, EOL)
 }

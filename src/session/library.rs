@@ -171,40 +171,54 @@ impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
 #[derive(Debug)]
 pub struct Locked<L>(pub L);
 
+// Each method out of line: the session calls most of them from several places, and an
+// inlined lock (interrupt-priority raise and restore) at every call site costs flash.
 impl<L: ControllerLock> Robot for Locked<L> {
+    #[inline(never)]
     fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::start(c, path))
     }
+    #[inline(never)]
     fn abort(&mut self) {
         self.0.with_controller(Robot::abort);
     }
+    #[inline(never)]
     fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::drive(c, v_mps, w_radps))
     }
+    #[inline(never)]
     fn take_finished_run(&mut self) -> Option<RunRecord> {
         self.0.with_controller(Robot::take_finished_run)
     }
+    #[inline(never)]
     fn set_geometry(&mut self, geometry: Geometry) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::set_geometry(c, geometry))
     }
+    #[inline(never)]
     fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::set_limits(c, limits))
     }
+    #[inline(never)]
     fn status(&mut self) -> RobotStatus {
         self.0.with_controller(Robot::status)
     }
+    #[inline(never)]
     fn pose(&mut self) -> PoseF64 {
         self.0.with_controller(Robot::pose)
     }
+    #[inline(never)]
     fn totals(&mut self) -> WheelTicks {
         self.0.with_controller(Robot::totals)
     }
+    #[inline(never)]
     fn clear_fault(&mut self) {
         self.0.with_controller(Robot::clear_fault);
     }
+    #[inline(never)]
     fn reset_odometry(&mut self) -> Result<(), RobotError> {
         self.0.with_controller(Robot::reset_odometry)
     }
+    #[inline(never)]
     fn motors_stopped(&mut self) -> bool {
         self.0.with_controller(Robot::motors_stopped)
     }

@@ -329,6 +329,8 @@ struct Writer<'a> {
 }
 
 impl Writer<'_> {
+    // Out of line, like `Reader::fill`.
+    #[inline(never)]
     fn bytes(&mut self, b: &[u8]) {
         if let Some(dst) = self.buf.get_mut(self.pos..self.pos + b.len()) {
             dst.copy_from_slice(b);
@@ -358,11 +360,17 @@ struct Reader<'a> {
 impl Reader<'_> {
     fn array<const N: usize>(&mut self) -> [u8; N] {
         let mut out = [0u8; N];
-        if let Some(src) = self.buf.get(self.pos..self.pos + N) {
+        self.fill(&mut out);
+        out
+    }
+    /// Copies the next `out.len()` bytes (left zero past the end). Out of line: one copy for
+    /// the twenty-odd fields instead of one per field.
+    #[inline(never)]
+    fn fill(&mut self, out: &mut [u8]) {
+        if let Some(src) = self.buf.get(self.pos..self.pos + out.len()) {
             out.copy_from_slice(src);
         }
-        self.pos += N;
-        out
+        self.pos += out.len();
     }
     fn f64(&mut self) -> f64 {
         f64::from_le_bytes(self.array())
