@@ -127,6 +127,16 @@ fn error_replies_are_exact() {
         ("drop 1.5", "err 4: <n> is not a number\r\n"),
         ("drop -1", "err 4: <n> is not a number\r\n"),
         ("stream on 0x10", "err 4: <hz> is not a number\r\n"),
+        // 20 significant digits: more than the parser's u64 mantissa holds.
+        (
+            "measure 0.12345678901234567891 0",
+            "err 4: <x_m> is not a number\r\n",
+        ),
+        // Trailing zeros are not significant: 1e20, out of range rather than malformed.
+        (
+            "measure 100000000000000000000 0",
+            "err 6: <x_m> must be within -100..100\r\n",
+        ),
         ("measure nan 0", "err 5: <x_m> must be finite\r\n"),
         ("measure NaN 0", "err 5: <x_m> must be finite\r\n"),
         ("measure 0 inf", "err 5: <y_m> must be finite\r\n"),

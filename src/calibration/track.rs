@@ -206,7 +206,10 @@ mod tests {
         while r < 1e3 {
             let (ours, reference) = (pow_1_5(r), libm::pow(r, 1.5));
             let rel = libm::fabs(ours - reference) / reference;
-            assert!(rel <= 4.0 * f64::EPSILON / 2.0, "{r}: {ours} vs {reference}");
+            assert!(
+                rel <= 4.0 * f64::EPSILON / 2.0,
+                "{r}: {ours} vs {reference}"
+            );
             r *= 1.001_37;
         }
         assert_eq!(pow_1_5(0.0), 0.0);

@@ -1,7 +1,8 @@
 //! Command parser: one text line in, one validated [`Command`] out.
 //!
 //! Tokens are separated by ASCII whitespace; keywords are ASCII case-insensitive. Every number is
-//! checked here: malformed text, NaN/infinity (including overflow such as `1e999`) and values
+//! checked here: malformed text (including more than 19 significant digits, see
+//! [`super::number`]), NaN/infinity (including overflow such as `1e999`) and values
 //! outside the documented ranges are distinct errors, so nothing downstream ever sees a
 //! non-finite or absurd value. Units on the wire: metres, m/s, rad/s, degrees (headings), Hz.
 
