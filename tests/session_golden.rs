@@ -8,11 +8,12 @@ use std::fmt;
 
 use odocal::encoder::WheelTicks;
 use odocal::geometry::Geometry;
+use odocal::profile::MotionLimits;
 use odocal::reference::PoseF64;
 use odocal::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::session::{
-    Activity, Calibrator, MAX_RUNS, MotionSettings, ParamStorage, Robot, RobotError, RobotStatus,
-    Session, Settings, Solution, SolveError, StorageError,
+    Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
+    Settings, Solution, SolveError, StorageError,
 };
 
 #[derive(Default)]
@@ -23,7 +24,7 @@ struct ScriptedRobot {
     pose: PoseF64,
     finished: Vec<RunRecord>,
     geometry: Option<Geometry>,
-    limits: Option<MotionSettings>,
+    limits: Option<MotionLimits>,
     drives: Vec<(f32, f32)>,
     aborts: usize,
     totals: WheelTicks,
@@ -85,7 +86,7 @@ impl Robot for ScriptedRobot {
         self.geometry = Some(g);
         Ok(())
     }
-    fn set_limits(&mut self, l: &MotionSettings) -> Result<(), RobotError> {
+    fn set_limits(&mut self, l: &MotionLimits) -> Result<(), RobotError> {
         self.check_idle()?;
         self.limits = Some(*l);
         Ok(())

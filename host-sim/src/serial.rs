@@ -24,7 +24,7 @@ use odocal::geometry::Geometry;
 use odocal::protocol::LineAssembler;
 use odocal::protocol::reply::line_error_reply;
 use odocal::reference::PoseF64;
-use odocal::session::library::{LibraryCalibrator, motion_limits};
+use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Session, Settings};
 use odocal::storage::ParamStore;
 
@@ -66,7 +66,7 @@ impl<'f> Board<'f> {
         let settings = Settings::from(&loaded.record);
         let mut controller = default_controller(settings.active, config.rate_hz)?;
         controller
-            .set_limits(motion_limits(&settings.motion))
+            .set_limits(settings.motion)
             .map_err(|e| format!("stored limits: {e}"))?;
         match loaded.warning {
             None => write!(out, "event boot: parameters loaded\r\n"),

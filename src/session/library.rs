@@ -14,7 +14,7 @@ use embedded_storage_async::nor_flash::MultiwriteNorFlash;
 use heapless::Vec;
 
 use super::MAX_RUNS;
-use super::settings::{AppliedCalibration, MotionSettings, Settings};
+use super::settings::{AppliedCalibration, Settings};
 use super::traits::{
     Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
     StorageError,
@@ -82,8 +82,8 @@ impl Robot for Controller {
         Controller::set_geometry(self, geometry).map_err(set_error)
     }
 
-    fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError> {
-        Controller::set_limits(self, motion_limits(limits)).map_err(set_error)
+    fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError> {
+        Controller::set_limits(self, *limits).map_err(set_error)
     }
 
     fn status(&mut self) -> RobotStatus {
@@ -144,16 +144,6 @@ fn set_error(e: SetError) -> RobotError {
     }
 }
 
-/// The controller's limits for the session's motion settings.
-pub fn motion_limits(m: &MotionSettings) -> MotionLimits {
-    MotionLimits {
-        max_speed_mps: m.max_speed_mps,
-        max_accel_mps2: m.max_accel_mps2,
-        max_turn_rate_radps: m.max_turn_rate_radps,
-        max_turn_accel_radps2: m.max_turn_accel_radps2,
-    }
-}
-
 /// Lends the controller for the duration of one closure call (e.g. an RTIC resource lock).
 pub trait ControllerLock {
     /// Runs `f` with exclusive access to the controller.
@@ -195,7 +185,7 @@ impl<L: ControllerLock> Robot for Locked<L> {
         self.0.with_controller(|c| Robot::set_geometry(c, geometry))
     }
     #[inline(never)]
-    fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError> {
+    fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::set_limits(c, limits))
     }
     #[inline(never)]
@@ -243,12 +233,7 @@ impl From<&ParamRecord> for Settings {
             nominal: r.nominal,
             active: r.active_geometry(),
             calibration,
-            motion: MotionSettings {
-                max_speed_mps: r.motion.max_speed_mps,
-                max_accel_mps2: r.motion.max_accel_mps2,
-                max_turn_rate_radps: r.motion.max_turn_rate_radps,
-                max_turn_accel_radps2: r.motion.max_turn_accel_radps2,
-            },
+            motion: r.motion.limits(),
             square_side_m: r.motion.square_side_m,
             runs_per_direction: r.motion.runs_per_direction,
         }

@@ -33,7 +33,7 @@ use crate::protocol::command::keyword_eq;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
 use crate::run::{Direction, Measurement, PathKind, RunRecord};
-pub use settings::{AppliedCalibration, Changed, MotionSettings, Settings, SettingsError};
+pub use settings::{AppliedCalibration, Changed, Settings, SettingsError};
 pub use traits::{
     Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
     StorageError,

@@ -8,34 +8,11 @@
 use core::fmt;
 
 use crate::geometry::{Geometry, GeometryError};
+use crate::profile::MotionLimits;
 use crate::protocol::ParamName;
 
 /// Longest stored method name, bytes.
 pub const METHOD_NAME_LEN: usize = 12;
-
-/// Motion limits used by routines and `drive` (magnitudes).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MotionSettings {
-    /// Maximum leg speed, m/s.
-    pub max_speed_mps: f32,
-    /// Maximum linear acceleration, m/s².
-    pub max_accel_mps2: f32,
-    /// Maximum in-place turn rate, rad/s.
-    pub max_turn_rate_radps: f32,
-    /// Maximum in-place angular acceleration, rad/s².
-    pub max_turn_accel_radps2: f32,
-}
-
-impl Default for MotionSettings {
-    fn default() -> Self {
-        MotionSettings {
-            max_speed_mps: 0.3,
-            max_accel_mps2: 0.3,
-            max_turn_rate_radps: 1.0,
-            max_turn_accel_radps2: 2.0,
-        }
-    }
-}
 
 /// A calibration result in use.
 #[derive(Clone, Debug, PartialEq)]
@@ -64,7 +41,7 @@ pub struct Settings {
     /// The calibration that produced `active`.
     pub calibration: Option<AppliedCalibration>,
     /// Motion limits.
-    pub motion: MotionSettings,
+    pub motion: MotionLimits,
     /// Planned square side `L`, metres.
     pub square_side_m: f32,
     /// Planned square runs per direction.
@@ -77,7 +54,7 @@ impl Default for Settings {
             nominal: Geometry::PAPER_NOMINAL,
             active: Geometry::PAPER_NOMINAL,
             calibration: None,
-            motion: MotionSettings::default(),
+            motion: MotionLimits::DEFAULT,
             square_side_m: 2.0,
             runs_per_direction: 5,
         }

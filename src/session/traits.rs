@@ -7,9 +7,10 @@
 
 use core::fmt;
 
-use super::settings::{MotionSettings, Settings};
+use super::settings::Settings;
 use crate::encoder::WheelTicks;
 use crate::geometry::Geometry;
+use crate::profile::MotionLimits;
 use crate::reference::PoseF64;
 use crate::run::{PathKind, RunRecord};
 
@@ -80,7 +81,7 @@ pub trait Robot {
     ///
     /// # Errors
     /// [`RobotError::Busy`] unless idle; [`RobotError::Rejected`] if the controller cannot use them.
-    fn set_limits(&mut self, limits: &MotionSettings) -> Result<(), RobotError>;
+    fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError>;
     /// Current state.
     fn status(&mut self) -> RobotStatus;
     /// Odometry pose.
