@@ -124,8 +124,8 @@ fn print_geometry(
         g.meters_per_tick_right() * 1e6
     );
     println!(
-        "heading per tick     {:.6e} rad",
-        2.0 * g.meters_per_tick_right() / g.wheelbase_m
+        "heading per tick     {:.6e} rad (one wheel)",
+        g.meters_per_tick_right() / g.wheelbase_m
     );
     println!(
         "glitch limit @1 kHz  {} counts/period (16-bit timer, 2 m/s)",
