@@ -37,8 +37,6 @@ pub fn fault_name(f: &Fault) -> &'static str {
     match f {
         Fault::EncoderGlitch { .. } => "encoder-glitch",
         Fault::Stall { .. } => "stall",
-        #[allow(unreachable_patterns)]
-        _ => "fault",
     }
 }
 
@@ -54,8 +52,6 @@ impl Robot for Controller {
             StartError::Faulted => fault_error(self),
             StartError::NotReady => RobotError::Rejected("encoders not read yet"),
             StartError::Path(_) => RobotError::Rejected("path size not accepted by the routine"),
-            #[allow(unreachable_patterns)]
-            _ => RobotError::Rejected("start refused"),
         })
     }
 
@@ -69,8 +65,6 @@ impl Robot for Controller {
             DriveError::Faulted => fault_error(self),
             DriveError::NotReady => RobotError::Rejected("encoders not read yet"),
             DriveError::NotFinite => RobotError::Rejected("speeds must be finite"),
-            #[allow(unreachable_patterns)]
-            _ => RobotError::Rejected("drive refused"),
         })
     }
 
@@ -139,8 +133,6 @@ fn set_error(e: SetError) -> RobotError {
         SetError::Busy => RobotError::Busy,
         SetError::Geometry(_) => RobotError::Rejected("geometry not accepted by the controller"),
         SetError::Limits(_) => RobotError::Rejected("limits not accepted by the controller"),
-        #[allow(unreachable_patterns)]
-        _ => RobotError::Rejected("setting refused"),
     }
 }
 
@@ -354,8 +346,6 @@ fn solve_error(e: CalibrationError) -> SolveError {
         E::Degenerate => SolveError::Failed("degenerate configuration"),
         E::NotConverged => SolveError::Failed("did not converge"),
         E::OutOfRange => SolveError::Failed("factor outside 0.5..2"),
-        #[allow(unreachable_patterns)]
-        _ => SolveError::Failed("failed"),
     }
 }
 
