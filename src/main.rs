@@ -87,10 +87,9 @@ mod app {
             Ok(c) => c,
             Err(e) => {
                 defmt::warn!("stored geometry refused ({}), using defaults", e);
-                let mut config = ControllerConfig::new(Geometry::default(), CONTROL_HZ);
-                config.geometry = Geometry::default();
-                // The built-in defaults are validated by the library's tests.
-                match Controller::new(config) {
+                // The built-in defaults are validated by the library's tests
+                // (`tests/controller.rs`), so this cannot fail at run time.
+                match Controller::new(ControllerConfig::new(Geometry::default(), CONTROL_HZ)) {
                     Ok(c) => c,
                     Err(_) => defmt::panic!("built-in controller defaults rejected"),
                 }
