@@ -68,13 +68,18 @@ pub struct ControllerConfig {
     pub integration: Integration,
 }
 
+/// Encoder glitch limit for `geometry` at `rate_hz`: 2 m/s of the smaller wheel, +50 %.
+fn glitch_limit(width: CounterWidth, geometry: &Geometry, rate_hz: u32) -> u32 {
+    let period_s = 1.0 / f64::from(rate_hz.max(1));
+    let d_min = libm::fmin(geometry.diameter_right_m, geometry.diameter_left_m);
+    max_step_for(width, geometry.counts_per_rev, d_min, 2.0, period_s)
+}
+
 impl ControllerConfig {
     /// Defaults for the board: right encoder on a 32-bit timer, left on a 16-bit timer counting
     /// backwards, glitch limit for 2 m/s; default limits and tuning; 500 ms deadman; brake.
     pub fn new(geometry: Geometry, rate_hz: u32) -> Self {
-        let period_s = 1.0 / f64::from(rate_hz.max(1));
-        let d_min = libm::fmin(geometry.diameter_right_m, geometry.diameter_left_m);
-        let step = |w| max_step_for(w, geometry.counts_per_rev, d_min, 2.0, period_s);
+        let step = |w| glitch_limit(w, &geometry, rate_hz);
         ControllerConfig {
             geometry,
             limits: MotionLimits::DEFAULT,
@@ -803,6 +808,16 @@ impl Controller {
         self.odometry = odometry;
         self.odometry.reset(&mut self.odo_state, self.totals, pose);
         self.config.geometry = geometry;
+        // The glitch limit is a speed in counts per period: it follows the geometry.
+        let rate = self.config.rate_hz;
+        self.config.right_encoder.max_step =
+            glitch_limit(self.config.right_encoder.width, &geometry, rate);
+        self.config.left_encoder.max_step =
+            glitch_limit(self.config.left_encoder.width, &geometry, rate);
+        if let Some((r, l)) = self.encoders.as_mut() {
+            r.set_max_step(self.config.right_encoder.max_step);
+            l.set_max_step(self.config.left_encoder.max_step);
+        }
         self.pi = Self::speed_pis(&self.config);
         Ok(())
     }

@@ -183,6 +183,11 @@ impl Encoder {
     pub fn config(&self) -> &EncoderConfig {
         &self.config
     }
+
+    /// Changes the glitch limit (after a geometry change); the count and total are kept.
+    pub fn set_max_step(&mut self, max_step: u32) {
+        self.config.max_step = max_step;
+    }
 }
 
 #[cfg(test)]

@@ -193,6 +193,27 @@ fn glitch_latches_and_stops_in_the_same_period() {
 }
 
 #[test]
+fn glitch_limit_follows_a_new_geometry() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    // 2 m/s of a 150 mm wheel with 200,000 counts/rev at 1 kHz, +50 %: 1,274 counts per period.
+    let before = c.config().right_encoder.max_step;
+    assert_eq!(before, 1274);
+    // Ten times the resolution: ten times the counts for the same speed.
+    let mut fine = Geometry::PAPER_NOMINAL;
+    fine.counts_per_rev = 2_000_000;
+    c.set_geometry(fine).unwrap();
+    assert_eq!(c.config().right_encoder.max_step, 12_733);
+    assert_eq!(c.config().left_encoder.max_step, 12_733);
+    // A jump of 5,000 counts in one period was a glitch before; it is a legal 1.2 m/s now.
+    plant.pos[0] += 5_000.0;
+    plant.pos[1] += 5_000.0;
+    let out = plant.step(&mut c);
+    assert_eq!(out.fault, None);
+}
+
+#[test]
 fn motors_stopped_after_a_tenth_of_a_second_at_rest() {
     let mut c = controller();
     let mut plant = Plant::new(1000);
