@@ -424,6 +424,15 @@ fn calibrate_apply_save_golden() {
         "err 18: motors running, flash not written\r\n"
     );
     assert!(b.store.saved.is_none());
+    // Nothing that takes seconds (the exact solve) or changes parameters while moving: the
+    // console must stay free for `stop`.
+    for busy in ["calibrate", "apply alpha", "set square_side 1"] {
+        assert_eq!(
+            b.send(busy),
+            "err 10: robot is busy (stop first)\r\n",
+            "{busy}"
+        );
+    }
     b.send("stop");
     assert_eq!(b.send("save"), "ok saved\r\n");
     assert_eq!(b.store.saved.as_ref(), Some(b.session.settings()));

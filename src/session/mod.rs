@@ -387,7 +387,7 @@ impl<C: Calibrator> Session<C> {
                 report::write_path(out, &run.path)?;
                 write!(out, "; {} runs left{EOL}", self.runs.len())
             }
-            Command::Calibrate { method } => self.calibrate(method, out),
+            Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method } => self.apply(method, robot, out),
             Command::Save => match storage.save(&self.settings, robot.motors_stopped()) {
                 Ok(()) => write!(out, "ok saved{EOL}"),
@@ -431,6 +431,9 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
         let (new, changed) = match self.settings.with_value(name, value) {
             Ok(x) => x,
             Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
@@ -502,7 +505,17 @@ impl<C: Calibrator> Session<C> {
         None
     }
 
-    fn calibrate(&mut self, method: Option<&str>, out: &mut dyn Write) -> fmt::Result {
+    fn calibrate(
+        &mut self,
+        method: Option<&str>,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        // The exact solve takes seconds on the target; the console must stay responsive (`stop`)
+        // while anything moves.
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
         if let Some(refused) = self.refuse_calibration(out) {
             return refused;
         }
@@ -556,6 +569,9 @@ impl<C: Calibrator> Session<C> {
     }
 
     fn apply(&mut self, method: &str, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
         if let Some(refused) = self.refuse_calibration(out) {
             return refused;
         }
