@@ -17,17 +17,27 @@ use panic_probe as _;
 #[cfg(target_os = "none")]
 rtic_monotonics::systick_monotonic!(Mono, 1000);
 
+/// Received lines dropped because the console's input queue was full (reported as an error).
+#[cfg(target_os = "none")]
+static LINES_DROPPED: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+/// Free transmit-queue space needed before the console takes the next line: the longest reply
+/// (`calibrate`, `help`, `runs`: about 1.6 KiB) plus margin.
+#[cfg(target_os = "none")]
+const REPLY_ROOM: usize = 1_800;
+
 #[cfg(target_os = "none")]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::board::flash::{BoardFlash, param_store};
     use odocal::board::motors::BoardMotors;
+    use odocal::board::watchdog::{set_timeout, start_with_timeout, wait_for_update};
     use odocal::board::{CONTROL_HZ, FLASH_WATCHDOG_MS, HSE_HZ, PWM_HZ, SYSCLK_HZ, WATCHDOG_MS};
     use odocal::button::{Button, ButtonConfig, Press};
     use odocal::controller::{Controller, ControllerConfig};
     use odocal::geometry::Geometry;
-    use odocal::protocol::reply::{ByteSink, line_error_reply};
+    use odocal::protocol::reply::{ByteSink, ErrorCode, line_error_reply, write_err};
     use odocal::protocol::{LINE_MAX, LineAssembler, LineError};
     use odocal::session::library::{LibraryCalibrator, Locked};
     use odocal::session::{ParamStorage, Session, Settings, StorageError};
@@ -42,7 +52,8 @@ mod app {
     use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-    use super::Mono;
+    use super::{LINES_DROPPED, Mono, REPLY_ROOM};
+    use core::sync::atomic::Ordering;
 
     /// A received line (or why it was rejected), from the USART2 interrupt to the console task.
     type LineItem = Result<heapless::String<LINE_MAX>, LineError>;
@@ -107,29 +118,42 @@ mod app {
     }
 
     impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
-        fn relaxed<R>(&mut self, f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R) -> R {
-            self.watchdog.lock(|w| w.start(FLASH_WATCHDOG_MS.millis()));
+        fn relaxed<R>(
+            &mut self,
+            motors_stopped: bool,
+            f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R,
+        ) -> R {
+            if !motors_stopped {
+                // The store refuses without touching the flash: nothing to relax.
+                return f(self.store);
+            }
+            // The waits for the low-power register domain stay outside the lock, so the
+            // control task is never held up by them.
+            wait_for_update();
+            self.watchdog
+                .lock(|w| start_with_timeout(w, FLASH_WATCHDOG_MS));
+            wait_for_update();
             let result = f(self.store);
-            self.watchdog.lock(|w| {
-                w.start(WATCHDOG_MS.millis());
-                w.feed();
-            });
+            self.watchdog.lock(|w| start_with_timeout(w, WATCHDOG_MS));
+            wait_for_update();
             result
         }
     }
 
     impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'_, W> {
         fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
-            self.relaxed(|s| ParamStorage::save(s, settings, motors_stopped))
+            self.relaxed(motors_stopped, |s| {
+                ParamStorage::save(s, settings, motors_stopped)
+            })
         }
 
         fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
-            self.relaxed(|s| ParamStorage::reset(s, motors_stopped))
+            self.relaxed(motors_stopped, |s| ParamStorage::reset(s, motors_stopped))
         }
     }
 
     #[init(local = [
-        lines: Queue<LineItem, 4> = Queue::new(),
+        lines: Queue<LineItem, 8> = Queue::new(),
         tx_bytes: Queue<u8, 2048> = Queue::new(),
         presses: Queue<Press, 4> = Queue::new(),
     ])]
@@ -192,7 +216,7 @@ mod app {
         tick.listen(Event::Update);
 
         let mut watchdog = IndependentWatchdog::new(cx.device.IWDG);
-        watchdog.start(WATCHDOG_MS.millis());
+        set_timeout(&mut watchdog, WATCHDOG_MS);
 
         // Serial console: USART2 on PA2/PA3 (ST-LINK VCP), RX interrupt, TX from a queue.
         let usart = Serial::new(
@@ -310,8 +334,9 @@ mod app {
     #[task(binds = USART2, priority = 2, local = [usart_rx, usart_tx, assembler, line_in, tx_out])]
     fn usart2(cx: usart2::Context) {
         while cx.local.usart_rx.is_rx_not_empty() {
-            // A framing/overrun error drops the byte; the line then fails to parse or is cut
-            // short and rejected by its terminator.
+            // A framing or noise error drops the byte; an overrun drops the byte that was
+            // overwritten and the one in the data register. The line then fails to parse or
+            // is rejected by its terminator.
             let Ok(byte) = cx.local.usart_rx.read() else {
                 continue;
             };
@@ -322,8 +347,10 @@ mod app {
                     let _ = owned.push_str(text);
                     owned
                 });
-                // A full queue (4 pending lines) drops the line.
-                let _ = cx.local.line_in.enqueue(item);
+                // A full queue drops the line; the console reports how many were lost.
+                if cx.local.line_in.enqueue(item).is_err() {
+                    LINES_DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
             }
         }
         while cx.local.usart_tx.is_tx_empty() {
@@ -352,14 +379,28 @@ mod app {
                 watchdog: &mut cx.shared.watchdog,
             };
             let tx_in = &mut *cx.local.tx_in;
-            let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
             let mut robot = Locked(&mut cx.shared.controller);
-            while let Some(item) = cx.local.line_out.dequeue() {
-                let _ = match item {
-                    Ok(line) => session.handle_line(&line, &mut robot, store, &mut out),
-                    Err(e) => core::fmt::Write::write_str(&mut out, &line_error_reply(&e)),
-                };
+            let mut dropped = 0;
+            // One line per pass, and only while the transmit queue has room for the longest
+            // reply, so a burst of commands never cuts a reply short.
+            if tx_in.capacity() - tx_in.len() >= REPLY_ROOM {
+                let lost = LINES_DROPPED.swap(0, Ordering::Relaxed);
+                let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
+                if lost > 0 {
+                    let _ = write_err(
+                        &mut out,
+                        ErrorCode::Busy,
+                        &format_args!("{lost} line(s) dropped: input queue full"),
+                    );
+                } else if let Some(item) = cx.local.line_out.dequeue() {
+                    let _ = match item {
+                        Ok(line) => session.handle_line(&line, &mut robot, store, &mut out),
+                        Err(e) => core::fmt::Write::write_str(&mut out, &line_error_reply(&e)),
+                    };
+                }
+                dropped += out.dropped;
             }
+            let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
             while let Some(press) = cx.local.press_out.dequeue() {
                 let _ = match press {
                     Press::Short => session.button_short(&mut robot, &mut out),
@@ -368,8 +409,9 @@ mod app {
             }
             let now_us = u64::from(Mono::now().ticks()) * 1_000;
             let _ = session.poll(now_us, &mut robot, &mut out);
-            if out.dropped > 0 {
-                defmt::warn!("serial transmit queue full: {} bytes dropped", out.dropped);
+            dropped += out.dropped;
+            if dropped > 0 {
+                defmt::warn!("serial transmit queue full: {} bytes dropped", dropped);
             }
             rtic::pend(Interrupt::USART2);
         }

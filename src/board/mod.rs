@@ -20,6 +20,7 @@
 
 pub mod flash;
 pub mod motors;
+pub mod watchdog;
 
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -31,6 +32,8 @@ pub const PWM_HZ: u32 = 20_000;
 pub const CONTROL_HZ: u32 = 1_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
 pub const WATCHDOG_MS: u32 = 50;
-/// Watchdog timeout while the parameter flash is written, ms: a 128 KiB sector erase takes up to
-/// 2 s on the STM32F407 (datasheet t_ERASE128KB, x32 parallelism) and stalls the CPU.
-pub const FLASH_WATCHDOG_MS: u32 = 4_000;
+/// Watchdog timeout while the parameter flash is written, ms. The HAL erases with x8
+/// parallelism: a 128 KiB sector takes up to 4 s (STM32F407 datasheet, t_ERASE128KB) and stalls
+/// the CPU. The timeout is computed for a 32 kHz LSI, which may run as fast as 47 kHz, so 10 s
+/// gives at least 6.8 s.
+pub const FLASH_WATCHDOG_MS: u32 = 10_000;
