@@ -11,19 +11,9 @@
 
 use odocal::protocol::number::{MAX_DIGITS, NumberError, parse_f64};
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-}
+#[path = "support/rng.rs"]
+mod rng;
+use rng::Rng;
 
 /// A decimal string for `digits × 10^k` with 1..=15 significant digits and |k| ≤ 22.
 fn exact_domain_string(rng: &mut Rng, s: &mut String) {
