@@ -21,7 +21,8 @@ use clap::Args;
 use crate::flash::SimParamFlash;
 use crate::montecarlo::{self, MonteCarloArgs};
 use crate::paper::Format;
-use crate::serial::{Board, measure_line, sim_config};
+use crate::robot::sim_config;
+use crate::serial::{Board, measure_line};
 
 /// Session goal, seconds.
 const SESSION_GOAL_S: f64 = 0.1;

@@ -8,7 +8,7 @@ use odocal::controller::Controller;
 use odocal::geometry::Geometry;
 use odocal::reference::PoseF64;
 
-use crate::robot::{Sim, SimConfig, default_controller};
+use crate::robot::{Sim, default_controller, sim_config};
 
 /// A scripted motion.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,11 +118,9 @@ pub fn drive_script(
 /// Any failure of the scripted drive.
 pub fn run(args: &DriveArgs) -> Result<(), String> {
     let nominal = Geometry::PAPER_NOMINAL;
-    let truth = nominal.with_factors(args.ed, args.eb, 1.0);
-    let mut cfg = SimConfig::new(truth, args.rate);
-    cfg.slip_sigma = args.slip;
-    cfg.seed = args.seed;
-    let mut sim = Sim::new(cfg);
+    let mut sim = Sim::new(sim_config(
+        args.ed, args.eb, args.slip, args.seed, args.rate,
+    ));
     let mut controller = default_controller(nominal, args.rate)?;
     sim.step(&mut controller);
     let (v, w) = match args.script {

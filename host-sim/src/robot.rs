@@ -384,6 +384,15 @@ pub fn default_controller(belief: Geometry, rate_hz: u32) -> Result<Controller, 
     Controller::new(cfg).map_err(|e| format!("controller config: {e}"))
 }
 
+/// The simulated robot's configuration: the paper's nominal robot with true factors `ed`, `eb`.
+pub fn sim_config(ed: f64, eb: f64, slip: f64, seed: u64, rate_hz: u32) -> SimConfig {
+    let truth = Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0);
+    let mut c = SimConfig::new(truth, rate_hz);
+    c.slip_sigma = slip;
+    c.seed = seed;
+    c
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -29,7 +29,7 @@ use odocal::session::{Session, Settings};
 use odocal::storage::ParamStore;
 
 use crate::flash::{SimFlash, SimParamFlash};
-use crate::robot::{Sim, SimConfig, default_controller};
+use crate::robot::{Sim, SimConfig, default_controller, sim_config};
 
 /// The simulated board, over a simulated parameter flash that outlives it.
 pub struct Board<'f> {
@@ -211,15 +211,6 @@ pub struct SerialArgs {
     /// is echoed with a `> ` prefix), so a piped script can run a whole calibration.
     #[arg(long)]
     pub auto_measure: bool,
-}
-
-/// The simulated robot's configuration: the paper's nominal robot with true factors `ed`, `eb`.
-pub fn sim_config(ed: f64, eb: f64, slip: f64, seed: u64, rate_hz: u32) -> SimConfig {
-    let truth = Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0);
-    let mut c = SimConfig::new(truth, rate_hz);
-    c.slip_sigma = slip;
-    c.seed = seed;
-    c
 }
 
 /// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The

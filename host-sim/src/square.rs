@@ -8,7 +8,7 @@ use odocal::geometry::Geometry;
 use odocal::reference::{ArcModel, PoseF64};
 use odocal::run::{Direction, PathKind, RunRecord};
 
-use crate::robot::{Sim, SimConfig, default_controller};
+use crate::robot::{Sim, SimConfig, default_controller, sim_config};
 
 /// The outcome of one closed-loop run.
 #[derive(Clone, Debug)]
@@ -123,10 +123,7 @@ pub struct SquareArgs {
 /// Any failed run.
 pub fn run(args: &SquareArgs) -> Result<(), String> {
     let nominal = Geometry::PAPER_NOMINAL;
-    let truth = nominal.with_factors(args.ed, args.eb, 1.0);
-    let mut cfg = SimConfig::new(truth, args.rate);
-    cfg.slip_sigma = args.slip;
-    cfg.seed = args.seed;
+    let cfg = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
     println!(
         "true E_b = {}, E_d = {}; controller believes the nominal geometry; slip σ = {}",
         args.eb, args.ed, args.slip

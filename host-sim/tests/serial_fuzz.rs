@@ -2,7 +2,8 @@
 //! storage): no panic, exactly one final `ok`/`err` line per non-blank command, bounded state.
 
 use host_sim::flash::SimParamFlash;
-use host_sim::serial::{Board, sim_config};
+use host_sim::robot::sim_config;
+use host_sim::serial::Board;
 use odocal::session::MAX_RUNS;
 
 #[path = "../../tests/support/rng.rs"]

@@ -2,7 +2,8 @@
 //! deadman, with the library's controller, session, calibration and storage.
 
 use host_sim::flash::SimParamFlash;
-use host_sim::serial::{Board, measure_line, sim_config};
+use host_sim::robot::sim_config;
+use host_sim::serial::{Board, measure_line};
 use odocal::calibration::wrap_angle;
 use odocal::controller::Status;
 use odocal::geometry::Geometry;

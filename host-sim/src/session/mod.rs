@@ -42,7 +42,8 @@ use crate::flash::SimParamFlash;
 use crate::montecarlo::Rng;
 use crate::rectangle::{RectangleResult, RectangleSpec};
 use crate::robot::SimConfig;
-use crate::serial::{Board, sim_config};
+use crate::robot::sim_config;
+use crate::serial::Board;
 use crate::square::drive_path;
 use crate::sweep::{SweepArgs, SweepResult, pilot_scatter, sweep};
 
