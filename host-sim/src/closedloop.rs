@@ -150,21 +150,9 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     if args.trials > 1 {
-        println!(
-            "{:>11} {:>12} {:>12} {:>12} {:>12} {:>7}",
-            "method", "E_b_err mean", "E_b_err std", "E_d_err mean", "E_d_err std", "failed"
-        );
+        Acc::print_header();
         for (m, a) in METHODS.iter().zip(acc.iter()) {
-            let ((mb, sb), (md, sd)) = (a.mean_std(0), a.mean_std(1));
-            println!(
-                "{:>11} {:>12.3e} {:>12.3e} {:>12.3e} {:>12.3e} {:>7}",
-                m.as_str(),
-                mb,
-                sb,
-                md,
-                sd,
-                a.failed()
-            );
+            a.print_row(m.as_str());
         }
     }
     Ok(())

@@ -140,14 +140,26 @@ impl Acc {
         }
     }
 
+    /// Prints the header of the text table [`Acc::print_row`] fills.
+    pub fn print_header() {
+        println!(
+            "{:>11} {:>12} {:>12} {:>12} {:>12} {:>7}",
+            "method", "E_b_err mean", "E_b_err std", "E_d_err mean", "E_d_err std", "failed"
+        );
+    }
+
+    /// Prints one row of the text table: mean and std of the E_b and E_d errors, failures.
+    pub fn print_row(&self, method: &str) {
+        let ((mb, sb), (md, sd)) = (self.mean_std(0), self.mean_std(1));
+        println!(
+            "{method:>11} {mb:>12.3e} {sb:>12.3e} {md:>12.3e} {sd:>12.3e} {:>7}",
+            self.failed
+        );
+    }
+
     /// Records a failed trial.
     pub fn fail(&mut self) {
         self.failed += 1;
-    }
-
-    /// Failed trials.
-    pub fn failed(&self) -> u32 {
-        self.failed
     }
 
     /// Mean and sample standard deviation of component `i` (0 = E_b, 1 = E_d).
@@ -219,24 +231,13 @@ pub fn run(args: &MonteCarloArgs) -> Result<(), Box<dyn std::error::Error>> {
             args.eb,
             args.ed
         );
-        println!(
-            "{:>11} {:>12} {:>12} {:>12} {:>12} {:>7}",
-            "method", "E_b_err mean", "E_b_err std", "E_d_err mean", "E_d_err std", "failed"
-        );
+        Acc::print_header();
     }
     for (m, a) in methods.iter().zip(acc.iter()) {
         let (mb, sb) = a.mean_std(0);
         let (md, sd) = a.mean_std(1);
         match args.format {
-            Format::Text => println!(
-                "{:>11} {:>12.3e} {:>12.3e} {:>12.3e} {:>12.3e} {:>7}",
-                m.as_str(),
-                mb,
-                sb,
-                md,
-                sd,
-                a.failed
-            ),
+            Format::Text => a.print_row(m.as_str()),
             Format::Json => println!(
                 "{{\"L\":{},\"method\":\"{}\",\"trials\":{},\"E_b_err_mean\":{mb:e},\"E_b_err_std\":{sb:e},\"E_d_err_mean\":{md:e},\"E_d_err_std\":{sd:e},\"failed\":{}}}",
                 args.side,
