@@ -253,14 +253,11 @@ impl Settings {
         Ok(ParamRecord {
             nominal: self.nominal,
             calibration,
-            motion: record::MotionSettings {
-                max_speed_mps: self.motion.max_speed_mps,
-                max_accel_mps2: self.motion.max_accel_mps2,
-                max_turn_rate_radps: self.motion.max_turn_rate_radps,
-                max_turn_accel_radps2: self.motion.max_turn_accel_radps2,
-                square_side_m: self.square_side_m,
-                runs_per_direction: self.runs_per_direction,
-            },
+            motion: record::MotionSettings::from_limits(
+                &self.motion,
+                self.square_side_m,
+                self.runs_per_direction,
+            ),
         })
     }
 }

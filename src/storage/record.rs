@@ -175,6 +175,22 @@ impl MotionSettings {
 }
 
 impl MotionSettings {
+    /// The stored form of the controller's `limits` and the calibration plan.
+    pub fn from_limits(
+        limits: &crate::profile::MotionLimits,
+        square_side_m: f32,
+        runs_per_direction: u8,
+    ) -> Self {
+        MotionSettings {
+            max_speed_mps: limits.max_speed_mps,
+            max_accel_mps2: limits.max_accel_mps2,
+            max_turn_rate_radps: limits.max_turn_rate_radps,
+            max_turn_accel_radps2: limits.max_turn_accel_radps2,
+            square_side_m,
+            runs_per_direction,
+        }
+    }
+
     /// The speed and acceleration limits the controller uses.
     pub fn limits(&self) -> crate::profile::MotionLimits {
         crate::profile::MotionLimits {
