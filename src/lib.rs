@@ -3,6 +3,27 @@
 //! Everything in this crate except [`board`] is portable `no_std` logic that is compiled for the
 //! STM32F4 target and for the host, where the tests and `host-sim` drive exactly the same code.
 //!
+//! # Layers
+//!
+//! The folders follow the data flow, from the wheels up. A module may use its own layer and the
+//! layers below it, never one above (checked by `tests/layering.rs`):
+//!
+//! | layer | modules | role |
+//! |---|---|---|
+//! | 0 | [`fmt`], [`util`] | logging shim, number/text helpers |
+//! | 1 | [`kinematics`] | encoder ticks → pose: angle, encoder, geometry, odometry, `f64` reference |
+//! | 2 | [`motion`] | the control task's spine: motor, speed loops, profiles, routines, run records, button, controller |
+//! | 3 | [`calibration`], [`storage`] | E_b, E_d, E_s from runs; the parameter record in flash (independent of each other) |
+//! | 4 | [`protocol`] | serial lines → commands, replies |
+//! | 5 | [`session`] | commands and button presses → controller, run store, calibration, storage |
+//! | 6 | `board` (target only) | the peripherals the RTIC app (`src/main.rs`) wires to the session and controller |
+//!
+//! Data flow: encoders give wrap-safe tick totals (kinematics); odometry turns them into a pose;
+//! the controller (motion) steps the routine, profile and speed loops and records each run's tick
+//! knots; the session takes serial lines and button presses, stores runs and measurements, hands
+//! them to the calibration engine and saves the chosen factors through storage, which the board
+//! loads at boot.
+//!
 //! Conventions used throughout:
 //! - the robot frame starts at the origin heading +x, y to the left, angles CCW positive;
 //! - tick totals are `i64`; positive ticks mean the wheel rolls forward;
@@ -18,24 +39,18 @@
 #[macro_use]
 pub mod fmt;
 
-pub mod angle;
-pub mod button;
+pub mod util;
+
+pub mod kinematics;
+
+pub mod motion;
+
 pub mod calibration;
-pub mod controller;
-pub mod decimal;
-pub mod encoder;
-pub mod geometry;
-pub mod motor;
-pub mod num;
-pub mod odometry;
-pub mod profile;
-pub mod protocol;
-pub mod reference;
-pub mod routine;
-pub mod run;
-pub mod session;
-pub mod speed;
 pub mod storage;
+
+pub mod protocol;
+
+pub mod session;
 
 #[cfg(target_os = "none")]
 pub mod board;

@@ -30,26 +30,22 @@ const REPLY_ROOM: usize = 1_800;
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
-    use odocal::board::flash::{BoardFlash, param_store};
-    use odocal::board::motors::BoardMotors;
     use odocal::board::watchdog::{set_timeout, start_with_timeout, wait_for_update};
-    use odocal::board::{CONTROL_HZ, FLASH_WATCHDOG_MS, HSE_HZ, PWM_HZ, SYSCLK_HZ, WATCHDOG_MS};
-    use odocal::button::{Button, ButtonConfig, Press};
-    use odocal::controller::{Controller, ControllerConfig};
-    use odocal::geometry::Geometry;
+    use odocal::board::{
+        BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx, ConsoleTx,
+        ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS,
+    };
+    use odocal::kinematics::geometry::Geometry;
+    use odocal::motion::button::{Button, ButtonConfig, Press};
+    use odocal::motion::controller::{Controller, ControllerConfig};
     use odocal::protocol::reply::{ByteSink, ErrorCode, line_error_reply, write_err};
     use odocal::protocol::{LINE_MAX, LineAssembler, LineError};
     use odocal::session::library::{LibraryCalibrator, Locked};
     use odocal::session::{ParamStorage, Session, Settings, StorageError};
     use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
-    use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
-    use stm32f4xx_hal::pac::{Interrupt, TIM2, TIM3, TIM7, USART2};
     use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::qei::Qei;
-    use stm32f4xx_hal::rcc::Config;
-    use stm32f4xx_hal::serial::{self, Rx, RxISR, RxListen, Serial, Tx, TxISR, TxListen};
-    use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
+    use stm32f4xx_hal::serial::{RxISR, TxISR, TxListen};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
     use super::{LINES_DROPPED, Mono, REPLY_ROOM};
@@ -67,17 +63,15 @@ mod app {
 
     #[local]
     struct Local {
-        qei_right: Qei<TIM2>,
-        qei_left: Qei<TIM3>,
-        tick: CounterHz<TIM7>,
+        encoders: Encoders,
+        tick: ControlTick,
         motors: BoardMotors,
-        button_pin: PA0<Input>,
-        heartbeat: PD12<Output>,
-        fault_led: PD14<Output>,
+        button_pin: ButtonInput,
+        leds: Leds,
         params_store: ParamStore<BoardFlash>,
         session: Session<LibraryCalibrator>,
-        usart_rx: Rx<USART2>,
-        usart_tx: Tx<USART2>,
+        usart_rx: ConsoleRx,
+        usart_tx: ConsoleTx,
         assembler: LineAssembler,
         line_in: Producer<'static, LineItem>,
         line_out: Consumer<'static, LineItem>,
@@ -157,85 +151,24 @@ mod app {
         tx_bytes: Queue<u8, 2048> = Queue::new(),
         presses: Queue<Press, 4> = Queue::new(),
     ])]
-    fn init(mut cx: init::Context) -> (Shared, Local) {
-        let mut rcc = cx.device.RCC.freeze(
-            Config::hse(HSE_HZ.Hz())
-                .sysclk(SYSCLK_HZ.Hz())
-                .pclk1(42.MHz()),
-        );
-        Mono::start(cx.core.SYST, SYSCLK_HZ);
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let board = odocal::board::init(cx.device);
+        Mono::start(cx.core.SYST, board.sysclk_hz);
 
         // Parameters first: loading may repair an interrupted save (motors are off here).
-        let mut params_store = param_store(cx.device.FLASH);
+        let mut params_store = board.params;
         let params = params_store.load_blocking().record;
         let mut controller = make_controller(params.active_geometry());
         if let Err(e) = controller.set_limits(params.motion.limits()) {
             defmt::warn!("stored motion limits refused ({}), using defaults", e);
         }
         let session = Session::new(Settings::from(&params), LibraryCalibrator::default());
-
-        let gpioa = cx.device.GPIOA.split(&mut rcc);
-        let gpiob = cx.device.GPIOB.split(&mut rcc);
-        let gpiod = cx.device.GPIOD.split(&mut rcc);
-        let gpioe = cx.device.GPIOE.split(&mut rcc);
-
-        // Encoders: PA15/PB3/PB4 come out of reset as JTAG pins.
-        let qei_right = Qei::new(
-            cx.device.TIM2,
-            (gpioa.pa15.into_input(), gpiob.pb3.into_input()),
-            &mut rcc,
-        );
-        let qei_left = Qei::new(
-            cx.device.TIM3,
-            (gpiob.pb4.into_input(), gpiob.pb5),
-            &mut rcc,
-        );
-
-        // Motors: TIM1 CH1/CH2 PWM, braked until the controller commands otherwise.
-        let (pwm, (ch1, ch2, ..)) = cx.device.TIM1.pwm_hz(PWM_HZ.Hz(), &mut rcc);
-        let motors = BoardMotors::new(
-            pwm,
-            ch1.with(gpioe.pe9),
-            ch2.with(gpioe.pe11),
-            gpioe.pe7.into_push_pull_output(),
-            gpioe.pe8.into_push_pull_output(),
-            gpioe.pe13.into_push_pull_output(),
-        );
-
-        // User button: both edges, pressed = high.
-        let mut syscfg = cx.device.SYSCFG.constrain(&mut rcc);
-        let mut button_pin = gpioa.pa0.into_input().internal_resistor(Pull::Down);
-        button_pin.make_interrupt_source(&mut syscfg);
-        button_pin.trigger_on_edge(&mut cx.device.EXTI, Edge::RisingFalling);
-        button_pin.enable_interrupt(&mut cx.device.EXTI);
-
-        let mut tick = cx.device.TIM7.counter_hz(&mut rcc);
-        if tick.start(CONTROL_HZ.Hz()).is_err() {
-            defmt::error!("control timer did not start");
-        }
-        tick.listen(Event::Update);
-
-        let mut watchdog = IndependentWatchdog::new(cx.device.IWDG);
+        let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
 
-        // Serial console: USART2 on PA2/PA3 (ST-LINK VCP), RX interrupt, TX from a queue.
-        let usart = Serial::new(
-            cx.device.USART2,
-            (gpioa.pa2, gpioa.pa3),
-            serial::Config::default().baudrate(115_200.bps()),
-            &mut rcc,
-        );
-        let (usart_tx, mut usart_rx) = match usart {
-            Ok(s) => s.split(),
-            Err(_) => defmt::panic!("USART2 configuration rejected"),
-        };
-        usart_rx.listen();
         let (line_in, line_out) = cx.local.lines.split();
         let (tx_in, tx_out) = cx.local.tx_bytes.split();
         let (press_in, press_out) = cx.local.presses.split();
-
-        let heartbeat = gpiod.pd12.into_push_pull_output();
-        let fault_led = gpiod.pd14.into_push_pull_output();
 
         report::spawn().ok();
         console::spawn().ok();
@@ -252,17 +185,15 @@ mod app {
                 button: Button::new(ButtonConfig::DEFAULT),
             },
             Local {
-                qei_right,
-                qei_left,
-                tick,
-                motors,
-                button_pin,
-                heartbeat,
-                fault_led,
+                encoders: board.encoders,
+                tick: board.tick,
+                motors: board.motors,
+                button_pin: board.button,
+                leds: board.leds,
                 params_store,
                 session,
-                usart_rx,
-                usart_tx,
+                usart_rx: board.console_rx,
+                usart_tx: board.console_tx,
                 assembler: LineAssembler::new(),
                 line_in,
                 line_out,
@@ -276,14 +207,13 @@ mod app {
 
     /// Control period: encoders → odometry → routine → speed loops → motors; button actions.
     #[task(binds = TIM7, priority = 3,
-           local = [qei_right, qei_left, tick, motors, press_in],
+           local = [encoders, tick, motors, press_in],
            shared = [controller, button, watchdog])]
     fn control(cx: control::Context) {
-        cx.local.tick.clear_flags(Flag::Update);
+        cx.local.tick.clear();
         let mut watchdog = cx.shared.watchdog;
         watchdog.lock(|w| w.feed());
-        let raw_right = cx.local.qei_right.count();
-        let raw_left = u32::from(cx.local.qei_left.count());
+        let (raw_right, raw_left) = cx.local.encoders.read();
         let press = {
             let mut button = cx.shared.button;
             button.lock(|b| b.poll(now_ms()))
@@ -307,19 +237,18 @@ mod app {
     /// Button edges, time-stamped for the debouncer.
     #[task(binds = EXTI0, priority = 2, local = [button_pin], shared = [button])]
     fn button_edge(mut cx: button_edge::Context) {
-        cx.local.button_pin.clear_interrupt_pending_bit();
-        let pressed = cx.local.button_pin.is_high();
+        let pressed = cx.local.button_pin.edge();
         cx.shared.button.lock(|b| b.edge(now_ms(), pressed));
     }
 
     /// Heartbeat LED, fault LED and a 2 Hz pose log.
-    #[task(priority = 1, local = [heartbeat, fault_led], shared = [controller])]
+    #[task(priority = 1, local = [leds], shared = [controller])]
     async fn report(mut cx: report::Context) {
         loop {
             Mono::delay(500.millis()).await;
-            cx.local.heartbeat.toggle();
+            cx.local.leds.toggle_heartbeat();
             let (pose, fault) = cx.shared.controller.lock(|c| (c.pose(), c.fault()));
-            cx.local.fault_led.set_state(fault.is_some().into());
+            cx.local.leds.set_fault(fault.is_some());
             defmt::info!(
                 "pose x={} y={} heading={} fault={}",
                 pose.x.to_num::<f32>(),
@@ -413,7 +342,7 @@ mod app {
             if dropped > 0 {
                 defmt::warn!("serial transmit queue full: {} bytes dropped", dropped);
             }
-            rtic::pend(Interrupt::USART2);
+            rtic::pend(CONSOLE_INTERRUPT);
         }
     }
 }

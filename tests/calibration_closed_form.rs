@@ -7,10 +7,10 @@ use core::f64::consts::PI;
 use odocal::calibration::{
     CalibrationError, Method, RunObservation, calibrate, jung_chung, lee, umbmark,
 };
-use odocal::encoder::WheelTicks;
-use odocal::geometry::Geometry;
-use odocal::reference::PoseF64;
-use odocal::run::{Direction, Measurement, PathKind};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::PoseF64;
+use odocal::motion::run::{Direction, Measurement, PathKind};
 
 // The formulas are a handful of f64 operations; the hand values agree to the last few ulps.
 const TOL: f64 = 1e-14;

@@ -5,10 +5,10 @@
 use odocal::calibration::synth::{end_poses, leg_ticks, square_knots};
 use odocal::calibration::track::{TrackAdviceInput, advise};
 use odocal::calibration::{Method, RunObservation, calibrate, umbmark};
-use odocal::encoder::WheelTicks;
-use odocal::geometry::Geometry;
-use odocal::reference::PoseF64;
-use odocal::run::{Direction, Measurement, PathKind, RunRecord};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::PoseF64;
+use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
 
 const NOMINAL: Geometry = Geometry::PAPER_NOMINAL;
 

@@ -3,15 +3,15 @@
 //! The closed-loop behaviour with sub-stepping, slip, true geometry and motor mismatch is
 //! tested in `host-sim/tests/closed_loop.rs`.
 
-use odocal::button::Press;
-use odocal::controller::{
+use odocal::kinematics::geometry::Geometry;
+use odocal::motion::button::Press;
+use odocal::motion::controller::{
     ButtonAction, ConfigError, Controller, ControllerConfig, DriveError, Fault, MotorCommand,
     SetError, StartError, Status, Wheel,
 };
-use odocal::geometry::Geometry;
-use odocal::profile::MotionLimits;
-use odocal::routine::RunPlan;
-use odocal::run::{Direction, MAX_KNOTS, PathKind};
+use odocal::motion::profile::MotionLimits;
+use odocal::motion::routine::RunPlan;
+use odocal::motion::run::{Direction, MAX_KNOTS, PathKind};
 
 /// Two lagged motors; positions and speeds in ticks and ticks/s.
 struct Plant {
@@ -36,7 +36,7 @@ impl Plant {
         (r as u32, u32::from((l as u16).wrapping_neg()))
     }
 
-    fn step(&mut self, c: &mut Controller) -> odocal::controller::StepOutput {
+    fn step(&mut self, c: &mut Controller) -> odocal::motion::controller::StepOutput {
         let (r, l) = self.raw();
         let out = c.step(r, l);
         let duty = match out.command {
@@ -97,7 +97,7 @@ fn refusals_while_not_ready_busy_or_faulted() {
     plant.step(&mut c);
     assert_eq!(
         c.start(PathKind::Line { length_m: f64::NAN }),
-        Err(StartError::Path(odocal::routine::PathError::Size))
+        Err(StartError::Path(odocal::motion::routine::PathError::Size))
     );
     c.start(line).unwrap();
     assert_eq!(c.start(line), Err(StartError::Busy));

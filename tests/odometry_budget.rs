@@ -3,10 +3,10 @@
 //! accumulator is run on the same ticks as a baseline to show why the budget needs the
 //! fixed-point design.
 
-use odocal::encoder::WheelTicks;
-use odocal::geometry::Geometry;
-use odocal::odometry::{Integration, Odometry, OdometryState, Pose};
-use odocal::reference::{ArcModel, PoseF64};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::odometry::{Integration, Odometry, OdometryState, Pose};
+use odocal::kinematics::reference::{ArcModel, PoseF64};
 
 /// Deterministic pseudo-random numbers (64-bit LCG, top bits).
 struct Lcg(u64);

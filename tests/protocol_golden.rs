@@ -1,9 +1,9 @@
 //! Golden tests of the pure protocol layer: parsed commands, line assembly and the exact text of
 //! every parse/line error reply.
 
+use odocal::motion::run::Direction;
 use odocal::protocol::reply::{line_error_reply, parse_error_reply};
 use odocal::protocol::{Command, LINE_MAX, LineAssembler, LineError, ParamName, ParseError};
-use odocal::run::Direction;
 
 fn err_text(line: &str) -> String {
     let e = Command::parse(line).expect_err("line should not parse");

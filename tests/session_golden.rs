@@ -6,11 +6,11 @@
 
 use std::fmt;
 
-use odocal::encoder::WheelTicks;
-use odocal::geometry::Geometry;
-use odocal::profile::MotionLimits;
-use odocal::reference::PoseF64;
-use odocal::run::{MAX_KNOTS, PathKind, RunRecord};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::PoseF64;
+use odocal::motion::profile::MotionLimits;
+use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::session::{
     Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
     Settings, Solution, SolveError, StorageError,

@@ -1,21 +1,10 @@
-//! host-sim library: the simulated robot and the scenarios that drive the odocal library with it.
+//! host-sim library: the simulated robot and the commands that drive the odocal library with it.
 //!
-//! The binary (`main.rs`) is a thin CLI over these modules; closed-loop integration tests use
-//! them directly.
+//! - [`sim`]: the simulator itself — robot and plant, simulated flash, the serial board, the
+//!   OptiOdom log reader and the plots; it only ever steps the library's own state machines.
+//! - [`commands`]: one module per subcommand of the CLI; `main.rs` only parses and dispatches.
+//!
+//! Closed-loop integration tests use both directly.
 
-pub mod advice;
-pub mod bench;
-pub mod closedloop;
-pub mod drive;
-pub mod flash;
-pub mod montecarlo;
-pub mod optiodom;
-pub mod paper;
-pub mod plot;
-pub mod rectangle;
-pub mod replay;
-pub mod robot;
-pub mod serial;
-pub mod session;
-pub mod square;
-pub mod sweep;
+pub mod commands;
+pub mod sim;

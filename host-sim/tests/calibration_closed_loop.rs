@@ -1,11 +1,11 @@
 //! Calibration from squares driven closed-loop by the library's controller through the
 //! simulated robot (motor dynamics, encoder quantisation, no noise).
 
-use host_sim::robot::SimConfig;
-use host_sim::square::drive_path;
+use host_sim::commands::square::drive_path;
+use host_sim::sim::robot::SimConfig;
 use odocal::calibration::{Method, RunObservation, calibrate};
-use odocal::geometry::Geometry;
-use odocal::run::{Direction, Measurement, PathKind};
+use odocal::kinematics::geometry::Geometry;
+use odocal::motion::run::{Direction, Measurement, PathKind};
 
 #[test]
 fn exact_method_from_closed_loop_squares() {

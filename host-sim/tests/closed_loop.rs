@@ -1,14 +1,14 @@
 //! Closed-loop tests: the library's `Controller` drives the simulated robot.
 
-use host_sim::drive::drive_script;
-use host_sim::robot::{Sim, SimConfig, default_controller};
-use host_sim::square::{PathResult, drive_path};
-use odocal::controller::{Fault, MotorCommand, Status, Wheel};
-use odocal::encoder::WheelTicks;
-use odocal::geometry::Geometry;
-use odocal::reference::{ArcModel, PoseF64};
-use odocal::routine::{SegmentKind, segment, segment_count};
-use odocal::run::{Direction, PathKind};
+use host_sim::commands::drive::drive_script;
+use host_sim::commands::square::{PathResult, drive_path};
+use host_sim::sim::robot::{Sim, SimConfig, default_controller};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::{ArcModel, PoseF64};
+use odocal::motion::controller::{Fault, MotorCommand, Status, Wheel};
+use odocal::motion::routine::{SegmentKind, segment, segment_count};
+use odocal::motion::run::{Direction, PathKind};
 
 const RATE: u32 = 1000;
 
@@ -71,7 +71,7 @@ fn four_metre_square_closes_within_a_millimetre_when_true_equals_nominal() {
         );
         assert_eq!(
             r.record.knots.len(),
-            1 + 8 * ((odocal::run::MAX_KNOTS - 1) / 8)
+            1 + 8 * ((odocal::motion::run::MAX_KNOTS - 1) / 8)
         );
     }
 }
@@ -132,9 +132,12 @@ fn calibrated_belief_closes_the_square() {
     let mut sim = Sim::new(SimConfig::new(truth, RATE));
     sim.step(&mut controller);
     controller.set_geometry(truth).unwrap();
-    let r =
-        host_sim::square::drive_path_with(&mut sim, &mut controller, square(Direction::Cw, 4.0))
-            .unwrap();
+    let r = host_sim::commands::square::drive_path_with(
+        &mut sim,
+        &mut controller,
+        square(Direction::Cw, 4.0),
+    )
+    .unwrap();
     print_result(&r);
     assert_eq!(r.record.geometry, truth);
     let miss = r.true_rest.distance_to(&PoseF64::default());
@@ -326,7 +329,7 @@ fn robust_to_a_wrong_motor_model() {
     // 20 % stronger, its left one 15 % weaker, both with τ = 80 ms.
     let g = Geometry::PAPER_NOMINAL;
     let mut cfg = SimConfig::new(g, RATE);
-    cfg.motor = host_sim::robot::MotorModel::new(1.2, g.diameter_right_m, 0.08, 0.85 / 1.2);
+    cfg.motor = host_sim::sim::robot::MotorModel::new(1.2, g.diameter_right_m, 0.08, 0.85 / 1.2);
     let r = drive_path(cfg, g, square(Direction::Ccw, 2.0)).unwrap();
     print_result(&r);
     let miss = r.true_rest.distance_to(&PoseF64::default());

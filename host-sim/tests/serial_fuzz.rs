@@ -1,9 +1,9 @@
 //! Random protocol traffic against the whole simulated board (controller, session, calibration,
 //! storage): no panic, exactly one final `ok`/`err` line per non-blank command, bounded state.
 
-use host_sim::flash::SimParamFlash;
-use host_sim::robot::sim_config;
-use host_sim::serial::Board;
+use host_sim::sim::board::Board;
+use host_sim::sim::flash::SimParamFlash;
+use host_sim::sim::robot::sim_config;
 use odocal::session::MAX_RUNS;
 
 #[path = "../../tests/support/rng.rs"]

@@ -1,12 +1,12 @@
 //! The simulated board over the serial protocol: a full calibration session and the `drive`
 //! deadman, with the library's controller, session, calibration and storage.
 
-use host_sim::flash::SimParamFlash;
-use host_sim::robot::sim_config;
-use host_sim::serial::{Board, measure_line};
+use host_sim::sim::board::{Board, measure_line};
+use host_sim::sim::flash::SimParamFlash;
+use host_sim::sim::robot::sim_config;
 use odocal::calibration::wrap_angle;
-use odocal::controller::Status;
-use odocal::geometry::Geometry;
+use odocal::kinematics::geometry::Geometry;
+use odocal::motion::controller::Status;
 
 /// True robot: E_d = 0.995, E_b = 1.010 (the paper's example magnitudes), no slip.
 const TRUE_ED: f64 = 0.995;

@@ -2,10 +2,12 @@
 //! 1 m through the serial protocol, calibration, save, reboot, verification, one rectangle lap,
 //! a two-side sweep, plots.
 
-use host_sim::session::report::parameter_errors;
-use host_sim::session::{SessionArgs, e_max_and_scatter, field, parse_calibration, run_session};
+use host_sim::commands::session::report::parameter_errors;
+use host_sim::commands::session::{
+    SessionArgs, e_max_and_scatter, field, parse_calibration, run_session,
+};
 use indicatif::ProgressBar;
-use odocal::run::Direction;
+use odocal::motion::run::Direction;
 
 fn small(out: std::path::PathBuf) -> SessionArgs {
     SessionArgs {
@@ -98,7 +100,7 @@ fn session_calibrates_saves_reboots_and_plots() {
     assert_eq!(r.after_runs.len(), 4);
 
     // Plots and transcript.
-    let written = host_sim::session::plots::write_all(&r, &dir).expect("plots");
+    let written = host_sim::commands::session::plots::write_all(&r, &dir).expect("plots");
     for name in [
         "squares-before.svg",
         "squares-after.svg",

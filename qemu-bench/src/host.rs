@@ -3,9 +3,9 @@
 
 use std::process::ExitCode;
 
-use odocal::encoder::WheelTicks;
-use odocal::odometry::{Integration, Pose};
-use odocal::reference::{ArcModel, PoseF64};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::odometry::{Integration, Pose};
+use odocal::kinematics::reference::{ArcModel, PoseF64};
 use qemu_bench::report;
 use qemu_bench::trace::Trace;
 

@@ -12,8 +12,8 @@ pub mod report;
 pub mod squares;
 pub mod trace;
 
-use odocal::geometry::Geometry;
-use odocal::odometry::{Integration, Odometry, OdometryState, Pose};
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::odometry::{Integration, Odometry, OdometryState, Pose};
 
 /// The geometry the benchmark integrates with: the paper's robot with a calibration applied
 /// (`E_d = 0.9953`, `E_b = 1.0127`), so that no per-tick constant is a round number.
@@ -27,7 +27,7 @@ pub fn geometry() -> Geometry {
 /// The geometry's error if [`geometry`] were invalid (it is not; a host test checks it).
 pub fn odometry(
     integration: Integration,
-) -> Result<(Odometry, OdometryState), odocal::geometry::GeometryError> {
+) -> Result<(Odometry, OdometryState), odocal::kinematics::geometry::GeometryError> {
     let odo = Odometry::new(&geometry(), integration)?;
     let mut state = OdometryState::default();
     odo.reset(&mut state, Default::default(), Pose::default());
@@ -38,6 +38,6 @@ pub fn odometry(
 mod tests {
     #[test]
     fn bench_geometry_is_valid() {
-        assert!(super::odometry(odocal::odometry::Integration::ExactArc).is_ok());
+        assert!(super::odometry(odocal::kinematics::odometry::Integration::ExactArc).is_ok());
     }
 }

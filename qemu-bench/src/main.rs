@@ -1,7 +1,7 @@
 //! The benchmark binary.
 //!
 //! - On thumbv7em-none-eabihf (run under QEMU by `run.sh`): integrates the standard encoder
-//!   trace with `odocal::odometry`, bracketing every step with marker functions whose addresses
+//!   trace with `odocal::kinematics::odometry`, bracketing every step with marker functions whose addresses
 //!   the instruction-counting TCG plugin (`plugin/insnwin.c`) watches, measures a SysTick
 //!   cross-check block and the stack high-water mark, and prints the result lines over
 //!   semihosting.

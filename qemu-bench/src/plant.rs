@@ -7,11 +7,11 @@
 //! the step (the measured window), applies the returned command and advances the plant one
 //! control period. The geometry is the controller's own, so the routine finishes as planned.
 
-use odocal::controller::{Controller, ControllerConfig, MotorCommand, StepOutput};
-use odocal::geometry::Geometry;
-use odocal::motor::StopMode;
-use odocal::run::RunRecord;
-use odocal::run::{Direction, PathKind};
+use odocal::kinematics::geometry::Geometry;
+use odocal::motion::controller::{Controller, ControllerConfig, MotorCommand, StepOutput};
+use odocal::motion::motor::StopMode;
+use odocal::motion::run::RunRecord;
+use odocal::motion::run::{Direction, PathKind};
 
 /// Control rate, Hz.
 pub const RATE_HZ: u32 = 1000;
@@ -99,7 +99,7 @@ impl Plant {
 ///
 /// # Errors
 /// The configuration error (none for these constants; a host test checks it).
-pub fn controller() -> Result<Controller, odocal::controller::ConfigError> {
+pub fn controller() -> Result<Controller, odocal::motion::controller::ConfigError> {
     Controller::new(ControllerConfig::new(Geometry::PAPER_NOMINAL, RATE_HZ))
 }
 

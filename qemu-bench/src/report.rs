@@ -6,8 +6,8 @@
 use core::fmt::{self, Write};
 
 use odocal::calibration::{Calibration, CalibrationError};
-use odocal::odometry::Pose;
-use odocal::run::RunRecord;
+use odocal::kinematics::odometry::Pose;
+use odocal::motion::run::RunRecord;
 
 /// Writes `result <label> x=<bits> y=<bits> heading=<bits>`: the raw `i64` bits of the Q40
 /// position and the `u64` binary heading, in hex.

@@ -12,10 +12,10 @@
 
 use odocal::calibration::RunObservation;
 use odocal::calibration::synth::square_segments;
-use odocal::encoder::WheelTicks;
-use odocal::geometry::Geometry;
-use odocal::reference::{ArcModel, PoseF64};
-use odocal::run::{Direction, Measurement, PathKind};
+use odocal::kinematics::encoder::WheelTicks;
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::{ArcModel, PoseF64};
+use odocal::motion::run::{Direction, Measurement, PathKind};
 
 /// Number of runs (CW, CCW alternating).
 pub const RUNS: usize = 10;
@@ -167,7 +167,7 @@ mod tests {
 
     #[test]
     fn knots_end_where_the_segments_end_and_fit_a_record() {
-        const { assert!(KNOTS <= odocal::run::MAX_KNOTS) };
+        const { assert!(KNOTS <= odocal::motion::run::MAX_KNOTS) };
         let runs = SquareRuns::generate();
         let seg = square_segments(&nominal(), Direction::Cw, SIDE_M);
         let mut end = WheelTicks::default();

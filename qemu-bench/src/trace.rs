@@ -9,7 +9,7 @@
 //! Units: ticks of the reference robot (200,000 counts per revolution of a 150 mm wheel, 2.36 µm
 //! per tick); one step is one 1 kHz control period. 424 ticks per step is 1 m/s.
 
-use odocal::encoder::WheelTicks;
+use odocal::kinematics::encoder::WheelTicks;
 
 /// Number of control periods in the standard trace.
 pub const STEPS: u32 = 2_500_000;

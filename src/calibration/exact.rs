@@ -28,9 +28,9 @@ use super::stats::SquareStats;
 use super::{
     Calibration, CalibrationError, FACTOR_RANGE, Method, RunObservation, factors_of, wrap_angle,
 };
-use crate::geometry::Geometry;
-use crate::reference::{ArcModel, PoseF64};
-use crate::run::PathKind;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::motion::run::PathKind;
 
 /// Central-difference step for the Jacobian, in units of the (≈ 1) factors.
 pub const JACOBIAN_STEP: f64 = 1e-6;

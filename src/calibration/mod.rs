@@ -1,5 +1,8 @@
 //! Calibration engine: E_d, E_b (and the distance scale E_s) from measured runs.
 //!
+//! Owns the calibration methods, their quality figures and the track-size advice.
+//! May use [`crate::motion::run`], [`crate::kinematics`] and [`crate::util`].
+//!
 //! Input: [`RunObservation`]s — the path that was driven, the geometry the robot believed in
 //! while driving, the cumulative wheel-tick knots, the odometry end pose and the measured true
 //! end pose, all in the run's start frame (origin, heading +x, y to the left, CCW positive;
@@ -23,11 +26,11 @@
 
 use core::fmt;
 
-use crate::decimal::Decimal;
-use crate::encoder::WheelTicks;
-use crate::geometry::Geometry;
-use crate::reference::PoseF64;
-use crate::run::{Direction, Measurement, PathKind, RunRecord};
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::PoseF64;
+use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
+use crate::util::decimal::Decimal;
 
 pub mod exact;
 pub mod jung_chung;
@@ -176,7 +179,7 @@ impl Method {
     pub fn parse(name: &str) -> Option<Method> {
         Method::ALL
             .into_iter()
-            .find(|m| crate::protocol::command::keyword_eq(m.as_str(), name))
+            .find(|m| crate::util::text::keyword_eq(m.as_str(), name))
     }
 
     /// Whether this is one of the closed-form square-path formulas.

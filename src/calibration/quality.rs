@@ -14,9 +14,9 @@
 
 use super::stats::{SquareStats, Welford};
 use super::{ClosedFormInputs, Method, RunObservation, closed_form, square_direction};
-use crate::geometry::Geometry;
-use crate::reference::{ArcModel, PoseF64};
-use crate::run::Direction;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::motion::run::Direction;
 
 /// Quality figures of one calibration.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -11,8 +11,8 @@
 //! Means and variances are accumulated with Welford's update, run by run, so nothing is stored.
 
 use super::{CalibrationError, ClosedFormInputs, Method, RunObservation, square_direction};
-use crate::geometry::Geometry;
-use crate::run::Direction;
+use crate::kinematics::geometry::Geometry;
+use crate::motion::run::Direction;
 
 /// Mean and sample variance of one coordinate, accumulated one value at a time.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

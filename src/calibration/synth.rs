@@ -5,14 +5,14 @@
 //! closed-form methods on. Legs are `round(L / travel_per_tick)` pulses per wheel; an in-place
 //! turn of `φ` is `round(±φ·(b/2) / travel_per_tick)` pulses (right wheel `+`, left `−` for a
 //! CCW turn), all from the belief. The true end pose is the exact-arc integration of the same
-//! pulses with the true geometry ([`crate::reference::ArcModel`]).
+//! pulses with the true geometry ([`crate::kinematics::reference::ArcModel`]).
 
 use core::f64::consts::FRAC_PI_2;
 
-use crate::encoder::WheelTicks;
-use crate::geometry::Geometry;
-use crate::reference::{ArcModel, PoseF64};
-use crate::run::{Direction, Measurement};
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::motion::run::{Direction, Measurement};
 
 /// Knots of a square run: the start plus the end of each of 8 segments.
 pub const SQUARE_KNOTS: usize = 9;

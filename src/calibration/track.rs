@@ -24,9 +24,9 @@ use super::exact::solve;
 use super::quality::propagate;
 use super::synth::{end_poses, square_knots};
 use super::{Method, closed_form, wrap_angle};
-use crate::geometry::Geometry;
-use crate::reference::{ArcModel, PoseF64};
-use crate::run::Direction;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::motion::run::Direction;
 
 /// Sides the advice chooses from, metres.
 pub const CANDIDATE_SIDES_M: [f64; 14] = [
@@ -139,13 +139,13 @@ pub fn evaluate(input: &TrackAdviceInput, method: Method, side_m: f64) -> Option
 /// x, y end positions have variance `var` (already divided by the number of runs).
 fn exact_sigma(
     truth: &Geometry,
-    cw: &[crate::encoder::WheelTicks],
-    ccw: &[crate::encoder::WheelTicks],
+    cw: &[crate::kinematics::encoder::WheelTicks],
+    ccw: &[crate::kinematics::encoder::WheelTicks],
     var: f64,
 ) -> Option<[f64; 2]> {
     let h = 1e-6;
     let p = [truth.diameter_ratio(), 1.0];
-    let end = |q: [f64; 2], k: &[crate::encoder::WheelTicks]| {
+    let end = |q: [f64; 2], k: &[crate::kinematics::encoder::WheelTicks]| {
         let g = truth.with_factors(q[0], q[1], 1.0);
         ArcModel::from_geometry(&g).integrate(PoseF64::default(), k)
     };

@@ -10,8 +10,9 @@ use core::fmt;
 
 use super::number::parse_f64;
 use super::param::ParamName;
-use crate::decimal::Plain;
-use crate::run::Direction;
+use crate::motion::run::Direction;
+use crate::util::decimal::Plain;
+pub use crate::util::text::keyword_eq;
 
 /// Largest accepted `|x|`, `|y|` of a measurement, metres.
 pub const MEASURE_LIMIT_M: f64 = 100.0;
@@ -208,13 +209,6 @@ impl<'a> Words<'a> {
     }
 }
 
-/// ASCII case-insensitive word comparison, kept out of line: the parser compares a word
-/// with some 25 keywords, and inlining the comparison loop at each of them costs flash.
-#[inline(never)]
-pub fn keyword_eq(word: &str, keyword: &str) -> bool {
-    word.eq_ignore_ascii_case(keyword)
-}
-
 /// Reads a finite `f64` within `[min, max]`.
 #[inline(never)]
 fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
@@ -355,7 +349,7 @@ impl<'a> Command<'a> {
         } else if is("runs") {
             Command::Runs
         } else if is("drop") {
-            let max = crate::session::MAX_RUNS as u32;
+            let max = crate::motion::run::MAX_RUNS as u32;
             let index = whole(words.required("n")?, "n", 1, max)? as usize;
             Command::Drop { index }
         } else if is("calibrate") {

@@ -1,5 +1,8 @@
 //! The serial line protocol (USART2, 115200 8N1): pure parsing and formatting.
 //!
+//! Owns the line assembler, the command grammar and the reply format; may use
+//! [`crate::motion::run`] (directions, run capacity), [`crate::kinematics`] and [`crate::util`].
+//!
 //! - [`line::LineAssembler`] turns received bytes into lines (`\n` or `\r\n`), rejecting
 //!   over-long lines as a whole;
 //! - [`Command::parse`] turns a line into a validated [`Command`] (units: metres, m/s, rad/s,

@@ -87,8 +87,8 @@ impl ParamName {
 
     /// Inclusive accepted range `(min, max)`.
     ///
-    /// Geometry ranges are those of [`crate::geometry::Geometry::validate`]; the run count is
-    /// bounded by the run store ([`crate::session::MAX_RUNS`] holds both directions).
+    /// Geometry ranges are those of [`crate::kinematics::geometry::Geometry::validate`]; the run count is
+    /// bounded by the run store ([`crate::motion::run::MAX_RUNS`] holds both directions).
     pub fn range(self) -> (f64, f64) {
         match self {
             ParamName::DiameterRight | ParamName::DiameterLeft => (0.001, 2.0),
@@ -99,7 +99,7 @@ impl ParamName {
             ParamName::MaxTurnRate => (0.05, 10.0),
             ParamName::MaxTurnAccel => (0.05, 20.0),
             ParamName::SquareSide => (0.1, 10.0),
-            ParamName::RunsPerDirection => (1.0, (crate::session::MAX_RUNS / 2) as f64),
+            ParamName::RunsPerDirection => (1.0, (crate::motion::run::MAX_RUNS / 2) as f64),
         }
     }
 

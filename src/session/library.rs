@@ -21,16 +21,16 @@ use super::traits::{
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, CalibrationError, Method, RunObservation};
-use crate::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
-use crate::decimal::Decimal;
-use crate::encoder::WheelTicks;
-use crate::geometry::Geometry;
-use crate::profile::MotionLimits;
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::PoseF64;
+use crate::motion::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
+use crate::motion::profile::MotionLimits;
+use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::EOL;
-use crate::reference::PoseF64;
-use crate::run::{Direction, PathKind, RunRecord};
 use crate::storage::ParamStore;
 use crate::storage::record::{self, MethodName, ParamRecord};
+use crate::util::decimal::Decimal;
 
 /// Short name of a fault as the protocol shows it.
 pub fn fault_name(f: &Fault) -> &'static str {

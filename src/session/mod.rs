@@ -1,5 +1,8 @@
 //! The calibration session: executes protocol commands and button presses against the robot.
 //!
+//! Owns the run store, settings and command execution; may use every layer below it
+//! (protocol, storage, calibration, motion, kinematics, util), never [`crate::board`].
+//!
 //! The session owns the run store (up to [`MAX_RUNS`] [`RunRecord`]s, measured or not), the
 //! [`Settings`] and the pose-stream schedule. It never owns the hardware: every call takes the
 //! [`Robot`] (one short controller operation per method) and, where needed, the
@@ -27,20 +30,19 @@ use core::fmt::{self, Write};
 
 use heapless::Vec;
 
-use crate::decimal::Decimal;
-use crate::encoder::WheelTicks;
-use crate::protocol::command::keyword_eq;
+use crate::kinematics::encoder::WheelTicks;
+use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
-use crate::run::{Direction, Measurement, PathKind, RunRecord};
+use crate::util::decimal::Decimal;
+use crate::util::text::keyword_eq;
 pub use settings::{AppliedCalibration, Changed, Settings, SettingsError};
 pub use traits::{
     Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
     StorageError,
 };
 
-/// Capacity of the run store (both directions, all path kinds).
-pub const MAX_RUNS: usize = 12;
+pub use crate::motion::run::MAX_RUNS;
 
 /// Default pose-stream rate, Hz.
 pub const DEFAULT_STREAM_HZ: u32 = 10;

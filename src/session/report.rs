@@ -7,10 +7,10 @@ use core::fmt::{self, Write};
 
 use super::traits::{Activity, RobotStatus, Solution, SolveError};
 use super::{Calibrator, Session, Settings};
-use crate::decimal::{Decimal, Scientific};
+use crate::kinematics::reference::PoseF64;
+use crate::motion::run::{PathKind, RunRecord};
 use crate::protocol::{EOL, ParamName};
-use crate::reference::PoseF64;
-use crate::run::{PathKind, RunRecord};
+use crate::util::decimal::{Decimal, Scientific};
 
 /// `help` text: one data line per command.
 const HELP: &[&str] = &[

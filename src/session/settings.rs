@@ -7,8 +7,8 @@
 
 use core::fmt;
 
-use crate::geometry::{Geometry, GeometryError};
-use crate::profile::MotionLimits;
+use crate::kinematics::geometry::{Geometry, GeometryError};
+use crate::motion::profile::MotionLimits;
 use crate::protocol::ParamName;
 
 /// Longest stored method name, bytes.

@@ -8,11 +8,11 @@
 use core::fmt;
 
 use super::settings::Settings;
-use crate::encoder::WheelTicks;
-use crate::geometry::Geometry;
-use crate::profile::MotionLimits;
-use crate::reference::PoseF64;
-use crate::run::{PathKind, RunRecord};
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::PoseF64;
+use crate::motion::profile::MotionLimits;
+use crate::motion::run::{PathKind, RunRecord};
 
 /// What the robot is doing.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,5 +1,8 @@
 //! Persistent parameters: one [`ParamRecord`] in NOR flash, kept by `sequential-storage`.
 //!
+//! Owns the stored parameter record and its flash map; may use [`crate::motion`]
+//! (motion limits), [`crate::kinematics`] (geometry) and [`crate::util`].
+//!
 //! [`ParamStore`] wraps a `sequential-storage` map over any
 //! [`MultiwriteNorFlash`] range of at least two erase pages. Every save appends a new copy of the
 //! record (key [`PARAMS_KEY`]); when a page fills, the live record moves to the next page and the

@@ -14,7 +14,7 @@ use core::fmt;
 
 use sequential_storage::map::{SerializationError, Value};
 
-use crate::geometry::{Geometry, GeometryError};
+use crate::kinematics::geometry::{Geometry, GeometryError};
 
 /// Longest calibration method name, bytes of ASCII.
 pub const METHOD_NAME_MAX: usize = 12;
@@ -177,7 +177,7 @@ impl MotionSettings {
 impl MotionSettings {
     /// The stored form of the controller's `limits` and the calibration plan.
     pub fn from_limits(
-        limits: &crate::profile::MotionLimits,
+        limits: &crate::motion::profile::MotionLimits,
         square_side_m: f32,
         runs_per_direction: u8,
     ) -> Self {
@@ -192,8 +192,8 @@ impl MotionSettings {
     }
 
     /// The speed and acceleration limits the controller uses.
-    pub fn limits(&self) -> crate::profile::MotionLimits {
-        crate::profile::MotionLimits {
+    pub fn limits(&self) -> crate::motion::profile::MotionLimits {
+        crate::motion::profile::MotionLimits {
             max_speed_mps: self.max_speed_mps,
             max_accel_mps2: self.max_accel_mps2,
             max_turn_rate_radps: self.max_turn_rate_radps,

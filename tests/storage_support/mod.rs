@@ -1,7 +1,7 @@
 //! Shared pieces of the storage integration tests: flash types, records, a small PRNG.
 #![allow(dead_code)]
 
-use odocal::geometry::Geometry;
+use odocal::kinematics::geometry::Geometry;
 use odocal::storage::ram_flash::RamFlash;
 use odocal::storage::{Calibration, MethodName, MotionSettings, ParamRecord};
 

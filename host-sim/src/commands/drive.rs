@@ -1,0 +1,158 @@
+//! The `drive` subcommand: a scripted velocity profile (straight line, in-place turn or arc)
+//! sent to the library's [`Controller::drive`] the way a main computer would (a command every
+//! 100 ms), through the simulated robot; prints the odometry pose against the true pose.
+//!
+//! When the script ends, the commands stop and the controller's deadman stops the motors.
+
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::PoseF64;
+use odocal::motion::controller::Controller;
+
+use crate::sim::robot::{Sim, default_controller, sim_config};
+
+/// A scripted motion.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Script {
+    /// Straight line at `--speed`.
+    Line,
+    /// In-place turn at `--turn-rate`.
+    Turn,
+    /// Arc at `--speed` and `--turn-rate`.
+    Arc,
+}
+
+/// Command-line arguments of the `drive` subcommand.
+#[derive(clap::Args, Debug, Clone)]
+pub struct DriveArgs {
+    /// What to drive.
+    #[arg(value_enum)]
+    pub script: Script,
+    /// Centre speed, m/s.
+    #[arg(long, default_value_t = 0.3)]
+    pub speed: f32,
+    /// Turn rate, rad/s (CCW positive).
+    #[arg(long, default_value_t = 0.5)]
+    pub turn_rate: f32,
+    /// How long commands are sent, seconds.
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+    /// True E_b of the simulated robot.
+    #[arg(long, default_value_t = 1.0)]
+    pub eb: f64,
+    /// True E_d of the simulated robot.
+    #[arg(long, default_value_t = 1.0)]
+    pub ed: f64,
+    /// Relative slip noise per control period (standard deviation).
+    #[arg(long, default_value_t = 0.0)]
+    pub slip: f64,
+    /// Seed of the slip noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Control rate, Hz.
+    #[arg(long, default_value_t = 1000)]
+    pub rate: u32,
+}
+
+/// Outcome of a scripted drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveResult {
+    /// Odometry pose at rest.
+    pub odometry: PoseF64,
+    /// True pose at rest.
+    pub truth: PoseF64,
+    /// Periods from the last `drive` call to the first stop command.
+    pub stop_after_periods: u64,
+}
+
+/// Sends `(v, w)` every 100 ms for `seconds`, then lets the deadman stop the robot and waits
+/// for it to come to rest.
+///
+/// # Errors
+/// A refused command or a fault.
+pub fn drive_script(
+    sim: &mut Sim,
+    controller: &mut Controller,
+    v_mps: f32,
+    w_radps: f32,
+    seconds: f64,
+) -> Result<DriveResult, String> {
+    let rate = u64::from(sim.config().rate_hz);
+    let periods = (seconds * rate as f64).round() as u64;
+    let every = (rate / 10).max(1);
+    let mut last_call = 0;
+    for k in 0..periods {
+        if k % every == 0 {
+            controller
+                .drive(v_mps, w_radps)
+                .map_err(|e| format!("drive: {e}"))?;
+            last_call = k;
+        }
+        sim.step(controller);
+    }
+    let mut k = periods;
+    loop {
+        let out = sim.step(controller);
+        if let Some(f) = out.fault {
+            return Err(format!("fault: {f}"));
+        }
+        if out.command.is_stop() {
+            break;
+        }
+        k += 1;
+        if k > periods + 10 * rate {
+            return Err("the deadman did not stop the motors".into());
+        }
+    }
+    let stop_after_periods = k - last_call;
+    sim.rest(controller, rate);
+    Ok(DriveResult {
+        odometry: controller.pose().to_f64(),
+        truth: sim.true_pose(),
+        stop_after_periods,
+    })
+}
+
+/// Runs the `drive` subcommand.
+///
+/// # Errors
+/// Any failure of the scripted drive.
+pub fn run(args: &DriveArgs) -> Result<(), String> {
+    let nominal = Geometry::PAPER_NOMINAL;
+    let mut sim = Sim::new(sim_config(
+        args.ed, args.eb, args.slip, args.seed, args.rate,
+    ));
+    let mut controller = default_controller(nominal, args.rate)?;
+    sim.step(&mut controller);
+    let (v, w) = match args.script {
+        Script::Line => (args.speed, 0.0),
+        Script::Turn => (0.0, args.turn_rate),
+        Script::Arc => (args.speed, args.turn_rate),
+    };
+    let r = drive_script(&mut sim, &mut controller, v, w, args.seconds)?;
+    println!(
+        "{:?}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}",
+        args.script, args.seconds, args.eb, args.ed
+    );
+    let show = |name: &str, p: &PoseF64| {
+        println!(
+            "{name:<9} x = {:>10.6} m  y = {:>10.6} m  θ = {:>10.6} rad",
+            p.x_m, p.y_m, p.theta_rad
+        );
+    };
+    show("odometry", &r.odometry);
+    // Odometry reports the heading wrapped to [-π, π); wrap the true one the same way.
+    let mut t = r.truth;
+    t.theta_rad = (t.theta_rad + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+        - std::f64::consts::PI;
+    show("true", &t);
+    println!(
+        "error     |Δp| = {:.3} mm, Δθ = {:.3e} rad (true − odometry)",
+        r.truth.distance_to(&r.odometry) * 1e3,
+        t.theta_rad - r.odometry.theta_rad
+    );
+    println!(
+        "deadman stopped the motors {} periods after the last command",
+        r.stop_after_periods
+    );
+    Ok(())
+}

@@ -1,0 +1,184 @@
+//! The `flash` subcommand: `flash demo` boots an erased simulated flash, saves a calibration,
+//! reboots, runs many saves and reports wear, damages the flash and boots again; `flash show`,
+//! `flash calibrate` and `flash reset` work on an image file.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand};
+use odocal::kinematics::geometry::Geometry;
+use odocal::storage::{Calibration, LoadOutcome, MethodName, MotionSettings, ParamRecord};
+
+use crate::sim::flash::{SimFlash, SimParamFlash};
+
+/// Arguments of the `flash` subcommand.
+#[derive(Args, Debug)]
+pub struct FlashArgs {
+    #[command(subcommand)]
+    action: FlashAction,
+}
+
+#[derive(Subcommand, Debug)]
+enum FlashAction {
+    /// Boot, save, reboot, wear and damage an in-memory flash; print what each boot loads.
+    Demo {
+        /// Consecutive saves for the wear report.
+        #[arg(long, default_value_t = 2_000)]
+        saves: u32,
+    },
+    /// Boot from an image file and print the parameters it loads.
+    Show {
+        /// Flash image file (missing = erased flash).
+        #[arg(long)]
+        image: PathBuf,
+    },
+    /// Boot from an image, store a calibration of the nominal geometry, write the image back.
+    Calibrate {
+        /// Flash image file (missing = erased flash; created).
+        #[arg(long)]
+        image: PathBuf,
+        /// Diameter ratio E_d = D_R / D_L.
+        #[arg(long)]
+        e_d: f64,
+        /// Wheelbase factor E_b = b / b_nominal.
+        #[arg(long)]
+        e_b: f64,
+        /// Mean-diameter scale E_s.
+        #[arg(long, default_value_t = 1.0)]
+        e_s: f64,
+        /// Method name to record (≤ 12 printable ASCII).
+        #[arg(long, default_value = "manual")]
+        method: String,
+    },
+    /// Store the default parameters in an image file.
+    Reset {
+        /// Flash image file (missing = erased flash; created).
+        #[arg(long)]
+        image: PathBuf,
+    },
+}
+
+/// Runs the `flash` subcommand.
+pub fn run(args: FlashArgs) -> Result<(), Box<dyn std::error::Error>> {
+    match args.action {
+        FlashAction::Demo { saves } => demo(saves),
+        FlashAction::Show { image } => {
+            let mut sim = SimParamFlash::open(&image)?;
+            print_boot("boot", &sim.boot());
+            Ok(())
+        }
+        FlashAction::Calibrate {
+            image,
+            e_d,
+            e_b,
+            e_s,
+            method,
+        } => {
+            let mut sim = SimParamFlash::open(&image)?;
+            let mut record = sim.boot().record;
+            record.calibration = Calibration {
+                e_d,
+                e_b,
+                e_s,
+                geometry: record.nominal.with_factors(e_d, e_b, e_s),
+                method: MethodName::new(&method).map_err(|e| format!("method: {e}"))?,
+                runs: 0,
+                predicted_e_max_m: 0.0,
+            };
+            sim.store().save_blocking(&record, true)?;
+            sim.write_image(&image)?;
+            print_boot("saved; next boot", &sim.boot());
+            Ok(())
+        }
+        FlashAction::Reset { image } => {
+            let mut sim = SimParamFlash::open(&image)?;
+            sim.store().reset_to_defaults_blocking(true)?;
+            sim.write_image(&image)?;
+            print_boot("reset; next boot", &sim.boot());
+            Ok(())
+        }
+    }
+}
+
+/// A calibration record for the demo, distinct for each `n`.
+fn demo_record(n: u32) -> ParamRecord {
+    let nominal = Geometry::PAPER_NOMINAL;
+    let e_d = 0.995 + 1e-6 * f64::from(n % 1000);
+    let e_b = 1.008;
+    ParamRecord {
+        nominal,
+        calibration: Calibration {
+            e_d,
+            e_b,
+            e_s: 1.0,
+            geometry: nominal.with_factors(e_d, e_b, 1.0),
+            method: MethodName::new("exact").unwrap_or(MethodName::NONE),
+            runs: 10,
+            predicted_e_max_m: 0.002,
+        },
+        motion: MotionSettings::DEFAULT,
+    }
+}
+
+fn demo(saves: u32) -> Result<(), Box<dyn std::error::Error>> {
+    let mut sim = SimParamFlash::erased();
+    print_boot("boot 1 (erased flash)", &sim.boot());
+
+    let record = demo_record(0);
+    sim.store().save_blocking(&record, true)?;
+    let out = sim.boot();
+    print_boot("boot 2 (after save)", &out);
+    if out.record != record {
+        return Err("reboot did not load the saved record".into());
+    }
+
+    match sim.store().save_blocking(&record, false) {
+        Err(e) => println!("save while the motors run: refused ({e})"),
+        Ok(()) => return Err("a save while the motors run was accepted".into()),
+    }
+
+    {
+        let mut store = sim.store();
+        for n in 1..=saves {
+            store.save_blocking(&demo_record(n), true)?;
+        }
+    }
+    let out = sim.boot();
+    println!(
+        "{saves} more saves: erases per sector {:?}; boot 3 loads save #{saves}: {}",
+        sim.chip().erase_counts(),
+        out.record == demo_record(saves) && out.warning.is_none()
+    );
+
+    // Damage: overwrite the whole area with a pseudo-random pattern.
+    let mut x: u32 = 0x1234_5678;
+    for i in 0..SimFlash::CAPACITY {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        sim.chip().corrupt_byte(i, x as u8);
+    }
+    print_boot("boot 4 (flash overwritten with noise)", &sim.boot());
+    sim.store().save_blocking(&record, true)?;
+    print_boot("boot 5 (after a save over the noise)", &sim.boot());
+    Ok(())
+}
+
+fn print_boot(label: &str, out: &LoadOutcome) {
+    let g = out.record.active_geometry();
+    let c = &out.record.calibration;
+    match &out.warning {
+        Some(w) => println!("{label}: WARNING {w}; using defaults"),
+        None => println!("{label}: stored parameters loaded"),
+    }
+    println!(
+        "  method {} (E_d {:.9}, E_b {:.9}, E_s {:.9}), D_R {:.9} m, D_L {:.9} m, b {:.9} m, {} counts/rev",
+        c.method,
+        c.e_d,
+        c.e_b,
+        c.e_s,
+        g.diameter_right_m,
+        g.diameter_left_m,
+        g.wheelbase_m,
+        g.counts_per_rev
+    );
+}

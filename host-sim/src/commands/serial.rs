@@ -1,0 +1,222 @@
+//! The `serial` subcommand: connects a simulated [`Board`] to stdin/stdout or, with `--pty`, to a
+//! pseudo-terminal whose path it prints, so picocom/minicom or a script can connect as to the
+//! real board. The simulation runs in real time (in 10 ms slices) while commands arrive; with
+//! `--fast` it runs as fast as possible and takes each input line only once the robot is at rest
+//! (for scripts). After each run the true end pose in the run's start frame is printed on
+//! stderr, as the operator would measure it on the floor; `--auto-measure` enters it as a
+//! `measure` command.
+
+use std::io::{Read, Write};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use odocal::motion::controller::Status;
+
+use crate::sim::board::{Board, measure_line};
+use crate::sim::flash::{SimFlash, SimParamFlash};
+use crate::sim::robot::sim_config;
+
+/// Command-line arguments of the `serial` subcommand.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SerialArgs {
+    /// Serve the protocol on a new pseudo-terminal (its path is printed) instead of stdin/stdout.
+    #[arg(long)]
+    pub pty: bool,
+    /// Run as fast as possible; each input line is taken once the robot is at rest.
+    #[arg(long)]
+    pub fast: bool,
+    /// True E_b of the simulated robot.
+    #[arg(long, default_value_t = 1.010)]
+    pub eb: f64,
+    /// True E_d of the simulated robot.
+    #[arg(long, default_value_t = 0.995)]
+    pub ed: f64,
+    /// Relative slip noise per control period (standard deviation).
+    #[arg(long, default_value_t = 0.0)]
+    pub slip: f64,
+    /// Seed of the slip noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Control rate, Hz.
+    #[arg(long, default_value_t = 1000)]
+    pub rate: u32,
+    /// Flash image file: loaded at boot (missing = erased flash) and written back after every
+    /// command that changed the flash, so `save` survives a restart of the simulator.
+    #[arg(long)]
+    pub image: Option<std::path::PathBuf>,
+    /// After each run, enter `measure` with the true end pose as the operator would (the line
+    /// is echoed with a `> ` prefix), so a piped script can run a whole calibration.
+    #[arg(long)]
+    pub auto_measure: bool,
+}
+
+/// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The
+/// slave stays open in this process so the master never sees end-of-file between clients.
+fn open_pty() -> Result<(std::fs::File, String, std::fs::File), String> {
+    use std::os::fd::FromRawFd;
+    let (mut master, mut slave) = (0, 0);
+    // SAFETY: openpty writes two valid descriptors on success; the name, termios and winsize
+    // pointers may be null.
+    let rc = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            std::ptr::null(),
+        )
+    };
+    if rc != 0 {
+        return Err(format!("openpty: {}", std::io::Error::last_os_error()));
+    }
+    // SAFETY: `slave` is an open terminal descriptor; `t` is fully written by tcgetattr.
+    let path = unsafe {
+        let mut t: libc::termios = std::mem::zeroed();
+        if libc::tcgetattr(slave, &mut t) == 0 {
+            libc::cfmakeraw(&mut t);
+            libc::tcsetattr(slave, libc::TCSANOW, &t);
+        }
+        let name = libc::ptsname(master);
+        if name.is_null() {
+            return Err("ptsname failed".into());
+        }
+        std::ffi::CStr::from_ptr(name)
+            .to_string_lossy()
+            .into_owned()
+    };
+    // SAFETY: both descriptors are open and owned by nothing else.
+    let (m, s) = unsafe {
+        (
+            std::fs::File::from_raw_fd(master),
+            std::fs::File::from_raw_fd(slave),
+        )
+    };
+    Ok((m, path, s))
+}
+
+/// Runs the simulated board on stdin/stdout or a pseudo-terminal until the input ends (stdin)
+/// or the process is stopped (pty).
+///
+/// # Errors
+/// I/O or configuration failures, as text.
+pub fn run(args: &SerialArgs) -> Result<(), String> {
+    let config = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
+    let mut out = String::new();
+    let mut flash = match &args.image {
+        Some(path) => SimParamFlash::open(path).map_err(|e| format!("{}: {e}", path.display()))?,
+        None => SimParamFlash::erased(),
+    };
+    let mut board = Board::boot(config, &mut flash, &mut out)?;
+    let (tx, rx) = mpsc::channel::<Option<Vec<u8>>>();
+    let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
+        let (master, path, slave) = open_pty()?;
+        println!("pty {path}");
+        eprintln!("serial: connect to {path} (e.g. picocom {path}); Ctrl-C to quit");
+        let mut reader = master.try_clone().map_err(|e| e.to_string())?;
+        spawn_reader(move |buf| reader.read(buf), tx);
+        (Box::new(master), Some(slave))
+    } else {
+        spawn_reader(|buf| std::io::stdin().read(buf), tx);
+        (Box::new(std::io::stdout()), None)
+    };
+    let slice_periods = u64::from(args.rate / 100).max(1);
+    let mut pending: Vec<u8> = Vec::new();
+    let mut input_done = false;
+    let mut deadline = Instant::now();
+    let mut was_running = false;
+    let mut report_at_rest = false;
+    loop {
+        // Collect what has arrived.
+        loop {
+            match rx.try_recv() {
+                Ok(Some(bytes)) => pending.extend_from_slice(&bytes),
+                Ok(None) | Err(mpsc::TryRecvError::Disconnected) => {
+                    input_done = true;
+                    break;
+                }
+                Err(mpsc::TryRecvError::Empty) => break,
+            }
+        }
+        let touched = board.store.flash().bytes_touched();
+        if args.fast {
+            // One line at a time, each once the robot is at rest.
+            if board.at_rest()
+                && let Some(end) = pending.iter().position(|&b| b == b'\n')
+            {
+                let line: Vec<u8> = pending.drain(..=end).collect();
+                board.receive(&line, &mut out);
+            }
+        } else {
+            board.receive(&pending, &mut out);
+            pending.clear();
+        }
+        if let Some(path) = &args.image
+            && board.store.flash().bytes_touched() != touched
+        {
+            let mut image = vec![0u8; SimFlash::CAPACITY];
+            board.store.flash().copy_image(&mut image);
+            std::fs::write(path, image).map_err(|e| format!("{}: {e}", path.display()))?;
+        }
+        for _ in 0..slice_periods {
+            board.step(&mut out);
+        }
+        let running = matches!(board.controller.status(), Status::Running { .. });
+        report_at_rest |= was_running && !running;
+        was_running = running;
+        if report_at_rest && board.at_rest() {
+            report_at_rest = false;
+            if let Some(line) = measure_line(&board) {
+                eprintln!("sim: true end pose in the run's start frame: {line}");
+                if args.auto_measure {
+                    out.push_str(&format!("> {line}\r\n"));
+                    out.push_str(&board.send(&line));
+                }
+            }
+        }
+        if !out.is_empty() {
+            writer
+                .write_all(out.as_bytes())
+                .and_then(|()| writer.flush())
+                .map_err(|e| e.to_string())?;
+            out.clear();
+        }
+        let idle_input = pending.iter().all(|&b| b != b'\n');
+        if input_done && idle_input && board.at_rest() {
+            return Ok(());
+        }
+        if !args.fast {
+            deadline += Duration::from_millis(10);
+            let now = Instant::now();
+            if deadline > now {
+                std::thread::sleep(deadline - now);
+            } else {
+                deadline = now;
+            }
+        } else if pending.is_empty() && !input_done && board.at_rest() {
+            // Nothing to do until input arrives.
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+}
+
+fn spawn_reader<R>(mut read: R, tx: mpsc::Sender<Option<Vec<u8>>>)
+where
+    R: FnMut(&mut [u8]) -> std::io::Result<usize> + Send + 'static,
+{
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 256];
+        loop {
+            match read(&mut buf) {
+                Ok(0) | Err(_) => {
+                    let _ = tx.send(None);
+                    return;
+                }
+                Ok(n) => {
+                    if tx.send(Some(buf[..n].to_vec())).is_err() {
+                        return;
+                    }
+                }
+            }
+        }
+    });
+}

@@ -1,0 +1,182 @@
+//! The simulated board: the simulated robot speaking the board's serial protocol.
+//!
+//! [`Board`] is the simulated board: the library's [`Controller`] stepping the simulated robot
+//! at the control rate, the library's [`Session`] executing protocol lines, and the library's
+//! [`ParamStore`] on the simulated parameter flash ([`SimParamFlash`], sectors 10–11), which
+//! outlives the board: dropping a `Board` and booting a new one over the same flash is a
+//! simulated reboot. Bytes go through the library's [`LineAssembler`], exactly as the USART2 RX
+//! interrupt feeds it on the board.
+
+use std::fmt::Write as _;
+
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::PoseF64;
+use odocal::motion::controller::{Controller, Status, StepOutput};
+use odocal::protocol::LineAssembler;
+use odocal::protocol::reply::line_error_reply;
+use odocal::session::library::LibraryCalibrator;
+use odocal::session::{Session, Settings};
+use odocal::storage::ParamStore;
+
+use crate::sim::flash::{SimFlash, SimParamFlash};
+use crate::sim::robot::{Sim, SimConfig, default_controller};
+
+/// The simulated board, over a simulated parameter flash that outlives it.
+pub struct Board<'f> {
+    /// The simulated robot.
+    pub sim: Sim,
+    /// The library's controller, stepped once per control period.
+    pub controller: Controller,
+    /// The protocol session.
+    pub session: Session<LibraryCalibrator>,
+    /// Parameter storage on the simulated flash.
+    pub store: ParamStore<&'f mut SimFlash>,
+    assembler: LineAssembler,
+    now_us: u64,
+    period_us: u64,
+    /// True pose when the current (or last) run started.
+    run_start: Option<PoseF64>,
+    running: bool,
+}
+
+impl<'f> Board<'f> {
+    /// Boots: loads the parameters from `flash` (defaults and a warning if there are none),
+    /// configures the controller with them and reads the encoders once. The boot message (an
+    /// `event` line) is appended to `out`.
+    ///
+    /// # Errors
+    /// An invalid controller configuration or flash range, as text.
+    pub fn boot(
+        config: SimConfig,
+        flash: &'f mut SimParamFlash,
+        out: &mut String,
+    ) -> Result<Board<'f>, String> {
+        let mut store = flash.store();
+        let loaded = store.load_blocking();
+        let settings = Settings::from(&loaded.record);
+        let mut controller = default_controller(settings.active, config.rate_hz)?;
+        controller
+            .set_limits(settings.motion)
+            .map_err(|e| format!("stored limits: {e}"))?;
+        match loaded.warning {
+            None => write!(out, "event boot: parameters loaded\r\n"),
+            Some(w) => write!(out, "event boot: default parameters ({w})\r\n"),
+        }
+        .map_err(|e| e.to_string())?;
+        let period_us = 1_000_000 / u64::from(config.rate_hz);
+        let mut board = Board {
+            sim: Sim::new(config),
+            controller,
+            session: Session::new(settings, LibraryCalibrator::default()),
+            store,
+            assembler: LineAssembler::new(),
+            now_us: 0,
+            period_us,
+            run_start: None,
+            running: false,
+        };
+        // The control task runs from boot on; the controller needs one encoder read to start.
+        board.sim.step(&mut board.controller);
+        Ok(board)
+    }
+
+    /// Simulated time since boot, microseconds.
+    pub fn now_us(&self) -> u64 {
+        self.now_us
+    }
+
+    /// Bytes received on the serial port: assembled into lines and executed; replies are
+    /// appended to `out`.
+    pub fn receive(&mut self, bytes: &[u8], out: &mut String) {
+        for &b in bytes {
+            let Some(line) = self.assembler.push(b) else {
+                continue;
+            };
+            match line {
+                Ok(text) => {
+                    let _ =
+                        self.session
+                            .handle_line(text, &mut self.controller, &mut self.store, out);
+                }
+                Err(e) => out.push_str(&line_error_reply(&e)),
+            }
+            self.note_run_start();
+        }
+    }
+
+    /// One protocol line (terminator added); returns the reply text.
+    pub fn send(&mut self, line: &str) -> String {
+        let mut out = String::new();
+        self.receive(line.as_bytes(), &mut out);
+        self.receive(b"\r\n", &mut out);
+        out
+    }
+
+    /// The button: a short press (next planned run, or clear a fault) or a long one (stop).
+    pub fn press_button(&mut self, long: bool, out: &mut String) {
+        let _ = if long {
+            self.session.button_long(&mut self.controller, out)
+        } else {
+            self.session.button_short(&mut self.controller, out)
+        };
+        self.note_run_start();
+    }
+
+    fn note_run_start(&mut self) {
+        let running = matches!(self.controller.status(), Status::Running { .. });
+        if running && !self.running {
+            self.run_start = Some(self.sim.true_pose());
+        }
+        self.running = running;
+    }
+
+    /// One control period: the controller reads the encoders and drives the motors, the robot
+    /// moves, and the session gets its periodic poll (finished runs, pose stream).
+    pub fn step(&mut self, out: &mut String) -> StepOutput {
+        let output = self.sim.step(&mut self.controller);
+        self.now_us += self.period_us;
+        let _ = self.session.poll(self.now_us, &mut self.controller, out);
+        self.running = matches!(self.controller.status(), Status::Running { .. });
+        output
+    }
+
+    /// Whether the controller is idle (or faulted) with the wheels at rest.
+    pub fn at_rest(&self) -> bool {
+        !matches!(
+            self.controller.status(),
+            Status::Running { .. } | Status::Driving
+        ) && self.controller.motors_stopped()
+    }
+
+    /// Steps until [`Board::at_rest`] or `max_periods`; returns the periods stepped.
+    pub fn run_until_rest(&mut self, max_periods: u64, out: &mut String) -> u64 {
+        let mut n = 0;
+        while n < max_periods && !self.at_rest() {
+            self.step(out);
+            n += 1;
+        }
+        n
+    }
+
+    /// The true pose now, in the start frame of the last run (what the operator measures).
+    pub fn true_pose_in_run_frame(&self) -> Option<PoseF64> {
+        self.run_start.map(|s| s.relative(&self.sim.true_pose()))
+    }
+
+    /// The geometry the controller uses.
+    pub fn controller_geometry(&self) -> Geometry {
+        self.controller.config().geometry
+    }
+}
+
+/// The `measure` line for the true end pose of the last run (run start frame, heading wrapped).
+pub fn measure_line(board: &Board) -> Option<String> {
+    board.true_pose_in_run_frame().map(|p| {
+        format!(
+            "measure {:.6} {:.6} {:.4}",
+            p.x_m,
+            p.y_m,
+            odocal::calibration::wrap_angle(p.theta_rad).to_degrees()
+        )
+    })
+}

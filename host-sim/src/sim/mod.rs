@@ -1,0 +1,8 @@
+//! The simulator: what replaces the hardware and the floor. The robot (true geometry, motors,
+//! encoders, slip), the parameter flash, the serial board, real-robot logs and plots.
+
+pub mod board;
+pub mod flash;
+pub mod optiodom;
+pub mod plot;
+pub mod robot;

@@ -1,0 +1,469 @@
+//! The simulated robot: true kinematics, motors, encoders and (optional) wheel slip.
+//!
+//! - **True geometry** `D_R`, `D_L`, `b` (generally not the nominal ones the firmware believes).
+//! - **Motors**: first-order lag from duty to wheel angular speed, `τ ω̇ + ω = K·duty`, integrated
+//!   exactly over each sub-step (the duty is held for a control period, as the PWM does).
+//!   A stop brakes (or coasts) with its own time constant.
+//! - **Encoders**: the wheel angle is quantised to `counts_per_rev` counts per revolution (floor)
+//!   and presented as wrapping hardware counters like the board's: right on a 32-bit timer, left
+//!   on a 16-bit timer counting *down* when the wheel rolls forward.
+//! - **Slip**: optional zero-mean multiplicative noise on each wheel's ground travel (not on its
+//!   rotation, so the encoders do not see it), drawn once per control period from a seeded PCG
+//!   generator: runs are reproducible.
+//! - **True pose** in `f64`, integrated as exact arcs per sub-step.
+//!
+//! [`Sim::run_until_idle`] steps the library's own [`Controller`] against this robot; nothing of
+//! the firmware's logic is repeated here.
+
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::{PoseF64, sinc};
+use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
+use odocal::motion::motor::StopMode;
+use odocal::motion::routine::SegmentKind;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// Motor model of both wheels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotorModel {
+    /// Right wheel angular speed at duty 1 in steady state, rad/s.
+    pub gain_right_radps: f64,
+    /// Left wheel angular speed at duty 1 in steady state, rad/s.
+    pub gain_left_radps: f64,
+    /// Time constant of the duty → speed lag, s.
+    pub time_constant_s: f64,
+    /// Time constant of a braked stop, s.
+    pub brake_time_constant_s: f64,
+    /// Time constant of a coasting stop, s.
+    pub coast_time_constant_s: f64,
+}
+
+impl MotorModel {
+    /// Motors reaching `speed_mps` at full duty on wheels of `diameter_m`, lag `tau_s`; the left
+    /// motor is `left_ratio` times as strong as the right one.
+    pub fn new(speed_mps: f64, diameter_m: f64, tau_s: f64, left_ratio: f64) -> Self {
+        let w = 2.0 * speed_mps / diameter_m;
+        MotorModel {
+            gain_right_radps: w,
+            gain_left_radps: w * left_ratio,
+            time_constant_s: tau_s,
+            brake_time_constant_s: 0.5 * tau_s,
+            coast_time_constant_s: 4.0 * tau_s,
+        }
+    }
+}
+
+/// Configuration of the simulated robot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimConfig {
+    /// The robot's true geometry.
+    pub true_geometry: Geometry,
+    /// Motors.
+    pub motor: MotorModel,
+    /// Control rate, Hz (one [`Sim::advance`] is one period).
+    pub rate_hz: u32,
+    /// Integration sub-steps per control period.
+    pub substeps: u32,
+    /// Standard deviation of the relative slip of each wheel's travel per control period.
+    pub slip_sigma: f64,
+    /// Seed of the slip noise.
+    pub seed: u64,
+    /// Hardware counter values at power-up (right 32-bit, left 16-bit).
+    pub initial_raw: (u32, u16),
+}
+
+impl SimConfig {
+    /// Defaults: 1 m/s motors with a 50 ms lag, the left motor 2 % weaker, 10 sub-steps, no
+    /// slip, counters starting just below their wrap so that both wrap early in a run.
+    pub fn new(true_geometry: Geometry, rate_hz: u32) -> Self {
+        SimConfig {
+            true_geometry,
+            motor: MotorModel::new(1.0, true_geometry.mean_diameter_m(), 0.05, 0.98),
+            rate_hz,
+            substeps: 10,
+            slip_sigma: 0.0,
+            seed: 1,
+            initial_raw: (u32::MAX - 20_000, 300),
+        }
+    }
+}
+
+/// Per-wheel physical state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct WheelState {
+    /// Angular speed, rad/s.
+    omega: f64,
+    /// Rotation since power-up, encoder counts (continuous).
+    counts: f64,
+    /// Blocked (for stall tests): does not turn.
+    blocked: bool,
+}
+
+/// What a closed-loop run produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunStats {
+    /// Control periods stepped.
+    pub periods: u64,
+    /// Largest |wheel synchronisation error| during straight legs, ticks.
+    pub peak_leg_sync_ticks: f64,
+    /// Largest |tracking error| of either wheel, ticks.
+    pub peak_tracking_ticks: f64,
+    /// The last step's output.
+    pub last: Option<StepOutput>,
+    /// Whether the controller became idle (or faulted) within the step budget.
+    pub completed: bool,
+}
+
+/// The simulated robot.
+#[derive(Clone, Debug)]
+pub struct Sim {
+    config: SimConfig,
+    right: WheelState,
+    left: WheelState,
+    pose: PoseF64,
+    command: MotorCommand,
+    rng: Pcg64,
+    periods: u64,
+    /// Extra counts added to the raw right/left counters (glitch injection).
+    raw_offset: (u32, u16),
+    /// True pose when the counters were last read by [`Sim::step`].
+    pose_at_read: PoseF64,
+}
+
+impl Sim {
+    /// A robot at rest at the origin, heading +x.
+    pub fn new(config: SimConfig) -> Self {
+        Sim {
+            config,
+            right: WheelState::default(),
+            left: WheelState::default(),
+            pose: PoseF64::default(),
+            command: MotorCommand::Stop(StopMode::Brake),
+            rng: Pcg64::seed_from_u64(config.seed),
+            periods: 0,
+            raw_offset: (0, 0),
+            pose_at_read: PoseF64::default(),
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// True pose (start frame: origin, heading +x).
+    pub fn true_pose(&self) -> PoseF64 {
+        self.pose
+    }
+
+    /// True pose at the moment the controller last read the counters (the instant its tick
+    /// totals, and so a run record's last knot, refer to).
+    pub fn pose_at_last_read(&self) -> PoseF64 {
+        self.pose_at_read
+    }
+
+    /// Control periods simulated so far.
+    pub fn periods(&self) -> u64 {
+        self.periods
+    }
+
+    /// True wheel speeds (right, left), m/s.
+    pub fn wheel_speeds_mps(&self) -> (f64, f64) {
+        let g = &self.config.true_geometry;
+        (
+            self.right.omega * 0.5 * g.diameter_right_m,
+            self.left.omega * 0.5 * g.diameter_left_m,
+        )
+    }
+
+    /// Quantised wheel rotation since power-up (right, left), counts, forward positive.
+    pub fn counts(&self) -> (i64, i64) {
+        (
+            self.right.counts.floor() as i64,
+            self.left.counts.floor() as i64,
+        )
+    }
+
+    /// The hardware counter values the board would read now (right 32-bit normal, left 16-bit
+    /// inverted), as the `u32`s the controller takes.
+    pub fn raw(&self) -> (u32, u32) {
+        let (r, l) = self.counts();
+        let raw_r = self
+            .config
+            .initial_raw
+            .0
+            .wrapping_add(r as u32)
+            .wrapping_add(self.raw_offset.0);
+        let raw_l = self
+            .config
+            .initial_raw
+            .1
+            .wrapping_sub(l as u16)
+            .wrapping_add(self.raw_offset.1);
+        (raw_r, u32::from(raw_l))
+    }
+
+    /// Blocks (or frees) a wheel: it stops turning at once (a stall).
+    pub fn set_blocked(&mut self, right: bool, left: bool) {
+        self.right.blocked = right;
+        self.left.blocked = left;
+        if right {
+            self.right.omega = 0.0;
+        }
+        if left {
+            self.left.omega = 0.0;
+        }
+    }
+
+    /// Makes a counter jump by `right`, `left` counts (electrical noise, a timer reset).
+    pub fn inject_counter_jump(&mut self, right: u32, left: u16) {
+        self.raw_offset.0 = self.raw_offset.0.wrapping_add(right);
+        self.raw_offset.1 = self.raw_offset.1.wrapping_add(left);
+    }
+
+    /// Sets the motor command held during the following periods.
+    pub fn apply(&mut self, command: MotorCommand) {
+        self.command = command;
+    }
+
+    /// Standard normal sample (Box–Muller).
+    fn normal(&mut self) -> f64 {
+        let u1: f64 = 1.0 - self.rng.random::<f64>(); // (0, 1]
+        let u2: f64 = self.rng.random::<f64>();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+
+    /// Simulates one control period with the current command.
+    pub fn advance(&mut self) {
+        let c = self.config;
+        let g = c.true_geometry;
+        let n = c.substeps.max(1);
+        let h = 1.0 / (f64::from(c.rate_hz) * f64::from(n));
+        let (slip_r, slip_l) = if c.slip_sigma > 0.0 {
+            (
+                1.0 + c.slip_sigma * self.normal(),
+                1.0 + c.slip_sigma * self.normal(),
+            )
+        } else {
+            (1.0, 1.0)
+        };
+        let m = c.motor;
+        let (target_r, target_l, tau) = match self.command {
+            MotorCommand::Duty { right, left } => (
+                m.gain_right_radps * f64::from(odocal::motion::motor::clamp_duty(right)),
+                m.gain_left_radps * f64::from(odocal::motion::motor::clamp_duty(left)),
+                m.time_constant_s,
+            ),
+            MotorCommand::Stop(StopMode::Brake) => (0.0, 0.0, m.brake_time_constant_s),
+            MotorCommand::Stop(StopMode::Coast) => (0.0, 0.0, m.coast_time_constant_s),
+        };
+        let cpr = f64::from(g.counts_per_rev);
+        let turn = |w: &mut WheelState, target: f64| -> f64 {
+            if w.blocked {
+                w.omega = 0.0;
+                return 0.0;
+            }
+            // Exact solution of τ ω̇ + ω = target over h.
+            let (dphi, omega) = if tau > 0.0 {
+                let e = (-h / tau).exp();
+                (
+                    target * h + (w.omega - target) * tau * (1.0 - e),
+                    target + (w.omega - target) * e,
+                )
+            } else {
+                (target * h, target)
+            };
+            w.omega = omega;
+            w.counts += dphi / (2.0 * std::f64::consts::PI) * cpr;
+            dphi
+        };
+        // Heading at the period start; within the period the substeps rotate it by small
+        // angles δ, whose sine and cosine come from their Taylor series up to δ⁷ and δ⁶ when
+        // |δ| < 0.01 rad (truncation error below δ⁸/8! < 3e-21), so one sincos per period
+        // suffices instead of one per substep.
+        let theta0 = self.pose.theta_rad;
+        let (s0, c0) = theta0.sin_cos();
+        let mut offset = 0.0f64;
+        for _ in 0..n {
+            let ds_r = turn(&mut self.right, target_r) * 0.5 * g.diameter_right_m * slip_r;
+            let ds_l = turn(&mut self.left, target_l) * 0.5 * g.diameter_left_m * slip_l;
+            let ds = 0.5 * (ds_r + ds_l);
+            let dtheta = (ds_r - ds_l) / g.wheelbase_m;
+            let chord = ds * sinc(0.5 * dtheta);
+            let d = offset + 0.5 * dtheta;
+            let (sd, cd) = if d.abs() < 0.01 {
+                let d2 = d * d;
+                (
+                    d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0))),
+                    1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0)),
+                )
+            } else {
+                d.sin_cos()
+            };
+            self.pose.x_m += chord * (c0 * cd - s0 * sd);
+            self.pose.y_m += chord * (s0 * cd + c0 * sd);
+            offset += dtheta;
+        }
+        self.pose.theta_rad = theta0 + offset;
+        self.periods += 1;
+    }
+
+    /// One closed-loop period: the controller reads the counters, its command is applied and
+    /// the robot moves for one period. Returns the controller's output.
+    pub fn step(&mut self, controller: &mut Controller) -> StepOutput {
+        let (r, l) = self.raw();
+        self.pose_at_read = self.pose;
+        let out = controller.step(r, l);
+        self.apply(out.command);
+        self.advance();
+        out
+    }
+
+    /// Steps `controller` until it is idle or faulted with its motors stopped (or `max_periods`
+    /// have passed), calling `observe` after every period; it may act on the controller (abort,
+    /// drive) or the robot (block a wheel).
+    pub fn run_with<F>(
+        &mut self,
+        controller: &mut Controller,
+        max_periods: u64,
+        mut observe: F,
+    ) -> RunStats
+    where
+        F: FnMut(&mut Sim, &mut Controller, &StepOutput),
+    {
+        let mut stats = RunStats {
+            periods: 0,
+            peak_leg_sync_ticks: 0.0,
+            peak_tracking_ticks: 0.0,
+            last: None,
+            completed: false,
+        };
+        while stats.periods < max_periods {
+            let out = self.step(controller);
+            stats.periods += 1;
+            if let Some(t) = out.tracking {
+                if let SegmentKind::Straight { .. } = t.kind {
+                    stats.peak_leg_sync_ticks =
+                        stats.peak_leg_sync_ticks.max(t.sync_error_ticks().abs());
+                }
+                stats.peak_tracking_ticks = stats
+                    .peak_tracking_ticks
+                    .max(t.error_right_ticks.abs())
+                    .max(t.error_left_ticks.abs());
+            }
+            observe(self, controller, &out);
+            stats.last = Some(out);
+            let idle = matches!(controller.status(), Status::Idle | Status::Faulted(_));
+            if idle && out.command.is_stop() {
+                stats.completed = true;
+                break;
+            }
+        }
+        stats
+    }
+
+    /// [`Sim::run_with`] without an observer.
+    pub fn run_until_idle(&mut self, controller: &mut Controller, max_periods: u64) -> RunStats {
+        self.run_with(controller, max_periods, |_, _, _| {})
+    }
+
+    /// Keeps stepping an idle controller for `periods` (the robot comes to rest).
+    pub fn rest(&mut self, controller: &mut Controller, periods: u64) {
+        for _ in 0..periods {
+            self.step(controller);
+        }
+    }
+}
+
+/// A controller with the board's default configuration at `rate_hz`, believing `belief`.
+///
+/// # Errors
+/// The configuration error, as text (an invalid belief or rate).
+pub fn default_controller(belief: Geometry, rate_hz: u32) -> Result<Controller, String> {
+    let cfg = odocal::motion::controller::ControllerConfig::new(belief, rate_hz);
+    Controller::new(cfg).map_err(|e| format!("controller config: {e}"))
+}
+
+/// The simulated robot's configuration: the paper's nominal robot with true factors `ed`, `eb`.
+pub fn sim_config(ed: f64, eb: f64, slip: f64, seed: u64, rate_hz: u32) -> SimConfig {
+    let truth = Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0);
+    let mut c = SimConfig::new(truth, rate_hz);
+    c.slip_sigma = slip;
+    c.seed = seed;
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn open_loop_motor_reaches_its_gain_and_counts_wrap() {
+        let g = Geometry::PAPER_NOMINAL;
+        let mut sim = Sim::new(SimConfig::new(g, 1000));
+        sim.apply(MotorCommand::Duty {
+            right: 0.3,
+            left: 0.3,
+        });
+        for _ in 0..1000 {
+            sim.advance();
+        }
+        let (vr, vl) = sim.wheel_speeds_mps();
+        // 20 time constants: the lag has settled to 1e-9 of the target.
+        assert!((vr - 0.3).abs() < 1e-6, "{vr}");
+        assert!((vl - 0.3 * 0.98).abs() < 1e-6, "{vl}");
+        let (cr, cl) = sim.counts();
+        let (raw_r, raw_l) = sim.raw();
+        // The right counter started 20,000 below its wrap and has wrapped.
+        assert_eq!(raw_r, (u32::MAX - 20_000).wrapping_add(cr as u32));
+        assert!(cr > 20_000);
+        assert_eq!(raw_l, u32::from(300u16.wrapping_sub(cl as u16)));
+    }
+
+    #[test]
+    fn true_pose_of_a_constant_arc_is_exact() {
+        let g = Geometry::PAPER_NOMINAL;
+        let mut cfg = SimConfig::new(g, 1000);
+        cfg.motor.time_constant_s = 0.0; // instant speed: a single constant-curvature arc
+        let mut sim = Sim::new(cfg);
+        sim.apply(MotorCommand::Duty {
+            right: 0.3,
+            left: 0.1,
+        });
+        for _ in 0..5000 {
+            sim.advance();
+        }
+        // The duties as the motors see them (f32 → f64).
+        let vr = f64::from(0.3f32) * cfg.motor.gain_right_radps * 0.075;
+        let vl = f64::from(0.1f32) * cfg.motor.gain_left_radps * 0.075;
+        let theta = (vr - vl) * 5.0 / g.wheelbase_m;
+        let r = 0.5 * (vr + vl) * 5.0 / theta;
+        let p = sim.true_pose();
+        // Exact arcs per sub-step: only f64 summation error remains.
+        assert!((p.x_m - r * theta.sin()).abs() < 1e-9, "{p:?}");
+        assert!((p.y_m - r * (1.0 - theta.cos())).abs() < 1e-9, "{p:?}");
+        // 50,000 sub-step increments summed: ~1e-16 relative each.
+        assert!((p.theta_rad - theta).abs() < 1e-11, "{p:?}");
+    }
+
+    #[test]
+    fn slip_noise_is_reproducible() {
+        let mut cfg = SimConfig::new(Geometry::PAPER_NOMINAL, 1000);
+        cfg.slip_sigma = 0.01;
+        let run = |cfg: SimConfig| {
+            let mut sim = Sim::new(cfg);
+            sim.apply(MotorCommand::Duty {
+                right: 0.3,
+                left: 0.3,
+            });
+            for _ in 0..500 {
+                sim.advance();
+            }
+            sim.true_pose()
+        };
+        assert_eq!(run(cfg), run(cfg));
+        let mut other = cfg;
+        other.seed = 2;
+        assert_ne!(run(cfg), run(other));
+    }
+}

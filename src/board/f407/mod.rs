@@ -1,0 +1,217 @@
+//! The STM32F407 board (STM32F4-Discovery class): pin map, clocks and HAL adapters.
+//!
+//! Pin map (STM32F4-Discovery class board, 8 MHz HSE, 168 MHz core):
+//!
+//! | function                  | peripheral      | pins                 |
+//! |---------------------------|-----------------|----------------------|
+//! | right encoder A/B         | TIM2 (32-bit)   | PA15 / PB3 (AF1)     |
+//! | left encoder A/B          | TIM3 (16-bit)   | PB4 / PB5 (AF2)      |
+//! | right motor PWM           | TIM1 CH1 20 kHz | PE9 (AF1)            |
+//! | left motor PWM            | TIM1 CH2 20 kHz | PE11 (AF1)           |
+//! | right / left motor DIR    | GPIO            | PE7 / PE8            |
+//! | H-bridge enable (low = coast) | GPIO        | PE13                 |
+//! | control tick 1 kHz        | TIM7            | —                    |
+//! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (ST-LINK VCP) |
+//! | user button               | EXTI0           | PA0 (active high)    |
+//! | heartbeat / fault LEDs    | GPIO            | PD12 green / PD14 red |
+//! | parameters                | flash sectors 10–11 | 0x080C_0000..0x0810_0000 |
+//!
+//! Everything `unsafe` in the firmware lives here and carries a `// SAFETY:` note.
+
+pub mod flash;
+pub mod motors;
+pub mod watchdog;
+
+use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
+use stm32f4xx_hal::pac::{self, TIM2, TIM3, TIM7, USART2};
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::qei::Qei;
+use stm32f4xx_hal::rcc::Config;
+use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
+use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+use crate::storage::ParamStore;
+
+pub use flash::BoardFlash;
+pub use motors::BoardMotors;
+
+/// Core clock, Hz.
+pub const SYSCLK_HZ: u32 = 168_000_000;
+/// External crystal, Hz.
+pub const HSE_HZ: u32 = 8_000_000;
+/// Motor PWM frequency, Hz (above hearing, within the H-bridge's switching limit).
+pub const PWM_HZ: u32 = 20_000;
+/// Control and odometry rate, Hz.
+pub const CONTROL_HZ: u32 = 1_000;
+/// Independent watchdog timeout, ms: the control task feeds it every period.
+pub const WATCHDOG_MS: u32 = 50;
+/// Watchdog timeout while the parameter flash is written, ms. The HAL erases with x8
+/// parallelism: a 128 KiB sector takes up to 4 s (STM32F407 datasheet, t_ERASE128KB) and stalls
+/// the CPU. The timeout is computed for a 32 kHz LSI, which may run as fast as 47 kHz, so 10 s
+/// gives at least 6.8 s.
+pub const FLASH_WATCHDOG_MS: u32 = 10_000;
+
+/// The two quadrature encoders: TIM2 (32-bit, right) and TIM3 (16-bit, left).
+pub struct Encoders {
+    right: Qei<TIM2>,
+    left: Qei<TIM3>,
+}
+
+impl Encoders {
+    /// The raw hardware counter values (right, left); the library extends them to tick totals.
+    pub fn read(&mut self) -> (u32, u32) {
+        (self.right.count(), u32::from(self.left.count()))
+    }
+}
+
+/// The control-period interrupt source (TIM7 update at [`CONTROL_HZ`]).
+pub struct ControlTick(CounterHz<TIM7>);
+
+impl ControlTick {
+    /// Acknowledges the period's interrupt.
+    pub fn clear(&mut self) {
+        self.0.clear_flags(Flag::Update);
+    }
+}
+
+/// The user button on PA0 (EXTI0, both edges, pressed = high).
+pub struct ButtonInput(PA0<Input>);
+
+impl ButtonInput {
+    /// Acknowledges the edge interrupt and reads the level (true = pressed).
+    pub fn edge(&mut self) -> bool {
+        self.0.clear_interrupt_pending_bit();
+        self.0.is_high()
+    }
+}
+
+/// Heartbeat (green) and fault (red) LEDs.
+pub struct Leds {
+    heartbeat: PD12<Output>,
+    fault: PD14<Output>,
+}
+
+impl Leds {
+    /// Toggles the heartbeat LED.
+    pub fn toggle_heartbeat(&mut self) {
+        self.heartbeat.toggle();
+    }
+
+    /// Lights the fault LED while `on`.
+    pub fn set_fault(&mut self, on: bool) {
+        self.fault.set_state(on.into());
+    }
+}
+
+/// The console port's receive half (USART2 RX interrupt).
+pub type ConsoleRx = Rx<USART2>;
+/// The console port's transmit half (USART2 TXE interrupt).
+pub type ConsoleTx = Tx<USART2>;
+/// The interrupt that serves the console port; the console task pends it to start sending.
+pub const CONSOLE_INTERRUPT: pac::Interrupt = pac::Interrupt::USART2;
+
+/// Everything the board gives the application (see [`crate::board`]).
+pub struct Board {
+    /// Core clock the monotonic timer runs at, Hz.
+    pub sysclk_hz: u32,
+    /// Wheel encoders.
+    pub encoders: Encoders,
+    /// Motor outputs (braked until the controller commands otherwise).
+    pub motors: BoardMotors,
+    /// Control-period interrupt, already running.
+    pub tick: ControlTick,
+    /// User button.
+    pub button: ButtonInput,
+    /// Status LEDs.
+    pub leds: Leds,
+    /// Console receive half, RX interrupt enabled.
+    pub console_rx: ConsoleRx,
+    /// Console transmit half.
+    pub console_tx: ConsoleTx,
+    /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
+    pub watchdog: IndependentWatchdog,
+    /// The parameter store on flash sectors 10–11 (not loaded yet).
+    pub params: ParamStore<BoardFlash>,
+}
+
+/// Brings up clocks and every peripheral the application uses.
+pub fn init(dp: pac::Peripherals) -> Board {
+    let mut rcc = dp.RCC.freeze(
+        Config::hse(HSE_HZ.Hz())
+            .sysclk(SYSCLK_HZ.Hz())
+            .pclk1(42.MHz()),
+    );
+    let params = flash::param_store(dp.FLASH);
+
+    let gpioa = dp.GPIOA.split(&mut rcc);
+    let gpiob = dp.GPIOB.split(&mut rcc);
+    let gpiod = dp.GPIOD.split(&mut rcc);
+    let gpioe = dp.GPIOE.split(&mut rcc);
+
+    // Encoders: PA15/PB3/PB4 come out of reset as JTAG pins.
+    let right = Qei::new(
+        dp.TIM2,
+        (gpioa.pa15.into_input(), gpiob.pb3.into_input()),
+        &mut rcc,
+    );
+    let left = Qei::new(dp.TIM3, (gpiob.pb4.into_input(), gpiob.pb5), &mut rcc);
+
+    // Motors: TIM1 CH1/CH2 PWM, braked until the controller commands otherwise.
+    let (pwm, (ch1, ch2, ..)) = dp.TIM1.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+    let motors = BoardMotors::new(
+        pwm,
+        ch1.with(gpioe.pe9),
+        ch2.with(gpioe.pe11),
+        gpioe.pe7.into_push_pull_output(),
+        gpioe.pe8.into_push_pull_output(),
+        gpioe.pe13.into_push_pull_output(),
+    );
+
+    // User button: both edges, pressed = high.
+    let mut exti = dp.EXTI;
+    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
+    let mut button_pin = gpioa.pa0.into_input().internal_resistor(Pull::Down);
+    button_pin.make_interrupt_source(&mut syscfg);
+    button_pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
+    button_pin.enable_interrupt(&mut exti);
+
+    let mut tick = dp.TIM7.counter_hz(&mut rcc);
+    if tick.start(CONTROL_HZ.Hz()).is_err() {
+        error!("control timer did not start");
+    }
+    tick.listen(Event::Update);
+
+    // Not started here: the app starts it once the parameters are loaded (a load may repair
+    // an interrupted save, which erases a sector for seconds).
+    let watchdog = IndependentWatchdog::new(dp.IWDG);
+
+    // Serial console: USART2 on PA2/PA3, RX interrupt, TX from a queue.
+    let usart = Serial::new(
+        dp.USART2,
+        (gpioa.pa2, gpioa.pa3),
+        serial::Config::default().baudrate(115_200.bps()),
+        &mut rcc,
+    );
+    let (console_tx, mut console_rx) = match usart {
+        Ok(s) => s.split(),
+        Err(_) => defmt::panic!("USART2 configuration rejected"),
+    };
+    console_rx.listen();
+
+    Board {
+        sysclk_hz: SYSCLK_HZ,
+        encoders: Encoders { right, left },
+        motors,
+        tick: ControlTick(tick),
+        button: ButtonInput(button_pin),
+        leds: Leds {
+            heartbeat: gpiod.pd12.into_push_pull_output(),
+            fault: gpiod.pd14.into_push_pull_output(),
+        },
+        console_rx,
+        console_tx,
+        watchdog,
+        params,
+    }
+}

@@ -1,0 +1,212 @@
+//! Controller configuration: what a [`Controller`] is built from, validated once by
+//! [`Controller::new`], and the settings that may change while it is idle.
+
+use core::fmt;
+
+use super::Controller;
+
+use crate::kinematics::encoder::{CounterWidth, EncoderConfig, Polarity, max_step_for};
+use crate::kinematics::geometry::{Geometry, GeometryError};
+use crate::kinematics::odometry::{Integration, Odometry};
+use crate::motion::motor::StopMode;
+use crate::motion::profile::{LimitsError, MotionLimits};
+use crate::motion::routine::SettleConfig;
+use crate::motion::speed::{SpeedTuning, TuningError};
+
+/// Stall detection: a wheel commanded with at least `min_duty` that counts no tick for
+/// `time_ms` is stalled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct StallConfig {
+    /// Smallest |duty| that counts as commanded motion.
+    pub min_duty: f32,
+    /// How long a commanded wheel may count no tick, ms.
+    pub time_ms: u32,
+}
+
+/// Everything the controller needs; validated once by [`Controller::new`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControllerConfig {
+    /// Kinematic geometry used by odometry and for the routine's targets.
+    pub geometry: Geometry,
+    /// Speed and acceleration limits.
+    pub limits: MotionLimits,
+    /// Control rate, Hz (1,000 ..= 10,000).
+    pub rate_hz: u32,
+    /// Right encoder counter.
+    pub right_encoder: EncoderConfig,
+    /// Left encoder counter.
+    pub left_encoder: EncoderConfig,
+    /// Speed-loop tuning.
+    pub speed: SpeedTuning,
+    /// When a segment counts as reached.
+    pub settle: SettleConfig,
+    /// Stall detection.
+    pub stall: StallConfig,
+    /// Velocity-mode deadman, ms.
+    pub deadman_ms: u32,
+    /// How the motors are stopped.
+    pub stop_mode: StopMode,
+    /// Odometry integration rule.
+    pub integration: Integration,
+}
+
+/// Encoder glitch limit for `geometry` at `rate_hz`: 2 m/s of the smaller wheel, +50 %.
+pub(super) fn glitch_limit(width: CounterWidth, geometry: &Geometry, rate_hz: u32) -> u32 {
+    let period_s = 1.0 / f64::from(rate_hz.max(1));
+    let d_min = libm::fmin(geometry.diameter_right_m, geometry.diameter_left_m);
+    max_step_for(width, geometry.counts_per_rev, d_min, 2.0, period_s)
+}
+
+impl ControllerConfig {
+    /// Defaults for the board: right encoder on a 32-bit timer, left on a 16-bit timer counting
+    /// backwards, glitch limit for 2 m/s; default limits and tuning; 500 ms deadman; brake.
+    pub fn new(geometry: Geometry, rate_hz: u32) -> Self {
+        let step = |w| glitch_limit(w, &geometry, rate_hz);
+        ControllerConfig {
+            geometry,
+            limits: MotionLimits::DEFAULT,
+            rate_hz,
+            right_encoder: EncoderConfig {
+                width: CounterWidth::Bits32,
+                polarity: Polarity::Normal,
+                max_step: step(CounterWidth::Bits32),
+            },
+            left_encoder: EncoderConfig {
+                width: CounterWidth::Bits16,
+                polarity: Polarity::Inverted,
+                max_step: step(CounterWidth::Bits16),
+            },
+            speed: SpeedTuning::DEFAULT,
+            settle: SettleConfig {
+                tolerance_ticks: 20,
+                periods: rate_hz / 20,
+                timeout_periods: 2 * rate_hz,
+            },
+            stall: StallConfig {
+                min_duty: 0.1,
+                time_ms: 300,
+            },
+            deadman_ms: 500,
+            stop_mode: StopMode::Brake,
+            integration: Integration::ExactArc,
+        }
+    }
+}
+
+/// Why a [`ControllerConfig`] was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The geometry is invalid.
+    Geometry(GeometryError),
+    /// The motion limits are invalid.
+    Limits(LimitsError),
+    /// The speed tuning is invalid.
+    Tuning(TuningError),
+    /// The rate is outside 1,000 ..= 10,000 Hz.
+    Rate,
+    /// The stall duty is not within (0, 1] or the stall time is outside 1 ..= 10,000 ms.
+    Stall,
+    /// The deadman is outside 1 ..= 10,000 ms.
+    Deadman,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConfigError::Geometry(e) => write!(f, "{e}"),
+            ConfigError::Limits(e) => write!(f, "{e}"),
+            ConfigError::Tuning(e) => write!(f, "{e}"),
+            ConfigError::Rate => f.write_str("control rate must be within 1000..10000 Hz"),
+            ConfigError::Stall => f.write_str("stall duty must be in (0, 1], time 1..10000 ms"),
+            ConfigError::Deadman => f.write_str("deadman must be within 1..10000 ms"),
+        }
+    }
+}
+
+impl From<GeometryError> for ConfigError {
+    fn from(e: GeometryError) -> Self {
+        ConfigError::Geometry(e)
+    }
+}
+
+impl From<LimitsError> for ConfigError {
+    fn from(e: LimitsError) -> Self {
+        ConfigError::Limits(e)
+    }
+}
+
+impl From<TuningError> for ConfigError {
+    fn from(e: TuningError) -> Self {
+        ConfigError::Tuning(e)
+    }
+}
+
+/// Why a setting was not applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SetError {
+    /// Only allowed while idle.
+    Busy,
+    /// The geometry is invalid.
+    Geometry(GeometryError),
+    /// The limits are invalid.
+    Limits(LimitsError),
+}
+
+impl fmt::Display for SetError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SetError::Busy => f.write_str("only allowed while idle"),
+            SetError::Geometry(e) => write!(f, "{e}"),
+            SetError::Limits(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl Controller {
+    /// Applies a new geometry (a calibration); only while idle. The pose continues from where
+    /// it is; later ticks are converted with the new geometry.
+    ///
+    /// # Errors
+    /// [`SetError::Busy`] while moving, [`SetError::Geometry`] for an invalid geometry.
+    pub fn set_geometry(&mut self, geometry: Geometry) -> Result<(), SetError> {
+        if !self.is_idle() {
+            return Err(SetError::Busy);
+        }
+        let odometry =
+            Odometry::new(&geometry, self.config.integration).map_err(SetError::Geometry)?;
+        let pose = self.odo_state.pose();
+        self.odometry = odometry;
+        self.odometry.reset(&mut self.odo_state, self.totals, pose);
+        self.config.geometry = geometry;
+        // The glitch limit is a speed in counts per period: it follows the geometry.
+        let rate = self.config.rate_hz;
+        self.config.right_encoder.max_step =
+            glitch_limit(self.config.right_encoder.width, &geometry, rate);
+        self.config.left_encoder.max_step =
+            glitch_limit(self.config.left_encoder.width, &geometry, rate);
+        if let Some((r, l)) = self.encoders.as_mut() {
+            r.set_max_step(self.config.right_encoder.max_step);
+            l.set_max_step(self.config.left_encoder.max_step);
+        }
+        self.pi = Self::speed_pis(&self.config);
+        Ok(())
+    }
+
+    /// Applies new motion limits; only while idle.
+    ///
+    /// # Errors
+    /// [`SetError::Busy`] while moving, [`SetError::Limits`] for invalid limits.
+    pub fn set_limits(&mut self, limits: MotionLimits) -> Result<(), SetError> {
+        if !self.is_idle() {
+            return Err(SetError::Busy);
+        }
+        limits.validate().map_err(SetError::Limits)?;
+        self.config.limits = limits;
+        Ok(())
+    }
+}

@@ -1,0 +1,318 @@
+//! The motion controller: the one object the control task steps (default 1 kHz, up to 10 kHz).
+//!
+//! Each [`Controller::step`] takes the raw hardware counter values of both encoders and:
+//! 1. extends them to `i64` tick totals (wrap-safe, glitch-checked, see [`crate::kinematics::encoder`]);
+//! 2. updates the odometry pose ([`crate::kinematics::odometry`]) and, during a run, a second odometry in the
+//!    run's start frame;
+//! 3. steps the active mode — a routine ([`crate::motion::routine`]: square, line, circle), velocity
+//!    driving with a deadman, or idle — and the two wheel speed controllers ([`crate::motion::speed`]);
+//! 4. checks for faults (encoder glitch, stall) and returns the motor command.
+//!
+//! Safety: a glitch stops the motors in the same period, a stall as soon as it is detected, an
+//! [`Controller::abort`] in the next period, the velocity deadman `deadman_ms` (counted in
+//! control periods) after the last [`Controller::drive`]. Faults are latched until
+//! [`Controller::clear_fault`]; while latched nothing starts.
+//!
+//! Units: duties in `[-1, 1]` (positive forward), ticks forward positive, SI elsewhere.
+//!
+//! Parts: [`config`] (what the controller is built from, validated once, and the settings that
+//! change while idle), [`mode`] (the idle / run / drive state machine and its commands),
+//! [`fault`] (stall detection and the latched faults).
+
+mod config;
+mod fault;
+mod mode;
+
+pub use config::{ConfigError, ControllerConfig, SetError, StallConfig};
+pub use fault::{Fault, Wheel};
+use mode::{ActiveRun, DriveState};
+pub use mode::{ButtonAction, DriveError, StartError};
+
+use crate::kinematics::encoder::{Encoder, EncoderGlitch, WheelTicks};
+use crate::kinematics::odometry::{Odometry, OdometryState, Pose};
+use crate::motion::motor::{MotorDriver, StopMode};
+use crate::motion::routine::SegmentKind;
+use crate::motion::run::{PathKind, RunRecord};
+use crate::motion::speed::{SpeedPi, SpeedPiState, WheelReference};
+
+/// What the motors should do for the next period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum MotorCommand {
+    /// Drive with these duties in `[-1, 1]`.
+    Duty {
+        /// Right motor duty.
+        right: f32,
+        /// Left motor duty.
+        left: f32,
+    },
+    /// Stop both motors.
+    Stop(StopMode),
+}
+
+impl MotorCommand {
+    /// Sends the command to a driver.
+    pub fn apply<M: MotorDriver>(&self, driver: &mut M) {
+        match *self {
+            MotorCommand::Duty { right, left } => driver.set_duty(right, left),
+            MotorCommand::Stop(mode) => driver.stop(mode),
+        }
+    }
+
+    /// Whether this is a stop (or zero duty on both motors).
+    pub fn is_stop(&self) -> bool {
+        match *self {
+            MotorCommand::Duty { right, left } => right == 0.0 && left == 0.0,
+            MotorCommand::Stop(_) => true,
+        }
+    }
+}
+
+/// What the controller is doing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Status {
+    /// Motors stopped, ready.
+    Idle,
+    /// A routine is running.
+    Running {
+        /// The path.
+        path: PathKind,
+        /// Index of the current segment.
+        segment: u8,
+    },
+    /// Velocity mode.
+    Driving,
+    /// A fault is latched; motors stopped.
+    Faulted(Fault),
+}
+
+/// Routine tracking information for one step (for diagnostics and tests).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tracking {
+    /// Index of the segment.
+    pub segment: usize,
+    /// The segment.
+    pub kind: SegmentKind,
+    /// Reference minus measured ticks of the right wheel.
+    pub error_right_ticks: f64,
+    /// Reference minus measured ticks of the left wheel.
+    pub error_left_ticks: f64,
+}
+
+impl Tracking {
+    /// Wheel synchronisation error: how far the right wheel is ahead of the left one relative
+    /// to their common profile, ticks.
+    pub fn sync_error_ticks(&self) -> f64 {
+        self.error_left_ticks - self.error_right_ticks
+    }
+}
+
+/// The result of one control period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepOutput {
+    /// Motor command for the next period.
+    pub command: MotorCommand,
+    /// Odometry pose.
+    pub pose: Pose,
+    /// The latched fault, if any.
+    pub fault: Option<Fault>,
+    /// Routine tracking, while a routine runs.
+    pub tracking: Option<Tracking>,
+    /// Tick totals since power-up.
+    pub totals: WheelTicks,
+}
+
+/// The motion controller (see the module docs).
+#[derive(Clone, Debug)]
+pub struct Controller {
+    config: ControllerConfig,
+    odometry: Odometry,
+    odo_state: OdometryState,
+    encoders: Option<(Encoder, Encoder)>,
+    totals: WheelTicks,
+    pi: (SpeedPi, SpeedPi),
+    pi_state: (SpeedPiState, SpeedPiState),
+    last_duty: (f32, f32),
+    run: Option<ActiveRun>,
+    drive: Option<DriveState>,
+    fault: Option<Fault>,
+    finished: Option<RunRecord>,
+    stall_count: (u32, u32),
+    stall_periods: u32,
+    deadman_periods: u32,
+    still_periods: u32,
+}
+
+/// Periods without wheel motion after which the motors count as stopped (0.1 s).
+const STILL_SECONDS_INV: u32 = 10;
+
+impl Controller {
+    /// A controller for `config`; idle, encoders synchronised at the first [`Controller::step`].
+    ///
+    /// # Errors
+    /// [`ConfigError`] for the first invalid setting.
+    pub fn new(config: ControllerConfig) -> Result<Self, ConfigError> {
+        if !(1000..=10_000).contains(&config.rate_hz) {
+            return Err(ConfigError::Rate);
+        }
+        config.limits.validate()?;
+        config.speed.validate()?;
+        let s = &config.stall;
+        if !(s.min_duty > 0.0 && s.min_duty <= 1.0 && (1..=10_000).contains(&s.time_ms)) {
+            return Err(ConfigError::Stall);
+        }
+        if !(1..=10_000).contains(&config.deadman_ms) {
+            return Err(ConfigError::Deadman);
+        }
+        let odometry = Odometry::new(&config.geometry, config.integration)?;
+        let per_ms = |ms: u32| (u64::from(ms) * u64::from(config.rate_hz) / 1000) as u32;
+        Ok(Controller {
+            config,
+            odometry,
+            odo_state: OdometryState::default(),
+            encoders: None,
+            totals: WheelTicks::default(),
+            pi: Self::speed_pis(&config),
+            pi_state: Default::default(),
+            last_duty: (0.0, 0.0),
+            run: None,
+            drive: None,
+            fault: None,
+            finished: None,
+            stall_count: (0, 0),
+            stall_periods: per_ms(config.stall.time_ms).max(1),
+            deadman_periods: per_ms(config.deadman_ms).max(1),
+            still_periods: 0,
+        })
+    }
+
+    fn speed_pis(c: &ControllerConfig) -> (SpeedPi, SpeedPi) {
+        let rate = c.rate_hz as f32;
+        (
+            SpeedPi::new(c.speed.gains(c.geometry.meters_per_tick_right()), rate),
+            SpeedPi::new(c.speed.gains(c.geometry.meters_per_tick_left()), rate),
+        )
+    }
+
+    /// One control period: `raw_right`, `raw_left` are the hardware counter values.
+    pub fn step(&mut self, raw_right: u32, raw_left: u32) -> StepOutput {
+        let stop = MotorCommand::Stop(self.config.stop_mode);
+        let Some((enc_r, enc_l)) = self.encoders.as_mut() else {
+            self.encoders = Some((
+                Encoder::new(self.config.right_encoder, raw_right),
+                Encoder::new(self.config.left_encoder, raw_left),
+            ));
+            self.odometry
+                .reset(&mut self.odo_state, WheelTicks::default(), Pose::default());
+            return self.output(stop, None);
+        };
+        let glitch = |w: Wheel, e: EncoderGlitch| Fault::EncoderGlitch {
+            wheel: w,
+            delta: e.delta,
+        };
+        let (res_r, res_l) = (enc_r.update(raw_right), enc_l.update(raw_left));
+        self.totals = WheelTicks::new(enc_r.total(), enc_l.total());
+        let (dr, dl) = match (res_r, res_l) {
+            (Ok(r), Ok(l)) => (r, l),
+            (Err(e), _) => {
+                self.latch(glitch(Wheel::Right, e));
+                (0, 0)
+            }
+            (_, Err(e)) => {
+                self.latch(glitch(Wheel::Left, e));
+                (0, 0)
+            }
+        };
+        self.odometry.update(&mut self.odo_state, self.totals);
+        self.still_periods = if dr == 0 && dl == 0 {
+            self.still_periods.saturating_add(1)
+        } else {
+            0
+        };
+        if self.fault.is_none() {
+            self.check_stall(dr, dl);
+        }
+        if self.fault.is_some() {
+            return self.output(stop, None);
+        }
+        let (command, tracking) = if self.run.is_some() {
+            self.step_run(dr, dl)
+        } else if self.drive.is_some() {
+            (self.step_drive(dr, dl), None)
+        } else {
+            (stop, None)
+        };
+        self.last_duty = match command {
+            MotorCommand::Duty { right, left } => (right, left),
+            MotorCommand::Stop(_) => (0.0, 0.0),
+        };
+        self.output(command, tracking)
+    }
+
+    fn output(&self, command: MotorCommand, tracking: Option<Tracking>) -> StepOutput {
+        StepOutput {
+            command,
+            pose: self.odo_state.pose(),
+            fault: self.fault,
+            tracking,
+            totals: self.totals,
+        }
+    }
+
+    fn duties(&mut self, r: &WheelReference, l: &WheelReference, dr: i64, dl: i64) -> MotorCommand {
+        MotorCommand::Duty {
+            right: self.pi.0.step(&mut self.pi_state.0, r, dr as f32),
+            left: self.pi.1.step(&mut self.pi_state.1, l, dl as f32),
+        }
+    }
+
+    /// What the controller is doing.
+    pub fn status(&self) -> Status {
+        if let Some(f) = self.fault {
+            Status::Faulted(f)
+        } else if let Some(run) = &self.run {
+            Status::Running {
+                path: *run.routine.path(),
+                segment: run.routine.segment_index() as u8,
+            }
+        } else if self.drive.is_some() {
+            Status::Driving
+        } else {
+            Status::Idle
+        }
+    }
+
+    /// The odometry pose.
+    pub fn pose(&self) -> Pose {
+        self.odo_state.pose()
+    }
+
+    /// Sets the odometry pose to the origin (heading +x) at the current tick totals. A run in
+    /// progress keeps its own start frame.
+    pub fn reset_odometry(&mut self) {
+        self.odometry
+            .reset(&mut self.odo_state, self.totals, Pose::default());
+    }
+
+    /// True when no motion is commanded and neither wheel has moved for 0.1 s: safe for flash
+    /// erases that stall the CPU.
+    pub fn motors_stopped(&self) -> bool {
+        self.is_idle() && self.still_periods >= self.config.rate_hz / STILL_SECONDS_INV
+    }
+
+    /// The latched fault.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// The configuration in force (geometry and limits as last set).
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// Tick totals since the first step.
+    pub fn totals(&self) -> WheelTicks {
+        self.totals
+    }
+}

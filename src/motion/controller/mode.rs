@@ -1,0 +1,328 @@
+//! The mode state machine: idle, a routine run, or velocity driving with a deadman; starting,
+//! aborting and finishing them, and the button's actions.
+
+use core::fmt;
+
+use super::{Controller, MotorCommand, Tracking};
+
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::odometry::{OdometryState, Pose};
+use crate::motion::button::Press;
+use crate::motion::routine::{PathError, Routine, RunPlan, validate_path};
+use crate::motion::run::{PathKind, RunRecord};
+use crate::motion::speed::WheelReference;
+use crate::util::num::clamp;
+
+/// Why a run was not started.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StartError {
+    /// A run or velocity drive is active.
+    Busy,
+    /// A fault is latched; clear it first.
+    Faulted,
+    /// The encoders have not been read yet (no `step` so far).
+    NotReady,
+    /// The path's size is implausible.
+    Path(PathError),
+}
+
+impl fmt::Display for StartError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StartError::Busy => f.write_str("busy"),
+            StartError::Faulted => f.write_str("fault latched, clear it first"),
+            StartError::NotReady => f.write_str("encoders not read yet"),
+            StartError::Path(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// Why a velocity command was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum DriveError {
+    /// A routine is running.
+    Busy,
+    /// A fault is latched; clear it first.
+    Faulted,
+    /// The encoders have not been read yet.
+    NotReady,
+    /// A speed is not finite.
+    NotFinite,
+}
+
+impl fmt::Display for DriveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            DriveError::Busy => "busy",
+            DriveError::Faulted => "fault latched, clear it first",
+            DriveError::NotReady => "encoders not read yet",
+            DriveError::NotFinite => "speeds must be finite",
+        })
+    }
+}
+
+/// What a button press did (see [`Controller::on_press`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ButtonAction {
+    /// A short press started this run.
+    Started(PathKind),
+    /// A short press could not start a run.
+    StartRefused(StartError),
+    /// A short press cleared a latched fault (the next short press starts).
+    ClearedFault,
+    /// A long press aborted any motion.
+    Aborted,
+}
+
+/// A routine in progress.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct ActiveRun {
+    pub(super) routine: Routine,
+    pub(super) start_totals: WheelTicks,
+    /// Odometry in the run's start frame (origin, heading +x).
+    pub(super) odometry: OdometryState,
+}
+
+/// Velocity mode state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct DriveState {
+    /// Commanded centre speed (m/s) and turn rate (rad/s), clamped to the limits.
+    pub(super) target: (f64, f64),
+    /// Ramped reference speed and turn rate at the previous and at the current step.
+    pub(super) previous: (f64, f64),
+    /// See `previous`.
+    pub(super) now: (f64, f64),
+    /// Periods left before the deadman stops the motors.
+    pub(super) remaining: u32,
+}
+
+impl Controller {
+    pub(super) fn step_run(&mut self, dr: i64, dl: i64) -> (MotorCommand, Option<Tracking>) {
+        let Some(run) = self.run.as_mut() else {
+            return (MotorCommand::Stop(self.config.stop_mode), None);
+        };
+        let since_start = self.totals - run.start_totals;
+        self.odometry.update(&mut run.odometry, since_start);
+        let s = run
+            .routine
+            .step(since_start, &self.config.geometry, &self.config.limits);
+        let tracking = Tracking {
+            segment: s.segment,
+            kind: s.kind,
+            error_right_ticks: s.error.0,
+            error_left_ticks: s.error.1,
+        };
+        if s.finished {
+            self.finish_run();
+            return (MotorCommand::Stop(self.config.stop_mode), Some(tracking));
+        }
+        (self.duties(&s.right, &s.left, dr, dl), Some(tracking))
+    }
+
+    pub(super) fn finish_run(&mut self) {
+        let Some(run) = self.run.take() else {
+            return;
+        };
+        let odometry_end = run.odometry.pose().to_f64();
+        let path = *run.routine.path();
+        info!("run finished");
+        self.finished = Some(RunRecord {
+            path,
+            geometry: self.config.geometry,
+            knots: run.routine.into_knots(),
+            odometry_end,
+            measured: None,
+        });
+    }
+
+    pub(super) fn step_drive(&mut self, dr: i64, dl: i64) -> MotorCommand {
+        let rate = f64::from(self.config.rate_hz);
+        let l = &self.config.limits;
+        let g = &self.config.geometry;
+        let Some(d) = self.drive.as_mut() else {
+            return MotorCommand::Stop(self.config.stop_mode);
+        };
+        if d.remaining == 0 {
+            info!("drive deadman: stopping");
+            self.drive = None;
+            return MotorCommand::Stop(self.config.stop_mode);
+        }
+        d.remaining -= 1;
+        let ramp =
+            |cur: f64, target: f64, max_accel: f32| ramp_toward(cur, target, max_accel, rate);
+        // The reference ramps linearly between steps: the period that just ended went from
+        // `previous` to `now` (its increment is compared with the encoders'); the one that
+        // starts goes from `now` to `next` (its midpoint speed is the feed-forward).
+        let (prev, now) = (d.previous, d.now);
+        let next = (
+            ramp(now.0, d.target.0, l.max_accel_mps2),
+            ramp(now.1, d.target.1, l.max_turn_accel_radps2),
+        );
+        d.previous = now;
+        d.now = next;
+        let half_b = 0.5 * g.wheelbase_m;
+        let wheel =
+            |(v, w): (f64, f64), sign: f64, m_per_tick: f64| (v + sign * w * half_b) / m_per_tick;
+        let reference = |sign: f64, k: f64| {
+            let (a, b, c) = (
+                wheel(prev, sign, k),
+                wheel(now, sign, k),
+                wheel(next, sign, k),
+            );
+            WheelReference {
+                delta_ticks: (0.5 * (a + b) / rate) as f32,
+                velocity_tps: (0.5 * (b + c)) as f32,
+                accel_tps2: ((c - b) * rate) as f32,
+            }
+        };
+        let r = reference(1.0, g.meters_per_tick_right());
+        let lf = reference(-1.0, g.meters_per_tick_left());
+        self.duties(&r, &lf, dr, dl)
+    }
+
+    /// Starts a run of `path` from the current pose (its start frame is the current pose).
+    ///
+    /// # Errors
+    /// [`StartError`] when busy, faulted, not ready, or the path is implausible.
+    pub fn start(&mut self, path: PathKind) -> Result<(), StartError> {
+        if self.fault.is_some() {
+            return Err(StartError::Faulted);
+        }
+        if self.run.is_some() || self.drive.is_some() {
+            return Err(StartError::Busy);
+        }
+        if self.encoders.is_none() {
+            return Err(StartError::NotReady);
+        }
+        validate_path(&path).map_err(StartError::Path)?;
+        let routine = Routine::new(
+            path,
+            &self.config.geometry,
+            &self.config.limits,
+            self.config.rate_hz,
+            self.config.settle,
+        )
+        .map_err(StartError::Path)?;
+        let mut odometry = OdometryState::default();
+        self.odometry
+            .reset(&mut odometry, WheelTicks::default(), Pose::default());
+        self.run = Some(ActiveRun {
+            routine,
+            start_totals: self.totals,
+            odometry,
+        });
+        self.reset_loops();
+        info!("run started");
+        Ok(())
+    }
+
+    pub(super) fn reset_loops(&mut self) {
+        self.pi_state = Default::default();
+        self.stall_count = (0, 0);
+        self.last_duty = (0.0, 0.0);
+    }
+
+    /// Ends any run or velocity drive; the next step commands a stop. The run is discarded.
+    pub fn abort(&mut self) {
+        if self.run.is_some() || self.drive.is_some() {
+            warn!("motion aborted");
+        }
+        self.run = None;
+        self.drive = None;
+    }
+
+    /// Velocity mode: centre speed `v_mps` and turn rate `w_radps` (CCW positive), each clamped
+    /// to the limits and ramped with the acceleration limits. The motors stop `deadman_ms` after
+    /// the last call.
+    ///
+    /// # Errors
+    /// [`DriveError`] while a routine runs, a fault is latched, before the first step, or for
+    /// non-finite speeds.
+    pub fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), DriveError> {
+        if self.fault.is_some() {
+            return Err(DriveError::Faulted);
+        }
+        if self.run.is_some() {
+            return Err(DriveError::Busy);
+        }
+        if self.encoders.is_none() {
+            return Err(DriveError::NotReady);
+        }
+        if !v_mps.is_finite() || !w_radps.is_finite() {
+            return Err(DriveError::NotFinite);
+        }
+        let l = &self.config.limits;
+        let target = (
+            f64::from(clamp(v_mps, -l.max_speed_mps, l.max_speed_mps)),
+            f64::from(clamp(
+                w_radps,
+                -l.max_turn_rate_radps,
+                l.max_turn_rate_radps,
+            )),
+        );
+        let remaining = self.deadman_periods;
+        match self.drive.as_mut() {
+            Some(d) => {
+                d.target = target;
+                d.remaining = remaining;
+            }
+            None => {
+                self.reset_loops();
+                self.drive = Some(DriveState {
+                    target,
+                    previous: (0.0, 0.0),
+                    now: (0.0, 0.0),
+                    remaining,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The user button: a short press starts the next planned run (and advances the plan so
+    /// runs alternate CW/CCW) or, while a fault is latched, clears it; a long press aborts.
+    pub fn on_press(&mut self, press: Press, plan: &mut RunPlan) -> ButtonAction {
+        match press {
+            Press::Long => {
+                self.abort();
+                ButtonAction::Aborted
+            }
+            Press::Short if self.fault.is_some() => {
+                self.clear_fault();
+                ButtonAction::ClearedFault
+            }
+            Press::Short => {
+                let path = plan.next_path();
+                match self.start(path) {
+                    Ok(()) => {
+                        plan.advance();
+                        ButtonAction::Started(path)
+                    }
+                    Err(e) => ButtonAction::StartRefused(e),
+                }
+            }
+        }
+    }
+
+    /// The record of the last completed run, once.
+    pub fn take_finished_run(&mut self) -> Option<RunRecord> {
+        self.finished.take()
+    }
+
+    pub(super) fn is_idle(&self) -> bool {
+        self.run.is_none() && self.drive.is_none()
+    }
+}
+
+/// One period of a velocity ramp: `cur` moved toward `target` by at most `max_accel / rate_hz`.
+/// Out of line: inlined at both call sites it would exist twice in flash.
+#[inline(never)]
+pub(super) fn ramp_toward(cur: f64, target: f64, max_accel: f32, rate_hz: f64) -> f64 {
+    let step = f64::from(max_accel) / rate_hz;
+    cur + clamp(target - cur, -step, step)
+}

@@ -1,0 +1,10 @@
+//! Motion: what the control task steps. Owns the motor trait, speed loops, profiles, routines,
+//! run records, the button and the [`controller`]. May use [`crate::kinematics`] and [`crate::util`].
+
+pub mod button;
+pub mod controller;
+pub mod motor;
+pub mod profile;
+pub mod routine;
+pub mod run;
+pub mod speed;

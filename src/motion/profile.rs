@@ -1,0 +1,257 @@
+//! Motion limits and the trapezoidal velocity profile.
+//!
+//! [`MotionLimits`] are the operator-settable speed and acceleration limits of the robot
+//! (metres, radians, seconds; the paper drives at 0.3 m/s). [`Trapezoid`] is a time-optimal
+//! rest-to-rest profile over a positive distance under a speed and an acceleration limit: it
+//! accelerates at `a`, cruises at `v`, decelerates at `a` (or is triangular when the distance is
+//! too short to reach `v`). The unit of distance is whatever the caller uses (metres for a leg,
+//! radians for an in-place turn); [`crate::motion::routine`] maps it linearly to wheel ticks so that both
+//! wheels follow the one profile.
+//!
+//! Profiles are evaluated in closed form at `t = k / rate` (no integration, no drift), in `f64`.
+
+use core::fmt;
+
+/// Speed and acceleration limits of the robot's motion (validated by [`MotionLimits::validate`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct MotionLimits {
+    /// Largest speed of the robot's centre (and of either wheel), m/s.
+    pub max_speed_mps: f32,
+    /// Largest acceleration of the robot's centre (and of either wheel), m/s².
+    pub max_accel_mps2: f32,
+    /// Largest turn rate, rad/s.
+    pub max_turn_rate_radps: f32,
+    /// Largest turn acceleration, rad/s².
+    pub max_turn_accel_radps2: f32,
+}
+
+/// Why a [`MotionLimits`] was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum LimitsError {
+    /// The speed is not finite or outside 0.001 ..= 5 m/s.
+    Speed,
+    /// The acceleration is not finite or outside 0.001 ..= 20 m/s².
+    Accel,
+    /// The turn rate is not finite or outside 0.001 ..= 20 rad/s.
+    TurnRate,
+    /// The turn acceleration is not finite or outside 0.001 ..= 100 rad/s².
+    TurnAccel,
+}
+
+impl fmt::Display for LimitsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            LimitsError::Speed => "max speed must be within 0.001..5 m/s",
+            LimitsError::Accel => "max acceleration must be within 0.001..20 m/s^2",
+            LimitsError::TurnRate => "max turn rate must be within 0.001..20 rad/s",
+            LimitsError::TurnAccel => "max turn acceleration must be within 0.001..100 rad/s^2",
+        })
+    }
+}
+
+impl MotionLimits {
+    /// The defaults: 0.3 m/s (as in the paper), 0.3 m/s², 1 rad/s, 2 rad/s².
+    pub const DEFAULT: MotionLimits = MotionLimits {
+        max_speed_mps: 0.3,
+        max_accel_mps2: 0.3,
+        max_turn_rate_radps: 1.0,
+        max_turn_accel_radps2: 2.0,
+    };
+
+    /// Checks that every limit is finite, positive and plausible.
+    ///
+    /// # Errors
+    /// The first offending field, as a [`LimitsError`].
+    pub fn validate(&self) -> Result<(), LimitsError> {
+        let ok = |v: f32, max: f32| v.is_finite() && (0.001..=max).contains(&v);
+        if !ok(self.max_speed_mps, 5.0) {
+            return Err(LimitsError::Speed);
+        }
+        if !ok(self.max_accel_mps2, 20.0) {
+            return Err(LimitsError::Accel);
+        }
+        if !ok(self.max_turn_rate_radps, 20.0) {
+            return Err(LimitsError::TurnRate);
+        }
+        if !ok(self.max_turn_accel_radps2, 100.0) {
+            return Err(LimitsError::TurnAccel);
+        }
+        Ok(())
+    }
+}
+
+impl Default for MotionLimits {
+    fn default() -> Self {
+        MotionLimits::DEFAULT
+    }
+}
+
+/// One sample of a profile.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProfileSample {
+    /// Distance travelled since the start, profile units.
+    pub position: f64,
+    /// Speed, units/s (never negative).
+    pub velocity: f64,
+    /// Acceleration, units/s².
+    pub accel: f64,
+}
+
+/// A rest-to-rest trapezoidal (or triangular) velocity profile over a non-negative distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Trapezoid {
+    distance: f64,
+    accel: f64,
+    peak: f64,
+    t_accel: f64,
+    t_cruise: f64,
+}
+
+impl Trapezoid {
+    /// The profile over `distance ≥ 0` with speed limit `max_speed > 0` and acceleration limit
+    /// `max_accel > 0`. Non-finite or non-positive limits, or a negative distance, give the
+    /// empty profile (zero duration): a caller that validated its inputs never sees that.
+    pub fn new(distance: f64, max_speed: f64, max_accel: f64) -> Self {
+        let valid = distance.is_finite()
+            && distance > 0.0
+            && max_speed.is_finite()
+            && max_speed > 0.0
+            && max_accel.is_finite()
+            && max_accel > 0.0;
+        if !valid {
+            return Trapezoid {
+                distance: 0.0,
+                accel: 1.0,
+                peak: 0.0,
+                t_accel: 0.0,
+                t_cruise: 0.0,
+            };
+        }
+        // Triangular when the speed limit cannot be reached: v_peak² / a = distance.
+        let peak = libm::fmin(max_speed, libm::sqrt(distance * max_accel));
+        let t_accel = peak / max_accel;
+        let t_cruise = (distance - peak * t_accel) / peak;
+        Trapezoid {
+            distance,
+            accel: max_accel,
+            peak,
+            t_accel,
+            t_cruise: libm::fmax(t_cruise, 0.0),
+        }
+    }
+
+    /// Total distance, units.
+    pub fn distance(&self) -> f64 {
+        self.distance
+    }
+
+    /// Peak speed, units/s.
+    pub fn peak_speed(&self) -> f64 {
+        self.peak
+    }
+
+    /// Duration, seconds.
+    pub fn duration(&self) -> f64 {
+        2.0 * self.t_accel + self.t_cruise
+    }
+
+    /// The profile at time `t` seconds since its start (clamped to `[0, duration]`).
+    pub fn sample(&self, t: f64) -> ProfileSample {
+        let t1 = self.t_accel;
+        let t2 = t1 + self.t_cruise;
+        let end = t2 + t1;
+        if t.is_nan() || t <= 0.0 {
+            return ProfileSample::default();
+        }
+        if t >= end {
+            return ProfileSample {
+                position: self.distance,
+                velocity: 0.0,
+                accel: 0.0,
+            };
+        }
+        let a = self.accel;
+        if t < t1 {
+            ProfileSample {
+                position: 0.5 * a * t * t,
+                velocity: a * t,
+                accel: a,
+            }
+        } else if t < t2 {
+            ProfileSample {
+                position: 0.5 * self.peak * t1 + self.peak * (t - t1),
+                velocity: self.peak,
+                accel: 0.0,
+            }
+        } else {
+            let r = end - t;
+            ProfileSample {
+                position: self.distance - 0.5 * a * r * r,
+                velocity: a * r,
+                accel: -a,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trapezoid_reaches_its_distance_and_respects_limits() {
+        let p = Trapezoid::new(2.0, 0.3, 0.3);
+        // 1 s accelerating (0.15 m), 0.15 m decelerating, 1.7 m at 0.3 m/s: 7.667 s in all.
+        assert!((p.duration() - (2.0 + 1.7 / 0.3)).abs() < 1e-12);
+        let mut prev = p.sample(0.0);
+        let dt = 1e-3;
+        let mut k = 1;
+        while f64::from(k) * dt <= p.duration() + 2.0 * dt {
+            let s = p.sample(f64::from(k) * dt);
+            assert!(s.velocity <= 0.3 + 1e-12 && s.velocity >= 0.0);
+            assert!(s.accel.abs() <= 0.3 + 1e-12);
+            // Finite-difference speed agrees with the sampled speed within a·dt.
+            let fd = (s.position - prev.position) / dt;
+            assert!((fd - s.velocity).abs() <= 0.3 * dt + 1e-9, "t={k} ms");
+            prev = s;
+            k += 1;
+        }
+        assert_eq!(prev.position, 2.0);
+        assert_eq!(prev.velocity, 0.0);
+    }
+
+    #[test]
+    fn short_distance_is_triangular() {
+        let p = Trapezoid::new(0.01, 0.3, 0.3);
+        // v_peak = sqrt(d a) = 0.0548 m/s < 0.3.
+        assert!((p.peak_speed() - (0.01f64 * 0.3).sqrt()).abs() < 1e-15);
+        let mid = p.sample(0.5 * p.duration());
+        assert!((mid.position - 0.005).abs() < 1e-12);
+    }
+
+    #[test]
+    fn invalid_inputs_give_an_empty_profile() {
+        for p in [
+            Trapezoid::new(-1.0, 0.3, 0.3),
+            Trapezoid::new(1.0, f64::NAN, 0.3),
+            Trapezoid::new(1.0, 0.3, 0.0),
+        ] {
+            assert_eq!(p.duration(), 0.0);
+            assert_eq!(p.sample(1.0).position, 0.0);
+        }
+    }
+
+    #[test]
+    fn limits_validate() {
+        assert_eq!(MotionLimits::DEFAULT.validate(), Ok(()));
+        let mut l = MotionLimits::DEFAULT;
+        l.max_speed_mps = f32::INFINITY;
+        assert_eq!(l.validate(), Err(LimitsError::Speed));
+        let mut l = MotionLimits::DEFAULT;
+        l.max_turn_accel_radps2 = -2.0;
+        assert_eq!(l.validate(), Err(LimitsError::TurnAccel));
+    }
+}

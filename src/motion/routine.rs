@@ -1,0 +1,613 @@
+//! Test-path routines: the UMBmark square (CW/CCW), a straight line and a full circle, as a pure
+//! state machine stepped once per control period.
+//!
+//! A path is a list of segments: a square is 4 legs of `L` and 4 in-place 90° turns (right turns
+//! for CW, left turns for CCW), a line is one leg, a circle one arc of `2π r`. Each segment is one
+//! [`Trapezoid`] over its own parameter (metres along the path for legs and arcs, radians for
+//! turns), mapped *linearly* to both wheels' tick references, so the wheels follow one profile:
+//! on a leg they travel equal distances at every instant, on a turn equal and opposite ones.
+//!
+//! The tick targets of a segment are computed from the geometry handed in when the segment
+//! starts (the current calibrated `D_R`, `D_L`, `b`) and rounded to whole ticks; references are
+//! cumulative ticks since the run start and continue from the previous segment's *target*, so
+//! tracking errors do not add up along the path. A segment ends when its profile is over and
+//! both wheels have stayed within `settle_tolerance_ticks` of the target for `settle_periods`
+//! periods (or `settle_timeout_periods` have passed since the profile ended): the robot stops at
+//! every corner, as UMBmark expects.
+//!
+//! The routine records the run's *knots* (see [`crate::motion::run`]): the measured cumulative ticks at
+//! the start, at every segment end and at evenly spaced points of the profile inside each segment
+//! (`(MAX_KNOTS − 1) / segments` knots per segment: 24 for a square, 199 for a line or circle).
+//!
+//! Signs: positive ticks roll forward; CCW turns drive the right wheel forward.
+
+use core::f64::consts::PI;
+use core::fmt;
+
+use heapless::Vec;
+
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
+use crate::motion::profile::{MotionLimits, Trapezoid};
+use crate::motion::run::{Direction, MAX_KNOTS, PathKind};
+use crate::motion::speed::WheelReference;
+
+/// One segment of a path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum SegmentKind {
+    /// A straight leg forward.
+    Straight {
+        /// Length, metres.
+        length_m: f64,
+    },
+    /// An in-place turn.
+    Turn {
+        /// Signed angle, radians (CCW positive).
+        angle_rad: f64,
+    },
+    /// A circular arc forward.
+    Arc {
+        /// Path length of the robot's centre, metres.
+        length_m: f64,
+        /// Radius, metres.
+        radius_m: f64,
+        /// Turn direction.
+        direction: Direction,
+    },
+}
+
+/// Why a path was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum PathError {
+    /// A side, length or radius is not finite or outside 0.01 ..= 100 m.
+    Size,
+}
+
+impl fmt::Display for PathError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            PathError::Size => "path size must be within 0.01..100 m",
+        })
+    }
+}
+
+/// Checks a path's dimensions.
+///
+/// # Errors
+/// [`PathError::Size`] for a non-finite or implausible size.
+pub fn validate_path(path: &PathKind) -> Result<(), PathError> {
+    let size = match *path {
+        PathKind::Square { side_m, .. } => side_m,
+        PathKind::Line { length_m } => length_m,
+        PathKind::Circle { radius_m, .. } => radius_m,
+    };
+    if size.is_finite() && (0.01..=100.0).contains(&size) {
+        Ok(())
+    } else {
+        Err(PathError::Size)
+    }
+}
+
+/// Number of segments of a path.
+pub fn segment_count(path: &PathKind) -> usize {
+    match path {
+        PathKind::Square { .. } => 8,
+        PathKind::Line { .. } | PathKind::Circle { .. } => 1,
+    }
+}
+
+/// Segment `index` of a path (indices past the end repeat the last segment).
+pub fn segment(path: &PathKind, index: usize) -> SegmentKind {
+    match *path {
+        PathKind::Square { direction, side_m } => {
+            if index.is_multiple_of(2) {
+                SegmentKind::Straight { length_m: side_m }
+            } else {
+                SegmentKind::Turn {
+                    angle_rad: direction.turn_sign() * 0.5 * PI,
+                }
+            }
+        }
+        PathKind::Line { length_m } => SegmentKind::Straight { length_m },
+        PathKind::Circle {
+            direction,
+            radius_m,
+        } => SegmentKind::Arc {
+            length_m: 2.0 * PI * radius_m,
+            radius_m,
+            direction,
+        },
+    }
+}
+
+/// Settling rules of the routine, in control periods and ticks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct SettleConfig {
+    /// Largest |target − measured| per wheel at which a segment counts as reached, ticks.
+    pub tolerance_ticks: u32,
+    /// Consecutive periods within tolerance needed to end a segment.
+    pub periods: u32,
+    /// Periods after the profile's end after which the segment ends anyway.
+    pub timeout_periods: u32,
+}
+
+/// A segment being driven: profile plus its linear map to wheel ticks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Active {
+    kind: SegmentKind,
+    profile: Trapezoid,
+    /// Ticks per profile unit, right and left (signed; scaled so the end is a whole tick).
+    scale_right: f64,
+    scale_left: f64,
+    /// Cumulative reference ticks at the segment start and end.
+    start: WheelTicks,
+    end: WheelTicks,
+    /// Periods since the segment start.
+    periods: u32,
+    /// Periods the wheels have been within tolerance after the profile ended.
+    settled: u32,
+    /// Next interior knot to record (1-based).
+    next_knot: usize,
+}
+
+/// What the routine asks of the wheels for the next period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoutineStep {
+    /// Right wheel reference.
+    pub right: WheelReference,
+    /// Left wheel reference.
+    pub left: WheelReference,
+    /// Index of the segment being driven.
+    pub segment: usize,
+    /// The segment being driven.
+    pub kind: SegmentKind,
+    /// Reference minus measured ticks, right and left, at the instant of the measurement.
+    pub error: (f64, f64),
+    /// The path is complete: the knots are final, the motors should stop.
+    pub finished: bool,
+}
+
+/// The routine state machine for one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Routine {
+    path: PathKind,
+    rate_hz: f64,
+    settle: SettleConfig,
+    index: usize,
+    active: Active,
+    knots_per_segment: usize,
+    knots: Vec<WheelTicks, MAX_KNOTS>,
+    /// Reference position of the previous step, ticks since the run start.
+    prev_ref: (f64, f64),
+    finished: bool,
+}
+
+/// Speed and acceleration limits of a segment's own parameter.
+fn segment_limits(kind: &SegmentKind, g: &Geometry, l: &MotionLimits) -> (f64, f64) {
+    let v = f64::from(l.max_speed_mps);
+    let a = f64::from(l.max_accel_mps2);
+    let w = f64::from(l.max_turn_rate_radps);
+    let aw = f64::from(l.max_turn_accel_radps2);
+    let half_b = 0.5 * g.wheelbase_m;
+    match *kind {
+        SegmentKind::Straight { .. } => (v, a),
+        // Wheel speed is ω·b/2.
+        SegmentKind::Turn { .. } => (libm::fmin(w, v / half_b), libm::fmin(aw, a / half_b)),
+        SegmentKind::Arc { radius_m, .. } => {
+            // The outer wheel is the faster one: v·(1 + b/2r).
+            let outer = 1.0 + half_b / radius_m;
+            (
+                libm::fmin(v / outer, w * radius_m),
+                libm::fmin(a / outer, aw * radius_m),
+            )
+        }
+    }
+}
+
+/// Wheel ticks per unit of the segment's parameter (before rounding), right and left.
+fn segment_scales(kind: &SegmentKind, g: &Geometry) -> (f64, f64, f64) {
+    let kr = g.meters_per_tick_right();
+    let kl = g.meters_per_tick_left();
+    let half_b = 0.5 * g.wheelbase_m;
+    match *kind {
+        SegmentKind::Straight { length_m } => (length_m, 1.0 / kr, 1.0 / kl),
+        SegmentKind::Turn { angle_rad } => {
+            let s = if angle_rad < 0.0 { -1.0 } else { 1.0 };
+            (libm::fabs(angle_rad), s * half_b / kr, -s * half_b / kl)
+        }
+        SegmentKind::Arc {
+            length_m,
+            radius_m,
+            direction,
+        } => {
+            let s = direction.turn_sign();
+            (
+                length_m,
+                (1.0 + s * half_b / radius_m) / kr,
+                (1.0 - s * half_b / radius_m) / kl,
+            )
+        }
+    }
+}
+
+impl Active {
+    fn new(kind: SegmentKind, start: WheelTicks, g: &Geometry, l: &MotionLimits) -> Active {
+        let (distance, cr, cl) = segment_scales(&kind, g);
+        let (v, a) = segment_limits(&kind, g, l);
+        let profile = Trapezoid::new(distance, v, a);
+        let end_r = libm::round(distance * cr);
+        let end_l = libm::round(distance * cl);
+        let (scale_right, scale_left) = if distance > 0.0 {
+            (end_r / distance, end_l / distance)
+        } else {
+            (0.0, 0.0)
+        };
+        Active {
+            kind,
+            profile,
+            scale_right,
+            scale_left,
+            start,
+            end: WheelTicks::new(
+                start.right.saturating_add(end_r as i64),
+                start.left.saturating_add(end_l as i64),
+            ),
+            periods: 0,
+            settled: 0,
+            next_knot: 1,
+        }
+    }
+}
+
+impl Routine {
+    /// Starts a run of `path` at control rate `rate_hz`; the first segment's targets come from
+    /// `geometry` and `limits` (both already validated by the caller).
+    ///
+    /// # Errors
+    /// [`PathError`] when the path's size is implausible.
+    pub fn new(
+        path: PathKind,
+        geometry: &Geometry,
+        limits: &MotionLimits,
+        rate_hz: u32,
+        settle: SettleConfig,
+    ) -> Result<Routine, PathError> {
+        validate_path(&path)?;
+        let mut knots = Vec::new();
+        // Cannot fail: the capacity is positive.
+        let _ = knots.push(WheelTicks::default());
+        let count = segment_count(&path);
+        Ok(Routine {
+            path,
+            rate_hz: f64::from(rate_hz.max(1)),
+            settle,
+            index: 0,
+            active: Active::new(segment(&path, 0), WheelTicks::default(), geometry, limits),
+            knots_per_segment: (MAX_KNOTS - 1) / count,
+            knots,
+            prev_ref: (0.0, 0.0),
+            finished: false,
+        })
+    }
+
+    /// The path being driven.
+    pub fn path(&self) -> &PathKind {
+        &self.path
+    }
+
+    /// The knots recorded so far (cumulative measured ticks since the run start).
+    pub fn knots(&self) -> &[WheelTicks] {
+        &self.knots
+    }
+
+    /// Index of the segment being driven.
+    pub fn segment_index(&self) -> usize {
+        self.index
+    }
+
+    /// The recorded knots, consuming the routine.
+    pub fn into_knots(self) -> Vec<WheelTicks, MAX_KNOTS> {
+        self.knots
+    }
+
+    /// Whether the path is complete.
+    pub fn is_finished(&self) -> bool {
+        self.finished
+    }
+
+    /// One control period. `measured` is the cumulative measured ticks since the run start;
+    /// `geometry` and `limits` are used only when a new segment starts in this step.
+    pub fn step(
+        &mut self,
+        measured: WheelTicks,
+        geometry: &Geometry,
+        limits: &MotionLimits,
+    ) -> RoutineStep {
+        if self.finished {
+            let end = self.active.end;
+            return self.hold((
+                end.right as f64 - measured.right as f64,
+                end.left as f64 - measured.left as f64,
+            ));
+        }
+        let a = &mut self.active;
+        // `now` is the instant of the measurement; the period that starts now is driven with
+        // the feed-forward of its midpoint.
+        a.periods = a.periods.saturating_add(1);
+        let now = f64::from(a.periods - 1) / self.rate_hz;
+        let done = now >= a.profile.duration();
+        let s = a.profile.sample(now);
+        let ff = a.profile.sample(now + 0.5 / self.rate_hz);
+        let (pos_r, pos_l) = if done {
+            (a.end.right as f64, a.end.left as f64)
+        } else {
+            (
+                a.start.right as f64 + a.scale_right * s.position,
+                a.start.left as f64 + a.scale_left * s.position,
+            )
+        };
+        let right = WheelReference {
+            delta_ticks: (pos_r - self.prev_ref.0) as f32,
+            velocity_tps: (a.scale_right * ff.velocity) as f32,
+            accel_tps2: (a.scale_right * ff.accel) as f32,
+        };
+        let left = WheelReference {
+            delta_ticks: (pos_l - self.prev_ref.1) as f32,
+            velocity_tps: (a.scale_left * ff.velocity) as f32,
+            accel_tps2: (a.scale_left * ff.accel) as f32,
+        };
+        self.prev_ref = (pos_r, pos_l);
+        let error = (pos_r - measured.right as f64, pos_l - measured.left as f64);
+
+        // Interior knots at evenly spaced fractions of the profile's distance.
+        let per = self.knots_per_segment;
+        if a.next_knot < per && s.position * per as f64 >= a.profile.distance() * a.next_knot as f64
+        {
+            let _ = self.knots.push(measured);
+            a.next_knot += 1;
+        }
+
+        let step = RoutineStep {
+            right,
+            left,
+            segment: self.index,
+            kind: a.kind,
+            error,
+            finished: false,
+        };
+        if !done {
+            return step;
+        }
+        let tol = f64::from(self.settle.tolerance_ticks);
+        let in_tol = libm::fabs(a.end.right as f64 - measured.right as f64) <= tol
+            && libm::fabs(a.end.left as f64 - measured.left as f64) <= tol;
+        a.settled = if in_tol { a.settled + 1 } else { 0 };
+        let after_end = now * self.rate_hz - a.profile.duration() * self.rate_hz;
+        if a.settled < self.settle.periods && after_end < f64::from(self.settle.timeout_periods) {
+            return step;
+        }
+        if a.settled < self.settle.periods {
+            warn!("segment {} ended by the settle timeout", self.index);
+        }
+        // Segment boundary knot (fill any interior knots not reached, e.g. an empty profile).
+        while a.next_knot < per {
+            let _ = self.knots.push(measured);
+            a.next_knot += 1;
+        }
+        let _ = self.knots.push(measured);
+        let end = a.end;
+        if self.index + 1 >= segment_count(&self.path) {
+            self.finished = true;
+            return RoutineStep {
+                finished: true,
+                ..step
+            };
+        }
+        self.index += 1;
+        self.active = Active::new(segment(&self.path, self.index), end, geometry, limits);
+        step
+    }
+
+    /// The reference once the path is complete: hold the last target.
+    fn hold(&self, error: (f64, f64)) -> RoutineStep {
+        RoutineStep {
+            right: WheelReference::default(),
+            left: WheelReference::default(),
+            segment: self.index,
+            kind: self.active.kind,
+            error,
+            finished: true,
+        }
+    }
+}
+
+/// The planned sequence of button-started runs: squares of one side, alternating CW and CCW.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct RunPlan {
+    /// Side length, metres.
+    pub side_m: f64,
+    /// Direction of the next run.
+    pub next: Direction,
+}
+
+impl RunPlan {
+    /// A plan starting with `first`.
+    pub const fn new(side_m: f64, first: Direction) -> Self {
+        RunPlan {
+            side_m,
+            next: first,
+        }
+    }
+
+    /// The path the next run should drive.
+    pub fn next_path(&self) -> PathKind {
+        PathKind::Square {
+            direction: self.next,
+            side_m: self.side_m,
+        }
+    }
+
+    /// Call after the next run was started: the following one goes the other way.
+    pub fn advance(&mut self) {
+        self.next = self.next.opposite();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::reference::ArcModel;
+    use crate::kinematics::reference::PoseF64;
+
+    const SETTLE: SettleConfig = SettleConfig {
+        tolerance_ticks: 2,
+        periods: 5,
+        timeout_periods: 2000,
+    };
+
+    /// Drives the routine with perfect wheels: measured = the reference, rounded down.
+    fn ideal_run(path: PathKind, g: &Geometry) -> (Routine, usize, f64) {
+        let limits = MotionLimits::DEFAULT;
+        let mut r = Routine::new(path, g, &limits, 1000, SETTLE).unwrap();
+        let mut pos = (0.0f64, 0.0f64);
+        let mut steps = 0;
+        let mut worst_sync = 0.0f64;
+        let mut seg_start = (0usize, pos);
+        loop {
+            let meas = WheelTicks::new(pos.0.floor() as i64, pos.1.floor() as i64);
+            let s = r.step(meas, g, &limits);
+            if s.finished {
+                break;
+            }
+            if s.segment != seg_start.0 {
+                seg_start = (s.segment, pos);
+            }
+            pos.0 += f64::from(s.right.delta_ticks);
+            pos.1 += f64::from(s.left.delta_ticks);
+            if let SegmentKind::Straight { .. } = s.kind {
+                let (r0, l0) = seg_start.1;
+                worst_sync = worst_sync.max(((pos.0 - r0) - (pos.1 - l0)).abs());
+            }
+            steps += 1;
+            assert!(steps < 10_000_000);
+        }
+        (r, steps, worst_sync)
+    }
+
+    #[test]
+    fn square_targets_close_the_square() {
+        let g = Geometry::PAPER_NOMINAL;
+        for direction in [Direction::Cw, Direction::Ccw] {
+            let path = PathKind::Square {
+                direction,
+                side_m: 2.0,
+            };
+            let (r, _, sync) = ideal_run(path, &g);
+            // The references of both wheels are identical on a leg with equal wheels; only the
+            // f32 increments differ in rounding (≪ 1 tick).
+            assert!(sync < 0.01, "sync {sync}");
+            let knots = r.knots();
+            assert_eq!(knots.len(), 1 + 8 * ((MAX_KNOTS - 1) / 8));
+            let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), knots);
+            // Whole-tick rounding of each target: ≤ 0.5 tick (1.2 µm) per wheel per segment,
+            // i.e. ≤ 3e-6 rad per turn, × 2 m lever arm ≈ 6 µm per corner; 50 µm allows all.
+            assert!(end.x_m.abs() < 5e-5 && end.y_m.abs() < 5e-5, "{end:?}");
+            let turned = end.theta_rad - direction.turn_sign() * 2.0 * PI;
+            assert!(turned.abs() < 2e-5, "{end:?}");
+            // Every knot is non-decreasing in distance along legs and the first is zero.
+            assert_eq!(knots[0], WheelTicks::default());
+        }
+    }
+
+    #[test]
+    fn turn_direction_follows_the_path() {
+        let g = Geometry::PAPER_NOMINAL;
+        let limits = MotionLimits::DEFAULT;
+        let path = PathKind::Square {
+            direction: Direction::Cw,
+            side_m: 1.0,
+        };
+        let r = Routine::new(path, &g, &limits, 1000, SETTLE).unwrap();
+        let turn = Active::new(segment(&path, 1), r.active.end, &g, &limits);
+        // CW: right wheel backwards, left forwards, equal magnitude (π b / 4 ≈ 0.302 m).
+        let dr = turn.end.right - turn.start.right;
+        let dl = turn.end.left - turn.start.left;
+        assert!(dr < 0 && dl > 0 && dr == -dl, "{dr} {dl}");
+        let expected = (0.25 * PI * g.wheelbase_m / g.meters_per_tick_right()).round() as i64;
+        assert_eq!(dl, expected);
+    }
+
+    #[test]
+    fn calibrated_geometry_gives_unequal_ticks_equal_travel() {
+        let g = Geometry::PAPER_NOMINAL.with_factors(0.995, 1.01, 1.0);
+        let path = PathKind::Line { length_m: 1.0 };
+        let (r, _, _) = ideal_run(path, &g);
+        let last = *r.knots().last().unwrap();
+        let travel_r = last.right as f64 * g.meters_per_tick_right();
+        let travel_l = last.left as f64 * g.meters_per_tick_left();
+        // One tick of rounding plus one of flooring: 2 × 2.4 µm.
+        assert!((travel_r - 1.0).abs() < 5e-6 && (travel_l - 1.0).abs() < 5e-6);
+        assert_eq!(r.knots().len(), MAX_KNOTS);
+    }
+
+    #[test]
+    fn circle_returns_to_start() {
+        let g = Geometry::PAPER_NOMINAL;
+        for direction in [Direction::Cw, Direction::Ccw] {
+            let path = PathKind::Circle {
+                direction,
+                radius_m: 1.0,
+            };
+            let (r, steps, _) = ideal_run(path, &g);
+            let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), r.knots());
+            assert!(end.distance_to(&PoseF64::default()) < 2e-5, "{end:?}");
+            let turned = end.theta_rad * direction.turn_sign();
+            assert!((turned - 2.0 * PI).abs() < 1e-5, "{end:?}");
+            // Outer wheel at ≤ 0.3 m/s: the centre moves at ≤ 0.3/(1 + b/2r) = 0.252 m/s.
+            assert!(steps as f64 / 1000.0 > 2.0 * PI / 0.26, "{steps}");
+        }
+    }
+
+    #[test]
+    fn rejects_bad_sizes() {
+        let g = Geometry::PAPER_NOMINAL;
+        let l = MotionLimits::DEFAULT;
+        for path in [
+            PathKind::Line { length_m: f64::NAN },
+            PathKind::Square {
+                direction: Direction::Cw,
+                side_m: 0.0,
+            },
+            PathKind::Circle {
+                direction: Direction::Ccw,
+                radius_m: 1e3,
+            },
+        ] {
+            assert_eq!(
+                Routine::new(path, &g, &l, 1000, SETTLE).err(),
+                Some(PathError::Size)
+            );
+        }
+    }
+
+    #[test]
+    fn plan_alternates() {
+        let mut p = RunPlan::new(4.0, Direction::Cw);
+        assert_eq!(
+            p.next_path(),
+            PathKind::Square {
+                direction: Direction::Cw,
+                side_m: 4.0
+            }
+        );
+        p.advance();
+        assert_eq!(p.next, Direction::Ccw);
+        p.advance();
+        assert_eq!(p.next, Direction::Cw);
+    }
+}

@@ -1,0 +1,360 @@
+//! Per-wheel speed control: PI with feed-forward and anti-windup.
+//!
+//! Units: wheel positions and speeds in encoder ticks (forward positive), ticks/s and ticks/s²;
+//! output is a motor duty in `[-limit, limit]` (positive forward, see [`crate::motion::motor`]).
+//!
+//! Control law, per control period of length `dt`, with the reference and the measurement
+//! given as the wheel's tick *increments* of the period:
+//!
+//! ```text
+//! e    += Δref − Δmeas                 (integral of the speed error = position error, ticks)
+//! E    += e·dt                         (integral of the position error, tick·s)
+//! duty  = kff_v·v_ref + kff_a·a_ref    (feed-forward: inverse of the motor model)
+//!       + kp·(Δref − Δmeas)/dt + ki·e  (PI on speed)
+//!       + kii·E                        (removes the steady error of a wrong motor gain)
+//! ```
+//!
+//! Because the integral of the speed error is exactly the position error, a wheel that follows
+//! its reference returns to zero *position* error: two wheels that follow one profile stay
+//! synchronised. The second integrator makes the loop type 2, so even a constant-speed leg
+//! driven with a feed-forward whose motor gain is off (another motor, a low battery) settles
+//! to zero position error instead of a lag proportional to the speed.
+//!
+//! Anti-windup: while the output saturates, neither integral is advanced in the saturating
+//! direction, and each is clamped to the value that alone saturates the output. `f32` is enough
+//! here: the integrals stay within a few hundred ticks and every increment is a per-period
+//! difference; absolute positions never live in `f32`.
+//!
+//! [`SpeedTuning`] derives the gains from a first-order motor model (`v = K·duty` after a lag
+//! `τ`) by placing the three closed-loop poles at `−ω_n`:
+//! `τ s³ + (1 + kp K) s² + ki K s + kii K = τ (s + ω_n)³`, so `kp = (3 ω_n τ − 1)/K`,
+//! `ki = 3 τ ω_n² / K`, `kii = τ ω_n³ / K`, `kff_v = 1/K`, `kff_a = τ/K`.
+
+use core::fmt;
+
+use crate::util::num::clamp;
+
+/// Gains of one wheel's controller (ticks-based units, see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PiGains {
+    /// Proportional gain on the speed error, duty per tick/s.
+    pub kp: f32,
+    /// Integral gain, duty per tick of position error.
+    pub ki: f32,
+    /// Second integral gain, duty per tick·s of integrated position error.
+    pub kii: f32,
+    /// Speed feed-forward, duty per tick/s.
+    pub kff_v: f32,
+    /// Acceleration feed-forward, duty per tick/s².
+    pub kff_a: f32,
+    /// Output limit (`0 < limit ≤ 1`), duty.
+    pub output_limit: f32,
+}
+
+/// Physical tuning of the speed loop, turned into [`PiGains`] per wheel by [`SpeedTuning::gains`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct SpeedTuning {
+    /// Wheel surface speed at duty 1 in steady state, m/s (motor gain `K`).
+    pub full_duty_speed_mps: f32,
+    /// Motor time constant `τ`, seconds.
+    pub time_constant_s: f32,
+    /// Closed-loop pole frequency `ω_n` (all three poles at `−ω_n`), rad/s.
+    pub bandwidth_radps: f32,
+    /// Output limit, duty (`0 < limit ≤ 1`).
+    pub output_limit: f32,
+}
+
+/// Why a [`SpeedTuning`] was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum TuningError {
+    /// The full-duty speed is not finite or outside 0.01 ..= 20 m/s.
+    MotorGain,
+    /// The time constant is not finite or outside 0 ..= 2 s.
+    TimeConstant,
+    /// The bandwidth is not finite or outside 0.1 ..= 1000 rad/s.
+    Bandwidth,
+    /// The output limit is not within (0, 1].
+    OutputLimit,
+}
+
+impl fmt::Display for TuningError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            TuningError::MotorGain => "full-duty speed must be within 0.01..20 m/s",
+            TuningError::TimeConstant => "motor time constant must be within 0..2 s",
+            TuningError::Bandwidth => "speed-loop bandwidth must be within 0.1..1000 rad/s",
+            TuningError::OutputLimit => "duty limit must be within (0, 1]",
+        })
+    }
+}
+
+impl SpeedTuning {
+    /// Defaults for a motor that reaches 1 m/s at full duty with a 50 ms lag; poles at 30 rad/s.
+    pub const DEFAULT: SpeedTuning = SpeedTuning {
+        full_duty_speed_mps: 1.0,
+        time_constant_s: 0.05,
+        bandwidth_radps: 30.0,
+        output_limit: 1.0,
+    };
+
+    /// Checks the tuning.
+    ///
+    /// # Errors
+    /// The first offending field, as a [`TuningError`].
+    pub fn validate(&self) -> Result<(), TuningError> {
+        let within = |v: f32, lo: f32, hi: f32| v.is_finite() && (lo..=hi).contains(&v);
+        if !within(self.full_duty_speed_mps, 0.01, 20.0) {
+            return Err(TuningError::MotorGain);
+        }
+        if !within(self.time_constant_s, 0.0, 2.0) {
+            return Err(TuningError::TimeConstant);
+        }
+        if !within(self.bandwidth_radps, 0.1, 1000.0) {
+            return Err(TuningError::Bandwidth);
+        }
+        if !(self.output_limit > 0.0 && self.output_limit <= 1.0) {
+            return Err(TuningError::OutputLimit);
+        }
+        Ok(())
+    }
+
+    /// Gains for a wheel whose travel per tick is `meters_per_tick` (> 0).
+    pub fn gains(&self, meters_per_tick: f64) -> PiGains {
+        // Motor gain in ticks/s per unit duty.
+        let k = (f64::from(self.full_duty_speed_mps) / meters_per_tick) as f32;
+        let tau = self.time_constant_s;
+        let wn = self.bandwidth_radps;
+        PiGains {
+            kp: libm::fmaxf(3.0 * wn * tau - 1.0, 0.0) / k,
+            ki: 3.0 * tau * wn * wn / k,
+            kii: tau * wn * wn * wn / k,
+            kff_v: 1.0 / k,
+            kff_a: tau / k,
+            output_limit: self.output_limit,
+        }
+    }
+}
+
+impl Default for SpeedTuning {
+    fn default() -> Self {
+        SpeedTuning::DEFAULT
+    }
+}
+
+/// One period's reference for a wheel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WheelReference {
+    /// Reference increment over the period that just ended (the one the measured increment
+    /// covers), ticks.
+    pub delta_ticks: f32,
+    /// Reference speed for the period that starts now (its midpoint), ticks/s.
+    pub velocity_tps: f32,
+    /// Reference acceleration for the period that starts now, ticks/s².
+    pub accel_tps2: f32,
+}
+
+/// Evolving state of one wheel's controller.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SpeedPiState {
+    /// Integral of the speed error = position error, ticks (reference − measured).
+    integral_ticks: f32,
+    /// Integral of the position error, tick·s.
+    integral2: f32,
+}
+
+impl SpeedPiState {
+    /// Position error (reference − measured) accumulated since the last reset, ticks.
+    pub fn position_error_ticks(&self) -> f32 {
+        self.integral_ticks
+    }
+}
+
+/// One wheel's PI speed controller (configuration; the state is [`SpeedPiState`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpeedPi {
+    gains: PiGains,
+    rate_hz: f32,
+}
+
+impl SpeedPi {
+    /// A controller with `gains` stepped at `rate_hz`.
+    pub fn new(gains: PiGains, rate_hz: f32) -> Self {
+        SpeedPi { gains, rate_hz }
+    }
+
+    /// The gains.
+    pub fn gains(&self) -> &PiGains {
+        &self.gains
+    }
+
+    /// One control period: `reference` for the period, `measured_delta` ticks counted by the
+    /// encoder in it. Returns the duty for the next period.
+    #[inline]
+    pub fn step(
+        &self,
+        state: &mut SpeedPiState,
+        reference: &WheelReference,
+        measured_delta: f32,
+    ) -> f32 {
+        let g = &self.gains;
+        let dt = 1.0 / self.rate_hz;
+        let err_step = reference.delta_ticks - measured_delta;
+        let ff = g.kff_v * reference.velocity_tps + g.kff_a * reference.accel_tps2;
+        let p = g.kp * err_step * self.rate_hz;
+        let i1 = state.integral_ticks + err_step;
+        let i2 = state.integral2 + i1 * dt;
+        let unsat = ff + p + g.ki * i1 + g.kii * i2;
+        let limit = g.output_limit;
+        // Conditional integration: do not wind further into a saturated output.
+        let high = unsat > limit;
+        let low = unsat < -limit;
+        let winds = |inc: f32| (high && inc > 0.0) || (low && inc < 0.0);
+        if !winds(err_step) {
+            state.integral_ticks = i1;
+        }
+        if !winds(state.integral_ticks) {
+            state.integral2 += state.integral_ticks * dt;
+        }
+        // Clamp: an integral alone never needs more than the full output.
+        if g.ki > 0.0 {
+            let m = limit / g.ki;
+            state.integral_ticks = clamp(state.integral_ticks, -m, m);
+        }
+        if g.kii > 0.0 {
+            let m = limit / g.kii;
+            state.integral2 = clamp(state.integral2, -m, m);
+        }
+        let out = ff + p + g.ki * state.integral_ticks + g.kii * state.integral2;
+        if out.is_nan() {
+            0.0
+        } else {
+            clamp(out, -limit, limit)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const M_PER_TICK: f64 = core::f64::consts::PI * 0.15 / 200_000.0;
+
+    /// Exact discretisation of the first-order motor over one period with constant duty.
+    fn plant(v: &mut f64, pos: &mut f64, duty: f32, k: f64, tau: f64, dt: f64) {
+        let target = f64::from(duty) * k;
+        let e = (-dt / tau).exp();
+        *pos += target * dt + (*v - target) * tau * (1.0 - e);
+        *v = target + (*v - target) * e;
+    }
+
+    #[test]
+    fn tracks_a_ramp_with_small_position_error() {
+        let tuning = SpeedTuning::DEFAULT;
+        let pi = SpeedPi::new(tuning.gains(M_PER_TICK), 1000.0);
+        let k = 1.0 / M_PER_TICK; // ticks/s at duty 1, matching the tuning exactly
+        let mut st = SpeedPiState::default();
+        let (mut v, mut pos, mut meas_prev) = (0.0f64, 0.0f64, 0i64);
+        let a = 0.3 / M_PER_TICK; // 0.3 m/s² in ticks/s²
+        let mut duty = 0.0;
+        let mut worst = 0.0f64;
+        for i in 1..=1000 {
+            plant(&mut v, &mut pos, duty, k, 0.05, 1e-3);
+            let t = f64::from(i) * 1e-3;
+            let t0 = t - 1e-3;
+            let r = WheelReference {
+                delta_ticks: (0.5 * a * (t * t - t0 * t0)) as f32,
+                velocity_tps: (a * (t + 0.5e-3)) as f32,
+                accel_tps2: a as f32,
+            };
+            let meas = pos.floor() as i64;
+            duty = pi.step(&mut st, &r, (meas - meas_prev) as f32);
+            meas_prev = meas;
+            worst = worst.max((0.5 * a * t * t - pos).abs());
+        }
+        // With an exact motor model the feed-forward alone tracks (the duty is held over a
+        // period, so the lag sees a step where the ramp is smooth: a·dt²/8-order, 0.02 tick);
+        // what is left is the encoder's floor quantisation (< 1 tick) that the PI reacts to.
+        // 2 ticks = 4.7 µm over a 0.15 m ramp.
+        assert!(worst < 2.0, "worst position error {worst} ticks");
+    }
+
+    #[test]
+    fn integral_removes_a_motor_gain_error() {
+        let tuning = SpeedTuning::DEFAULT;
+        let pi = SpeedPi::new(tuning.gains(M_PER_TICK), 1000.0);
+        // The real motor is 10 % weaker than the model.
+        let k = 0.9 / M_PER_TICK;
+        let mut st = SpeedPiState::default();
+        let (mut v, mut pos, mut meas_prev) = (0.0f64, 0.0f64, 0i64);
+        let speed = 0.2 / M_PER_TICK;
+        let mut duty = 0.0;
+        for i in 1..=3000 {
+            plant(&mut v, &mut pos, duty, k, 0.05, 1e-3);
+            let r = WheelReference {
+                delta_ticks: (speed * 1e-3) as f32,
+                velocity_tps: speed as f32,
+                accel_tps2: 0.0,
+            };
+            let meas = pos.floor() as i64;
+            duty = pi.step(&mut st, &r, (meas - meas_prev) as f32);
+            meas_prev = meas;
+            let _ = i;
+        }
+        let reference = speed * 3.0;
+        // After 3 s (many closed-loop time constants) the position error is back to the
+        // quantisation level: 2 ticks (1 from flooring, 1 from the last period's motion).
+        assert!(
+            (reference - pos).abs() < 2.0 + speed * 1e-3,
+            "error {} ticks",
+            reference - pos
+        );
+    }
+
+    #[test]
+    fn anti_windup_limits_the_integral() {
+        let tuning = SpeedTuning::DEFAULT;
+        let gains = tuning.gains(M_PER_TICK);
+        let pi = SpeedPi::new(gains, 1000.0);
+        let mut st = SpeedPiState::default();
+        // Blocked wheel: the reference runs away at 0.05 m/s (21 ticks per period) for 2 s.
+        // That speed alone does not saturate the output, so only the integrals can wind up.
+        let r = WheelReference {
+            delta_ticks: (0.05e-3 / M_PER_TICK) as f32,
+            velocity_tps: (0.05 / M_PER_TICK) as f32,
+            accel_tps2: 0.0,
+        };
+        let mut duty = 0.0;
+        for _ in 0..2000 {
+            duty = pi.step(&mut st, &r, 0.0);
+        }
+        // Conditional integration parks the output at the limit, within one period's increment.
+        assert!(duty > 0.99, "{duty}");
+        // Without anti-windup the position error would be 2000 × 21.2 = 42,441 ticks and its
+        // integral 42,441 tick·s; both are held where each alone saturates the output.
+        assert!(st.integral_ticks <= 1.0 / gains.ki * 1.0001, "{st:?}");
+        assert!(st.integral2 <= 1.0 / gains.kii * 1.0001, "{st:?}");
+        assert!(st.integral_ticks > 0.0 && st.integral2 > 0.0);
+        // Released, the wheel catches up at full speed and the duty drops below saturation as
+        // soon as the error has been made up (within the 3,144-tick bound: < 8 periods at 1 m/s).
+        let stop = WheelReference::default();
+        let mut periods = 0;
+        while pi.step(&mut st, &stop, 424.0) > 0.99 {
+            periods += 1;
+            assert!(periods < 8, "{st:?}");
+        }
+    }
+
+    #[test]
+    fn tuning_validates() {
+        assert_eq!(SpeedTuning::DEFAULT.validate(), Ok(()));
+        let mut t = SpeedTuning::DEFAULT;
+        t.output_limit = 0.0;
+        assert_eq!(t.validate(), Err(TuningError::OutputLimit));
+        let mut t = SpeedTuning::DEFAULT;
+        t.bandwidth_radps = f32::NAN;
+        assert_eq!(t.validate(), Err(TuningError::Bandwidth));
+    }
+}
