@@ -41,7 +41,7 @@ mod app {
     use odocal::protocol::reply::{ByteSink, ErrorCode, line_error_reply, write_err};
     use odocal::protocol::{LINE_MAX, LineAssembler, LineError};
     use odocal::session::library::{LibraryCalibrator, Locked};
-    use odocal::session::{ParamStorage, Session, Settings, StorageError};
+    use odocal::session::{ParamStorage, Session, Settings, StorageError, write_boot_event};
     use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
     use stm32f4xx_hal::prelude::*;
@@ -157,7 +157,8 @@ mod app {
 
         // Parameters first: loading may repair an interrupted save (motors are off here).
         let mut params_store = board.params;
-        let params = params_store.load_blocking().record;
+        let loaded = params_store.load_blocking();
+        let params = loaded.record;
         let mut controller = make_controller(params.active_geometry());
         if let Err(e) = controller.set_limits(params.motion.limits()) {
             defmt::warn!("stored motion limits refused ({}), using defaults", e);
@@ -167,7 +168,12 @@ mod app {
         set_timeout(&mut watchdog, WATCHDOG_MS);
 
         let (line_in, line_out) = cx.local.lines.split();
-        let (tx_in, tx_out) = cx.local.tx_bytes.split();
+        let (mut tx_in, tx_out) = cx.local.tx_bytes.split();
+        // The boot event is the first line on the console (sent once the USART2 task runs).
+        let _ = write_boot_event(
+            &mut ByteSink::new(|b| tx_in.enqueue(b).is_ok()),
+            loaded.warning.as_ref(),
+        );
         let (press_in, press_out) = cx.local.presses.split();
 
         report::spawn().ok();

@@ -34,6 +34,7 @@ use crate::kinematics::encoder::WheelTicks;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
+use crate::storage::LoadWarning;
 use crate::util::decimal::Decimal;
 use crate::util::text::keyword_eq;
 pub use settings::{AppliedCalibration, Changed, Settings, SettingsError};
@@ -80,6 +81,18 @@ fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
         StorageError::Flash(_) | StorageError::Invalid(_) => ErrorCode::Storage,
     };
     write_err(out, code, &e)
+}
+
+/// The first line the board sends after a reset: `event boot: parameters loaded`, or
+/// `event boot: default parameters (<why>)` when the stored record was not used.
+///
+/// # Errors
+/// Only those of `out`.
+pub fn write_boot_event(out: &mut dyn Write, warning: Option<&LoadWarning>) -> fmt::Result {
+    match warning {
+        None => write!(out, "event boot: parameters loaded{EOL}"),
+        Some(w) => write!(out, "event boot: default parameters ({w}){EOL}"),
+    }
 }
 
 /// Counts of square runs per direction: `(stored, measured)` for CW and CCW.

@@ -7,15 +7,13 @@
 //! simulated reboot. Bytes go through the library's [`LineAssembler`], exactly as the USART2 RX
 //! interrupt feeds it on the board.
 
-use std::fmt::Write as _;
-
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, Status, StepOutput};
 use odocal::protocol::LineAssembler;
 use odocal::protocol::reply::line_error_reply;
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Session, Settings};
+use odocal::session::{Session, Settings, write_boot_event};
 use odocal::storage::ParamStore;
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
@@ -58,11 +56,7 @@ impl<'f> Board<'f> {
         controller
             .set_limits(settings.motion)
             .map_err(|e| format!("stored limits: {e}"))?;
-        match loaded.warning {
-            None => write!(out, "event boot: parameters loaded\r\n"),
-            Some(w) => write!(out, "event boot: default parameters ({w})\r\n"),
-        }
-        .map_err(|e| e.to_string())?;
+        write_boot_event(out, loaded.warning.as_ref()).map_err(|e| e.to_string())?;
         let period_us = 1_000_000 / u64::from(config.rate_hz);
         let mut board = Board {
             sim: Sim::new(config),

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Firmware in the loop: the firmware image runs in QEMU (netduinoplus2, STM32F405) and is driven
+# through its own serial port (USART2).
+#   Stage 1: the exact ELF `cargo fw` builds (sha256 printed) boots with a boot assist generated
+#            from the ELF (fil/emulator.py), answers a scripted console session compared with
+#            fil/golden/console.txt, and its defmt boot log is decoded from RTT.
+# Needs: qemu-system-arm, gdb-multiarch, binutils-arm-none-eabi, python3, defmt-print, flip-link,
+# the thumbv7em-none-eabihf target. Method and limits: docs/performance.md (Fidelity).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+for tool in qemu-system-arm gdb-multiarch arm-none-eabi-objdump arm-none-eabi-nm python3; do
+    command -v "$tool" >/dev/null || {
+        echo "firmware-in-the-loop: $tool not found (apt-get install -y qemu-system-arm gdb-multiarch binutils-arm-none-eabi python3)" >&2
+        exit 1
+    }
+done
+command -v defmt-print >/dev/null || [ -x "$HOME/.cargo/bin/defmt-print" ] || {
+    echo "firmware-in-the-loop: defmt-print not found (cargo install defmt-print --locked)" >&2
+    exit 1
+}
+
+OUT=target/fil
+mkdir -p "$OUT"
+ELF=target/thumbv7em-none-eabihf/release/firmware
+
+echo "== stage 1: the shipped ELF"
+t0=$(date +%s.%N)
+cargo fw --quiet
+sha256sum "$ELF"
+python3 fil/boot_test.py "$ELF" --workdir "$OUT" | tee "$OUT/stage1.txt"
+t1=$(date +%s.%N)
+awk -v a="$t0" -v b="$t1" 'BEGIN { printf "stage 1 wall time: %.1f s\n", b - a }'

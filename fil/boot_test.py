@@ -1,0 +1,192 @@
+#!/usr/bin/env python3
+"""Stage 1 of the firmware-in-the-loop test: the shipped ELF in QEMU.
+
+Boots the exact image `cargo fw` builds (with the boot assist of `emulator.py`), waits for the
+`event boot` line on USART2, sends the console script below (every command family, error cases,
+an over-long line, CR endings, garbage bytes) and compares each reply with
+`fil/golden/console.txt`; then decodes the defmt boot log from the RTT buffer of a RAM dump.
+
+    python3 fil/boot_test.py ELF [--regen] [--workdir DIR]
+
+Prints `shipped ELF <sha256 prefix>: <N> console lines answered as expected` and exits 0 when
+every reply matches; `--regen` rewrites the golden file from this run instead.
+"""
+
+import argparse
+import hashlib
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from console import Console, ConsoleError  # noqa: E402
+from emulator import Emulator, defmt_log, rtt_up_bytes  # noqa: E402
+
+GOLDEN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "golden", "console.txt")
+
+# (bytes sent, whether a final reply is expected). Lines end with CR LF unless written out.
+SCRIPT = [
+    (b"echo off\r\n", True),
+    (b"help\r\n", True),
+    (b"?\r\n", True),
+    (b"status\r\n", True),
+    (b"params\r\n", True),
+    (b"set square_side 0.5\r\n", True),
+    (b"SET Runs_Per_Direction 1\r\n", True),
+    (b"set bogus 1\r\n", True),
+    (b"set d_right abc\r\n", True),
+    (b"set d_right nan\r\n", True),
+    (b"set wheelbase 99\r\n", True),
+    (b"set max_speed\r\n", True),
+    (b"frobnicate\r\n", True),
+    (b"pose\r\n", True),
+    (b"odom reset\r\n", True),
+    (b"runs\r\n", True),
+    (b"drop 1\r\n", True),
+    (b"measure\r\n", True),
+    (b"measure 0.1 0.2 3\r\n", True),
+    (b"calibrate\r\n", True),
+    (b"calibrate exakt\r\n", True),
+    (b"apply exact\r\n", True),
+    (b"stream on 5\r\n", True),
+    (b"stream off\r\n", True),
+    (b"clear\r\n", True),
+    (b"\r\n", False),
+    (b"x" * 100 + b"\r\n", True),
+    (b"status \xff\xfe\r\n", True),
+    (b"\x00\x01\x02garbage\x7f\x7f\x7f\x7f\x7f\x7f\x7fstatus\r\n", True),
+    (b"pose\r", True),
+    (b"params\r", True),
+    (b"run cw 0.5\r\n", True),
+    (b"status\r\n", True),
+    (b"save\r\n", True),
+    (b"stop\r\n", True),
+    (b"drive 0.1 0\r\n", True),
+    (b"stop\r\n", True),
+    (b"line 0.3\r\n", True),
+    (b"stop\r\n", True),
+    (b"circle ccw 0.2\r\n", True),
+    (b"stop\r\n", True),
+    (b"next\r\n", True),
+    (b"stop\r\n", True),
+    (b"runs\r\n", True),
+    (b"status\r\n", True),
+]
+
+# How long to wait for a reply, and for silence after a line that expects none (wall seconds).
+REPLY_TIMEOUT = 5.0
+NO_REPLY_WAIT = 0.5
+
+
+def shown(data):
+    """Sent bytes as one printable line."""
+    return "".join(chr(b) if 32 <= b < 127 and b != 92 else f"\\x{b:02x}" for b in data)
+
+
+def run(elf, workdir):
+    emu = Emulator(elf, workdir, assist=True, name="shipped")
+    blocks = []
+    try:
+        con = Console.unix(emu.u2)
+        emu.start()
+        boot = con.wait_event("event boot", 60)
+        blocks.append(("(reset)", [boot]))
+        for data, expect_reply in SCRIPT:
+            con.send_raw(data)
+            if expect_reply:
+                try:
+                    lines, final = con.reply(REPLY_TIMEOUT)
+                    got = lines + [final]
+                except ConsoleError:
+                    got = ["(no reply)"]
+            else:
+                got = con.quiet(NO_REPLY_WAIT) or ["(no reply)"]
+            got += [e for e in con.events]
+            con.events.clear()
+            blocks.append((shown(data), got))
+        ram = emu.dump_ram(os.path.join(workdir, "shipped-ram.bin"))
+        alive = emu.alive()
+    finally:
+        emu.stop()
+    log = defmt_log(elf, rtt_up_bytes(elf, ram))
+    return blocks, log, alive, emu.points
+
+
+def collapse(lines):
+    """Runs of identical lines as (line, count)."""
+    out = []
+    for line in lines:
+        if out and out[-1][0] == line:
+            out[-1][1] += 1
+        else:
+            out.append([line, 1])
+    return out
+
+
+def render(blocks):
+    out = []
+    for sent, got in blocks:
+        out.append("> " + sent)
+        out += ["< " + g for g in got]
+    return "\n".join(out) + "\n"
+
+
+def parse(text):
+    blocks = []
+    for line in text.splitlines():
+        if line.startswith("> "):
+            blocks.append((line[2:], []))
+        elif line.startswith("< ") and blocks:
+            blocks[-1][1].append(line[2:])
+    return blocks
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("elf")
+    ap.add_argument("--regen", action="store_true")
+    ap.add_argument("--workdir", default="target/fil")
+    args = ap.parse_args()
+    sha = hashlib.sha256(open(args.elf, "rb").read()).hexdigest()
+    print(f"boot test: {args.elf} sha256 {sha}")
+    blocks, log, alive, points = run(args.elf, args.workdir)
+    print("boot assist (generated from the ELF):")
+    for kind, bp, resume, reg in points:
+        print(f"  {kind:10} break 0x{bp:08x} resume 0x{resume:08x} ({reg})")
+    print("defmt log (RTT buffer of the RAM dump, decoded by defmt-print):")
+    for line, n in collapse(log.splitlines()):
+        print("  " + line + (f"   (x{n})" if n > 1 else ""))
+    text = render(blocks)
+    with open(os.path.join(args.workdir, "console.txt"), "w") as f:
+        f.write(text)
+    if args.regen:
+        os.makedirs(os.path.dirname(GOLDEN), exist_ok=True)
+        with open(GOLDEN, "w") as f:
+            f.write(text)
+        print(f"golden file rewritten: {GOLDEN}")
+    golden = parse(open(GOLDEN).read())
+    fail = 0
+    good = 0
+    if len(golden) != len(blocks):
+        print(f"FAILED: {len(blocks)} exchanges, golden file has {len(golden)}")
+        fail = 1
+    for (sent, got), (gsent, gwant) in zip(blocks, golden):
+        if sent == gsent and got == gwant:
+            good += 1 if sent != "(reset)" else 0
+        else:
+            fail = 1
+            print(f"MISMATCH after `{sent}`:\n  want {gwant}\n  got  {got}")
+    if "odocal up" not in log:
+        print("FAILED: the boot log has no `odocal up` line")
+        fail = 1
+    if not alive:
+        print("FAILED: QEMU exited during the test")
+        fail = 1
+    if fail:
+        print(f"boot test FAILED (transcript: {args.workdir}/console.txt)")
+        return 1
+    print(f"shipped ELF {sha[:12]}: {good} console lines answered as expected")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
