@@ -4,6 +4,8 @@
 //! The doubles here only record what the session asked for and return scripted values; the
 //! closed-loop behaviour against the real controller and calibration is tested in host-sim.
 
+use odocal::motion::bringup::{CheckKind, CheckReport};
+use odocal::motion::wiring::Wiring;
 use std::fmt;
 
 use odocal::kinematics::encoder::WheelTicks;
@@ -28,6 +30,9 @@ struct ScriptedRobot {
     drives: Vec<(f32, f32)>,
     aborts: usize,
     totals: WheelTicks,
+    wiring: Option<Wiring>,
+    check: Option<CheckKind>,
+    check_reports: Vec<CheckReport>,
 }
 
 impl ScriptedRobot {
@@ -117,6 +122,24 @@ impl Robot for ScriptedRobot {
     }
     fn motors_stopped(&mut self) -> bool {
         self.running.is_none() && !self.driving
+    }
+    fn set_wiring(&mut self, w: Wiring) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.wiring = Some(w);
+        Ok(())
+    }
+    fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.check = Some(kind);
+        Ok(())
+    }
+    fn take_check_report(&mut self) -> Option<CheckReport> {
+        if self.check_reports.is_empty() {
+            None
+        } else {
+            self.check = None;
+            Some(self.check_reports.remove(0))
+        }
     }
 }
 
@@ -235,6 +258,10 @@ fn params_golden() {
          \x20 max_turn_accel 2.000 rad/s^2\r\n\
          \x20 square_side 2.000 m\r\n\
          \x20 runs_per_direction 5 runs\r\n\
+         \x20 motor_right_sign 1 (1 standard, -1 reversed)\r\n\
+         \x20 motor_left_sign 1 (1 standard, -1 reversed)\r\n\
+         \x20 encoder_right_sign 1 (1 standard, -1 reversed)\r\n\
+         \x20 encoder_left_sign 1 (1 standard, -1 reversed)\r\n\
          \x20 active d_right=0.150000000 d_left=0.150000000 wheelbase=0.385000000 m\r\n\
          \x20 calibration none\r\n\
          ok\r\n"
@@ -255,7 +282,7 @@ fn help_lists_every_command_then_ok() {
          \x20 line [d]                  drive straight d m\r\n\
          \x20 circle cw|ccw [r]         drive a full circle of radius r m\r\n\
          \x20 stop                      stop now\r\n\
-         \x20 clear                     clear a latched fault (stall, encoder glitch)\r\n\
+         \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
          \x20 measure <x> <y> [th_deg]  true end pose of the last run (start frame, m, deg)\r\n\
          \x20 runs                      list stored runs\r\n\
          \x20 drop <n>                  delete run n\r\n\
@@ -265,9 +292,10 @@ fn help_lists_every_command_then_ok() {
          \x20 reset-params              restore and store defaults\r\n\
          \x20 pose                      odometry pose\r\n\
          \x20 odom reset                set the odometry pose to the origin\r\n\
+         \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\
          \x20 stream on [hz]|off        pose + wheel speed stream, 1..100 Hz\r\n\
          \x20 drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last\r\n\
-         ok 21 commands\r\n"
+         ok 22 commands\r\n"
     );
 }
 

@@ -80,6 +80,21 @@ pub enum Polarity {
     Inverted,
 }
 
+impl Polarity {
+    /// The opposite direction.
+    pub const fn flipped(self) -> Polarity {
+        match self {
+            Polarity::Normal => Polarity::Inverted,
+            Polarity::Inverted => Polarity::Normal,
+        }
+    }
+
+    /// `self` flipped when `reversed`.
+    pub const fn flipped_if(self, reversed: bool) -> Polarity {
+        if reversed { self.flipped() } else { self }
+    }
+}
+
 /// A glitch: the counter moved further in one period than the wheel can.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -182,6 +197,12 @@ impl Encoder {
     /// The configuration.
     pub fn config(&self) -> &EncoderConfig {
         &self.config
+    }
+
+    /// Changes the counting direction (a wiring correction); the total so far is kept and
+    /// later deltas count with the new sign.
+    pub fn set_polarity(&mut self, polarity: Polarity) {
+        self.config.polarity = polarity;
     }
 
     /// Changes the glitch limit (after a geometry change); the count and total are kept.

@@ -1,6 +1,7 @@
 //! Motion: what the control task steps. Owns the motor trait, speed loops, profiles, routines,
-//! run records, the button and the [`controller`]. May use [`crate::kinematics`] and [`crate::util`].
+//! run records, wiring corrections, the bring-up check, the button and the [`controller`]. May use [`crate::kinematics`] and [`crate::util`].
 
+pub mod bringup;
 pub mod button;
 pub mod controller;
 pub mod motor;
@@ -8,3 +9,4 @@ pub mod profile;
 pub mod routine;
 pub mod run;
 pub mod speed;
+pub mod wiring;

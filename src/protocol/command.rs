@@ -10,6 +10,7 @@ use core::fmt;
 
 use super::number::parse_f64;
 use super::param::ParamName;
+use crate::motion::bringup::CheckKind;
 use crate::motion::run::Direction;
 use crate::util::decimal::Plain;
 pub use crate::util::text::keyword_eq;
@@ -102,6 +103,12 @@ pub enum Command<'a> {
     ResetParams,
     /// `pose`: the odometry pose.
     Pose,
+    /// `bringup [motors|push]`: the wiring check (motor pulses with the wheels off the ground,
+    /// or a hand push with the motors off).
+    Bringup {
+        /// Which check.
+        kind: CheckKind,
+    },
     /// `odom reset`: set the odometry pose to the origin.
     OdomReset,
     /// `stream on [hz]` / `stream off`.
@@ -240,6 +247,18 @@ fn whole(word: &str, what: &'static str, min: u32, max: u32) -> Result<u32, Pars
     Ok(value)
 }
 
+/// A wiring sign: `1`, `+1` or `-1`.
+fn sign(word: &str) -> Result<f64, ParseError> {
+    match word {
+        "1" | "+1" => Ok(1.0),
+        "-1" => Ok(-1.0),
+        _ => Err(ParseError::BadKeyword {
+            what: "value",
+            expected: "1 or -1",
+        }),
+    }
+}
+
 fn optional_number(
     words: &mut Words<'_>,
     what: &'static str,
@@ -304,7 +323,9 @@ impl<'a> Command<'a> {
             })?;
             let value_word = words.required("value")?;
             let (min, max) = name.range();
-            let value = if name.is_integer() {
+            let value = if name.is_sign() {
+                sign(value_word)?
+            } else if name.is_integer() {
                 // Integer ranges are small enough to be exact in f64 and u32.
                 f64::from(whole(value_word, "value", min as u32, max as u32)?)
             } else {
@@ -365,6 +386,19 @@ impl<'a> Command<'a> {
             Command::ResetParams
         } else if is("pose") {
             Command::Pose
+        } else if is("bringup") {
+            let kind = match words.next() {
+                None => CheckKind::Pulses,
+                Some(w) if keyword_eq(w, "motors") => CheckKind::Pulses,
+                Some(w) if keyword_eq(w, "push") => CheckKind::Push,
+                Some(_) => {
+                    return Err(ParseError::BadKeyword {
+                        what: "check",
+                        expected: "motors|push",
+                    });
+                }
+            };
+            Command::Bringup { kind }
         } else if is("odom") {
             let what = words.required("action")?;
             if !keyword_eq(what, "reset") {

@@ -28,11 +28,19 @@ pub enum ParamName {
     SquareSide,
     /// Planned square runs per direction (integer).
     RunsPerDirection,
+    /// Right motor direction: 1 = standard wiring, −1 = reversed.
+    MotorRightSign,
+    /// Left motor direction: 1 = standard wiring, −1 = reversed.
+    MotorLeftSign,
+    /// Right encoder counting direction: 1 = standard wiring, −1 = reversed.
+    EncoderRightSign,
+    /// Left encoder counting direction: 1 = standard wiring, −1 = reversed.
+    EncoderLeftSign,
 }
 
 impl ParamName {
     /// Every parameter, in the order `params` lists them.
-    pub const ALL: [ParamName; 10] = [
+    pub const ALL: [ParamName; 14] = [
         ParamName::DiameterRight,
         ParamName::DiameterLeft,
         ParamName::Wheelbase,
@@ -43,6 +51,10 @@ impl ParamName {
         ParamName::MaxTurnAccel,
         ParamName::SquareSide,
         ParamName::RunsPerDirection,
+        ParamName::MotorRightSign,
+        ParamName::MotorLeftSign,
+        ParamName::EncoderRightSign,
+        ParamName::EncoderLeftSign,
     ];
 
     /// The name used on the wire.
@@ -58,6 +70,10 @@ impl ParamName {
             ParamName::MaxTurnAccel => "max_turn_accel",
             ParamName::SquareSide => "square_side",
             ParamName::RunsPerDirection => "runs_per_direction",
+            ParamName::MotorRightSign => "motor_right_sign",
+            ParamName::MotorLeftSign => "motor_left_sign",
+            ParamName::EncoderRightSign => "encoder_right_sign",
+            ParamName::EncoderLeftSign => "encoder_left_sign",
         }
     }
 
@@ -82,6 +98,10 @@ impl ParamName {
             ParamName::MaxTurnRate => "rad/s",
             ParamName::MaxTurnAccel => "rad/s^2",
             ParamName::RunsPerDirection => "runs",
+            ParamName::MotorRightSign
+            | ParamName::MotorLeftSign
+            | ParamName::EncoderRightSign
+            | ParamName::EncoderLeftSign => "(1 standard, -1 reversed)",
         }
     }
 
@@ -100,11 +120,26 @@ impl ParamName {
             ParamName::MaxTurnAccel => (0.05, 20.0),
             ParamName::SquareSide => (0.1, 10.0),
             ParamName::RunsPerDirection => (1.0, (crate::motion::run::MAX_RUNS / 2) as f64),
+            ParamName::MotorRightSign
+            | ParamName::MotorLeftSign
+            | ParamName::EncoderRightSign
+            | ParamName::EncoderLeftSign => (-1.0, 1.0),
         }
     }
 
     /// Whether the value must be a whole number.
     pub fn is_integer(self) -> bool {
-        matches!(self, ParamName::CountsPerRev | ParamName::RunsPerDirection)
+        matches!(self, ParamName::CountsPerRev | ParamName::RunsPerDirection) || self.is_sign()
+    }
+
+    /// Whether this is a wiring sign (±1; 0 is refused).
+    pub fn is_sign(self) -> bool {
+        matches!(
+            self,
+            ParamName::MotorRightSign
+                | ParamName::MotorLeftSign
+                | ParamName::EncoderRightSign
+                | ParamName::EncoderLeftSign
+        )
     }
 }

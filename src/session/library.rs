@@ -24,9 +24,11 @@ use crate::calibration::{self, CalibrationError, Method, RunObservation};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
+use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
 use crate::motion::profile::MotionLimits;
 use crate::motion::run::{Direction, PathKind, RunRecord};
+use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
 use crate::storage::ParamStore;
 use crate::storage::record::{self, MethodName, ParamRecord};
@@ -37,6 +39,7 @@ pub fn fault_name(f: &Fault) -> &'static str {
     match f {
         Fault::EncoderGlitch { .. } => "encoder-glitch",
         Fault::Stall { .. } => "stall",
+        Fault::FollowingError { .. } => "following-error",
     }
 }
 
@@ -94,6 +97,10 @@ impl Robot for Controller {
                 activity: Activity::Driving,
                 fault: None,
             },
+            Status::Checking(kind) => RobotStatus {
+                activity: Activity::Checking(kind),
+                fault: None,
+            },
             Status::Faulted(f) => RobotStatus {
                 activity: Activity::Idle,
                 fault: Some(fault_name(&f)),
@@ -125,6 +132,23 @@ impl Robot for Controller {
 
     fn motors_stopped(&mut self) -> bool {
         Controller::motors_stopped(self)
+    }
+
+    fn set_wiring(&mut self, wiring: Wiring) -> Result<(), RobotError> {
+        Controller::set_wiring(self, wiring).map_err(set_error)
+    }
+
+    fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError> {
+        Controller::start_check(self, kind).map_err(|e| match e {
+            StartError::Busy => RobotError::Busy,
+            StartError::Faulted => fault_error(self),
+            StartError::NotReady => RobotError::Rejected("encoders not read yet"),
+            StartError::Path(_) => RobotError::Rejected("check not accepted by the controller"),
+        })
+    }
+
+    fn take_check_report(&mut self) -> Option<CheckReport> {
+        Controller::take_check_report(self)
     }
 }
 
@@ -204,6 +228,18 @@ impl<L: ControllerLock> Robot for Locked<L> {
     fn motors_stopped(&mut self) -> bool {
         self.0.with_controller(Robot::motors_stopped)
     }
+    #[inline(never)]
+    fn set_wiring(&mut self, wiring: Wiring) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::set_wiring(c, wiring))
+    }
+    #[inline(never)]
+    fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::start_check(c, kind))
+    }
+    #[inline(never)]
+    fn take_check_report(&mut self) -> Option<CheckReport> {
+        self.0.with_controller(Robot::take_check_report)
+    }
 }
 
 impl From<&ParamRecord> for Settings {
@@ -228,6 +264,7 @@ impl From<&ParamRecord> for Settings {
             motion: r.motion.limits(),
             square_side_m: r.motion.square_side_m,
             runs_per_direction: r.motion.runs_per_direction,
+            wiring: r.wiring,
         }
     }
 }
@@ -258,6 +295,7 @@ impl Settings {
                 self.square_side_m,
                 self.runs_per_direction,
             ),
+            wiring: self.wiring,
         })
     }
 }

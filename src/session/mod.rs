@@ -21,6 +21,7 @@
 //! store costs `MAX_RUNS` × that, ≈ 20.8 KB for the whole session (the `run_store_ram` test
 //! prints the exact figures).
 
+mod bringup;
 pub mod library;
 mod report;
 pub mod settings;
@@ -31,6 +32,7 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use crate::kinematics::encoder::WheelTicks;
+use crate::motion::bringup::PushReport;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, ParseError};
@@ -65,6 +67,8 @@ pub struct Session<C> {
     settings: Settings,
     runs: Vec<RunRecord, MAX_RUNS>,
     stream: Option<Stream>,
+    /// The last hand-push check of this boot (tells a reversed encoder from a reversed motor).
+    last_push: Option<PushReport>,
 }
 
 fn robot_err(out: &mut dyn Write, e: RobotError) -> fmt::Result {
@@ -116,6 +120,7 @@ impl<C: Calibrator> Session<C> {
             settings,
             runs: Vec::new(),
             stream: None,
+            last_push: None,
         }
     }
 
@@ -201,6 +206,7 @@ impl<C: Calibrator> Session<C> {
     /// Only if `out` refuses the text.
     pub fn poll(&mut self, now_us: u64, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         self.collect_finished(robot, out)?;
+        self.collect_check(robot, out)?;
         if self.stream_due(now_us) {
             let pose = robot.pose();
             let totals = robot.totals();
@@ -374,6 +380,7 @@ impl<C: Calibrator> Session<C> {
                 };
                 self.start(path, robot, out)
             }
+            Command::Bringup { kind } => self.bringup(kind, robot, out),
             Command::Stop => {
                 robot.abort();
                 write!(out, "ok stopped{EOL}")
@@ -457,6 +464,7 @@ impl<C: Calibrator> Session<C> {
             Changed::Geometry => robot.set_geometry(new.active),
             Changed::Motion => robot.set_limits(&new.motion),
             Changed::Plan => Ok(()),
+            Changed::Wiring => robot.set_wiring(new.wiring),
         };
         if let Err(e) = pushed {
             return robot_err(out, e);

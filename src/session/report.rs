@@ -3,6 +3,7 @@
 //! Positions in metres with 6 decimals (1 µm), headings in degrees, factors with 9 decimals
 //! (parameters carry 1e-9 relative precision), geometry in the `calibrate` table in millimetres.
 
+use crate::motion::bringup::CheckKind;
 use core::fmt::{self, Write};
 
 use super::traits::{Activity, RobotStatus, Solution, SolveError};
@@ -23,7 +24,7 @@ const HELP: &[&str] = &[
     "line [d]                  drive straight d m",
     "circle cw|ccw [r]         drive a full circle of radius r m",
     "stop                      stop now",
-    "clear                     clear a latched fault (stall, encoder glitch)",
+    "clear                     clear a latched fault (stall, glitch, following)",
     "measure <x> <y> [th_deg]  true end pose of the last run (start frame, m, deg)",
     "runs                      list stored runs",
     "drop <n>                  delete run n",
@@ -33,6 +34,7 @@ const HELP: &[&str] = &[
     "reset-params              restore and store defaults",
     "pose                      odometry pose",
     "odom reset                set the odometry pose to the origin",
+    "bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push",
     "stream on [hz]|off        pose + wheel speed stream, 1..100 Hz",
     "drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last",
 ];
@@ -118,6 +120,8 @@ pub(super) fn write_status<C: Calibrator>(
     match status.activity {
         Activity::Idle => out.write_str("idle")?,
         Activity::Driving => out.write_str("driving")?,
+        Activity::Checking(CheckKind::Pulses) => out.write_str("bringup-motors")?,
+        Activity::Checking(CheckKind::Push) => out.write_str("bringup-push")?,
         Activity::Running(path) => {
             out.write_str("running ")?;
             write_path(out, &path)?;
@@ -147,7 +151,7 @@ pub(super) fn write_status<C: Calibrator>(
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
     let v = s.value(name);
     let places = match name {
-        ParamName::CountsPerRev | ParamName::RunsPerDirection => 0,
+        _ if name.is_integer() => 0,
         ParamName::DiameterRight | ParamName::DiameterLeft | ParamName::Wheelbase => 9,
         _ => 3,
     };

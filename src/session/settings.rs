@@ -9,6 +9,7 @@ use core::fmt;
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
 use crate::motion::profile::MotionLimits;
+use crate::motion::wiring::Wiring;
 use crate::protocol::ParamName;
 
 /// Longest stored method name, bytes.
@@ -46,6 +47,8 @@ pub struct Settings {
     pub square_side_m: f32,
     /// Planned square runs per direction.
     pub runs_per_direction: u8,
+    /// Motors and encoders reversed against the standard wiring.
+    pub wiring: Wiring,
 }
 
 impl Default for Settings {
@@ -57,6 +60,7 @@ impl Default for Settings {
             motion: MotionLimits::DEFAULT,
             square_side_m: 2.0,
             runs_per_direction: 5,
+            wiring: Wiring::STANDARD,
         }
     }
 }
@@ -67,12 +71,15 @@ impl Default for Settings {
 pub enum SettingsError {
     /// The resulting nominal geometry is invalid.
     Geometry(GeometryError),
+    /// A wiring sign other than 1 or −1.
+    Sign,
 }
 
 impl fmt::Display for SettingsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             SettingsError::Geometry(e) => write!(f, "{e}"),
+            SettingsError::Sign => f.write_str("a wiring sign is 1 (standard) or -1 (reversed)"),
         }
     }
 }
@@ -86,6 +93,8 @@ pub enum Changed {
     Motion,
     /// The calibration plan.
     Plan,
+    /// A motor or encoder sign.
+    Wiring,
 }
 
 impl Settings {
@@ -108,6 +117,10 @@ impl Settings {
             ParamName::MaxTurnAccel => f64::from(self.motion.max_turn_accel_radps2),
             ParamName::SquareSide => f64::from(self.square_side_m),
             ParamName::RunsPerDirection => f64::from(self.runs_per_direction),
+            ParamName::MotorRightSign => sign(self.wiring.motor_right_reversed),
+            ParamName::MotorLeftSign => sign(self.wiring.motor_left_reversed),
+            ParamName::EncoderRightSign => sign(self.wiring.encoder_right_reversed),
+            ParamName::EncoderLeftSign => sign(self.wiring.encoder_left_reversed),
         }
     }
 
@@ -164,6 +177,24 @@ impl Settings {
                 s.runs_per_direction = libm::round(value) as u8;
                 Changed::Plan
             }
+            ParamName::MotorRightSign
+            | ParamName::MotorLeftSign
+            | ParamName::EncoderRightSign
+            | ParamName::EncoderLeftSign => {
+                let reversed = match value {
+                    1.0 => false,
+                    -1.0 => true,
+                    _ => return Err(SettingsError::Sign),
+                };
+                let w = &mut s.wiring;
+                *match name {
+                    ParamName::MotorRightSign => &mut w.motor_right_reversed,
+                    ParamName::MotorLeftSign => &mut w.motor_left_reversed,
+                    ParamName::EncoderRightSign => &mut w.encoder_right_reversed,
+                    _ => &mut w.encoder_left_reversed,
+                } = reversed;
+                Changed::Wiring
+            }
         };
         if changed == Changed::Geometry {
             s.nominal.validate().map_err(SettingsError::Geometry)?;
@@ -172,4 +203,9 @@ impl Settings {
         }
         Ok((s, changed))
     }
+}
+
+/// A wiring flag as the protocol's sign: 1 standard, −1 reversed.
+fn sign(reversed: bool) -> f64 {
+    if reversed { -1.0 } else { 1.0 }
 }

@@ -11,8 +11,10 @@ use super::settings::Settings;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
+use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::profile::MotionLimits;
 use crate::motion::run::{PathKind, RunRecord};
+use crate::motion::wiring::Wiring;
 
 /// What the robot is doing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,6 +25,8 @@ pub enum Activity {
     Running(PathKind),
     /// Following `drive` velocity commands.
     Driving,
+    /// Running a bring-up check.
+    Checking(CheckKind),
 }
 
 /// A snapshot of the controller's state.
@@ -97,6 +101,18 @@ pub trait Robot {
     fn reset_odometry(&mut self) -> Result<(), RobotError>;
     /// Whether both motors are stopped (flash writes are allowed).
     fn motors_stopped(&mut self) -> bool;
+    /// Uses `wiring` for the motor and encoder signs from now on.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle.
+    fn set_wiring(&mut self, wiring: Wiring) -> Result<(), RobotError>;
+    /// Starts a bring-up check.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle, [`RobotError::Fault`] with a latched fault.
+    fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError>;
+    /// The report of a bring-up check that finished since the last call.
+    fn take_check_report(&mut self) -> Option<CheckReport>;
 }
 
 /// Why a flash operation failed.

@@ -15,6 +15,7 @@ use core::fmt;
 use sequential_storage::map::{SerializationError, Value};
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
+use crate::motion::wiring::Wiring;
 
 /// Longest calibration method name, bytes of ASCII.
 pub const METHOD_NAME_MAX: usize = 12;
@@ -217,6 +218,8 @@ pub struct ParamRecord {
     pub calibration: Calibration,
     /// Operator motion settings.
     pub motion: MotionSettings,
+    /// Motors and encoders reversed against the standard wiring.
+    pub wiring: Wiring,
 }
 
 /// Why a record was rejected by [`ParamRecord::validate`] or [`MethodName::new`].
@@ -293,6 +296,8 @@ pub enum FormatError {
         /// Length found, bytes.
         found: u16,
     },
+    /// The wiring byte has bits set that no wiring flag uses.
+    Wiring,
     /// The stored format version is not one this firmware reads.
     UnsupportedVersion {
         /// Version byte found.
@@ -315,6 +320,7 @@ impl fmt::Display for FormatError {
                 ParamRecord::FORMAT_VERSION
             ),
             FormatError::MethodName => f.write_str("stored method name is not printable ASCII"),
+            FormatError::Wiring => f.write_str("stored wiring byte has unknown bits"),
         }
     }
 }
@@ -331,7 +337,7 @@ impl From<FormatError> for SerializationError {
             FormatError::UnsupportedVersion { found } => {
                 SerializationError::Custom(CUSTOM_VERSION_BASE + i32::from(found))
             }
-            FormatError::Length { .. } | FormatError::MethodName => {
+            FormatError::Length { .. } | FormatError::MethodName | FormatError::Wiring => {
                 SerializationError::InvalidFormat
             }
         }
@@ -407,15 +413,17 @@ impl Reader<'_> {
 impl ParamRecord {
     /// Format version written by this firmware (byte 0 of the stored record).
     ///
-    /// Version history: 1 = first format. A future format bumps this and adds a migration arm
-    /// for the old version in [`ParamRecord::decode`]; until then any other version is rejected.
-    pub const FORMAT_VERSION: u8 = 1;
+    /// Version history: 1 = first format; 2 = version 1 + one wiring byte at the end. A
+    /// version-1 record is read as version 2 with the standard wiring (see
+    /// [`ParamRecord::decode`]); any other version is rejected.
+    pub const FORMAT_VERSION: u8 = 2;
 
-    /// Length of the stored record, bytes.
-    ///
-    /// version 1 + nominal geometry 28 + `E_d, E_b, E_s` 24 + calibrated geometry 28 + method
-    /// 1 + 12 + runs 2 + `E_max` 8 + motion 5 × 4 + 1.
-    pub const ENCODED_LEN: usize = 1 + 28 + 24 + 28 + 1 + METHOD_NAME_MAX + 2 + 8 + 20 + 1;
+    /// Length of a version-1 record, bytes: version 1 + nominal geometry 28 + `E_d, E_b, E_s`
+    /// 24 + calibrated geometry 28 + method 1 + 12 + runs 2 + `E_max` 8 + motion 5 × 4 + 1.
+    pub const V1_LEN: usize = 1 + 28 + 24 + 28 + 1 + METHOD_NAME_MAX + 2 + 8 + 20 + 1;
+
+    /// Length of the stored record, bytes: [`Self::V1_LEN`] + wiring 1.
+    pub const ENCODED_LEN: usize = Self::V1_LEN + 1;
 
     /// The paper's nominal robot (D = 150 mm, b = 385 mm, 200,000 counts/rev), uncalibrated,
     /// factory motion settings.
@@ -423,6 +431,7 @@ impl ParamRecord {
         nominal: Geometry::PAPER_NOMINAL,
         calibration: Calibration::none(Geometry::PAPER_NOMINAL),
         motion: MotionSettings::DEFAULT,
+        wiring: Wiring::STANDARD,
     };
 
     /// The geometry odometry and the routine use: the calibrated one.
@@ -493,6 +502,7 @@ impl ParamRecord {
         w.f32(m.max_turn_accel_radps2);
         w.f32(m.square_side_m);
         w.bytes(&[m.runs_per_direction]);
+        w.bytes(&[self.wiring.to_bits()]);
         Ok(w.pos)
     }
 
@@ -510,13 +520,15 @@ impl ParamRecord {
                 found: 0,
             });
         };
-        // Migration arms for older versions go here, each producing a current record.
-        if version != Self::FORMAT_VERSION {
-            return Err(FormatError::UnsupportedVersion { found: version });
-        }
-        if bytes.len() != Self::ENCODED_LEN {
+        // Migration: a version-1 record has no wiring byte and means the standard wiring.
+        let expected = match version {
+            1 => Self::V1_LEN,
+            Self::FORMAT_VERSION => Self::ENCODED_LEN,
+            found => return Err(FormatError::UnsupportedVersion { found }),
+        };
+        if bytes.len() != expected {
             return Err(FormatError::Length {
-                expected: Self::ENCODED_LEN as u16,
+                expected: expected as u16,
                 found: found_len,
             });
         }
@@ -544,6 +556,11 @@ impl ParamRecord {
             square_side_m: r.f32(),
             runs_per_direction: r.array::<1>()[0],
         };
+        let wiring = if version == 1 {
+            Wiring::STANDARD
+        } else {
+            Wiring::from_bits(r.array::<1>()[0]).ok_or(FormatError::Wiring)?
+        };
         Ok(ParamRecord {
             nominal,
             calibration: Calibration {
@@ -556,6 +573,7 @@ impl ParamRecord {
                 predicted_e_max_m,
             },
             motion,
+            wiring,
         })
     }
 }
@@ -598,6 +616,11 @@ mod tests {
                 runs_per_direction: 7,
                 ..MotionSettings::DEFAULT
             },
+            wiring: Wiring {
+                motor_left_reversed: true,
+                encoder_right_reversed: true,
+                ..Wiring::STANDARD
+            },
         }
     }
 
@@ -628,10 +651,10 @@ mod tests {
     fn version_and_length_are_checked() {
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         calibrated().encode(&mut buf).unwrap();
-        buf[0] = 2;
+        buf[0] = 3;
         assert_eq!(
             ParamRecord::decode(&buf),
-            Err(FormatError::UnsupportedVersion { found: 2 })
+            Err(FormatError::UnsupportedVersion { found: 3 })
         );
         buf[0] = 0;
         assert_eq!(
@@ -648,6 +671,51 @@ mod tests {
             calibrated().encode(&mut short),
             Err(FormatError::BufferTooSmall)
         );
+    }
+
+    /// A version-1 record (the first format, no wiring byte) as a version-1 firmware wrote it:
+    /// the current layout without its last byte, with version byte 1.
+    fn version_1_bytes(rec: &ParamRecord) -> [u8; ParamRecord::V1_LEN] {
+        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+        rec.encode(&mut buf).unwrap();
+        let mut v1 = [0u8; ParamRecord::V1_LEN];
+        v1.copy_from_slice(&buf[..ParamRecord::V1_LEN]);
+        v1[0] = 1;
+        v1
+    }
+
+    #[test]
+    fn a_version_1_record_migrates_with_its_calibration_and_the_standard_wiring() {
+        let rec = calibrated();
+        let old = version_1_bytes(&rec);
+        let migrated = ParamRecord::decode(&old).unwrap();
+        assert_eq!(migrated.calibration, rec.calibration);
+        assert_eq!(migrated.nominal, rec.nominal);
+        assert_eq!(migrated.motion, rec.motion);
+        assert_eq!(migrated.wiring, Wiring::STANDARD);
+        assert_eq!(migrated.validate(), Ok(()));
+        // A version-1 record of the new length, or a version-2 record of the old, is refused.
+        let mut long = [0u8; ParamRecord::ENCODED_LEN];
+        rec.encode(&mut long).unwrap();
+        long[0] = 1;
+        assert!(matches!(
+            ParamRecord::decode(&long),
+            Err(FormatError::Length { .. })
+        ));
+        let mut short = old;
+        short[0] = 2;
+        assert!(matches!(
+            ParamRecord::decode(&short),
+            Err(FormatError::Length { .. })
+        ));
+    }
+
+    #[test]
+    fn unknown_wiring_bits_are_a_format_error() {
+        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+        calibrated().encode(&mut buf).unwrap();
+        buf[ParamRecord::ENCODED_LEN - 1] = 0x80;
+        assert_eq!(ParamRecord::decode(&buf), Err(FormatError::Wiring));
     }
 
     #[test]

@@ -38,6 +38,8 @@ pub fn calibrated(n: u32) -> ParamRecord {
             runs_per_direction: 1 + (n % 9) as u8,
             ..MotionSettings::DEFAULT
         },
+        wiring: odocal::motion::wiring::Wiring::from_bits((n % 16) as u8)
+            .unwrap_or(odocal::motion::wiring::Wiring::STANDARD),
     }
 }
 

@@ -116,6 +116,7 @@ fn demo_record(n: u32) -> ParamRecord {
             predicted_e_max_m: 0.002,
         },
         motion: MotionSettings::DEFAULT,
+        wiring: odocal::motion::wiring::Wiring::STANDARD,
     }
 }
 

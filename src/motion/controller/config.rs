@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-use super::Controller;
+use super::{Controller, Wheel};
 
 use crate::kinematics::encoder::{CounterWidth, EncoderConfig, Polarity, max_step_for};
 use crate::kinematics::geometry::{Geometry, GeometryError};
@@ -12,6 +12,7 @@ use crate::motion::motor::StopMode;
 use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::routine::SettleConfig;
 use crate::motion::speed::{SpeedTuning, TuningError};
+use crate::motion::wiring::Wiring;
 
 /// Stall detection: a wheel commanded with at least `min_duty` that counts no tick for
 /// `time_ms` is stalled.
@@ -24,6 +25,30 @@ pub struct StallConfig {
     pub time_ms: u32,
 }
 
+/// Following-error detection: a wheel whose position falls behind (or runs ahead of) its
+/// reference by more than `max_error_m` for `time_ms` is not under control — typically a motor
+/// or encoder wired with the opposite sign, which makes the speed loop push the wheel away from
+/// its reference at full duty while the encoder keeps counting (so the stall check never fires).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct FollowingConfig {
+    /// Largest tolerated |reference − measured| wheel travel, m.
+    pub max_error_m: f32,
+    /// How long the error may stay above `max_error_m`, ms.
+    pub time_ms: u32,
+}
+
+impl FollowingConfig {
+    /// 0.1 m for 100 ms. A healthy loop tracks within micrometres (the square's peak wheel
+    /// error is a few ticks), a blocked wheel at 0.3 m/s reaches 0.1 m after 0.33 s (after the
+    /// stall check's 0.3 s, so a stall is reported as a stall), and a reversed wheel at full
+    /// duty passes 0.1 m within about 0.1 s of starting.
+    pub const DEFAULT: FollowingConfig = FollowingConfig {
+        max_error_m: 0.1,
+        time_ms: 100,
+    };
+}
+
 /// Everything the controller needs; validated once by [`Controller::new`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ControllerConfig {
@@ -33,9 +58,9 @@ pub struct ControllerConfig {
     pub limits: MotionLimits,
     /// Control rate, Hz (1,000 ..= 10,000).
     pub rate_hz: u32,
-    /// Right encoder counter.
+    /// Right encoder counter, standard wiring (see `wiring` for a reversed one).
     pub right_encoder: EncoderConfig,
-    /// Left encoder counter.
+    /// Left encoder counter, standard wiring (see `wiring` for a reversed one).
     pub left_encoder: EncoderConfig,
     /// Speed-loop tuning.
     pub speed: SpeedTuning,
@@ -43,6 +68,10 @@ pub struct ControllerConfig {
     pub settle: SettleConfig,
     /// Stall detection.
     pub stall: StallConfig,
+    /// Following-error detection.
+    pub following: FollowingConfig,
+    /// Motors and encoders reversed against the standard wiring (stored, set by the operator).
+    pub wiring: Wiring,
     /// Velocity-mode deadman, ms.
     pub deadman_ms: u32,
     /// How the motors are stopped.
@@ -59,6 +88,16 @@ pub(super) fn glitch_limit(width: CounterWidth, geometry: &Geometry, rate_hz: u3
 }
 
 impl ControllerConfig {
+    /// The encoder configuration of `wheel` with the wiring correction applied.
+    pub fn encoder(&self, wheel: Wheel) -> EncoderConfig {
+        let mut c = match wheel {
+            Wheel::Right => self.right_encoder,
+            Wheel::Left => self.left_encoder,
+        };
+        c.polarity = c.polarity.flipped_if(self.wiring.encoder_reversed(wheel));
+        c
+    }
+
     /// Defaults for the board: right encoder on a 32-bit timer, left on a 16-bit timer counting
     /// backwards, glitch limit for 2 m/s; default limits and tuning; 500 ms deadman; brake.
     pub fn new(geometry: Geometry, rate_hz: u32) -> Self {
@@ -87,6 +126,8 @@ impl ControllerConfig {
                 min_duty: 0.1,
                 time_ms: 300,
             },
+            following: FollowingConfig::DEFAULT,
+            wiring: Wiring::STANDARD,
             deadman_ms: 500,
             stop_mode: StopMode::Brake,
             integration: Integration::ExactArc,
@@ -109,6 +150,8 @@ pub enum ConfigError {
     Rate,
     /// The stall duty is not within (0, 1] or the stall time is outside 1 ..= 10,000 ms.
     Stall,
+    /// The following-error bound is not within (0, 10] m or its time outside 1 ..= 10,000 ms.
+    Following,
     /// The deadman is outside 1 ..= 10,000 ms.
     Deadman,
 }
@@ -122,6 +165,9 @@ impl fmt::Display for ConfigError {
             ConfigError::Rate => f.write_str("control rate must be within 1000..10000 Hz"),
             ConfigError::Stall => f.write_str("stall duty must be in (0, 1], time 1..10000 ms"),
             ConfigError::Deadman => f.write_str("deadman must be within 1..10000 ms"),
+            ConfigError::Following => {
+                f.write_str("following error must be in (0, 10] m, time 1..10000 ms")
+            }
         }
     }
 }
@@ -207,6 +253,27 @@ impl Controller {
         }
         limits.validate().map_err(SetError::Limits)?;
         self.config.limits = limits;
+        Ok(())
+    }
+
+    /// Applies a wiring correction; only while idle. Tick totals and the pose are kept; later
+    /// counts and duties use the new signs.
+    ///
+    /// # Errors
+    /// [`SetError::Busy`] while moving.
+    pub fn set_wiring(&mut self, wiring: Wiring) -> Result<(), SetError> {
+        if !self.is_idle() {
+            return Err(SetError::Busy);
+        }
+        self.config.wiring = wiring;
+        let (r, l) = (
+            self.config.encoder(Wheel::Right),
+            self.config.encoder(Wheel::Left),
+        );
+        if let Some((er, el)) = self.encoders.as_mut() {
+            er.set_polarity(r.polarity);
+            el.set_polarity(l.polarity);
+        }
         Ok(())
     }
 }

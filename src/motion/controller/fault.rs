@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-use super::Controller;
+use super::{Controller, ControllerConfig};
 
 /// A wheel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -31,6 +31,16 @@ pub enum Fault {
         /// Which wheel.
         wheel: Wheel,
     },
+    /// A wheel stayed further from its reference than the following-error bound for its time:
+    /// it is not under control (a reversed motor or encoder, a slipping or overloaded wheel).
+    FollowingError {
+        /// Which wheel.
+        wheel: Wheel,
+        /// Reference − measured travel when the fault latched, mm.
+        error_mm: i32,
+        /// Largest |duty| commanded to that wheel since the motion started, percent.
+        peak_duty_pct: u8,
+    },
 }
 
 impl fmt::Display for Fault {
@@ -40,7 +50,54 @@ impl fmt::Display for Fault {
                 write!(f, "{wheel:?} encoder glitch ({delta} counts in one period)")
             }
             Fault::Stall { wheel } => write!(f, "{wheel:?} wheel stalled"),
+            Fault::FollowingError {
+                wheel,
+                error_mm,
+                peak_duty_pct,
+            } => write!(
+                f,
+                "{wheel:?} wheel following error {error_mm} mm (peak duty {peak_duty_pct} %): check its motor and encoder polarity"
+            ),
         }
+    }
+}
+
+/// Following-error bookkeeping of both wheels (right, left).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct FollowingState {
+    /// Reference − measured counts since the motion started.
+    error_ticks: (f32, f32),
+    /// Largest |duty| since the motion started.
+    peak_duty: (f32, f32),
+    /// Consecutive periods above the bound.
+    over: (u32, u32),
+    /// The bound in counts of each wheel.
+    limit_ticks: (f32, f32),
+    /// Periods above the bound that latch the fault.
+    periods: u32,
+}
+
+impl FollowingState {
+    /// Bounds for `config`, nothing accumulated.
+    pub(super) fn for_config(config: &ControllerConfig) -> Self {
+        let f = &config.following;
+        let g = &config.geometry;
+        let max = f64::from(f.max_error_m);
+        FollowingState {
+            limit_ticks: (
+                (max / g.meters_per_tick_right()) as f32,
+                (max / g.meters_per_tick_left()) as f32,
+            ),
+            periods: ((u64::from(f.time_ms) * u64::from(config.rate_hz) / 1000) as u32).max(1),
+            ..FollowingState::default()
+        }
+    }
+
+    /// Forgets the accumulated error (a new motion starts).
+    pub(super) fn reset(&mut self) {
+        self.error_ticks = (0.0, 0.0);
+        self.peak_duty = (0.0, 0.0);
+        self.over = (0, 0);
     }
 }
 
@@ -54,6 +111,50 @@ impl Controller {
         self.run = None;
         self.drive = None;
         self.last_duty = (0.0, 0.0);
+    }
+
+    /// Following-error check for one period: `err` is the reference − measured count of the
+    /// period that just ended, `duty` the wheel-frame duty just computed, per wheel.
+    pub(super) fn check_following(&mut self, err: (f32, f32), duty: (f32, f32)) {
+        let f = &mut self.following;
+        f.error_ticks.0 += err.0;
+        f.error_ticks.1 += err.1;
+        f.peak_duty.0 = libm::fmaxf(f.peak_duty.0, libm::fabsf(duty.0));
+        f.peak_duty.1 = libm::fmaxf(f.peak_duty.1, libm::fabsf(duty.1));
+        let limit = f.limit_ticks;
+        let count = |c: &mut u32, e: f32, lim: f32| {
+            *c = if libm::fabsf(e) > lim {
+                c.saturating_add(1)
+            } else {
+                0
+            };
+            *c
+        };
+        let r = count(&mut f.over.0, f.error_ticks.0, limit.0);
+        let l = count(&mut f.over.1, f.error_ticks.1, limit.1);
+        let periods = f.periods;
+        let (wheel, error, peak, m_per_tick) = if r >= periods {
+            (
+                Wheel::Right,
+                f.error_ticks.0,
+                f.peak_duty.0,
+                self.config.geometry.meters_per_tick_right(),
+            )
+        } else if l >= periods {
+            (
+                Wheel::Left,
+                f.error_ticks.1,
+                f.peak_duty.1,
+                self.config.geometry.meters_per_tick_left(),
+            )
+        } else {
+            return;
+        };
+        self.latch(Fault::FollowingError {
+            wheel,
+            error_mm: (f64::from(error) * m_per_tick * 1000.0) as i32,
+            peak_duty_pct: (libm::fminf(peak, 1.0) * 100.0 + 0.5) as u8,
+        });
     }
 
     /// A wheel driven with at least `min_duty` in the last period that counted no tick.

@@ -23,13 +23,15 @@ mod config;
 mod fault;
 mod mode;
 
-pub use config::{ConfigError, ControllerConfig, SetError, StallConfig};
+pub use config::{ConfigError, ControllerConfig, FollowingConfig, SetError, StallConfig};
+use fault::FollowingState;
 pub use fault::{Fault, Wheel};
-use mode::{ActiveRun, DriveState};
+use mode::{ActiveCheck, ActiveRun, DriveState};
 pub use mode::{ButtonAction, DriveError, StartError};
 
 use crate::kinematics::encoder::{Encoder, EncoderGlitch, WheelTicks};
 use crate::kinematics::odometry::{Odometry, OdometryState, Pose};
+use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::motor::{MotorDriver, StopMode};
 use crate::motion::routine::SegmentKind;
 use crate::motion::run::{PathKind, RunRecord};
@@ -83,6 +85,8 @@ pub enum Status {
     },
     /// Velocity mode.
     Driving,
+    /// A bring-up check is running.
+    Checking(CheckKind),
     /// A fault is latched; motors stopped.
     Faulted(Fault),
 }
@@ -140,6 +144,9 @@ pub struct Controller {
     finished: Option<RunRecord>,
     stall_count: (u32, u32),
     stall_periods: u32,
+    following: FollowingState,
+    check: Option<ActiveCheck>,
+    check_report: Option<CheckReport>,
     deadman_periods: u32,
     still_periods: u32,
 }
@@ -165,6 +172,10 @@ impl Controller {
         if !(1..=10_000).contains(&config.deadman_ms) {
             return Err(ConfigError::Deadman);
         }
+        let f = &config.following;
+        if !(f.max_error_m > 0.0 && f.max_error_m <= 10.0 && (1..=10_000).contains(&f.time_ms)) {
+            return Err(ConfigError::Following);
+        }
         let odometry = Odometry::new(&config.geometry, config.integration)?;
         let per_ms = |ms: u32| (u64::from(ms) * u64::from(config.rate_hz) / 1000) as u32;
         Ok(Controller {
@@ -182,6 +193,9 @@ impl Controller {
             finished: None,
             stall_count: (0, 0),
             stall_periods: per_ms(config.stall.time_ms).max(1),
+            following: FollowingState::for_config(&config),
+            check: None,
+            check_report: None,
             deadman_periods: per_ms(config.deadman_ms).max(1),
             still_periods: 0,
         })
@@ -200,8 +214,8 @@ impl Controller {
         let stop = MotorCommand::Stop(self.config.stop_mode);
         let Some((enc_r, enc_l)) = self.encoders.as_mut() else {
             self.encoders = Some((
-                Encoder::new(self.config.right_encoder, raw_right),
-                Encoder::new(self.config.left_encoder, raw_left),
+                Encoder::new(self.config.encoder(Wheel::Right), raw_right),
+                Encoder::new(self.config.encoder(Wheel::Left), raw_left),
             ));
             self.odometry
                 .reset(&mut self.odo_state, WheelTicks::default(), Pose::default());
@@ -240,14 +254,34 @@ impl Controller {
             self.step_run(dr, dl)
         } else if self.drive.is_some() {
             (self.step_drive(dr, dl), None)
+        } else if self.check.is_some() {
+            (self.step_check(dr, dl), None)
         } else {
             (stop, None)
         };
+        if self.fault.is_some() {
+            // The following-error check latched in this period.
+            return self.output(stop, None);
+        }
         self.last_duty = match command {
             MotorCommand::Duty { right, left } => (right, left),
             MotorCommand::Stop(_) => (0.0, 0.0),
         };
-        self.output(command, tracking)
+        self.output(self.wired(command), tracking)
+    }
+
+    /// `command` (wheel frame) with the wiring's motor signs applied, as the driver needs it.
+    fn wired(&self, command: MotorCommand) -> MotorCommand {
+        match command {
+            MotorCommand::Duty { right, left } => {
+                let w = &self.config.wiring;
+                MotorCommand::Duty {
+                    right: right * w.motor_sign(Wheel::Right),
+                    left: left * w.motor_sign(Wheel::Left),
+                }
+            }
+            stop @ MotorCommand::Stop(_) => stop,
+        }
     }
 
     fn output(&self, command: MotorCommand, tracking: Option<Tracking>) -> StepOutput {
@@ -261,10 +295,13 @@ impl Controller {
     }
 
     fn duties(&mut self, r: &WheelReference, l: &WheelReference, dr: i64, dl: i64) -> MotorCommand {
-        MotorCommand::Duty {
-            right: self.pi.0.step(&mut self.pi_state.0, r, dr as f32),
-            left: self.pi.1.step(&mut self.pi_state.1, l, dl as f32),
-        }
+        let right = self.pi.0.step(&mut self.pi_state.0, r, dr as f32);
+        let left = self.pi.1.step(&mut self.pi_state.1, l, dl as f32);
+        self.check_following(
+            (r.delta_ticks - dr as f32, l.delta_ticks - dl as f32),
+            (right, left),
+        );
+        MotorCommand::Duty { right, left }
     }
 
     /// What the controller is doing.
@@ -278,6 +315,8 @@ impl Controller {
             }
         } else if self.drive.is_some() {
             Status::Driving
+        } else if let Some(c) = &self.check {
+            Status::Checking(c.kind())
         } else {
             Status::Idle
         }

@@ -1,5 +1,5 @@
-//! The mode state machine: idle, a routine run, or velocity driving with a deadman; starting,
-//! aborting and finishing them, and the button's actions.
+//! The mode state machine: idle, a routine run, velocity driving with a deadman, or a bring-up
+//! check; starting, aborting and finishing them, and the button's actions.
 
 use core::fmt;
 
@@ -7,7 +7,9 @@ use super::{Controller, MotorCommand, Tracking};
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::odometry::{OdometryState, Pose};
+use crate::motion::bringup::{CheckKind, CheckReport, PulseCheck, PulseStep, PushCheck};
 use crate::motion::button::Press;
+use crate::motion::motor::StopMode;
 use crate::motion::routine::{PathError, Routine, RunPlan, validate_path};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::WheelReference;
@@ -77,6 +79,25 @@ pub enum ButtonAction {
     ClearedFault,
     /// A long press aborted any motion.
     Aborted,
+}
+
+/// A bring-up check in progress.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum ActiveCheck {
+    /// Motor pulses.
+    Pulses(PulseCheck),
+    /// Hand push.
+    Push(PushCheck),
+}
+
+impl ActiveCheck {
+    /// Which check this is.
+    pub(super) fn kind(&self) -> CheckKind {
+        match self {
+            ActiveCheck::Pulses(_) => CheckKind::Pulses,
+            ActiveCheck::Push(_) => CheckKind::Push,
+        }
+    }
 }
 
 /// A routine in progress.
@@ -193,7 +214,7 @@ impl Controller {
         if self.fault.is_some() {
             return Err(StartError::Faulted);
         }
-        if self.run.is_some() || self.drive.is_some() {
+        if !self.is_idle() {
             return Err(StartError::Busy);
         }
         if self.encoders.is_none() {
@@ -225,15 +246,17 @@ impl Controller {
         self.pi_state = Default::default();
         self.stall_count = (0, 0);
         self.last_duty = (0.0, 0.0);
+        self.following.reset();
     }
 
     /// Ends any run or velocity drive; the next step commands a stop. The run is discarded.
     pub fn abort(&mut self) {
-        if self.run.is_some() || self.drive.is_some() {
+        if !self.is_idle() {
             warn!("motion aborted");
         }
         self.run = None;
         self.drive = None;
+        self.check = None;
     }
 
     /// Velocity mode: centre speed `v_mps` and turn rate `w_radps` (CCW positive), each clamped
@@ -247,7 +270,7 @@ impl Controller {
         if self.fault.is_some() {
             return Err(DriveError::Faulted);
         }
-        if self.run.is_some() {
+        if self.run.is_some() || self.check.is_some() {
             return Err(DriveError::Busy);
         }
         if self.encoders.is_none() {
@@ -315,7 +338,71 @@ impl Controller {
     }
 
     pub(super) fn is_idle(&self) -> bool {
-        self.run.is_none() && self.drive.is_none()
+        self.run.is_none() && self.drive.is_none() && self.check.is_none()
+    }
+
+    /// Starts a bring-up check ([`crate::motion::bringup`]): the motor pulses need the wheels
+    /// off the ground, the push check needs the operator to push the robot forward by hand.
+    ///
+    /// # Errors
+    /// As [`Controller::start`]: a latched fault, not idle, before the first step.
+    pub fn start_check(&mut self, kind: CheckKind) -> Result<(), StartError> {
+        if self.fault.is_some() {
+            return Err(StartError::Faulted);
+        }
+        if !self.is_idle() {
+            return Err(StartError::Busy);
+        }
+        if self.encoders.is_none() {
+            return Err(StartError::NotReady);
+        }
+        let rate = self.config.rate_hz;
+        let g = &self.config.geometry;
+        self.check = Some(match kind {
+            CheckKind::Pulses => ActiveCheck::Pulses(PulseCheck::new(rate)),
+            CheckKind::Push => ActiveCheck::Push(PushCheck::new(
+                rate,
+                (
+                    1.0 / g.meters_per_tick_right(),
+                    1.0 / g.meters_per_tick_left(),
+                ),
+            )),
+        });
+        self.check_report = None;
+        self.reset_loops();
+        info!("bring-up check started");
+        Ok(())
+    }
+
+    /// The report of the last completed bring-up check, once.
+    pub fn take_check_report(&mut self) -> Option<CheckReport> {
+        self.check_report.take()
+    }
+
+    /// One period of the bring-up check (open loop: no speed loop, no following error).
+    pub(super) fn step_check(&mut self, dr: i64, dl: i64) -> MotorCommand {
+        let coast = MotorCommand::Stop(StopMode::Coast);
+        let Some(check) = self.check.as_mut() else {
+            return coast;
+        };
+        match check {
+            ActiveCheck::Pulses(p) => match p.step(dr, dl) {
+                PulseStep::Duty(right, left) => MotorCommand::Duty { right, left },
+                PulseStep::Off => coast,
+                PulseStep::Done(report) => {
+                    self.check = None;
+                    self.check_report = Some(CheckReport::Pulses(report));
+                    coast
+                }
+            },
+            ActiveCheck::Push(p) => {
+                if let Some(report) = p.step(dr, dl) {
+                    self.check = None;
+                    self.check_report = Some(CheckReport::Push(report));
+                }
+                coast
+            }
+        }
     }
 }
 

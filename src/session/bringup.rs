@@ -1,0 +1,204 @@
+//! The `bringup` command: runs the controller's wiring check and turns its counts into a verdict
+//! per wheel and the `set` commands that fix a reversed motor or encoder.
+//!
+//! `bringup push` (motors off, the operator pushes the robot forward by hand) tells whether each
+//! encoder counts forward; `bringup` / `bringup motors` (wheels off the ground) pulses each motor
+//! and tells whether its encoder follows. A reversed count in the pulses alone can be the motor
+//! or the encoder; with a push result from this boot, the session says which.
+
+use core::fmt::{self, Write};
+
+use super::traits::{Calibrator, Robot};
+use super::{Session, robot_err};
+use crate::motion::bringup::{
+    CheckKind, CheckReport, MIN_MOTION_M, PULSE_DUTY, PUSH_DISTANCE_M, PUSH_MS, PulseReport,
+    PushReport, PushVerdict, WheelVerdict,
+};
+use crate::motion::controller::Wheel;
+use crate::protocol::EOL;
+use crate::protocol::ParamName;
+
+fn wheel_name(w: Wheel) -> &'static str {
+    match w {
+        Wheel::Right => "right",
+        Wheel::Left => "left",
+    }
+}
+
+fn sign_param(w: Wheel, motor: bool) -> ParamName {
+    match (w, motor) {
+        (Wheel::Right, true) => ParamName::MotorRightSign,
+        (Wheel::Left, true) => ParamName::MotorLeftSign,
+        (Wheel::Right, false) => ParamName::EncoderRightSign,
+        (Wheel::Left, false) => ParamName::EncoderLeftSign,
+    }
+}
+
+impl<C: Calibrator> Session<C> {
+    /// Starts a bring-up check and says what the operator must do.
+    pub(super) fn bringup(
+        &mut self,
+        kind: CheckKind,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if let Err(e) = robot.start_check(kind) {
+            return robot_err(out, e);
+        }
+        match kind {
+            CheckKind::Pulses => write!(
+                out,
+                "ok bringup motors: wheels must be off the ground; pulsing right then left at {} % duty, 2 s{EOL}",
+                (PULSE_DUTY * 100.0) as u32
+            ),
+            CheckKind::Push => write!(
+                out,
+                "ok bringup push: motors off; push the robot straight forward by hand about {} cm within {} s{EOL}",
+                (PUSH_DISTANCE_M * 100.0) as u32,
+                PUSH_MS / 1000
+            ),
+        }
+    }
+
+    /// The smallest count that is wheel motion (1 mm) for `wheel` with the active geometry.
+    fn min_counts(&self, wheel: Wheel) -> i64 {
+        let g = &self.settings.active;
+        let m_per_tick = match wheel {
+            Wheel::Right => g.meters_per_tick_right(),
+            Wheel::Left => g.meters_per_tick_left(),
+        };
+        libm::ceil(MIN_MOTION_M / m_per_tick) as i64
+    }
+
+    /// Announces a finished bring-up check with `event bringup …` lines.
+    pub(super) fn collect_check(
+        &mut self,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        match robot.take_check_report() {
+            None => Ok(()),
+            Some(CheckReport::Push(p)) => {
+                self.last_push = Some(p);
+                self.report_push(&p, out)
+            }
+            Some(CheckReport::Pulses(p)) => self.report_pulses(&p, out),
+        }
+    }
+
+    fn propose(&self, wheel: Wheel, motor: bool, out: &mut dyn Write) -> fmt::Result {
+        let name = sign_param(wheel, motor);
+        let flipped = -self.settings.value(name);
+        write!(
+            out,
+            "event bringup propose: set {} {}{EOL}",
+            name.as_str(),
+            flipped as i32
+        )
+    }
+
+    fn report_push(&self, p: &PushReport, out: &mut dyn Write) -> fmt::Result {
+        let mut changes = 0;
+        for (wheel, counts) in [(Wheel::Right, p.right), (Wheel::Left, p.left)] {
+            let verdict = p.verdict(wheel, self.min_counts(wheel));
+            let text = match verdict {
+                PushVerdict::Ok => "counts forward: ok",
+                PushVerdict::Reversed => "counts backward: encoder reversed",
+                PushVerdict::NoMotion => "did not move: check the encoder wiring (or push further)",
+            };
+            write!(
+                out,
+                "event bringup push: {} encoder {counts:+} counts, {text}{EOL}",
+                wheel_name(wheel)
+            )?;
+            if verdict == PushVerdict::Reversed {
+                self.propose(wheel, false, out)?;
+                changes += 1;
+            }
+        }
+        write_done(changes, out)
+    }
+
+    fn report_pulses(&self, p: &PulseReport, out: &mut dyn Write) -> fmt::Result {
+        let mut changes = 0;
+        for wheel in [Wheel::Right, Wheel::Left] {
+            let min = self.min_counts(wheel);
+            let pulses = p.wheel(wheel);
+            let verdict = pulses.verdict(min);
+            write!(
+                out,
+                "event bringup motors: {} forward {:+} back {:+} (other wheel {:+}/{:+}): ",
+                wheel_name(wheel),
+                pulses.forward.own,
+                pulses.backward.own,
+                pulses.forward.other,
+                pulses.backward.other
+            )?;
+            let encoder_reversed = self
+                .last_push
+                .map(|push| push.verdict(wheel, min) == PushVerdict::Reversed);
+            match verdict {
+                WheelVerdict::Ok | WheelVerdict::Reversed => {
+                    let counts_reversed = verdict == WheelVerdict::Reversed;
+                    match encoder_reversed {
+                        Some(enc) => {
+                            let motor = counts_reversed != enc;
+                            match (enc, motor) {
+                                (false, false) => write!(out, "ok{EOL}")?,
+                                (true, false) => write!(out, "encoder reversed (push check){EOL}")?,
+                                (false, true) => write!(out, "motor reversed{EOL}")?,
+                                (true, true) => write!(out, "motor and encoder reversed{EOL}")?,
+                            }
+                            if enc {
+                                self.propose(wheel, false, out)?;
+                                changes += 1;
+                            }
+                            if motor {
+                                self.propose(wheel, true, out)?;
+                                changes += 1;
+                            }
+                        }
+                        None if counts_reversed => {
+                            write!(
+                                out,
+                                "counts run against the duty: motor or encoder reversed; run `bringup push` to tell which{EOL}"
+                            )?;
+                            changes += 1;
+                        }
+                        None => write!(out, "ok{EOL}")?,
+                    }
+                }
+                WheelVerdict::NoMotion => write!(
+                    out,
+                    "no motion: check motor power and wiring, the encoder, and that the wheel is free{EOL}"
+                )?,
+                WheelVerdict::CrossWired => write!(
+                    out,
+                    "the other wheel's encoder moved: motors or encoders are swapped between the sides{EOL}"
+                )?,
+                WheelVerdict::Inconsistent => write!(
+                    out,
+                    "counts disagree between directions: check the encoder mounting and coupling{EOL}"
+                )?,
+            }
+            if matches!(
+                verdict,
+                WheelVerdict::NoMotion | WheelVerdict::CrossWired | WheelVerdict::Inconsistent
+            ) {
+                changes += 1;
+            }
+        }
+        write_done(changes, out)
+    }
+}
+
+fn write_done(changes: u32, out: &mut dyn Write) -> fmt::Result {
+    if changes == 0 {
+        write!(out, "event bringup done: wiring ok{EOL}")
+    } else {
+        write!(
+            out,
+            "event bringup done: {changes} finding(s); apply the proposals with set, then save and check again{EOL}"
+        )
+    }
+}
