@@ -87,11 +87,14 @@ mod app {
     }
 
     /// A controller for `geometry`, or for the built-in default when the stored one is refused.
-    fn make_controller(geometry: Geometry) -> Controller {
-        match Controller::new(ControllerConfig::new(geometry, CONTROL_HZ)) {
+    fn make_controller(settings: &Settings) -> Controller {
+        match Controller::new(settings.controller_config(CONTROL_HZ)) {
             Ok(c) => c,
             Err(e) => {
-                defmt::warn!("stored geometry refused ({}), using defaults", e);
+                defmt::warn!(
+                    "stored parameters refused by the controller ({}), using defaults",
+                    e
+                );
                 // The built-in defaults are validated by the library's tests
                 // (`tests/controller.rs`), so this cannot fail at run time.
                 match Controller::new(ControllerConfig::new(Geometry::default(), CONTROL_HZ)) {
@@ -159,11 +162,9 @@ mod app {
         let mut params_store = board.params;
         let loaded = params_store.load_blocking();
         let params = loaded.record;
-        let mut controller = make_controller(params.active_geometry());
-        if let Err(e) = controller.set_limits(params.motion.limits()) {
-            defmt::warn!("stored motion limits refused ({}), using defaults", e);
-        }
-        let session = Session::new(Settings::from(&params), LibraryCalibrator::default());
+        let settings = Settings::from(&params);
+        let controller = make_controller(&settings);
+        let session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
 

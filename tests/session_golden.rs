@@ -636,3 +636,79 @@ fn run_store_ram() {
     // The session is the store plus settings and the stream state: under 512 B more.
     assert!(session < MAX_RUNS * record + 512, "{session}");
 }
+
+/// The wiring check: the operator's instructions, and the verdicts and proposals from the
+/// controller's counts. The pulses alone cannot tell a reversed motor from a reversed encoder;
+/// after a hand push that shows the left encoder counting backward, they can.
+#[test]
+fn bringup_replies_and_proposals_are_exact() {
+    use odocal::motion::bringup::{PulseCounts, PulseReport, PushReport, WheelPulses};
+    let mut b = Bench::new();
+    assert_eq!(
+        b.send("bringup"),
+        "ok bringup motors: wheels must be off the ground; pulsing right then left at 25 % duty, 2 s\r\n"
+    );
+    assert_eq!(b.robot.check, Some(CheckKind::Pulses));
+    let healthy = WheelPulses {
+        forward: PulseCounts {
+            own: 30_000,
+            other: 12,
+        },
+        backward: PulseCounts {
+            own: -29_000,
+            other: -3,
+        },
+    };
+    let reversed = WheelPulses {
+        forward: PulseCounts {
+            own: -30_000,
+            other: 0,
+        },
+        backward: PulseCounts {
+            own: 29_000,
+            other: 0,
+        },
+    };
+    b.robot.check_reports.push(CheckReport::Pulses(PulseReport {
+        right: healthy,
+        left: reversed,
+    }));
+    assert_eq!(
+        b.poll(0),
+        "event bringup motors: right forward +30000 back -29000 (other wheel +12/-3): ok\r\n\
+         event bringup motors: left forward -30000 back +29000 (other wheel +0/+0): counts run against the duty: motor or encoder reversed; run `bringup push` to tell which\r\n\
+         event bringup done: 1 finding(s); apply the proposals with set, then save and check again\r\n"
+    );
+    assert_eq!(
+        b.send("bringup push"),
+        "ok bringup push: motors off; push the robot straight forward by hand about 5 cm within 5 s\r\n"
+    );
+    b.robot.check_reports.push(CheckReport::Push(PushReport {
+        right: 21_000,
+        left: -20_900,
+    }));
+    assert_eq!(
+        b.poll(0),
+        "event bringup push: right encoder +21000 counts, counts forward: ok\r\n\
+         event bringup push: left encoder -20900 counts, counts backward: encoder reversed\r\n\
+         event bringup propose: set encoder_left_sign -1\r\n\
+         event bringup done: 1 finding(s); apply the proposals with set, then save and check again\r\n"
+    );
+    b.send("bringup");
+    b.robot.check_reports.push(CheckReport::Pulses(PulseReport {
+        right: healthy,
+        left: reversed,
+    }));
+    let events = b.poll(0);
+    assert!(
+        events.contains("left forward -30000 back +29000 (other wheel +0/+0): encoder reversed (push check)\r\nevent bringup propose: set encoder_left_sign -1\r\n"),
+        "{events}"
+    );
+    assert_eq!(
+        b.send("set encoder_left_sign -1"),
+        "ok encoder_left_sign = -1 (1 standard, -1 reversed)\r\n"
+    );
+    assert_eq!(b.robot.wiring.map(|w| w.encoder_left_reversed), Some(true));
+    assert!(b.send("set encoder_left_sign 0").starts_with("err "));
+    assert!(b.send("bringup sideways").starts_with("err "));
+}

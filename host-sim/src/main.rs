@@ -45,6 +45,9 @@ enum Command {
     Closedloop(host_sim::commands::closedloop::ClosedLoopArgs),
     /// The simulated robot speaking the serial protocol on stdin/stdout or a pseudo-terminal.
     Serial(host_sim::commands::serial::SerialArgs),
+    /// First power-up of a robot with a reversed motor or encoder: the wiring check over the
+    /// serial protocol, its proposed fix, save, reboot, a square.
+    Bringup(host_sim::commands::bringup::BringupArgs),
     /// Host speed: a full simulated 5 + 5 session and a 1,000-trial Monte Carlo.
     Bench(host_sim::commands::bench::BenchArgs),
     /// Monte Carlo over square sides and noise levels: validates the track-size advice.
@@ -69,6 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Advice(args) => host_sim::commands::advice::run(&args),
         Command::Closedloop(args) => host_sim::commands::closedloop::run(&args),
         Command::Serial(args) => Ok(host_sim::commands::serial::run(&args)?),
+        Command::Bringup(args) => Ok(host_sim::commands::bringup::run(&args)?),
         Command::Bench(args) => host_sim::commands::bench::run(&args),
         Command::Sweep(args) => host_sim::commands::sweep::run(&args),
     }

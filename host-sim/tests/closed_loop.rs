@@ -247,7 +247,9 @@ fn drive_deadman_and_odometry_against_truth() {
         let mut controller = default_controller(g, RATE).unwrap();
         let mut sim = Sim::new(SimConfig::new(g, RATE));
         sim.step(&mut controller);
-        let r = drive_script(&mut sim, &mut controller, v, w, 3.0).unwrap();
+        let r = drive_script(&mut sim, &mut controller, v, w, 3.0)
+            .unwrap()
+            .unwrap();
         // Deadman: 500 ms = 500 periods after the last command, the next period stops.
         assert!(
             r.stop_after_periods <= 501,

@@ -8,6 +8,7 @@
 use core::fmt;
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
+use crate::motion::controller::ControllerConfig;
 use crate::motion::profile::MotionLimits;
 use crate::motion::wiring::Wiring;
 use crate::protocol::ParamName;
@@ -102,6 +103,16 @@ impl Settings {
     /// planned run and `run cw <same value>` record exactly the same side.
     pub fn square_side_f64(&self) -> f64 {
         libm::round(f64::from(self.square_side_m) * 1e6) / 1e6
+    }
+
+    /// The controller configuration these settings ask for at `rate_hz`: the board's defaults
+    /// with the active geometry, the motion limits and the wiring corrections. The firmware and
+    /// the simulated board both boot their controller from it.
+    pub fn controller_config(&self, rate_hz: u32) -> ControllerConfig {
+        let mut c = ControllerConfig::new(self.active, rate_hz);
+        c.limits = self.motion;
+        c.wiring = self.wiring;
+        c
     }
 
     /// Current value of a parameter.

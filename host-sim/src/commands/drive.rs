@@ -4,11 +4,12 @@
 //!
 //! When the script ends, the commands stop and the controller's deadman stops the motors.
 
+use clap::ValueEnum;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
-use odocal::motion::controller::Controller;
+use odocal::motion::controller::{Controller, Fault};
 
-use crate::sim::robot::{Sim, default_controller, sim_config};
+use crate::sim::robot::{Sim, WiringOption, default_controller, sim_config};
 
 /// A scripted motion.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,6 +52,10 @@ pub struct DriveArgs {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000)]
     pub rate: u32,
+    /// How the simulated robot is wired (a reversed motor or encoder must end in a
+    /// following-error fault, not a runaway).
+    #[arg(long, value_enum, default_value_t = WiringOption::Standard)]
+    pub wiring: WiringOption,
 }
 
 /// Outcome of a scripted drive.
@@ -64,6 +69,17 @@ pub struct DriveResult {
     pub stop_after_periods: u64,
 }
 
+/// A drive that ended in a latched fault.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveFault {
+    /// The fault.
+    pub fault: Fault,
+    /// Robot time from the first command to the period that latched it, s.
+    pub after_s: f64,
+    /// True distance the robot moved from where it started, m.
+    pub moved_m: f64,
+}
+
 /// Sends `(v, w)` every 100 ms for `seconds`, then lets the deadman stop the robot and waits
 /// for it to come to rest.
 ///
@@ -75,11 +91,12 @@ pub fn drive_script(
     v_mps: f32,
     w_radps: f32,
     seconds: f64,
-) -> Result<DriveResult, String> {
+) -> Result<Result<DriveResult, DriveFault>, String> {
     let rate = u64::from(sim.config().rate_hz);
     let periods = (seconds * rate as f64).round() as u64;
     let every = (rate / 10).max(1);
     let mut last_call = 0;
+    let start = sim.true_pose();
     for k in 0..periods {
         if k % every == 0 {
             controller
@@ -87,7 +104,15 @@ pub fn drive_script(
                 .map_err(|e| format!("drive: {e}"))?;
             last_call = k;
         }
-        sim.step(controller);
+        let out = sim.step(controller);
+        if let Some(fault) = out.fault {
+            sim.rest(controller, rate);
+            return Ok(Err(DriveFault {
+                fault,
+                after_s: (k + 1) as f64 / rate as f64,
+                moved_m: sim.true_pose().distance_to(&start),
+            }));
+        }
     }
     let mut k = periods;
     loop {
@@ -105,11 +130,11 @@ pub fn drive_script(
     }
     let stop_after_periods = k - last_call;
     sim.rest(controller, rate);
-    Ok(DriveResult {
+    Ok(Ok(DriveResult {
         odometry: controller.pose().to_f64(),
         truth: sim.true_pose(),
         stop_after_periods,
-    })
+    }))
 }
 
 /// Runs the `drive` subcommand.
@@ -118,9 +143,9 @@ pub fn drive_script(
 /// Any failure of the scripted drive.
 pub fn run(args: &DriveArgs) -> Result<(), String> {
     let nominal = Geometry::PAPER_NOMINAL;
-    let mut sim = Sim::new(sim_config(
-        args.ed, args.eb, args.slip, args.seed, args.rate,
-    ));
+    let mut config = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
+    config.wiring = args.wiring.wiring();
+    let mut sim = Sim::new(config);
     let mut controller = default_controller(nominal, args.rate)?;
     sim.step(&mut controller);
     let (v, w) = match args.script {
@@ -128,11 +153,30 @@ pub fn run(args: &DriveArgs) -> Result<(), String> {
         Script::Turn => (0.0, args.turn_rate),
         Script::Arc => (args.speed, args.turn_rate),
     };
-    let r = drive_script(&mut sim, &mut controller, v, w, args.seconds)?;
     println!(
-        "{:?}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}",
-        args.script, args.seconds, args.eb, args.ed
+        "{:?}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}; wiring {:?}",
+        args.script, args.seconds, args.eb, args.ed, args.wiring
     );
+    let r = match drive_script(&mut sim, &mut controller, v, w, args.seconds)? {
+        Ok(r) => r,
+        Err(f) => {
+            println!(
+                "fault latched after {:.3} s of robot time: {}",
+                f.after_s, f.fault
+            );
+            if let Fault::FollowingError { peak_duty_pct, .. } = f.fault {
+                println!("peak duty: {peak_duty_pct} %");
+            }
+            println!(
+                "motors stopped; the robot moved {:.3} m in all (run `cargo sim bringup --wiring {}` to find the fix)",
+                f.moved_m,
+                args.wiring
+                    .to_possible_value()
+                    .map_or("standard".into(), |v| v.get_name().to_string())
+            );
+            return Ok(());
+        }
+    };
     let show = |name: &str, p: &PoseF64| {
         println!(
             "{name:<9} x = {:>10.6} m  y = {:>10.6} m  θ = {:>10.6} rad",

@@ -3,6 +3,7 @@
 
 pub mod advice;
 pub mod bench;
+pub mod bringup;
 pub mod closedloop;
 pub mod drive;
 pub mod flash;

@@ -9,6 +9,7 @@
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
+use odocal::motion::bringup::CheckKind;
 use odocal::motion::controller::{Controller, Status, StepOutput};
 use odocal::protocol::LineAssembler;
 use odocal::protocol::reply::line_error_reply;
@@ -17,7 +18,10 @@ use odocal::session::{Session, Settings, write_boot_event};
 use odocal::storage::ParamStore;
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
-use crate::sim::robot::{Sim, SimConfig, default_controller};
+use crate::sim::robot::{Sim, SimConfig};
+
+/// Speed at which the simulated operator pushes the robot during `bringup push`, m/s.
+pub const HAND_PUSH_MPS: f64 = 0.1;
 
 /// The simulated board, over a simulated parameter flash that outlives it.
 pub struct Board<'f> {
@@ -52,10 +56,8 @@ impl<'f> Board<'f> {
         let mut store = flash.store();
         let loaded = store.load_blocking();
         let settings = Settings::from(&loaded.record);
-        let mut controller = default_controller(settings.active, config.rate_hz)?;
-        controller
-            .set_limits(settings.motion)
-            .map_err(|e| format!("stored limits: {e}"))?;
+        let controller = Controller::new(settings.controller_config(config.rate_hz))
+            .map_err(|e| format!("stored parameters: {e}"))?;
         write_boot_event(out, loaded.warning.as_ref()).map_err(|e| e.to_string())?;
         let period_us = 1_000_000 / u64::from(config.rate_hz);
         let mut board = Board {
@@ -127,6 +129,9 @@ impl<'f> Board<'f> {
     /// One control period: the controller reads the encoders and drives the motors, the robot
     /// moves, and the session gets its periodic poll (finished runs, pose stream).
     pub fn step(&mut self, out: &mut String) -> StepOutput {
+        // The simulated operator's hand: during `bringup push` it pushes the robot forward.
+        let pushing = matches!(self.controller.status(), Status::Checking(CheckKind::Push));
+        self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
         let output = self.sim.step(&mut self.controller);
         self.now_us += self.period_us;
         let _ = self.session.poll(self.now_us, &mut self.controller, out);
@@ -138,7 +143,7 @@ impl<'f> Board<'f> {
     pub fn at_rest(&self) -> bool {
         !matches!(
             self.controller.status(),
-            Status::Running { .. } | Status::Driving
+            Status::Running { .. } | Status::Driving | Status::Checking(_)
         ) && self.controller.motors_stopped()
     }
 

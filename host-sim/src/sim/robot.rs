@@ -17,9 +17,11 @@
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{PoseF64, sinc};
+use odocal::motion::controller::Wheel;
 use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
 use odocal::motion::motor::StopMode;
 use odocal::motion::routine::SegmentKind;
+use odocal::motion::wiring::Wiring;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
@@ -70,6 +72,10 @@ pub struct SimConfig {
     pub seed: u64,
     /// Hardware counter values at power-up (right 32-bit, left 16-bit).
     pub initial_raw: (u32, u16),
+    /// How this robot is really wired, against the board's standard: a reversed motor turns
+    /// backward for a forward duty, a reversed encoder counts backward when its wheel rolls
+    /// forward.
+    pub wiring: Wiring,
 }
 
 impl SimConfig {
@@ -84,6 +90,7 @@ impl SimConfig {
             slip_sigma: 0.0,
             seed: 1,
             initial_raw: (u32::MAX - 20_000, 300),
+            wiring: Wiring::STANDARD,
         }
     }
 }
@@ -128,6 +135,8 @@ pub struct Sim {
     raw_offset: (u32, u16),
     /// True pose when the counters were last read by [`Sim::step`].
     pose_at_read: PoseF64,
+    /// Speed at which a hand pushes the robot straight forward (motors ignored), m/s.
+    push_mps: Option<f64>,
 }
 
 impl Sim {
@@ -143,6 +152,7 @@ impl Sim {
             periods: 0,
             raw_offset: (0, 0),
             pose_at_read: PoseF64::default(),
+            push_mps: None,
         }
     }
 
@@ -188,6 +198,9 @@ impl Sim {
     /// inverted), as the `u32`s the controller takes.
     pub fn raw(&self) -> (u32, u32) {
         let (r, l) = self.counts();
+        let w = self.config.wiring;
+        let r = if w.encoder_right_reversed { -r } else { r };
+        let l = if w.encoder_left_reversed { -l } else { l };
         let raw_r = self
             .config
             .initial_raw
@@ -219,6 +232,12 @@ impl Sim {
     pub fn inject_counter_jump(&mut self, right: u32, left: u16) {
         self.raw_offset.0 = self.raw_offset.0.wrapping_add(right);
         self.raw_offset.1 = self.raw_offset.1.wrapping_add(left);
+    }
+
+    /// A hand pushes the robot straight forward at `speed_mps` (the wheels roll with it and the
+    /// motor commands have no effect), or stops pushing (`None`).
+    pub fn set_push(&mut self, speed_mps: Option<f64>) {
+        self.push_mps = speed_mps;
     }
 
     /// Sets the motor command held during the following periods.
@@ -256,6 +275,20 @@ impl Sim {
             ),
             MotorCommand::Stop(StopMode::Brake) => (0.0, 0.0, m.brake_time_constant_s),
             MotorCommand::Stop(StopMode::Coast) => (0.0, 0.0, m.coast_time_constant_s),
+        };
+        let w = c.wiring;
+        let (target_r, target_l, tau) = match self.push_mps {
+            // A push rolls both wheels at the pushed speed within about 20 ms.
+            Some(v) => (
+                v / (0.5 * g.diameter_right_m),
+                v / (0.5 * g.diameter_left_m),
+                0.02,
+            ),
+            None => (
+                target_r * f64::from(w.motor_sign(Wheel::Right)),
+                target_l * f64::from(w.motor_sign(Wheel::Left)),
+                tau,
+            ),
         };
         let cpr = f64::from(g.counts_per_rev);
         let turn = |w: &mut WheelState, target: f64| -> f64 {
@@ -391,6 +424,37 @@ pub fn sim_config(ed: f64, eb: f64, slip: f64, seed: u64, rate_hz: u32) -> SimCo
     c.slip_sigma = slip;
     c.seed = seed;
     c
+}
+
+/// A wiring fault of the simulated robot, as the command-line option `--wiring` names it.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WiringOption {
+    /// Wired as the board expects.
+    #[default]
+    Standard,
+    /// The right motor's leads are swapped.
+    RightMotorReversed,
+    /// The left motor's leads are swapped.
+    LeftMotorReversed,
+    /// The right encoder's A/B channels are swapped.
+    RightEncoderReversed,
+    /// The left encoder's A/B channels are swapped.
+    LeftEncoderReversed,
+}
+
+impl WiringOption {
+    /// The robot's wiring.
+    pub fn wiring(self) -> Wiring {
+        let mut w = Wiring::STANDARD;
+        match self {
+            WiringOption::Standard => {}
+            WiringOption::RightMotorReversed => w.motor_right_reversed = true,
+            WiringOption::LeftMotorReversed => w.motor_left_reversed = true,
+            WiringOption::RightEncoderReversed => w.encoder_right_reversed = true,
+            WiringOption::LeftEncoderReversed => w.encoder_left_reversed = true,
+        }
+        w
+    }
 }
 
 #[cfg(test)]
