@@ -111,6 +111,7 @@ fn obs(direction: Direction, side_m: f64, x: f64, y: f64) -> RunObservation<'sta
             y_m: y,
             theta_rad: None,
         },
+        truth_path: &[],
     }
 }
 

@@ -52,6 +52,7 @@ impl Run {
             knots: &self.knots,
             odometry_end: self.odo,
             measured: self.measured,
+            truth_path: &[],
         }
     }
 }

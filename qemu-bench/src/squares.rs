@@ -128,6 +128,7 @@ impl SquareRuns {
             knots: &self.knots[run],
             odometry_end: self.odometry_end[run],
             measured: self.measured[run],
+            truth_path: &[],
         })
     }
 

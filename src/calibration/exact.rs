@@ -1,24 +1,71 @@
-//! odocal's exact calibration: a Levenberg–Marquardt least-squares fit of the kinematic
-//! parameters to the recorded runs.
+//! odocal's exact calibration: a robust Levenberg–Marquardt fit of the kinematic parameters to
+//! the recorded runs.
 //!
 //! Parameters `p = (E_d, E_b[, E_s])` are absolute, relative to the nominal geometry:
 //! `geometry(p) = nominal.with_factors(E_d, E_b, E_s)`. For every run the recorded tick knots
 //! are re-integrated with [`ArcModel`] for `geometry(p)` (exact arcs, no small-angle
-//! approximation), and the residual is `measured − predicted` end pose in the start frame:
-//! `x`, `y` in metres and, when θ was measured, the wrapped heading residual multiplied by a
-//! length scale `ℓ` (by default the run's characteristic length — the side of a square — so a
-//! heading error counts like the lateral error it produces over one leg). Any path works:
-//! squares, lines, circles, free loops; runs may have been driven with different geometries,
-//! because the fit starts from raw ticks.
+//! approximation), and the residual is `measured − predicted` in the start frame:
+//! - a run measured at its end (the operator's tape measure): the end pose's `x`, `y` in metres
+//!   and, when θ was measured, the wrapped heading residual multiplied by a length scale `ℓ` (by
+//!   default the run's characteristic length — the side of a square — so a heading error counts
+//!   like the lateral error it produces over one leg);
+//! - a run with ground truth along the whole path ([`RunObservation::truth_path`], e.g. a
+//!   motion-capture log): the position error at every knot, each divided by `√N` (`N` knots after
+//!   the start), so that the run adds the *mean* squared position error along its path to the
+//!   cost — one path weighs like one end pose, however finely it was sampled — plus `ℓ` times the
+//!   end heading residual as above.
 //!
-//! `E_s` (the mean diameter) is only fitted when a straight-line run is present (or when asked
-//! to): squares alone determine it poorly. Otherwise it stays at the first run's driving value.
+//! Any path works: squares, lines, circles, free loops; runs may have been driven with different
+//! geometries, because the fit starts from raw ticks. `E_s` (the mean diameter) is only fitted
+//! when a straight-line run or a run with ground truth along its path is present (or when asked
+//! to): end poses of squares and closed loops determine it poorly. Otherwise it stays at the first
+//! run's driving value.
+//!
+//! # Robust fit
+//!
+//! One run whose start slipped (the wheels spin in a jerk, odometry turns by tens of mrad more
+//! than the robot) is far from the others in heading, and a plain least-squares fit follows it.
+//! The default fit ([`ExactOptions::robust`]) is an M-estimate with Cauchy weights computed by
+//! iteratively reweighted least squares (IRLS), run by run:
+//!
+//! 1. the plain least-squares fit gives the start;
+//! 2. each run `i` has `k_i` residual components (2 for x, y; 3 with the heading) and squared
+//!    length `d_i² = Σ r²` (for a path run: the mean squared position error plus the heading
+//!    term). Under the model `d_i²/σ²` is χ² with `k_i` degrees of freedom, so
+//!    `z_i = d_i² / med(χ²_{k_i})` has median `σ²` whatever `k_i`;
+//! 3. the scale of run `i` comes from the runs' own scatter: `σ_i² = median(z_j) · M/(M − n)` over
+//!    its *peers* `j` — the runs of the same kind of path (square, line, circle), measured the
+//!    same way (end pose or path), with characteristic lengths within a factor
+//!    [`PEER_LENGTH_RATIO`] (longer paths scatter more, so a 15 m path is never judged against
+//!    1.7 m squares); `M/(M − n)` corrects for the `n` fitted parameters (`M` residual components
+//!    in all). The median ignores up to half of the peers being outliers. A run with fewer than
+//!    [`MIN_PEERS`] peers (itself included) has no scale and keeps weight 1. The scale is at
+//!    least [`SCALE_FLOOR_M`] (1 µm), far below any real measurement scatter, so that runs that
+//!    fit to rounding are not sorted by rounding errors;
+//! 4. `u_i² = d_i² / (k_i σ_i²)` (the run's mean squared residual component in units of the
+//!    scale, 1 on average under the model) gives the Cauchy weight `w_i = 1 / (1 + u_i²/c²)`,
+//!    `c =` [`CAUCHY_C`] `= 2.3849` (95 % efficiency at the normal model). The Cauchy loss
+//!    redescends: a run 10 σ off keeps about 5 % of its weight, so its pull on the factors is
+//!    about half that of a run at 1 σ, where a plain fit lets it pull ten times as hard. A run
+//!    whose weight ends below [`OUTLIER_WEIGHT`] = 0.5 (`u_i > c`) is flagged as an outlier: under
+//!    the model that happens to fewer than 0.4 % of runs;
+//! 5. the weighted fit is repeated from the current parameters with the new weights, and the
+//!    weights recomputed, until no weight changes by more than [`WEIGHT_TOLERANCE`].
+//!
+//! Runs that fit the model all get weights close to 1, and where the runs fit exactly (ideal
+//! kinematics) the weights are 1 to rounding and the result is the plain fit's. The weight of
+//! every run is reported with its residual ([`ExactFit`]). [`ExactOptions::plain`] is the plain
+//! least-squares fit.
 //!
 //! Jacobian: central differences with step `h = 1e-6` in each (dimensionless, ≈ 1) parameter:
 //! truncation error `O(h²) ≈ 1e-12` relative, rounding about `1e-16·|pose|/h ≈ 1e-10` m; the
-//! Jacobian only steers the iteration, the fixed point `Jᵀr = 0` is where the residuals are
-//! smallest. Normal equations are accumulated run by run (3×3), so memory does not grow with the
-//! number of runs or knots. 1σ uncertainty: `(JᵀJ)⁻¹ σ²` with `σ² = Σr² / (m − n)`.
+//! Jacobian only steers the iteration, the fixed point `JᵀWr = 0` is where the weighted
+//! residuals are smallest. Normal equations are accumulated run by run (3×3), so memory does not
+//! grow with the number of knots; the weights take one number per run (up to
+//! [`MAX_WEIGHTED_RUNS`] runs are reweighted; a larger set is fitted plainly and says so in
+//! [`ExactFit::reweighted`]). 1σ uncertainty: the weights act as the runs' relative precisions,
+//! `(JᵀWJ)⁻¹ s²` with `s² = Σ w_i d_i² / (M − n)` (the plain fit's `(JᵀJ)⁻¹ σ²` when every weight
+//! is 1).
 
 // Dense 3×3 linear algebra reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
@@ -41,11 +88,38 @@ pub const STEP_TOLERANCE: f64 = 1e-12;
 /// Converged when an accepted step lowers the cost by less than this fraction.
 pub const COST_TOLERANCE: f64 = 1e-13;
 
+/// Cauchy constant `c` of the robust weights (95 % efficiency at the normal model).
+pub const CAUCHY_C: f64 = 2.3849;
+
+/// Smallest scale of a residual component, metres.
+pub const SCALE_FLOOR_M: f64 = 1e-6;
+
+/// Fewest peers (the run itself included) whose scatter gives a run's scale.
+pub const MIN_PEERS: usize = 3;
+
+/// Runs are peers when their characteristic lengths differ by at most this factor.
+pub const PEER_LENGTH_RATIO: f64 = 1.2;
+
+/// Most runs the robust fit reweights.
+pub const MAX_WEIGHTED_RUNS: usize = 128;
+
+/// Most runs whose fit is reported in [`ExactFit`] (the board stores 12).
+pub const MAX_RUN_FITS: usize = 16;
+
+/// Most reweighting rounds of the robust fit.
+pub const MAX_REWEIGHTS: u32 = 100;
+
+/// The robust fit has converged when no run's weight changes by more than this.
+pub const WEIGHT_TOLERANCE: f64 = 1e-6;
+
+/// A run whose weight ends below this is flagged as an outlier (`u > c`).
+pub const OUTLIER_WEIGHT: f64 = 0.5;
+
 /// When the mean diameter `E_s` is fitted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum ScaleFit {
-    /// Only when a straight-line run is present.
+    /// Only when a straight-line run or a run with ground truth along its path is present.
     Auto,
     /// Always.
     Always,
@@ -62,18 +136,95 @@ pub struct ExactOptions {
     pub use_heading: bool,
     /// Length scale of heading residuals, metres; `None` = each run's characteristic length.
     pub heading_length_m: Option<f64>,
-    /// Iteration limit.
+    /// Iteration limit of each least-squares solve.
     pub max_iterations: u32,
+    /// Robust fit (Cauchy weights per run, see the module docs); `false` = plain least squares.
+    pub robust: bool,
 }
 
 impl Default for ExactOptions {
+    /// The robust fit, headings used, `E_s` when a line or a path run is present.
     fn default() -> Self {
         ExactOptions {
             scale: ScaleFit::Auto,
             use_heading: true,
             heading_length_m: None,
             max_iterations: 100,
+            robust: true,
         }
+    }
+}
+
+impl ExactOptions {
+    /// The plain least-squares fit (every run weight 1), otherwise as [`ExactOptions::default`].
+    pub fn plain() -> Self {
+        ExactOptions {
+            robust: false,
+            ..ExactOptions::default()
+        }
+    }
+}
+
+/// How one run fits the result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct RunFit {
+    /// Index of the run in the input slice.
+    pub index: usize,
+    /// End-pose residual `measured − predicted` in x, metres, with the fitted geometry.
+    pub residual_x_m: f64,
+    /// End-pose residual in y, metres.
+    pub residual_y_m: f64,
+    /// End heading residual, radians (wrapped), when the heading was measured and used.
+    pub residual_theta_rad: Option<f64>,
+    /// RMS position error along the path, metres, for a run with ground truth along its path.
+    pub path_rms_m: Option<f64>,
+    /// Scale (robust σ) of one position component among the run's peers, metres; `None` when
+    /// the run was not judged (plain fit, or fewer than [`MIN_PEERS`] peers).
+    pub scale_m: Option<f64>,
+    /// Scale of the heading residual among the run's peers, radians (heading used).
+    pub scale_heading_rad: Option<f64>,
+    /// The weight the run ended with, in (0, 1]; 1 in the plain fit.
+    pub weight: f64,
+    /// The weight ended below [`OUTLIER_WEIGHT`]: the run disagrees with its peers.
+    pub outlier: bool,
+}
+
+impl RunFit {
+    const EMPTY: RunFit = RunFit {
+        index: 0,
+        residual_x_m: 0.0,
+        residual_y_m: 0.0,
+        residual_theta_rad: None,
+        path_rms_m: None,
+        scale_m: None,
+        scale_heading_rad: None,
+        weight: 1.0,
+        outlier: false,
+    };
+}
+
+/// Per-run report of an exact fit: residual, weight and outlier flag of every run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ExactFit {
+    /// The robust fit was asked for.
+    pub robust: bool,
+    /// The runs were reweighted (robust, and at most [`MAX_WEIGHTED_RUNS`] runs).
+    pub reweighted: bool,
+    /// Reweighting rounds (0 when the least-squares weights were already stable).
+    pub reweights: u32,
+    /// Runs flagged as outliers.
+    pub outliers: u32,
+    /// Runs in the fit (those with at least two knots).
+    pub run_count: usize,
+    fits: [RunFit; MAX_RUN_FITS],
+}
+
+impl ExactFit {
+    /// The fits of the first [`MAX_RUN_FITS`] runs in the fit, in input order.
+    pub fn runs(&self) -> &[RunFit] {
+        &self.fits[..self.run_count.min(MAX_RUN_FITS)]
     }
 }
 
@@ -117,6 +268,34 @@ pub(crate) fn solve(mut a: Mat, mut b: [f64; 3], n: usize) -> Option<[f64; 3]> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
+/// The most models a residual row is evaluated for at once (`1 + 2n`, n ≤ 3).
+const MODELS: usize = 7;
+
+/// Median of χ² with `k` degrees of freedom, `k` = 1, 2, 3.
+fn chi2_median(k: usize) -> f64 {
+    match k {
+        1 => 0.454_936_423_119_572_8,
+        2 => core::f64::consts::LN_2 * 2.0,
+        _ => 2.365_973_884_375_338,
+    }
+}
+
+/// Median of a non-empty slice (sorts it).
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_unstable_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Weight of run `i`: 1 without weights.
+fn weight(weights: Option<&[f64]>, i: usize) -> f64 {
+    weights.map_or(1.0, |w| w[i])
+}
+
 /// The problem: runs, nominal geometry, which parameters are free, options.
 struct Problem<'r, 'a> {
     runs: &'r [RunObservation<'a>],
@@ -126,85 +305,352 @@ struct Problem<'r, 'a> {
     options: ExactOptions,
 }
 
+/// The robust scales of one run's residual components.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Scales {
+    position_m: f64,
+    heading_rad: Option<f64>,
+}
+
+/// The result of one least-squares solve.
+struct Solved {
+    p: [f64; 3],
+    cost: f64,
+    iterations: u32,
+}
+
 impl Problem<'_, '_> {
     fn geometry(&self, p: &[f64; 3]) -> Geometry {
         let e_s = if self.n == 3 { p[2] } else { self.fixed_scale };
         self.nominal.with_factors(p[0], p[1], e_s)
     }
 
-    /// Residuals of one run for geometry `g`: up to 3 values, and how many.
-    fn residuals(&self, run: &RunObservation<'_>, model: &ArcModel) -> ([f64; 3], usize) {
-        let end = model.integrate(PoseF64::default(), run.knots);
-        let m = &run.measured;
-        let mut r = [m.x_m - end.x_m, m.y_m - end.y_m, 0.0];
-        match m.theta_rad {
-            Some(t) if self.options.use_heading => {
-                let l = self
-                    .options
-                    .heading_length_m
-                    .unwrap_or_else(|| run.characteristic_length_m());
-                r[2] = wrap_angle(t - end.theta_rad) * l;
-                (r, 3)
-            }
-            _ => (r, 2),
-        }
-    }
-
     fn usable(run: &RunObservation<'_>) -> bool {
         run.knots.len() >= 2
     }
 
-    /// Sum of squared residuals and number of residuals; `None` for an invalid geometry.
-    fn cost(&self, p: &[f64; 3]) -> Option<(f64, usize)> {
+    fn is_path(run: &RunObservation<'_>) -> bool {
+        !run.truth_path.is_empty()
+    }
+
+    /// The measured end heading, when it is used.
+    fn heading(&self, run: &RunObservation<'_>) -> Option<f64> {
+        run.measured.theta_rad.filter(|_| self.options.use_heading)
+    }
+
+    fn heading_length(&self, run: &RunObservation<'_>) -> f64 {
+        self.options
+            .heading_length_m
+            .unwrap_or_else(|| run.characteristic_length_m())
+    }
+
+    /// Number of residual components of a run: 2 (x, y) or 3 (with the heading).
+    fn components(&self, run: &RunObservation<'_>) -> usize {
+        if self.heading(run).is_some() { 3 } else { 2 }
+    }
+
+    /// Calls `row` for every residual row of `run`, with the row's value under each of
+    /// `models` (at most [`MODELS`]).
+    fn rows(
+        &self,
+        run: &RunObservation<'_>,
+        models: &[ArcModel],
+        mut row: impl FnMut(&[f64], bool),
+    ) {
+        let nm = models.len().min(MODELS);
+        let mut v = [0.0; MODELS];
+        let mut end = [PoseF64::default(); MODELS];
+        if Self::is_path(run) {
+            let samples = (run.knots.len() - 1) as f64;
+            let norm = 1.0 / libm::sqrt(samples);
+            for j in 1..run.knots.len() {
+                let truth = run.truth_path[j];
+                for (m, model) in models[..nm].iter().enumerate() {
+                    end[m] = model.integrate(end[m], &run.knots[j - 1..=j]);
+                }
+                for m in 0..nm {
+                    v[m] = (truth.x_m - end[m].x_m) * norm;
+                }
+                row(&v[..nm], false);
+                for m in 0..nm {
+                    v[m] = (truth.y_m - end[m].y_m) * norm;
+                }
+                row(&v[..nm], false);
+            }
+        } else {
+            for (m, model) in models[..nm].iter().enumerate() {
+                end[m] = model.integrate(PoseF64::default(), run.knots);
+            }
+            let meas = &run.measured;
+            for m in 0..nm {
+                v[m] = meas.x_m - end[m].x_m;
+            }
+            row(&v[..nm], false);
+            for m in 0..nm {
+                v[m] = meas.y_m - end[m].y_m;
+            }
+            row(&v[..nm], false);
+        }
+        if let Some(t) = self.heading(run) {
+            let l = self.heading_length(run);
+            for m in 0..nm {
+                v[m] = wrap_angle(t - end[m].theta_rad) * l;
+            }
+            row(&v[..nm], true);
+        }
+    }
+
+    /// Squared length `d²` of a run's residual for `model`: (position part, heading part).
+    fn distance2(&self, run: &RunObservation<'_>, model: &ArcModel) -> (f64, f64) {
+        let mut pos = 0.0;
+        let mut head = 0.0;
+        self.rows(run, core::slice::from_ref(model), |v, heading| {
+            if heading {
+                head += v[0] * v[0];
+            } else {
+                pos += v[0] * v[0];
+            }
+        });
+        (pos, head)
+    }
+
+    /// Number of residual rows of a run (2 per knot of a path run).
+    fn row_count(&self, run: &RunObservation<'_>) -> usize {
+        let pos = if Self::is_path(run) {
+            2 * (run.knots.len() - 1)
+        } else {
+            2
+        };
+        pos + usize::from(self.heading(run).is_some())
+    }
+
+    /// Weighted sum of squared residuals and number of residual components; `None` for an
+    /// invalid geometry.
+    fn cost(&self, p: &[f64; 3], weights: Option<&[f64]>) -> Option<(f64, usize)> {
         if !(0..self.n).all(|i| FACTOR_RANGE.contains(&p[i])) {
             return None;
         }
         let model = ArcModel::from_geometry(&self.geometry(p));
         let mut ss = 0.0;
         let mut m = 0;
-        for run in self.runs.iter().filter(|r| Self::usable(r)) {
-            let (r, k) = self.residuals(run, &model);
-            ss += r[..k].iter().map(|v| v * v).sum::<f64>();
-            m += k;
+        for (i, run) in self.runs.iter().enumerate() {
+            if Self::usable(run) {
+                let (pos, head) = self.distance2(run, &model);
+                ss += weight(weights, i) * (pos + head);
+                m += self.components(run);
+            }
         }
         Some((ss, m))
     }
 
-    /// `JᵀJ` and `Jᵀr` at `p`, with `J = ∂predicted/∂p`.
-    fn normal(&self, p: &[f64; 3]) -> (Mat, [f64; 3]) {
+    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p`.
+    fn normal(&self, p: &[f64; 3], weights: Option<&[f64]>) -> (Mat, [f64; 3]) {
+        let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
-        let model0 = ArcModel::from_geometry(&self.geometry(p));
-        let mut plus = [ArcModel::from_geometry(&self.nominal); 3];
-        let mut minus = plus;
-        for i in 0..self.n {
+        // models[0] at p, models[1 + 2i] at p + h·e_i, models[2 + 2i] at p − h·e_i.
+        let mut models = [ArcModel::from_geometry(&self.geometry(p)); MODELS];
+        for i in 0..n {
             let mut q = *p;
             q[i] += JACOBIAN_STEP;
-            plus[i] = ArcModel::from_geometry(&self.geometry(&q));
+            models[1 + 2 * i] = ArcModel::from_geometry(&self.geometry(&q));
             q[i] = p[i] - JACOBIAN_STEP;
-            minus[i] = ArcModel::from_geometry(&self.geometry(&q));
+            models[2 + 2 * i] = ArcModel::from_geometry(&self.geometry(&q));
         }
-        for run in self.runs.iter().filter(|r| Self::usable(r)) {
-            let (r0, k) = self.residuals(run, &model0);
-            let mut j = [[0.0; 3]; 3]; // j[row][param]
-            for i in 0..self.n {
-                let (rp, _) = self.residuals(run, &plus[i]);
-                let (rm, _) = self.residuals(run, &minus[i]);
-                for row in 0..k {
-                    // residual = measured − predicted, so ∂predicted = −∂residual.
-                    j[row][i] = -(rp[row] - rm[row]) / (2.0 * JACOBIAN_STEP);
-                }
+        for (k, run) in self.runs.iter().enumerate() {
+            if !Self::usable(run) {
+                continue;
             }
-            for row in 0..k {
-                for c in 0..self.n {
-                    g[c] += j[row][c] * r0[row];
-                    for d in 0..self.n {
-                        a[c][d] += j[row][c] * j[row][d];
+            let w = weight(weights, k);
+            self.rows(run, &models[..1 + 2 * n], |v, _| {
+                let mut j = [0.0; 3];
+                for i in 0..n {
+                    // residual = measured − predicted, so ∂predicted = −∂residual.
+                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * JACOBIAN_STEP);
+                }
+                for c in 0..n {
+                    g[c] += w * j[c] * v[0];
+                    for d in 0..n {
+                        a[c][d] += w * j[c] * j[d];
+                    }
+                }
+            });
+        }
+        (a, g)
+    }
+
+    /// Levenberg–Marquardt from `p` with fixed run weights.
+    fn solve_lm(
+        &self,
+        mut p: [f64; 3],
+        weights: Option<&[f64]>,
+    ) -> Result<Solved, CalibrationError> {
+        let n = self.n;
+        let (mut cost, _) = self.cost(&p, weights).ok_or(CalibrationError::OutOfRange)?;
+        let mut lambda = 1e-3;
+        let mut iterations = 0;
+        let mut converged = false;
+        while iterations < self.options.max_iterations && !converged {
+            iterations += 1;
+            let (a, g) = self.normal(&p, weights);
+            loop {
+                let mut aug = a;
+                for (i, row) in aug.iter_mut().enumerate().take(n) {
+                    row[i] += lambda * a[i][i];
+                }
+                let delta = solve(aug, g, n).ok_or(CalibrationError::Degenerate)?;
+                let step = delta[..n]
+                    .iter()
+                    .fold(0.0, |s, v| libm::fmax(s, libm::fabs(*v)));
+                let mut q = p;
+                for i in 0..n {
+                    q[i] += delta[i];
+                }
+                match self.cost(&q, weights) {
+                    Some((c, _)) if c <= cost => {
+                        // Also converged when the cost no longer changes in its 13th digit
+                        // (noisy data: the minimum is flat, and LM's last steps only shuffle
+                        // rounding).
+                        converged = step < STEP_TOLERANCE || cost - c <= COST_TOLERANCE * cost;
+                        p = q;
+                        cost = c;
+                        lambda = libm::fmax(lambda * 0.1, 1e-12);
+                        break;
+                    }
+                    _ if step < STEP_TOLERANCE => {
+                        // At the noise floor of the cost: no smaller step can improve it.
+                        converged = true;
+                        break;
+                    }
+                    _ => {
+                        lambda *= 10.0;
+                        if lambda > 1e12 {
+                            return Err(CalibrationError::NotConverged);
+                        }
                     }
                 }
             }
         }
-        (a, g)
+        if !converged {
+            return Err(CalibrationError::NotConverged);
+        }
+        Ok(Solved {
+            p,
+            cost,
+            iterations,
+        })
+    }
+
+    /// Whether runs `a` and `b` are peers (see the module docs).
+    fn peers(a: &RunObservation<'_>, b: &RunObservation<'_>) -> bool {
+        let (la, lb) = (a.characteristic_length_m(), b.characteristic_length_m());
+        core::mem::discriminant(&a.path) == core::mem::discriminant(&b.path)
+            && Self::is_path(a) == Self::is_path(b)
+            && libm::fmax(la, lb) <= PEER_LENGTH_RATIO * libm::fmin(la, lb)
+    }
+
+    /// Robust weights and scales of the runs at `p` (weights into `weights`, scales into
+    /// `scales`, both indexed like `runs`; at most [`MAX_WEIGHTED_RUNS`] runs).
+    fn reweight(
+        &self,
+        p: &[f64; 3],
+        weights: &mut [f64; MAX_WEIGHTED_RUNS],
+        scales: &mut [Option<Scales>; MAX_WEIGHTED_RUNS],
+    ) {
+        let model = ArcModel::from_geometry(&self.geometry(p));
+        let runs = &self.runs[..self.runs.len().min(MAX_WEIGHTED_RUNS)];
+        // Squared position and (ℓ-scaled) heading residuals of every run.
+        let mut pos2 = [0.0; MAX_WEIGHTED_RUNS];
+        let mut head2 = [0.0; MAX_WEIGHTED_RUNS];
+        let mut m = 0;
+        for (i, run) in runs.iter().enumerate() {
+            if Self::usable(run) {
+                (pos2[i], head2[i]) = self.distance2(run, &model);
+                m += self.components(run);
+            }
+        }
+        let dof = if m > self.n {
+            m as f64 / (m - self.n) as f64
+        } else {
+            1.0
+        };
+        let floor2 = SCALE_FLOOR_M * SCALE_FLOOR_M;
+        let mut buf = [0.0; MAX_WEIGHTED_RUNS];
+        // σ² of one component from the peers' squared residuals with `k` components each.
+        let mut scale2 = |run: &RunObservation<'_>, heading: bool| -> Option<f64> {
+            let mut count = 0;
+            for (j, other) in runs.iter().enumerate() {
+                let has = !heading || self.heading(other).is_some();
+                if Self::usable(other) && has && Self::peers(run, other) {
+                    buf[count] = if heading {
+                        head2[j] / chi2_median(1)
+                    } else {
+                        pos2[j] / chi2_median(2)
+                    };
+                    count += 1;
+                }
+            }
+            (count >= MIN_PEERS).then(|| libm::fmax(median(&mut buf[..count]) * dof, floor2))
+        };
+        for (i, run) in runs.iter().enumerate() {
+            weights[i] = 1.0;
+            scales[i] = None;
+            if !Self::usable(run) {
+                continue;
+            }
+            let Some(sp2) = scale2(run, false) else {
+                continue;
+            };
+            let mut u2 = pos2[i] / sp2;
+            let mut sh2 = None;
+            if self.heading(run).is_some() {
+                let Some(s) = scale2(run, true) else {
+                    continue;
+                };
+                u2 += head2[i] / s;
+                sh2 = Some(s);
+            }
+            u2 /= self.components(run) as f64;
+            weights[i] = 1.0 / (1.0 + u2 / (CAUCHY_C * CAUCHY_C));
+            scales[i] = Some(Scales {
+                position_m: libm::sqrt(sp2),
+                heading_rad: sh2.map(|s| libm::sqrt(s) / self.heading_length(run)),
+            });
+        }
+    }
+
+    /// The report of run `index` for the fitted model.
+    fn run_fit(
+        &self,
+        index: usize,
+        model: &ArcModel,
+        weight: f64,
+        scales: Option<Scales>,
+    ) -> RunFit {
+        let run = &self.runs[index];
+        let end = model.integrate(PoseF64::default(), run.knots);
+        let path_rms_m = Self::is_path(run).then(|| {
+            let mut pose = PoseF64::default();
+            let mut ss = 0.0;
+            for j in 1..run.knots.len() {
+                pose = model.integrate(pose, &run.knots[j - 1..=j]);
+                let t = run.truth_path[j];
+                ss += (t.x_m - pose.x_m) * (t.x_m - pose.x_m)
+                    + (t.y_m - pose.y_m) * (t.y_m - pose.y_m);
+            }
+            libm::sqrt(ss / (run.knots.len() - 1) as f64)
+        });
+        RunFit {
+            index,
+            residual_x_m: run.measured.x_m - end.x_m,
+            residual_y_m: run.measured.y_m - end.y_m,
+            residual_theta_rad: self.heading(run).map(|t| wrap_angle(t - end.theta_rad)),
+            path_rms_m,
+            scale_m: scales.map(|s| s.position_m),
+            scale_heading_rad: scales.and_then(|s| s.heading_rad),
+            weight,
+            outlier: weight < OUTLIER_WEIGHT,
+        }
     }
 }
 
@@ -222,9 +668,11 @@ pub fn calibrate_exact(
         .iter()
         .find(|r| Problem::usable(r))
         .ok_or(CalibrationError::NoRuns)?;
-    let has_line = runs.iter().any(|r| matches!(r.path, PathKind::Line { .. }));
+    let sees_scale = runs
+        .iter()
+        .any(|r| matches!(r.path, PathKind::Line { .. }) || Problem::is_path(r));
     let fit_scale = match options.scale {
-        ScaleFit::Auto => has_line,
+        ScaleFit::Auto => sees_scale,
         ScaleFit::Always => true,
         ScaleFit::Never => false,
     };
@@ -237,57 +685,52 @@ pub fn calibrate_exact(
         options: *options,
     };
     let n = problem.n;
-    let mut p = [d0, b0, s0];
-    let (mut cost, m) = problem.cost(&p).ok_or(CalibrationError::OutOfRange)?;
-    if m <= n {
+    let p0 = [d0, b0, s0];
+    let (_, m) = problem
+        .cost(&p0, None)
+        .ok_or(CalibrationError::OutOfRange)?;
+    let rows: usize = runs
+        .iter()
+        .filter(|r| Problem::usable(r))
+        .map(|r| problem.row_count(r))
+        .sum();
+    if rows <= n {
         return Err(CalibrationError::Degenerate);
     }
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    let mut converged = false;
-    while iterations < options.max_iterations && !converged {
-        iterations += 1;
-        let (a, g) = problem.normal(&p);
+    // The plain least-squares fit: the result, or the robust fit's start.
+    let mut solved = problem.solve_lm(p0, None)?;
+    let mut iterations = solved.iterations;
+    let reweighted = options.robust && runs.len() <= MAX_WEIGHTED_RUNS;
+    // Weights and scales indexed like `runs`.
+    let mut weights = [1.0; MAX_WEIGHTED_RUNS];
+    let mut scales = [None; MAX_WEIGHTED_RUNS];
+    let mut reweights = 0;
+    if reweighted {
+        let len = runs.len();
         loop {
-            let mut aug = a;
-            for (i, row) in aug.iter_mut().enumerate().take(n) {
-                row[i] += lambda * a[i][i];
-            }
-            let delta = solve(aug, g, n).ok_or(CalibrationError::Degenerate)?;
-            let step = delta[..n]
+            let mut next = [1.0; MAX_WEIGHTED_RUNS];
+            problem.reweight(&solved.p, &mut next, &mut scales);
+            let change = weights[..len]
                 .iter()
-                .fold(0.0, |s, v| libm::fmax(s, libm::fabs(*v)));
-            let mut q = p;
-            for i in 0..n {
-                q[i] += delta[i];
+                .zip(&next[..len])
+                .fold(0.0, |c, (a, b)| libm::fmax(c, libm::fabs(a - b)));
+            weights = next;
+            // The weights computed at the fitted parameters are those they were fitted with:
+            // the fixed point of IRLS.
+            if change <= WEIGHT_TOLERANCE {
+                break;
             }
-            match problem.cost(&q) {
-                Some((c, _)) if c <= cost => {
-                    // Also converged when the cost no longer changes in its 13th digit (noisy
-                    // data: the minimum is flat, and LM's last steps only shuffle rounding).
-                    converged = step < STEP_TOLERANCE || cost - c <= COST_TOLERANCE * cost;
-                    p = q;
-                    cost = c;
-                    lambda = libm::fmax(lambda * 0.1, 1e-12);
-                    break;
-                }
-                _ if step < STEP_TOLERANCE => {
-                    // At the noise floor of the cost: no smaller step can improve it.
-                    converged = true;
-                    break;
-                }
-                _ => {
-                    lambda *= 10.0;
-                    if lambda > 1e12 {
-                        return Err(CalibrationError::NotConverged);
-                    }
-                }
+            if reweights >= MAX_REWEIGHTS {
+                return Err(CalibrationError::NotConverged);
             }
+            reweights += 1;
+            solved = problem.solve_lm(solved.p, Some(&weights[..len]))?;
+            iterations += solved.iterations;
         }
     }
-    if !converged {
-        return Err(CalibrationError::NotConverged);
-    }
+    let w = reweighted.then_some(&weights[..runs.len().min(MAX_WEIGHTED_RUNS)]);
+    let p = solved.p;
+    let cost = solved.cost;
     let geometry = problem.geometry(&p);
     geometry
         .validate()
@@ -297,12 +740,15 @@ pub fn calibrate_exact(
     {
         return Err(CalibrationError::OutOfRange);
     }
-    // Uncertainty from the residual scatter.
-    let (a, _) = problem.normal(&p);
-    let dof = (m - n) as f64;
-    let sigma2 = cost / dof;
+    // Uncertainty from the weighted residual scatter, the weights as relative precisions.
+    let (a, _) = problem.normal(&p, w);
+    let sigma2 = if m > n {
+        cost / (m - n) as f64
+    } else {
+        f64::NAN
+    };
     let mut sigma = [None; 3];
-    for (i, s) in sigma.iter_mut().enumerate().take(n) {
+    for (i, s) in sigma.iter_mut().enumerate().take(n).filter(|_| m > n) {
         let mut e = [0.0; 3];
         e[i] = 1.0;
         if let Some(col) = solve(a, e, n) {
@@ -312,8 +758,35 @@ pub fn calibrate_exact(
     let sigma_out = sigma[0]
         .zip(sigma[1])
         .map(|(d, b)| [d, b, sigma[2].unwrap_or(0.0)]);
+    // Per-run report, and the weighted mean square of the residual components.
+    let model = ArcModel::from_geometry(&geometry);
+    let mut fit = ExactFit {
+        robust: options.robust,
+        reweighted,
+        reweights,
+        outliers: 0,
+        run_count: 0,
+        fits: [RunFit::EMPTY; MAX_RUN_FITS],
+    };
+    let mut weighted_components = 0.0;
+    for (i, run) in runs.iter().enumerate() {
+        if !Problem::usable(run) {
+            continue;
+        }
+        let wi = weight(w, i);
+        weighted_components += wi * problem.components(run) as f64;
+        let scale = if reweighted { scales[i] } else { None };
+        let rf = problem.run_fit(i, &model, wi, scale);
+        if rf.outlier {
+            fit.outliers += 1;
+        }
+        if fit.run_count < MAX_RUN_FITS {
+            fit.fits[fit.run_count] = rf;
+        }
+        fit.run_count += 1;
+    }
     let stats = SquareStats::from_runs(runs, false).ok();
-    let rms = libm::sqrt(cost / m as f64);
+    let rms = libm::sqrt(cost / weighted_components);
     let quality = Quality::from_runs(runs, &geometry, stats.as_ref(), sigma_out, Some(rms));
     Ok(Calibration {
         method: Method::Exact,
@@ -323,6 +796,7 @@ pub fn calibrate_exact(
         geometry,
         quality,
         iterations,
+        fit: Some(fit),
     })
 }
 

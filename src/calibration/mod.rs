@@ -41,7 +41,7 @@ pub mod synth;
 pub mod track;
 pub mod umbmark;
 
-pub use exact::{ExactOptions, ScaleFit};
+pub use exact::{ExactFit, ExactOptions, RunFit, ScaleFit};
 pub use quality::Quality;
 pub use stats::{DirectionStats, SquareStats};
 pub use track::{TrackAdvice, TrackAdviceInput};
@@ -62,6 +62,10 @@ pub struct RunObservation<'a> {
     pub odometry_end: PoseF64,
     /// True end pose in the start frame.
     pub measured: Measurement,
+    /// Ground truth along the path (e.g. a motion-capture log): the true pose in the start frame
+    /// at every knot, as long as `knots`; empty when only the end pose was measured. The exact
+    /// method then fits the whole path, not only its end (see [`exact`]).
+    pub truth_path: &'a [PoseF64],
 }
 
 impl<'a> RunObservation<'a> {
@@ -73,6 +77,7 @@ impl<'a> RunObservation<'a> {
             knots: &r.knots,
             odometry_end: r.odometry_end,
             measured: r.measured?,
+            truth_path: &[],
         })
     }
 
@@ -106,8 +111,8 @@ impl<'a> RunObservation<'a> {
         }
     }
 
-    /// Checks that the measurement and odometry are finite and the error is not absurd (larger
-    /// than the path length plus 1 m).
+    /// Checks that the measurement and odometry are finite, the error is not absurd (larger
+    /// than the path length plus 1 m), and a ground-truth path has one finite pose per knot.
     fn check(&self, index: usize) -> Result<(), CalibrationError> {
         let m = &self.measured;
         let o = &self.odometry_end;
@@ -123,6 +128,15 @@ impl<'a> RunObservation<'a> {
         }
         let (ex, ey, _) = self.error();
         if libm::hypot(ex, ey) > len + 1.0 {
+            return Err(CalibrationError::InvalidMeasurement { index });
+        }
+        let path_ok = self.truth_path.is_empty()
+            || (self.truth_path.len() == self.knots.len()
+                && self
+                    .truth_path
+                    .iter()
+                    .all(|p| p.x_m.is_finite() && p.y_m.is_finite() && p.theta_rad.is_finite()));
+        if !path_ok {
             return Err(CalibrationError::InvalidMeasurement { index });
         }
         Ok(())
@@ -236,6 +250,9 @@ pub struct Calibration {
     pub quality: Quality,
     /// Solver iterations (0 for the closed-form methods).
     pub iterations: u32,
+    /// The exact method's per-run residuals, weights and outlier flags (`None` for the
+    /// closed-form methods).
+    pub fit: Option<ExactFit>,
 }
 
 impl fmt::Display for Calibration {
@@ -384,6 +401,7 @@ pub fn calibrate_with(
         geometry,
         quality,
         iterations: 0,
+        fit: None,
     })
 }
 

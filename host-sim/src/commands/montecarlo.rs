@@ -209,6 +209,7 @@ pub fn run(args: &MonteCarloArgs) -> Result<(), Box<dyn std::error::Error>> {
                 knots: k,
                 odometry_end: *o,
                 measured: *m,
+                truth_path: &[],
             })
             .collect();
         for (i, m) in methods.iter().enumerate() {

@@ -100,6 +100,7 @@ impl IdealRun {
             knots: &self.knots,
             odometry_end: self.odometry_end,
             measured: self.measured,
+            truth_path: &[],
         }
     }
 

@@ -225,6 +225,7 @@ fn trial(
             knots: k,
             odometry_end: *o,
             measured: *m,
+            truth_path: &[],
         })
         .collect();
     SWEEP_METHODS.map(|m| {
@@ -282,6 +283,7 @@ pub fn pilot_scatter(a: &SweepArgs, truth: &Geometry, slip: f64, seed: u64) -> O
             knots: k,
             odometry_end: *o,
             measured: *m,
+            truth_path: &[],
         })
         .collect();
     SquareStats::from_runs(&obs, true).ok()?.scatter_m()

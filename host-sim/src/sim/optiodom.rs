@@ -189,6 +189,7 @@ impl OptiRun {
                 y_m: self.truth_end.y_m,
                 theta_rad: Some(self.truth_end.theta_rad),
             },
+            truth_path: &[],
         }
     }
 }
