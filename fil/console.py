@@ -83,7 +83,20 @@ class Console:
 
     def send_raw(self, data):
         self.transcript.append((">", data))
+        # The emulated USART takes one byte per receive interrupt: a long burst takes a while.
+        self.sock.settimeout(120.0)
         self.sock.sendall(data)
+
+    def send_burst(self, data, chunk=256):
+        """Sends `data` in chunks, reading what the console answers in between (the emulator
+        stalls while its transmit side is not read). Returns the reply lines that arrived."""
+        got = []
+        for i in range(0, len(data), chunk):
+            self.sock.settimeout(30.0)
+            self.sock.sendall(data[i:i + chunk])
+            got += self.quiet(0.005)
+        self.transcript.append((">", data))
+        return got
 
     def command(self, line, timeout=10.0, ending=b"\r\n"):
         """Sends one line; returns (data lines, final line). Raises on timeout."""

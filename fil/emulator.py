@@ -152,12 +152,16 @@ class Emulator:
         self.elf = elf
         self.workdir = workdir
         os.makedirs(workdir, exist_ok=True)
+        workdir = os.path.abspath(workdir)
+        self.workdir = workdir
         self.u2 = os.path.join(workdir, f"{name}-usart2.sock")
         self.mon = os.path.join(workdir, f"{name}-monitor.sock")
         self.log = os.path.join(workdir, f"{name}.log")
         for p in (self.u2, self.mon):
             if os.path.exists(p):
                 os.unlink(p)
+        elf = os.path.abspath(elf)
+        self.elf = elf
         if flash_image is None:
             flash_image = os.path.join(workdir, "erased-params.bin")
             with open(flash_image, "wb") as f:
@@ -174,9 +178,10 @@ class Emulator:
         if flash_image:
             cmd += ["-device", f"loader,file={flash_image},addr=0x{PARAMS_ADDR:08x},force-raw=on"]
         if assist:
-            cmd += ["-gdb", f"tcp:127.0.0.1:{self.port}", "-S"]
-        cmd += list(extra)
-        self.qemu = subprocess.Popen(cmd, stdin=subprocess.DEVNULL,
+            cmd += ["-gdb", f"tcp:127.0.0.1:{self.port}"]
+        # Halted until `start`, so a client can connect to USART2 before the boot line.
+        cmd += ["-S"] + list(extra)
+        self.qemu = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, cwd=workdir,
                                      stdout=open(os.path.join(workdir, f"{name}.out"), "wb"),
                                      stderr=subprocess.STDOUT)
         self.points = []
@@ -190,6 +195,7 @@ class Emulator:
     def start(self):
         """Lets the CPU run (through the boot assist if there is one)."""
         if self.port is None:
+            self.monitor("cont")
             return
         script, self.points = boot_assist_script(self.elf, self.port)
         path = os.path.join(self.workdir, f"{self.name}-boot-assist.gdb")
@@ -235,6 +241,17 @@ class Emulator:
             time.sleep(0.05)
         with open(path, "rb") as f:
             return f.read()
+
+    def read_words(self, address, count):
+        """`count` 32-bit words of guest memory at `address` (monitor `xp`)."""
+        out = self.monitor(f"xp /{count}wx 0x{address:x}")
+        words = []
+        for line in out.splitlines():
+            if ":" in line and line.split(":")[0].strip().startswith("0000"):
+                words += [int(w, 16) for w in line.split(":", 1)[1].split()]
+        if len(words) != count:
+            raise SystemExit(f"monitor xp returned {len(words)} words, wanted {count}: {out!r}")
+        return words
 
     def alive(self):
         return self.qemu.poll() is None

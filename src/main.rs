@@ -32,8 +32,9 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::board::watchdog::{set_timeout, start_with_timeout, wait_for_update};
     use odocal::board::{
-        BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx, ConsoleTx,
-        ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS,
+        BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_FROM_MONOTONIC,
+        CONTROL_HZ, CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders,
+        FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS,
     };
     use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
@@ -179,6 +180,7 @@ mod app {
 
         report::spawn().ok();
         console::spawn().ok();
+        pace_control::spawn().ok();
         defmt::info!(
             "odocal up: control at {} Hz, calibration '{}'",
             CONTROL_HZ,
@@ -212,6 +214,15 @@ mod app {
         )
     }
 
+    /// Sleeps until the next interrupt (no work runs at priority 0). Saves power on the board,
+    /// and lets an emulator skip idle time.
+    #[idle]
+    fn idle(_cx: idle::Context) -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
     /// Control period: encoders → odometry → routine → speed loops → motors; button actions.
     #[task(binds = TIM7, priority = 3,
            local = [encoders, tick, motors, press_in],
@@ -239,6 +250,23 @@ mod app {
                 let _ = cx.local.press_in.enqueue(p);
             }
         });
+    }
+
+    /// On a board without a control-period timer (the emulator), pends the control interrupt
+    /// every period from the monotonic (1 ms ticks; `CONTROL_HZ` divides 1000 there). On the
+    /// F407, TIM7 raises it and this task ends at once.
+    #[task(priority = 3)]
+    async fn pace_control(_cx: pace_control::Context) {
+        if !CONTROL_FROM_MONOTONIC {
+            return;
+        }
+        let period = (1_000 / CONTROL_HZ).max(1).millis();
+        let mut next = Mono::now();
+        loop {
+            next += period;
+            Mono::delay_until(next).await;
+            rtic::pend(CONTROL_INTERRUPT);
+        }
     }
 
     /// Button edges, time-stamped for the debouncer.

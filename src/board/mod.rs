@@ -10,7 +10,8 @@
 //! | `init(pac::Peripherals) -> Board` | clocks and every peripheral, once, in `init` |
 //! | `Board::encoders.read()` | raw right/left counter values each control period |
 //! | `Board::motors` ([`crate::motion::motor::MotorDriver`]) | the controller's motor command |
-//! | `Board::tick.clear()` | acknowledges the control-period interrupt (bound to `CONTROL_INTERRUPT`'s task) |
+//! | `Board::tick.clear()` | acknowledges the control-period interrupt (TIM7, [`CONTROL_INTERRUPT`]) |
+//! | [`CONTROL_FROM_MONOTONIC`] | whether the app pends the control interrupt from the monotonic (a board without the timer) |
 //! | `Board::button.edge()` | acknowledges a button edge and reads the level |
 //! | `Board::leds` | heartbeat and fault LEDs |
 //! | `Board::console_rx` / `console_tx`, `CONSOLE_INTERRUPT` | the serial console's USART |
@@ -18,11 +19,30 @@
 //! | `Board::params` | the parameter store, loaded by the app before anything moves |
 //! | `CONTROL_HZ`, `WATCHDOG_MS`, `FLASH_WATCHDOG_MS` | rates and timeouts |
 //!
-//! [`f407`] is the STM32F407 board (pin map in its module docs).
+//! [`f407`] is the STM32F407 board (pin map in its module docs). With the cargo feature
+//! `emulator`, `emulator` (QEMU's `netduinoplus2` with a simulated robot, for the
+//! firmware-in-the-loop test) takes its place behind the same names; the app is the same.
 
 pub mod f407;
 
+#[cfg(feature = "emulator")]
+pub mod emulator;
+
+#[cfg(not(feature = "emulator"))]
 pub use f407::{
     Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx,
     ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
 };
+
+#[cfg(feature = "emulator")]
+pub use emulator::{
+    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx,
+    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
+};
+
+/// The interrupt the control task is bound to (TIM7's vector on every board).
+pub const CONTROL_INTERRUPT: stm32f4xx_hal::pac::Interrupt = stm32f4xx_hal::pac::Interrupt::TIM7;
+
+/// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic at `CONTROL_HZ`: false on the
+/// F407 (TIM7 raises it), true on the emulator (QEMU has no TIM7).
+pub const CONTROL_FROM_MONOTONIC: bool = cfg!(feature = "emulator");

@@ -48,6 +48,13 @@ pub struct SerialArgs {
     /// is echoed with a `> ` prefix), so a piped script can run a whole calibration.
     #[arg(long)]
     pub auto_measure: bool,
+    /// With `--fast`: take each line, and measure (`--auto-measure`), only once both wheels have
+    /// come to rest for good (speed below the smallest normal `f64`, about 18 s of robot time
+    /// after a brake: from then on no count and no pose coordinate changes), so the timing of the
+    /// input does not matter. The firmware-in-the-loop test drives the emulator the same way
+    /// and compares the results.
+    #[arg(long)]
+    pub settle: bool,
 }
 
 /// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The
@@ -138,9 +145,14 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
             }
         }
         let touched = board.store.flash().bytes_touched();
+        let settled = |board: &Board| {
+            let (r, l) = board.sim.wheel_speeds_mps();
+            !args.settle || (r.abs() < f64::MIN_POSITIVE && l.abs() < f64::MIN_POSITIVE)
+        };
         if args.fast {
             // One line at a time, each once the robot is at rest.
             if board.at_rest()
+                && settled(&board)
                 && let Some(end) = pending.iter().position(|&b| b == b'\n')
             {
                 let line: Vec<u8> = pending.drain(..=end).collect();
@@ -163,7 +175,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         let running = matches!(board.controller.status(), Status::Running { .. });
         report_at_rest |= was_running && !running;
         was_running = running;
-        if report_at_rest && board.at_rest() {
+        if report_at_rest && board.at_rest() && settled(&board) {
             report_at_rest = false;
             if let Some(line) = measure_line(&board) {
                 eprintln!("sim: true end pose in the run's start frame: {line}");

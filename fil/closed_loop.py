@@ -1,0 +1,289 @@
+#!/usr/bin/env python3
+"""Stage 2 of the firmware-in-the-loop test: the whole RTIC app calibrates a simulated robot.
+
+The firmware built with `--features emulator` (the same `src/main.rs`; the board is
+`src/board/emulator/`: a plant with host-sim's motor, wheel and encoder model and true factors
+E_b = 1.010, E_d = 0.995) runs in QEMU with deterministic virtual time (`-icount shift=3,
+sleep=off`, WFI idle). Over USART2 the client runs an operator's session:
+
+1. plan 3 CW + 3 CCW squares of 0.3 m; `next` each, then `measure` the plant's true end pose in
+   the run's start frame (read from the plant's `EMULATOR_TRUTH` block through the monitor: the
+   tape measure); `calibrate`, `apply exact`, `save`;
+2. restart QEMU on the same flash image (a host file the emulator board reaches through
+   semihosting): `params` must show the calibration;
+3. on the restarted board: the pose stream at 100 Hz, the `drive` deadman, `stop` mid-run, and a
+   64 KiB burst of random bytes into RX (the console still answers, no reset);
+4. the same session on host-sim (`serial --fast --auto-measure --settle`, same robot): every
+   `measure` line, the whole `calibrate` table and the `apply exact` line must be identical.
+
+Every command is sent only once the plant's wheels are at rest for good (speed below the
+smallest normal f64), as host-sim's `--settle` does, so the number of idle control periods between commands (which the
+client's wall-clock timing decides) cannot change the counts a run sees.
+
+    python3 fil/closed_loop.py ELF [--workdir DIR] [--host-sim CMD]
+"""
+
+import argparse
+import math
+import os
+import random
+import re
+import shlex
+import struct
+import subprocess
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from console import Console, ConsoleError  # noqa: E402
+from emulator import PARAMS_LEN, Emulator, symbol_address  # noqa: E402
+
+TRUE_E_B = 1.010
+TRUE_E_D = 0.995
+SIDE_M = 0.3
+RUNS_PER_DIRECTION = 3
+# Virtual time runs from instruction counts: 8 ns per instruction (2^3), idle skipped.
+QEMU_TIME = ["-icount", "shift=3,sleep=off", "-semihosting-config", "enable=on,target=native"]
+SETUP = ["echo off", f"set square_side {SIDE_M}", f"set runs_per_direction {RUNS_PER_DIRECTION}"]
+
+
+class Truth:
+    """The plant's published state (see src/board/emulator/plant.rs)."""
+
+    def __init__(self, emu, elf):
+        self.emu = emu
+        self.addr = symbol_address(elf, "EMULATOR_TRUTH")
+
+    def read(self):
+        w = self.emu.read_words(self.addr, 12)
+        v = [w[2 * i] | (w[2 * i + 1] << 32) for i in range(6)]
+        f = [struct.unpack("<d", struct.pack("<Q", x))[0] for x in v[:5]]
+        return {"x": f[0], "y": f[1], "theta": f[2], "omega": (f[3], f[4]), "periods": v[5]}
+
+    def moving(self, timeout=30.0):
+        """Waits until a wheel turns."""
+        deadline = time.time() + timeout
+        while not any(abs(w) >= sys.float_info.min for w in self.read()["omega"]):
+            if time.time() > deadline:
+                raise ConsoleError("the wheels did not start")
+            time.sleep(0.02)
+
+    def settle(self, timeout=120.0):
+        """Waits until both wheels are at rest for good (speed below the smallest normal f64:
+        the braked lag decays into subnormals, where no count or pose coordinate changes any
+        more); returns the state."""
+        deadline = time.time() + timeout
+        while True:
+            t = self.read()
+            if all(abs(w) < sys.float_info.min for w in t["omega"]):
+                return t
+            if time.time() > deadline:
+                raise ConsoleError(f"the wheels did not come to rest: {t}")
+            time.sleep(0.1)
+
+
+def wrap_angle(a):
+    return math.atan2(math.sin(a), math.cos(a))
+
+
+def measure_line(start, end):
+    """`measure x y θ` of `end` in the frame of `start` (as host-sim's `measure_line`)."""
+    s, c = math.sin(start["theta"]), math.cos(start["theta"])
+    dx, dy = end["x"] - start["x"], end["y"] - start["y"]
+    x, y = c * dx + s * dy, -s * dx + c * dy
+    theta = end["theta"] - start["theta"]
+    return f"measure {x:.6f} {y:.6f} {math.degrees(wrap_angle(theta)):.4f}"
+
+
+def boot(elf, workdir, name, log):
+    emu = Emulator(elf, workdir, assist=False, flash_image=False, extra=QEMU_TIME, name=name)
+    con = Console.unix(emu.u2)
+    emu.start()
+    line = con.wait_event("event boot", 30)
+    log.append(line)
+    return emu, con, Truth(emu, elf)
+
+
+def send(con, line, log, timeout=60.0):
+    data, final = con.command(line, timeout)
+    log.append("> " + line)
+    log += data + [final]
+    return data, final
+
+
+def calibration_session(elf, workdir):
+    """Step 1: the session on the emulator. Returns (transcript, measure lines, calibrate
+    table, apply line)."""
+    log = []
+    emu, con, truth = boot(elf, workdir, "closed-loop", log)
+    measures = []
+    try:
+        for line in SETUP:
+            send(con, line, log)
+        for _ in range(2 * RUNS_PER_DIRECTION):
+            start = truth.settle()
+            _, final = send(con, "next", log)
+            if not final.startswith("ok run"):
+                raise ConsoleError(f"next: {final}")
+            log.append(con.wait_event("event run", 120))
+            end = truth.settle()
+            m = measure_line(start, end)
+            measures.append(m)
+            send(con, m, log)
+        truth.settle()
+        data, final = send(con, "calibrate", log, timeout=120)
+        table = data + [final]
+        _, apply = send(con, "apply exact", log)
+        _, saved = send(con, "save", log)
+        if saved != "ok saved":
+            raise ConsoleError(f"save: {saved}")
+    finally:
+        emu.stop()
+    return log, measures, table, apply
+
+
+def restarted_board(elf, workdir, apply):
+    """Steps 2 and 3 on a fresh emulator over the same flash image."""
+    log = []
+    checks = []
+    emu, con, truth = boot(elf, workdir, "restarted", log)
+    try:
+        if log[-1] != "event boot: parameters loaded":
+            raise ConsoleError(f"restart: {log[-1]}")
+        send(con, "echo off", log)
+        data, _ = send(con, "params", log)
+        cal = [d for d in data if d.strip().startswith("calibration")]
+        m = re.search(r"E_d=(\S+) E_b=(\S+)", apply)
+        if not cal or not m or f"E_d={m.group(1)}" not in cal[0] or f"E_b={m.group(2)}" not in cal[0]:
+            raise ConsoleError(f"params after restart: {cal} vs `{apply}`")
+        checks.append(f"params after restart: {cal[0].strip()}")
+
+        # The pose stream at 100 Hz while the robot drives a line.
+        send(con, "stream on 100", log)
+        send(con, "line 0.3", log)
+        con.wait_event("event run", 120)
+        send(con, "stream off", log)
+        stamps = [float(s.split()[1]) for s in con.streams]
+        steps = sorted(round(b - a, 6) for a, b in zip(stamps, stamps[1:]))
+        if len(stamps) < 50 or steps[len(steps) // 2] != 0.01 or steps[0] < 0.01 - 1e-9:
+            raise ConsoleError(f"stream: {len(stamps)} lines, steps {steps[:3]}..{steps[-3:]}")
+        checks.append(f"pose stream: {len(stamps)} lines, median spacing "
+                      f"{steps[len(steps) // 2]:.3f} s (100 Hz), min {steps[0]:.3f} s")
+
+        # Drive deadman: one `drive`, then nothing: the motors must stop by themselves.
+        truth.settle()
+        before = truth.read()
+        send(con, "drive 0.2 0", log)
+        truth.moving()
+        end = truth.settle()
+        driven_s = (end["periods"] - before["periods"]) / 1000.0
+        moved = math.hypot(end["x"] - before["x"], end["y"] - before["y"])
+        data, status = send(con, "status", log)
+        if moved < 0.01 or "state=idle" not in status:
+            raise ConsoleError(f"deadman: moved {moved} m, {status}")
+        checks.append(f"drive deadman: moved {moved:.3f} m and stopped by itself "
+                      f"(wheels at rest {driven_s:.1f} s of robot time after the command)")
+
+        # Stop mid-run.
+        send(con, "run ccw", log)
+        truth.moving()
+        time.sleep(0.5)
+        mid = truth.read()
+        _, final = send(con, "stop", log)
+        end = truth.settle()
+        data, status = send(con, "status", log)
+        if not final.startswith("ok") or "state=idle" not in status or all(abs(w) < sys.float_info.min for w in mid["omega"]):
+            raise ConsoleError(f"stop mid-run: {final}, {status}, {mid}")
+        checks.append(f"stop mid-run: `{final}`, wheels at rest "
+                      f"{(end['periods'] - mid['periods']) / 1000.0:.1f} s later, {status.split()[1]}")
+
+        # 64 KiB of random bytes into RX: the console must still answer, without a reset.
+        before = truth.read()
+        rng = random.Random(14)
+        burst = bytes(rng.getrandbits(8) for _ in range(64 * 1024))
+        sent = time.time()
+        got = con.send_burst(burst)
+        burst_s = time.time() - sent
+        con.send_raw(b"\x03\r\n")
+        got += con.quiet(3.0)
+        _, final = send(con, "status", log, timeout=30)
+        after = truth.read()
+        boots = [e for e in con.events if e.startswith("event boot")]
+        if not final.startswith("ok state=") or boots or after["periods"] <= before["periods"]:
+            raise ConsoleError(f"burst: `{final}`, boots {boots}, periods "
+                               f"{before['periods']} -> {after['periods']}")
+        errs = sum(1 for g in got if g.startswith("err "))
+        checks.append(f"64 KiB random burst ({burst_s:.1f} s wall to send): {errs} error replies, "
+                      "console answers `status`, "
+                      f"no reset (control periods {before['periods']} -> {after['periods']})")
+    finally:
+        emu.stop()
+    return log, checks
+
+
+def host_sim_session(cmd):
+    """The same session on host-sim: its `measure` lines, `calibrate` table and `apply` line."""
+    script = "\n".join(SETUP + ["next"] * (2 * RUNS_PER_DIRECTION)
+                       + ["calibrate", "apply exact"]) + "\n"
+    args = shlex.split(cmd) + ["serial", "--fast", "--auto-measure", "--settle",
+                               "--eb", str(TRUE_E_B), "--ed", str(TRUE_E_D)]
+    out = subprocess.run(args, input=script, capture_output=True, text=True, timeout=300,
+                         check=True).stdout
+    lines = [l.rstrip("\r") for l in out.splitlines()]
+    measures = [l[2:] for l in lines if l.startswith("> measure")]
+    i = next(i for i, l in enumerate(lines) if l.startswith("  method"))
+    j = next(j for j in range(i, len(lines)) if lines[j].startswith(("ok", "err")))
+    apply = next(l for l in lines[j + 1:] if l.startswith(("ok applied", "err")))
+    return measures, lines[i:j + 1], apply
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("elf")
+    ap.add_argument("--workdir", default="target/fil")
+    ap.add_argument("--host-sim", default="cargo run --release -q -p host-sim --")
+    args = ap.parse_args()
+    os.makedirs(args.workdir, exist_ok=True)
+    image = os.path.join(args.workdir, "odocal-params.img")
+    with open(image, "wb") as f:
+        f.write(b"\xff" * PARAMS_LEN)
+
+    t0 = time.time()
+    log1, measures, table, apply = calibration_session(args.elf, args.workdir)
+    t1 = time.time()
+    log2, checks = restarted_board(args.elf, args.workdir, apply)
+    t2 = time.time()
+    with open(os.path.join(args.workdir, "closed-loop.txt"), "w") as f:
+        f.write("\n".join(log1 + ["(restart)"] + log2) + "\n")
+    print("emulator session (3 CW + 3 CCW squares of 0.3 m, measured by the plant's truth):")
+    for line in table:
+        print("  " + line)
+    print("  " + apply)
+    for c in checks:
+        print("  " + c)
+    print(f"  wall time: calibration session {t1 - t0:.1f} s, restarted board {t2 - t1:.1f} s")
+
+    h_measures, h_table, h_apply = host_sim_session(args.host_sim)
+    fail = 0
+    for name, mine, theirs in (("measure lines", measures, h_measures),
+                               ("calibrate table", table, h_table),
+                               ("apply line", [apply], [h_apply])):
+        if mine != theirs:
+            fail = 1
+            print(f"FAILED: {name} differ from host-sim's:")
+            for a, b in zip(mine + [""] * len(theirs), theirs + [""] * len(mine)):
+                if a != b:
+                    print(f"  emulator: {a}\n  host-sim: {b}")
+        else:
+            print(f"host-sim agrees: {len(mine)} {name} identical")
+    m = re.search(r"E_d=(\S+) E_b=(\S+)", apply)
+    if fail or not m:
+        print(f"closed loop FAILED (transcript: {args.workdir}/closed-loop.txt)")
+        return 1
+    print(f"closed loop: E_b {m.group(2)} E_d {m.group(1)} (true {TRUE_E_B:.3f} {TRUE_E_D:.3f}), "
+          "params kept across restart")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,215 @@
+//! The emulator board: the same RTIC app on QEMU's `netduinoplus2` (STM32F405), with a simulated
+//! robot in place of the motors and encoders (cargo feature `emulator`; the shipped firmware
+//! never contains it).
+//!
+//! What QEMU models is used as on the board: SysTick (the monotonic), NVIC, USART2 (the console,
+//! the second `-serial`), SYSCFG/EXTI. What it does not model is replaced here, behind the same
+//! names as [`super::f407`]:
+//!
+//! | item | on the F407 | here |
+//! |---|---|---|
+//! | clocks | HSE 8 MHz → PLL 168 MHz | HSI (QEMU has no RCC; its SysTick counts at 168 MHz whatever RCC says, so the monotonic is started at 168 MHz) |
+//! | `Encoders` | TIM2/TIM3 in encoder mode | the [`plant`]'s counters; each read first advances the plant by one control period with the last motor command |
+//! | `BoardMotors` | TIM1 PWM + direction pins | stores the command for the plant |
+//! | `ControlTick` | TIM7 update at 1 kHz | QEMU has no TIM6/TIM7: the control interrupt is pended from the SysTick monotonic every period (`CONTROL_FROM_MONOTONIC`, the app's `pace_control` task) |
+//! | `BoardFlash` | sectors 10–11 | a 256 KiB host file through semihosting ([`flash`]) |
+//! | button, LEDs, watchdog | GPIO, EXTI0, IWDG | the same HAL drivers; QEMU logs their register writes as unimplemented (`-d unimp`) and never resets on a missing feed |
+//!
+//! The plant runs inside the control interrupt, so it costs emulated CPU time there; the
+//! emulator does not reproduce the board's timing (QEMU counts instructions, not cycles).
+
+pub mod flash;
+pub mod plant;
+pub mod semihosting;
+
+use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
+
+use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
+use stm32f4xx_hal::pac::{self, USART2};
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::Config;
+use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+pub use super::f407::watchdog;
+pub use super::f407::{CONTROL_HZ, FLASH_WATCHDOG_MS, WATCHDOG_MS};
+pub use flash::BoardFlash;
+use plant::Plant;
+
+use crate::motion::controller::MotorCommand;
+use crate::motion::motor::{MotorDriver, StopMode};
+use crate::storage::ParamStore;
+
+/// SysTick's clock in QEMU's STM32F405 model, Hz (fixed, independent of RCC).
+pub const SYSCLK_HZ: u32 = 168_000_000;
+
+/// The last motor command, from [`BoardMotors`] (control task) to [`Encoders`] (same task).
+static COMMAND_KIND: AtomicU8 = AtomicU8::new(KIND_BRAKE);
+static DUTY_RIGHT: AtomicU32 = AtomicU32::new(0);
+static DUTY_LEFT: AtomicU32 = AtomicU32::new(0);
+const KIND_DUTY: u8 = 0;
+const KIND_BRAKE: u8 = 1;
+const KIND_COAST: u8 = 2;
+
+fn held_command() -> MotorCommand {
+    match COMMAND_KIND.load(Ordering::Relaxed) {
+        KIND_DUTY => MotorCommand::Duty {
+            right: f32::from_bits(DUTY_RIGHT.load(Ordering::Relaxed)),
+            left: f32::from_bits(DUTY_LEFT.load(Ordering::Relaxed)),
+        },
+        KIND_COAST => MotorCommand::Stop(StopMode::Coast),
+        _ => MotorCommand::Stop(StopMode::Brake),
+    }
+}
+
+/// The plant's encoder counters.
+pub struct Encoders {
+    plant: Plant,
+    started: bool,
+}
+
+impl Encoders {
+    /// Advances the plant by one control period with the command held since the last read
+    /// (none before the first read), then returns its counters (right, left).
+    pub fn read(&mut self) -> (u32, u32) {
+        if self.started {
+            self.plant.advance(held_command());
+        }
+        self.started = true;
+        self.plant.raw()
+    }
+}
+
+/// The plant's motors.
+pub struct BoardMotors(());
+
+impl MotorDriver for BoardMotors {
+    fn set_duty(&mut self, right: f32, left: f32) {
+        DUTY_RIGHT.store(right.to_bits(), Ordering::Relaxed);
+        DUTY_LEFT.store(left.to_bits(), Ordering::Relaxed);
+        COMMAND_KIND.store(KIND_DUTY, Ordering::Relaxed);
+    }
+
+    fn stop(&mut self, mode: StopMode) {
+        let kind = match mode {
+            StopMode::Brake => KIND_BRAKE,
+            StopMode::Coast => KIND_COAST,
+        };
+        COMMAND_KIND.store(kind, Ordering::Relaxed);
+    }
+}
+
+/// The control-period interrupt: pended in software, nothing to acknowledge.
+pub struct ControlTick(());
+
+impl ControlTick {
+    /// Acknowledges the period's interrupt (nothing to do: it was pended in software).
+    pub fn clear(&mut self) {}
+}
+
+/// The user button on PA0 (EXTI0, both edges, pressed = high); QEMU drives no GPIO input.
+pub struct ButtonInput(PA0<Input>);
+
+impl ButtonInput {
+    /// Acknowledges the edge interrupt and reads the level (true = pressed).
+    pub fn edge(&mut self) -> bool {
+        self.0.clear_interrupt_pending_bit();
+        self.0.is_high()
+    }
+}
+
+/// Heartbeat (green) and fault (red) LEDs (register writes only, in QEMU).
+pub struct Leds {
+    heartbeat: PD12<Output>,
+    fault: PD14<Output>,
+}
+
+impl Leds {
+    /// Toggles the heartbeat LED.
+    pub fn toggle_heartbeat(&mut self) {
+        self.heartbeat.toggle();
+    }
+
+    /// Lights the fault LED while `on`.
+    pub fn set_fault(&mut self, on: bool) {
+        self.fault.set_state(on.into());
+    }
+}
+
+/// The console port's receive half (USART2 RX interrupt).
+pub type ConsoleRx = Rx<USART2>;
+/// The console port's transmit half (USART2 TXE interrupt).
+pub type ConsoleTx = Tx<USART2>;
+/// The interrupt that serves the console port; the console task pends it to start sending.
+pub const CONSOLE_INTERRUPT: pac::Interrupt = pac::Interrupt::USART2;
+
+/// Everything the board gives the application (see [`crate::board`]).
+pub struct Board {
+    /// Core clock the monotonic timer runs at, Hz.
+    pub sysclk_hz: u32,
+    /// Wheel encoders (the plant's).
+    pub encoders: Encoders,
+    /// Motor outputs (the plant's), braked.
+    pub motors: BoardMotors,
+    /// Control-period interrupt (pended by the app from the monotonic).
+    pub tick: ControlTick,
+    /// User button.
+    pub button: ButtonInput,
+    /// Status LEDs.
+    pub leds: Leds,
+    /// Console receive half, RX interrupt enabled.
+    pub console_rx: ConsoleRx,
+    /// Console transmit half.
+    pub console_tx: ConsoleTx,
+    /// Independent watchdog, not started yet.
+    pub watchdog: IndependentWatchdog,
+    /// The parameter store on the emulated sectors 10–11 (not loaded yet).
+    pub params: ParamStore<BoardFlash>,
+}
+
+/// Brings up the emulated board.
+pub fn init(dp: pac::Peripherals) -> Board {
+    let mut rcc = dp.RCC.freeze(Config::hsi());
+    let gpioa = dp.GPIOA.split(&mut rcc);
+    let gpiod = dp.GPIOD.split(&mut rcc);
+
+    let mut exti = dp.EXTI;
+    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
+    let mut button_pin = gpioa.pa0.into_input().internal_resistor(Pull::Down);
+    button_pin.make_interrupt_source(&mut syscfg);
+    button_pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
+    button_pin.enable_interrupt(&mut exti);
+
+    let watchdog = IndependentWatchdog::new(dp.IWDG);
+
+    let usart = Serial::new(
+        dp.USART2,
+        (gpioa.pa2, gpioa.pa3),
+        serial::Config::default().baudrate(115_200.bps()),
+        &mut rcc,
+    );
+    let (console_tx, mut console_rx) = match usart {
+        Ok(s) => s.split(),
+        Err(_) => defmt::panic!("USART2 configuration rejected"),
+    };
+    console_rx.listen();
+
+    Board {
+        sysclk_hz: SYSCLK_HZ,
+        encoders: Encoders {
+            plant: Plant::new(CONTROL_HZ),
+            started: false,
+        },
+        motors: BoardMotors(()),
+        tick: ControlTick(()),
+        button: ButtonInput(button_pin),
+        leds: Leds {
+            heartbeat: gpiod.pd12.into_push_pull_output(),
+            fault: gpiod.pd14.into_push_pull_output(),
+        },
+        console_rx,
+        console_tx,
+        watchdog,
+        params: flash::param_store(),
+    }
+}
