@@ -19,7 +19,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console, ConsoleError  # noqa: E402
-from emulator import Emulator, defmt_log, rtt_up_bytes  # noqa: E402
+from emulator import Emulator, defmt_log, rtt_up_bytes, watchdog_feeds  # noqa: E402
 
 GOLDEN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "golden", "console.txt")
 
@@ -180,6 +180,15 @@ def main():
         fail = 1
     if not alive:
         print("FAILED: QEMU exited during the test")
+        fail = 1
+    # QEMU has no TIM7, so the control task never runs here: after the two feeds that start the
+    # watchdog there must be none, which is how a stalled control task shows in the emulator
+    # (on the board the watchdog would reset it 50 ms later).
+    feeds = watchdog_feeds(os.path.join(args.workdir, "shipped.log"))
+    print(f"watchdog: {feeds} feeds (IWDG_KR = 0xAAAA) in the QEMU log; the control task never "
+          "ran (no TIM7 in QEMU): a stalled control task, seen as missing feeds")
+    if feeds > 2:
+        print("FAILED: watchdog feeds without a control task")
         fail = 1
     if fail:
         print(f"boot test FAILED (transcript: {args.workdir}/console.txt)")

@@ -36,7 +36,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console, ConsoleError  # noqa: E402
-from emulator import PARAMS_LEN, Emulator, symbol_address  # noqa: E402
+from emulator import PARAMS_LEN, Emulator, symbol_address, watchdog_feeds  # noqa: E402
 
 TRUE_E_B = 1.010
 TRUE_E_D = 0.995
@@ -176,13 +176,12 @@ def restarted_board(elf, workdir, apply):
         send(con, "drive 0.2 0", log)
         truth.moving()
         end = truth.settle()
-        driven_s = (end["periods"] - before["periods"]) / 1000.0
         moved = math.hypot(end["x"] - before["x"], end["y"] - before["y"])
         data, status = send(con, "status", log)
         if moved < 0.01 or "state=idle" not in status:
             raise ConsoleError(f"deadman: moved {moved} m, {status}")
-        checks.append(f"drive deadman: moved {moved:.3f} m and stopped by itself "
-                      f"(wheels at rest {driven_s:.1f} s of robot time after the command)")
+        checks.append(f"drive deadman: one `drive 0.2 0`, moved {moved:.3f} m and stopped "
+                      f"without a further command ({status.split()[1]})")
 
         # Stop mid-run.
         send(con, "run ccw", log)
@@ -216,8 +215,20 @@ def restarted_board(elf, workdir, apply):
         checks.append(f"64 KiB random burst ({burst_s:.1f} s wall to send): {errs} error replies, "
                       "console answers `status`, "
                       f"no reset (control periods {before['periods']} -> {after['periods']})")
+        final_periods = truth.read()["periods"]
+        emu.monitor("stop")
+        stopped_periods = truth.read()["periods"]
     finally:
         emu.stop()
+    # The control task feeds the watchdog once per period, and the plant advances once per
+    # period after the first (which only reads the counters): QEMU's log must hold the two feeds
+    # that start the watchdog, then one per control period = plant periods + 1.
+    feeds = watchdog_feeds(emu.log)
+    if not final_periods <= feeds - 3 <= stopped_periods:
+        raise ConsoleError(f"watchdog feeds {feeds} vs control periods {final_periods}.."
+                           f"{stopped_periods}")
+    checks.append(f"watchdog: {feeds} feeds in QEMU's log for {stopped_periods} control periods "
+                  "(2 start the watchdog, then one per control period)")
     return log, checks
 
 

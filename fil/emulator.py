@@ -267,6 +267,18 @@ class Emulator:
                     p.wait()
 
 
+def watchdog_feeds(log_path):
+    """Writes of the reload key 0xAAAA to IWDG_KR in QEMU's `-d unimp` log. QEMU 7.2 logs the
+    IWDG's slot (0x4000_3000) under the name `I2S2ext`; both names are accepted."""
+    n = 0
+    with open(log_path, errors="replace") as f:
+        for line in f:
+            if (line.startswith(("IWDG:", "I2S2ext:")) and "device write" in line
+                    and "offset 0x000, value 0xaaaa" in line.lower()):
+                n += 1
+    return n
+
+
 def symbol_address(elf, name):
     out = subprocess.run(["arm-none-eabi-nm", elf], check=True, capture_output=True,
                          text=True).stdout
