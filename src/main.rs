@@ -21,6 +21,20 @@ rtic_monotonics::systick_monotonic!(Mono, 1000);
 #[cfg(target_os = "none")]
 static LINES_DROPPED: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
 
+/// Set by the USART2 interrupt on Ctrl-C or Esc; the control task aborts any motion in its next
+/// period, before the console task parses any queued line.
+#[cfg(target_os = "none")]
+static STOP_REQUEST: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
+/// Whether the USART2 interrupt echoes received characters (the session's `echo on|off`,
+/// published by the console task).
+#[cfg(target_os = "none")]
+static ECHO: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
+
+/// Most receive-register reads per USART2 interrupt (the rest re-enters the interrupt).
+#[cfg(target_os = "none")]
+const RX_READS_PER_IRQ: usize = 32;
+
 /// Free transmit-queue space needed before the console takes the next line: the longest reply
 /// (`calibrate`, `help`, `runs`: about 1.6 KiB) plus margin.
 #[cfg(target_os = "none")]
@@ -39,21 +53,22 @@ mod app {
     use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
     use odocal::motion::controller::{Controller, ControllerConfig};
-    use odocal::protocol::reply::{ByteSink, ErrorCode, line_error_reply, write_err};
-    use odocal::protocol::{LINE_MAX, LineAssembler, LineError};
+    use odocal::protocol::LineAssembler;
+    use odocal::protocol::reply::{ByteSink, ErrorCode, write_err};
+    use odocal::protocol::rx::{self, InputItem, RxRead};
     use odocal::session::library::{LibraryCalibrator, Locked};
     use odocal::session::{ParamStorage, Session, Settings, StorageError, write_boot_event};
     use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
     use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::serial::{RxISR, TxISR, TxListen};
+    use stm32f4xx_hal::serial::{TxISR, TxListen};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-    use super::{LINES_DROPPED, Mono, REPLY_ROOM};
+    use super::{ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ, STOP_REQUEST};
     use core::sync::atomic::Ordering;
 
-    /// A received line (or why it was rejected), from the USART2 interrupt to the console task.
-    type LineItem = Result<heapless::String<LINE_MAX>, LineError>;
+    /// A received line, rejected line or stop key, from the USART2 interrupt to the console task.
+    type LineItem = InputItem;
 
     #[shared]
     struct Shared {
@@ -74,6 +89,7 @@ mod app {
         usart_rx: ConsoleRx,
         usart_tx: ConsoleTx,
         assembler: LineAssembler,
+        echo_out: heapless::Deque<u8, 64>,
         line_in: Producer<'static, LineItem>,
         line_out: Consumer<'static, LineItem>,
         tx_in: Producer<'static, u8>,
@@ -204,6 +220,7 @@ mod app {
                 usart_rx: board.console_rx,
                 usart_tx: board.console_tx,
                 assembler: LineAssembler::new(),
+                echo_out: heapless::Deque::new(),
                 line_in,
                 line_out,
                 tx_in,
@@ -238,6 +255,10 @@ mod app {
         };
         let mut controller = cx.shared.controller;
         controller.lock(|c| {
+            if STOP_REQUEST.swap(false, Ordering::Relaxed) {
+                // Ctrl-C or Esc on the console: stop in this period.
+                c.abort();
+            }
             let out = c.step(raw_right, raw_left);
             out.command.apply(cx.local.motors);
             if let Some(p) = press {
@@ -294,36 +315,52 @@ mod app {
         }
     }
 
-    /// USART2: received bytes → line assembly → line queue; transmit queue → TX register.
-    #[task(binds = USART2, priority = 2, local = [usart_rx, usart_tx, assembler, line_in, tx_out])]
+    /// USART2: received bytes → line assembly → line queue (a stop key also tells the control
+    /// task at once), echo; echo and transmit queue → TX register.
+    #[task(binds = USART2, priority = 2,
+           local = [usart_rx, usart_tx, assembler, echo_out, line_in, tx_out])]
     fn usart2(cx: usart2::Context) {
-        while cx.local.usart_rx.is_rx_not_empty() {
-            // A framing or noise error drops the byte; an overrun drops the byte that was
-            // overwritten and the one in the data register. The line then fails to parse or
-            // is rejected by its terminator.
-            let Ok(byte) = cx.local.usart_rx.read() else {
-                continue;
-            };
-            if let Some(line) = cx.local.assembler.push(byte) {
-                let item = line.map(|text| {
-                    let mut owned = heapless::String::new();
-                    // `text` is at most LINE_MAX bytes, so it always fits.
-                    let _ = owned.push_str(text);
-                    owned
-                });
-                // A full queue drops the line; the console reports how many were lost.
-                if cx.local.line_in.enqueue(item).is_err() {
+        let rx_port = cx.local.usart_rx;
+        let line_in = cx.local.line_in;
+        let echo_out = cx.local.echo_out;
+        let echo = ECHO.load(Ordering::Relaxed);
+        // Each read checks SR and, on an overrun, framing, noise or parity error, reads DR,
+        // which clears the flag (an ORE with RXNE clear would otherwise re-enter this
+        // interrupt for ever); the error poisons the line being received.
+        rx::drain(
+            || match rx_port.read() {
+                Ok(byte) => RxRead::Byte(byte),
+                Err(stm32f4xx_hal::nb::Error::WouldBlock) => RxRead::Empty,
+                Err(stm32f4xx_hal::nb::Error::Other(_)) => RxRead::Error,
+            },
+            cx.local.assembler,
+            RX_READS_PER_IRQ,
+            |event| {
+                let item = InputItem::from_event(event);
+                if item.is_stop() {
+                    STOP_REQUEST.store(true, Ordering::Relaxed);
+                }
+                // A full queue drops the line; the console reports how many were lost. A stop
+                // key has already reached the control task.
+                if line_in.enqueue(item).is_err() {
                     LINES_DROPPED.fetch_add(1, Ordering::Relaxed);
                 }
-            }
-        }
+            },
+            |bytes| {
+                if echo {
+                    for &b in bytes {
+                        let _ = echo_out.push_back(b);
+                    }
+                }
+            },
+        );
         while cx.local.usart_tx.is_tx_empty() {
-            let Some(byte) = cx.local.tx_out.dequeue() else {
+            let Some(byte) = echo_out.pop_front().or_else(|| cx.local.tx_out.dequeue()) else {
                 break;
             };
             let _ = cx.local.usart_tx.write(byte);
         }
-        if cx.local.tx_out.ready() {
+        if !echo_out.is_empty() || cx.local.tx_out.ready() {
             cx.local.usart_tx.listen();
         } else {
             cx.local.usart_tx.unlisten();
@@ -357,10 +394,8 @@ mod app {
                         &format_args!("{lost} line(s) dropped: input queue full"),
                     );
                 } else if let Some(item) = cx.local.line_out.dequeue() {
-                    let _ = match item {
-                        Ok(line) => session.handle_line(&line, &mut robot, store, &mut out),
-                        Err(e) => core::fmt::Write::write_str(&mut out, &line_error_reply(&e)),
-                    };
+                    let _ = session.handle_event(item.as_event(), &mut robot, store, &mut out);
+                    ECHO.store(session.echo(), Ordering::Relaxed);
                 }
                 dropped += out.dropped;
             }

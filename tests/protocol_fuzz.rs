@@ -1,17 +1,24 @@
 //! Property test: 1,000,000 random byte sequences through the line assembler and the parser.
 //!
+//! The input alphabet is what a terminal and a noisy wire produce: printable text, CR, LF and
+//! CR LF, Tab, Backspace/DEL, Ctrl-C, lone Esc, CSI and SS3 escape sequences (arrows, function
+//! keys, over-long ones), other control bytes, invalid UTF-8, and receive errors (overrun,
+//! framing, noise) between bytes.
+//!
 //! Properties checked on every sequence:
-//! - nothing panics;
-//! - the assembler never holds more than its capacity;
-//! - for a line without editing bytes (backspace/DEL, interior `\r`), the assembler's verdict
-//!   matches an independent oracle: the exact text if it fits, `TooLong` if not — an over-long
-//!   line is never truncated and passed on;
+//! - nothing panics; the assembler never holds more than its capacity;
+//! - every Ctrl-C yields `Stop(CtrlC)` and every Esc `Stop(Escape)`, whatever state it arrives in;
+//! - every CR ends a line, and so does every LF except the one right after a CR;
+//! - each line's verdict matches an independent two-phase oracle (escape sequences removed, then
+//!   editing applied): the exact text if it fits, `TooLong` if not — an over-long line is never
+//!   truncated and passed on —, `ReceiveError` if a receive error hit it, `NotUtf8`; a rejected
+//!   line's `stop` flag says whether its last word was `stop`;
 //! - every accepted command carries only finite, in-range numbers;
 //! - every rejected line formats to one `err <code>: ` reply line.
 //!
-//! A quarter of the sequences are raw random bytes, half are random protocol words and tricky
-//! numbers, and a quarter are commands with the right arity and random numbers, so the parser's
-//! deeper paths are exercised too. The generator is a seeded
+//! A quarter of the sequences are raw random bytes, half are random protocol words, tricky
+//! numbers and terminal keys, and a quarter are commands with the right arity and random
+//! numbers, so the parser's deeper paths are exercised too. The generator is a seeded
 //! xorshift64*, so a failure is reproducible from the printed sequence index.
 
 use odocal::protocol::command::{
@@ -19,7 +26,7 @@ use odocal::protocol::command::{
     STREAM_RANGE_HZ,
 };
 use odocal::protocol::reply::parse_error_reply;
-use odocal::protocol::{Command, LineAssembler, LineError, ParseError};
+use odocal::protocol::{Command, LineAssembler, LineError, LineEvent, ParseError, StopKey};
 use odocal::session::MAX_RUNS;
 
 const SEQUENCES: u64 = 1_000_000;
@@ -99,7 +106,29 @@ const WORDS: &[&str] = &[
     "360",
     "-360.0001",
 ];
-const SEPARATORS: &[&[u8]] = &[b" ", b"  ", b"\t", b"\n", b"\r\n", b"\r", b"\x08", b"\x7f"];
+/// A receive error between bytes (not a byte value).
+const RX_ERROR: u16 = 0x100;
+
+const SEPARATORS: &[&[u8]] = &[
+    b" ", b"  ", b"\t", b"\n", b"\r\n", b"\r", b"\x08", b"\x7f", b"\x03", b"\x1b",
+];
+/// Terminal keys: arrows, Home/End, function keys (CSI and SS3), Alt-x, an over-long CSI.
+const KEYS: &[&[u8]] = &[
+    b"\x1b[A",
+    b"\x1b[B",
+    b"\x1b[C",
+    b"\x1b[D",
+    b"\x1b[1;5C",
+    b"\x1b[15~",
+    b"\x1b[H",
+    b"\x1bOP",
+    b"\x1bOA",
+    b"\x1bx",
+    b"\x1b[0000000000000000000000000000000000000000A",
+    b"\x03",
+    b"\x00",
+    b"\x04",
+];
 
 /// Command templates with the right number of arguments; `#` is replaced by a number word.
 const TEMPLATES: &[&str] = &[
@@ -151,7 +180,7 @@ const NUMBERS: &[&str] = &[
     "5",
 ];
 
-fn template(rng: &mut Rng, buf: &mut Vec<u8>) {
+fn template(rng: &mut Rng, buf: &mut Vec<u16>) {
     let t = TEMPLATES[rng.below(TEMPLATES.len() as u64) as usize];
     for part in t.split(' ') {
         let word = if part == "#" {
@@ -159,13 +188,17 @@ fn template(rng: &mut Rng, buf: &mut Vec<u8>) {
         } else {
             part
         };
-        buf.extend_from_slice(word.as_bytes());
-        buf.push(b' ');
+        bytes(buf, word.as_bytes());
+        buf.push(u16::from(b' '));
     }
-    buf.extend_from_slice(b"\r\n");
+    bytes(buf, if rng.below(2) == 0 { b"\r" } else { b"\r\n" });
 }
 
-fn random_sequence(rng: &mut Rng, buf: &mut Vec<u8>) {
+fn bytes(buf: &mut Vec<u16>, b: &[u8]) {
+    buf.extend(b.iter().map(|&b| u16::from(b)));
+}
+
+fn random_sequence(rng: &mut Rng, buf: &mut Vec<u16>) {
     buf.clear();
     let mode = rng.below(4);
     if mode == 0 {
@@ -173,32 +206,46 @@ fn random_sequence(rng: &mut Rng, buf: &mut Vec<u8>) {
     } else if mode == 1 {
         let len = rng.below(3 * CAP as u64) as usize;
         for _ in 0..len {
-            // Bias towards line feeds so that lines complete often.
-            let b = if rng.below(16) == 0 {
-                b'\n'
-            } else {
-                rng.next() as u8
+            // Bias towards terminators so that lines complete often.
+            let b = match rng.below(32) {
+                0 | 1 => u16::from(b'\n'),
+                2 | 3 => u16::from(b'\r'),
+                4 => RX_ERROR,
+                _ => u16::from(rng.next() as u8),
             };
             buf.push(b);
         }
     } else {
         let words = 1 + rng.below(6);
         for _ in 0..words {
-            buf.extend_from_slice(WORDS[rng.below(WORDS.len() as u64) as usize].as_bytes());
-            let sep = if rng.below(3) == 0 {
-                SEPARATORS[rng.below(SEPARATORS.len() as u64) as usize]
-            } else {
-                b" "
+            bytes(
+                buf,
+                WORDS[rng.below(WORDS.len() as u64) as usize].as_bytes(),
+            );
+            let sep = match rng.below(12) {
+                0..=3 => SEPARATORS[rng.below(SEPARATORS.len() as u64) as usize],
+                4 => KEYS[rng.below(KEYS.len() as u64) as usize],
+                _ => b" ",
             };
-            buf.extend_from_slice(sep);
+            bytes(buf, sep);
+            if rng.below(40) == 0 {
+                buf.push(RX_ERROR);
+            }
         }
         if rng.below(8) == 0 {
             // An over-long run of digits.
             for _ in 0..rng.below(2 * CAP as u64) {
-                buf.push(b'0' + rng.below(10) as u8);
+                buf.push(u16::from(b'0') + rng.below(10) as u16);
             }
         }
-        buf.extend_from_slice(if rng.below(2) == 0 { b"\n" } else { b"\r\n" });
+        bytes(
+            buf,
+            match rng.below(3) {
+                0 => b"\n",
+                1 => b"\r",
+                _ => b"\r\n",
+            },
+        );
     }
 }
 
@@ -213,12 +260,14 @@ fn check_command(cmd: &Command<'_>) {
         Command::Line { length_m } => length_m.is_none_or(|v| within(v, PATH_RANGE_M)),
         Command::Circle { radius_m, .. } => radius_m.is_none_or(|v| within(v, PATH_RANGE_M)),
         Command::Measure {
+            run,
             x_m,
             y_m,
             theta_deg,
         } => {
             let m = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
-            within(x_m, m)
+            run.is_none_or(|n| (1..=MAX_RUNS).contains(&n))
+                && within(x_m, m)
                 && within(y_m, m)
                 && theta_deg.is_none_or(|t| within(t, (-MEASURE_LIMIT_DEG, MEASURE_LIMIT_DEG)))
         }
@@ -235,19 +284,101 @@ fn check_command(cmd: &Command<'_>) {
     assert!(ok, "out-of-range value accepted: {cmd:?}");
 }
 
-/// The oracle for one raw line (bytes between two `\n`): `None` when it holds editing bytes.
-fn oracle(raw: &[u8]) -> Option<Result<Vec<u8>, LineError>> {
-    let body = raw.strip_suffix(b"\r").unwrap_or(raw);
-    if body.iter().any(|&b| b == b'\r' || b == 0x08 || b == 0x7f) {
-        return None;
+/// The verdict of the oracle for one line: its inputs after the previous terminator (or
+/// Ctrl-C), without its own terminator.
+#[derive(Debug, PartialEq)]
+enum Verdict {
+    Line(Vec<u8>),
+    Rejected(LineError, Option<bool>),
+}
+
+/// Phase 1: removes escape sequences (`ESC [` up to 32 parameter/intermediate bytes and a final
+/// byte, `ESC O` and one printable byte, or a lone `ESC`). A control byte or a receive error
+/// ends a sequence; the control byte counts as typed.
+fn strip_escapes(raw: &[u16]) -> Vec<u16> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < raw.len() {
+        if raw[i] != 0x1b {
+            out.push(raw[i]);
+            i += 1;
+            continue;
+        }
+        i += 1; // the ESC
+        match raw.get(i) {
+            Some(&0x5b) => {
+                i += 1;
+                let mut n = 0;
+                while n < 32 && raw.get(i).is_some_and(|&b| (0x20..=0x3f).contains(&b)) {
+                    i += 1;
+                    n += 1;
+                }
+                if raw.get(i).is_some_and(|&b| (0x40..=0x7e).contains(&b)) {
+                    i += 1;
+                }
+            }
+            Some(&0x4f) => {
+                i += 1;
+                if raw.get(i).is_some_and(|&b| (0x20..=0x7e).contains(&b)) {
+                    i += 1;
+                }
+            }
+            _ => {}
+        }
     }
-    if body.len() > CAP {
-        return Some(Err(LineError::TooLong));
+    out
+}
+
+/// Phase 2: editing, overflow, receive errors, UTF-8.
+fn oracle(raw: &[u16]) -> Verdict {
+    let keys = strip_escapes(raw);
+    let mut line: Vec<u8> = Vec::new();
+    let mut typed: Vec<u8> = Vec::new(); // everything stored, never truncated
+    let (mut overflowed, mut poisoned, mut edited) = (false, false, false);
+    for &k in &keys {
+        match k {
+            RX_ERROR => poisoned = true,
+            0x08 | 0x7f => {
+                edited = true;
+                if !overflowed {
+                    line.pop();
+                }
+            }
+            0x09 => {
+                typed.push(b'\t');
+                if !overflowed {
+                    line.push(b'\t');
+                }
+            }
+            0x00..=0x1f => {}
+            b => {
+                let b = b as u8;
+                typed.push(b);
+                if !overflowed {
+                    line.push(b);
+                }
+            }
+        }
+        if line.len() > CAP {
+            overflowed = true;
+            line.clear();
+        }
     }
-    Some(match std::str::from_utf8(body) {
-        Ok(_) => Ok(body.to_vec()),
-        Err(_) => Err(LineError::NotUtf8),
-    })
+    let last_word_is_stop = typed
+        .split(|&b| b == b' ' || b == b'\t')
+        .next_back()
+        .is_some_and(|w| w.eq_ignore_ascii_case(b"stop"));
+    // After a backspace the flag is only a hint: not checked.
+    let stop = (!edited).then_some(last_word_is_stop);
+    if overflowed {
+        Verdict::Rejected(LineError::TooLong, stop)
+    } else if poisoned {
+        Verdict::Rejected(LineError::ReceiveError, stop)
+    } else if std::str::from_utf8(&line).is_err() {
+        Verdict::Rejected(LineError::NotUtf8, stop)
+    } else {
+        Verdict::Line(line)
+    }
 }
 
 #[test]
@@ -255,32 +386,76 @@ fn million_random_sequences() {
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let mut asm = LineAssembler::<CAP>::new();
     let mut seq = Vec::with_capacity(4 * CAP);
-    let mut raw_line: Vec<u8> = Vec::new();
-    let (mut lines, mut parsed, mut oracle_checked, mut too_long) = (0u64, 0u64, 0u64, 0u64);
+    let mut raw_line: Vec<u16> = Vec::new();
+    let mut prev: u16 = 0;
+    let (mut lines, mut parsed, mut too_long, mut stops, mut poisoned) =
+        (0u64, 0u64, 0u64, 0u64, 0u64);
     for i in 0..SEQUENCES {
         random_sequence(&mut rng, &mut seq);
-        for &b in &seq {
-            let result = asm.push(b).map(|r| r.map(str::to_owned));
+        for &input in &seq {
+            let last = std::mem::replace(&mut prev, input);
+            if input == RX_ERROR {
+                asm.receive_error();
+                raw_line.push(RX_ERROR);
+                continue;
+            }
+            let b = input as u8;
+            let result = asm.push(b).map(|e| match e {
+                LineEvent::Line(t) => Ok(t.to_owned()),
+                LineEvent::Rejected { error, stop } => Err((Some(error), stop)),
+                LineEvent::Stop(k) => Err((None, k == StopKey::CtrlC)),
+            });
             assert!(
                 asm.len() <= CAP,
                 "sequence {i}: assembler holds {}",
                 asm.len()
             );
-            if b != b'\n' {
-                raw_line.push(b);
-                assert!(result.is_none());
-                continue;
+            match b {
+                0x03 => {
+                    assert_eq!(result, Some(Err((None, true))), "sequence {i}: Ctrl-C");
+                    stops += 1;
+                    raw_line.clear();
+                    continue;
+                }
+                0x1b => {
+                    assert_eq!(result, Some(Err((None, false))), "sequence {i}: Esc");
+                    stops += 1;
+                    raw_line.push(input);
+                    continue;
+                }
+                b'\n' if last == u16::from(b'\r') => {
+                    assert_eq!(result, None, "sequence {i}: LF after CR");
+                    continue;
+                }
+                b'\r' | b'\n' => {}
+                _ => {
+                    assert_eq!(
+                        result, None,
+                        "sequence {i}: byte {b:#x} completed something"
+                    );
+                    raw_line.push(input);
+                    continue;
+                }
             }
-            let result = result.expect("a line feed always completes a line");
+            let result = result.expect("a line terminator always completes a line");
             lines += 1;
-            if let Some(expected) = oracle(&raw_line) {
-                oracle_checked += 1;
-                let got = result.clone().map(String::into_bytes);
-                assert_eq!(got, expected, "sequence {i}: raw line {raw_line:?}");
-            }
+            let expected = oracle(&raw_line);
+            let got = match &result {
+                Ok(text) => Verdict::Line(text.clone().into_bytes()),
+                Err((Some(e), stop)) => Verdict::Rejected(
+                    *e,
+                    match expected {
+                        Verdict::Rejected(_, None) => None,
+                        _ => Some(*stop),
+                    },
+                ),
+                Err((None, _)) => panic!("sequence {i}: a terminator gave a stop"),
+            };
+            assert_eq!(got, expected, "sequence {i}: raw line {raw_line:?}");
             raw_line.clear();
             match result {
-                Err(LineError::TooLong) => too_long += 1,
+                Err((Some(LineError::TooLong), _)) => too_long += 1,
+                Err((Some(LineError::ReceiveError), _)) => poisoned += 1,
                 Err(_) => {}
                 Ok(text) => {
                     assert!(text.len() <= CAP);
@@ -301,18 +476,17 @@ fn million_random_sequences() {
         }
     }
     // Sanity of the generator itself: the run must exercise every branch many times. The
-    // measured counts are far above these floors (1.89 M lines, 78 k commands, 123 k over-long); the floors
-    // only catch a generator that stopped producing lines, commands or over-long lines.
+    // floors only catch a generator that stopped producing lines, commands, over-long lines,
+    // stop keys or receive errors (measured counts are printed).
     assert!(lines > 500_000, "{lines} lines");
     assert!(parsed > 10_000, "{parsed} commands parsed");
-    assert!(
-        oracle_checked > 100_000,
-        "{oracle_checked} lines checked by the oracle"
-    );
     assert!(too_long > 10_000, "{too_long} over-long lines");
+    assert!(stops > 10_000, "{stops} stop keys");
+    assert!(poisoned > 10_000, "{poisoned} lines with receive errors");
     println!(
-        "{SEQUENCES} sequences: {lines} lines, {oracle_checked} oracle-checked, {parsed} parsed \
-         commands, {too_long} over-long; assembler size {} bytes",
+        "{SEQUENCES} sequences: {lines} lines (all oracle-checked), {parsed} parsed commands, \
+         {too_long} over-long, {poisoned} with receive errors, {stops} stop keys; assembler size \
+         {} bytes",
         size_of::<LineAssembler<CAP>>()
     );
 }

@@ -3,7 +3,9 @@
 
 use odocal::motion::run::Direction;
 use odocal::protocol::reply::{line_error_reply, parse_error_reply};
-use odocal::protocol::{Command, LINE_MAX, LineAssembler, LineError, ParamName, ParseError};
+use odocal::protocol::{
+    Command, LINE_MAX, LineAssembler, LineError, LineEvent, ParamName, ParseError, StopKey,
+};
 
 fn err_text(line: &str) -> String {
     let e = Command::parse(line).expect_err("line should not parse");
@@ -65,6 +67,7 @@ fn commands_parse_to_the_documented_values() {
         (
             "measure 0.0123 -0.045",
             Command::Measure {
+                run: None,
                 x_m: 0.0123,
                 y_m: -0.045,
                 theta_deg: None,
@@ -73,6 +76,7 @@ fn commands_parse_to_the_documented_values() {
         (
             "measure\t-1e-3  2E-2   -1.5",
             Command::Measure {
+                run: None,
                 x_m: -0.001,
                 y_m: 0.02,
                 theta_deg: Some(-1.5),
@@ -108,6 +112,26 @@ fn commands_parse_to_the_documented_values() {
             },
         ),
         ("  stop  ", Command::Stop),
+        (
+            "measure #3 0.01 -0.02",
+            Command::Measure {
+                run: Some(3),
+                x_m: 0.01,
+                y_m: -0.02,
+                theta_deg: None,
+            },
+        ),
+        (
+            "MEASURE #12 1 2 -3",
+            Command::Measure {
+                run: Some(12),
+                x_m: 1.0,
+                y_m: 2.0,
+                theta_deg: Some(-3.0),
+            },
+        ),
+        ("echo on", Command::Echo { on: true }),
+        ("ECHO Off", Command::Echo { on: false }),
     ];
     for (line, expected) in cases {
         assert_eq!(Command::parse(line).as_ref(), Ok(expected), "line {line:?}");
@@ -174,6 +198,14 @@ fn error_replies_are_exact() {
             "set runs_per_direction 7",
             "err 6: <value> must be within 1..6\r\n",
         ),
+        ("measure #0 0 0", "err 6: <n> must be within 1..12\r\n"),
+        ("measure #13 0 0", "err 6: <n> must be within 1..12\r\n"),
+        ("measure #x 0 0", "err 4: <n> is not a number\r\n"),
+        ("measure # 0 0", "err 4: <n> is not a number\r\n"),
+        ("measure #2 0", "err 2: missing argument <y_m>\r\n"),
+        ("measure #2 0 0 1 2", "err 3: too many arguments\r\n"),
+        ("echo", "err 2: missing argument <mode>\r\n"),
+        ("echo loud", "err 7: <mode> must be one of on|off\r\n"),
         ("run left", "err 7: <direction> must be one of cw|ccw\r\n"),
         ("stream maybe", "err 7: <mode> must be one of on|off\r\n"),
         ("odom zero", "err 7: <action> must be one of reset\r\n"),
@@ -197,68 +229,179 @@ fn blank_lines_are_empty_not_errors() {
     assert_eq!(Command::parse(" \t "), Err(ParseError::Empty));
 }
 
-/// Feeds `bytes`, collecting each completed line (or error) as owned text.
-fn feed<const N: usize>(
-    asm: &mut LineAssembler<N>,
-    bytes: &[u8],
-) -> Vec<Result<String, LineError>> {
+/// What the assembler reported, as owned values.
+#[derive(Debug, PartialEq)]
+enum Got {
+    Line(String),
+    Rejected(LineError, bool),
+    Stop(StopKey),
+}
+
+/// Feeds `bytes`, collecting each event.
+fn feed<const N: usize>(asm: &mut LineAssembler<N>, bytes: &[u8]) -> Vec<Got> {
     let mut out = Vec::new();
     for &b in bytes {
-        if let Some(r) = asm.push(b) {
-            out.push(r.map(str::to_owned));
+        if let Some(e) = asm.push(b) {
+            out.push(match e {
+                LineEvent::Line(t) => Got::Line(t.to_owned()),
+                LineEvent::Rejected { error, stop } => Got::Rejected(error, stop),
+                LineEvent::Stop(k) => Got::Stop(k),
+            });
         }
     }
     out
 }
 
+/// Feeds `bytes` and returns the concatenated echo.
+fn echo_of<const N: usize>(asm: &mut LineAssembler<N>, bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for &b in bytes {
+        let _ = asm.push(b);
+        out.extend_from_slice(asm.echo().bytes());
+    }
+    out
+}
+
+fn line(s: &str) -> Got {
+    Got::Line(s.to_owned())
+}
+
 #[test]
-fn assembler_accepts_lf_and_crlf() {
+fn assembler_ends_lines_at_cr_lf_and_crlf() {
     let mut asm = LineAssembler::<LINE_MAX>::new();
-    let lines = feed(&mut asm, b"status\nrun cw 2\r\n\r\npose\r");
+    // CR (picocom, screen, minicom on Enter), LF, CR LF: one line each; CR LF is not two.
+    let lines = feed(&mut asm, b"status\rparams\nrun cw 2\r\n\r\npose\r");
     assert_eq!(
         lines,
         vec![
-            Ok("status".to_owned()),
-            Ok("run cw 2".to_owned()),
-            Ok(String::new())
+            line("status"),
+            line("params"),
+            line("run cw 2"),
+            line(""),
+            line("pose")
         ]
     );
-    // "pose\r" is still waiting for its '\n'.
-    assert_eq!(feed(&mut asm, b"\n"), vec![Ok("pose".to_owned())]);
+    // The LF completing that last CR LF is swallowed; a second LF is an empty line.
+    assert_eq!(feed(&mut asm, b"\n"), vec![]);
+    assert_eq!(feed(&mut asm, b"\n"), vec![line("")]);
+    // LF CR is two line ends.
+    assert_eq!(feed(&mut asm, b"help\n\r"), vec![line("help"), line("")]);
     assert!(asm.is_empty());
 }
 
 #[test]
 fn assembler_backspace_erases() {
     let mut asm = LineAssembler::<LINE_MAX>::new();
-    assert_eq!(feed(&mut asm, b"stoq\x08p\n"), vec![Ok("stop".to_owned())]);
+    assert_eq!(feed(&mut asm, b"stoq\x08p\n"), vec![line("stop")]);
+    assert_eq!(feed(&mut asm, b"\x7f\x7fpose\r"), vec![line("pose")]);
+}
+
+#[test]
+fn ctrl_c_discards_the_line_and_asks_for_a_stop() {
+    let mut asm = LineAssembler::<LINE_MAX>::new();
     assert_eq!(
-        feed(&mut asm, b"\x7f\x7fpose\n"),
-        vec![Ok("pose".to_owned())]
+        feed(&mut asm, b"measure 1.5\x03stop\r"),
+        vec![Got::Stop(StopKey::CtrlC), line("stop")]
     );
+    // Also in the middle of an escape sequence, and of an over-long line.
+    let mut small = LineAssembler::<8>::new();
+    assert_eq!(
+        feed(&mut small, b"0123456789\x1b[1\x03pose\r"),
+        vec![
+            Got::Stop(StopKey::Escape),
+            Got::Stop(StopKey::CtrlC),
+            line("pose")
+        ]
+    );
+}
+
+#[test]
+fn escape_sequences_are_consumed_whole_and_ask_for_a_stop() {
+    let mut asm = LineAssembler::<LINE_MAX>::new();
+    // Arrows (CSI and SS3), F5, Ctrl-Right, Home; a lone Esc; the line survives them all.
+    let keys = b"st\x1b[A\x1bOBo\x1b[15~\x1b[1;5C\x1b[H\x1bp\r";
+    let esc = Got::Stop(StopKey::Escape);
+    assert_eq!(
+        feed(&mut asm, keys),
+        vec![
+            Got::Stop(StopKey::Escape),
+            Got::Stop(StopKey::Escape),
+            Got::Stop(StopKey::Escape),
+            Got::Stop(StopKey::Escape),
+            Got::Stop(StopKey::Escape),
+            esc,
+            line("stop")
+        ]
+    );
+    // Other control bytes never reach the line; Tab is a separator.
+    assert_eq!(
+        feed(&mut asm, b"\x00\x04run\tcw\x01\r"),
+        vec![line("run\tcw")]
+    );
+    // A control byte ends a sequence and counts: CR inside a CSI still ends the line.
+    assert_eq!(
+        feed(&mut asm, b"pose\x1b[1\r"),
+        vec![Got::Stop(StopKey::Escape), line("pose")]
+    );
+}
+
+#[test]
+fn receive_errors_reject_the_line_at_its_terminator() {
+    let mut asm = LineAssembler::<LINE_MAX>::new();
+    for at in 0..="measure 1.502".len() {
+        let text = b"measure 1.502";
+        let mut got = feed(&mut asm, &text[..at]);
+        asm.receive_error();
+        got.extend(feed(&mut asm, &text[at..]));
+        got.extend(feed(&mut asm, b"\r"));
+        assert_eq!(
+            got,
+            vec![Got::Rejected(LineError::ReceiveError, false)],
+            "error before byte {at}"
+        );
+        // The next line is clean.
+        assert_eq!(feed(&mut asm, b"pose\r"), vec![line("pose")]);
+    }
+    // A garbled line that still ends in the word stop is flagged, so the session stops.
+    asm.receive_error();
+    assert_eq!(
+        feed(&mut asm, b"xx StOp\r"),
+        vec![Got::Rejected(LineError::ReceiveError, true)]
+    );
+    assert_eq!(
+        feed(&mut asm, b"stop\xff stop\r"),
+        vec![Got::Rejected(LineError::NotUtf8, true)]
+    );
+    assert_eq!(
+        feed(&mut asm, b"nonstop\xff\r"),
+        vec![Got::Rejected(LineError::NotUtf8, false)]
+    );
+}
+
+#[test]
+fn echo_shows_what_was_accepted() {
+    let mut asm = LineAssembler::<LINE_MAX>::new();
+    assert_eq!(echo_of(&mut asm, b"stoq\x08p\r\n"), b"stoq\x08 \x08p\r\n");
+    // Backspace on an empty line, escape sequences and control bytes echo nothing.
+    assert_eq!(echo_of(&mut asm, b"\x7f\x1b[A\x00x\t\x03"), b"x ^C\r\n");
+    assert_eq!(echo_of(&mut asm, b"\n"), b"\r\n");
 }
 
 #[test]
 fn over_long_lines_are_rejected_whole_once() {
     let mut asm = LineAssembler::<8>::new();
     // Exactly 8 bytes fit, with either terminator.
-    assert_eq!(
-        feed(&mut asm, b"stop    \n"),
-        vec![Ok("stop    ".to_owned())]
-    );
-    assert_eq!(
-        feed(&mut asm, b"stop    \r\n"),
-        vec![Ok("stop    ".to_owned())]
-    );
+    assert_eq!(feed(&mut asm, b"stop    \n"), vec![line("stop    ")]);
+    assert_eq!(feed(&mut asm, b"stop    \r\n"), vec![line("stop    ")]);
     // 9 bytes: rejected as a whole, once, at the terminator; never a truncated "drive 1 ".
     assert_eq!(feed(&mut asm, b"drive 1 1"), vec![]);
     assert!(asm.is_overflowed());
     assert_eq!(
         feed(&mut asm, b" more text\r\n"),
-        vec![Err(LineError::TooLong)]
+        vec![Got::Rejected(LineError::TooLong, false)]
     );
     // The next line is unaffected.
-    assert_eq!(feed(&mut asm, b"stop\n"), vec![Ok("stop".to_owned())]);
+    assert_eq!(feed(&mut asm, b"stop\n"), vec![line("stop")]);
 }
 
 #[test]
@@ -268,11 +411,15 @@ fn line_error_replies_are_exact() {
         "err 8: line too long (max 80 bytes), ignored\r\n"
     );
     let mut asm = LineAssembler::<LINE_MAX>::new();
-    let lines = feed(&mut asm, b"stop\xff\n");
-    assert_eq!(lines, vec![Err(LineError::NotUtf8)]);
+    let lines = feed(&mut asm, b"pose\xff\n");
+    assert_eq!(lines, vec![Got::Rejected(LineError::NotUtf8, false)]);
     assert_eq!(
         line_error_reply(&LineError::NotUtf8).as_str(),
         "err 9: line is not valid UTF-8, ignored\r\n"
+    );
+    assert_eq!(
+        line_error_reply(&LineError::ReceiveError).as_str(),
+        "err 21: receive error (overrun, framing or noise) in this line, ignored\r\n"
     );
 }
 

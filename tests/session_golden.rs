@@ -167,14 +167,15 @@ impl ParamStorage for MemoryStore {
     }
 }
 
-/// Known answers: `alpha` succeeds with fixed factors, `beta` always fails.
+/// Known answers: `alpha` succeeds with fixed factors, `beta` always fails, `wild` succeeds
+/// with an `E_b` the parameter record refuses to store.
 struct KnownCalibrator {
     solves: usize,
 }
 
 impl Calibrator for KnownCalibrator {
     fn methods(&self) -> &[&'static str] {
-        &["alpha", "beta"]
+        &["alpha", "beta", "wild"]
     }
     fn solve(
         &mut self,
@@ -195,11 +196,30 @@ impl Calibrator for KnownCalibrator {
                 sd_e_b: None,
             }),
             "beta" => Err(SolveError::Failed("degenerate")),
+            "wild" => Ok(Solution {
+                e_d: 1.0,
+                e_b: 1.3,
+                e_s: 1.0,
+                geometry: nominal.with_factors(1.0, 1.3, 1.0),
+                e_max_m: None,
+                sd_e_d: None,
+                sd_e_b: None,
+            }),
             _ => Err(SolveError::UnknownMethod),
         }
     }
-    fn advice(&mut self, _: &[RunRecord], _: &Geometry, out: &mut dyn fmt::Write) -> fmt::Result {
-        write!(out, "  advice L=2.000 m is adequate\r\n")
+    fn advice(
+        &mut self,
+        _: &[RunRecord],
+        _: &Geometry,
+        only: Option<&str>,
+        out: &mut dyn fmt::Write,
+    ) -> fmt::Result {
+        write!(
+            out,
+            "  advice {} L=2.000 m is adequate\r\n",
+            only.unwrap_or("all")
+        )
     }
 }
 
@@ -281,9 +301,9 @@ fn help_lists_every_command_then_ok() {
          \x20 next                      start the next planned run (button short press)\r\n\
          \x20 line [d]                  drive straight d m\r\n\
          \x20 circle cw|ccw [r]         drive a full circle of radius r m\r\n\
-         \x20 stop                      stop now\r\n\
+         \x20 stop                      stop now (Ctrl-C or Esc also stop at once)\r\n\
          \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
-         \x20 measure <x> <y> [th_deg]  true end pose of the last run (start frame, m, deg)\r\n\
+         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)\r\n\
          \x20 runs                      list stored runs\r\n\
          \x20 drop <n>                  delete run n\r\n\
          \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
@@ -295,7 +315,8 @@ fn help_lists_every_command_then_ok() {
          \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\
          \x20 stream on [hz]|off        pose + wheel speed stream, 1..100 Hz\r\n\
          \x20 drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last\r\n\
-         ok 22 commands\r\n"
+         \x20 echo on|off               echo typed characters (on at boot; scripts: off)\r\n\
+         ok 23 commands\r\n"
     );
 }
 
@@ -316,6 +337,21 @@ fn set_golden_and_pushes_to_the_robot() {
     assert_eq!(
         b.send("set square_side 1.5"),
         "ok square_side = 1.500 m\r\n"
+    );
+    // The geometry is checked as a whole.
+    assert_eq!(
+        b.send("set d_right 2"),
+        "err 17: d_right/d_left would be 13.333, outside 0.5..2 (change the other diameter \
+         first, or both in steps)\r\n"
+    );
+    assert_eq!(
+        b.send("set wheelbase 0.01"),
+        "err 17: wheelbase/wheel diameter would be 0.067, outside 0.5..50\r\n"
+    );
+    assert_eq!(b.session.settings().nominal.wheelbase_m, 0.4);
+    assert_eq!(
+        b.send("set max_speed 0.5"),
+        "ok max_speed = 0.500 m/s (unchanged)\r\n"
     );
     // Out-of-range values never reach the settings.
     assert_eq!(
@@ -359,11 +395,17 @@ fn run_lifecycle_golden() {
         b.send("measure 0.0223 -0.0145 0.5"),
         "ok run 1 square cw L=2.000 m measured: error vs odometry dx=+0.010000 dy=-0.010000 m\r\n"
     );
+    // A second plain `measure` never replaces silently: it needs the run number.
     assert_eq!(
         b.send("measure 0.0223 -0.0145"),
-        "ok run 1 square cw L=2.000 m measured (replaced): error vs odometry dx=+0.010000 \
-         dy=-0.010000 m\r\n"
+        "err 12: run 1 is already measured (measure #1 x y [theta] replaces it)\r\n"
     );
+    assert_eq!(
+        b.send("measure #1 0.0233 -0.0145"),
+        "ok run 1 square cw L=2.000 m measured (replaced x=+0.022300 y=-0.014500 \
+         theta_deg=+0.5000): error vs odometry dx=+0.011000 dy=-0.010000 m\r\n"
+    );
+    assert_eq!(b.send("measure #2 0 0"), "err 14: no run 2 (1 stored)\r\n");
     assert_eq!(b.send("line 1"), "ok run 2 started: line d=1.000 m\r\n");
     // A finished run is collected before the next command runs, without an explicit poll.
     b.robot.finish(1.0, 0.0);
@@ -371,7 +413,7 @@ fn run_lifecycle_golden() {
         b.send("runs"),
         "event run 2 finished: line d=1.000 m odometry end x=+1.000000 y=+0.000000 \
          theta_deg=+0.0000; measure it\r\n\
-         \x20 run 1 square cw L=2.000 m odometry x=+0.012300 y=-0.004500 measured x=+0.022300 \
+         \x20 run 1 square cw L=2.000 m odometry x=+0.012300 y=-0.004500 measured x=+0.023300 \
          y=-0.014500\r\n\
          \x20 run 2 line d=1.000 m odometry x=+1.000000 y=+0.000000 not measured\r\n\
          ok 2 runs, 1 measured\r\n"
@@ -385,13 +427,135 @@ fn run_lifecycle_golden() {
         b.send("circle ccw"),
         "ok run 2 started: circle ccw r=1.000 m\r\n"
     );
-    assert_eq!(b.send("stop"), "ok stopped\r\n");
+    assert_eq!(
+        b.send("measure 0.0223 -0.0145"),
+        "err 10: a run is driving: measure after its `event run … finished` line\r\n"
+    );
+    assert_eq!(
+        b.send("stop"),
+        "event run 2 aborted, not stored: circle ccw r=1.000 m\r\n\
+         ok stopped: run 2 aborted, not stored\r\n"
+    );
     assert_eq!(b.robot.aborts, 1);
+    assert_eq!(b.send("stop"), "ok stopped\r\n");
+    // The aborted run's measurement must not land on run 1.
+    assert_eq!(
+        b.send("measure 0.0223 -0.0145"),
+        "err 12: run 2 was aborted and not stored: nothing to measure (drive it again; \
+         measure #<n> x y fills an earlier run)\r\n"
+    );
+    assert_eq!(b.session.runs().len(), 1);
+}
+
+#[test]
+fn stop_keys_and_garbled_stop_lines_stop() {
+    use odocal::protocol::{LineError, LineEvent, StopKey};
+    let event = |b: &mut Bench, e: LineEvent<'_>| {
+        let mut out = String::new();
+        b.session
+            .handle_event(e, &mut b.robot, &mut b.store, &mut out)
+            .unwrap();
+        out
+    };
+    let mut b = Bench::new();
+    // Idle: nothing moves, nothing to say.
+    assert_eq!(event(&mut b, LineEvent::Stop(StopKey::Escape)), "");
+    b.send("run cw");
+    assert_eq!(
+        event(&mut b, LineEvent::Stop(StopKey::CtrlC)),
+        "event stopped (Ctrl-C)\r\nevent run 1 aborted, not stored: square cw L=2.000 m\r\n"
+    );
+    b.send("drive 0.1 0");
+    assert_eq!(
+        event(&mut b, LineEvent::Stop(StopKey::Escape)),
+        "event stopped (Esc)\r\n"
+    );
+    assert!(!b.robot.driving);
+    b.send("run cw");
+    assert_eq!(
+        event(
+            &mut b,
+            LineEvent::Rejected {
+                error: LineError::ReceiveError,
+                stop: true
+            }
+        ),
+        "event run 1 aborted, not stored: square cw L=2.000 m\r\n\
+         ok stopped: run 1 aborted, not stored\r\n"
+    );
+    assert_eq!(
+        event(
+            &mut b,
+            LineEvent::Rejected {
+                error: LineError::ReceiveError,
+                stop: false
+            }
+        ),
+        "err 21: receive error (overrun, framing or noise) in this line, ignored\r\n"
+    );
+    // Stray text before `stop` does not keep it from stopping.
+    b.send("run ccw");
+    assert_eq!(
+        b.send("~~ stop"),
+        "event run 1 aborted, not stored: square ccw L=2.000 m\r\n\
+         ok stopped: run 1 aborted, not stored\r\n"
+    );
+    // A fault ends the run too, and says so.
+    b.send("run cw");
+    b.robot.running = None;
+    b.robot.fault = Some("stall");
+    assert_eq!(
+        b.poll(0),
+        "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n"
+    );
+    // Echo is on at boot, for a person at a terminal.
+    assert!(b.session.echo());
+    assert_eq!(b.send("echo off"), "ok echo off\r\n");
+    assert!(!b.session.echo());
+    assert_eq!(b.send("echo on"), "ok echo on\r\n");
+}
+
+#[test]
+fn implausible_measurements_are_refused_with_a_unit_hint() {
+    let mut b = Bench::new();
+    b.send("run cw");
+    b.robot.finish(0.0123, -0.0045);
+    b.poll(0);
+    // 41.841 mm typed as metres: 57.6 m from the odometry end of an 8 m path.
+    assert_eq!(
+        b.send("measure 41.841 39.523"),
+        "err 22: run 1 square cw L=2.000 m: measured end 57.551 m from the odometry end, more \
+         than 2.000 m (25 % of the path); looks like millimetres: the unit is metres\r\n"
+    );
+    assert_eq!(
+        b.send("measure 4.1841 3.9523"),
+        "err 22: run 1 square cw L=2.000 m: measured end 5.750 m from the odometry end, more \
+         than 2.000 m (25 % of the path); looks like centimetres: the unit is metres\r\n"
+    );
+    assert_eq!(
+        b.send("measure 0.041841 0.039523 60"),
+        "err 22: run 1 square cw L=2.000 m: measured heading +60.0 deg from the odometry \
+         heading, more than 45 (degrees, CCW positive)\r\n"
+    );
+    assert_eq!(b.session.runs()[0].measured, None);
+    assert!(
+        b.send("measure 0.041841 0.039523 -1.5")
+            .starts_with("ok run 1 square cw L=2.000 m measured: ")
+    );
 }
 
 #[test]
 fn calibrate_refused_until_both_directions_measured() {
     let mut b = Bench::new();
+    // A misspelt method is named as such before anything else.
+    assert_eq!(
+        b.send("calibrate exakt"),
+        "err 7: unknown method; one of alpha|beta|wild\r\n"
+    );
+    assert_eq!(
+        b.send("apply exakt"),
+        "err 7: unknown method; one of alpha|beta|wild\r\n"
+    );
     assert_eq!(
         b.send("calibrate"),
         "err 13: need measured square runs in both directions (measured: cw 0, ccw 0)\r\n"
@@ -424,15 +588,54 @@ fn calibrate_apply_save_golden() {
                  \x20 alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   388.8500   \
                  1.200     2.500e-4  -\r\n\
                  \x20 beta         failed: degenerate\r\n\
-                 \x20 advice L=2.000 m is adequate\r\n\
-                 ok 1 solved from 2 measured runs (cw 1, ccw 1); apply <method> to use one\r\n";
+                 \x20 wild         1.000000000  1.300000000  1.000000000  150.0000   150.0000   500.5000   \
+                 -         -         -\r\n\
+                 \x20 advice all L=2.000 m is adequate\r\n\
+                 ok 2 solved from 2 measured runs (cw 1, ccw 1); apply <method> to use one\r\n";
     assert_eq!(b.send("calibrate"), table);
     // Runs are kept across calibrate: the same answer again.
     assert_eq!(b.send("calibrate"), table);
     assert_eq!(b.send("runs").lines().count(), 3);
     assert_eq!(
         b.send("calibrate gamma"),
-        "err 7: unknown method; one of alpha|beta\r\n"
+        "err 7: unknown method; one of alpha|beta|wild\r\n"
+    );
+    // One method: its row and its advice only.
+    assert_eq!(
+        b.send("calibrate alpha").lines().last(),
+        Some("ok 1 solved from 2 measured runs (cw 1, ccw 1); apply <method> to use one")
+    );
+    assert!(
+        b.send("calibrate alpha")
+            .contains("  advice alpha L=2.000 m")
+    );
+    assert_eq!(
+        b.send("calibrate beta"),
+        "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
+         E_max_mm  sd_E_d    sd_E_b\r\n\
+         \x20 beta         failed: degenerate\r\n\
+         err 16: no method succeeded (check the measurements: runs)\r\n"
+    );
+    // One rule for apply and save: what the record cannot store is not applied.
+    let refused = "err 17: parameters not storable: E_d, E_b and E_s must be within 0.8..1.25\r\n";
+    assert_eq!(b.send("apply wild"), refused);
+    assert_eq!(b.session.settings().calibration, None);
+    let mut wild = Settings::default();
+    wild.active = wild.nominal.with_factors(1.0, 1.3, 1.0);
+    wild.calibration = Some(odocal::session::AppliedCalibration {
+        method: heapless::String::try_from("wild").unwrap(),
+        e_d: 1.0,
+        e_b: 1.3,
+        e_s: 1.0,
+        runs_used: 2,
+        e_max_m: 0.0,
+    });
+    assert_eq!(
+        format!(
+            "err 17: {}\r\n",
+            odocal::session::storable(&wild).unwrap_err()
+        ),
+        refused
     );
     assert_eq!(b.send("apply beta"), "err 16: degenerate\r\n");
     assert_eq!(
@@ -464,12 +667,28 @@ fn calibrate_apply_save_golden() {
     b.send("stop");
     assert_eq!(b.send("save"), "ok saved\r\n");
     assert_eq!(b.store.saved.as_ref(), Some(b.session.settings()));
-    // A geometry change drops the calibration (its factors were relative to the old nominal).
+    // Re-entering a value changes nothing.
+    assert_eq!(
+        b.send("set d_left 0.150"),
+        "ok d_left = 0.150000000 m (unchanged)\r\n"
+    );
+    assert!(b.session.settings().calibration.is_some());
+    // A geometry change drops the calibration (its factors were relative to the old nominal),
+    // says so, and setting the old value back restores it.
+    let applied = b.session.settings().clone();
     assert_eq!(
         b.send("set d_left 0.151"),
-        "ok d_left = 0.151000000 m (calibration cleared)\r\n"
+        "ok d_left = 0.151000000 m (calibration alpha dropped: it is relative to the old \
+         geometry; set the old value back to restore it; the stored one stays until save)\r\n"
     );
     assert_eq!(b.session.settings().calibration, None);
+    assert_eq!(
+        b.send("set d_left 0.15"),
+        "ok d_left = 0.150000000 m (calibration alpha restored)\r\n"
+    );
+    assert_eq!(b.session.settings(), &applied);
+    assert_eq!(b.robot.geometry, Some(applied.active));
+    b.send("set d_left 0.151");
     assert_eq!(
         b.send("reset-params"),
         "ok parameters reset to defaults and stored\r\n"
@@ -527,7 +746,10 @@ fn button_starts_next_clears_faults_and_stops() {
     assert_eq!(out, "event button: err 10: robot is busy (stop first)\r\n");
     out.clear();
     b.session.button_long(&mut b.robot, &mut out).unwrap();
-    assert_eq!(out, "event button: ok stopped\r\n");
+    assert_eq!(
+        out,
+        "event run 1 aborted, not stored: square cw L=2.000 m\r\nevent button: ok stopped\r\n"
+    );
     assert_eq!(b.robot.aborts, 1);
     out.clear();
     b.robot.fault = Some("stall");
@@ -575,9 +797,20 @@ fn pose_odom_drive_golden() {
     );
     b.robot.fault = Some("stall");
     b.robot.running = None;
-    assert_eq!(b.send("run cw"), "err 11: fault latched: stall\r\n");
-    assert_eq!(b.send("clear"), "ok fault cleared\r\n");
+    assert_eq!(
+        b.send("run cw"),
+        "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n\
+         err 11: fault latched: stall\r\n"
+    );
+    assert_eq!(b.send("clear"), "ok fault cleared (stall)\r\n");
     assert_eq!(b.robot.fault, None);
+    assert_eq!(b.send("clear"), "ok no fault latched\r\n");
+    // A drive beyond the limits is limited, and the reply says so.
+    assert_eq!(
+        b.send("drive 1.5 0"),
+        "ok limited to v=+0.300 m/s w=+0.000 rad/s (max_speed, max_turn_rate)\r\n"
+    );
+    b.send("stop");
     assert_eq!(
         b.send("run cw"),
         "ok run 1 started: square cw L=2.000 m\r\n"

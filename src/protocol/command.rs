@@ -71,8 +71,11 @@ pub enum Command<'a> {
     Stop,
     /// `clear`: clear a latched fault.
     Clear,
-    /// `measure <x_m> <y_m> [theta_deg]`: the true end pose of the last finished run.
+    /// `measure [#n] <x_m> <y_m> [theta_deg]`: the true end pose of the last finished run, or
+    /// of run `n` (which replaces its measurement).
     Measure {
+        /// 1-based run number (`#n`); `None` = the last finished run, if it is unmeasured.
+        run: Option<usize>,
         /// True x in the run's start frame, metres.
         x_m: f64,
         /// True y in the run's start frame, metres.
@@ -115,6 +118,11 @@ pub enum Command<'a> {
     Stream {
         /// `Some(rate)` to start (rate `None` = default), `None` to stop.
         on: Option<Option<u32>>,
+    },
+    /// `echo on|off`: whether received characters are echoed back (for a person at a terminal).
+    Echo {
+        /// `true` = echo on.
+        on: bool,
     },
     /// `drive <v_mps> <w_radps>`: velocity command with a 500 ms deadman.
     Drive {
@@ -355,7 +363,17 @@ impl<'a> Command<'a> {
             Command::Clear
         } else if is("measure") {
             let lim = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
-            let x_m = number(words.required("x_m")?, "x_m", lim.0, lim.1)?;
+            let mut first = words.required("x_m")?;
+            let run = match first.strip_prefix('#') {
+                Some(n) => {
+                    let max = crate::motion::run::MAX_RUNS as u32;
+                    let index = whole(n, "n", 1, max)? as usize;
+                    first = words.required("x_m")?;
+                    Some(index)
+                }
+                None => None,
+            };
+            let x_m = number(first, "x_m", lim.0, lim.1)?;
             let y_m = number(words.required("y_m")?, "y_m", lim.0, lim.1)?;
             let theta_deg = optional_number(
                 &mut words,
@@ -363,6 +381,7 @@ impl<'a> Command<'a> {
                 (-MEASURE_LIMIT_DEG, MEASURE_LIMIT_DEG),
             )?;
             Command::Measure {
+                run,
                 x_m,
                 y_m,
                 theta_deg,
@@ -422,6 +441,19 @@ impl<'a> Command<'a> {
                     expected: "on|off",
                 });
             }
+        } else if is("echo") {
+            let mode = words.required("mode")?;
+            let on = if keyword_eq(mode, "on") {
+                true
+            } else if keyword_eq(mode, "off") {
+                false
+            } else {
+                return Err(ParseError::BadKeyword {
+                    what: "mode",
+                    expected: "on|off",
+                });
+            };
+            Command::Echo { on }
         } else if is("drive") {
             let v = number(
                 words.required("v_mps")?,

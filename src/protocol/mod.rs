@@ -3,8 +3,9 @@
 //! Owns the line assembler, the command grammar and the reply format; may use
 //! [`crate::motion::run`] (directions, run capacity), [`crate::kinematics`] and [`crate::util`].
 //!
-//! - [`line::LineAssembler`] turns received bytes into lines (`\n` or `\r\n`), rejecting
-//!   over-long lines as a whole;
+//! - [`line::LineAssembler`] turns received bytes into lines (`\r`, `\n` or `\r\n`) and stop
+//!   keys (Ctrl-C, Esc), consumes terminal escape sequences, and rejects over-long lines and lines
+//!   hit by a receive error as a whole; [`rx`] is the receive loop the USART interrupt runs;
 //! - [`Command::parse`] turns a line into a validated [`Command`] (units: metres, m/s, rad/s,
 //!   degrees for measured headings, Hz);
 //! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`.
@@ -17,8 +18,9 @@ pub mod line;
 pub mod number;
 pub mod param;
 pub mod reply;
+pub mod rx;
 
 pub use command::{Command, ParseError};
-pub use line::{LINE_MAX, LineAssembler, LineError};
+pub use line::{Echo, LINE_MAX, LineAssembler, LineError, LineEvent, StopKey};
 pub use param::ParamName;
 pub use reply::{EOL, ErrorCode, ReplyLine};

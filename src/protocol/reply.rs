@@ -48,7 +48,7 @@ pub enum ErrorCode {
     Busy = 10,
     /// 11: the controller has a latched fault.
     Fault = 11,
-    /// 12: `measure` without a finished run.
+    /// 12: `measure` without a finished, unmeasured run to fill.
     NoRun = 12,
     /// 13: `calibrate`/`apply` without measured runs in both directions.
     NotEnoughRuns = 13,
@@ -58,7 +58,8 @@ pub enum ErrorCode {
     StoreFull = 15,
     /// 16: a calibration method failed (degenerate data, no convergence, unknown method).
     CalibrationFailed = 16,
-    /// 17: a parameter change was refused (inconsistent geometry or limits).
+    /// 17: parameters refused: an inconsistent geometry (`set`), or a result that the parameter
+    /// record would not store (`apply`, `save`).
     InvalidParams = 17,
     /// 18: `save`/`reset-params` while the motors run.
     MotorsRunning = 18,
@@ -66,6 +67,10 @@ pub enum ErrorCode {
     Storage = 19,
     /// 20: the planned runs are all done (`next`).
     PlanComplete = 20,
+    /// 21: a byte of the line was lost or garbled on the wire (overrun, framing, noise).
+    ReceiveError = 21,
+    /// 22: a measurement is implausible for its run (e.g. typed in millimetres).
+    Implausible = 22,
 }
 
 impl ErrorCode {
@@ -94,6 +99,7 @@ impl From<&LineError> for ErrorCode {
         match e {
             LineError::TooLong => ErrorCode::LineTooLong,
             LineError::NotUtf8 => ErrorCode::NotUtf8,
+            LineError::ReceiveError => ErrorCode::ReceiveError,
         }
     }
 }

@@ -304,7 +304,7 @@ fn store_error(e: crate::storage::StoreError) -> StorageError {
     use crate::storage::StoreError as E;
     match e {
         E::MotorsRunning => StorageError::MotorsRunning,
-        E::InvalidRecord(_) => StorageError::Invalid("record does not validate"),
+        E::InvalidRecord(e) => StorageError::Record(e),
         E::BadRange => StorageError::Flash("bad parameter flash range"),
         E::Flash(_) => StorageError::Flash("flash driver error"),
         E::Corrupted => StorageError::Flash("parameter flash corrupted"),
@@ -315,9 +315,7 @@ fn store_error(e: crate::storage::StoreError) -> StorageError {
 
 impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
     fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
-        let record = settings
-            .to_record()
-            .map_err(|_| StorageError::Invalid("method name not storable"))?;
+        let record = settings.to_record().map_err(StorageError::Record)?;
         self.save_blocking(&record, motors_stopped)
             .map_err(store_error)
     }
@@ -413,6 +411,7 @@ impl Calibrator for LibraryCalibrator {
         &mut self,
         runs: &[RunRecord],
         nominal: &Geometry,
+        only: Option<&str>,
         out: &mut dyn Write,
     ) -> fmt::Result {
         let obs = observations(runs);
@@ -439,6 +438,9 @@ impl Calibrator for LibraryCalibrator {
             max_side_m: self.max_side_m,
         };
         for method in Method::ALL {
+            if only.is_some_and(|m| Method::parse(m) != Some(method)) {
+                continue;
+            }
             let now = track::evaluate(&input, method, side);
             let best = track::advise(&input, method);
             write!(out, "  advice {:<12}", method.as_str())?;

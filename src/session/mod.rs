@@ -23,6 +23,7 @@
 
 mod bringup;
 pub mod library;
+pub mod measure;
 mod report;
 pub mod settings;
 pub mod traits;
@@ -35,11 +36,12 @@ use crate::kinematics::encoder::WheelTicks;
 use crate::motion::bringup::PushReport;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
-use crate::protocol::{Command, ParseError};
+use crate::protocol::{Command, LineEvent, ParseError, StopKey};
 use crate::storage::LoadWarning;
 use crate::util::decimal::Decimal;
+use crate::util::num::clamp;
 use crate::util::text::keyword_eq;
-pub use settings::{AppliedCalibration, Changed, Settings, SettingsError};
+pub use settings::{AppliedCalibration, Changed, Settings, SettingsError, check_nominal};
 pub use traits::{
     Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
     StorageError,
@@ -60,6 +62,23 @@ struct Stream {
     last: Option<(u64, WheelTicks)>,
 }
 
+/// A run the session started and has not collected yet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ActiveRun {
+    /// The number announced when it started.
+    number: usize,
+    path: PathKind,
+}
+
+/// A calibration dropped by a change of the nominal geometry, restored if the geometry is set
+/// back.
+#[derive(Clone, Debug, PartialEq)]
+struct Dropped {
+    nominal: crate::kinematics::geometry::Geometry,
+    active: crate::kinematics::geometry::Geometry,
+    calibration: AppliedCalibration,
+}
+
 /// Session state: run store, settings, stream schedule.
 #[derive(Debug)]
 pub struct Session<C> {
@@ -69,6 +88,15 @@ pub struct Session<C> {
     stream: Option<Stream>,
     /// The last hand-push check of this boot (tells a reversed encoder from a reversed motor).
     last_push: Option<PushReport>,
+    /// Echo received characters (a person at a terminal); `echo off` for programs.
+    echo: bool,
+    /// The run in progress, as far as the session knows.
+    active: Option<ActiveRun>,
+    /// The last run ended by an abort (not stored); plain `measure` is refused until the next
+    /// run finishes, so its measurement cannot land on an earlier run.
+    last_aborted: Option<ActiveRun>,
+    /// The calibration the last geometry change dropped.
+    dropped: Option<Dropped>,
 }
 
 fn robot_err(out: &mut dyn Write, e: RobotError) -> fmt::Result {
@@ -82,7 +110,8 @@ fn robot_err(out: &mut dyn Write, e: RobotError) -> fmt::Result {
 fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
     let code = match e {
         StorageError::MotorsRunning => ErrorCode::MotorsRunning,
-        StorageError::Flash(_) | StorageError::Invalid(_) => ErrorCode::Storage,
+        StorageError::Invalid(_) | StorageError::Record(_) => ErrorCode::InvalidParams,
+        StorageError::Flash(_) => ErrorCode::Storage,
     };
     write_err(out, code, &e)
 }
@@ -121,7 +150,17 @@ impl<C: Calibrator> Session<C> {
             runs: Vec::new(),
             stream: None,
             last_push: None,
+            echo: true,
+            active: None,
+            last_aborted: None,
+            dropped: None,
         }
+    }
+
+    /// Whether received characters are to be echoed (`echo on|off`; on at boot, for a person at
+    /// a terminal program with its default settings).
+    pub fn echo(&self) -> bool {
+        self.echo
     }
 
     /// The current settings.
@@ -173,9 +212,15 @@ impl<C: Calibrator> Session<C> {
         }
     }
 
-    /// Collects a finished run from the robot into the store and announces it.
+    /// Collects a finished run from the robot into the store and announces it; announces a run
+    /// that ended without finishing (stop, Ctrl-C, Esc, the button, a fault) as aborted.
     fn collect_finished(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        // Status first: a run that finishes between the two calls is then taken below, never
+        // mistaken for an aborted one.
+        let status = robot.status();
         while let Some(run) = robot.take_finished_run() {
+            self.active = None;
+            self.last_aborted = None;
             let end = run.odometry_end;
             let path = run.path;
             // Starting a run is refused while the store is full, so this only fails if runs
@@ -195,6 +240,18 @@ impl<C: Calibrator> Session<C> {
                 Decimal::signed(end.y_m, 6),
                 Decimal::signed(libm::fmod(end.theta_rad.to_degrees(), 360.0), 4),
             )?;
+        }
+        if let Some(a) = self.active
+            && !matches!(status.activity, Activity::Running(_))
+        {
+            self.active = None;
+            self.last_aborted = Some(a);
+            write!(out, "event run {} aborted, not stored: ", a.number)?;
+            report::write_path(out, &a.path)?;
+            if let Some(fault) = status.fault {
+                write!(out, " (fault: {fault})")?;
+            }
+            out.write_str(EOL)?;
         }
         Ok(())
     }
@@ -281,7 +338,56 @@ impl<C: Calibrator> Session<C> {
     /// Only if `out` refuses the text.
     pub fn button_long(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         robot.abort();
+        self.collect_finished(robot, out)?;
         write!(out, "event button: ok stopped{EOL}")
+    }
+
+    /// Ctrl-C or Esc: stops any motion (the board's receive interrupt has already told the
+    /// control task; this is idempotent). Writes `event stopped (…)` if anything moved, then
+    /// the aborted run's event.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn interrupt(
+        &mut self,
+        key: StopKey,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let moving = robot.status().activity != Activity::Idle || self.active.is_some();
+        robot.abort();
+        if moving {
+            let name = match key {
+                StopKey::CtrlC => "Ctrl-C",
+                StopKey::Escape => "Esc",
+            };
+            write!(out, "event stopped ({name}){EOL}")?;
+        }
+        self.collect_finished(robot, out)
+    }
+
+    /// One event from the line assembler: a line is executed, a rejected line answered with its
+    /// error (or executed as `stop` if its last word was `stop`), a stop key stops.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn handle_event(
+        &mut self,
+        event: LineEvent<'_>,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        match event {
+            LineEvent::Line(text) => self.handle_line(text, robot, storage, out),
+            LineEvent::Rejected { stop: true, .. } => {
+                self.execute(Command::Stop, robot, storage, out)
+            }
+            LineEvent::Rejected { error, stop: false } => {
+                write_err(out, ErrorCode::from(&error), &error)
+            }
+            LineEvent::Stop(key) => self.interrupt(key, robot, out),
+        }
     }
 
     /// Parses and executes one line, writing the reply (nothing for a blank line).
@@ -298,6 +404,16 @@ impl<C: Calibrator> Session<C> {
         match Command::parse(line) {
             Ok(cmd) => self.execute(cmd, robot, storage, out),
             Err(ParseError::Empty) => Ok(()),
+            // Stopping is always safe: a line whose last word is `stop` stops, whatever stray
+            // text came before it.
+            Err(_)
+                if line
+                    .split_ascii_whitespace()
+                    .next_back()
+                    .is_some_and(|w| keyword_eq(w, "stop")) =>
+            {
+                self.execute(Command::Stop, robot, storage, out)
+            }
             Err(e) => write_err(out, ErrorCode::from(&e), &e),
         }
     }
@@ -309,7 +425,9 @@ impl<C: Calibrator> Session<C> {
         }
         match robot.start(path) {
             Ok(()) => {
-                write!(out, "ok run {} started: ", self.runs.len() + 1)?;
+                let number = self.runs.len() + 1;
+                self.active = Some(ActiveRun { number, path });
+                write!(out, "ok run {number} started: ")?;
                 report::write_path(out, &path)?;
                 out.write_str(EOL)
             }
@@ -382,18 +500,29 @@ impl<C: Calibrator> Session<C> {
             }
             Command::Bringup { kind } => self.bringup(kind, robot, out),
             Command::Stop => {
+                let before = self.active;
                 robot.abort();
-                write!(out, "ok stopped{EOL}")
+                self.collect_finished(robot, out)?;
+                match before {
+                    Some(a) if self.last_aborted == Some(a) => {
+                        write!(out, "ok stopped: run {} aborted, not stored{EOL}", a.number)
+                    }
+                    _ => write!(out, "ok stopped{EOL}"),
+                }
             }
-            Command::Clear => {
-                robot.clear_fault();
-                write!(out, "ok fault cleared{EOL}")
-            }
+            Command::Clear => match robot.status().fault {
+                Some(name) => {
+                    robot.clear_fault();
+                    write!(out, "ok fault cleared ({name}){EOL}")
+                }
+                None => write!(out, "ok no fault latched{EOL}"),
+            },
             Command::Measure {
+                run,
                 x_m,
                 y_m,
                 theta_deg,
-            } => self.measure(x_m, y_m, theta_deg, out),
+            } => self.measure(run, x_m, y_m, theta_deg, robot, out),
             Command::Runs => report::write_runs(out, &self.runs),
             Command::Drop { index } => {
                 if index == 0 || index > self.runs.len() {
@@ -411,10 +540,15 @@ impl<C: Calibrator> Session<C> {
             }
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method } => self.apply(method, robot, out),
-            Command::Save => match storage.save(&self.settings, robot.motors_stopped()) {
-                Ok(()) => write!(out, "ok saved{EOL}"),
-                Err(e) => storage_err(out, e),
-            },
+            Command::Save => {
+                if let Err(e) = storable(&self.settings) {
+                    return storage_err(out, e);
+                }
+                match storage.save(&self.settings, robot.motors_stopped()) {
+                    Ok(()) => write!(out, "ok saved{EOL}"),
+                    Err(e) => storage_err(out, e),
+                }
+            }
             Command::ResetParams => self.reset_params(robot, storage, out),
             Command::Pose => {
                 let p = robot.pose();
@@ -439,8 +573,27 @@ impl<C: Calibrator> Session<C> {
                 self.stream = None;
                 write!(out, "ok stream off{EOL}")
             }
+            Command::Echo { on } => {
+                self.echo = on;
+                write!(out, "ok echo {}{EOL}", if on { "on" } else { "off" })
+            }
             Command::Drive { v_mps, w_radps } => match robot.drive(v_mps, w_radps) {
-                Ok(()) => write!(out, "ok{EOL}"),
+                Ok(()) => {
+                    // The controller clamps to the same limits; say so rather than silently.
+                    let l = &self.settings.motion;
+                    let v = clamp(v_mps, -l.max_speed_mps, l.max_speed_mps);
+                    let w = clamp(w_radps, -l.max_turn_rate_radps, l.max_turn_rate_radps);
+                    if v == v_mps && w == w_radps {
+                        write!(out, "ok{EOL}")
+                    } else {
+                        write!(
+                            out,
+                            "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate){EOL}",
+                            Decimal::signed(f64::from(v), 3),
+                            Decimal::signed(f64::from(w), 3)
+                        )
+                    }
+                }
                 Err(e) => robot_err(out, e),
             },
         }
@@ -456,46 +609,132 @@ impl<C: Calibrator> Session<C> {
         if robot.status().activity != Activity::Idle {
             return robot_err(out, RobotError::Busy);
         }
-        let (new, changed) = match self.settings.with_value(name, value) {
+        let (mut new, changed) = match self.settings.with_value(name, value) {
             Ok(x) => x,
             Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
         };
+        if changed == Changed::Nothing {
+            write!(out, "ok {} = ", name.as_str())?;
+            report::write_param_value(out, &self.settings, name)?;
+            return write!(out, " (unchanged){EOL}");
+        }
+        // A calibration is relative to the nominal geometry it was computed for: it is dropped
+        // when that changes, and restored when the geometry is set back.
+        let mut restored = None;
+        if changed == Changed::Geometry
+            && let Some(d) = &self.dropped
+            && d.nominal == new.nominal
+        {
+            new.active = d.active;
+            new.calibration = Some(d.calibration.clone());
+            restored = Some(d.calibration.method.clone());
+        }
         let pushed = match changed {
             Changed::Geometry => robot.set_geometry(new.active),
             Changed::Motion => robot.set_limits(&new.motion),
-            Changed::Plan => Ok(()),
+            Changed::Plan | Changed::Nothing => Ok(()),
             Changed::Wiring => robot.set_wiring(new.wiring),
         };
         if let Err(e) = pushed {
             return robot_err(out, e);
         }
-        let cleared = changed == Changed::Geometry && self.settings.calibration.is_some();
+        let dropped = match (&self.settings.calibration, changed) {
+            (Some(c), Changed::Geometry) => {
+                self.dropped = Some(Dropped {
+                    nominal: self.settings.nominal,
+                    active: self.settings.active,
+                    calibration: c.clone(),
+                });
+                Some(c.method.clone())
+            }
+            _ => None,
+        };
+        if restored.is_some() && dropped.is_none() {
+            self.dropped = None;
+        }
         self.settings = new;
         write!(out, "ok {} = ", name.as_str())?;
         report::write_param_value(out, &self.settings, name)?;
-        if cleared {
-            write!(out, " (calibration cleared)")?;
+        if let Some(m) = restored {
+            write!(out, " (calibration {m} restored)")?;
+        } else if let Some(m) = dropped {
+            write!(
+                out,
+                " (calibration {m} dropped: it is relative to the old geometry; set the old \
+                 value back to restore it; the stored one stays until save)"
+            )?;
         }
         out.write_str(EOL)
     }
 
+    /// `measure [#n] x y [θ]`: without `#n` it fills the last finished run if that is
+    /// unmeasured (never an earlier one, never after an aborted run); `#n` fills or replaces run
+    /// `n` and says what it replaced. Refused while anything moves, and when implausible.
     fn measure(
         &mut self,
+        index: Option<usize>,
         x_m: f64,
         y_m: f64,
         theta_deg: Option<f64>,
+        robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        let n = self.runs.len();
-        let Some(run) = self.runs.last_mut() else {
+        if robot.status().activity != Activity::Idle {
             return write_err(
                 out,
-                ErrorCode::NoRun,
-                &"no finished run to measure (run cw|ccw or next first)",
+                ErrorCode::Busy,
+                &"a run is driving: measure after its `event run … finished` line",
             );
+        }
+        let stored = self.runs.len();
+        let n = match index {
+            Some(n) if n > stored => {
+                return write!(
+                    out,
+                    "err {}: no run {n} ({stored} stored){EOL}",
+                    ErrorCode::NoSuchRun.code()
+                );
+            }
+            Some(n) => n,
+            None => {
+                if let Some(a) = self.last_aborted {
+                    return write!(
+                        out,
+                        "err {}: run {} was aborted and not stored: nothing to measure (drive \
+                         it again; measure #<n> x y fills an earlier run){EOL}",
+                        ErrorCode::NoRun.code(),
+                        a.number
+                    );
+                }
+                match self.runs.last() {
+                    None => {
+                        return write_err(
+                            out,
+                            ErrorCode::NoRun,
+                            &"no finished run to measure (run cw|ccw or next first)",
+                        );
+                    }
+                    Some(r) if r.measured.is_some() => {
+                        return write!(
+                            out,
+                            "err {}: run {stored} is already measured (measure #{stored} x y \
+                             [theta] replaces it){EOL}",
+                            ErrorCode::NoRun.code()
+                        );
+                    }
+                    Some(_) => stored,
+                }
+            }
         };
-        let replaced = run.measured.is_some();
-        run.measured = Some(Measurement {
+        let Some(run) = self.runs.get_mut(n - 1) else {
+            return write_err(out, ErrorCode::NoSuchRun, &"no such run");
+        };
+        if let Err(why) = measure::check(run, x_m, y_m, theta_deg) {
+            write!(out, "err {}: run {n} ", ErrorCode::Implausible.code())?;
+            report::write_path(out, &run.path)?;
+            return write!(out, ": {why}{EOL}");
+        }
+        let replaced = run.measured.replace(Measurement {
             x_m,
             y_m,
             theta_rad: theta_deg.map(f64::to_radians),
@@ -503,10 +742,15 @@ impl<C: Calibrator> Session<C> {
         let odo = run.odometry_end;
         write!(out, "ok run {n} ")?;
         report::write_path(out, &run.path)?;
+        out.write_str(" measured")?;
+        if let Some(old) = replaced {
+            out.write_str(" (replaced ")?;
+            measure::write_measurement(out, &old)?;
+            out.write_str(")")?;
+        }
         write!(
             out,
-            " measured{}: error vs odometry dx={} dy={} m{EOL}",
-            if replaced { " (replaced)" } else { "" },
+            ": error vs odometry dx={} dy={} m{EOL}",
             Decimal::signed(x_m - odo.x_m, 6),
             Decimal::signed(y_m - odo.y_m, 6),
         )
@@ -539,15 +783,15 @@ impl<C: Calibrator> Session<C> {
         if robot.status().activity != Activity::Idle {
             return robot_err(out, RobotError::Busy);
         }
-        if let Some(refused) = self.refuse_calibration(out) {
-            return refused;
-        }
-        let nominal = self.settings.nominal;
         if let Some(m) = method
             && !self.calibrator.methods().iter().any(|k| keyword_eq(k, m))
         {
             return self.unknown_method(out);
         }
+        if let Some(refused) = self.refuse_calibration(out) {
+            return refused;
+        }
+        let nominal = self.settings.nominal;
         report::write_solution_header(out)?;
         let mut solved = 0usize;
         let methods: Vec<&'static str, 16> =
@@ -562,11 +806,16 @@ impl<C: Calibrator> Session<C> {
             }
             report::write_solution_row(out, name, &result)?;
         }
-        self.calibrator.advice(&self.runs, &nominal, out)?;
         let p = self.progress();
         if solved == 0 {
-            return write_err(out, ErrorCode::CalibrationFailed, &"no method succeeded");
+            // Advice from a failed fit would be meaningless.
+            return write_err(
+                out,
+                ErrorCode::CalibrationFailed,
+                &"no method succeeded (check the measurements: runs)",
+            );
         }
+        self.calibrator.advice(&self.runs, &nominal, method, out)?;
         write!(
             out,
             "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one{EOL}",
@@ -595,9 +844,6 @@ impl<C: Calibrator> Session<C> {
         if robot.status().activity != Activity::Idle {
             return robot_err(out, RobotError::Busy);
         }
-        if let Some(refused) = self.refuse_calibration(out) {
-            return refused;
-        }
         let Some(name) = self
             .calibrator
             .methods()
@@ -607,17 +853,14 @@ impl<C: Calibrator> Session<C> {
         else {
             return self.unknown_method(out);
         };
+        if let Some(refused) = self.refuse_calibration(out) {
+            return refused;
+        }
         let nominal = self.settings.nominal;
         let sol = match self.calibrator.solve(&self.runs, &nominal, name) {
             Ok(s) => s,
             Err(e) => return write_err(out, ErrorCode::CalibrationFailed, &e),
         };
-        if let Err(e) = sol.geometry.validate() {
-            return write_err(out, ErrorCode::CalibrationFailed, &e);
-        }
-        if let Err(e) = robot.set_geometry(sol.geometry) {
-            return robot_err(out, e);
-        }
         let p = self.progress();
         let mut method_name = heapless::String::new();
         for c in name.chars() {
@@ -625,8 +868,9 @@ impl<C: Calibrator> Session<C> {
                 break;
             }
         }
-        self.settings.active = sol.geometry;
-        self.settings.calibration = Some(AppliedCalibration {
+        let mut candidate = self.settings.clone();
+        candidate.active = sol.geometry;
+        candidate.calibration = Some(AppliedCalibration {
             method: method_name,
             e_d: sol.e_d,
             e_b: sol.e_b,
@@ -634,6 +878,15 @@ impl<C: Calibrator> Session<C> {
             runs_used: (p.cw_measured + p.ccw_measured).min(usize::from(u16::MAX)) as u16,
             e_max_m: sol.e_max_m.unwrap_or(0.0),
         });
+        // The rule `save` applies: what cannot be stored is not applied either.
+        if let Err(e) = storable(&candidate) {
+            return storage_err(out, e);
+        }
+        if let Err(e) = robot.set_geometry(sol.geometry) {
+            return robot_err(out, e);
+        }
+        self.settings = candidate;
+        self.dropped = None;
         write!(
             out,
             "ok applied {name}: E_d={} E_b={} E_s={} (not saved; save to keep){EOL}",
@@ -664,6 +917,20 @@ impl<C: Calibrator> Session<C> {
             return robot_err(out, e);
         }
         self.settings = defaults;
+        self.dropped = None;
         write!(out, "ok parameters reset to defaults and stored{EOL}")
     }
+}
+
+/// The one validation rule of `apply` and `save`: the settings must make a parameter record
+/// that validates.
+///
+/// # Errors
+/// [`StorageError::Record`] with the record's reason.
+pub fn storable(settings: &Settings) -> Result<(), StorageError> {
+    settings
+        .to_record()
+        .and_then(|r| r.validate().map(|()| r))
+        .map(|_| ())
+        .map_err(StorageError::Record)
 }

@@ -23,9 +23,9 @@ const HELP: &[&str] = &[
     "next                      start the next planned run (button short press)",
     "line [d]                  drive straight d m",
     "circle cw|ccw [r]         drive a full circle of radius r m",
-    "stop                      stop now",
+    "stop                      stop now (Ctrl-C or Esc also stop at once)",
     "clear                     clear a latched fault (stall, glitch, following)",
-    "measure <x> <y> [th_deg]  true end pose of the last run (start frame, m, deg)",
+    "measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)",
     "runs                      list stored runs",
     "drop <n>                  delete run n",
     "calibrate [method]        compute all methods (or one) from measured runs",
@@ -37,6 +37,7 @@ const HELP: &[&str] = &[
     "bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push",
     "stream on [hz]|off        pose + wheel speed stream, 1..100 Hz",
     "drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last",
+    "echo on|off               echo typed characters (on at boot; scripts: off)",
 ];
 
 pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {

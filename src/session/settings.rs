@@ -67,27 +67,78 @@ impl Default for Settings {
 }
 
 /// Why a parameter change was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum SettingsError {
     /// The resulting nominal geometry is invalid.
     Geometry(GeometryError),
     /// A wiring sign other than 1 or −1.
     Sign,
+    /// `d_right / d_left` would be outside [`DIAMETER_RATIO_RANGE`].
+    DiameterRatio {
+        /// The ratio it would be.
+        ratio: f64,
+    },
+    /// `wheelbase / mean wheel diameter` would be outside [`WHEELBASE_RATIO_RANGE`].
+    WheelbaseRatio {
+        /// The ratio it would be.
+        ratio: f64,
+    },
 }
+
+/// Accepted nominal `d_right / d_left`: wheels of one robot differ by far less; a value outside
+/// is a typing error (a missing decimal point, millimetres for metres).
+pub const DIAMETER_RATIO_RANGE: (f64, f64) = (0.5, 2.0);
+/// Accepted nominal `wheelbase / mean wheel diameter` (real two-wheel robots: about 0.7..20).
+pub const WHEELBASE_RATIO_RANGE: (f64, f64) = (0.5, 50.0);
 
 impl fmt::Display for SettingsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             SettingsError::Geometry(e) => write!(f, "{e}"),
             SettingsError::Sign => f.write_str("a wiring sign is 1 (standard) or -1 (reversed)"),
+            SettingsError::DiameterRatio { ratio } => write!(
+                f,
+                "d_right/d_left would be {}, outside {}..{} (change the other diameter first, \
+                 or both in steps)",
+                crate::util::decimal::Decimal::fixed(*ratio, 3),
+                crate::util::decimal::Plain(DIAMETER_RATIO_RANGE.0),
+                crate::util::decimal::Plain(DIAMETER_RATIO_RANGE.1),
+            ),
+            SettingsError::WheelbaseRatio { ratio } => write!(
+                f,
+                "wheelbase/wheel diameter would be {}, outside {}..{}",
+                crate::util::decimal::Decimal::fixed(*ratio, 3),
+                crate::util::decimal::Plain(WHEELBASE_RATIO_RANGE.0),
+                crate::util::decimal::Plain(WHEELBASE_RATIO_RANGE.1),
+            ),
         }
     }
+}
+
+/// Checks a nominal geometry as a whole: each value in range, and the diameters and wheelbase
+/// consistent with each other.
+///
+/// # Errors
+/// The first [`SettingsError`] found.
+pub fn check_nominal(g: &Geometry) -> Result<(), SettingsError> {
+    g.validate().map_err(SettingsError::Geometry)?;
+    let ratio = g.diameter_ratio();
+    if !(DIAMETER_RATIO_RANGE.0..=DIAMETER_RATIO_RANGE.1).contains(&ratio) {
+        return Err(SettingsError::DiameterRatio { ratio });
+    }
+    let ratio = g.wheelbase_m / g.mean_diameter_m();
+    if !(WHEELBASE_RATIO_RANGE.0..=WHEELBASE_RATIO_RANGE.1).contains(&ratio) {
+        return Err(SettingsError::WheelbaseRatio { ratio });
+    }
+    Ok(())
 }
 
 /// What a successful [`Settings::with_value`] changed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Changed {
+    /// Nothing: the value equals the current one.
+    Nothing,
     /// The nominal geometry (the calibration was cleared: `active = nominal`).
     Geometry,
     /// A motion limit.
@@ -136,11 +187,14 @@ impl Settings {
     }
 
     /// A copy with one parameter changed. `value` must already be within `name.range()` (the
-    /// parser guarantees it); integer parameters are rounded. Changing the nominal geometry
-    /// drops the calibration, because its factors were relative to the old nominal.
+    /// parser guarantees it); integer parameters are rounded. A value equal to the current one
+    /// (as stored: `f32` limits compare as `f32`) changes nothing ([`Changed::Nothing`]).
+    /// Changing the nominal geometry drops the calibration, because its factors were relative to
+    /// the old nominal.
     ///
     /// # Errors
-    /// [`SettingsError::Geometry`] if the nominal geometry would be invalid.
+    /// A [`SettingsError`] if the nominal geometry would be invalid or inconsistent
+    /// ([`check_nominal`]).
     pub fn with_value(
         &self,
         name: ParamName,
@@ -207,8 +261,11 @@ impl Settings {
                 Changed::Wiring
             }
         };
+        if s == *self {
+            return Ok((s, Changed::Nothing));
+        }
         if changed == Changed::Geometry {
-            s.nominal.validate().map_err(SettingsError::Geometry)?;
+            check_nominal(&s.nominal)?;
             s.active = s.nominal;
             s.calibration = None;
         }

@@ -15,6 +15,7 @@ use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::profile::MotionLimits;
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::wiring::Wiring;
+use crate::storage::record::RecordError;
 
 /// What the robot is doing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -125,6 +126,9 @@ pub enum StorageError {
     Flash(&'static str),
     /// The settings cannot be stored (they fail the record's validation).
     Invalid(&'static str),
+    /// The settings fail the parameter record's validation (the one rule `apply` and `save`
+    /// share).
+    Record(RecordError),
 }
 
 impl fmt::Display for StorageError {
@@ -133,6 +137,7 @@ impl fmt::Display for StorageError {
             StorageError::MotorsRunning => f.write_str("motors running, flash not written"),
             StorageError::Flash(why) => write!(f, "flash error: {why}"),
             StorageError::Invalid(why) => write!(f, "parameters not storable: {why}"),
+            StorageError::Record(e) => write!(f, "parameters not storable: {e}"),
         }
     }
 }
@@ -206,7 +211,8 @@ pub trait Calibrator {
         nominal: &Geometry,
         method: &str,
     ) -> Result<Solution, SolveError>;
-    /// Writes track-size advice for these runs as data lines (each ending in `\r\n`).
+    /// Writes track-size advice for these runs as data lines (each ending in `\r\n`), for
+    /// every method or only for `only`.
     ///
     /// # Errors
     /// Only if `out` refuses the text.
@@ -214,6 +220,7 @@ pub trait Calibrator {
         &mut self,
         runs: &[RunRecord],
         nominal: &Geometry,
+        only: Option<&str>,
         out: &mut dyn fmt::Write,
     ) -> fmt::Result;
 }

@@ -4,7 +4,12 @@
 //! `--fast` it runs as fast as possible and takes each input line only once the robot is at rest
 //! (for scripts). After each run the true end pose in the run's start frame is printed on
 //! stderr, as the operator would measure it on the floor; `--auto-measure` enters it as a
-//! `measure` command.
+//! `measure` command (only for a run that finished and was stored, never after an abort).
+//!
+//! With `--pty`, this program's own stdin is the rest of the board: `button` (short press),
+//! `button long`, `reboot` (a new board over the same parameter flash, as after a reset or power
+//! cycle; with `--image`, the file's contents) and `help`. The boot event is also printed on
+//! stderr, since a terminal program that opens the pty later never sees it.
 
 use std::io::{Read, Write};
 use std::sync::mpsc;
@@ -115,28 +120,34 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     };
     let mut board = Board::boot(config, &mut flash, &mut out)?;
     let (tx, rx) = mpsc::channel::<Option<Vec<u8>>>();
+    let (ctl_tx, ctl_rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
         let (master, path, slave) = open_pty()?;
         println!("pty {path}");
         eprintln!("serial: connect to {path} (e.g. picocom {path}); Ctrl-C to quit");
+        eprintln!("serial: type `button`, `button long` or `reboot` here (`help` lists them)");
+        eprint!("sim: {out}");
         let mut reader = master.try_clone().map_err(|e| e.to_string())?;
         spawn_reader(move |buf| reader.read(buf), tx);
+        spawn_reader(|buf| std::io::stdin().read(buf), ctl_tx);
         (Box::new(master), Some(slave))
     } else {
         spawn_reader(|buf| std::io::stdin().read(buf), tx);
         (Box::new(std::io::stdout()), None)
     };
     let slice_periods = u64::from(args.rate / 100).max(1);
-    let mut pending: Vec<u8> = Vec::new();
+    let mut control = Vec::new();
     let mut input_done = false;
     let mut deadline = Instant::now();
     let mut was_running = false;
     let mut report_at_rest = false;
+    let mut stored_before = 0;
     loop {
-        // Collect what has arrived.
+        // What has arrived goes to the receive side at once (stop keys act now); lines wait in
+        // the board's input queue.
         loop {
             match rx.try_recv() {
-                Ok(Some(bytes)) => pending.extend_from_slice(&bytes),
+                Ok(Some(bytes)) => board.receive(&bytes, &mut out),
                 Ok(None) | Err(mpsc::TryRecvError::Disconnected) => {
                     input_done = true;
                     break;
@@ -144,23 +155,44 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                 Err(mpsc::TryRecvError::Empty) => break,
             }
         }
+        while let Ok(Some(bytes)) = ctl_rx.try_recv() {
+            control.extend_from_slice(&bytes);
+        }
+        while let Some(end) = control.iter().position(|&b| b == b'\n') {
+            let line: Vec<u8> = control.drain(..=end).collect();
+            let line = String::from_utf8_lossy(&line).trim().to_ascii_lowercase();
+            match line.as_str() {
+                "" => {}
+                "button" => board.press_button(false, &mut out),
+                "button long" => board.press_button(true, &mut out),
+                "reboot" => {
+                    drop(board);
+                    if let Some(path) = &args.image {
+                        flash = SimParamFlash::open(path)
+                            .map_err(|e| format!("{}: {e}", path.display()))?;
+                    }
+                    let mut boot = String::new();
+                    board = Board::boot(config, &mut flash, &mut boot)?;
+                    eprint!("sim: {boot}");
+                    out.push_str(&boot);
+                    (was_running, report_at_rest, stored_before) = (false, false, 0);
+                }
+                "help" => eprintln!(
+                    "sim: button | button long | reboot (the board's button and reset; the \
+                     console is the pty)"
+                ),
+                other => eprintln!("sim: unknown `{other}` (button | button long | reboot)"),
+            }
+        }
         let touched = board.store.flash().bytes_touched();
         let settled = |board: &Board| {
             let (r, l) = board.sim.wheel_speeds_mps();
             !args.settle || (r.abs() < f64::MIN_POSITIVE && l.abs() < f64::MIN_POSITIVE)
         };
-        if args.fast {
-            // One line at a time, each once the robot is at rest.
-            if board.at_rest()
-                && settled(&board)
-                && let Some(end) = pending.iter().position(|&b| b == b'\n')
-            {
-                let line: Vec<u8> = pending.drain(..=end).collect();
-                board.receive(&line, &mut out);
-            }
-        } else {
-            board.receive(&pending, &mut out);
-            pending.clear();
+        // With --fast, each line once the robot is at rest (and, with --settle, the wheels
+        // still); a stop key has already stopped the controller on arrival.
+        if !args.fast || settled(&board) {
+            board.process(&mut out, args.fast);
         }
         if let Some(path) = &args.image
             && board.store.flash().bytes_touched() != touched
@@ -177,14 +209,30 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         was_running = running;
         if report_at_rest && board.at_rest() && settled(&board) {
             report_at_rest = false;
+            // Only a run that finished was stored; an aborted one is not, and measuring it
+            // would fill an earlier run.
+            let stored = board.session.runs().len();
+            let finished = stored > stored_before
+                && board
+                    .session
+                    .runs()
+                    .last()
+                    .is_some_and(|r| r.measured.is_none());
+            stored_before = stored;
             if let Some(line) = measure_line(&board) {
-                eprintln!("sim: true end pose in the run's start frame: {line}");
-                if args.auto_measure {
+                let what = if finished {
+                    ""
+                } else {
+                    " (aborted, not stored)"
+                };
+                eprintln!("sim: true end pose in the run's start frame{what}: {line}");
+                if args.auto_measure && finished {
                     out.push_str(&format!("> {line}\r\n"));
                     out.push_str(&board.send(&line));
                 }
             }
         }
+        stored_before = stored_before.min(board.session.runs().len());
         if !out.is_empty() {
             writer
                 .write_all(out.as_bytes())
@@ -192,8 +240,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                 .map_err(|e| e.to_string())?;
             out.clear();
         }
-        let idle_input = pending.iter().all(|&b| b != b'\n');
-        if input_done && idle_input && board.at_rest() {
+        if input_done && !board.has_input() && board.at_rest() {
             return Ok(());
         }
         if !args.fast {
@@ -204,7 +251,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
             } else {
                 deadline = now;
             }
-        } else if pending.is_empty() && !input_done && board.at_rest() {
+        } else if !board.has_input() && !input_done && board.at_rest() {
             // Nothing to do until input arrives.
             std::thread::sleep(Duration::from_millis(1));
         }

@@ -4,15 +4,19 @@
 //! at the control rate, the library's [`Session`] executing protocol lines, and the library's
 //! [`ParamStore`] on the simulated parameter flash ([`SimParamFlash`], sectors 10–11), which
 //! outlives the board: dropping a `Board` and booting a new one over the same flash is a
-//! simulated reboot. Bytes go through the library's [`LineAssembler`], exactly as the USART2 RX
-//! interrupt feeds it on the board.
+//! simulated reboot. Bytes go through the library's receive loop and [`LineAssembler`], exactly
+//! as the USART2 RX interrupt feeds them on the board: a stop key (Ctrl-C, Esc) stops the
+//! controller at once, before any queued line; lines wait in an input queue for the session, as
+//! they wait for the console task on the board; the echo goes out as the bytes arrive.
+
+use std::collections::VecDeque;
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::bringup::CheckKind;
 use odocal::motion::controller::{Controller, Status, StepOutput};
 use odocal::protocol::LineAssembler;
-use odocal::protocol::reply::line_error_reply;
+use odocal::protocol::rx::{self, InputItem, RxRead};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Session, Settings, write_boot_event};
 use odocal::storage::ParamStore;
@@ -34,6 +38,8 @@ pub struct Board<'f> {
     /// Parameter storage on the simulated flash.
     pub store: ParamStore<&'f mut SimFlash>,
     assembler: LineAssembler,
+    /// Received lines and stop keys not yet handled by the session.
+    input: VecDeque<InputItem>,
     now_us: u64,
     period_us: u64,
     /// True pose when the current (or last) run started.
@@ -66,6 +72,7 @@ impl<'f> Board<'f> {
             session: Session::new(settings, LibraryCalibrator::default()),
             store,
             assembler: LineAssembler::new(),
+            input: VecDeque::new(),
             now_us: 0,
             period_us,
             run_start: None,
@@ -81,30 +88,72 @@ impl<'f> Board<'f> {
         self.now_us
     }
 
-    /// Bytes received on the serial port: assembled into lines and executed; replies are
-    /// appended to `out`.
+    /// Bytes received on the serial port, as the receive interrupt takes them: assembled into
+    /// lines (queued for [`Board::process`]); a stop key or a garbled line ending in `stop` stops
+    /// the controller now; the echo (when on) is appended to `out`.
     pub fn receive(&mut self, bytes: &[u8], out: &mut String) {
-        for &b in bytes {
-            let Some(line) = self.assembler.push(b) else {
-                continue;
-            };
-            match line {
-                Ok(text) => {
-                    let _ =
-                        self.session
-                            .handle_line(text, &mut self.controller, &mut self.store, out);
+        self.receive_reads(bytes.iter().map(|&b| RxRead::Byte(b)), out);
+    }
+
+    /// As [`Board::receive`], with receive errors (overrun, framing, noise) among the bytes.
+    pub fn receive_reads(&mut self, reads: impl IntoIterator<Item = RxRead>, out: &mut String) {
+        let echo = self.session.echo();
+        let (input, controller) = (&mut self.input, &mut self.controller);
+        let mut reads = reads.into_iter();
+        rx::drain(
+            || reads.next().unwrap_or(RxRead::Empty),
+            &mut self.assembler,
+            usize::MAX,
+            |event| {
+                let item = InputItem::from_event(event);
+                if item.is_stop() {
+                    // The board's control task does this within one period.
+                    controller.abort();
                 }
-                Err(e) => out.push_str(&line_error_reply(&e)),
+                input.push_back(item);
+            },
+            |bytes| {
+                if echo {
+                    out.push_str(&String::from_utf8_lossy(bytes));
+                }
+            },
+        );
+    }
+
+    /// Whether received input waits for the session.
+    pub fn has_input(&self) -> bool {
+        !self.input.is_empty()
+    }
+
+    /// Executes queued input on the session, replies appended to `out`. With `lines_at_rest`,
+    /// a line waits until the robot is at rest (stop keys never wait), for scripts that send
+    /// everything at once.
+    pub fn process(&mut self, out: &mut String, lines_at_rest: bool) {
+        while let Some(item) = self.input.front() {
+            if lines_at_rest && !item.is_stop() && !self.at_rest() {
+                break;
             }
+            let Some(item) = self.input.pop_front() else {
+                break;
+            };
+            let _ = self.session.handle_event(
+                item.as_event(),
+                &mut self.controller,
+                &mut self.store,
+                out,
+            );
             self.note_run_start();
         }
     }
 
-    /// One protocol line (terminator added); returns the reply text.
+    /// One protocol line (terminator added), executed at once, as a program sends it; returns
+    /// the reply text (without the echo, which a program ignores or turns off).
     pub fn send(&mut self, line: &str) -> String {
+        let mut echo = String::new();
+        self.receive(line.as_bytes(), &mut echo);
+        self.receive(b"\r", &mut echo);
         let mut out = String::new();
-        self.receive(line.as_bytes(), &mut out);
-        self.receive(b"\r\n", &mut out);
+        self.process(&mut out, false);
         out
     }
 
