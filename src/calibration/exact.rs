@@ -12,8 +12,12 @@
 //! - a run with ground truth along the whole path ([`RunObservation::truth_path`], e.g. a
 //!   motion-capture log): the position error at every knot, each divided by `√N` (`N` knots after
 //!   the start), so that the run adds the *mean* squared position error along its path to the
-//!   cost — one path weighs like one end pose, however finely it was sampled — plus `ℓ` times the
-//!   end heading residual as above.
+//!   cost — one path weighs like one end pose, however finely it was sampled. Along a path a
+//!   heading error already shows as the position errors that follow it, and a free path has no
+//!   length that would weigh a separate heading term fairly against them (its characteristic
+//!   length, tens of metres, would let the end heading swamp the path), so the end heading is
+//!   added (times `ℓ`) only when [`ExactOptions::heading_length_m`] gives `ℓ`. An in-place turn
+//!   recorded as a path therefore adds nothing about `E_b` by itself.
 //!
 //! Any path works: squares, lines, circles, free loops; runs may have been driven with different
 //! geometries, because the fit starts from raw ticks. `E_s` (the mean diameter) is only fitted
@@ -333,9 +337,13 @@ impl Problem<'_, '_> {
         !run.truth_path.is_empty()
     }
 
-    /// The measured end heading, when it is used.
+    /// The measured end heading, when it is used: with ground truth along the path only when a
+    /// heading length is given (see the module docs).
     fn heading(&self, run: &RunObservation<'_>) -> Option<f64> {
-        run.measured.theta_rad.filter(|_| self.options.use_heading)
+        let along_path = Self::is_path(run) && self.options.heading_length_m.is_none();
+        run.measured
+            .theta_rad
+            .filter(|_| self.options.use_heading && !along_path)
     }
 
     fn heading_length(&self, run: &RunObservation<'_>) -> f64 {

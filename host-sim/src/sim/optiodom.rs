@@ -1,13 +1,22 @@
-//! Reader for OptiOdom square-path sessions (`<id>_metadata.csv` + `<id>_run-NN.csv`).
+//! Reader for OptiOdom differential-drive sessions (`<id>_metadata.csv` + `<id>_run-NN.csv`) of
+//! every kind: `square`, `circular`, `ivanjko`, `free` (the name of the session's parent folder).
 //!
 //! Each run row is `time_s, x_gt_m, y_gt_m, theta_gt_rad, ticks_right, ticks_left` per 50 ms
-//! cycle; the ticks are per-cycle increments. The reader turns them into cumulative knots (one
-//! knot per row) and expresses the last ground-truth pose in the frame of the first one (the
-//! run's start frame: origin, heading +x). The first `N/2` runs are CW, the rest CCW.
+//! cycle; the ticks are per-cycle increments (the motion from the previous row). The reader turns
+//! them into cumulative knots, one knot per row, and expresses every ground-truth pose in the
+//! frame of the first one (the run's start frame: origin, heading +x), so that knot `j` and truth
+//! pose `j` belong together. For squares and circles the first `N/2` runs are CW, the rest CCW.
 //!
 //! The encoder resolution `ngear · encRes` is not an integer (43.7 · 64 = 2796.8 ticks per wheel
 //! revolution); [`Geometry::counts_per_rev`] is, so ticks and resolution are both multiplied by
 //! the smallest power of ten that makes it one (here 10). Travel per tick is unchanged.
+//!
+//! As calibration input ([`OptiRun::observation`]) a run is described by the path it drove:
+//! a square of the session's side `L`; a circle of the radius the ground truth shows (path
+//! length / total turn); Ivanjko's straight lines and in-place turns and free paths as a line
+//! whose length is the mean wheel travel (for a turn in place, the arc the wheels roll). That
+//! length is what the exact method weights the heading residual with, and what groups runs of
+//! similar size in its robust scale.
 
 use std::fs;
 use std::path::Path;
@@ -18,13 +27,47 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::{Direction, Measurement, PathKind};
 
+/// The kind of a session: the name of its parent folder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// UMBmark squares.
+    Square,
+    /// Circles, CW then CCW.
+    Circular,
+    /// Ivanjko's test: straight lines and 180° in-place turns.
+    Ivanjko,
+    /// Freely driven paths.
+    Free,
+}
+
+impl Kind {
+    /// The folder name (`square`, `circular`, `ivanjko`, `free`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Kind::Square => "square",
+            Kind::Circular => "circular",
+            Kind::Ivanjko => "ivanjko",
+            Kind::Free => "free",
+        }
+    }
+
+    /// The kind of a folder name.
+    pub fn parse(name: &str) -> Option<Kind> {
+        [Kind::Square, Kind::Circular, Kind::Ivanjko, Kind::Free]
+            .into_iter()
+            .find(|k| k.as_str() == name)
+    }
+}
+
 /// One recorded run.
 #[derive(Clone, Debug)]
 pub struct OptiRun {
-    /// Direction.
-    pub direction: Direction,
-    /// Cumulative (scaled) ticks, first `(0, 0)`.
+    /// Turn direction of a square or circle run (first half CW); `None` for other kinds.
+    pub direction: Option<Direction>,
+    /// Cumulative (scaled) ticks, one knot per row, first `(0, 0)`.
     pub knots: Vec<WheelTicks>,
+    /// Ground truth at every knot, in the start frame.
+    pub truth: Vec<PoseF64>,
     /// Ground-truth end pose in the start frame.
     pub truth_end: PoseF64,
 }
@@ -34,11 +77,13 @@ pub struct OptiRun {
 pub struct Session {
     /// Session id (folder name).
     pub id: String,
+    /// Kind (parent folder name).
+    pub kind: Kind,
     /// Nominal geometry of the session (its `Di`, `Li`, scaled resolution).
     pub nominal: Geometry,
     /// Factor applied to the raw ticks.
     pub tick_scale: i64,
-    /// Square side, metres.
+    /// Square side, metres (squares; 0 otherwise).
     pub side_m: f64,
     /// Runs in file order.
     pub runs: Vec<OptiRun>,
@@ -47,10 +92,12 @@ pub struct Session {
 fn parse_f64(s: &str, what: &str, file: &Path) -> Result<f64, String> {
     s.trim()
         .parse::<f64>()
-        .map_err(|_| format!("{}: bad {what} {s:?}", file.display()))
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("{}: bad {what} {s:?}", file.display()))
 }
 
-/// Reads one session folder.
+/// Reads one session folder; its kind is the parent folder's name.
 ///
 /// # Errors
 /// A message naming the folder or file when it is absent or malformed.
@@ -61,11 +108,25 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
             dir.display()
         ));
     }
+    let dir = &dir
+        .canonicalize()
+        .map_err(|e| format!("{}: {e}", dir.display()))?;
     let id = dir
         .file_name()
         .and_then(|s| s.to_str())
         .ok_or_else(|| format!("{}: not a session folder", dir.display()))?
         .to_string();
+    let parent = dir
+        .parent()
+        .and_then(|p| p.file_name())
+        .and_then(|s| s.to_str())
+        .unwrap_or("");
+    let kind = Kind::parse(parent).ok_or_else(|| {
+        format!(
+            "{}: the parent folder {parent:?} is not a session kind (square, circular, ivanjko, free)",
+            dir.display()
+        )
+    })?;
     let meta_path = dir.join(format!("{id}_metadata.csv"));
     let meta =
         fs::read_to_string(&meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
@@ -116,15 +177,30 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
     nominal
         .validate()
         .map_err(|e| format!("{}: {e}", meta_path.display()))?;
-    let n = first("N")? as usize;
-    let side_m = first("L")?;
+    let n = first("N")?;
+    if !(n >= 1.0 && n.fract() == 0.0) {
+        return Err(format!(
+            "{}: N must be a positive count",
+            meta_path.display()
+        ));
+    }
+    let n = n as usize;
+    let side_m = if kind == Kind::Square {
+        let l = first("L")?;
+        if l <= 0.0 {
+            return Err(format!("{}: L must be positive", meta_path.display()));
+        }
+        l
+    } else {
+        0.0
+    };
     let mut runs = Vec::with_capacity(n);
     for i in 0..n {
         let file = dir.join(format!("{id}_run-{:02}.csv", i + 1));
         let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-        let mut knots = vec![WheelTicks::new(0, 0)];
-        let mut start: Option<PoseF64> = None;
-        let mut last = PoseF64::default();
+        let mut knots = Vec::new();
+        let mut world = Vec::new();
+        let mut total = WheelTicks::new(0, 0);
         for (ln, line) in text
             .lines()
             .enumerate()
@@ -138,33 +214,37 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
                 .iter()
                 .map(|s| parse_f64(s, "value", &file))
                 .collect::<Result<_, _>>()?;
-            let pose = PoseF64::new(v[1], v[2], v[3]);
-            if start.is_none() {
-                start = Some(pose);
+            world.push(PoseF64::new(v[1], v[2], v[3]));
+            // The first row's ticks are the motion before the run started: not part of it.
+            if !knots.is_empty() {
+                let (dr, dl) = (v[4].round() as i64, v[5].round() as i64);
+                total =
+                    WheelTicks::new(total.right + dr * tick_scale, total.left + dl * tick_scale);
             }
-            last = pose;
-            let prev = *knots.last().unwrap_or(&WheelTicks::new(0, 0));
-            let (dr, dl) = (v[4].round() as i64, v[5].round() as i64);
-            if dr != 0 || dl != 0 {
-                knots.push(WheelTicks::new(
-                    prev.right + dr * tick_scale,
-                    prev.left + dl * tick_scale,
-                ));
-            }
+            knots.push(total);
         }
-        let start = start.ok_or_else(|| format!("{}: empty", file.display()))?;
+        let start = *world
+            .first()
+            .ok_or_else(|| format!("{}: empty", file.display()))?;
+        if world.len() < 2 {
+            return Err(format!("{}: a run needs at least two rows", file.display()));
+        }
+        let truth: Vec<PoseF64> = world.iter().map(|w| start.relative(w)).collect();
+        let direction = matches!(kind, Kind::Square | Kind::Circular).then_some(if i < n / 2 {
+            Direction::Cw
+        } else {
+            Direction::Ccw
+        });
         runs.push(OptiRun {
-            direction: if i < n / 2 {
-                Direction::Cw
-            } else {
-                Direction::Ccw
-            },
+            direction,
+            truth_end: *truth.last().unwrap_or(&PoseF64::default()),
             knots,
-            truth_end: start.relative(&last),
+            truth,
         });
     }
     Ok(Session {
         id,
+        kind,
         nominal,
         tick_scale,
         side_m,
@@ -173,13 +253,55 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
 }
 
 impl OptiRun {
-    /// The run as a calibration input, driven with `belief` (odometry re-integrated with it).
-    pub fn observation(&self, belief: &Geometry, side_m: f64) -> RunObservation<'_> {
-        RunObservation {
-            path: PathKind::Square {
-                direction: self.direction,
-                side_m,
+    /// Length of the ground-truth path, metres.
+    pub fn truth_length_m(&self) -> f64 {
+        self.truth.windows(2).map(|w| w[0].distance_to(&w[1])).sum()
+    }
+
+    /// Mean absolute wheel travel with `g`, metres (the arc the wheels roll for a turn).
+    pub fn wheel_travel_m(&self, g: &Geometry) -> f64 {
+        self.knots
+            .windows(2)
+            .map(|w| {
+                let d = w[1] - w[0];
+                0.5 * ((d.right as f64 * g.meters_per_tick_right()).abs()
+                    + (d.left as f64 * g.meters_per_tick_left()).abs())
+            })
+            .sum()
+    }
+
+    /// The path this run drove, as the calibration describes it (see the module docs).
+    pub fn path(&self, kind: Kind, side_m: f64, belief: &Geometry) -> PathKind {
+        match (kind, self.direction) {
+            (Kind::Square, Some(direction)) => PathKind::Square { direction, side_m },
+            (Kind::Circular, Some(direction)) => {
+                let turn = self
+                    .truth
+                    .last()
+                    .map_or(0.0, |t| t.theta_rad.abs())
+                    .max(f64::EPSILON);
+                PathKind::Circle {
+                    direction,
+                    radius_m: self.truth_length_m() / turn,
+                }
+            }
+            _ => PathKind::Line {
+                length_m: self.wheel_travel_m(belief),
             },
+        }
+    }
+
+    /// The run as a calibration input, driven with `belief` (odometry re-integrated with it);
+    /// with `along_path`, the ground truth at every knot is passed too (fit to the whole path).
+    pub fn observation(
+        &self,
+        kind: Kind,
+        side_m: f64,
+        belief: &Geometry,
+        along_path: bool,
+    ) -> RunObservation<'_> {
+        RunObservation {
+            path: self.path(kind, side_m, belief),
             geometry: *belief,
             knots: &self.knots,
             odometry_end: ArcModel::from_geometry(belief)
@@ -189,7 +311,7 @@ impl OptiRun {
                 y_m: self.truth_end.y_m,
                 theta_rad: Some(self.truth_end.theta_rad),
             },
-            truth_path: &[],
+            truth_path: if along_path { &self.truth } else { &[] },
         }
     }
 }
@@ -200,8 +322,8 @@ mod tests {
 
     #[test]
     fn reads_a_session_and_moves_truth_into_the_start_frame() {
-        let dir = std::env::temp_dir().join(format!("odocal-optiodom-{}", std::process::id()));
-        let dir = dir.join("1234");
+        let root = std::env::temp_dir().join(format!("odocal-optiodom-{}", std::process::id()));
+        let dir = root.join("square").join("1234");
         fs::create_dir_all(&dir).unwrap();
         fs::write(
             dir.join("1234_metadata.csv"),
@@ -213,12 +335,13 @@ mod tests {
         fs::write(dir.join("1234_run-01.csv"), run).unwrap();
         fs::write(dir.join("1234_run-02.csv"), run).unwrap();
         let s = read_session(&dir).unwrap();
-        fs::remove_dir_all(dir.parent().unwrap()).unwrap();
+        fs::remove_dir_all(&root).unwrap();
         assert_eq!(s.tick_scale, 10);
         assert_eq!(s.nominal.counts_per_rev, 27_968);
         assert_eq!(s.nominal.diameter_left_m, 0.083);
-        assert_eq!(s.runs[0].direction, Direction::Cw);
-        assert_eq!(s.runs[1].direction, Direction::Ccw);
+        assert_eq!(s.kind, Kind::Square);
+        assert_eq!(s.runs[0].direction, Some(Direction::Cw));
+        assert_eq!(s.runs[1].direction, Some(Direction::Ccw));
         assert_eq!(
             s.runs[0].knots,
             [

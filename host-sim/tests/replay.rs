@@ -1,0 +1,232 @@
+//! `host-sim replay` on the shared OptiOdom sessions (`../shared/data` beside the checkout, or
+//! `ODOCAL_DATA`): the JSON interface, the robust default on the 1.7 m squares, E_s from the
+//! line session, the fit along ground-truth paths, and a clear error for an absent folder.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use host_sim::commands::replay::{
+    EXACT_LS, EXACT_PATH, FitOptions, ParamSet, calibrate_method, calibrated_methods, e_max_syst,
+    evaluate_set,
+};
+use host_sim::sim::optiodom::{Kind, Session, read_session};
+use serde_json::Value;
+
+fn data_dir() -> PathBuf {
+    std::env::var_os("ODOCAL_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
+        PathBuf::from,
+    )
+}
+
+/// The folder of a shared session, or `None` (test skipped, said on stderr) when absent.
+fn session_dir(kind: &str, id: &str) -> Option<PathBuf> {
+    let d = data_dir().join("optiodom/diff").join(kind).join(id);
+    if d.is_dir() {
+        Some(d)
+    } else {
+        eprintln!("skipped: {} absent (set ODOCAL_DATA)", d.display());
+        None
+    }
+}
+
+fn session(kind: &str, id: &str) -> Option<Session> {
+    session_dir(kind, id).map(|d| read_session(&d).unwrap())
+}
+
+fn sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+#[test]
+fn an_absent_session_folder_is_a_clear_error() {
+    let out = sim()
+        .args([
+            "replay",
+            "--calibrate",
+            "/nonexistent/optiodom/diff/square/1",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("does not exist"), "{err}");
+    let out = sim()
+        .args(["replay", "--method", "exact"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+}
+
+#[test]
+fn json_rows_carry_the_fixed_keys_for_every_method() {
+    let (Some(cal), Some(ev), Some(free)) = (
+        session_dir("square", "231220200029"),
+        session_dir("square", "231220200040"),
+        session_dir("free", "030120210001"),
+    ) else {
+        return;
+    };
+    let out_dir = std::env::temp_dir().join(format!("odocal-replay-{}", std::process::id()));
+    let out = sim()
+        .arg("replay")
+        .arg("--calibrate")
+        .arg(&cal)
+        .arg("--evaluate")
+        .arg(&ev)
+        .arg(&free)
+        .args([
+            "--geometry",
+            "0.084,0.084,0.202",
+            "--format",
+            "json",
+            "--out",
+        ])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let rows: Vec<Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let keys = [
+        "method",
+        "calib_sessions",
+        "session",
+        "kind",
+        "run",
+        "final_pos_err_m",
+        "final_heading_err_rad",
+        "path_rms_m",
+        "path_max_m",
+        "E_b",
+        "E_d",
+        "E_s",
+    ];
+    for r in &rows {
+        for k in keys {
+            assert!(r.get(k).is_some(), "{k} missing in {r}");
+        }
+    }
+    // Every parameter set: nominal, the given geometry, every method; 6 + 2 runs each and one
+    // summary with "run": "all".
+    let mut expected: Vec<&str> = vec!["nominal", "geometry"];
+    expected.extend(calibrated_methods());
+    for m in &expected {
+        let of: Vec<&Value> = rows.iter().filter(|r| r["method"] == *m).collect();
+        assert_eq!(of.len(), 6 + 2 + 1, "{m}");
+        let summary: Vec<_> = of.iter().filter(|r| r["run"] == "all").collect();
+        assert_eq!(summary.len(), 1, "{m}");
+        let n = summary[0]["runs"].as_u64().unwrap();
+        assert_eq!(n, 8);
+        // The summary is the mean of the rows.
+        let mean = of
+            .iter()
+            .filter(|r| r["run"] != "all")
+            .map(|r| r["final_pos_err_m"].as_f64().unwrap())
+            .sum::<f64>()
+            / 8.0;
+        let s = summary[0]["final_pos_err_m"].as_f64().unwrap();
+        assert!((mean - s).abs() < 1e-12 * s.max(1.0), "{m}: {mean} vs {s}");
+    }
+    for r in &rows {
+        let default = r["default"].as_bool().unwrap();
+        assert_eq!(default, r["method"] == "exact", "{r}");
+        let calibrated = !matches!(r["method"].as_str(), Some("nominal" | "geometry"));
+        assert_eq!(
+            r["calib_sessions"].as_array().unwrap().len(),
+            usize::from(calibrated)
+        );
+        if r["run"] != "all" {
+            assert!(matches!(r["kind"].as_str(), Some("square" | "free")));
+        }
+    }
+    let nominal = rows
+        .iter()
+        .find(|r| r["method"] == "nominal" && r["run"] == 1)
+        .unwrap();
+    assert_eq!(nominal["E_b"].as_f64(), Some(1.0));
+    // The plots of both free runs are written next to the JSON.
+    assert!(out_dir.join("replay.jsonl").is_file());
+    for run in 1..=2 {
+        for part in ["path", "error"] {
+            let f = out_dir.join(format!("030120210001-run-{run:02}-{part}.svg"));
+            assert!(f.is_file(), "{}", f.display());
+        }
+    }
+    std::fs::remove_dir_all(&out_dir).unwrap();
+}
+
+#[test]
+fn the_slipped_start_of_231220200029_run_2_is_flagged_and_loses_its_weight() {
+    let Some(s) = session("square", "231220200029") else {
+        return;
+    };
+    let c = calibrate_method(std::slice::from_ref(&s), "exact", &FitOptions::default()).unwrap();
+    let f = c.fit.unwrap();
+    assert!(f.robust && f.reweighted);
+    let flagged: Vec<usize> = f
+        .runs()
+        .iter()
+        .filter(|r| r.outlier)
+        .map(|r| r.index)
+        .collect();
+    // Run 2 (index 1): odometry turned ≈75 mrad more than the robot in its first 0.3 s.
+    assert_eq!(flagged, [1]);
+    let r2 = f.runs()[1];
+    assert!(
+        r2.residual_theta_rad.unwrap() > 0.05 && r2.weight < 0.2,
+        "{r2:?}"
+    );
+    let plain = calibrate_method(std::slice::from_ref(&s), EXACT_LS, &FitOptions::default())
+        .unwrap()
+        .fit
+        .unwrap();
+    assert!(plain.runs().iter().all(|r| r.weight == 1.0 && !r.outlier));
+}
+
+#[test]
+fn lines_add_e_s_and_paths_fit_the_whole_trajectory() {
+    let (Some(sq), Some(iv), Some(free)) = (
+        session("square", "231220200029"),
+        session("ivanjko", "231220200057"),
+        session("free", "030120210001"),
+    ) else {
+        return;
+    };
+    assert_eq!((iv.kind, free.kind), (Kind::Ivanjko, Kind::Free));
+    let fit = FitOptions::default();
+    let squares = calibrate_method(std::slice::from_ref(&sq), "exact", &fit).unwrap();
+    // Squares alone keep the mean diameter; the line session adds it, with a 1σ.
+    assert_eq!(squares.e_s, 1.0);
+    let both = calibrate_method(&[sq.clone(), iv.clone()], "exact", &fit).unwrap();
+    let s_es = both.quality.sigma_e_s.unwrap();
+    assert!(both.e_s != 1.0 && s_es > 0.0 && s_es < 5e-3, "{both:?}");
+    // In-sample, the fit along the free paths must beat nominal along those paths, and the
+    // end-pose fit of the same runs cannot beat it on the path RMS it did not minimise.
+    let path = calibrate_method(std::slice::from_ref(&free), EXACT_PATH, &fit).unwrap();
+    let set = |c: Option<&odocal::calibration::Calibration>| ParamSet {
+        method: "x".into(),
+        calib_sessions: Vec::new(),
+        geometry: c.map(|c| c.geometry),
+        calibration: None,
+    };
+    let nominal = evaluate_set(&set(None), std::slice::from_ref(&free)).overall;
+    let fitted = evaluate_set(&set(Some(&path)), std::slice::from_ref(&free)).overall;
+    assert!(
+        fitted.path_rms_m < 0.5 * nominal.path_rms_m,
+        "nominal {nominal:?} fitted {fitted:?}"
+    );
+    // E_max,syst of a square session: nominal ≈ 104 mm (docs/calibration.md), after the
+    // calibration on the other 1.7 m session at most a third of it.
+    let ev = session("square", "231220200040").unwrap();
+    let before = e_max_syst(&ev, &ev.nominal).unwrap();
+    let after = e_max_syst(&ev, &squares.geometry).unwrap();
+    assert!(after < before / 3.0, "{before} → {after}");
+}
