@@ -187,6 +187,10 @@ pub fn run(args: &BenchArgs) -> Result<(), Box<dyn std::error::Error>> {
             eb: 1.010,
             ed: 0.995,
             seed: 1,
+            slip_start: 0.0,
+            slip_start_rad: 0.0,
+            heading: false,
+            meas_sigma_rad: 0.0,
             format: Format::Text,
         };
         println!(

@@ -5,14 +5,22 @@
 //! - **slip**: every segment is split into `substeps` equal parts; in each, the ground travel of
 //!   each wheel is its encoder travel × `(1 + slip·N(0,1))`, independently per wheel (the encoder
 //!   records the commanded rotation, the ground sees the slipped one);
-//! - **measurement noise**: `N(0, σ)` added to the measured x and y (θ is not measured).
+//! - **measurement noise**: `N(0, σ)` added to the measured x and y; with `--heading` the end
+//!   heading is measured too, with `N(0, σ_θ)` (`--meas-sigma-rad`);
+//! - **slipping start** (`--slip-start P`): with probability `P` per run the wheels spin in a
+//!   jerk before the robot moves: the encoders record an in-place turn of `±slip-start-rad`
+//!   (random sign) that the robot never makes, so the odometry's heading is off by that much
+//!   from the start on (as in OptiOdom 231220200029 run 2). Only measured headings see it.
+//!
+//! Besides every method, the `exact-ls` row is the exact fit by plain least squares
+//! ([`ExactOptions::plain`]); `exact` is the default, robust fit.
 //!
 //! Each trial drives `runs` CW and `runs` CCW squares and calibrates with every method; the
 //! report is the mean and standard deviation over trials of the relative errors of `E_b`, `E_d`.
 
 use clap::Args;
-use odocal::calibration::synth::square_segments;
-use odocal::calibration::{Method, RunObservation, calibrate};
+use odocal::calibration::synth::{square_segments, turn_ticks};
+use odocal::calibration::{ExactOptions, Method, RunObservation, calibrate_with};
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
@@ -47,6 +55,18 @@ pub struct MonteCarloArgs {
     /// True E_d.
     #[arg(long, default_value_t = 0.995)]
     pub ed: f64,
+    /// Probability per run of a slipping start (a phantom in-place turn in the encoders).
+    #[arg(long, default_value_t = 0.0)]
+    pub slip_start: f64,
+    /// Size of the phantom turn of a slipping start, radians (random sign).
+    #[arg(long, default_value_t = 0.075)]
+    pub slip_start_rad: f64,
+    /// Measure the end heading too.
+    #[arg(long)]
+    pub heading: bool,
+    /// 1σ of a measured heading, radians (with `--heading`).
+    #[arg(long, default_value_t = 0.001)]
+    pub meas_sigma_rad: f64,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -96,6 +116,12 @@ pub fn noisy_square(
     let sub = args.substeps.max(1) as i64;
     let mut knots = vec![WheelTicks::new(0, 0)];
     let mut true_knots = vec![WheelTicks::new(0, 0)];
+    // A slipping start: the encoders count a turn the robot does not make.
+    if args.slip_start > 0.0 && rng.uniform() <= args.slip_start {
+        let sign = if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+        knots.push(turn_ticks(belief, sign * args.slip_start_rad));
+        true_knots.push(WheelTicks::new(0, 0));
+    }
     for seg in square_segments(belief, direction, side_m) {
         for i in 0..sub {
             // Split the segment's ticks into `sub` integer parts that add up exactly.
@@ -113,10 +139,15 @@ pub fn noisy_square(
     }
     let odo = ArcModel::from_geometry(belief).integrate(PoseF64::default(), &knots);
     let t = ArcModel::from_geometry(truth).integrate(PoseF64::default(), &true_knots);
+    let x_m = t.x_m + args.meas_sigma * rng.normal();
+    let y_m = t.y_m + args.meas_sigma * rng.normal();
+    let theta_rad = args
+        .heading
+        .then(|| t.theta_rad + args.meas_sigma_rad * rng.normal());
     let measured = Measurement {
-        x_m: t.x_m + args.meas_sigma * rng.normal(),
-        y_m: t.y_m + args.meas_sigma * rng.normal(),
-        theta_rad: None,
+        x_m,
+        y_m,
+        theta_rad,
     };
     (knots, odo, measured)
 }
@@ -181,14 +212,19 @@ pub fn run(args: &MonteCarloArgs) -> Result<(), Box<dyn std::error::Error>> {
     if !(args.side > 0.0 && args.runs > 0 && args.trials > 1) {
         return Err("need side > 0, runs ≥ 1, trials ≥ 2".into());
     }
-    let methods = [
+    let mut methods: Vec<(String, Method, ExactOptions)> = [
         Method::UmbmarkX,
         Method::UmbmarkY,
         Method::LeeX,
         Method::LeeY,
-        Method::Exact,
-    ];
-    let mut acc = [Acc::default(); 5];
+    ]
+    .into_iter()
+    .chain(args.heading.then_some(Method::JungChung))
+    .chain([Method::Exact])
+    .map(|m| (m.as_str().to_string(), m, ExactOptions::default()))
+    .collect();
+    methods.push(("exact-ls".into(), Method::Exact, ExactOptions::plain()));
+    let mut acc = vec![Acc::default(); methods.len()];
     let mut rng = Rng::new(args.seed);
     for _ in 0..args.trials {
         let mut recs = Vec::new();
@@ -212,8 +248,8 @@ pub fn run(args: &MonteCarloArgs) -> Result<(), Box<dyn std::error::Error>> {
                 truth_path: &[],
             })
             .collect();
-        for (i, m) in methods.iter().enumerate() {
-            match calibrate(&obs, &nominal, *m) {
+        for (i, (_, m, options)) in methods.iter().enumerate() {
+            match calibrate_with(&obs, &nominal, *m, options) {
                 Ok(c) => acc[i].push(c.e_b / args.eb - 1.0, c.e_d / truth.diameter_ratio() - 1.0),
                 Err(_) => acc[i].failed += 1,
             }
@@ -221,32 +257,81 @@ pub fn run(args: &MonteCarloArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     if args.format == Format::Text {
         println!(
-            "{} trials, L = {} m, {}+{} runs, σ_meas = {} mm, slip σ = {} per substep ({} substeps/segment), truth E_b = {}, E_d = {}",
+            "{} trials, L = {} m, {}+{} runs, σ_meas = {} mm{}, slip σ = {} per substep ({} substeps/segment){}, truth E_b = {}, E_d = {}",
             args.trials,
             args.side,
             args.runs,
             args.runs,
             args.meas_sigma * 1e3,
+            if args.heading {
+                format!(" and {} mrad", args.meas_sigma_rad * 1e3)
+            } else {
+                String::new()
+            },
             args.slip,
             args.substeps,
+            if args.slip_start > 0.0 {
+                format!(
+                    ", slipping start P = {} of ±{} mrad",
+                    args.slip_start,
+                    args.slip_start_rad * 1e3
+                )
+            } else {
+                String::new()
+            },
             args.eb,
             args.ed
         );
         Acc::print_header();
     }
-    for (m, a) in methods.iter().zip(acc.iter()) {
+    for ((m, _, _), a) in methods.iter().zip(acc.iter()) {
         let (mb, sb) = a.mean_std(0);
         let (md, sd) = a.mean_std(1);
         match args.format {
-            Format::Text => a.print_row(m.as_str()),
+            Format::Text => a.print_row(m),
             Format::Json => println!(
                 "{{\"L\":{},\"method\":\"{}\",\"trials\":{},\"E_b_err_mean\":{mb:e},\"E_b_err_std\":{sb:e},\"E_d_err_mean\":{md:e},\"E_d_err_std\":{sd:e},\"failed\":{}}}",
-                args.side,
-                m.as_str(),
-                a.n,
-                a.failed
+                args.side, m, a.n, a.failed
             ),
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(slip_start: f64) -> MonteCarloArgs {
+        MonteCarloArgs {
+            trials: 2,
+            side: 2.0,
+            runs: 5,
+            meas_sigma: 0.0,
+            slip: 0.0,
+            substeps: 1,
+            eb: 1.0,
+            ed: 1.0,
+            slip_start,
+            slip_start_rad: 0.075,
+            heading: true,
+            meas_sigma_rad: 0.0,
+            seed: 1,
+            format: Format::Text,
+        }
+    }
+
+    #[test]
+    fn a_slipping_start_turns_the_odometry_and_not_the_robot() {
+        let g = Geometry::PAPER_NOMINAL;
+        let mut rng = Rng::new(3);
+        let (_, odo, m) = noisy_square(&g, &g, Direction::Cw, 2.0, &args(1.0), &mut rng);
+        // Truth = belief and no noise: the only heading error is the phantom turn, ±75 mrad to
+        // the tick quantisation of the turn (1e-5 rad here).
+        let d = odocal::calibration::wrap_angle(m.theta_rad.unwrap() - odo.theta_rad);
+        assert!((d.abs() - 0.075).abs() < 1e-4, "{d}");
+        let (_, odo, m) = noisy_square(&g, &g, Direction::Cw, 2.0, &args(0.0), &mut rng);
+        let d = odocal::calibration::wrap_angle(m.theta_rad.unwrap() - odo.theta_rad);
+        assert!(d.abs() < 1e-9, "{d}");
+    }
 }

@@ -191,6 +191,10 @@ fn mc_args(a: &SweepArgs, side_m: f64, meas: f64, slip: f64) -> MonteCarloArgs {
         eb: a.eb,
         ed: a.ed,
         seed: a.seed,
+        slip_start: 0.0,
+        slip_start_rad: 0.0,
+        heading: false,
+        meas_sigma_rad: 0.0,
         format: Format::Text,
     }
 }
