@@ -194,6 +194,7 @@ impl Calibrator for KnownCalibrator {
                 e_max_m: Some(0.0012),
                 sd_e_d: Some(2.5e-4),
                 sd_e_b: None,
+                residuals: heapless::Vec::new(),
             }),
             "beta" => Err(SolveError::Failed("degenerate")),
             "wild" => Ok(Solution {
@@ -204,6 +205,7 @@ impl Calibrator for KnownCalibrator {
                 e_max_m: None,
                 sd_e_d: None,
                 sd_e_b: None,
+                residuals: heapless::Vec::new(),
             }),
             _ => Err(SolveError::UnknownMethod),
         }
@@ -460,6 +462,10 @@ fn stop_keys_and_garbled_stop_lines_stop() {
     let mut b = Bench::new();
     // Idle: nothing moves, nothing to say.
     assert_eq!(event(&mut b, LineEvent::Stop(StopKey::Escape)), "");
+    assert_eq!(
+        event(&mut b, LineEvent::Stop(StopKey::CtrlC)),
+        "event stopped (Ctrl-C)\r\n"
+    );
     b.send("run cw");
     assert_eq!(
         event(&mut b, LineEvent::Stop(StopKey::CtrlC)),

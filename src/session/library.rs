@@ -16,8 +16,8 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::settings::{AppliedCalibration, Settings};
 use super::traits::{
-    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
-    StorageError,
+    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, RunResidual, Solution,
+    SolveError, StorageError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, CalibrationError, Method, RunObservation};
@@ -396,6 +396,30 @@ impl Calibrator for LibraryCalibrator {
         let method = Method::parse(method).ok_or(SolveError::UnknownMethod)?;
         let obs = observations(runs);
         let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
+        // Store numbers of the runs that became observations, in order.
+        let numbers: Vec<usize, MAX_RUNS> = runs
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| RunObservation::from_record(r).is_some())
+            .map(|(i, _)| i + 1)
+            .take(MAX_RUNS)
+            .collect();
+        let residuals = c
+            .fit
+            .iter()
+            .flat_map(|f| f.runs().iter())
+            .filter_map(|f| {
+                Some(RunResidual {
+                    run: *numbers.get(f.index)?,
+                    dx_m: f.residual_x_m,
+                    dy_m: f.residual_y_m,
+                    dtheta_rad: f.residual_theta_rad,
+                    weight: f.weight,
+                    outlier: f.outlier,
+                })
+            })
+            .take(MAX_RUNS)
+            .collect();
         Ok(Solution {
             e_d: c.e_d,
             e_b: c.e_b,
@@ -404,6 +428,7 @@ impl Calibrator for LibraryCalibrator {
             e_max_m: c.quality.e_max_after_m,
             sd_e_d: c.quality.sigma_e_d,
             sd_e_b: c.quality.sigma_e_b,
+            residuals,
         })
     }
 

@@ -43,8 +43,8 @@ use crate::util::num::clamp;
 use crate::util::text::keyword_eq;
 pub use settings::{AppliedCalibration, Changed, Settings, SettingsError, check_nominal};
 pub use traits::{
-    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, Solution, SolveError,
-    StorageError,
+    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, RunResidual, Solution,
+    SolveError, StorageError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -343,8 +343,9 @@ impl<C: Calibrator> Session<C> {
     }
 
     /// Ctrl-C or Esc: stops any motion (the board's receive interrupt has already told the
-    /// control task; this is idempotent). Writes `event stopped (…)` if anything moved, then
-    /// the aborted run's event.
+    /// control task; this is idempotent). Writes `event stopped (Ctrl-C)` always, `event stopped
+    /// (Esc)` only if something was still moving (arrow keys send Esc too), then the aborted
+    /// run's event if it was not announced yet.
     ///
     /// # Errors
     /// Only if `out` refuses the text.
@@ -356,7 +357,7 @@ impl<C: Calibrator> Session<C> {
     ) -> fmt::Result {
         let moving = robot.status().activity != Activity::Idle || self.active.is_some();
         robot.abort();
-        if moving {
+        if moving || key == StopKey::CtrlC {
             let name = match key {
                 StopKey::CtrlC => "Ctrl-C",
                 StopKey::Escape => "Esc",
@@ -794,6 +795,8 @@ impl<C: Calibrator> Session<C> {
         let nominal = self.settings.nominal;
         report::write_solution_header(out)?;
         let mut solved = 0usize;
+        // The first result with per-run residuals (the exact fit) is listed after the table.
+        let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
         let methods: Vec<&'static str, 16> =
             self.calibrator.methods().iter().take(16).copied().collect();
         for name in methods {
@@ -801,10 +804,16 @@ impl<C: Calibrator> Session<C> {
                 continue;
             }
             let result = self.calibrator.solve(&self.runs, &nominal, name);
-            if result.is_ok() {
+            if let Ok(s) = &result {
                 solved += 1;
+                if residuals.is_none() && !s.residuals.is_empty() {
+                    residuals = Some((name, s.residuals.clone()));
+                }
             }
             report::write_solution_row(out, name, &result)?;
+        }
+        if let Some((name, r)) = &residuals {
+            report::write_residuals(out, name, r)?;
         }
         let p = self.progress();
         if solved == 0 {

@@ -221,6 +221,52 @@ pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result
     write!(out, "ok {} runs, {measured} measured{EOL}", runs.len())
 }
 
+/// The per-run residual list of one result, then a line naming the runs that disagree with the
+/// others (robust scale), so a swapped or mistyped measurement is caught before `apply`.
+pub(super) fn write_residuals(
+    out: &mut dyn Write,
+    method: &str,
+    residuals: &[super::RunResidual],
+) -> fmt::Result {
+    write!(
+        out,
+        "  residuals vs {method} (measured - fitted end; weight of the robust fit){EOL}"
+    )?;
+    for r in residuals {
+        write!(
+            out,
+            "  run {:<2} dx={} mm dy={} mm",
+            r.run,
+            Decimal::signed(r.dx_m * 1e3, 3),
+            Decimal::signed(r.dy_m * 1e3, 3)
+        )?;
+        if let Some(t) = r.dtheta_rad {
+            write!(out, " dtheta={} deg", Decimal::signed(t.to_degrees(), 3))?;
+        }
+        write!(out, " weight={}", Decimal::fixed(r.weight, 2))?;
+        if r.outlier {
+            out.write_str(" DISAGREES")?;
+        }
+        out.write_str(EOL)?;
+    }
+    let mut first = true;
+    for r in residuals.iter().filter(|r| r.outlier) {
+        if first {
+            out.write_str("  check run")?;
+            first = false;
+        }
+        write!(out, " {}", r.run)?;
+    }
+    if !first {
+        write!(
+            out,
+            ": disagrees with the others by more than the robust scale (x/y swapped, a sign, a \
+             unit?); drop <n> or measure #<n> x y, then calibrate again{EOL}"
+        )?;
+    }
+    Ok(())
+}
+
 pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
     write!(
         out,

@@ -156,8 +156,25 @@ pub trait ParamStorage {
     fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError>;
 }
 
-/// One method's calibration result, factors relative to the nominal geometry.
+/// How one stored run fits a result (the exact method's robust fit).
 #[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunResidual {
+    /// Run number as `runs` shows it (1-based position in the store).
+    pub run: usize,
+    /// End residual `measured − predicted` in x, metres.
+    pub dx_m: f64,
+    /// End residual in y, metres.
+    pub dy_m: f64,
+    /// End heading residual, radians, when the heading was measured.
+    pub dtheta_rad: Option<f64>,
+    /// The run's weight in the robust fit, (0, 1].
+    pub weight: f64,
+    /// The run disagrees with the others (robust scale).
+    pub outlier: bool,
+}
+
+/// One method's calibration result, factors relative to the nominal geometry.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Solution {
     /// `E_d = D_R / D_L`.
     pub e_d: f64,
@@ -173,6 +190,8 @@ pub struct Solution {
     pub sd_e_d: Option<f64>,
     /// One-sigma uncertainty of `E_b`, if known.
     pub sd_e_b: Option<f64>,
+    /// Every measured run's residual against this result, when the method reports them.
+    pub residuals: heapless::Vec<RunResidual, { crate::motion::run::MAX_RUNS }>,
 }
 
 /// Why a calibration method produced no result.

@@ -1,0 +1,162 @@
+//! The console as an operator and a script use it, on the simulated board: stop keys stop the
+//! motors in the same control period, a swapped x/y measurement among 5 + 5 squares is named by
+//! `calibrate`, and the `cargo sim serial` pipe answers a terminal's CR line ends and Ctrl-C.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+use host_sim::sim::board::{Board, measure_line};
+use host_sim::sim::flash::SimParamFlash;
+use host_sim::sim::robot::sim_config;
+use odocal::motion::controller::{MotorCommand, Status};
+
+const MAX_RUN_PERIODS: u64 = 120_000;
+
+fn boot(flash: &mut SimParamFlash) -> Board<'_> {
+    let mut out = String::new();
+    Board::boot(sim_config(0.995, 1.010, 0.0, 1, 1000), flash, &mut out).expect("boot")
+}
+
+#[test]
+fn ctrl_c_and_esc_stop_the_motors_in_the_same_period() {
+    for key in [&b"\x03"[..], b"\x1b", b"\x1b[A"] {
+        let mut flash = SimParamFlash::erased();
+        let mut b = boot(&mut flash);
+        let mut out = String::new();
+        assert!(b.send("run cw 1").starts_with("ok run 1 started"));
+        for _ in 0..2_000 {
+            b.step(&mut out);
+        }
+        assert!(!b.controller.motors_stopped());
+        // Lines queued before the key (not yet executed) do not delay it.
+        b.receive(b"params\rstatus\r", &mut out);
+        b.receive(key, &mut out);
+        // The very next control period commands zero duty on both wheels.
+        let step = b.step(&mut out);
+        assert!(
+            matches!(step.command, MotorCommand::Stop(_)),
+            "{key:?}: {:?}",
+            step.command
+        );
+        assert!(!matches!(b.controller.status(), Status::Running { .. }));
+        // The next poll (in that period) announces the aborted run; then the queued lines run.
+        b.process(&mut out, false);
+        assert!(
+            out.contains("event run 1 aborted, not stored: square cw L=1.000 m"),
+            "{out}"
+        );
+        if key == b"\x03" {
+            assert!(out.contains("event stopped (Ctrl-C)"), "{out}");
+        }
+        // The aborted run is not measured onto anything.
+        assert!(
+            b.send("measure 0 0")
+                .starts_with("err 12: run 1 was aborted")
+        );
+    }
+}
+
+#[test]
+fn receive_errors_reject_the_line_and_stop_still_works() {
+    use odocal::protocol::rx::RxRead;
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    let mut out = String::new();
+    // An overrun inside `set counts_per_rev 200000` must not store 20000.
+    let text = b"set counts_per_rev 20000";
+    let mut reads: Vec<RxRead> = text.iter().map(|&c| RxRead::Byte(c)).collect();
+    reads.insert(20, RxRead::Error);
+    reads.push(RxRead::Byte(b'0'));
+    reads.push(RxRead::Byte(b'\r'));
+    b.receive_reads(reads, &mut out);
+    let mut replies = String::new();
+    b.process(&mut replies, false);
+    assert_eq!(
+        replies,
+        "err 21: receive error (overrun, framing or noise) in this line, ignored\r\n"
+    );
+    assert_eq!(b.session.settings().nominal.counts_per_rev, 200_000);
+    // Garbage before `stop`, even a receive error, does not keep it from stopping.
+    assert!(b.send("run cw 1").starts_with("ok run 1 started"));
+    b.receive_reads([RxRead::Error], &mut out);
+    b.receive(b"~x stop\r", &mut out);
+    let step = b.step(&mut out);
+    assert!(matches!(step.command, MotorCommand::Stop(_)));
+    b.process(&mut out, false);
+    assert!(
+        out.ends_with("event run 1 aborted, not stored: square cw L=1.000 m\r\nok stopped\r\n"),
+        "{out}"
+    );
+}
+
+/// Drives the planned 5 + 5 squares and measures each at its true end pose, except run
+/// `swapped`, whose x and y are entered the wrong way round.
+fn session_with_swapped_run(swapped: usize) -> String {
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    assert_eq!(b.send("set square_side 1"), "ok square_side = 1.000 m\r\n");
+    let mut log = String::new();
+    for run in 1..=10 {
+        assert!(b.send("next").starts_with(&format!("ok run {run} started")));
+        assert!(b.run_until_rest(MAX_RUN_PERIODS, &mut log) < MAX_RUN_PERIODS);
+        let mut line = measure_line(&b).expect("a run was driven");
+        if run == swapped {
+            let w: Vec<&str> = line.split_whitespace().collect();
+            line = format!("measure {} {} {}", w[2], w[1], w[3]);
+        }
+        let reply = b.send(&line);
+        assert!(
+            reply.starts_with(&format!("ok run {run} ")),
+            "{line}: {reply}"
+        );
+    }
+    b.send("calibrate")
+}
+
+#[test]
+fn calibrate_names_a_swapped_run() {
+    // Run 4 (CCW) with x and y swapped: it passes the plausibility check (both coordinates are
+    // centimetres from the odometry end of a closed square), so only the fit can catch it.
+    let table = session_with_swapped_run(4);
+    println!("{table}");
+    assert!(
+        table.contains("  check run 4: disagrees with the others"),
+        "{table}"
+    );
+    let flagged: Vec<&str> = table.lines().filter(|l| l.ends_with("DISAGREES")).collect();
+    assert_eq!(flagged.len(), 1, "{table}");
+    assert!(flagged[0].starts_with("  run 4 "), "{table}");
+    // Without the swap no run is named.
+    let clean = session_with_swapped_run(0);
+    assert!(!clean.contains("check run"), "{clean}");
+    assert!(!clean.contains("DISAGREES"), "{clean}");
+}
+
+#[test]
+fn serial_pipe_answers_cr_line_ends_and_ctrl_c() {
+    // What a terminal sends: CR on Enter, Ctrl-C before `stop`.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("serial")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("host-sim runs");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(b"help\rstatus\r\x03stop\rparams\r")
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let finals: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("ok") || l.starts_with("err"))
+        .collect();
+    assert_eq!(finals.len(), 4, "{text}");
+    assert!(finals.iter().all(|l| l.starts_with("ok")), "{text}");
+    assert_eq!(finals[0], "ok 23 commands");
+    assert_eq!(finals[2], "ok stopped");
+}

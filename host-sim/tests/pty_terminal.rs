@@ -1,0 +1,223 @@
+//! A real terminal program on the simulated board's pseudo-terminal, as the README's operator
+//! uses it: `cargo sim serial --pty`, then picocom with its default settings (Enter sends CR, no
+//! local echo) inside tmux; keys go in with `tmux send-keys`, the screen comes back with
+//! `tmux capture-pane`. Needs `tmux` and `picocom` (`.ci/run` installs them).
+//!
+//! Sequence: `help`; a square run stopped with Ctrl-C (reported aborted, the pose frozen);
+//! `stop` typed after an arrow key; a square run to the end; `measure` in millimetres refused
+//! with the unit hint; the correct `measure`; `params`.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+struct Terminal {
+    session: String,
+    sim: Child,
+    sim_stderr: Arc<Mutex<String>>,
+}
+
+impl Drop for Terminal {
+    fn drop(&mut self) {
+        let _ = Command::new("tmux")
+            .args(["kill-session", "-t", &self.session])
+            .status();
+        let _ = self.sim.kill();
+        let _ = self.sim.wait();
+    }
+}
+
+impl Terminal {
+    fn tmux(&self, args: &[&str]) -> String {
+        let out = Command::new("tmux").args(args).output().expect("tmux runs");
+        assert!(out.status.success(), "tmux {args:?}: {:?}", out);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+    fn screen(&self) -> String {
+        self.tmux(&[
+            "capture-pane",
+            "-p",
+            "-J",
+            "-S",
+            "-2000",
+            "-t",
+            &self.session,
+        ])
+    }
+    /// Types `text` and presses Enter.
+    fn line(&self, text: &str) {
+        self.tmux(&["send-keys", "-t", &self.session, "-l", text]);
+        self.tmux(&["send-keys", "-t", &self.session, "Enter"]);
+    }
+    fn key(&self, key: &str) {
+        self.tmux(&["send-keys", "-t", &self.session, key]);
+    }
+    /// Waits until the screen shows `what` `count` times.
+    fn wait_for(&self, what: &str, count: usize) -> String {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let screen = self.screen();
+            if screen.matches(what).count() >= count {
+                return screen;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "timed out waiting for {what:?} ×{count}; screen:\n{screen}\nsim stderr:\n{}",
+                self.sim_stderr.lock().unwrap()
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    fn pose(&self, n: usize) -> String {
+        self.line("pose");
+        let screen = self.wait_for("ok x=", n);
+        screen
+            .lines()
+            .filter(|l| l.starts_with("ok x="))
+            .nth(n - 1)
+            .unwrap()
+            .to_owned()
+    }
+}
+
+fn start() -> Terminal {
+    let mut sim = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["serial", "--pty"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    let mut first = String::new();
+    BufReader::new(sim.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    let path = first
+        .trim()
+        .strip_prefix("pty ")
+        .unwrap_or_else(|| panic!("no pty path: {first:?}"))
+        .to_owned();
+    let sim_stderr = Arc::new(Mutex::new(String::new()));
+    let sink = Arc::clone(&sim_stderr);
+    let stderr = sim.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let mut s = sink.lock().unwrap();
+            s.push_str(&line);
+            s.push('\n');
+        }
+    });
+    let session = format!("odocal-pty-{}", std::process::id());
+    let status = Command::new("tmux")
+        .args([
+            "new-session",
+            "-d",
+            "-s",
+            &session,
+            "-x",
+            "200",
+            "-y",
+            "60",
+            &format!("picocom {path}"),
+        ])
+        .status()
+        .expect("tmux is installed (apt-get install tmux picocom)");
+    assert!(status.success());
+    let t = Terminal {
+        session,
+        sim,
+        sim_stderr,
+    };
+    t.wait_for("Terminal ready", 1);
+    t
+}
+
+#[test]
+fn picocom_with_default_settings_drives_a_session() {
+    let t = start();
+    t.line("help");
+    let screen = t.wait_for("ok 23 commands", 1);
+    // The board echoes what is typed (picocom does not echo locally).
+    assert!(screen.contains("help\n"), "{screen}");
+    for (set, reply) in [
+        ("set max_speed 1", "ok max_speed = 1.000 m/s"),
+        ("set max_accel 2", "ok max_accel = 2.000 m/s^2"),
+        ("set max_turn_rate 3", "ok max_turn_rate = 3.000 rad/s"),
+        (
+            "set max_turn_accel 10",
+            "ok max_turn_accel = 10.000 rad/s^2",
+        ),
+    ] {
+        t.line(set);
+        t.wait_for(reply, 1);
+    }
+    // Ctrl-C mid-run: stopped at once, reported aborted and not stored.
+    t.line("run cw 0.5");
+    t.wait_for("ok run 1 started: square cw L=0.500 m", 1);
+    std::thread::sleep(Duration::from_millis(700));
+    t.key("C-c");
+    let screen = t.wait_for("event run 1 aborted, not stored: square cw L=0.500 m", 1);
+    assert!(screen.contains("^C"), "{screen}");
+    assert!(screen.contains("event stopped (Ctrl-C)"), "{screen}");
+    // The motors stopped (the duty is zero from the next control period on, see
+    // `tests/console.rs`); after the robot coasts out its motor lag it stands still.
+    std::thread::sleep(Duration::from_millis(300));
+    let p1 = t.pose(1);
+    std::thread::sleep(Duration::from_millis(300));
+    let p2 = t.pose(2);
+    assert_eq!(p1, p2);
+    t.line("status");
+    t.wait_for("ok state=idle", 1);
+    // An arrow key, then `stop`: the escape sequence never reaches the parser.
+    t.key("Up");
+    t.key("Left");
+    t.line("stop");
+    let screen = t.wait_for("ok stopped", 1);
+    assert!(!screen.contains("err "), "{screen}");
+    // A whole run, then the operator measures it.
+    t.line("run cw 0.5");
+    t.wait_for("event run 1 finished: square cw L=0.500 m", 1);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let measure = loop {
+        let stderr = t.sim_stderr.lock().unwrap().clone();
+        if let Some(l) = stderr
+            .lines()
+            .filter_map(|l| l.split_once("start frame: "))
+            .map(|(_, m)| m.to_owned())
+            .next_back()
+        {
+            break l;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no true pose on stderr:\n{stderr}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let w: Vec<f64> = measure
+        .split_whitespace()
+        .skip(1)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    // Millimetres typed for metres.
+    t.line(&format!("measure {:.3} {:.3}", w[0] * 1e3, w[1] * 1e3));
+    t.wait_for("looks like millimetres: the unit is metres", 1);
+    t.line(&measure);
+    t.wait_for(
+        "ok run 1 square cw L=0.500 m measured: error vs odometry",
+        1,
+    );
+    t.line("params");
+    let screen = t.wait_for("calibration none", 1);
+    let finals: Vec<&str> = screen
+        .lines()
+        .filter(|l| l.starts_with("ok") || l.starts_with("err"))
+        .collect();
+    assert_eq!(finals.last(), Some(&"ok"), "{screen}");
+    // The only error of the whole session is the refused millimetre measurement.
+    let errors: Vec<&&str> = finals.iter().filter(|l| l.starts_with("err")).collect();
+    assert_eq!(errors.len(), 1, "{screen}");
+    assert!(errors[0].starts_with("err 22: "), "{screen}");
+    println!("{screen}");
+}
