@@ -54,7 +54,10 @@
 //!    whose weight ends below [`OUTLIER_WEIGHT`] = 0.5 (`u_i > c`) is flagged as an outlier: under
 //!    the model that happens to fewer than 0.4 % of runs;
 //! 5. the weighted fit is repeated from the current parameters with the new weights, and the
-//!    weights recomputed, until no weight changes by more than [`WEIGHT_TOLERANCE`].
+//!    weights recomputed, until no weight changes by more than [`WEIGHT_TOLERANCE`] (1e-3: a
+//!    weight known to 0.1 % moves the factors by a small fraction of their 1σ). On 5 + 5 noisy
+//!    squares this takes 2–3 rounds and 2–3 times the solver iterations of the plain fit, 5–6
+//!    rounds (5 times the iterations) when one run is an outlier.
 //!
 //! Runs that fit the model all get weights close to 1, and where the runs fit exactly (ideal
 //! kinematics) the weights are 1 to rounding and the result is the plain fit's. The weight of
@@ -114,7 +117,7 @@ pub const MAX_RUN_FITS: usize = 16;
 pub const MAX_REWEIGHTS: u32 = 100;
 
 /// The robust fit has converged when no run's weight changes by more than this.
-pub const WEIGHT_TOLERANCE: f64 = 1e-6;
+pub const WEIGHT_TOLERANCE: f64 = 1e-3;
 
 /// A run whose weight ends below this is flagged as an outlier (`u > c`).
 pub const OUTLIER_WEIGHT: f64 = 0.5;
