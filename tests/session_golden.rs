@@ -421,6 +421,20 @@ fn run_lifecycle_golden() {
          ok 2 runs, 1 measured\r\n"
     );
     assert_eq!(b.send("drop 3"), "err 14: no run 3 (2 stored)\r\n");
+    // Squares beyond the plan are counted apart.
+    b.send("set runs_per_direction 1");
+    for _ in 0..2 {
+        b.send("run cw");
+        b.robot.finish(0.0, 0.0);
+    }
+    let status = b.send("status");
+    assert!(
+        status.contains(" plan cw 1/1 ccw 0/1 (+2 extra) measured cw 1 ccw 0 runs 4/12 "),
+        "{status}"
+    );
+    b.send("drop 4");
+    b.send("drop 3");
+    b.send("set runs_per_direction 5");
     assert_eq!(
         b.send("drop 2"),
         "ok dropped run 2: line d=1.000 m; 1 runs left\r\n"

@@ -132,11 +132,21 @@ pub(super) fn write_status<C: Calibrator>(
     write_pose(out, pose)?;
     let p = session.progress();
     let n = session.settings.runs_per_direction;
+    let planned = usize::from(n);
+    // Squares beyond the plan (`run cw|ccw`) are counted apart, never as `6/5`.
+    let extra = p.cw.saturating_sub(planned) + p.ccw.saturating_sub(planned);
     write!(
         out,
-        " plan cw {}/{n} ccw {}/{n} measured cw {} ccw {} runs {}/{} calibration={}{EOL}",
-        p.cw,
-        p.ccw,
+        " plan cw {}/{n} ccw {}/{n}",
+        p.cw.min(planned),
+        p.ccw.min(planned)
+    )?;
+    if extra > 0 {
+        write!(out, " (+{extra} extra)")?;
+    }
+    write!(
+        out,
+        " measured cw {} ccw {} runs {}/{} calibration={}{EOL}",
         p.cw_measured,
         p.ccw_measured,
         session.runs.len(),
