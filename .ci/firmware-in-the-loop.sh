@@ -35,6 +35,10 @@ cargo fw --quiet
 # each stage runs a copy.
 cp "$ELF" "$OUT/firmware-shipped"
 sha256sum "$OUT/firmware-shipped"
+if arm-none-eabi-nm "$OUT/firmware-shipped" | grep -q EMULATOR_TRUTH; then
+    echo "firmware-in-the-loop: FAILED: the shipped ELF contains the emulator board" >&2
+    exit 1
+fi
 python3 fil/boot_test.py "$OUT/firmware-shipped" --workdir "$OUT" | tee "$OUT/stage1.txt"
 t1=$(date +%s.%N)
 awk -v a="$t0" -v b="$t1" 'BEGIN { printf "stage 1 wall time: %.1f s\n", b - a }'

@@ -40,6 +40,12 @@ use crate::motion::controller::MotorCommand;
 use crate::motion::motor::{MotorDriver, StopMode};
 use crate::storage::ParamStore;
 
+// The app paces the control interrupt in whole ticks of the 1 kHz monotonic.
+const _: () = assert!(
+    1_000 % CONTROL_HZ == 0,
+    "the emulator's control rate must divide 1000 Hz"
+);
+
 /// SysTick's clock in QEMU's STM32F405 model, Hz (fixed, independent of RCC).
 pub const SYSCLK_HZ: u32 = 168_000_000;
 
