@@ -3,7 +3,7 @@
 
 Boots the exact image `cargo fw` builds (with the boot assist of `emulator.py`), waits for the
 `event boot` line on USART2, sends the console script below (every command family, error cases,
-an over-long line, CR endings, garbage bytes) and compares each reply with
+an over-long line, CR endings, garbage bytes, Ctrl-C, escape sequences) and compares each reply with
 `fil/golden/console.txt`; then decodes the defmt boot log from the RTT buffer of a RAM dump.
 
     python3 fil/boot_test.py ELF [--regen] [--workdir DIR]
@@ -56,6 +56,8 @@ SCRIPT = [
     (b"\x00\x01\x02garbage\x7f\x7f\x7f\x7f\x7f\x7f\x7fstatus\r\n", True),
     (b"pose\r", True),
     (b"params\r", True),
+    (b"half a line\x03status\r", True),
+    (b"\x1b[A\x1b[B\x1bOPstop\r\n", True),
     (b"run cw 0.5\r\n", True),
     (b"status\r\n", True),
     (b"save\r\n", True),

@@ -148,12 +148,17 @@ impl<'f> Board<'f> {
 
     /// One protocol line (terminator added), executed at once, as a program sends it; returns
     /// the reply text (without the echo, which a program ignores or turns off).
+    ///
+    /// Input already queued (e.g. the next lines of a script waiting for the robot to come to
+    /// rest) stays queued: only this line is executed.
     pub fn send(&mut self, line: &str) -> String {
+        let queued = std::mem::take(&mut self.input);
         let mut echo = String::new();
         self.receive(line.as_bytes(), &mut echo);
         self.receive(b"\r", &mut echo);
         let mut out = String::new();
         self.process(&mut out, false);
+        self.input = queued;
         out
     }
 
