@@ -6,6 +6,7 @@ indented; `event …` and `stream …` lines are unsolicited and collected separ
 """
 
 import socket
+import threading
 import time
 
 
@@ -88,14 +89,32 @@ class Console:
         self.sock.sendall(data)
 
     def send_burst(self, data, chunk=256):
-        """Sends `data` in chunks, reading what the console answers in between (the emulator
-        stalls while its transmit side is not read). Returns the reply lines that arrived."""
+        """Sends `data` while reading what the console answers, and returns those reply lines.
+
+        The emulator writes each transmitted byte to the socket separately, so only a few
+        hundred unread bytes block it (and with it its receive side): the burst is sent from a
+        second thread while this one keeps reading."""
+        errors = []
+        sender_sock = self.sock.dup()
+        sender_sock.settimeout(120.0)
+
+        def send():
+            try:
+                for i in range(0, len(data), chunk):
+                    sender_sock.sendall(data[i:i + chunk])
+            except OSError as e:
+                errors.append(e)
+
+        sender = threading.Thread(target=send)
+        sender.start()
         got = []
-        for i in range(0, len(data), chunk):
-            self.sock.settimeout(30.0)
-            self.sock.sendall(data[i:i + chunk])
-            got += self.quiet(0.005)
+        while sender.is_alive():
+            got += self.quiet(0.01)
+        sender.join()
+        sender_sock.close()
         self.transcript.append((">", data))
+        if errors:
+            raise ConsoleError(f"burst not accepted: {errors[0]}")
         return got
 
     def command(self, line, timeout=10.0, ending=b"\r\n"):
