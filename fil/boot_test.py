@@ -102,9 +102,11 @@ def run(elf, workdir):
                     got = ["(no reply)"]
             else:
                 got = con.quiet(NO_REPLY_WAIT) or ["(no reply)"]
-            got += [e for e in con.events]
-            con.events.clear()
             blocks.append((shown(data), got))
+        # Events (e.g. the stop a Ctrl-C causes) come when the console task gets to them, not
+        # at a fixed place among the replies: they are compared as one set at the end.
+        con.quiet(NO_REPLY_WAIT)
+        blocks.append(("(events after the boot line)", sorted(con.events)))
         ram = emu.dump_ram(os.path.join(workdir, "shipped-ram.bin"))
         alive = emu.alive()
     finally:
@@ -173,7 +175,7 @@ def main():
         fail = 1
     for (sent, got), (gsent, gwant) in zip(blocks, golden):
         if sent == gsent and got == gwant:
-            good += 1 if sent != "(reset)" else 0
+            good += 1 if not sent.startswith("(") else 0
         else:
             fail = 1
             print(f"MISMATCH after `{sent}`:\n  want {gwant}\n  got  {got}")
