@@ -40,6 +40,8 @@ if arm-none-eabi-nm "$OUT/firmware-shipped" | grep -q EMULATOR_TRUTH; then
     exit 1
 fi
 python3 fil/boot_test.py "$OUT/firmware-shipped" --workdir "$OUT" | tee "$OUT/stage1.txt"
+# The motor outputs' safe state on the same ELF: boot order, HardFault path, panic handler.
+python3 fil/safe_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
 t1=$(date +%s.%N)
 awk -v a="$t0" -v b="$t1" 'BEGIN { printf "stage 1 wall time: %.1f s\n", b - a }'
 

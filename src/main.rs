@@ -11,8 +11,6 @@ fn main() {
 
 #[cfg(target_os = "none")]
 use defmt_rtt as _;
-#[cfg(target_os = "none")]
-use panic_probe as _;
 
 #[cfg(target_os = "none")]
 rtic_monotonics::systick_monotonic!(Mono, 1000);
@@ -188,10 +186,16 @@ mod app {
         let (line_in, line_out) = cx.local.lines.split();
         let (mut tx_in, tx_out) = cx.local.tx_bytes.split();
         // The boot event is the first line on the console (sent once the USART2 task runs).
-        let _ = write_boot_event(
-            &mut ByteSink::new(|b| tx_in.enqueue(b).is_ok()),
-            loaded.warning.as_ref(),
-        );
+        let reset_cause = board.reset_cause;
+        {
+            let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
+            let _ = write_boot_event(
+                &mut sink,
+                loaded.warning.as_ref(),
+                Some(reset_cause.as_str()),
+            );
+        }
+        defmt::info!("reset cause: {}", reset_cause);
         let (press_in, press_out) = cx.local.presses.split();
 
         report::spawn().ok();
@@ -242,7 +246,7 @@ mod app {
 
     /// Control period: encoders → odometry → routine → speed loops → motors; button actions.
     #[task(binds = TIM7, priority = 3,
-           local = [encoders, tick, motors, press_in],
+           local = [encoders, tick, motors, press_in, leds, heartbeat_periods: u32 = 0],
            shared = [controller, button, watchdog])]
     fn control(cx: control::Context) {
         cx.local.tick.clear();
@@ -254,7 +258,7 @@ mod app {
             button.lock(|b| b.poll(now_ms()))
         };
         let mut controller = cx.shared.controller;
-        controller.lock(|c| {
+        let fault = controller.lock(|c| {
             if STOP_REQUEST.swap(false, Ordering::Relaxed) {
                 // Ctrl-C or Esc on the console: stop in this period.
                 c.abort();
@@ -270,7 +274,16 @@ mod app {
                 // The session (console task) acts on the press: next planned run, clear, stop.
                 let _ = cx.local.press_in.enqueue(p);
             }
+            out.fault.is_some()
         });
+        // The LEDs live here, at the control task's priority, so the heartbeat keeps blinking
+        // while the console task runs a long calibration solve.
+        *cx.local.heartbeat_periods += 1;
+        if *cx.local.heartbeat_periods >= CONTROL_HZ / 2 {
+            *cx.local.heartbeat_periods = 0;
+            cx.local.leds.toggle_heartbeat();
+        }
+        cx.local.leds.set_fault(fault);
     }
 
     /// On a board without a control-period timer (the emulator), pends the control interrupt
@@ -297,14 +310,12 @@ mod app {
         cx.shared.button.lock(|b| b.edge(now_ms(), pressed));
     }
 
-    /// Heartbeat LED, fault LED and a 2 Hz pose log.
-    #[task(priority = 1, local = [leds], shared = [controller])]
+    /// A 2 Hz pose log.
+    #[task(priority = 1, shared = [controller])]
     async fn report(mut cx: report::Context) {
         loop {
             Mono::delay(500.millis()).await;
-            cx.local.leds.toggle_heartbeat();
             let (pose, fault) = cx.shared.controller.lock(|c| (c.pose(), c.fault()));
-            cx.local.leds.set_fault(fault.is_some());
             defmt::info!(
                 "pose x={} y={} heading={} fault={}",
                 pose.x.to_num::<f32>(),

@@ -228,6 +228,36 @@ fn motors_stopped_after_a_tenth_of_a_second_at_rest() {
     assert!(!c.motors_stopped());
 }
 
+/// An encoder edge jittering by a count at rest (2.4 µm) does not block a save; a wheel rolling
+/// at 20 mm/s (8.5 counts per period) leaves the 1 mm stillness bound after 50 periods and then
+/// counts as moving.
+#[test]
+fn encoder_jitter_is_still_but_a_slow_roll_is_motion() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    for k in 0..300 {
+        plant.pos[0] = if k % 2 == 0 { 0.5 } else { 1.5 };
+        plant.pos[1] = if k % 3 == 0 { -0.5 } else { 0.5 };
+        plant.step(&mut c);
+    }
+    assert!(c.motors_stopped(), "jitter of one count counted as motion");
+    let per_period = 0.020 / Geometry::PAPER_NOMINAL.meters_per_tick_right() / 1000.0;
+    let mut stopped_after_roll = 0;
+    for _ in 0..500 {
+        plant.pos[0] += per_period;
+        plant.step(&mut c);
+        if c.motors_stopped() {
+            stopped_after_roll += 1;
+        }
+    }
+    // Only the first millimetre (50 periods, +1 for the count quantisation) may look still.
+    assert!(
+        stopped_after_roll <= 51,
+        "{stopped_after_roll} periods looked still"
+    );
+    assert!(!c.motors_stopped());
+}
+
 #[test]
 fn new_geometry_applies_and_pose_continues() {
     let mut c = controller();

@@ -17,6 +17,8 @@
 //! | `Board::console_rx` / `console_tx`, `CONSOLE_INTERRUPT` | the serial console's USART |
 //! | `Board::watchdog`, `watchdog::set_timeout` | fed every control period, relaxed around flash writes |
 //! | `Board::params` | the parameter store, loaded by the app before anything moves |
+//! | `Board::reset_cause` | why the MCU last reset, reported at boot |
+//! | `safety` | motor pins safe from reset, emergency stop, panic and HardFault handlers |
 //! | `CONTROL_HZ`, `WATCHDOG_MS`, `FLASH_WATCHDOG_MS` | rates and timeouts |
 //!
 //! [`f407`] is the STM32F407 board (pin map in its module docs). With the cargo feature
@@ -31,7 +33,8 @@ pub mod emulator;
 #[cfg(not(feature = "emulator"))]
 pub use f407::{
     Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx,
-    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
+    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, ResetCause, WATCHDOG_MS, init,
+    safety, watchdog,
 };
 
 #[cfg(feature = "emulator")]

@@ -117,15 +117,25 @@ fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
 }
 
 /// The first line the board sends after a reset: `event boot: parameters loaded`, or
-/// `event boot: default parameters (<why>)` when the stored record was not used.
+/// `event boot: default parameters (<why>)` when the stored record was not used, followed by
+/// `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`, `pin`,
+/// `software`, `power-on`, …).
 ///
 /// # Errors
 /// Only those of `out`.
-pub fn write_boot_event(out: &mut dyn Write, warning: Option<&LoadWarning>) -> fmt::Result {
+pub fn write_boot_event(
+    out: &mut dyn Write,
+    warning: Option<&LoadWarning>,
+    reset_cause: Option<&str>,
+) -> fmt::Result {
     match warning {
-        None => write!(out, "event boot: parameters loaded{EOL}"),
-        Some(w) => write!(out, "event boot: default parameters ({w}){EOL}"),
+        None => write!(out, "event boot: parameters loaded")?,
+        Some(w) => write!(out, "event boot: default parameters ({w})")?,
     }
+    if let Some(cause) = reset_cause {
+        write!(out, ", reset: {cause}")?;
+    }
+    out.write_str(EOL)
 }
 
 /// Counts of square runs per direction: `(stored, measured)` for CW and CCW.

@@ -252,10 +252,12 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
 
     /// Saves `record` (validated first). Refuses while the motors run.
     ///
-    /// If the store fails (flash damaged beyond `sequential-storage`'s own repair, garbage in
-    /// the free space, a driver error), the range is erased (logged) and the save retried once,
-    /// so a damaged flash never blocks saving. A power cut is not an error the code sees: it
-    /// leaves the old or the new record (see the module docs).
+    /// If the stored data is proven bad (corrupted beyond `sequential-storage`'s own repair,
+    /// garbage filling the free space, an internal inconsistency), the range is erased (logged)
+    /// and the save retried once, so damaged contents never block saving. A flash *driver*
+    /// error is returned as it is and nothing is erased: the hardware failed, not the data, and
+    /// erasing could destroy the live record and then fail on the next sector too. A power cut
+    /// is not an error the code sees: it leaves the old or the new record (see the module docs).
     ///
     /// # Errors
     /// [`StoreError::MotorsRunning`] if `motors_stopped` is false, [`StoreError::InvalidRecord`]
@@ -274,8 +276,16 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             .store_item(&mut self.buf.0, &PARAMS_KEY, record)
             .await
             .map_err(StoreError::from);
-        let Err(e) = first else {
-            return Ok(());
+        let e = match first {
+            Ok(()) => return Ok(()),
+            Err(e @ (StoreError::Corrupted | StoreError::Full | StoreError::Internal)) => e,
+            Err(e) => {
+                warn!(
+                    "saving parameters failed ({}); the stored record is unchanged",
+                    e
+                );
+                return Err(e);
+            }
         };
         warn!(
             "saving parameters failed ({}); erasing the parameter flash and retrying",

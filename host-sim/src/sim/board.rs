@@ -64,7 +64,7 @@ impl<'f> Board<'f> {
         let settings = Settings::from(&loaded.record);
         let controller = Controller::new(settings.controller_config(config.rate_hz))
             .map_err(|e| format!("stored parameters: {e}"))?;
-        write_boot_event(out, loaded.warning.as_ref()).map_err(|e| e.to_string())?;
+        write_boot_event(out, loaded.warning.as_ref(), None).map_err(|e| e.to_string())?;
         let period_us = 1_000_000 / u64::from(config.rate_hz);
         let mut board = Board {
             sim: Sim::new(config),

@@ -127,6 +127,35 @@ impl BoardFlash {
         }
     }
 
+    /// Clears the flash controller's sticky error flags (FLASH_SR: PGSERR, PGPERR, PGAERR,
+    /// WRPERR, OPERR; written 1 to clear, RM0090 §3.9.6). The HAL checks them after each
+    /// operation but never clears them, so one error would fail every later erase and write.
+    fn clear_error_flags() {
+        const ERRORS: u32 = (1 << 7) | (1 << 6) | (1 << 5) | (1 << 4) | (1 << 1);
+        // SAFETY: a write-1-to-clear of status bits of FLASH_SR; it changes no other state and
+        // no flash operation is in progress (the store runs one operation at a time).
+        unsafe { (*FLASH::ptr()).sr().write(|w| w.bits(ERRORS)) };
+    }
+
+    /// Resets the instruction and data caches after an erase (RM0090 §3.5.2: a cache line may
+    /// still hold the erased contents). Caches are disabled, reset, and enabled again.
+    fn reset_caches() {
+        const ICEN: u32 = 1 << 9;
+        const DCEN: u32 = 1 << 10;
+        const ICRST: u32 = 1 << 11;
+        const DCRST: u32 = 1 << 12;
+        // SAFETY: FLASH_ACR read-modify-writes of the cache enable and reset bits only; the
+        // latency and prefetch bits are written back unchanged. Instruction fetch continues
+        // (uncached) while the caches are off.
+        unsafe {
+            let acr = (*FLASH::ptr()).acr();
+            let was = acr.read().bits();
+            acr.write(|w| w.bits(was & !(ICEN | DCEN)));
+            acr.write(|w| w.bits((was & !(ICEN | DCEN)) | ICRST | DCRST));
+            acr.write(|w| w.bits(was & !(ICRST | DCRST)));
+        }
+    }
+
     /// Checks that `offset .. offset + len` lies inside the parameter sectors.
     fn check(offset: u32, len: usize) -> Result<(), BoardFlashError> {
         let end = u32::try_from(len)
@@ -166,13 +195,19 @@ impl NorFlash for BoardFlash {
             return Err(BoardFlashError::OutOfRange);
         }
         Self::check(from, (to - from) as usize)?;
-        let mut unlocked = self.flash.unlocked();
-        BlockingNorFlash::erase(&mut unlocked, from, to).map_err(BoardFlashError::from)
-        // `unlocked` drops here and locks the flash again.
+        Self::clear_error_flags();
+        let result = {
+            let mut unlocked = self.flash.unlocked();
+            BlockingNorFlash::erase(&mut unlocked, from, to).map_err(BoardFlashError::from)
+            // `unlocked` drops here and locks the flash again.
+        };
+        Self::reset_caches();
+        result
     }
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         Self::check(offset, bytes.len())?;
+        Self::clear_error_flags();
         let mut unlocked = self.flash.unlocked();
         BlockingNorFlash::write(&mut unlocked, offset, bytes).map_err(BoardFlashError::from)
     }

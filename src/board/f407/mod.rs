@@ -20,6 +20,7 @@
 
 pub mod flash;
 pub mod motors;
+pub mod safety;
 pub mod watchdog;
 
 use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
@@ -35,6 +36,7 @@ use crate::storage::ParamStore;
 
 pub use flash::BoardFlash;
 pub use motors::BoardMotors;
+pub use safety::ResetCause;
 
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -133,10 +135,58 @@ pub struct Board {
     pub watchdog: IndependentWatchdog,
     /// The parameter store on flash sectors 10–11 (not loaded yet).
     pub params: ParamStore<BoardFlash>,
+    /// Why the MCU last reset.
+    pub reset_cause: ResetCause,
+}
+
+/// Encoder input filter (TIMx_CCMR1 IC1F/IC2F = 0b0110: f_DTS/4, 6 samples): an edge must be
+/// stable for 6 × 4 / 84 MHz = 286 ns. The fastest edges (200,000 counts/rev, 150 mm wheels at
+/// 2 m/s: 850,000 counts/s) come every 1.18 µs, so no real edge is lost; spikes shorter than
+/// the filter are.
+const ENCODER_FILTER: u32 = 0b0110;
+
+/// Explicit pulls and the encoder input filter (see [`ENCODER_FILTER`]): pull-ups on the four
+/// encoder pins (PA15 and PB4 keep their JTAG pull-ups out of reset, PB3 and PB5 would float)
+/// and on the console's RX pin (PA3), so an unconnected input is quiet, not noise.
+fn condition_inputs() {
+    // SAFETY: read-modify-writes of the pull configuration of PA3, PA15, PB3, PB4, PB5 and of
+    // the input-filter fields of TIM2/TIM3 CCMR1, after the HAL configured those pins and
+    // timers in `init` (nothing else runs yet); no other bits change.
+    unsafe {
+        let pull_up = |pins: &[u32]| {
+            let (mut mask, mut up) = (0u32, 0u32);
+            for &p in pins {
+                mask |= 0b11 << (2 * p);
+                up |= 0b01 << (2 * p);
+            }
+            (mask, up)
+        };
+        let (mask, up) = pull_up(&[3, 15]);
+        (*pac::GPIOA::ptr())
+            .pupdr()
+            .modify(|r, w| w.bits((r.bits() & !mask) | up));
+        let (mask, up) = pull_up(&[3, 4, 5]);
+        (*pac::GPIOB::ptr())
+            .pupdr()
+            .modify(|r, w| w.bits((r.bits() & !mask) | up));
+        let filter_mask = (0xF << 4) | (0xF << 12);
+        let filter = (ENCODER_FILTER << 4) | (ENCODER_FILTER << 12);
+        (*pac::TIM2::ptr())
+            .ccmr1_input()
+            .modify(|r, w| w.bits((r.bits() & !filter_mask) | filter));
+        (*pac::TIM3::ptr())
+            .ccmr1_input()
+            .modify(|r, w| w.bits((r.bits() & !filter_mask) | filter));
+    }
 }
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
+    // Before anything else: the motor pins to their safe state, the reset cause, and TIM1
+    // frozen while a debugger halts the core.
+    safety::motors_off_at_reset(&dp.RCC, &dp.GPIOE);
+    let reset_cause = safety::reset_cause(&dp.RCC);
+    safety::freeze_when_halted(&dp.DBGMCU);
     let mut rcc = dp.RCC.freeze(
         Config::hse(HSE_HZ.Hz())
             .sysclk(SYSCLK_HZ.Hz())
@@ -198,6 +248,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         Err(_) => defmt::panic!("USART2 configuration rejected"),
     };
     console_rx.listen();
+    condition_inputs();
 
     Board {
         sysclk_hz: SYSCLK_HZ,
@@ -213,5 +264,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         console_tx,
         watchdog,
         params,
+        reset_cause,
     }
 }

@@ -7,7 +7,6 @@
 //! value. [`set_timeout`] waits before and after the change.
 
 use stm32f4xx_hal::pac::IWDG;
-use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 /// Waits until no prescaler or reload update is pending (at most about 150 µs).
@@ -18,11 +17,58 @@ pub fn wait_for_update() {
     while iwdg.sr().read().bits() != 0 {}
 }
 
-/// Sets the watchdog timeout to `ms` milliseconds and reloads the counter. Call
-/// [`wait_for_update`] before (and before the next change); it is kept outside so a caller can
-/// wait without holding the watchdog's lock.
+/// Nominal LSI frequency the timeouts are computed for, Hz (RM0090: 17–47 kHz over the
+/// temperature and supply range; 32 kHz typical).
+pub const LSI_HZ: u32 = 32_000;
+
+/// Prescaler code (`IWDG_PR`, divider 4 << code) and reload value (`IWDG_RLR`, 12 bits) for a
+/// timeout of `ms` milliseconds at [`LSI_HZ`]: the smallest divider whose 12-bit reload reaches
+/// `ms`, which is also the finest resolution. 50 ms → divider 4, reload 399 (exactly 50.0 ms);
+/// 10 s → divider 128, reload 2499 (exactly 10.0 s). The HAL's own choice gave 56 ms for 50.
+pub const fn divider_and_reload(ms: u32) -> (u8, u16) {
+    let mut code = 0u8;
+    while code < 6 {
+        let div = 4u64 << code;
+        let ticks = (ms as u64 * LSI_HZ as u64).div_ceil(1000 * div);
+        if ticks <= 4096 {
+            let reload = if ticks == 0 { 0 } else { ticks - 1 };
+            return (code, reload as u16);
+        }
+        code += 1;
+    }
+    let ticks = (ms as u64 * LSI_HZ as u64).div_ceil(1000 * 256);
+    let reload = if ticks > 4096 {
+        4095
+    } else {
+        ticks.saturating_sub(1)
+    };
+    (6, reload as u16)
+}
+
+const _: () = {
+    let (code, reload) = divider_and_reload(50);
+    assert!(code == 0 && reload == 399, "50 ms must be exact");
+    let (code, reload) = divider_and_reload(10_000);
+    assert!(code == 5 && reload == 2499, "10 s must be exact");
+};
+
+/// Sets the watchdog timeout to `ms` milliseconds ([`divider_and_reload`]), starts the
+/// watchdog if it is not running, and reloads the counter. Call [`wait_for_update`] before
+/// (and before the next change); it is kept outside so a caller can wait without holding the
+/// watchdog's lock. `watchdog` is the HAL's handle: owning it is what allows the change.
 pub fn start_with_timeout(watchdog: &mut IndependentWatchdog, ms: u32) {
-    watchdog.start(ms.millis());
+    let (code, reload) = divider_and_reload(ms);
+    // SAFETY: IWDG register writes in the order RM0090 §21.3.2 gives (unlock with 0x5555,
+    // prescaler, reload, reload the counter with 0xAAAA, start with 0xCCCC); the caller holds
+    // the only handle, so nothing else writes these registers meanwhile.
+    unsafe {
+        let iwdg = &*IWDG::ptr();
+        iwdg.kr().write(|w| w.bits(0x5555));
+        iwdg.pr().write(|w| w.bits(u16::from(code)));
+        iwdg.rlr().write(|w| w.bits(reload));
+        iwdg.kr().write(|w| w.bits(0xAAAA));
+        iwdg.kr().write(|w| w.bits(0xCCCC));
+    }
     watchdog.feed();
 }
 

@@ -149,10 +149,17 @@ pub struct Controller {
     check_report: Option<CheckReport>,
     deadman_periods: u32,
     still_periods: u32,
+    /// Tick totals when the wheels were last seen moving (see [`Controller::motors_stopped`]).
+    still_anchor: WheelTicks,
 }
 
 /// Periods without wheel motion after which the motors count as stopped (0.1 s).
 const STILL_SECONDS_INV: u32 = 10;
+
+/// Largest wheel travel that still counts as "not moving", m: 1 mm (424 counts of the paper's
+/// robot). Over the 0.1 s window that is below 10 mm/s, while a count of encoder jitter (2.4 µm)
+/// is far inside it.
+const STILL_TRAVEL_M: f64 = 0.001;
 
 impl Controller {
     /// A controller for `config`; idle, encoders synchronised at the first [`Controller::step`].
@@ -198,6 +205,7 @@ impl Controller {
             check_report: None,
             deadman_periods: per_ms(config.deadman_ms).max(1),
             still_periods: 0,
+            still_anchor: WheelTicks::default(),
         })
     }
 
@@ -239,11 +247,19 @@ impl Controller {
             }
         };
         self.odometry.update(&mut self.odo_state, self.totals);
-        self.still_periods = if dr == 0 && dl == 0 {
-            self.still_periods.saturating_add(1)
+        // Still = neither wheel has drifted more than STILL_TRAVEL_M from where it last moved:
+        // an encoder edge jittering by a count or two on a wheel at rest is not motion.
+        let drift = self.totals - self.still_anchor;
+        let g = &self.config.geometry;
+        let still = (drift.right.unsigned_abs() as f64) * g.meters_per_tick_right()
+            <= STILL_TRAVEL_M
+            && (drift.left.unsigned_abs() as f64) * g.meters_per_tick_left() <= STILL_TRAVEL_M;
+        if still {
+            self.still_periods = self.still_periods.saturating_add(1);
         } else {
-            0
-        };
+            self.still_periods = 0;
+            self.still_anchor = self.totals;
+        }
         if self.fault.is_none() {
             self.check_stall(dr, dl);
         }
@@ -334,8 +350,9 @@ impl Controller {
             .reset(&mut self.odo_state, self.totals, Pose::default());
     }
 
-    /// True when no motion is commanded and neither wheel has moved for 0.1 s: safe for flash
-    /// erases that stall the CPU.
+    /// True when no motion is commanded and neither wheel has moved more than 1 mm for 0.1 s
+    /// (below 10 mm/s; encoder jitter of a few counts does not count): safe for flash erases
+    /// that stall the CPU.
     pub fn motors_stopped(&self) -> bool {
         self.is_idle() && self.still_periods >= self.config.rate_hz / STILL_SECONDS_INV
     }

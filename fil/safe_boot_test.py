@@ -1,0 +1,157 @@
+"""The motor outputs' safe state, checked on the shipped ELF itself.
+
+    python3 fil/safe_boot_test.py ELF [--workdir DIR]
+
+1. Boot order (emulator run): QEMU logs every access to the peripherals it does not model, in
+   order (`-d unimp`). The first GPIOE access must be the write that drives PE9, PE11 and PE13
+   (both PWM pins and the H-bridge enable) low — BSRR = 0x2A000000 — followed by MODER making
+   them outputs, and both must come before the first access to the flash interface ("Flash
+   Int": the clock set-up's wait states, then the parameter load, which may erase a sector for
+   seconds).
+2. Fault path (emulator run): without the boot assist's flash-size answer, the HAL's read of the
+   unmapped flash-size word HardFaults — a real fault in the shipped image. The HardFault
+   handler must write PE13 low (BSRR = 0x20000000), clear TIM1 BDTR.MOE (bit 15), and reset the
+   MCU (QEMU runs with -no-reboot, so the reset ends it).
+3. Panic path (disassembly): the panic handler's and the HardFault handler's first call is
+   `odocal_emergency_stop`, the function whose writes step 2 observed.
+"""
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import emulator  # noqa: E402
+
+WRITE = re.compile(r"^(\S[^:]*): unimplemented device write \(size \d+, offset (0x[0-9a-f]+), value (0x[0-9a-f]+)\)")
+ACCESS = re.compile(r"^(\S[^:]*): unimplemented device (read|write)")
+
+
+def accesses(log_path):
+    out = []
+    with open(log_path) as f:
+        for line in f:
+            m = ACCESS.match(line)
+            if not m:
+                continue
+            w = WRITE.match(line)
+            out.append((m.group(1), m.group(2),
+                        int(w.group(2), 16) if w else None, int(w.group(3), 16) if w else None))
+    return out
+
+
+def wait_for(log_path, pattern, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        if os.path.exists(log_path) and pattern in open(log_path).read():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def check_boot_order(elf, workdir):
+    e = emulator.Emulator(elf, workdir, name="safe-boot")
+    try:
+        e.start()
+        if not wait_for(e.log, "Flash Int", 20):
+            return "no flash interface access within 20 s"
+    finally:
+        e.stop()
+    acc = accesses(e.log)
+    gpioe = [i for i, a in enumerate(acc) if a[0] == "GPIOE"]
+    flash = [i for i, a in enumerate(acc) if a[0] == "Flash Int"]
+    if not gpioe or not flash:
+        return f"GPIOE accesses {len(gpioe)}, flash accesses {len(flash)}"
+    first = acc[gpioe[0]]
+    if first[1:] != ("write", 0x18, 0x2A000000):
+        return f"first GPIOE access is {first}, not BSRR = 0x2A000000"
+    moder = [acc[i] for i in gpioe if acc[i][1] == "write" and acc[i][2] == 0x00]
+    mask = (3 << 18) | (3 << 22) | (3 << 26)
+    want = (1 << 18) | (1 << 22) | (1 << 26)
+    if not moder or moder[0][3] & mask != want:
+        return f"MODER does not make PE9/PE11/PE13 outputs first: {moder[:1]}"
+    moder_at = next(i for i in gpioe if acc[i][1] == "write" and acc[i][2] == 0x00)
+    if not (gpioe[0] < moder_at < flash[0]):
+        return f"order: BSRR at {gpioe[0]}, MODER at {moder_at}, first flash access at {flash[0]}"
+    print(f"boot order: PE9/PE11/PE13 driven low (access {gpioe[0]}) and made outputs "
+          f"(access {moder_at}) before the first flash-interface access (access {flash[0]})")
+    return None
+
+
+def check_fault_path(elf, workdir):
+    e = emulator.Emulator(elf, workdir, name="safe-fault", extra=["-no-reboot"])
+    script, _ = emulator.boot_assist_script(elf, e.port)
+    # Drop the flash-size answers: the read then HardFaults as it would on a part without the
+    # word mapped.
+    kept, skip = [], False
+    for line in script.splitlines():
+        if line.startswith("# flash-size read"):
+            skip = True
+            continue
+        if skip:
+            if line == "end":
+                skip = False
+            continue
+        kept.append(line)
+    path = os.path.join(workdir, "safe-fault.gdb")
+    with open(path, "w") as f:
+        f.write("\n".join(kept) + "\n")
+    e.gdb = subprocess.Popen(["gdb-multiarch", "-q", "-nx", "-batch", "-x", path, elf],
+                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    deadline = time.time() + 20
+    while e.alive() and time.time() < deadline:
+        time.sleep(0.1)
+    reset = not e.alive()
+    e.stop()
+    acc = accesses(e.log)
+    boot = next((i for i, a in enumerate(acc) if a[0] == "GPIOE" and a[3] == 0x2A000000), None)
+    stop = next((i for i, a in enumerate(acc)
+                 if a[0] == "GPIOE" and a[1:] == ("write", 0x18, 0x20000000)), None)
+    if boot is None or stop is None or stop < boot:
+        return f"no PE13-low write after boot (boot {boot}, stop {stop})"
+    # QEMU names the unmodelled TIM1 "timer[1]".
+    tim1 = [a for a in acc[stop:] if a[0] in ("TIM1", "timer[1]") and a[1] == "write" and a[2] == 0x44]
+    if not tim1 or tim1[0][3] & (1 << 15):
+        return f"TIM1 BDTR.MOE not cleared after the fault: {tim1[:1]}"
+    if not reset:
+        return "the MCU did not reset after the fault"
+    print(f"fault path: HardFault → PE13 low, TIM1 BDTR = 0x{tim1[0][3]:08x} (MOE off), reset")
+    return None
+
+
+def check_handlers(elf):
+    dis = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", elf], check=True,
+                         capture_output=True, text=True).stdout
+    found = {}
+    for name, pattern in (("panic", "rust_begin_unwind>:"), ("HardFault", "__cortex_m_rt_HardFault")):
+        m = re.search(r"^[0-9a-f]+ <[^>]*" + re.escape(pattern.rstrip(">:")) + r"[^>]*>:\n(.*?)\n\n",
+                      dis, re.S | re.M)
+        if not m:
+            return f"{name} handler not found in the disassembly"
+        calls = re.findall(r"\bbl\s+[0-9a-f]+ <([^>]+)>", m.group(1))
+        if not calls or calls[0] != "odocal_emergency_stop":
+            return f"{name} handler's first call is {calls[:1]}, not odocal_emergency_stop"
+        found[name] = calls[0]
+    print("handlers: panic and HardFault call odocal_emergency_stop first")
+    return None
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("elf")
+    ap.add_argument("--workdir", default="target/fil")
+    args = ap.parse_args()
+    os.makedirs(args.workdir, exist_ok=True)
+    failures = [f for f in (check_handlers(args.elf), check_boot_order(args.elf, args.workdir),
+                            check_fault_path(args.elf, args.workdir)) if f]
+    for f in failures:
+        print("FAILED:", f)
+    sys.exit(1 if failures else 0)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,152 @@
+//! The safe state of the motor outputs, from reset to panic.
+//!
+//! - [`motors_off_at_reset`]: the first thing `init` does, before clocks and before the first
+//!   flash access (a parameter load may erase a sector for seconds): the H-bridge enable (PE13)
+//!   and both PWM pins (PE9, PE11) become push-pull outputs driven low, with pull-downs. Out of
+//!   reset they are floating inputs, which some bridges read as "enabled".
+//! - [`odocal_emergency_stop`]: from any context (panic, HardFault), whatever state the drivers are
+//!   in: the bridge enable low (coast) and TIM1's main output (BDTR.MOE) off, so the PWM pins go
+//!   to their idle level. The panic and HardFault handlers call it, log, and reset the MCU, so
+//!   a fault never leaves the last duty on the motors until the watchdog fires, and a panic
+//!   before the watchdog runs does not hang for ever.
+//! - [`freeze_when_halted`]: TIM1 (and, in debug builds, the watchdog) stop while a debugger
+//!   halts the core, so a breakpoint does not leave the motors at the last duty.
+//! - [`reset_cause`]: why the MCU last reset, from RCC_CSR (flags cleared after reading).
+
+use stm32f4xx_hal::pac;
+
+/// PE9 (TIM1_CH1, right PWM), PE11 (TIM1_CH2, left PWM), PE13 (bridge enable).
+const MOTOR_PINS: [u32; 3] = [9, 11, 13];
+
+/// Drives the motor pins to the safe state (see the module docs).
+pub fn motors_off_at_reset(rcc: &pac::RCC, gpioe: &pac::GPIOE) {
+    rcc.ahb1enr().modify(|_, w| w.gpioeen().set_bit());
+    // Two peripheral-clock cycles must pass before GPIOE responds (RM0090 §6.3.10 errata note):
+    // a read-back of the enable register provides them.
+    let _ = rcc.ahb1enr().read().bits();
+    let mut low = 0u32;
+    let mut mask2 = 0u32;
+    let mut output = 0u32;
+    let mut pull_down = 0u32;
+    for pin in MOTOR_PINS {
+        low |= 1 << (pin + 16);
+        mask2 |= 0b11 << (2 * pin);
+        output |= 0b01 << (2 * pin);
+        pull_down |= 0b10 << (2 * pin);
+    }
+    // SAFETY: GPIOE is owned by `init` at this point (nothing else runs); BSRR resets only the
+    // three motor pins, and the MODER/PUPDR read-modify-writes change only their bit pairs.
+    unsafe {
+        gpioe.bsrr().write(|w| w.bits(low));
+        gpioe
+            .pupdr()
+            .modify(|r, w| w.bits((r.bits() & !mask2) | pull_down));
+        gpioe
+            .moder()
+            .modify(|r, w| w.bits((r.bits() & !mask2) | output));
+    }
+}
+
+/// Motors off from any context (see the module docs). Never inlined and with a fixed symbol
+/// name, so the firmware-in-the-loop check can see the fault handlers call it first.
+#[inline(never)]
+#[unsafe(no_mangle)]
+pub extern "C" fn odocal_emergency_stop() {
+    // SAFETY: called from the panic and HardFault handlers, which never return: the drivers
+    // that own these registers never run again. BSRR is a write-only set/reset register (the
+    // write affects only PE13), and the BDTR write clears only MOE.
+    unsafe {
+        let gpioe = &*pac::GPIOE::ptr();
+        gpioe.bsrr().write(|w| w.bits(1 << (13 + 16)));
+        let tim1 = &*pac::TIM1::ptr();
+        tim1.bdtr().modify(|r, w| w.bits(r.bits() & !(1 << 15)));
+    }
+}
+
+/// Stops TIM1 (always) and the independent watchdog (debug builds only) while the core is
+/// halted by a debugger.
+pub fn freeze_when_halted(dbgmcu: &pac::DBGMCU) {
+    dbgmcu.apb2_fz().modify(|_, w| w.dbg_tim1_stop().set_bit());
+    if cfg!(debug_assertions) {
+        dbgmcu.apb1_fz().modify(|_, w| w.dbg_iwdg_stop().set_bit());
+    }
+}
+
+/// Why the MCU last reset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum ResetCause {
+    /// The independent watchdog expired (the control loop stalled).
+    Watchdog,
+    /// The window watchdog expired.
+    WindowWatchdog,
+    /// Low-power management reset.
+    LowPower,
+    /// Software reset (the panic and HardFault handlers, or a debugger).
+    Software,
+    /// The supply dropped below the brown-out level.
+    BrownOut,
+    /// Power-on.
+    PowerOn,
+    /// The reset pin (the reset button, or a debugger).
+    Pin,
+    /// No flag set (an emulator, or the flags were cleared).
+    Unknown,
+}
+
+impl ResetCause {
+    /// The cause as the `event reset:` line names it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ResetCause::Watchdog => "watchdog",
+            ResetCause::WindowWatchdog => "window-watchdog",
+            ResetCause::LowPower => "low-power",
+            ResetCause::Software => "software",
+            ResetCause::BrownOut => "brown-out",
+            ResetCause::PowerOn => "power-on",
+            ResetCause::Pin => "pin",
+            ResetCause::Unknown => "unknown",
+        }
+    }
+}
+
+/// Reads the reset flags of RCC_CSR (most specific first: a power-on also sets the brown-out
+/// and pin flags, a watchdog reset also the pin flag) and clears them for the next boot.
+pub fn reset_cause(rcc: &pac::RCC) -> ResetCause {
+    let csr = rcc.csr().read().bits();
+    let flag = |bit: u32| csr & (1 << bit) != 0;
+    let cause = if flag(29) {
+        ResetCause::Watchdog
+    } else if flag(30) {
+        ResetCause::WindowWatchdog
+    } else if flag(31) {
+        ResetCause::LowPower
+    } else if flag(28) {
+        ResetCause::Software
+    } else if flag(27) {
+        ResetCause::PowerOn
+    } else if flag(25) {
+        ResetCause::BrownOut
+    } else if flag(26) {
+        ResetCause::Pin
+    } else {
+        ResetCause::Unknown
+    };
+    rcc.csr().modify(|_, w| w.rmvf().set_bit());
+    cause
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    odocal_emergency_stop();
+    if let Some(loc) = info.location() {
+        defmt::error!("panic at {}:{}", loc.file(), loc.line());
+    }
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+#[cortex_m_rt::exception]
+unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    odocal_emergency_stop();
+    defmt::error!("hard fault at pc {=u32:#x}", frame.pc());
+    cortex_m::peripheral::SCB::sys_reset()
+}
