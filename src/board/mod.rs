@@ -42,6 +42,9 @@ pub use emulator::{
     Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx,
     ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
 };
+// The safe-state code and the reset cause are the MCU's, the same on both boards.
+#[cfg(feature = "emulator")]
+pub use f407::{ResetCause, safety};
 
 /// The interrupt the control task is bound to (TIM7's vector on every board).
 pub const CONTROL_INTERRUPT: stm32f4xx_hal::pac::Interrupt = stm32f4xx_hal::pac::Interrupt::TIM7;

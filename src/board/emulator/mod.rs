@@ -22,6 +22,7 @@ pub mod flash;
 pub mod plant;
 pub mod semihosting;
 
+use crate::board::f407::ResetCause;
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
 use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
@@ -171,10 +172,13 @@ pub struct Board {
     pub watchdog: IndependentWatchdog,
     /// The parameter store on the emulated sectors 10–11 (not loaded yet).
     pub params: ParamStore<BoardFlash>,
+    /// Why the MCU last reset (QEMU models no reset flags: `Unknown`).
+    pub reset_cause: ResetCause,
 }
 
 /// Brings up the emulated board.
 pub fn init(dp: pac::Peripherals) -> Board {
+    let reset_cause = crate::board::f407::safety::reset_cause(&dp.RCC);
     let mut rcc = dp.RCC.freeze(Config::hsi());
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
@@ -217,5 +221,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         console_tx,
         watchdog,
         params: flash::param_store(),
+        reset_cause,
     }
 }
