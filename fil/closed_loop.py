@@ -148,7 +148,8 @@ def restarted_board(elf, workdir, apply):
     checks = []
     emu, con, truth = boot(elf, workdir, "restarted", log)
     try:
-        if log[-1] != "event boot: parameters loaded":
+        # The boot line may end with the reset cause (", reset: …").
+        if not log[-1].startswith("event boot: parameters loaded"):
             raise ConsoleError(f"restart: {log[-1]}")
         send(con, "echo off", log)
         data, _ = send(con, "params", log)
