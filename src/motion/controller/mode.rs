@@ -211,15 +211,7 @@ impl Controller {
     /// # Errors
     /// [`StartError`] when busy, faulted, not ready, or the path is implausible.
     pub fn start(&mut self, path: PathKind) -> Result<(), StartError> {
-        if self.fault.is_some() {
-            return Err(StartError::Faulted);
-        }
-        if !self.is_idle() {
-            return Err(StartError::Busy);
-        }
-        if self.encoders.is_none() {
-            return Err(StartError::NotReady);
-        }
+        self.ready_to_start()?;
         validate_path(&path).map_err(StartError::Path)?;
         let routine = Routine::new(
             path,
@@ -341,21 +333,26 @@ impl Controller {
         self.run.is_none() && self.drive.is_none() && self.check.is_none()
     }
 
+    /// Whether a run or a check may start now: no fault, idle, encoders read.
+    fn ready_to_start(&self) -> Result<(), StartError> {
+        if self.fault.is_some() {
+            Err(StartError::Faulted)
+        } else if !self.is_idle() {
+            Err(StartError::Busy)
+        } else if self.encoders.is_none() {
+            Err(StartError::NotReady)
+        } else {
+            Ok(())
+        }
+    }
+
     /// Starts a bring-up check ([`crate::motion::bringup`]): the motor pulses need the wheels
     /// off the ground, the push check needs the operator to push the robot forward by hand.
     ///
     /// # Errors
     /// As [`Controller::start`]: a latched fault, not idle, before the first step.
     pub fn start_check(&mut self, kind: CheckKind) -> Result<(), StartError> {
-        if self.fault.is_some() {
-            return Err(StartError::Faulted);
-        }
-        if !self.is_idle() {
-            return Err(StartError::Busy);
-        }
-        if self.encoders.is_none() {
-            return Err(StartError::NotReady);
-        }
+        self.ready_to_start()?;
         let rate = self.config.rate_hz;
         let g = &self.config.geometry;
         self.check = Some(match kind {
