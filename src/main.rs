@@ -12,6 +12,27 @@ fn main() {
 #[cfg(target_os = "none")]
 use defmt_rtt as _;
 
+/// A panic stops the motors (H-bridge disabled, TIM1 main output off), logs where, and resets
+/// the MCU: nothing keeps driving the wheels, and nothing waits for the watchdog.
+#[cfg(target_os = "none")]
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    odocal::board::safety::odocal_emergency_stop();
+    if let Some(loc) = info.location() {
+        defmt::error!("panic at {}:{}", loc.file(), loc.line());
+    }
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// A HardFault does the same as a panic.
+#[cfg(target_os = "none")]
+#[cortex_m_rt::exception]
+unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    odocal::board::safety::odocal_emergency_stop();
+    defmt::error!("hard fault at pc {=u32:#x}", frame.pc());
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
 #[cfg(target_os = "none")]
 rtic_monotonics::systick_monotonic!(Mono, 1000);
 

@@ -6,7 +6,8 @@
 //!   reset they are floating inputs, which some bridges read as "enabled".
 //! - [`odocal_emergency_stop`]: from any context (panic, HardFault), whatever state the drivers are
 //!   in: the bridge enable low (coast) and TIM1's main output (BDTR.MOE) off, so the PWM pins go
-//!   to their idle level. The panic and HardFault handlers call it, log, and reset the MCU, so
+//!   to their idle level. The firmware's panic and HardFault handlers (in `src/main.rs`, so that
+//!   other target binaries of the library keep their own) call it, log, and reset the MCU, so
 //!   a fault never leaves the last duty on the motors until the watchdog fires, and a panic
 //!   before the watchdog runs does not hang for ever.
 //! - [`freeze_when_halted`]: TIM1 (and, in debug builds, the watchdog) stop while a debugger
@@ -133,20 +134,4 @@ pub fn reset_cause(rcc: &pac::RCC) -> ResetCause {
     };
     rcc.csr().modify(|_, w| w.rmvf().set_bit());
     cause
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    odocal_emergency_stop();
-    if let Some(loc) = info.location() {
-        defmt::error!("panic at {}:{}", loc.file(), loc.line());
-    }
-    cortex_m::peripheral::SCB::sys_reset()
-}
-
-#[cortex_m_rt::exception]
-unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
-    odocal_emergency_stop();
-    defmt::error!("hard fault at pc {=u32:#x}", frame.pc());
-    cortex_m::peripheral::SCB::sys_reset()
 }
