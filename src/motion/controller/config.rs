@@ -3,7 +3,8 @@
 
 use core::fmt;
 
-use super::{Controller, Wheel};
+use super::fault::FollowingState;
+use super::{Controller, Wheel, still_limits};
 
 use crate::kinematics::encoder::{CounterWidth, EncoderConfig, Polarity, max_step_for};
 use crate::kinematics::geometry::{Geometry, GeometryError};
@@ -240,6 +241,9 @@ impl Controller {
             l.set_max_step(self.config.left_encoder.max_step);
         }
         self.pi = Self::speed_pis(&self.config);
+        // Bounds in counts follow the geometry too (only while idle: nothing is accumulated).
+        self.following = FollowingState::for_config(&self.config);
+        self.still_limit_ticks = still_limits(&geometry);
         Ok(())
     }
 

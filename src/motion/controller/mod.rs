@@ -30,6 +30,7 @@ use mode::{ActiveCheck, ActiveRun, DriveState};
 pub use mode::{ButtonAction, DriveError, StartError};
 
 use crate::kinematics::encoder::{Encoder, EncoderGlitch, WheelTicks};
+use crate::kinematics::geometry::Geometry;
 use crate::kinematics::odometry::{Odometry, OdometryState, Pose};
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::motor::{MotorDriver, StopMode};
@@ -151,6 +152,8 @@ pub struct Controller {
     still_periods: u32,
     /// Tick totals when the wheels were last seen moving (see [`Controller::motors_stopped`]).
     still_anchor: WheelTicks,
+    /// [`STILL_TRAVEL_M`] in counts of each wheel (right, left).
+    still_limit_ticks: (u64, u64),
 }
 
 /// Periods without wheel motion after which the motors count as stopped (0.1 s).
@@ -160,6 +163,15 @@ const STILL_SECONDS_INV: u32 = 10;
 /// robot). Over the 0.1 s window that is below 10 mm/s, while a count of encoder jitter (2.4 µm)
 /// is far inside it.
 const STILL_TRAVEL_M: f64 = 0.001;
+
+/// [`STILL_TRAVEL_M`] in counts of each wheel of `g` (computed when the geometry changes, so
+/// the control period compares integers).
+fn still_limits(g: &Geometry) -> (u64, u64) {
+    (
+        (STILL_TRAVEL_M / g.meters_per_tick_right()) as u64,
+        (STILL_TRAVEL_M / g.meters_per_tick_left()) as u64,
+    )
+}
 
 impl Controller {
     /// A controller for `config`; idle, encoders synchronised at the first [`Controller::step`].
@@ -206,6 +218,7 @@ impl Controller {
             deadman_periods: per_ms(config.deadman_ms).max(1),
             still_periods: 0,
             still_anchor: WheelTicks::default(),
+            still_limit_ticks: still_limits(&config.geometry),
         })
     }
 
@@ -250,10 +263,8 @@ impl Controller {
         // Still = neither wheel has drifted more than STILL_TRAVEL_M from where it last moved:
         // an encoder edge jittering by a count or two on a wheel at rest is not motion.
         let drift = self.totals - self.still_anchor;
-        let g = &self.config.geometry;
-        let still = (drift.right.unsigned_abs() as f64) * g.meters_per_tick_right()
-            <= STILL_TRAVEL_M
-            && (drift.left.unsigned_abs() as f64) * g.meters_per_tick_left() <= STILL_TRAVEL_M;
+        let still = drift.right.unsigned_abs() <= self.still_limit_ticks.0
+            && drift.left.unsigned_abs() <= self.still_limit_ticks.1;
         if still {
             self.still_periods = self.still_periods.saturating_add(1);
         } else {
