@@ -25,7 +25,7 @@ pub mod semihosting;
 use crate::board::f407::ResetCause;
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
-use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
+use stm32f4xx_hal::gpio::{Edge, Pull};
 use stm32f4xx_hal::pac::{self, USART2};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Config;
@@ -114,34 +114,9 @@ impl ControlTick {
     pub fn clear(&mut self) {}
 }
 
-/// The user button on PA0 (EXTI0, both edges, pressed = high); QEMU drives no GPIO input.
-pub struct ButtonInput(PA0<Input>);
-
-impl ButtonInput {
-    /// Acknowledges the edge interrupt and reads the level (true = pressed).
-    pub fn edge(&mut self) -> bool {
-        self.0.clear_interrupt_pending_bit();
-        self.0.is_high()
-    }
-}
-
-/// Heartbeat (green) and fault (red) LEDs (register writes only, in QEMU).
-pub struct Leds {
-    heartbeat: PD12<Output>,
-    fault: PD14<Output>,
-}
-
-impl Leds {
-    /// Toggles the heartbeat LED.
-    pub fn toggle_heartbeat(&mut self) {
-        self.heartbeat.toggle();
-    }
-
-    /// Lights the fault LED while `on`.
-    pub fn set_fault(&mut self, on: bool) {
-        self.fault.set_state(on.into());
-    }
-}
+// The button (QEMU drives no GPIO input), the LEDs (register writes only in QEMU) and the
+// console USART are the F407 board's own.
+pub use crate::board::f407::{ButtonInput, Leds};
 
 /// The console port's receive half (USART2 RX interrupt).
 pub type ConsoleRx = Rx<USART2>;
@@ -212,11 +187,11 @@ pub fn init(dp: pac::Peripherals) -> Board {
         },
         motors: BoardMotors(()),
         tick: ControlTick(()),
-        button: ButtonInput(button_pin),
-        leds: Leds {
-            heartbeat: gpiod.pd12.into_push_pull_output(),
-            fault: gpiod.pd14.into_push_pull_output(),
-        },
+        button: ButtonInput::new(button_pin),
+        leds: Leds::new(
+            gpiod.pd12.into_push_pull_output(),
+            gpiod.pd14.into_push_pull_output(),
+        ),
         console_rx,
         console_tx,
         watchdog,

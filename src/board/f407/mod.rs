@@ -81,6 +81,11 @@ impl ControlTick {
 pub struct ButtonInput(PA0<Input>);
 
 impl ButtonInput {
+    /// The button on `pin`, already an interrupt source.
+    pub(crate) fn new(pin: PA0<Input>) -> Self {
+        ButtonInput(pin)
+    }
+
     /// Acknowledges the edge interrupt and reads the level (true = pressed).
     pub fn edge(&mut self) -> bool {
         self.0.clear_interrupt_pending_bit();
@@ -95,6 +100,11 @@ pub struct Leds {
 }
 
 impl Leds {
+    /// The two LED outputs.
+    pub(crate) fn new(heartbeat: PD12<Output>, fault: PD14<Output>) -> Self {
+        Leds { heartbeat, fault }
+    }
+
     /// Toggles the heartbeat LED.
     pub fn toggle_heartbeat(&mut self) {
         self.heartbeat.toggle();
@@ -255,11 +265,11 @@ pub fn init(dp: pac::Peripherals) -> Board {
         encoders: Encoders { right, left },
         motors,
         tick: ControlTick(tick),
-        button: ButtonInput(button_pin),
-        leds: Leds {
-            heartbeat: gpiod.pd12.into_push_pull_output(),
-            fault: gpiod.pd14.into_push_pull_output(),
-        },
+        button: ButtonInput::new(button_pin),
+        leds: Leds::new(
+            gpiod.pd12.into_push_pull_output(),
+            gpiod.pd14.into_push_pull_output(),
+        ),
         console_rx,
         console_tx,
         watchdog,
