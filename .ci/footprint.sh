@@ -34,8 +34,8 @@ ram=$((data + bss))
 echo "footprint: $ELF"
 printf "  text %d  data %d  bss %d (bytes)\n" "$text" "$data" "$bss"
 kib() { awk -v v="$1" 'BEGIN { printf "%.1f", v / 1024 }'; }
-printf "  flash      %6d bytes = %6s KiB (goal <= %d KiB)\n" "$flash" "$(kib "$flash")" $((FLASH_GOAL / 1024))
-printf "  static RAM %6d bytes = %6s KiB (goal <= %d KiB)\n" "$ram" "$(kib "$ram")" $((RAM_GOAL / 1024))
+printf "  flash %d bytes = %s KiB (goal <= %d KiB)\n" "$flash" "$(kib "$flash")" $((FLASH_GOAL / 1024))
+printf "  static RAM %d bytes = %s KiB (goal <= %d KiB)\n" "$ram" "$(kib "$ram")" $((RAM_GOAL / 1024))
 echo "  largest symbols (bytes, type, name):"
 # (awk reads all of nm's output: an early-closing `head` would kill nm with SIGPIPE under pipefail)
 arm-none-eabi-nm --size-sort -S -C -t d --reverse-sort "$ELF" | awk '
