@@ -72,12 +72,13 @@ mod app {
     use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
     use odocal::motion::controller::{Controller, ControllerConfig};
+    use odocal::motion::run::{MAX_RUNS, RunRecord};
     use odocal::protocol::LineAssembler;
     use odocal::protocol::reply::{ByteSink, ErrorCode, write_err};
     use odocal::protocol::rx::{self, InputItem, RxRead};
     use odocal::session::library::{LibraryCalibrator, Locked};
     use odocal::session::{ParamStorage, Session, Settings, StorageError, write_boot_event};
-    use odocal::storage::ParamStore;
+    use odocal::storage::{ParamStore, RunsLoaded, StoredRun};
     use rtic_monotonics::systick::prelude::*;
     use stm32f4xx_hal::prelude::*;
     use stm32f4xx_hal::serial::{TxISR, TxListen};
@@ -183,6 +184,26 @@ mod app {
         fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
             self.relaxed(motors_stopped, |s| ParamStorage::reset(s, motors_stopped))
         }
+
+        fn save_runs(
+            &mut self,
+            runs: &[RunRecord],
+            ids: &mut [Option<StoredRun>],
+            motors_stopped: bool,
+        ) -> Result<(), StorageError> {
+            self.relaxed(motors_stopped, |s| {
+                ParamStorage::save_runs(s, runs, ids, motors_stopped)
+            })
+        }
+
+        fn load_runs(
+            &mut self,
+            runs: &mut heapless::Vec<RunRecord, MAX_RUNS>,
+            ids: &mut heapless::Vec<Option<StoredRun>, MAX_RUNS>,
+        ) -> RunsLoaded {
+            // Only at boot, motors stopped: a repair may erase a sector.
+            self.relaxed(true, |s| ParamStorage::load_runs(s, runs, ids))
+        }
     }
 
     #[init(local = [
@@ -200,7 +221,7 @@ mod app {
         let params = loaded.record;
         let settings = Settings::from(&params);
         let controller = make_controller(&settings);
-        let session = Session::new(settings, LibraryCalibrator::default());
+        let mut session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
 
@@ -215,6 +236,9 @@ mod app {
                 loaded.warning.as_ref(),
                 Some(reset_cause.as_str()),
             );
+            // The session's runs and measurements as they were before the reset (the
+            // watchdog is not running yet: a repairing load may erase a sector).
+            let _ = session.restore_runs(&mut params_store, &mut sink);
         }
         defmt::info!("reset cause: {}", reset_cause);
         let (press_in, press_out) = cx.local.presses.split();
@@ -439,7 +463,7 @@ mod app {
                 };
             }
             let now_us = u64::from(Mono::now().ticks()) * 1_000;
-            let _ = session.poll(now_us, &mut robot, &mut out);
+            let _ = session.poll(now_us, &mut robot, store, &mut out);
             dropped += out.dropped;
             if dropped > 0 {
                 defmt::warn!("serial transmit queue full: {} bytes dropped", dropped);

@@ -17,6 +17,7 @@ use odocal::session::{
     Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
     Settings, Solution, SolveError, StorageError,
 };
+use odocal::storage::{RunsLoaded, StoredRun};
 
 #[derive(Default)]
 struct ScriptedRobot {
@@ -147,6 +148,12 @@ impl Robot for ScriptedRobot {
 struct MemoryStore {
     saved: Option<Settings>,
     resets: usize,
+    /// The committed runs, as a flash store keeps them.
+    runs: Vec<RunRecord>,
+    run_saves: usize,
+    next_key: u8,
+    /// Run saves fail (a flash driver error).
+    fail_runs: bool,
 }
 
 impl ParamStorage for MemoryStore {
@@ -164,6 +171,52 @@ impl ParamStorage for MemoryStore {
         self.resets += 1;
         self.saved = Some(Settings::default());
         Ok(())
+    }
+    fn save_runs(
+        &mut self,
+        runs: &[RunRecord],
+        ids: &mut [Option<StoredRun>],
+        motors_stopped: bool,
+    ) -> Result<(), StorageError> {
+        if !motors_stopped {
+            return Err(StorageError::MotorsRunning);
+        }
+        if self.fail_runs {
+            return Err(StorageError::Flash("flash driver error"));
+        }
+        for id in ids.iter_mut().filter(|id| id.is_none()) {
+            self.next_key = self.next_key.wrapping_add(1);
+            *id = Some(StoredRun {
+                key: self.next_key,
+                serial: u32::from(self.next_key),
+            });
+        }
+        self.runs = runs.to_vec();
+        self.run_saves += 1;
+        Ok(())
+    }
+    fn load_runs(
+        &mut self,
+        runs: &mut heapless::Vec<RunRecord, MAX_RUNS>,
+        ids: &mut heapless::Vec<Option<StoredRun>, MAX_RUNS>,
+    ) -> RunsLoaded {
+        runs.clear();
+        ids.clear();
+        for (i, r) in self.runs.iter().enumerate() {
+            runs.push(r.clone()).unwrap();
+            ids.push(Some(StoredRun {
+                key: i as u8,
+                serial: i as u32,
+            }))
+            .unwrap();
+        }
+        RunsLoaded {
+            found: self.run_saves > 0,
+            restored: self.runs.len(),
+            measured: self.runs.iter().filter(|r| r.measured.is_some()).count(),
+            skipped: 0,
+            problem: None,
+        }
     }
 }
 
@@ -249,7 +302,7 @@ impl Bench {
     fn poll(&mut self, now_us: u64) -> String {
         let mut out = String::new();
         self.session
-            .poll(now_us, &mut self.robot, &mut out)
+            .poll(now_us, &mut self.robot, &mut self.store, &mut out)
             .unwrap();
         out
     }
@@ -307,7 +360,7 @@ fn help_lists_every_command_then_ok() {
          \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
          \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)\r\n\
          \x20 runs                      list stored runs\r\n\
-         \x20 drop <n>                  delete run n\r\n\
+         \x20 drop <n>|all              delete run n, or every run\r\n\
          \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
          \x20 apply <method>            use a method's result (then save)\r\n\
          \x20 save                      store parameters in flash (motors stopped)\r\n\
@@ -886,8 +939,10 @@ fn run_store_ram() {
     // MAX_KNOTS knots × 16 B, plus path, geometry, poses and measurement: under 300 B more.
     let knots = MAX_KNOTS * size_of::<WheelTicks>();
     assert!(record >= knots && record < knots + 300, "{record}");
-    // The session is the store plus settings and the stream state: under 512 B more.
-    assert!(session < MAX_RUNS * record + 512, "{session}");
+    // The session is the store, where each run is stored in flash, plus settings and the
+    // stream state: under 512 B more.
+    let ids = MAX_RUNS * size_of::<Option<StoredRun>>();
+    assert!(session < MAX_RUNS * record + ids + 512, "{session}");
 }
 
 /// The wiring check: the operator's instructions, and the verdicts and proposals from the
@@ -964,4 +1019,45 @@ fn bringup_replies_and_proposals_are_exact() {
     assert_eq!(b.robot.wiring.map(|w| w.encoder_left_reversed), Some(true));
     assert!(b.send("set encoder_left_sign 0").starts_with("err "));
     assert!(b.send("bringup sideways").starts_with("err "));
+}
+
+#[test]
+fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() {
+    let mut b = Bench::new();
+    b.measured_run("cw", 0.01, -0.02, 0.012, -0.018);
+    b.measured_run("ccw", 0.02, 0.01, 0.021, 0.012);
+    assert_eq!(b.store.runs, b.session.runs());
+    assert!(b.store.runs.iter().all(|r| r.measured.is_some()));
+    // While the motors run nothing is written (a page change would erase a sector): the drop
+    // is stored once they stop.
+    assert_eq!(b.send("drive 0.1 0"), "ok\r\n");
+    assert!(b.send("drop 1").starts_with("ok dropped run 1"));
+    assert_eq!(b.store.runs.len(), 2);
+    assert!(!b.session.runs_stored());
+    b.robot.driving = false;
+    assert_eq!(b.poll(0), "");
+    assert_eq!(b.store.runs, b.session.runs());
+    // A flash failure is reported once, and the next change tries again.
+    b.store.fail_runs = true;
+    let reply = b.send("measure #1 0.022 0.011");
+    assert!(
+        reply.ends_with("\r\nevent runs not stored: flash error: flash driver error\r\n"),
+        "{reply}"
+    );
+    b.store.fail_runs = false;
+    assert_eq!(b.poll(0), "");
+    assert!(!b.session.runs_stored());
+    assert!(b.send("measure #1 0.023 0.011").starts_with("ok run 1"));
+    assert!(b.session.runs_stored());
+    assert_eq!(b.store.runs, b.session.runs());
+    // A reset: a new session over the same storage resumes with the runs and measurements.
+    let listing = b.send("runs");
+    let mut resumed = Session::new(Settings::default(), KnownCalibrator { solves: 0 });
+    let mut out = String::new();
+    resumed.restore_runs(&mut b.store, &mut out).unwrap();
+    assert_eq!(out, "event runs restored: 1 runs, 1 measured\r\n");
+    b.session = resumed;
+    assert_eq!(b.send("runs"), listing);
+    assert_eq!(b.send("drop all"), "ok dropped all 1 runs\r\n");
+    assert!(b.store.runs.is_empty());
 }

@@ -8,7 +8,7 @@
 mod storage_support;
 
 use odocal::storage::ram_flash::RamFlash;
-use odocal::storage::{LoadWarning, ParamRecord, ParamStore};
+use odocal::storage::{LoadOutcome, LoadWarning, ParamRecord, ParamStore, RunsLoaded};
 use storage_support::calibrated;
 
 const PAGE: usize = 1024;
@@ -218,4 +218,239 @@ fn double_cut(stride: u64) {
         "double cut: {first_cuts} first cuts, {repairs} boots repaired, {second_cuts} second cuts, {bad} not old-or-new"
     );
     assert_eq!(bad, 0);
+}
+
+// ---- The run store: power cut at every byte of every run-store update ----
+
+use odocal::motion::run::{MAX_RUNS, RunRecord};
+use odocal::storage::StoredRun;
+use storage_support::{measurement, run_record};
+
+/// Pages of the run-store sweep: 4 × 1 KiB, so a sequence of ~40 updates closes pages, migrates
+/// live runs and erases pages several times while staying fast (the logic of
+/// `sequential-storage` does not depend on the page size, only the number of cut points inside
+/// an erase does).
+const RUN_PAGE: usize = 1024;
+type RunFlash = RamFlash<4, RUN_PAGE, 1>;
+/// Knots per test run: small items (132 B), so that many updates fit the small pages.
+const KNOTS: usize = 4;
+
+type Runs = heapless::Vec<RunRecord, MAX_RUNS>;
+type Ids = heapless::Vec<Option<StoredRun>, MAX_RUNS>;
+
+/// One change of the session's runs, as the session makes it before storing them.
+#[derive(Clone, Copy, Debug)]
+enum Update {
+    /// A run finished (record `n`).
+    Finish(u32),
+    /// Run `index` (0-based) measured (or re-measured) with measurement `n`.
+    Measure(usize, u32),
+    /// Run `index` dropped.
+    Drop(usize),
+    /// Every run dropped.
+    DropAll,
+    /// Not a run update: the parameters saved (record `n`), runs unchanged.
+    SaveParams(u32),
+}
+
+fn apply(update: Update, runs: &mut Runs, ids: &mut Ids) {
+    match update {
+        Update::Finish(n) => {
+            runs.push(run_record(n, KNOTS)).unwrap();
+            ids.push(None).unwrap();
+        }
+        Update::Measure(i, n) => runs[i].measured = Some(measurement(n)),
+        Update::Drop(i) => {
+            runs.remove(i);
+            ids.remove(i);
+        }
+        Update::DropAll => {
+            runs.clear();
+            ids.clear();
+        }
+        Update::SaveParams(_) => {}
+    }
+}
+
+/// A booted store over `flash`: parameters and runs loaded as `init` loads them.
+fn boot(
+    flash: &mut RunFlash,
+) -> (
+    ParamStore<&mut RunFlash>,
+    LoadOutcome,
+    Runs,
+    Ids,
+    RunsLoaded,
+) {
+    let mut store = ParamStore::new(flash, 0..(4 * RUN_PAGE) as u32).unwrap();
+    let params = store.load_blocking();
+    let (mut runs, mut ids) = (Runs::new(), Ids::new());
+    let loaded = store.load_runs_blocking(&mut runs, &mut ids);
+    (store, params, runs, ids, loaded)
+}
+
+/// Runs the update on a booted store.
+fn perform(
+    store: &mut ParamStore<&mut RunFlash>,
+    update: Update,
+    runs: &mut Runs,
+    ids: &mut Ids,
+) -> Result<(), odocal::storage::StoreError> {
+    apply(update, runs, ids);
+    match update {
+        Update::SaveParams(n) => store.save_blocking(&calibrated(n), true),
+        _ => store.save_runs_blocking(runs, ids, true),
+    }
+}
+
+/// The session of the sweep: runs finish, are measured and re-measured, dropped one by one and
+/// all at once, the store fills to 6 runs, and the parameters are saved in between.
+fn run_script() -> Vec<Update> {
+    use Update::*;
+    let mut script = vec![SaveParams(1)];
+    for round in 0..3u32 {
+        let b = 10 * round;
+        script.extend([
+            Finish(b + 1),
+            Measure(0, b + 1),
+            Finish(b + 2),
+            Measure(1, b + 2),
+            Finish(b + 3),
+            Measure(2, b + 3),
+            Measure(0, b + 4),
+            Finish(b + 4),
+            Drop(1),
+            Finish(b + 5),
+            Measure(3, b + 5),
+            SaveParams(b + 2),
+            Finish(b + 6),
+            Finish(b + 7),
+            Measure(5, b + 6),
+            Drop(0),
+            DropAll,
+        ]);
+    }
+    script
+}
+
+#[derive(Debug, Default)]
+struct RunTally {
+    /// Cut points tried (one per byte written or erased by the interrupted update).
+    cuts: u64,
+    /// Cuts inside updates that erased a page.
+    cuts_in_updates_with_erase: u64,
+    /// Boots that restored the old runs / the new runs.
+    old: u64,
+    new: u64,
+    /// Boots that restored anything else, or reported a run as skipped.
+    mixed: u64,
+    /// Boots whose parameters were not the last saved ones (old or new for a parameter save).
+    params_lost: u64,
+    /// Updates that did not report a cut before their commit point, cuts that never happened,
+    /// or a next update after the cut that failed.
+    other_failures: u64,
+}
+
+#[test]
+fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters() {
+    let mut base = RunFlash::default();
+    let mut tally = RunTally::default();
+    let mut params_old: Option<ParamRecord> = None;
+    for (step, &update) in run_script().iter().enumerate() {
+        // The update once without a cut: its length and the state it commits.
+        let mut probe = base.clone();
+        let (old_runs, new_runs, params_new, len, with_erase) = {
+            let erases_before: u32 = probe.erase_counts().iter().sum();
+            let (mut store, _, mut runs, mut ids, _) = boot(&mut probe);
+            let old_runs = runs.clone();
+            let before = store.flash().bytes_touched();
+            perform(&mut store, update, &mut runs, &mut ids).unwrap();
+            let len = store.flash().bytes_touched() - before;
+            let params_new = match update {
+                Update::SaveParams(n) => Some(calibrated(n)),
+                _ => params_old,
+            };
+            drop(store);
+            let with_erase = probe.erase_counts().iter().sum::<u32>() > erases_before;
+            (old_runs, runs, params_new, len, with_erase)
+        };
+        for cut in 0..len {
+            let mut flash = base.clone();
+            {
+                let (mut store, _, mut runs, mut ids, _) = boot(&mut flash);
+                store.flash().cut_power_after(Some(cut as u32));
+                let res = perform(&mut store, update, &mut runs, &mut ids);
+                // A cut while a dropped run's item is removed comes after the commit point:
+                // the update reports success (the item left behind is unlisted).
+                let removing = res.is_ok() && matches!(update, Update::Drop(_) | Update::DropAll);
+                if (res.is_ok() && !removing) || store.flash().is_powered() {
+                    eprintln!("step {step} {update:?} cut={cut}/{len}: returned {res:?}");
+                    tally.other_failures += 1;
+                }
+                store.flash().restore_power();
+            }
+            tally.cuts += 1;
+            if with_erase {
+                tally.cuts_in_updates_with_erase += 1;
+            }
+            // Reboot: the runs are the old or the new ones, measurements included, nothing
+            // skipped; the parameters are the last saved ones (old or new for a save).
+            let (mut store, params, mut runs, mut ids, loaded) = boot(&mut flash);
+            let params_ok = match (&params_old, &params_new) {
+                (Some(o), Some(n)) => {
+                    params.warning.is_none() && (params.record == *o || params.record == *n)
+                }
+                (None, Some(n)) => {
+                    (params.warning.is_none() && params.record == *n)
+                        || params.warning == Some(LoadWarning::Missing)
+                }
+                (_, None) => params.warning == Some(LoadWarning::Missing),
+            };
+            if !params_ok {
+                eprintln!(
+                    "step {step} {update:?} cut={cut}: parameters {:?}",
+                    params.warning
+                );
+                tally.params_lost += 1;
+            }
+            if loaded.skipped != 0 || loaded.problem.is_some() {
+                eprintln!("step {step} {update:?} cut={cut}: {loaded:?}");
+                tally.mixed += 1;
+            } else if runs == new_runs {
+                tally.new += 1;
+            } else if runs == old_runs {
+                tally.old += 1;
+            } else {
+                eprintln!(
+                    "step {step} {update:?} cut={cut}: {} runs restored",
+                    runs.len()
+                );
+                tally.mixed += 1;
+            }
+            // The flash stays usable: the next update from the restored state succeeds and
+            // is restored.
+            let next = Update::Finish(900 + step as u32);
+            let stored = perform(&mut store, next, &mut runs, &mut ids);
+            drop(store);
+            let (_, _, again, _, _) = boot(&mut flash);
+            if stored.is_err() || again != runs {
+                eprintln!("step {step} {update:?} cut={cut}: next update {stored:?}");
+                tally.other_failures += 1;
+            }
+        }
+        base = probe;
+        params_old = params_new;
+    }
+    println!("run-store power-cut sweep, 4 x {RUN_PAGE} B pages, 1-byte words: {tally:?}");
+    assert_eq!(tally.mixed, 0, "{tally:?}");
+    assert_eq!(tally.params_lost, 0, "{tally:?}");
+    assert_eq!(tally.other_failures, 0, "{tally:?}");
+    assert_eq!(tally.old + tally.new, tally.cuts);
+    // The sweep must really have covered updates that move live runs and erase a page.
+    assert!(
+        tally.cuts_in_updates_with_erase >= RUN_PAGE as u64,
+        "{tally:?}"
+    );
+    // And both outcomes must occur: cuts before and after the commit point.
+    assert!(tally.old > 0 && tally.new > 0, "{tally:?}");
 }

@@ -113,13 +113,17 @@ fn scripted_session_calibrate_save_reboot() {
     assert!(b.send("apply exact").starts_with("ok applied exact: "));
     assert_eq!(b.send("save"), "ok saved\r\n");
     let params_before = b.send("params");
+    let runs_before = b.send("runs");
     let calibrated = b.controller_geometry();
     assert_ne!(calibrated, Geometry::PAPER_NOMINAL);
 
     // Simulated reboot: a new board (controller, session) over the same flash.
     drop(b);
     let (mut b2, boot_msg) = boot(&mut flash);
-    assert_eq!(boot_msg, "event boot: parameters loaded\r\n");
+    assert_eq!(
+        boot_msg,
+        "event boot: parameters loaded\r\nevent runs restored: 10 runs, 10 measured\r\n"
+    );
     let params_after = b2.send("params");
     println!("{params_after}");
     assert_eq!(params_after, params_before);
@@ -129,8 +133,22 @@ fn scripted_session_calibrate_save_reboot() {
     );
     // The controller runs with the stored calibration, bit for bit.
     assert_eq!(b2.controller_geometry(), calibrated);
-    // The run store is RAM only: empty after the reboot.
-    assert_eq!(b2.send("runs"), "ok 0 runs, 0 measured\r\n");
+    // The runs and measurements survived the reboot, bit for bit: the same list, and the same
+    // calibration table from them (the session resumes where it was).
+    assert_eq!(b2.send("runs"), runs_before);
+    assert_eq!(b2.send("calibrate"), table);
+    // `drop all` forgets them in flash too: the next boot restores nothing.
+    assert_eq!(b2.send("drop all"), "ok dropped all 10 runs\r\n");
+    // Flash is written once the wheels have been still for 0.1 s (the board just booted).
+    let mut out = String::new();
+    for _ in 0..200 {
+        b2.step(&mut out);
+    }
+    assert!(b2.session.runs_stored(), "{out}");
+    drop(b2);
+    let (mut b3, boot_msg) = boot(&mut flash);
+    assert_eq!(boot_msg, "event boot: parameters loaded\r\n");
+    assert_eq!(b3.send("runs"), "ok 0 runs, 0 measured\r\n");
 }
 
 #[test]

@@ -90,6 +90,8 @@ pub enum Command<'a> {
         /// 1-based run number.
         index: usize,
     },
+    /// `drop all`: delete every stored run (a fresh session; also forgotten in flash).
+    DropAll,
     /// `calibrate [method]`: compute every method (or one) from the measured runs.
     Calibrate {
         /// Method name as typed (the session checks it), `None` = all.
@@ -389,9 +391,14 @@ impl<'a> Command<'a> {
         } else if is("runs") {
             Command::Runs
         } else if is("drop") {
-            let max = crate::motion::run::MAX_RUNS as u32;
-            let index = whole(words.required("n")?, "n", 1, max)? as usize;
-            Command::Drop { index }
+            let which = words.required("n")?;
+            if keyword_eq(which, "all") {
+                Command::DropAll
+            } else {
+                let max = crate::motion::run::MAX_RUNS as u32;
+                let index = whole(which, "n", 1, max)? as usize;
+                Command::Drop { index }
+            }
         } else if is("calibrate") {
             let method = words.next().map(method_name).transpose()?;
             Command::Calibrate { method }

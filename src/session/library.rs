@@ -30,8 +30,8 @@ use crate::motion::profile::MotionLimits;
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
-use crate::storage::ParamStore;
 use crate::storage::record::{self, MethodName, ParamRecord};
+use crate::storage::{ParamStore, RunsLoaded, StoredRun};
 use crate::util::decimal::Decimal;
 
 /// Short name of a fault as the protocol shows it.
@@ -323,6 +323,24 @@ impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
     fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
         self.reset_to_defaults_blocking(motors_stopped)
             .map_err(store_error)
+    }
+
+    fn save_runs(
+        &mut self,
+        runs: &[RunRecord],
+        ids: &mut [Option<StoredRun>],
+        motors_stopped: bool,
+    ) -> Result<(), StorageError> {
+        self.save_runs_blocking(runs, ids, motors_stopped)
+            .map_err(store_error)
+    }
+
+    fn load_runs(
+        &mut self,
+        runs: &mut Vec<RunRecord, MAX_RUNS>,
+        ids: &mut Vec<Option<StoredRun>, MAX_RUNS>,
+    ) -> RunsLoaded {
+        self.load_runs_blocking(runs, ids)
     }
 }
 

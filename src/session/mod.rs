@@ -37,7 +37,7 @@ use crate::motion::bringup::PushReport;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, LineEvent, ParseError, StopKey};
-use crate::storage::LoadWarning;
+use crate::storage::{LoadWarning, RunsLoaded, StoredRun};
 use crate::util::decimal::Decimal;
 use crate::util::num::clamp;
 use crate::util::text::keyword_eq;
@@ -97,6 +97,12 @@ pub struct Session<C> {
     last_aborted: Option<ActiveRun>,
     /// The calibration the last geometry change dropped.
     dropped: Option<Dropped>,
+    /// Where each run of `runs` is stored in flash (`None`: not stored yet).
+    run_ids: Vec<Option<StoredRun>, MAX_RUNS>,
+    /// The runs changed since they were last stored.
+    runs_dirty: bool,
+    /// Storing them failed; the next change tries again (not every poll).
+    runs_store_failed: bool,
 }
 
 fn robot_err(out: &mut dyn Write, e: RobotError) -> fmt::Result {
@@ -138,6 +144,30 @@ pub fn write_boot_event(
     out.write_str(EOL)
 }
 
+/// The line that tells the operator which runs survived a reset:
+/// `event runs restored: <n> runs, <m> measured`, followed by `; <k> skipped: <first problem>`
+/// when stored runs could not be restored. Nothing when no runs are stored (a new board, or
+/// after `drop all`).
+///
+/// # Errors
+/// Only those of `out`.
+pub fn write_runs_restored(out: &mut dyn Write, loaded: &RunsLoaded) -> fmt::Result {
+    if !loaded.found || (loaded.restored == 0 && loaded.problem.is_none()) {
+        return Ok(());
+    }
+    write!(
+        out,
+        "event runs restored: {} runs, {} measured",
+        loaded.restored, loaded.measured
+    )?;
+    match (&loaded.problem, loaded.skipped) {
+        (Some(p), 0) => write!(out, "; {p}")?,
+        (Some(p), k) => write!(out, "; {k} skipped: {p}")?,
+        (None, _) => {}
+    }
+    out.write_str(EOL)
+}
+
 /// Counts of square runs per direction: `(stored, measured)` for CW and CCW.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Progress {
@@ -164,7 +194,62 @@ impl<C: Calibrator> Session<C> {
             active: None,
             last_aborted: None,
             dropped: None,
+            run_ids: Vec::new(),
+            runs_dirty: false,
+            runs_store_failed: false,
         }
+    }
+
+    /// Restores the runs stored in flash (at boot, before the first command) and writes what
+    /// was restored as `event runs restored: <n> runs, <m> measured[; <k> skipped: <why>]`
+    /// (nothing when no runs were ever stored).
+    ///
+    /// # Errors
+    /// Only those of `out`.
+    pub fn restore_runs(
+        &mut self,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let loaded = storage.load_runs(&mut self.runs, &mut self.run_ids);
+        self.runs_dirty = false;
+        self.runs_store_failed = false;
+        write_runs_restored(out, &loaded)
+    }
+
+    /// Marks the run store changed: it is written to flash at the next opportunity.
+    fn runs_changed(&mut self) {
+        self.runs_dirty = true;
+        self.runs_store_failed = false;
+    }
+
+    /// Writes the run store to flash if it changed and the motors are stopped (a page change
+    /// erases a sector, which stalls the CPU); a failure is reported once as
+    /// `event runs not stored: <why>` and retried at the next change.
+    fn store_runs(
+        &mut self,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if !self.runs_dirty || self.runs_store_failed || !robot.motors_stopped() {
+            return Ok(());
+        }
+        match storage.save_runs(&self.runs, &mut self.run_ids, true) {
+            Ok(()) => {
+                self.runs_dirty = false;
+                Ok(())
+            }
+            Err(e) => {
+                self.runs_store_failed = true;
+                write!(out, "event runs not stored: {e}{EOL}")
+            }
+        }
+    }
+
+    /// Whether every run change has been written to flash.
+    pub fn runs_stored(&self) -> bool {
+        !self.runs_dirty
     }
 
     /// Whether received characters are to be echoed (`echo on|off`; on at boot, for a person at
@@ -240,6 +325,8 @@ impl<C: Calibrator> Session<C> {
                 continue;
             }
             let _ = self.runs.push(run);
+            let _ = self.run_ids.push(None);
+            self.runs_changed();
             let n = self.runs.len();
             write!(out, "event run {n} finished: ")?;
             report::write_path(out, &path)?;
@@ -266,14 +353,22 @@ impl<C: Calibrator> Session<C> {
         Ok(())
     }
 
-    /// Periodic work: collects finished runs (announcing them with `event` lines) and writes a
-    /// `stream` line when one is due at `now_us` (a monotonic time, microseconds).
+    /// Periodic work: collects finished runs (announcing them with `event` lines), stores
+    /// changed runs in flash once the motors are stopped, and writes a `stream` line when one
+    /// is due at `now_us` (a monotonic time, microseconds).
     ///
     /// # Errors
     /// Only if `out` refuses the text.
-    pub fn poll(&mut self, now_us: u64, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+    pub fn poll(
+        &mut self,
+        now_us: u64,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
         self.collect_finished(robot, out)?;
         self.collect_check(robot, out)?;
+        self.store_runs(robot, storage, out)?;
         if self.stream_due(now_us) {
             let pose = robot.pose();
             let totals = robot.totals();
@@ -463,11 +558,23 @@ impl<C: Calibrator> Session<C> {
         }
     }
 
-    /// Executes a parsed command.
+    /// Executes a parsed command; a change of the runs is stored in flash right after the
+    /// reply.
     ///
     /// # Errors
     /// Only if `out` refuses the text.
     pub fn execute(
+        &mut self,
+        cmd: Command<'_>,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        self.execute_command(cmd, robot, storage, out)?;
+        self.store_runs(robot, storage, out)
+    }
+
+    fn execute_command(
         &mut self,
         cmd: Command<'_>,
         robot: &mut dyn Robot,
@@ -545,9 +652,23 @@ impl<C: Calibrator> Session<C> {
                     );
                 }
                 let run = self.runs.remove(index - 1);
+                if index <= self.run_ids.len() {
+                    self.run_ids.remove(index - 1);
+                }
+                self.runs_changed();
                 write!(out, "ok dropped run {index}: ")?;
                 report::write_path(out, &run.path)?;
                 write!(out, "; {} runs left{EOL}", self.runs.len())
+            }
+            Command::DropAll => {
+                if self.active.is_some() || robot.status().activity != Activity::Idle {
+                    return robot_err(out, RobotError::Busy);
+                }
+                let n = self.runs.len();
+                self.runs.clear();
+                self.run_ids.clear();
+                self.runs_changed();
+                write!(out, "ok dropped all {n} runs{EOL}")
             }
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method } => self.apply(method, robot, out),
@@ -556,7 +677,13 @@ impl<C: Calibrator> Session<C> {
                     return storage_err(out, e);
                 }
                 match storage.save(&self.settings, robot.motors_stopped()) {
-                    Ok(()) => write!(out, "ok saved{EOL}"),
+                    Ok(()) => {
+                        // A save that had to wipe damaged flash took the runs with it.
+                        if !self.runs.is_empty() {
+                            self.runs_changed();
+                        }
+                        write!(out, "ok saved{EOL}")
+                    }
                     Err(e) => storage_err(out, e),
                 }
             }
@@ -751,8 +878,10 @@ impl<C: Calibrator> Session<C> {
             theta_rad: theta_deg.map(f64::to_radians),
         });
         let odo = run.odometry_end;
+        let path = run.path;
+        self.runs_changed();
         write!(out, "ok run {n} ")?;
-        report::write_path(out, &run.path)?;
+        report::write_path(out, &path)?;
         out.write_str(" measured")?;
         if let Some(old) = replaced {
             out.write_str(" (replaced ")?;
@@ -927,6 +1056,10 @@ impl<C: Calibrator> Session<C> {
         }
         if let Err(e) = storage.reset(robot.motors_stopped()) {
             return storage_err(out, e);
+        }
+        // A reset that had to wipe damaged flash took the runs with it.
+        if !self.runs.is_empty() {
+            self.runs_changed();
         }
         // Idle was checked above, so the controller accepts both.
         if let Err(e) = robot

@@ -27,7 +27,7 @@ const HELP: &[&str] = &[
     "clear                     clear a latched fault (stall, glitch, following)",
     "measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)",
     "runs                      list stored runs",
-    "drop <n>                  delete run n",
+    "drop <n>|all              delete run n, or every run",
     "calibrate [method]        compute all methods (or one) from measured runs",
     "apply <method>            use a method's result (then save)",
     "save                      store parameters in flash (motors stopped)",

@@ -16,6 +16,7 @@ use crate::motion::profile::MotionLimits;
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::wiring::Wiring;
 use crate::storage::record::RecordError;
+use crate::storage::{RunsLoaded, StoredRun};
 
 /// What the robot is doing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,6 +155,26 @@ pub trait ParamStorage {
     /// # Errors
     /// [`StorageError`]; the previously stored settings stay intact.
     fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError>;
+    /// Stores the run store: each run whose id is `None` is written and gets its id, then the
+    /// list of runs with their measurements; runs no longer listed are forgotten. A power cut
+    /// leaves the previously stored runs or these, never a mix, and never touches the
+    /// parameters.
+    ///
+    /// # Errors
+    /// [`StorageError`]; the previously stored runs stay intact.
+    fn save_runs(
+        &mut self,
+        runs: &[RunRecord],
+        ids: &mut [Option<StoredRun>],
+        motors_stopped: bool,
+    ) -> Result<(), StorageError>;
+    /// Restores the stored runs (at boot) into `runs` and where each is stored into `ids`.
+    /// Never fails: what cannot be restored is skipped and reported in the result.
+    fn load_runs(
+        &mut self,
+        runs: &mut heapless::Vec<RunRecord, { crate::motion::run::MAX_RUNS }>,
+        ids: &mut heapless::Vec<Option<StoredRun>, { crate::motion::run::MAX_RUNS }>,
+    ) -> RunsLoaded;
 }
 
 /// How one stored run fits a result (the exact method's robust fit).

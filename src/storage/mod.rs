@@ -21,6 +21,7 @@
 
 pub mod ram_flash;
 pub mod record;
+pub mod runs;
 
 use core::fmt;
 use core::ops::Range;
@@ -33,6 +34,7 @@ use sequential_storage::map::MapStorage;
 pub use self::record::{
     Calibration, FormatError, METHOD_NAME_MAX, MethodName, MotionSettings, ParamRecord, RecordError,
 };
+pub use self::runs::{RunFormatError, RunLoadProblem, RunsLoaded, StoredRun};
 
 /// Map key under which the parameter record is stored.
 pub const PARAMS_KEY: u8 = 1;
@@ -40,8 +42,21 @@ pub const PARAMS_KEY: u8 = 1;
 /// Largest flash word `sequential-storage` supports, bytes (its `MAX_WORD_SIZE`).
 const MAX_WORD: usize = 32;
 
-/// Working buffer: key + record, rounded up to any supported word size.
-const BUF_LEN: usize = (1 + ParamRecord::ENCODED_LEN).next_multiple_of(MAX_WORD);
+/// Longest item: the parameter record, a run with every knot, or the run index.
+const ITEM_MAX: usize = {
+    let mut n = ParamRecord::ENCODED_LEN;
+    if runs::RUN_ITEM_MAX > n {
+        n = runs::RUN_ITEM_MAX;
+    }
+    if runs::INDEX_MAX > n {
+        n = runs::INDEX_MAX;
+    }
+    n
+};
+
+/// Working buffer: key + the longest item, rounded up to any supported word size (1.7 KiB: a
+/// run is written straight from the session's record into it, never copied whole elsewhere).
+const BUF_LEN: usize = (1 + ITEM_MAX).next_multiple_of(MAX_WORD);
 
 /// The map type used for the parameters.
 type Map<F> = MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>;
@@ -193,6 +208,12 @@ pub struct ParamStore<F: MultiwriteNorFlash> {
     map: Map<F>,
     buf: AlignedBuf,
     wipes: u32,
+    /// Run item keys the committed run index lists (bit i = key `RUN_KEY_FIRST + i`).
+    live_run_keys: u32,
+    /// Serial number of the next run item.
+    next_serial: u32,
+    /// [`Self::wipes`] when the session's run ids were last valid (a wipe forgets every run).
+    runs_wipes: u32,
 }
 
 impl<F: MultiwriteNorFlash> ParamStore<F> {
@@ -213,6 +234,9 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             map: MapStorage::new(flash, config, Cache::new_uncached()),
             buf: AlignedBuf([0; BUF_LEN]),
             wipes: 0,
+            live_run_keys: 0,
+            next_serial: 1,
+            runs_wipes: 0,
         }
     }
 

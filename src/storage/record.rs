@@ -345,27 +345,27 @@ impl From<FormatError> for SerializationError {
 }
 
 /// Little-endian writer over a fixed buffer whose length was checked up front.
-struct Writer<'a> {
-    buf: &'a mut [u8],
-    pos: usize,
+pub(super) struct Writer<'a> {
+    pub(super) buf: &'a mut [u8],
+    pub(super) pos: usize,
 }
 
 impl Writer<'_> {
     // Out of line, like `Reader::fill`.
     #[inline(never)]
-    fn bytes(&mut self, b: &[u8]) {
+    pub(super) fn bytes(&mut self, b: &[u8]) {
         if let Some(dst) = self.buf.get_mut(self.pos..self.pos + b.len()) {
             dst.copy_from_slice(b);
         }
         self.pos += b.len();
     }
-    fn f64(&mut self, v: f64) {
+    pub(super) fn f64(&mut self, v: f64) {
         self.bytes(&v.to_le_bytes());
     }
-    fn f32(&mut self, v: f32) {
+    pub(super) fn f32(&mut self, v: f32) {
         self.bytes(&v.to_le_bytes());
     }
-    fn geometry(&mut self, g: &Geometry) {
+    pub(super) fn geometry(&mut self, g: &Geometry) {
         self.f64(g.diameter_right_m);
         self.f64(g.diameter_left_m);
         self.f64(g.wheelbase_m);
@@ -374,13 +374,13 @@ impl Writer<'_> {
 }
 
 /// Little-endian reader over a buffer whose length was checked up front.
-struct Reader<'a> {
-    buf: &'a [u8],
-    pos: usize,
+pub(super) struct Reader<'a> {
+    pub(super) buf: &'a [u8],
+    pub(super) pos: usize,
 }
 
 impl Reader<'_> {
-    fn array<const N: usize>(&mut self) -> [u8; N] {
+    pub(super) fn array<const N: usize>(&mut self) -> [u8; N] {
         let mut out = [0u8; N];
         self.fill(&mut out);
         out
@@ -388,19 +388,19 @@ impl Reader<'_> {
     /// Copies the next `out.len()` bytes (left zero past the end). Out of line: one copy for
     /// the twenty-odd fields instead of one per field.
     #[inline(never)]
-    fn fill(&mut self, out: &mut [u8]) {
+    pub(super) fn fill(&mut self, out: &mut [u8]) {
         if let Some(src) = self.buf.get(self.pos..self.pos + out.len()) {
             out.copy_from_slice(src);
         }
         self.pos += out.len();
     }
-    fn f64(&mut self) -> f64 {
+    pub(super) fn f64(&mut self) -> f64 {
         f64::from_le_bytes(self.array())
     }
-    fn f32(&mut self) -> f32 {
+    pub(super) fn f32(&mut self) -> f32 {
         f32::from_le_bytes(self.array())
     }
-    fn geometry(&mut self) -> Geometry {
+    pub(super) fn geometry(&mut self) -> Geometry {
         Geometry {
             diameter_right_m: self.f64(),
             diameter_left_m: self.f64(),

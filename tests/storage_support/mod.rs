@@ -59,3 +59,50 @@ impl Rng {
         (self.next_u64() % n as u64) as usize
     }
 }
+
+/// A run record that differs from every other `n` (path, knots, odometry end); `knots` knots,
+/// unmeasured.
+pub fn run_record(n: u32, knots: usize) -> odocal::motion::run::RunRecord {
+    use odocal::kinematics::encoder::WheelTicks;
+    use odocal::kinematics::reference::PoseF64;
+    use odocal::motion::run::{Direction, PathKind, RunRecord};
+    let k = f64::from(n);
+    let path = match n % 4 {
+        0 => PathKind::Square {
+            direction: Direction::Cw,
+            side_m: 1.0 + 0.25 * k,
+        },
+        1 => PathKind::Square {
+            direction: Direction::Ccw,
+            side_m: 1.0 + 0.25 * k,
+        },
+        2 => PathKind::Line { length_m: 0.5 + k },
+        _ => PathKind::Circle {
+            direction: Direction::Ccw,
+            radius_m: 0.3 + 0.1 * k,
+        },
+    };
+    let mut record = RunRecord {
+        path,
+        geometry: Geometry::PAPER_NOMINAL.with_factors(1.0 + 1e-4 * k, 1.0 - 2e-4 * k, 1.0),
+        knots: heapless::Vec::new(),
+        odometry_end: PoseF64::new(0.01 * k, -0.02 * k, 1e-3 * k),
+        measured: None,
+    };
+    for i in 0..knots as i64 {
+        let right = i * (1_000_003 + i64::from(n)) - i64::from(n) * i * i;
+        let left = i * (999_983 - 7 * i64::from(n));
+        record.knots.push(WheelTicks::new(right, left)).unwrap();
+    }
+    record
+}
+
+/// A measurement that differs from every other `n` (with a heading for odd `n`).
+pub fn measurement(n: u32) -> odocal::motion::run::Measurement {
+    let k = f64::from(n);
+    odocal::motion::run::Measurement {
+        x_m: 0.001 * k - 0.3,
+        y_m: 0.4 - 0.002 * k,
+        theta_rad: (n % 2 == 1).then_some(0.01 * k),
+    }
+}

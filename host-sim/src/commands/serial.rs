@@ -7,9 +7,13 @@
 //! `measure` command (only for a run that finished and was stored, never after an abort).
 //!
 //! With `--pty`, this program's own stdin is the rest of the board: `button` (short press),
-//! `button long`, `reboot` (a new board over the same parameter flash, as after a reset or power
-//! cycle; with `--image`, the file's contents) and `help`. The boot event is also printed on
-//! stderr, since a terminal program that opens the pty later never sees it.
+//! `button long`, `reboot` or `reset` (a new board over the same flash, as after a reset or
+//! power cycle; with `--image`, the file's contents) and `help`. The flash keeps the parameters
+//! and the session's runs with their measurements, so the new board resumes the session: its
+//! boot events (`event boot: …`, then `event runs restored: <n> runs, <m> measured` when runs
+//! were stored) go to the pty, as on the board, and are also printed on stderr, since a
+//! terminal program that opens the pty later never sees them. The pty stays open across the
+//! restart.
 
 use std::io::{Read, Write};
 use std::sync::mpsc;
@@ -45,8 +49,9 @@ pub struct SerialArgs {
     /// Control rate, Hz.
     #[arg(long, default_value_t = 1000)]
     pub rate: u32,
-    /// Flash image file: loaded at boot (missing = erased flash) and written back after every
-    /// command that changed the flash, so `save` survives a restart of the simulator.
+    /// Flash image file: loaded at boot (missing = erased flash) and written back whenever the
+    /// flash changed (`save`, a stored run, a measurement, `drop`), so parameters and runs
+    /// survive a restart of the simulator.
     #[arg(long)]
     pub image: Option<std::path::PathBuf>,
     /// After each run, enter `measure` with the true end pose as the operator would (the line
@@ -142,6 +147,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     let mut was_running = false;
     let mut report_at_rest = false;
     let mut stored_before = 0;
+    let mut image_touched = board.store.flash().bytes_touched();
     loop {
         // What has arrived goes to the receive side at once (stop keys act now); lines wait in
         // the board's input queue.
@@ -165,7 +171,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                 "" => {}
                 "button" => board.press_button(false, &mut out),
                 "button long" => board.press_button(true, &mut out),
-                "reboot" => {
+                "reboot" | "reset" => {
                     drop(board);
                     if let Some(path) = &args.image {
                         flash = SimParamFlash::open(path)
@@ -173,18 +179,21 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                     }
                     let mut boot = String::new();
                     board = Board::boot(config, &mut flash, &mut boot)?;
+                    image_touched = board.store.flash().bytes_touched();
                     eprint!("sim: {boot}");
                     out.push_str(&boot);
                     (was_running, report_at_rest, stored_before) = (false, false, 0);
                 }
                 "help" => eprintln!(
-                    "sim: button | button long | reboot (the board's button and reset; the \
-                     console is the pty)"
+                    "sim: button | button long | reboot (or reset) (the board's button and \
+                     reset: parameters, runs and measurements survive it; the console is the \
+                     pty)"
                 ),
-                other => eprintln!("sim: unknown `{other}` (button | button long | reboot)"),
+                other => {
+                    eprintln!("sim: unknown `{other}` (button | button long | reboot | reset)")
+                }
             }
         }
-        let touched = board.store.flash().bytes_touched();
         let settled = |board: &Board| {
             let (r, l) = board.sim.wheel_speeds_mps();
             !args.settle || (r.abs() < f64::MIN_POSITIVE && l.abs() < f64::MIN_POSITIVE)
@@ -194,15 +203,18 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         if !args.fast || settled(&board) {
             board.process(&mut out, args.fast);
         }
+        for _ in 0..slice_periods {
+            board.step(&mut out);
+        }
+        // Commands (`save`, `measure`, `drop`) and finished runs write the flash.
+        let touched = board.store.flash().bytes_touched();
         if let Some(path) = &args.image
-            && board.store.flash().bytes_touched() != touched
+            && touched != image_touched
         {
+            image_touched = touched;
             let mut image = vec![0u8; SimFlash::CAPACITY];
             board.store.flash().copy_image(&mut image);
             std::fs::write(path, image).map_err(|e| format!("{}: {e}", path.display()))?;
-        }
-        for _ in 0..slice_periods {
-            board.step(&mut out);
         }
         let running = matches!(board.controller.status(), Status::Running { .. });
         report_at_rest |= was_running && !running;

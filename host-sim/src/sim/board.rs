@@ -49,8 +49,8 @@ pub struct Board<'f> {
 
 impl<'f> Board<'f> {
     /// Boots: loads the parameters from `flash` (defaults and a warning if there are none),
-    /// configures the controller with them and reads the encoders once. The boot message (an
-    /// `event` line) is appended to `out`.
+    /// configures the controller with them, restores the stored runs and measurements, and
+    /// reads the encoders once. The boot messages (`event` lines) are appended to `out`.
     ///
     /// # Errors
     /// An invalid controller configuration or flash range, as text.
@@ -65,11 +65,15 @@ impl<'f> Board<'f> {
         let controller = Controller::new(settings.controller_config(config.rate_hz))
             .map_err(|e| format!("stored parameters: {e}"))?;
         write_boot_event(out, loaded.warning.as_ref(), None).map_err(|e| e.to_string())?;
+        let mut session = Session::new(settings, LibraryCalibrator::default());
+        session
+            .restore_runs(&mut store, out)
+            .map_err(|e| e.to_string())?;
         let period_us = 1_000_000 / u64::from(config.rate_hz);
         let mut board = Board {
             sim: Sim::new(config),
             controller,
-            session: Session::new(settings, LibraryCalibrator::default()),
+            session,
             store,
             assembler: LineAssembler::new(),
             input: VecDeque::new(),
@@ -188,7 +192,9 @@ impl<'f> Board<'f> {
         self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
         let output = self.sim.step(&mut self.controller);
         self.now_us += self.period_us;
-        let _ = self.session.poll(self.now_us, &mut self.controller, out);
+        let _ = self
+            .session
+            .poll(self.now_us, &mut self.controller, &mut self.store, out);
         self.running = matches!(self.controller.status(), Status::Running { .. });
         output
     }

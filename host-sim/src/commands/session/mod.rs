@@ -539,8 +539,10 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
         && params_after_reboot.contains(&format!("calibration {}", method.as_str()));
     pb.inc(1);
 
-    // Verification on the rebooted board.
+    // Verification on the rebooted board: the calibration runs survived the reboot; a fresh
+    // set of squares is driven with the new parameters.
     pb.set_message("verification");
+    send(&mut board, "drop all", &mut log)?;
     send(&mut board, &format!("set square_side {side_m}"), &mut log)?;
     let after_runs = planned_runs(&mut board, args, &mut rng, &mut log, pb)?;
     let after: Vec<_> = after_runs

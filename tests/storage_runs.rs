@@ -1,0 +1,207 @@
+//! The session's runs in flash next to the parameter record: a full store round-trips bit for
+//! bit, and a corrupted, foreign or absurd run record is reported and skipped at boot without
+//! touching the parameters. (Power cuts: `storage_power_cut.rs`.)
+
+mod storage_support;
+
+use odocal::motion::run::{MAX_KNOTS, MAX_RUNS, RunRecord};
+use odocal::session::write_runs_restored;
+use odocal::storage::runs::{RunFormatError, decode_run};
+use odocal::storage::{ParamStore, RunLoadProblem, StoredRun};
+use storage_support::{BOARD_RANGE, BoardFlash, calibrated, measurement, run_record};
+
+type Runs = heapless::Vec<RunRecord, MAX_RUNS>;
+type Ids = heapless::Vec<Option<StoredRun>, MAX_RUNS>;
+
+/// A full store: `MAX_RUNS` runs of `MAX_KNOTS` knots, every other one measured.
+fn full_store() -> Runs {
+    let mut runs = Runs::new();
+    for n in 0..MAX_RUNS as u32 {
+        let mut r = run_record(n, MAX_KNOTS);
+        if n % 2 == 0 {
+            r.measured = Some(measurement(n));
+        }
+        runs.push(r).unwrap();
+    }
+    runs
+}
+
+fn boot(flash: &mut BoardFlash) -> (Runs, Ids, odocal::storage::RunsLoaded) {
+    let mut store = ParamStore::new(flash, BOARD_RANGE).unwrap();
+    let (mut runs, mut ids) = (Runs::new(), Ids::new());
+    let loaded = store.load_runs_blocking(&mut runs, &mut ids);
+    (runs, ids, loaded)
+}
+
+fn event(loaded: &odocal::storage::RunsLoaded) -> String {
+    let mut s = String::new();
+    write_runs_restored(&mut s, loaded).unwrap();
+    s
+}
+
+/// Saves the parameters and `runs` on a fresh board flash; returns the flash and the ids.
+fn stored(runs: &Runs) -> (Box<BoardFlash>, Ids) {
+    let mut flash = Box::new(BoardFlash::default());
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    store.save_blocking(&calibrated(7), true).unwrap();
+    let mut ids: Ids = runs.iter().map(|_| None).collect();
+    store.save_runs_blocking(runs, &mut ids, true).unwrap();
+    (flash, ids)
+}
+
+#[test]
+fn a_full_run_store_survives_a_reset_bit_for_bit() {
+    let runs = full_store();
+    let mut flash = Box::new(BoardFlash::default());
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    store.save_blocking(&calibrated(7), true).unwrap();
+    let mut ids: Ids = runs.iter().map(|_| None).collect();
+    let before = store.flash().bytes_touched();
+    store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+    let written = store.flash().bytes_touched() - before;
+    // A measurement alone rewrites only the index.
+    let mut measured = runs.clone();
+    measured[1].measured = Some(measurement(99));
+    let before = store.flash().bytes_touched();
+    store.save_runs_blocking(&measured, &mut ids, true).unwrap();
+    let index_only = store.flash().bytes_touched() - before;
+    println!(
+        "{MAX_RUNS} runs x {MAX_KNOTS} knots: {written} bytes written; one measurement: \
+         {index_only} bytes"
+    );
+    assert!(index_only < 400, "{index_only}");
+    drop(store);
+
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let params = store.load_blocking();
+    assert_eq!(params.record, calibrated(7));
+    assert_eq!(params.warning, None);
+    drop(store);
+    let (restored, restored_ids, loaded) = boot(&mut flash);
+    assert_eq!(restored, measured);
+    assert_eq!(restored_ids.as_slice(), ids.as_slice());
+    assert_eq!(
+        (loaded.restored, loaded.measured, loaded.skipped),
+        (12, 7, 0)
+    );
+    assert_eq!(
+        event(&loaded),
+        "event runs restored: 12 runs, 7 measured\r\n"
+    );
+}
+
+/// Offset in the flash of the first occurrence of `needle`.
+fn find(flash: &BoardFlash, needle: &[u8]) -> usize {
+    let mut image = vec![0u8; BoardFlash::CAPACITY];
+    flash.copy_image(&mut image);
+    image
+        .windows(needle.len())
+        .position(|w| w == needle)
+        .expect("pattern in flash")
+}
+
+#[test]
+fn a_corrupted_run_record_is_reported_and_skipped_and_the_parameters_stay() {
+    let runs = full_store();
+    let (mut flash, _) = stored(&runs);
+    // Damage one byte of run 3's last knot (its CRC no longer matches).
+    let knot = runs[2].knots.last().unwrap();
+    let at = find(&flash, &knot.right.to_le_bytes());
+    assert!(flash.corrupt_byte(at, !flash.byte(at).unwrap()));
+
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let params = store.load_blocking();
+    assert_eq!((params.record, params.warning), (calibrated(7), None));
+    drop(store);
+    let (restored, mut ids, loaded) = boot(&mut flash);
+    let mut expected = runs.clone();
+    expected.remove(2);
+    assert_eq!(restored, expected);
+    assert_eq!((loaded.restored, loaded.skipped), (11, 1));
+    let text = event(&loaded);
+    println!("{text}");
+    assert!(
+        text.starts_with("event runs restored: 11 runs, 5 measured; 1 skipped: run 3: record "),
+        "{text}"
+    );
+    // The store keeps working: the next update stores the 11 runs, and they come back.
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    store.load_runs_blocking(&mut Runs::new(), &mut Ids::new());
+    store.save_runs_blocking(&restored, &mut ids, true).unwrap();
+    drop(store);
+    let (again, _, loaded) = boot(&mut flash);
+    assert_eq!(again, expected);
+    assert_eq!(loaded.skipped, 0);
+}
+
+#[test]
+fn a_foreign_run_record_is_reported_and_skipped() {
+    let runs = full_store();
+    let (mut flash, mut ids) = stored(&runs);
+    // The index names run 5's key with another serial number: the item there is not the run
+    // the index means (as after a mix-up of keys), so it must not be restored.
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    ids[4].as_mut().unwrap().serial += 1000;
+    store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+    drop(store);
+    let (restored, _, loaded) = boot(&mut flash);
+    assert_eq!(restored.len(), 11);
+    assert_eq!(loaded.problem, Some(RunLoadProblem::Foreign { run: 5 }));
+    assert_eq!(
+        event(&loaded),
+        "event runs restored: 11 runs, 5 measured; 1 skipped: run 5: record belongs to another \
+         run\r\n"
+    );
+}
+
+#[test]
+fn an_absurd_stored_measurement_restores_nothing_and_keeps_the_parameters() {
+    let mut runs = full_store();
+    runs[0].measured.as_mut().unwrap().x_m = f64::NAN;
+    let (mut flash, _) = stored(&runs);
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    assert_eq!(store.load_blocking().record, calibrated(7));
+    drop(store);
+    let (restored, _, loaded) = boot(&mut flash);
+    assert!(restored.is_empty());
+    assert_eq!(
+        event(&loaded),
+        "event runs restored: 0 runs, 0 measured; run list malformed: bad measurement\r\n"
+    );
+}
+
+#[test]
+fn foreign_or_damaged_run_bytes_are_refused_by_the_decoder() {
+    let run = run_record(3, 10);
+    // A valid item, as the store writes it: find it in a flash and decode it.
+    let mut runs = Runs::new();
+    runs.push(run.clone()).unwrap();
+    let (flash, ids) = stored(&runs);
+    let start = find(&flash, &[1, ids[0].unwrap().serial as u8, 0, 0, 0]);
+    let mut image = vec![0u8; BoardFlash::CAPACITY];
+    flash.copy_image(&mut image);
+    let item = image[start..start + 68 + 16 * 10].to_vec();
+    assert_eq!(decode_run(&item), Ok((ids[0].unwrap().serial, run)));
+
+    let with = |offset: usize, value: u8| {
+        let mut b = item.clone();
+        b[offset] = value;
+        decode_run(&b)
+    };
+    assert_eq!(with(0, 9), Err(RunFormatError::Version { found: 9 }));
+    assert_eq!(with(5, 7), Err(RunFormatError::Path));
+    assert_eq!(with(67, 11), Err(RunFormatError::Length));
+    assert_eq!(with(67, 0), Err(RunFormatError::Length));
+    // NaN odometry end (x's top byte).
+    let mut nan = item.clone();
+    nan[43..51].copy_from_slice(&f64::NAN.to_le_bytes());
+    assert_eq!(decode_run(&nan), Err(RunFormatError::Pose));
+    // The first knot must be (0, 0).
+    assert_eq!(with(68, 1), Err(RunFormatError::Knots));
+    // An absurd geometry (wheel diameter 0).
+    let mut geo = item.clone();
+    geo[15..23].copy_from_slice(&0.0f64.to_le_bytes());
+    assert_eq!(decode_run(&geo), Err(RunFormatError::Geometry));
+    assert_eq!(decode_run(&item[..60]), Err(RunFormatError::Length));
+    assert_eq!(decode_run(&[]), Err(RunFormatError::Length));
+}
