@@ -10,7 +10,8 @@ sleep=off`, WFI idle). Over USART2 the client runs an operator's session:
    the run's start frame (read from the plant's `EMULATOR_TRUTH` block through the monitor: the
    tape measure); `calibrate`, `apply exact`, `save`;
 2. restart QEMU on the same flash image (a host file the emulator board reaches through
-   semihosting): `params` must show the calibration;
+   semihosting): `params` must show the calibration, and the runs with their measurements must
+   be restored (`event runs restored: 6 runs, 6 measured`, the same `runs` listing);
 3. on the restarted board: the pose stream at 100 Hz, the `drive` deadman, `stop` mid-run, and a
    64 KiB burst of random bytes into RX (the console still answers, no reset);
 4. the same session on host-sim (`serial --fast --auto-measure --settle`, same robot): every
@@ -137,12 +138,14 @@ def calibration_session(elf, workdir):
         _, saved = send(con, "save", log)
         if saved != "ok saved":
             raise ConsoleError(f"save: {saved}")
+        data, final = send(con, "runs", log)
+        runs = data + [final]
     finally:
         emu.stop()
-    return log, measures, table, apply
+    return log, measures, table, apply, runs
 
 
-def restarted_board(elf, workdir, apply):
+def restarted_board(elf, workdir, apply, runs_before):
     """Steps 2 and 3 on a fresh emulator over the same flash image."""
     log = []
     checks = []
@@ -151,7 +154,17 @@ def restarted_board(elf, workdir, apply):
         # The boot line may end with the reset cause (", reset: …").
         if not log[-1].startswith("event boot: parameters loaded"):
             raise ConsoleError(f"restart: {log[-1]}")
+        # The session's runs and measurements survived the restart.
+        n = 2 * RUNS_PER_DIRECTION
+        restored = con.wait_event("event runs restored", 30)
+        log.append(restored)
+        if restored != f"event runs restored: {n} runs, {n} measured":
+            raise ConsoleError(f"restart: {restored}")
         send(con, "echo off", log)
+        data, final = send(con, "runs", log)
+        if data + [final] != runs_before:
+            raise ConsoleError(f"runs after restart: {data + [final]} vs {runs_before}")
+        checks.append(f"runs after restart: `{restored}`, `runs` identical ({final})")
         data, _ = send(con, "params", log)
         cal = [d for d in data if d.strip().startswith("calibration")]
         m = re.search(r"E_d=(\S+) E_b=(\S+)", apply)
@@ -223,8 +236,10 @@ def restarted_board(elf, workdir, apply):
         emu.stop()
     # The control task feeds the watchdog once per period, and the plant advances once per
     # period after the first (which only reads the counters): QEMU's log must hold the two feeds
-    # that start the watchdog, then one per control period = plant periods + 1.
-    feeds = watchdog_feeds(emu.log)
+    # that start the watchdog, then one per control period = plant periods + 1, plus four for
+    # each flash access with the watchdog relaxed (restart and restore, twice two reload-key
+    # writes): restoring the runs at boot and storing the `line` run.
+    feeds = watchdog_feeds(emu.log) - 4 * 2
     if not final_periods <= feeds - 3 <= stopped_periods:
         raise ConsoleError(f"watchdog feeds {feeds} vs control periods {final_periods}.."
                            f"{stopped_periods}")
@@ -261,9 +276,9 @@ def main():
         f.write(b"\xff" * PARAMS_LEN)
 
     t0 = time.time()
-    log1, measures, table, apply = calibration_session(args.elf, args.workdir)
+    log1, measures, table, apply, runs = calibration_session(args.elf, args.workdir)
     t1 = time.time()
-    log2, checks = restarted_board(args.elf, args.workdir, apply)
+    log2, checks = restarted_board(args.elf, args.workdir, apply, runs)
     t2 = time.time()
     with open(os.path.join(args.workdir, "closed-loop.txt"), "w") as f:
         f.write("\n".join(log1 + ["(restart)"] + log2) + "\n")

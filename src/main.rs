@@ -221,7 +221,7 @@ mod app {
         let params = loaded.record;
         let settings = Settings::from(&params);
         let controller = make_controller(&settings);
-        let mut session = Session::new(settings, LibraryCalibrator::default());
+        let session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
 
@@ -236,9 +236,6 @@ mod app {
                 loaded.warning.as_ref(),
                 Some(reset_cause.as_str()),
             );
-            // The session's runs and measurements as they were before the reset (the
-            // watchdog is not running yet: a repairing load may erase a sector).
-            let _ = session.restore_runs(&mut params_store, &mut sink);
         }
         defmt::info!("reset cause: {}", reset_cause);
         let (press_in, press_out) = cx.local.presses.split();
@@ -428,6 +425,21 @@ mod app {
     #[task(priority = 1, shared = [controller, watchdog],
            local = [session, params_store, line_out, tx_in, press_out])]
     async fn console(mut cx: console::Context) {
+        {
+            // First, before any command: the session's runs and measurements as they were
+            // before the reset, announced right after the boot line. Here rather than in
+            // `init`, so the session is restored in place (no copy of it on the stack); the
+            // watchdog is relaxed while the load may repair the flash (nothing moves yet).
+            let tx_in = &mut *cx.local.tx_in;
+            let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
+            let _ = cx.local.session.restore_runs(
+                &mut RelaxedWatchdog {
+                    store: &mut *cx.local.params_store,
+                    watchdog: &mut cx.shared.watchdog,
+                },
+                &mut out,
+            );
+        }
         loop {
             Mono::delay(1.millis()).await;
             let session = &mut *cx.local.session;

@@ -370,7 +370,6 @@ fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters
                 Update::SaveParams(n) => Some(calibrated(n)),
                 _ => params_old,
             };
-            drop(store);
             let with_erase = probe.erase_counts().iter().sum::<u32>() > erases_before;
             (old_runs, runs, params_new, len, with_erase)
         };
@@ -431,7 +430,6 @@ fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters
             // is restored.
             let next = Update::Finish(900 + step as u32);
             let stored = perform(&mut store, next, &mut runs, &mut ids);
-            drop(store);
             let (_, _, again, _, _) = boot(&mut flash);
             if stored.is_err() || again != runs {
                 eprintln!("step {step} {update:?} cut={cut}: next update {stored:?}");

@@ -70,13 +70,11 @@ fn a_full_run_store_survives_a_reset_bit_for_bit() {
          {index_only} bytes"
     );
     assert!(index_only < 400, "{index_only}");
-    drop(store);
 
     let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
     let params = store.load_blocking();
     assert_eq!(params.record, calibrated(7));
     assert_eq!(params.warning, None);
-    drop(store);
     let (restored, restored_ids, loaded) = boot(&mut flash);
     assert_eq!(restored, measured);
     assert_eq!(restored_ids.as_slice(), ids.as_slice());
@@ -112,7 +110,6 @@ fn a_corrupted_run_record_is_reported_and_skipped_and_the_parameters_stay() {
     let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
     let params = store.load_blocking();
     assert_eq!((params.record, params.warning), (calibrated(7), None));
-    drop(store);
     let (restored, mut ids, loaded) = boot(&mut flash);
     let mut expected = runs.clone();
     expected.remove(2);
@@ -128,7 +125,6 @@ fn a_corrupted_run_record_is_reported_and_skipped_and_the_parameters_stay() {
     let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
     store.load_runs_blocking(&mut Runs::new(), &mut Ids::new());
     store.save_runs_blocking(&restored, &mut ids, true).unwrap();
-    drop(store);
     let (again, _, loaded) = boot(&mut flash);
     assert_eq!(again, expected);
     assert_eq!(loaded.skipped, 0);
@@ -143,7 +139,6 @@ fn a_foreign_run_record_is_reported_and_skipped() {
     let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
     ids[4].as_mut().unwrap().serial += 1000;
     store.save_runs_blocking(&runs, &mut ids, true).unwrap();
-    drop(store);
     let (restored, _, loaded) = boot(&mut flash);
     assert_eq!(restored.len(), 11);
     assert_eq!(loaded.problem, Some(RunLoadProblem::Foreign { run: 5 }));
@@ -161,7 +156,6 @@ fn an_absurd_stored_measurement_restores_nothing_and_keeps_the_parameters() {
     let (mut flash, _) = stored(&runs);
     let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
     assert_eq!(store.load_blocking().record, calibrated(7));
-    drop(store);
     let (restored, _, loaded) = boot(&mut flash);
     assert!(restored.is_empty());
     assert_eq!(
