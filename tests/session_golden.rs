@@ -224,11 +224,15 @@ impl ParamStorage for MemoryStore {
 /// with an `E_b` the parameter record refuses to store.
 struct KnownCalibrator {
     solves: usize,
+    runs_changes: usize,
 }
 
 impl Calibrator for KnownCalibrator {
     fn methods(&self) -> &[&'static str] {
         &["alpha", "beta", "wild"]
+    }
+    fn runs_changed(&mut self) {
+        self.runs_changes += 1;
     }
     fn solve(
         &mut self,
@@ -287,7 +291,13 @@ struct Bench {
 impl Bench {
     fn new() -> Self {
         Bench {
-            session: Session::new(Settings::default(), KnownCalibrator { solves: 0 }),
+            session: Session::new(
+                Settings::default(),
+                KnownCalibrator {
+                    solves: 0,
+                    runs_changes: 0,
+                },
+            ),
             robot: ScriptedRobot::default(),
             store: MemoryStore::default(),
         }
@@ -1028,6 +1038,8 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     b.measured_run("ccw", 0.02, 0.01, 0.021, 0.012);
     assert_eq!(b.store.runs, b.session.runs());
     assert!(b.store.runs.iter().all(|r| r.measured.is_some()));
+    // Every change told the calibrator (a kept exact fit is stale): 2 runs, 2 measurements.
+    assert_eq!(b.session.calibrator().runs_changes, 4);
     // While the motors run nothing is written (a page change would erase a sector): the drop
     // is stored once they stop.
     assert_eq!(b.send("drive 0.1 0"), "ok\r\n");
@@ -1052,7 +1064,13 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     assert_eq!(b.store.runs, b.session.runs());
     // A reset: a new session over the same storage resumes with the runs and measurements.
     let listing = b.send("runs");
-    let mut resumed = Session::new(Settings::default(), KnownCalibrator { solves: 0 });
+    let mut resumed = Session::new(
+        Settings::default(),
+        KnownCalibrator {
+            solves: 0,
+            runs_changes: 0,
+        },
+    );
     let mut out = String::new();
     resumed.restore_runs(&mut b.store, &mut out).unwrap();
     assert_eq!(out, "event runs restored: 1 runs, 1 measured\r\n");

@@ -111,6 +111,8 @@ fn scripted_session_calibrate_save_reboot() {
         assert!((eb - TRUE_EB).abs() < 5e-3, "{m} E_b {eb}");
     }
     assert!(b.send("apply exact").starts_with("ok applied exact: "));
+    // The exact fit (seconds on the board) ran once for the table, the advice and `apply`.
+    assert_eq!(b.session.calibrator().exact_solves(), 1);
     assert_eq!(b.send("save"), "ok saved\r\n");
     let params_before = b.send("params");
     let runs_before = b.send("runs");
@@ -137,8 +139,16 @@ fn scripted_session_calibrate_save_reboot() {
     // calibration table from them (the session resumes where it was).
     assert_eq!(b2.send("runs"), runs_before);
     assert_eq!(b2.send("calibrate"), table);
+    assert_eq!(b2.session.calibrator().exact_solves(), 1);
+    assert!(b2.send("apply exact").starts_with("ok applied exact: "));
+    assert_eq!(b2.session.calibrator().exact_solves(), 1);
+    // A changed run store makes the kept fit stale: the next `calibrate` solves again.
+    assert!(b2.send("drop 10").starts_with("ok dropped run 10"));
+    let table9 = b2.send("calibrate");
+    assert!(table9.contains("from 9 measured runs"), "{table9}");
+    assert_eq!(b2.session.calibrator().exact_solves(), 2);
     // `drop all` forgets them in flash too: the next boot restores nothing.
-    assert_eq!(b2.send("drop all"), "ok dropped all 10 runs\r\n");
+    assert_eq!(b2.send("drop all"), "ok dropped all 9 runs\r\n");
     // Flash is written once the wheels have been still for 0.1 s (the board just booted).
     let mut out = String::new();
     for _ in 0..200 {

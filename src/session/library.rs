@@ -20,7 +20,7 @@ use super::traits::{
     SolveError, StorageError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
-use crate::calibration::{self, CalibrationError, Method, RunObservation};
+use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
@@ -355,6 +355,10 @@ const METHOD_NAMES: [&str; 6] = [
 ];
 
 /// [`Calibrator`] running [`crate::calibration`], with the assumptions of its track advice.
+///
+/// The exact fit takes seconds on the board (soft-float `f64`), and `calibrate` needs it for
+/// the table and for the advice, `apply exact` once more: it is solved once and kept until the
+/// runs change ([`Calibrator::runs_changed`]) or another nominal geometry is asked for.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LibraryCalibrator {
     /// 1σ of one measured end coordinate (tape measure on the floor), metres.
@@ -363,16 +367,51 @@ pub struct LibraryCalibrator {
     pub measurement_sigma_rad: f64,
     /// Largest square side that fits the floor, metres.
     pub max_side_m: f64,
+    /// The exact fit of the current runs, and the nominal geometry it was solved for.
+    exact: Option<(Geometry, Result<Calibration, CalibrationError>)>,
+    /// Exact fits computed so far.
+    exact_solves: u32,
+}
+
+impl LibraryCalibrator {
+    /// A calibrator with these track-advice assumptions.
+    pub fn new(measurement_sigma_m: f64, measurement_sigma_rad: f64, max_side_m: f64) -> Self {
+        LibraryCalibrator {
+            measurement_sigma_m,
+            measurement_sigma_rad,
+            max_side_m,
+            exact: None,
+            exact_solves: 0,
+        }
+    }
+
+    /// How many times the exact fit has been computed (each takes seconds on the board).
+    pub fn exact_solves(&self) -> u32 {
+        self.exact_solves
+    }
+
+    /// The exact fit of `obs` for `nominal`: the kept one, or solved now and kept.
+    fn exact_fit(
+        &mut self,
+        obs: &[RunObservation<'_>],
+        nominal: &Geometry,
+    ) -> Result<Calibration, CalibrationError> {
+        match self.exact {
+            Some((n, result)) if n == *nominal => result,
+            _ => {
+                let result = calibration::calibrate(obs, nominal, Method::Exact);
+                self.exact_solves = self.exact_solves.saturating_add(1);
+                self.exact = Some((*nominal, result));
+                result
+            }
+        }
+    }
 }
 
 impl Default for LibraryCalibrator {
     /// 1 mm and 0.2° measurement error, squares up to 4 m.
     fn default() -> Self {
-        LibraryCalibrator {
-            measurement_sigma_m: 1e-3,
-            measurement_sigma_rad: 0.2f64.to_radians(),
-            max_side_m: 4.0,
-        }
+        LibraryCalibrator::new(1e-3, 0.2f64.to_radians(), 4.0)
     }
 }
 
@@ -405,6 +444,10 @@ impl Calibrator for LibraryCalibrator {
         &METHOD_NAMES
     }
 
+    fn runs_changed(&mut self) {
+        self.exact = None;
+    }
+
     fn solve(
         &mut self,
         runs: &[RunRecord],
@@ -413,7 +456,11 @@ impl Calibrator for LibraryCalibrator {
     ) -> Result<Solution, SolveError> {
         let method = Method::parse(method).ok_or(SolveError::UnknownMethod)?;
         let obs = observations(runs);
-        let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
+        let c = match method {
+            Method::Exact => self.exact_fit(&obs, nominal),
+            _ => calibration::calibrate(&obs, nominal, method),
+        }
+        .map_err(solve_error)?;
         // Store numbers of the runs that became observations, in order.
         let numbers: Vec<usize, MAX_RUNS> = runs
             .iter()
@@ -465,7 +512,7 @@ impl Calibrator for LibraryCalibrator {
         }) else {
             return Ok(());
         };
-        let exact = calibration::calibrate(&obs, nominal, Method::Exact).ok();
+        let exact = self.exact_fit(&obs, nominal).ok();
         let per_direction = [Direction::Cw, Direction::Ccw].map(|d| {
             obs.iter()
                 .filter(|o| matches!(o.path, PathKind::Square { direction, .. } if direction == d))

@@ -212,13 +212,22 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         let loaded = storage.load_runs(&mut self.runs, &mut self.run_ids);
+        self.calibrator.runs_changed();
         self.runs_dirty = false;
         self.runs_store_failed = false;
         write_runs_restored(out, &loaded)
     }
 
-    /// Marks the run store changed: it is written to flash at the next opportunity.
+    /// Marks the run store changed: it is written to flash at the next opportunity, and
+    /// calibration results kept from the old runs are stale.
     fn runs_changed(&mut self) {
+        self.calibrator.runs_changed();
+        self.store_runs_again();
+    }
+
+    /// Writes the runs to flash again at the next opportunity (unchanged, e.g. after a save
+    /// that may have wiped damaged flash).
+    fn store_runs_again(&mut self) {
         self.runs_dirty = true;
         self.runs_store_failed = false;
     }
@@ -680,7 +689,7 @@ impl<C: Calibrator> Session<C> {
                     Ok(()) => {
                         // A save that had to wipe damaged flash took the runs with it.
                         if !self.runs.is_empty() {
-                            self.runs_changed();
+                            self.store_runs_again();
                         }
                         write!(out, "ok saved{EOL}")
                     }
@@ -1059,7 +1068,7 @@ impl<C: Calibrator> Session<C> {
         }
         // A reset that had to wipe damaged flash took the runs with it.
         if !self.runs.is_empty() {
-            self.runs_changed();
+            self.store_runs_again();
         }
         // Idle was checked above, so the controller accepts both.
         if let Err(e) = robot

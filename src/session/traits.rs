@@ -241,6 +241,10 @@ impl fmt::Display for SolveError {
 pub trait Calibrator {
     /// Method names, in the order `calibrate` shows them.
     fn methods(&self) -> &[&'static str];
+    /// The stored runs or their measurements changed: results kept from earlier solves are
+    /// stale. (`calibrate`'s table and advice and `apply` ask for the same solution; a
+    /// calibrator may keep it until this is called.)
+    fn runs_changed(&mut self);
     /// Solves one method from the stored runs (unmeasured runs are ignored).
     ///
     /// # Errors
