@@ -64,6 +64,7 @@ fn run_inner() -> Result<bool, String> {
     let (mid, _) = integrate(Integration::Midpoint, Trace::with_steps(MIDPOINT_STEPS))?;
     report::pose_line(&mut out, "odometry_midpoint", &mid).map_err(|e| e.to_string())?;
     solve(&mut out)?;
+    console(&mut out)?;
     control(&mut out)?;
     print!("{out}");
     println!(
@@ -103,4 +104,31 @@ pub fn control(out: &mut String) -> Result<(), String> {
     let mut c = plant::controller().map_err(|e| e.to_string())?;
     let (periods, record) = plant::drive_square(&mut c, |c, r, l| c.step(r, l))?;
     report::run_line(out, "control_square", periods, &record).map_err(|e| e.to_string())
+}
+
+/// The console's `calibrate` and `apply exact` on the recorded squares: the result line.
+pub fn console(out: &mut String) -> Result<(), String> {
+    use qemu_bench::console;
+    use qemu_bench::squares::SquareRuns;
+
+    let runs = SquareRuns::generate();
+    let mut robot = qemu_bench::plant::controller().map_err(|e| e.to_string())?;
+    let mut session = console::session(&runs);
+    let mut reply = console::ReplyHash::default();
+    for line in console::COMMANDS {
+        console::command(&mut session, &mut robot, &runs, line, &mut reply);
+    }
+    report::bits_line(
+        out,
+        "console_calibrate_apply",
+        &[
+            ("reply_hash", reply.hash),
+            ("reply_bytes", reply.bytes),
+            (
+                "exact_solves",
+                u64::from(session.calibrator().exact_solves()),
+            ),
+        ],
+    )
+    .map_err(|e| e.to_string())
 }

@@ -7,6 +7,7 @@
 #![no_std]
 #![warn(missing_docs)]
 
+pub mod console;
 pub mod plant;
 pub mod report;
 pub mod squares;

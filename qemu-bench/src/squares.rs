@@ -132,6 +132,21 @@ impl SquareRuns {
         })
     }
 
+    /// The runs as the firmware's session stores them (measured, driven with the nominal
+    /// geometry).
+    pub fn records(&self) -> impl Iterator<Item = odocal::motion::run::RunRecord> + '_ {
+        (0..RUNS).map(|run| odocal::motion::run::RunRecord {
+            path: PathKind::Square {
+                direction: direction(run),
+                side_m: SIDE_M,
+            },
+            geometry: nominal(),
+            knots: self.knots[run].iter().copied().collect(),
+            odometry_end: self.odometry_end[run],
+            measured: Some(self.measured[run]),
+        })
+    }
+
     /// XOR of the bits of every end pose and measurement: equal on host and target iff the
     /// fixture is.
     pub fn checksum(&self) -> u64 {

@@ -29,6 +29,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::odometry::{Integration, Odometry, OdometryState, Pose};
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::controller::{Controller, StepOutput};
+use qemu_bench::console;
 use qemu_bench::plant;
 use qemu_bench::report;
 use qemu_bench::squares::{self, SquareRuns};
@@ -92,6 +93,8 @@ selector!(bench_select_midpoint, 6);
 selector!(bench_select_solve, 7);
 selector!(bench_select_arc_run, 8);
 selector!(bench_select_control, 9);
+selector!(bench_select_calibrate, 10);
+selector!(bench_select_apply, 11);
 
 /// One control period of odometry, as the firmware's control task performs it.
 #[inline(never)]
@@ -280,6 +283,45 @@ fn main() -> ! {
     out(format_args!(
         "info stack solve high_water={stack} at_call={caller}\n"
     ));
+
+    // The console's `calibrate` and `apply exact` on the same runs, as the console task runs
+    // them (the whole command: every method, the residual listing, the advice).
+    {
+        let Ok(mut robot) = plant::controller() else {
+            fail("controller configuration rejected")
+        };
+        let mut session = console::session(&runs);
+        let mut reply = console::ReplyHash::default();
+        let caller = paint_stack();
+        for (i, line) in console::COMMANDS.iter().enumerate() {
+            if i == 0 {
+                bench_select_calibrate();
+            } else {
+                bench_select_apply();
+            }
+            bench_start();
+            console::command(black_box(&mut session), &mut robot, &runs, line, &mut reply);
+            bench_end();
+        }
+        let stack = stack_used();
+        let mut line = heapless_line::Line::new();
+        let _ = report::bits_line(
+            &mut line,
+            "console_calibrate_apply",
+            &[
+                ("reply_hash", reply.hash),
+                ("reply_bytes", reply.bytes),
+                (
+                    "exact_solves",
+                    u64::from(session.calibrator().exact_solves()),
+                ),
+            ],
+        );
+        out(format_args!("{}", line.as_str()));
+        out(format_args!(
+            "info stack console high_water={stack} at_call={caller}\n"
+        ));
+    }
 
     // The control task: a 1 m square with the simulated plant, one window per period.
     let Ok(mut controller) = plant::controller() else {

@@ -1,0 +1,114 @@
+//! The console's `calibrate` and `apply exact` commands on the recorded squares: the session as
+//! the firmware's console task runs it, with the library's calibrator, over the fixture runs.
+//!
+//! The session gets the runs the way the board gets them after a reset ([`Session::restore_runs`]
+//! from its storage); here the storage is [`FixtureRuns`], which hands over the fixture and has
+//! no flash to write (the bench counts the commands, not the flash). The reply text is reduced to
+//! a hash and a length ([`ReplyHash`]), which must be equal on host and target.
+
+use core::fmt;
+
+use heapless::Vec;
+use odocal::motion::controller::Controller;
+use odocal::motion::run::{MAX_RUNS, RunRecord};
+use odocal::session::library::LibraryCalibrator;
+use odocal::session::{ParamStorage, Session, Settings, StorageError};
+use odocal::storage::{RunsLoaded, StoredRun};
+
+use crate::squares::SquareRuns;
+
+/// The console commands the bench counts, in order.
+pub const COMMANDS: [&str; 2] = ["calibrate", "apply exact"];
+
+/// Storage that holds the fixture runs and nothing else.
+pub struct FixtureRuns<'a>(pub &'a SquareRuns);
+
+const NO_FLASH: StorageError = StorageError::Flash("the bench has no flash");
+
+impl ParamStorage for FixtureRuns<'_> {
+    fn save(&mut self, _: &Settings, _: bool) -> Result<(), StorageError> {
+        Err(NO_FLASH)
+    }
+
+    fn reset(&mut self, _: bool) -> Result<(), StorageError> {
+        Err(NO_FLASH)
+    }
+
+    fn save_runs(
+        &mut self,
+        _: &[RunRecord],
+        _: &mut [Option<StoredRun>],
+        _: bool,
+    ) -> Result<(), StorageError> {
+        Err(NO_FLASH)
+    }
+
+    fn load_runs(
+        &mut self,
+        runs: &mut Vec<RunRecord, MAX_RUNS>,
+        ids: &mut Vec<Option<StoredRun>, MAX_RUNS>,
+    ) -> RunsLoaded {
+        runs.clear();
+        ids.clear();
+        let mut loaded = RunsLoaded {
+            found: true,
+            ..RunsLoaded::default()
+        };
+        for record in self.0.records() {
+            if runs.push(record).is_err() || ids.push(None).is_err() {
+                loaded.skipped += 1;
+                continue;
+            }
+            loaded.restored += 1;
+            loaded.measured += 1;
+        }
+        loaded
+    }
+}
+
+/// FNV-1a hash and length of the reply text.
+pub struct ReplyHash {
+    /// The hash.
+    pub hash: u64,
+    /// Bytes written.
+    pub bytes: u64,
+}
+
+impl Default for ReplyHash {
+    fn default() -> Self {
+        ReplyHash {
+            hash: 0xcbf2_9ce4_8422_2325,
+            bytes: 0,
+        }
+    }
+}
+
+impl fmt::Write for ReplyHash {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        for b in s.bytes() {
+            self.hash = (self.hash ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        self.bytes += s.len() as u64;
+        Ok(())
+    }
+}
+
+/// A session with the default settings (the paper's nominal geometry, as the fixture's runs
+/// were driven) and the fixture runs restored.
+pub fn session(runs: &SquareRuns) -> Session<LibraryCalibrator> {
+    let mut session = Session::new(Settings::default(), LibraryCalibrator::default());
+    let mut sink = ReplyHash::default();
+    let _ = session.restore_runs(&mut FixtureRuns(runs), &mut sink);
+    session
+}
+
+/// Executes one console line on `session`; the reply goes into `reply`.
+pub fn command(
+    session: &mut Session<LibraryCalibrator>,
+    robot: &mut Controller,
+    runs: &SquareRuns,
+    line: &str,
+    reply: &mut ReplyHash,
+) {
+    let _ = session.handle_line(line, robot, &mut FixtureRuns(runs), reply);
+}
