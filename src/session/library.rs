@@ -357,9 +357,10 @@ const METHOD_NAMES: [&str; 6] = [
 /// [`Calibrator`] running [`crate::calibration`], with the assumptions of its track advice.
 ///
 /// The exact fit takes seconds on the board (soft-float `f64`), and `calibrate` needs it for
-/// the table and for the advice, `apply exact` once more: it is solved once and kept until the
-/// runs change ([`Calibrator::runs_changed`]) or another nominal geometry is asked for.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// the table and for the advice, `apply exact` once more: it is solved once and its solution
+/// kept (about 0.7 KiB, not the solver's whole report) until the runs change
+/// ([`Calibrator::runs_changed`]) or another nominal geometry is asked for.
+#[derive(Clone, Debug, PartialEq)]
 pub struct LibraryCalibrator {
     /// 1σ of one measured end coordinate (tape measure on the floor), metres.
     pub measurement_sigma_m: f64,
@@ -367,10 +368,18 @@ pub struct LibraryCalibrator {
     pub measurement_sigma_rad: f64,
     /// Largest square side that fits the floor, metres.
     pub max_side_m: f64,
-    /// The exact fit of the current runs, and the nominal geometry it was solved for.
-    exact: Option<(Geometry, Result<Calibration, CalibrationError>)>,
+    /// The exact fit of the current runs and the nominal geometry it was solved for.
+    exact: Option<(Geometry, Result<KeptExact, SolveError>)>,
     /// Exact fits computed so far.
     exact_solves: u32,
+}
+
+/// What is kept of an exact fit: the solution as `calibrate` shows it, and the run scatter the
+/// track advice uses.
+#[derive(Clone, Debug, PartialEq)]
+struct KeptExact {
+    solution: Solution,
+    scatter_m: Option<f64>,
 }
 
 impl LibraryCalibrator {
@@ -390,21 +399,68 @@ impl LibraryCalibrator {
         self.exact_solves
     }
 
-    /// The exact fit of `obs` for `nominal`: the kept one, or solved now and kept.
+    /// The exact fit of `runs` for `nominal`: the kept one, or solved now and kept.
     fn exact_fit(
         &mut self,
-        obs: &[RunObservation<'_>],
+        runs: &[RunRecord],
         nominal: &Geometry,
-    ) -> Result<Calibration, CalibrationError> {
-        match self.exact {
-            Some((n, result)) if n == *nominal => result,
+    ) -> Result<&KeptExact, SolveError> {
+        let kept = match self.exact.take() {
+            Some((n, kept)) if n == *nominal => kept,
             _ => {
-                let result = calibration::calibrate(obs, nominal, Method::Exact);
                 self.exact_solves = self.exact_solves.saturating_add(1);
-                self.exact = Some((*nominal, result));
-                result
+                let obs = observations(runs);
+                calibration::calibrate(&obs, nominal, Method::Exact)
+                    .map(|c| KeptExact {
+                        solution: solution(&c, runs),
+                        scatter_m: c.quality.scatter_m,
+                    })
+                    .map_err(solve_error)
             }
+        };
+        match &self.exact.insert((*nominal, kept)).1 {
+            Ok(k) => Ok(k),
+            Err(e) => Err(*e),
         }
+    }
+}
+
+/// A calibration as `calibrate` shows it, with every measured run's residual numbered as
+/// `runs` numbers it.
+fn solution(c: &Calibration, runs: &[RunRecord]) -> Solution {
+    // Store numbers of the runs that became observations, in order.
+    let numbers: Vec<usize, MAX_RUNS> = runs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| RunObservation::from_record(r).is_some())
+        .map(|(i, _)| i + 1)
+        .take(MAX_RUNS)
+        .collect();
+    let residuals = c
+        .fit
+        .iter()
+        .flat_map(|f| f.runs().iter())
+        .filter_map(|f| {
+            Some(RunResidual {
+                run: *numbers.get(f.index)?,
+                dx_m: f.residual_x_m,
+                dy_m: f.residual_y_m,
+                dtheta_rad: f.residual_theta_rad,
+                weight: f.weight,
+                outlier: f.outlier,
+            })
+        })
+        .take(MAX_RUNS)
+        .collect();
+    Solution {
+        e_d: c.e_d,
+        e_b: c.e_b,
+        e_s: c.e_s,
+        geometry: c.geometry,
+        e_max_m: c.quality.e_max_after_m,
+        sd_e_d: c.quality.sigma_e_d,
+        sd_e_b: c.quality.sigma_e_b,
+        residuals,
     }
 }
 
@@ -455,46 +511,12 @@ impl Calibrator for LibraryCalibrator {
         method: &str,
     ) -> Result<Solution, SolveError> {
         let method = Method::parse(method).ok_or(SolveError::UnknownMethod)?;
-        let obs = observations(runs);
-        let c = match method {
-            Method::Exact => self.exact_fit(&obs, nominal),
-            _ => calibration::calibrate(&obs, nominal, method),
+        if method == Method::Exact {
+            return self.exact_fit(runs, nominal).map(|k| k.solution.clone());
         }
-        .map_err(solve_error)?;
-        // Store numbers of the runs that became observations, in order.
-        let numbers: Vec<usize, MAX_RUNS> = runs
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| RunObservation::from_record(r).is_some())
-            .map(|(i, _)| i + 1)
-            .take(MAX_RUNS)
-            .collect();
-        let residuals = c
-            .fit
-            .iter()
-            .flat_map(|f| f.runs().iter())
-            .filter_map(|f| {
-                Some(RunResidual {
-                    run: *numbers.get(f.index)?,
-                    dx_m: f.residual_x_m,
-                    dy_m: f.residual_y_m,
-                    dtheta_rad: f.residual_theta_rad,
-                    weight: f.weight,
-                    outlier: f.outlier,
-                })
-            })
-            .take(MAX_RUNS)
-            .collect();
-        Ok(Solution {
-            e_d: c.e_d,
-            e_b: c.e_b,
-            e_s: c.e_s,
-            geometry: c.geometry,
-            e_max_m: c.quality.e_max_after_m,
-            sd_e_d: c.quality.sigma_e_d,
-            sd_e_b: c.quality.sigma_e_b,
-            residuals,
-        })
+        let obs = observations(runs);
+        let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
+        Ok(solution(&c, runs))
     }
 
     fn advice(
@@ -512,7 +534,10 @@ impl Calibrator for LibraryCalibrator {
         }) else {
             return Ok(());
         };
-        let exact = self.exact_fit(&obs, nominal).ok();
+        let exact = self
+            .exact_fit(runs, nominal)
+            .ok()
+            .map(|k| (k.solution.geometry, k.scatter_m));
         let per_direction = [Direction::Cw, Direction::Ccw].map(|d| {
             obs.iter()
                 .filter(|o| matches!(o.path, PathKind::Square { direction, .. } if direction == d))
@@ -520,10 +545,10 @@ impl Calibrator for LibraryCalibrator {
         });
         let input = TrackAdviceInput {
             belief,
-            estimate: exact.map_or(belief, |c| c.geometry),
+            estimate: exact.map_or(belief, |(geometry, _)| geometry),
             measurement_sigma_m: self.measurement_sigma_m,
             measurement_sigma_rad: self.measurement_sigma_rad,
-            observed_scatter: exact.and_then(|c| c.quality.scatter_m).map(|s| (s, side)),
+            observed_scatter: exact.and_then(|(_, scatter)| scatter).map(|s| (s, side)),
             runs_per_direction: per_direction[0].min(per_direction[1]).max(1) as u32,
             max_side_m: self.max_side_m,
         };
