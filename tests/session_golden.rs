@@ -370,6 +370,7 @@ fn help_lists_every_command_then_ok() {
          \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
          \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)\r\n\
          \x20 runs                      list stored runs\r\n\
+         \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
          \x20 drop <n>|all              delete run n, or every run\r\n\
          \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
          \x20 apply <method>            use a method's result (then save)\r\n\
@@ -381,7 +382,8 @@ fn help_lists_every_command_then_ok() {
          \x20 stream on [hz]|off        pose + wheel speed stream, 1..100 Hz\r\n\
          \x20 drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last\r\n\
          \x20 echo on|off               echo typed characters (on at boot; scripts: off)\r\n\
-         ok 23 commands\r\n"
+         \x20 version                   firmware and protocol version\r\n\
+         ok 25 commands\r\n"
     );
 }
 

@@ -85,6 +85,17 @@ pub enum Command<'a> {
     },
     /// `runs`: list the stored runs.
     Runs,
+    /// `record <n> [first]`: run `n`'s full record (path, geometry, odometry end, measurement)
+    /// and up to [`super::record::RECORD_PAGE_KNOTS`] of its tick knots from knot `first`, for a
+    /// host that keeps the runs (lossless: `f64` as IEEE bits in hex).
+    Record {
+        /// 1-based run number (as `runs` shows it).
+        index: usize,
+        /// First knot of this page (0-based).
+        first_knot: usize,
+    },
+    /// `version`: firmware and protocol version, for a host tool to check what it talks to.
+    Version,
     /// `drop <n>`: delete stored run number `n` (1-based, as `runs` shows).
     Drop {
         /// 1-based run number.
@@ -390,6 +401,18 @@ impl<'a> Command<'a> {
             }
         } else if is("runs") {
             Command::Runs
+        } else if is("record") {
+            let max = crate::motion::run::MAX_RUNS as u32;
+            let index = whole(words.required("n")?, "n", 1, max)? as usize;
+            let last = crate::motion::run::MAX_KNOTS as u32 - 1;
+            let first_knot = words
+                .next()
+                .map(|w| whole(w, "first", 0, last))
+                .transpose()?
+                .unwrap_or(0) as usize;
+            Command::Record { index, first_knot }
+        } else if is("version") {
+            Command::Version
         } else if is("drop") {
             let which = words.required("n")?;
             if keyword_eq(which, "all") {

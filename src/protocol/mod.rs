@@ -8,7 +8,9 @@
 //!   hit by a receive error as a whole; [`rx`] is the receive loop the USART interrupt runs;
 //! - [`Command::parse`] turns a line into a validated [`Command`] (units: metres, m/s, rad/s,
 //!   degrees for measured headings, Hz);
-//! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`.
+//! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`;
+//! - [`record`] writes a run's full record (`record`) losslessly and reads it back on a host, and
+//!   the `version` reply.
 //!
 //! Nothing here touches hardware or allocates; [`crate::session`] executes the commands. The
 //! command table and error codes are documented in `docs/protocol.md`.
@@ -17,6 +19,7 @@ pub mod command;
 pub mod line;
 pub mod number;
 pub mod param;
+pub mod record;
 pub mod reply;
 pub mod rx;
 

@@ -35,6 +35,7 @@ use heapless::Vec;
 use crate::kinematics::encoder::WheelTicks;
 use crate::motion::bringup::PushReport;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
+use crate::protocol::record;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::{Command, LineEvent, ParseError, StopKey};
 use crate::storage::{LoadWarning, RunsLoaded, StoredRun};
@@ -284,23 +285,7 @@ impl<C: Calibrator> Session<C> {
 
     /// Square-run counts per direction.
     pub fn progress(&self) -> Progress {
-        let mut p = Progress::default();
-        for r in &self.runs {
-            if let PathKind::Square { direction, .. } = r.path {
-                let measured = usize::from(r.measured.is_some());
-                match direction {
-                    Direction::Cw => {
-                        p.cw += 1;
-                        p.cw_measured += measured;
-                    }
-                    Direction::Ccw => {
-                        p.ccw += 1;
-                        p.ccw_measured += measured;
-                    }
-                }
-            }
-        }
-        p
+        progress_of(&self.runs)
     }
 
     /// The direction of the next planned square, or `None` when the plan is complete.
@@ -651,6 +636,26 @@ impl<C: Calibrator> Session<C> {
                 theta_deg,
             } => self.measure(run, x_m, y_m, theta_deg, robot, out),
             Command::Runs => report::write_runs(out, &self.runs),
+            Command::Record { index, first_knot } => {
+                let Some(run) = index.checked_sub(1).and_then(|i| self.runs.get(i)) else {
+                    let n = self.runs.len();
+                    return write!(
+                        out,
+                        "err {}: no run {index} ({n} stored){EOL}",
+                        ErrorCode::NoSuchRun.code()
+                    );
+                };
+                if first_knot > 0 && first_knot >= run.knots.len() {
+                    return write!(
+                        out,
+                        "err {}: run {index} has {} knots{EOL}",
+                        ErrorCode::OutOfRange.code(),
+                        run.knots.len()
+                    );
+                }
+                record::write_record_page(out, index, run, first_knot)
+            }
+            Command::Version => record::write_version(out),
             Command::Drop { index } => {
                 if index == 0 || index > self.runs.len() {
                     let n = self.runs.len();
@@ -907,18 +912,7 @@ impl<C: Calibrator> Session<C> {
 
     /// Why `calibrate`/`apply` cannot run yet, if so.
     fn refuse_calibration(&self, out: &mut dyn Write) -> Option<fmt::Result> {
-        let p = self.progress();
-        if p.cw_measured == 0 || p.ccw_measured == 0 {
-            return Some(write!(
-                out,
-                "err {}: need measured square runs in both directions \
-                 (measured: cw {}, ccw {}){EOL}",
-                ErrorCode::NotEnoughRuns.code(),
-                p.cw_measured,
-                p.ccw_measured,
-            ));
-        }
-        None
+        refuse_calibration(&self.progress(), out)
     }
 
     fn calibrate(
@@ -937,49 +931,8 @@ impl<C: Calibrator> Session<C> {
         {
             return self.unknown_method(out);
         }
-        if let Some(refused) = self.refuse_calibration(out) {
-            return refused;
-        }
         let nominal = self.settings.nominal;
-        report::write_solution_header(out)?;
-        let mut solved = 0usize;
-        // The first result with per-run residuals (the exact fit) is listed after the table.
-        let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
-        let methods: Vec<&'static str, 16> =
-            self.calibrator.methods().iter().take(16).copied().collect();
-        for name in methods {
-            if method.is_some_and(|m| !keyword_eq(m, name)) {
-                continue;
-            }
-            let result = self.calibrator.solve(&self.runs, &nominal, name);
-            if let Ok(s) = &result {
-                solved += 1;
-                if residuals.is_none() && !s.residuals.is_empty() {
-                    residuals = Some((name, s.residuals.clone()));
-                }
-            }
-            report::write_solution_row(out, name, &result)?;
-        }
-        if let Some((name, r)) = &residuals {
-            report::write_residuals(out, name, r)?;
-        }
-        let p = self.progress();
-        if solved == 0 {
-            // Advice from a failed fit would be meaningless.
-            return write_err(
-                out,
-                ErrorCode::CalibrationFailed,
-                &"no method succeeded (check the measurements: runs)",
-            );
-        }
-        self.calibrator.advice(&self.runs, &nominal, method, out)?;
-        write!(
-            out,
-            "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one{EOL}",
-            p.cw_measured + p.ccw_measured,
-            p.cw_measured,
-            p.ccw_measured,
-        )
+        write_calibration(&mut self.calibrator, &self.runs, &nominal, method, out)
     }
 
     fn unknown_method(&self, out: &mut dyn Write) -> fmt::Result {
@@ -1094,4 +1047,98 @@ pub fn storable(settings: &Settings) -> Result<(), StorageError> {
         .and_then(|r| r.validate().map(|()| r))
         .map(|_| ())
         .map_err(StorageError::Record)
+}
+
+/// The `calibrate` reply for `runs` (the header, one row per method or only `method`, the first
+/// result's per-run residuals, the advice and the final line): what the board prints, and what a
+/// host prints when it recalibrates the runs it kept (the console's offline `recalibrate`).
+/// The caller has checked `method` against the calibrator's names.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_calibration<C: Calibrator>(
+    calibrator: &mut C,
+    runs: &[RunRecord],
+    nominal: &crate::kinematics::geometry::Geometry,
+    method: Option<&str>,
+    out: &mut dyn Write,
+) -> fmt::Result {
+    let p = progress_of(runs);
+    if let Some(refused) = refuse_calibration(&p, out) {
+        return refused;
+    }
+    report::write_solution_header(out)?;
+    let mut solved = 0usize;
+    // The first result with per-run residuals (the exact fit) is listed after the table.
+    let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
+    let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
+    for name in methods {
+        if method.is_some_and(|m| !keyword_eq(m, name)) {
+            continue;
+        }
+        let result = calibrator.solve(runs, nominal, name);
+        if let Ok(s) = &result {
+            solved += 1;
+            if residuals.is_none() && !s.residuals.is_empty() {
+                residuals = Some((name, s.residuals.clone()));
+            }
+        }
+        report::write_solution_row(out, name, &result)?;
+    }
+    if let Some((name, r)) = &residuals {
+        report::write_residuals(out, name, r)?;
+    }
+    if solved == 0 {
+        // Advice from a failed fit would be meaningless.
+        return write_err(
+            out,
+            ErrorCode::CalibrationFailed,
+            &"no method succeeded (check the measurements: runs)",
+        );
+    }
+    calibrator.advice(runs, nominal, method, out)?;
+    write!(
+        out,
+        "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one{EOL}",
+        p.cw_measured + p.ccw_measured,
+        p.cw_measured,
+        p.ccw_measured,
+    )
+}
+
+/// Square runs per direction, stored and measured, of `runs`.
+pub fn progress_of(runs: &[RunRecord]) -> Progress {
+    let mut p = Progress::default();
+    for r in runs {
+        if let PathKind::Square { direction, .. } = r.path {
+            let measured = usize::from(r.measured.is_some());
+            match direction {
+                Direction::Cw => {
+                    p.cw += 1;
+                    p.cw_measured += measured;
+                }
+                Direction::Ccw => {
+                    p.ccw += 1;
+                    p.ccw_measured += measured;
+                }
+            }
+        }
+    }
+    p
+}
+
+/// The `err 13` reply when `calibrate`/`apply` cannot run yet (no measured square in a
+/// direction), if so.
+fn refuse_calibration(p: &Progress, out: &mut dyn Write) -> Option<fmt::Result> {
+    if p.cw_measured == 0 || p.ccw_measured == 0 {
+        return Some(write!(
+            out,
+            "err {}: need measured square runs in both directions \
+             (measured: cw {}, ccw {}){EOL}",
+            ErrorCode::NotEnoughRuns.code(),
+            p.cw_measured,
+            p.ccw_measured,
+        ));
+    }
+    None
 }

@@ -27,6 +27,7 @@ const HELP: &[&str] = &[
     "clear                     clear a latched fault (stall, glitch, following)",
     "measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)",
     "runs                      list stored runs",
+    "record <n> [first]        run n's full record with its tick knots (host tools)",
     "drop <n>|all              delete run n, or every run",
     "calibrate [method]        compute all methods (or one) from measured runs",
     "apply <method>            use a method's result (then save)",
@@ -38,6 +39,7 @@ const HELP: &[&str] = &[
     "stream on [hz]|off        pose + wheel speed stream, 1..100 Hz",
     "drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last",
     "echo on|off               echo typed characters (on at boot; scripts: off)",
+    "version                   firmware and protocol version",
 ];
 
 pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
