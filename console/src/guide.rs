@@ -1,0 +1,1030 @@
+//! The guided session: connect, check, plan, drive and measure every run, calibrate, apply,
+//! save, verify — with every line in the session log, so it can be resumed or recalibrated.
+//!
+//! Runs are kept by *slot* (their place in the session). The board numbers its stored runs
+//! 1..k; `board` maps them to slots. After a board reset that lost the runs (firmware without
+//! run persistence), the logged runs stay in their slots, new runs get new slots, and the
+//! calibration of all of them is computed on the PC with the library (`calibrate` on the board
+//! would see only the runs it holds).
+
+use std::path::PathBuf;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use odocal::kinematics::geometry::Geometry;
+use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::session::library::LibraryCalibrator;
+use odocal::session::measure::{self, Implausible};
+use odocal::session::{Calibrator, write_calibration};
+use serde_json::json;
+
+use crate::link::{Link, LinkError, Reply};
+use crate::log::{LogContents, SessionLog, nominal_of};
+use crate::plot::{self, PlotRun};
+use crate::ui::{AskError, Ui};
+
+/// Options of a guided session.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Options {
+    /// Serial port of the board (e.g. /dev/ttyUSB0, or the pty `cargo sim serial --pty`
+    /// prints). Without it, the candidate ports are listed.
+    #[arg(long)]
+    pub port: Option<String>,
+    /// Session log to write (JSON lines); default target/odocal-console/session-<time>.jsonl.
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+    /// Continue the session of this log (after a crash, a disconnect or a board reset).
+    #[arg(long, conflicts_with = "log")]
+    pub resume: Option<PathBuf>,
+    /// Answers to the questions, one a line, in order (then --yes, then stdin).
+    #[arg(long)]
+    pub answers: Option<PathBuf>,
+    /// Take the default answer of every question that has one.
+    #[arg(long, short = 'y')]
+    pub yes: bool,
+    /// Pose stream rate during runs, Hz.
+    #[arg(long, default_value_t = 10)]
+    pub stream_hz: u32,
+}
+
+/// Longest time a run may take before the tool gives up waiting (the robot is stopped first).
+const RUN_TIMEOUT: Duration = Duration::from_secs(600);
+/// Reply time of an ordinary command.
+const REPLY: Duration = Duration::from_secs(5);
+/// `calibrate` takes about 11 s on the board.
+const CALIBRATE: Duration = Duration::from_secs(120);
+
+enum Stop {
+    Failed(String),
+    Interrupted,
+    Disconnected(String),
+}
+
+impl From<LinkError> for Stop {
+    fn from(e: LinkError) -> Self {
+        match e {
+            LinkError::Interrupted => Stop::Interrupted,
+            LinkError::Disconnected(why) => Stop::Disconnected(why),
+            LinkError::Timeout(_) => Stop::Failed(e.to_string()),
+        }
+    }
+}
+
+impl From<AskError> for Stop {
+    fn from(e: AskError) -> Self {
+        match e {
+            AskError::Interrupted => Stop::Interrupted,
+            AskError::NoAnswer(_) => Stop::Failed(e.to_string()),
+        }
+    }
+}
+
+impl From<String> for Stop {
+    fn from(e: String) -> Self {
+        Stop::Failed(e)
+    }
+}
+
+/// One run of the session.
+struct Slot {
+    record: Option<RunRecord>,
+    path: Vec<(f64, f64)>,
+}
+
+struct Guide {
+    link: Link,
+    ui: Ui,
+    opts: Options,
+    slots: Vec<Slot>,
+    /// Board run number − 1 → slot.
+    board: Vec<usize>,
+    nominal: Geometry,
+    side_m: f64,
+    per_direction: u32,
+    /// The method applied in this session (the plot's "after" cloud).
+    applied: Option<String>,
+}
+
+fn log_default() -> PathBuf {
+    let t = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    PathBuf::from(format!("target/odocal-console/session-{t}.jsonl"))
+}
+
+/// Runs the guided session.
+///
+/// # Errors
+/// What stopped the session, as text (the log has everything up to there).
+pub fn run(opts: &Options) -> Result<(), String> {
+    let Some(port) = &opts.port else {
+        let ports = crate::link::candidate_ports();
+        let mut text = String::from("no --port given; ");
+        if ports.is_empty() {
+            text.push_str(
+                "no USB serial port found: plug in the board's USB-UART adapter (or start \
+                 `cargo sim serial --pty` and give the pty it prints)",
+            );
+        } else {
+            text.push_str("candidate ports:");
+            for p in ports {
+                text.push_str(&format!("\n  cargo console -- --port {p}"));
+            }
+        }
+        return Err(text);
+    };
+    let (log_path, resumed) = match &opts.resume {
+        Some(p) => (p.clone(), Some(LogContents::read(p)?)),
+        None => (opts.log.clone().unwrap_or_else(log_default), None),
+    };
+    let answers = match &opts.answers {
+        Some(p) => std::fs::read_to_string(p)
+            .map_err(|e| format!("{}: {e}", p.display()))?
+            .lines()
+            .map(str::to_string)
+            .collect(),
+        None => Vec::new(),
+    };
+    let mut log = SessionLog::open(&log_path)?;
+    log.note(
+        if resumed.is_some() { "resume" } else { "start" },
+        &format!("odocal-console {} on {port}", env!("CARGO_PKG_VERSION")),
+    );
+    let mut ui = Ui::new(answers, opts.yes);
+    ui.say(&format!("odocal console: board on {port}"));
+    ui.say(&format!("session log: {}", log_path.display()));
+    let mut link = Link::open(port, log)?;
+    let version = link.handshake()?;
+    ui.say(&format!("board: {version}"));
+    let mut g = Guide {
+        link,
+        ui,
+        opts: opts.clone(),
+        slots: Vec::new(),
+        board: Vec::new(),
+        nominal: Geometry::PAPER_NOMINAL,
+        side_m: 2.0,
+        per_direction: 5,
+        applied: None,
+    };
+    let result = g.session(resumed);
+    let svg = g.plot();
+    match result {
+        Ok(()) => {
+            if let Some(p) = svg {
+                g.ui.say(&format!("plot: {}", p.display()));
+            }
+            g.ui.say(&format!("session log: {}", log_path.display()));
+            Ok(())
+        }
+        Err(Stop::Interrupted) => {
+            // The robot first: Ctrl-C on the wire stops it within one control period.
+            let stopped = g.link.stop_key().is_ok() && g.wait_event("event stopped", 2).is_ok();
+            g.link
+                .log
+                .note("interrupted", "Ctrl-C: robot stopped, session left");
+            Err(format!(
+                "Ctrl-C: {}; nothing is lost: continue with `cargo console -- --port {port} \
+                 --resume {}`",
+                if stopped {
+                    "the robot is stopped"
+                } else {
+                    "stop sent to the robot"
+                },
+                log_path.display()
+            ))
+        }
+        Err(Stop::Disconnected(why)) => Err(format!(
+            "lost the connection to the board on {port} ({why}). The robot stops by itself \
+             when a run ends; every run and measurement so far is in {}: reconnect and continue \
+             with `cargo console -- --port <PORT> --resume {}`",
+            log_path.display(),
+            log_path.display()
+        )),
+        Err(Stop::Failed(e)) => Err(format!(
+            "{e}\n(session log: {}; `--resume` continues it)",
+            log_path.display()
+        )),
+    }
+}
+
+/// The value after `key=` in a reply text.
+fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
+    text.split_whitespace()
+        .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+}
+
+/// A number with an optional unit suffix (`m`, `cm`, `mm`; `deg` for angles) in base units.
+fn quantity(word: &str, angle: bool) -> Result<f64, String> {
+    let units: &[(&str, f64)] = if angle {
+        &[("deg", 1.0), ("°", 1.0)]
+    } else {
+        &[("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)]
+    };
+    let (num, k) = units
+        .iter()
+        .find_map(|(u, k)| word.strip_suffix(u).map(|n| (n, *k)))
+        .unwrap_or((word, 1.0));
+    let v: f64 = num
+        .parse()
+        .map_err(|_| format!("`{word}` is not a number"))?;
+    if !v.is_finite() {
+        return Err(format!("`{word}` is not finite"));
+    }
+    Ok(v * k)
+}
+
+fn path_text(p: &PathKind) -> String {
+    match p {
+        PathKind::Square { direction, side_m } => {
+            format!("square {} L={side_m:.3} m", direction.as_str())
+        }
+        PathKind::Line { length_m } => format!("line d={length_m:.3} m"),
+        PathKind::Circle {
+            direction,
+            radius_m,
+        } => format!("circle {} r={radius_m:.3} m", direction.as_str()),
+    }
+}
+
+impl Guide {
+    fn cmd(&mut self, line: &str) -> Result<Reply, Stop> {
+        self.cmd_timeout(line, REPLY)
+    }
+
+    /// A command; `err 10` (busy) is waited out with a message, a fault is reported.
+    fn cmd_timeout(&mut self, line: &str, timeout: Duration) -> Result<Reply, Stop> {
+        let mut waited = false;
+        loop {
+            let r = self.link.command(line, timeout)?;
+            if r.err_code() == Some(10) && r.last.contains("busy") {
+                if !waited {
+                    self.ui.say(&format!(
+                        "  the board is busy ({}): waiting for the robot to stop",
+                        r.text()
+                    ));
+                    waited = true;
+                }
+                let _ = self.link.next_unsolicited(Duration::from_secs(1))?;
+                continue;
+            }
+            return Ok(r);
+        }
+    }
+
+    fn wait_event(&mut self, prefix: &str, seconds: u64) -> Result<String, Stop> {
+        let deadline = std::time::Instant::now() + Duration::from_secs(seconds);
+        while std::time::Instant::now() < deadline {
+            if let Some(l) = self.link.next_unsolicited(Duration::from_millis(200))?
+                && l.starts_with(prefix)
+            {
+                return Ok(l);
+            }
+        }
+        Err(Stop::Failed(format!("no `{prefix}` from the board")))
+    }
+
+    fn session(&mut self, resumed: Option<LogContents>) -> Result<(), Stop> {
+        self.show_board()?;
+        match resumed {
+            Some(c) => self.resume(c)?,
+            None => self.plan()?,
+        }
+        let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+        if !r.ok() {
+            return Err(Stop::Failed(format!("stream on: {}", r.last)));
+        }
+        loop {
+            self.drive_missing_runs()?;
+            let table = self.calibrate()?;
+            if !self.offer_redrive(&table)? {
+                self.apply_save_verify(&table)?;
+                break;
+            }
+        }
+        let _ = self.cmd("stream off")?;
+        Ok(())
+    }
+
+    /// `status` and `params`: geometry, calibration, faults.
+    fn show_board(&mut self) -> Result<(), Stop> {
+        let params = self.cmd("params")?;
+        self.nominal = nominal_of(&params.data)
+            .ok_or_else(|| Stop::Failed("`params` without the geometry".into()))?;
+        self.link
+            .log
+            .entry("nominal", json!({ "params": params.data }), true);
+        let n = self.nominal;
+        self.ui.say(&format!(
+            "geometry: D_R={:.6} m D_L={:.6} m b={:.6} m, {} counts/rev",
+            n.diameter_right_m, n.diameter_left_m, n.wheelbase_m, n.counts_per_rev
+        ));
+        let calibration = params
+            .data
+            .iter()
+            .find_map(|l| l.strip_prefix("calibration "))
+            .unwrap_or("none")
+            .to_string();
+        self.ui.say(&format!("calibration: {calibration}"));
+        for (name, value) in [("square_side", &mut self.side_m)] {
+            if let Some(v) = params.data.iter().find_map(|l| {
+                let mut w = l.split_whitespace();
+                (w.next() == Some(name)).then(|| w.next()?.parse::<f64>().ok())?
+            }) {
+                *value = v;
+            }
+        }
+        if let Some(v) = params.data.iter().find_map(|l| {
+            let mut w = l.split_whitespace();
+            (w.next() == Some("runs_per_direction")).then(|| w.next()?.parse::<u32>().ok())?
+        }) {
+            self.per_direction = v;
+        }
+        let status = self.cmd("status")?;
+        let fault = field(status.text(), "fault").unwrap_or("none").to_string();
+        self.ui.say(&format!("fault: {fault}"));
+        if fault != "none" {
+            self.ui.warn(&format!(
+                "the board has a latched fault ({fault}): the motors are stopped. Fix the cause \
+                 (a blocked wheel, a loose encoder, a miswired motor: see README, Troubleshooting)"
+            ));
+            if self.ui.confirm("Clear the fault now", true)? {
+                let r = self.cmd("clear")?;
+                self.ui.say(&format!("  {}", r.last));
+            } else {
+                return Err(Stop::Failed("a fault is latched".into()));
+            }
+        }
+        if field(status.text(), "state") != Some("idle") {
+            self.ui.say("the robot is moving: waiting for it to stop");
+            loop {
+                let s = self.cmd("status")?;
+                if field(s.text(), "state") == Some("idle") {
+                    break;
+                }
+                let _ = self.link.next_unsolicited(Duration::from_secs(1))?;
+            }
+        }
+        Ok(())
+    }
+
+    fn plan(&mut self) -> Result<(), Stop> {
+        self.ui.say(
+            "plan: UMBmark squares, CW and CCW alternating. Bigger squares make the systematic \
+             error larger against the tape measure's error; after `calibrate` the board \
+             advises the best L for your robot's scatter.",
+        );
+        loop {
+            let a = self.ui.ask(
+                "Square side L in metres",
+                Some(&format!("{:.3}", self.side_m)),
+            )?;
+            match quantity(&a, false) {
+                Ok(v) if (0.1..=10.0).contains(&v) => {
+                    self.side_m = v;
+                    break;
+                }
+                Ok(_) => self.ui.say("  L must be within 0.1..10 m"),
+                Err(e) => self.ui.say(&format!("  {e}")),
+            }
+        }
+        loop {
+            let a = self
+                .ui
+                .ask("Runs per direction", Some(&self.per_direction.to_string()))?;
+            match a.parse::<u32>() {
+                Ok(n) if (1..=6).contains(&n) => {
+                    self.per_direction = n;
+                    break;
+                }
+                _ => self.ui.say("  a whole number within 1..6"),
+            }
+        }
+        self.send_plan()?;
+        // Runs left on the board from before belong to another session.
+        let runs = self.cmd("runs")?;
+        let stored = runs.data.len();
+        if stored > 0 {
+            self.ui.say(&format!(
+                "the board holds {stored} run(s) from before this session"
+            ));
+            if self
+                .ui
+                .confirm("Drop them to start a clean session", true)?
+            {
+                for _ in 0..stored {
+                    let r = self.cmd("drop 1")?;
+                    if !r.ok() {
+                        return Err(Stop::Failed(format!("drop: {}", r.last)));
+                    }
+                }
+            } else {
+                return Err(Stop::Failed(
+                    "the board holds runs of another session (drop them or calibrate them \
+                     first)"
+                        .into(),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn send_plan(&mut self) -> Result<(), Stop> {
+        for line in [
+            format!("set square_side {}", self.side_m),
+            format!("set runs_per_direction {}", self.per_direction),
+        ] {
+            let r = self.cmd(&line)?;
+            if !r.ok() {
+                return Err(Stop::Failed(format!("{line}: {}", r.last)));
+            }
+        }
+        self.link.log.entry(
+            "plan",
+            json!({ "side_m": self.side_m, "runs_per_direction": self.per_direction }),
+            true,
+        );
+        self.ui.say(&format!(
+            "plan: {n} CW + {n} CCW squares of L = {:.3} m",
+            self.side_m,
+            n = self.per_direction
+        ));
+        Ok(())
+    }
+
+    /// Fetches the record of board run `n` (all pages).
+    fn fetch_record(&mut self, n: usize) -> Result<(RunRecord, Vec<String>), Stop> {
+        let mut lines = Vec::new();
+        let mut reader = odocal::protocol::record::RecordReader::new();
+        while let Some(first) = reader.next_first() {
+            let r = self.cmd(&format!("record {n} {first}"))?;
+            if !r.ok() {
+                return Err(Stop::Failed(format!("record {n}: {}", r.last)));
+            }
+            for l in &r.data {
+                reader
+                    .feed(l)
+                    .map_err(|e| Stop::Failed(format!("record {n}: {e}: `{l}`")))?;
+            }
+            lines.extend(r.data);
+        }
+        let record = reader
+            .finish()
+            .map_err(|e| Stop::Failed(format!("record {n}: {e}")))?;
+        Ok((record, lines))
+    }
+
+    fn resume(&mut self, c: LogContents) -> Result<(), Stop> {
+        let logged: Vec<usize> = (0..c.runs.len()).filter(|&i| c.runs[i].is_some()).collect();
+        self.slots = c
+            .runs
+            .iter()
+            .zip(c.paths.iter().cloned().chain(std::iter::repeat(Vec::new())))
+            .map(|(r, path)| Slot {
+                record: r.clone(),
+                path,
+            })
+            .collect();
+        if let Some((side, n)) = c.plan {
+            self.side_m = side;
+            self.per_direction = n;
+        }
+        self.ui.say(&format!(
+            "resuming: {} measured run(s) in the log, plan {n} + {n} squares of L = {:.3} m",
+            logged.len(),
+            self.side_m,
+            n = self.per_direction
+        ));
+        let runs = self.cmd("runs")?;
+        let stored = runs.data.len();
+        // Does the board still hold the logged runs (firmware that keeps them across a reset)?
+        let mut same = stored == logged.len();
+        let mut i = 0;
+        while same && i < stored {
+            let (record, _) = self.fetch_record(i + 1)?;
+            same = self.slots[logged[i]].record.as_ref() == Some(&record);
+            i += 1;
+        }
+        if same {
+            self.board = logged;
+            if stored > 0 {
+                self.ui
+                    .say("the board still holds every logged run: continuing on the board");
+            }
+        } else if stored == 0 {
+            self.ui.say(&format!(
+                "the board holds none of the {} logged run(s) (it was reset): they stay in the \
+                 log, the remaining runs are driven now, and the calibration is computed on the \
+                 PC from all of them with the board's library",
+                logged.len()
+            ));
+            self.link.log.note(
+                "board-lost-runs",
+                &format!("{} logged runs not on the board", logged.len()),
+            );
+        } else {
+            return Err(Stop::Failed(format!(
+                "the board holds {stored} run(s) that differ from the log's {}: `drop` them on \
+                 the board or start a new session",
+                logged.len()
+            )));
+        }
+        self.send_plan()
+    }
+
+    fn counts(&self) -> (u32, u32) {
+        let mut n = (0, 0);
+        for s in &self.slots {
+            if let Some(PathKind::Square { direction, .. }) = s.record.as_ref().map(|r| r.path) {
+                match direction {
+                    Direction::Cw => n.0 += 1,
+                    Direction::Ccw => n.1 += 1,
+                }
+            }
+        }
+        n
+    }
+
+    fn drive_missing_runs(&mut self) -> Result<(), Stop> {
+        loop {
+            let (cw, ccw) = self.counts();
+            let n = self.per_direction;
+            let direction = if cw < n && cw <= ccw {
+                Direction::Cw
+            } else if ccw < n {
+                Direction::Ccw
+            } else {
+                return Ok(());
+            };
+            self.drive_one(direction, cw + ccw + 1, 2 * n)?;
+        }
+    }
+
+    /// Drives one square and measures it; a run that is aborted is offered again.
+    fn drive_one(&mut self, direction: Direction, k: u32, total: u32) -> Result<(), Stop> {
+        let dir = direction.as_str();
+        self.ui.say(&format!(
+            "run {k}/{total}: square {dir} L={:.3} m. Put the robot on the start marks (axle \
+             midpoint on the origin mark, heading along the +x mark).",
+            self.side_m
+        ));
+        let start = loop {
+            let a = self.ui.ask(
+                "Enter starts the run (b: wait for the board's button)",
+                Some("go"),
+            )?;
+            self.link.drain()?;
+            let pose = self.cmd("pose")?;
+            let start = (
+                field(pose.text(), "x").and_then(|v| v.parse::<f64>().ok()),
+                field(pose.text(), "y").and_then(|v| v.parse::<f64>().ok()),
+                field(pose.text(), "theta_deg").and_then(|v| v.parse::<f64>().ok()),
+            );
+            let start = match start {
+                (Some(x), Some(y), Some(t)) => (x, y, t.to_radians()),
+                _ => (0.0, 0.0, 0.0),
+            };
+            if a.eq_ignore_ascii_case("b") {
+                self.ui.say("  waiting for the button (short press)");
+                let l = self.wait_event("event button: ", 3600)?;
+                if l.contains("ok run") {
+                    break start;
+                }
+                self.ui.say(&format!("  {l}"));
+                continue;
+            }
+            let r = self.cmd(&format!("run {dir} {}", self.side_m))?;
+            if r.ok() {
+                break start;
+            }
+            self.ui
+                .warn(&format!("the board refused the run: {}", r.last));
+            if r.err_code() == Some(11) {
+                self.ui
+                    .say("  a fault is latched: `clear` is sent, then try again");
+                let c = self.cmd("clear")?;
+                self.ui.say(&format!("  {}", c.last));
+            } else if r.err_code() == Some(15) {
+                return Err(Stop::Failed(
+                    "the board's run store is full: calibrate or drop runs".into(),
+                ));
+            }
+        };
+        // Live progress from the pose stream.
+        let (x0, y0, t0) = start;
+        let (c, s) = (t0.cos(), t0.sin());
+        let total_m = 4.0 * self.side_m + 4.0 * std::f64::consts::FRAC_PI_2 * 0.2;
+        let mut done_m = 0.0;
+        let mut last: Option<(f64, f64, f64)> = None;
+        let mut path = vec![(0.0, 0.0)];
+        self.ui.progress_start();
+        let deadline = std::time::Instant::now() + RUN_TIMEOUT;
+        let finished = loop {
+            if crate::interrupted() {
+                return Err(Stop::Interrupted);
+            }
+            if std::time::Instant::now() > deadline {
+                let _ = self.link.stop_key();
+                return Err(Stop::Failed(
+                    "the run did not end in time: robot stopped".into(),
+                ));
+            }
+            let Some(l) = self.link.next_unsolicited(Duration::from_millis(100))? else {
+                continue;
+            };
+            if let Some(rest) = l.strip_prefix("stream ") {
+                let v: Vec<f64> = rest
+                    .split_whitespace()
+                    .filter_map(|w| w.parse().ok())
+                    .collect();
+                if let [_, x, y, th, ..] = v[..] {
+                    let th = th.to_radians();
+                    if let Some((px, py, pt)) = last {
+                        let dth = odocal::calibration::wrap_angle(th - pt).abs();
+                        done_m += (x - px).hypot(y - py) + dth * 0.2;
+                    }
+                    last = Some((x, y, th));
+                    let (dx, dy) = (x - x0, y - y0);
+                    path.push((c * dx + s * dy, -s * dx + c * dy));
+                    self.ui.progress(
+                        done_m / total_m,
+                        path.last().map_or(0.0, |p| p.0),
+                        path.last().map_or(0.0, |p| p.1),
+                        odocal::calibration::wrap_angle(th - t0).to_degrees(),
+                    );
+                }
+            } else if l.starts_with("event run ") && l.contains(" finished: ") {
+                break true;
+            } else if l.starts_with("event run ") && l.contains(" aborted") {
+                self.ui.warn(&l);
+                break false;
+            } else if l.starts_with("event ") {
+                self.ui.say(&format!("  {l}"));
+            }
+        };
+        if !finished {
+            let s = self.cmd("status")?;
+            if let Some(f) = field(s.text(), "fault").filter(|f| *f != "none") {
+                self.ui.warn(&format!(
+                    "fault: {f}: the motors are stopped. Fix the cause, then the fault is \
+                     cleared and the run driven again"
+                ));
+                if self
+                    .ui
+                    .confirm("Clear the fault and drive the run again", true)?
+                {
+                    let _ = self.cmd("clear")?;
+                } else {
+                    return Err(Stop::Failed(format!("fault {f}")));
+                }
+            }
+            self.ui
+                .say("the run was aborted and not stored: it is driven again");
+            return Ok(());
+        }
+        let runs = self.cmd("runs")?;
+        let n = runs.data.len();
+        let (record, _) = self.fetch_record(n)?;
+        self.ui.say(&format!(
+            "run {k} finished: {} odometry end x={:+.6} y={:+.6} theta={:+.4} deg",
+            path_text(&record.path),
+            record.odometry_end.x_m,
+            record.odometry_end.y_m,
+            record.odometry_end.theta_rad.to_degrees()
+        ));
+        self.measure(n, &record, path)
+    }
+
+    /// Asks for the measured end pose, checks it with the library's plausibility rule, sends
+    /// `measure`, then logs the run's record with the measurement.
+    fn measure(&mut self, n: usize, record: &RunRecord, path: Vec<(f64, f64)>) -> Result<(), Stop> {
+        let line = loop {
+            let a = self.ui.ask(
+                &format!(
+                    "Measured end pose of run {n}: x y [theta] (metres, degrees; y positive to \
+                     the left; 12mm or 1.2cm also accepted)"
+                ),
+                None,
+            )?;
+            let words: Vec<&str> = a.split_whitespace().collect();
+            if !(2..=3).contains(&words.len()) {
+                self.ui.say("  two or three numbers: x y [theta]");
+                continue;
+            }
+            let parsed = (|| -> Result<(f64, f64, Option<f64>), String> {
+                Ok((
+                    quantity(words[0], false)?,
+                    quantity(words[1], false)?,
+                    words.get(2).map(|w| quantity(w, true)).transpose()?,
+                ))
+            })();
+            let (x, y, t) = match parsed {
+                Ok(v) => v,
+                Err(e) => {
+                    self.ui.say(&format!("  {e}"));
+                    continue;
+                }
+            };
+            if let Err(why) = measure::check(record, x, y, t) {
+                self.ui.say(&format!("  not plausible for this run: {why}"));
+                if let Implausible::Position {
+                    unit_hint: Some(_), ..
+                } = why
+                {
+                    self.ui
+                        .say("  (type the unit: e.g. `41.8mm -39.5mm`, or metres: 0.0418)");
+                }
+                continue;
+            }
+            let mut line = format!("measure {x} {y}");
+            if let Some(t) = t {
+                line.push_str(&format!(" {t}"));
+            }
+            break line;
+        };
+        let r = self.cmd(&line)?;
+        self.link.log.entry(
+            "measure",
+            json!({ "board": n, "line": line, "reply": r.last }),
+            true,
+        );
+        if !r.ok() {
+            self.ui.warn(&format!("the board refused it: {}", r.last));
+            return self.measure(n, record, path);
+        }
+        self.ui.say(&format!("  {}", r.last));
+        let (record, lines) = self.fetch_record(n)?;
+        let slot = self.slots.len();
+        self.link.log.entry(
+            "run",
+            json!({ "slot": slot, "board": n, "record": lines, "path": path }),
+            true,
+        );
+        self.slots.push(Slot {
+            record: Some(record),
+            path,
+        });
+        // The board numbers its runs 1..k: run n is the last one.
+        self.board.truncate(n - 1);
+        self.board.push(slot);
+        Ok(())
+    }
+
+    fn live(&self) -> Vec<RunRecord> {
+        self.slots.iter().filter_map(|s| s.record.clone()).collect()
+    }
+
+    /// Whether the board holds exactly the session's live runs.
+    fn board_has_all(&self) -> bool {
+        self.board.len() == self.slots.iter().filter(|s| s.record.is_some()).count()
+    }
+
+    /// `calibrate` on the board (or on the PC when the board lost runs); shows the table.
+    fn calibrate(&mut self) -> Result<Vec<String>, Stop> {
+        let (table, source) = if self.board_has_all() {
+            self.ui
+                .say("calibrate: the board computes every method (about 11 s on the board)");
+            let r = self.cmd_timeout("calibrate", CALIBRATE)?;
+            let mut t = r.data.clone();
+            t.push(r.last.clone());
+            if !r.ok() {
+                return Err(Stop::Failed(format!("calibrate: {}", r.last)));
+            }
+            (t, "board")
+        } else {
+            self.ui.say(
+                "calibrate: computed on the PC from every logged run (the board lost some in \
+                 its reset)",
+            );
+            let mut out = String::new();
+            let runs = self.live();
+            write_calibration(
+                &mut LibraryCalibrator::default(),
+                &runs,
+                &self.nominal,
+                None,
+                &mut out,
+            )
+            .map_err(|e| Stop::Failed(e.to_string()))?;
+            let t: Vec<String> = out
+                .lines()
+                .map(|l| l.strip_prefix("  ").unwrap_or(l).to_string())
+                .collect();
+            (t, "offline")
+        };
+        self.link.log.entry(
+            "calibrate",
+            json!({ "source": source, "table": table }),
+            true,
+        );
+        self.show_table(&table);
+        Ok(table)
+    }
+
+    fn show_table(&mut self, table: &[String]) {
+        self.ui
+            .say("  method        E_d          E_b          E_max_mm   sd_E_d     sd_E_b");
+        for l in table {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            let method = w.first().copied().unwrap_or("");
+            if LibraryCalibrator::default().methods().contains(&method) && l.len() > 14 {
+                if w.get(1) == Some(&"failed:") {
+                    self.ui
+                        .say(&format!("  {method:<12}  {}", w[1..].join(" ")));
+                } else if w.len() >= 10 {
+                    self.ui.say(&format!(
+                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {}",
+                        w[1], w[2], w[7], w[8], w[9]
+                    ));
+                }
+            } else if l.starts_with("run ") || l.starts_with("check run") || l.starts_with("advice")
+            {
+                self.ui.say(&format!("  {l}"));
+            } else if l.starts_with("ok ") || l.starts_with("err ") {
+                self.ui.say(&format!("  ({l})"));
+            }
+        }
+    }
+
+    /// Offers to drive again each run the robust fit flagged; returns whether any was dropped.
+    fn offer_redrive(&mut self, table: &[String]) -> Result<bool, Stop> {
+        let flagged: Vec<usize> = table
+            .iter()
+            .find_map(|l| l.strip_prefix("check run"))
+            .map(|rest| {
+                rest.split(':')
+                    .next()
+                    .unwrap_or("")
+                    .split_whitespace()
+                    .filter_map(|w| w.parse().ok())
+                    .collect()
+            })
+            .unwrap_or_default();
+        let mut dropped = false;
+        // Highest first, so the board's numbers of the others stay valid.
+        for &n in flagged.iter().rev() {
+            if !self.ui.confirm(
+                &format!("Run {n} disagrees with the others: drop it and drive it again"),
+                true,
+            )? {
+                continue;
+            }
+            let live: Vec<usize> = (0..self.slots.len())
+                .filter(|&i| self.slots[i].record.is_some())
+                .collect();
+            let Some(&slot) = live.get(n - 1) else {
+                continue;
+            };
+            if self.board_has_all() {
+                let r = self.cmd(&format!("drop {n}"))?;
+                if !r.ok() {
+                    return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+                }
+                self.board.retain(|&s| s != slot);
+            }
+            self.slots[slot].record = None;
+            self.link.log.entry("drop", json!({ "slot": slot }), true);
+            dropped = true;
+        }
+        Ok(dropped)
+    }
+
+    fn apply_save_verify(&mut self, table: &[String]) -> Result<(), Stop> {
+        let solved: Vec<(String, f64)> = table
+            .iter()
+            .filter_map(|l| {
+                let w: Vec<&str> = l.split_whitespace().collect();
+                let m = *w.first()?;
+                if !LibraryCalibrator::default().methods().contains(&m) || w.len() < 10 {
+                    return None;
+                }
+                Some((m.to_string(), w[7].parse().unwrap_or(f64::INFINITY)))
+            })
+            .collect();
+        // The recommended method: exact (no small-angle approximation, robust), else the
+        // smallest predicted E_max.
+        let recommended = solved
+            .iter()
+            .find(|(m, _)| m == "exact")
+            .or_else(|| solved.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
+            .map(|(m, _)| m.clone())
+            .ok_or_else(|| Stop::Failed("no method solved".into()))?;
+        let method = loop {
+            let a = self.ui.ask(
+                "Apply which method (none: keep the current parameters)",
+                Some(&recommended),
+            )?;
+            if a.eq_ignore_ascii_case("none") {
+                self.ui
+                    .say("nothing applied; the board keeps its parameters");
+                return Ok(());
+            }
+            if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
+                break m.clone();
+            }
+            let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
+            self.ui.say(&format!("  one of {}", names.join(", ")));
+        };
+        if !self.board_has_all() {
+            self.ui.warn(&format!(
+                "the board holds {} of the session's {} runs: `apply {method}` on the board \
+                 would compute from those only. The result from all runs is in the table above \
+                 and in the log (`cargo console recalibrate LOG --method {method}`)",
+                self.board.len(),
+                self.live().len()
+            ));
+            if !self
+                .ui
+                .confirm("Apply the board's result from its runs anyway", false)?
+            {
+                return Ok(());
+            }
+        }
+        let applied = self.cmd(&format!("apply {method}"))?;
+        self.link.log.entry(
+            "apply",
+            json!({ "method": method, "reply": applied.last }),
+            true,
+        );
+        if !applied.ok() {
+            return Err(Stop::Failed(format!("apply {method}: {}", applied.last)));
+        }
+        self.ui.say(&format!("  {}", applied.last));
+        self.applied = Some(method.clone());
+        let saved = self.cmd("save")?;
+        self.link.log.entry(
+            "save",
+            json!({ "ok": saved.ok(), "reply": saved.last }),
+            true,
+        );
+        if !saved.ok() {
+            return Err(Stop::Failed(format!("save: {}", saved.last)));
+        }
+        self.ui.say(&format!("  {}", saved.last));
+        let params = self.cmd("params")?;
+        let line = params
+            .data
+            .iter()
+            .find_map(|l| l.strip_prefix("calibration "))
+            .unwrap_or("none")
+            .to_string();
+        let want = (field(applied.text(), "E_d"), field(applied.text(), "E_b"));
+        let ok = line.starts_with(&format!("{method} "))
+            && field(&line, "E_d") == want.0
+            && field(&line, "E_b") == want.1;
+        self.link
+            .log
+            .entry("verify", json!({ "ok": ok, "params": params.data }), true);
+        if !ok {
+            return Err(Stop::Failed(format!(
+                "verification failed: params shows `calibration {line}` after `{}`",
+                applied.last
+            )));
+        }
+        self.ui.say(&format!(
+            "verified: params shows calibration {line}; stored in flash, used from the next run \
+             and at every boot"
+        ));
+        Ok(())
+    }
+
+    /// Writes the SVG next to the log.
+    fn plot(&mut self) -> Option<PathBuf> {
+        let runs: Vec<PlotRun<'_>> = self
+            .slots
+            .iter()
+            .filter_map(|s| {
+                Some(PlotRun {
+                    record: s.record.as_ref()?,
+                    path: &s.path,
+                })
+            })
+            .collect();
+        if runs.is_empty() {
+            return None;
+        }
+        let records: Vec<RunRecord> = runs.iter().map(|r| r.record.clone()).collect();
+        // The applied method's geometry from every run, by the library (none applied: exact).
+        let method = self.applied.as_deref().unwrap_or("exact");
+        let calibrated = LibraryCalibrator::default()
+            .solve(&records, &self.nominal, method)
+            .ok()
+            .map(|s| s.geometry);
+        let text = plot::svg(
+            &runs,
+            calibrated.as_ref(),
+            &format!(
+                "odocal session {}: {} runs",
+                self.link.log.path.display(),
+                runs.len()
+            ),
+        );
+        let path = self.link.log.path.with_extension("svg");
+        match std::fs::write(&path, text) {
+            Ok(()) => Some(path),
+            Err(e) => {
+                self.ui.warn(&format!("{}: {e}", path.display()));
+                None
+            }
+        }
+    }
+}

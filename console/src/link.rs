@@ -1,0 +1,296 @@
+//! The serial link to the board: a real serial port (the board's USB-UART, or the simulated
+//! board's pseudo-terminal: the same code path), lines in and out, every line logged.
+//!
+//! A reader thread splits the received bytes into lines and hands them over a channel; the
+//! guide sends one command at a time and collects its reply (data lines, then one `ok …` or
+//! `err <code>: …` line, as `docs/protocol.md` promises). `event …` and `stream …` lines that
+//! arrive meanwhile are kept for the guide in order. A closed port or a read error is a
+//! disconnect, reported as [`LinkError::Disconnected`].
+
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use crate::log::SessionLog;
+
+/// Baud rate of the board's console (USART2, 115200 8N1).
+pub const BAUD: u32 = 115_200;
+
+/// Why a command got no reply.
+#[derive(Debug)]
+pub enum LinkError {
+    /// The port closed or failed (cable pulled, board powered off, simulator ended).
+    Disconnected(String),
+    /// No final line within the time limit.
+    Timeout(String),
+    /// The operator pressed Ctrl-C.
+    Interrupted,
+}
+
+impl std::fmt::Display for LinkError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LinkError::Disconnected(why) => write!(f, "lost the connection to the board ({why})"),
+            LinkError::Timeout(cmd) => write!(f, "no reply from the board to `{cmd}`"),
+            LinkError::Interrupted => f.write_str("interrupted (Ctrl-C)"),
+        }
+    }
+}
+
+/// A command's reply.
+#[derive(Clone, Debug, Default)]
+pub struct Reply {
+    /// Data lines before the final line, with their leading two spaces removed.
+    pub data: Vec<String>,
+    /// The final line (`ok …` or `err <code>: …`).
+    pub last: String,
+}
+
+impl Reply {
+    /// Whether the final line is `ok …`.
+    pub fn ok(&self) -> bool {
+        self.last == "ok" || self.last.starts_with("ok ")
+    }
+    /// The error code of an `err <code>: …` line.
+    pub fn err_code(&self) -> Option<u32> {
+        let rest = self.last.strip_prefix("err ")?;
+        rest.split(':').next()?.trim().parse().ok()
+    }
+    /// The text after `ok ` (empty for a bare `ok`).
+    pub fn text(&self) -> &str {
+        self.last
+            .strip_prefix("ok ")
+            .or_else(|| self.last.strip_prefix("err "))
+            .unwrap_or("")
+    }
+}
+
+enum Incoming {
+    Line(String),
+    Closed(String),
+}
+
+/// An open link to a board.
+pub struct Link {
+    port: Box<dyn serialport::SerialPort>,
+    rx: Receiver<Incoming>,
+    /// `event …` and `stream …` lines not yet taken by the guide.
+    pending: VecDeque<String>,
+    /// Session log: every line both ways.
+    pub log: SessionLog,
+    /// Port path, for messages.
+    pub path: String,
+    closed: Option<String>,
+}
+
+/// Candidate serial ports (USB-UART adapters, ST-LINK virtual COM ports), for the operator to
+/// choose from when no `--port` is given.
+pub fn candidate_ports() -> Vec<String> {
+    let mut ports: Vec<String> = serialport::available_ports()
+        .map(|p| p.into_iter().map(|p| p.port_name).collect())
+        .unwrap_or_default();
+    ports.retain(|p| p.contains("USB") || p.contains("ACM") || p.contains("usbserial"));
+    ports.sort();
+    ports
+}
+
+impl Link {
+    /// Opens `path` at 115200 8N1 and starts the reader.
+    ///
+    /// # Errors
+    /// The port cannot be opened, as text.
+    pub fn open(path: &str, log: SessionLog) -> Result<Link, String> {
+        let port = serialport::new(path, BAUD)
+            .timeout(Duration::from_millis(100))
+            .open()
+            .map_err(|e| format!("cannot open {path}: {e}"))?;
+        let mut reader = port
+            .try_clone()
+            .map_err(|e| format!("cannot read {path}: {e}"))?;
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 512];
+            let mut line = Vec::new();
+            loop {
+                match reader.read(&mut buf) {
+                    Ok(0) => {
+                        let _ = tx.send(Incoming::Closed("end of file".into()));
+                        return;
+                    }
+                    Ok(n) => {
+                        for &b in &buf[..n] {
+                            if b == b'\n' || b == b'\r' {
+                                if !line.is_empty() {
+                                    let text = String::from_utf8_lossy(&line).into_owned();
+                                    line.clear();
+                                    if tx.send(Incoming::Line(text)).is_err() {
+                                        return;
+                                    }
+                                }
+                            } else {
+                                line.push(b);
+                            }
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => {
+                        let _ = tx.send(Incoming::Closed(e.to_string()));
+                        return;
+                    }
+                }
+            }
+        });
+        Ok(Link {
+            port,
+            rx,
+            pending: VecDeque::new(),
+            log,
+            path: path.to_string(),
+            closed: None,
+        })
+    }
+
+    fn write_raw(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.port
+            .write_all(bytes)
+            .and_then(|()| self.port.flush())
+            .map_err(|e| LinkError::Disconnected(e.to_string()))
+    }
+
+    /// Sends Ctrl-C: the board stops any motion at once, before any queued line.
+    ///
+    /// # Errors
+    /// A disconnect.
+    pub fn stop_key(&mut self) -> Result<(), LinkError> {
+        self.log.tx("^C");
+        self.write_raw(&[0x03])
+    }
+
+    /// Receives one line within `timeout` (`None` if none came), logged.
+    fn recv(&mut self, timeout: Duration) -> Result<Option<String>, LinkError> {
+        if let Some(why) = &self.closed {
+            return Err(LinkError::Disconnected(why.clone()));
+        }
+        match self.rx.recv_timeout(timeout) {
+            Ok(Incoming::Line(l)) => {
+                self.log.rx(&l);
+                Ok(Some(l))
+            }
+            Ok(Incoming::Closed(why)) => {
+                self.log.note("disconnect", &why);
+                self.closed = Some(why.clone());
+                Err(LinkError::Disconnected(why))
+            }
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(RecvTimeoutError::Disconnected) => {
+                let why = "reader ended".to_string();
+                self.closed = Some(why.clone());
+                Err(LinkError::Disconnected(why))
+            }
+        }
+    }
+
+    /// Sends one command line and waits up to `timeout` for its final line. Unsolicited
+    /// lines are kept for [`Link::next_unsolicited`]; anything else that is not a data line (an
+    /// echo) is ignored. Ctrl-C pressed meanwhile ends the wait with [`LinkError::Interrupted`].
+    ///
+    /// # Errors
+    /// [`LinkError`].
+    pub fn command(&mut self, line: &str, timeout: Duration) -> Result<Reply, LinkError> {
+        self.log.tx(line);
+        self.write_raw(format!("{line}\r\n").as_bytes())?;
+        let deadline = Instant::now() + timeout;
+        let mut reply = Reply::default();
+        loop {
+            if crate::interrupted() {
+                return Err(LinkError::Interrupted);
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(LinkError::Timeout(line.to_string()));
+            }
+            let Some(l) = self.recv(left.min(Duration::from_millis(100)))? else {
+                continue;
+            };
+            if l == "ok" || l.starts_with("ok ") || l.starts_with("err ") {
+                reply.last = l;
+                return Ok(reply);
+            }
+            if l.starts_with("event ") || l.starts_with("stream ") {
+                self.pending.push_back(l);
+            } else if let Some(data) = l.strip_prefix("  ") {
+                reply.data.push(data.to_string());
+            }
+        }
+    }
+
+    /// The next `event …` or `stream …` line, waiting up to `timeout`; other lines (stray
+    /// echo, a late reply) are dropped.
+    ///
+    /// # Errors
+    /// A disconnect.
+    pub fn next_unsolicited(&mut self, timeout: Duration) -> Result<Option<String>, LinkError> {
+        if let Some(l) = self.pending.pop_front() {
+            return Ok(Some(l));
+        }
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.recv(left)? {
+                Some(l) if l.starts_with("event ") || l.starts_with("stream ") => {
+                    return Ok(Some(l));
+                }
+                Some(_) => {}
+                None => return Ok(None),
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+        }
+    }
+
+    /// Drops unsolicited lines received so far (stream lines of an earlier run).
+    pub fn drain(&mut self) -> Result<(), LinkError> {
+        self.pending.clear();
+        while self.recv(Duration::from_millis(0))?.is_some() {}
+        Ok(())
+    }
+
+    /// Ends a half-typed line, turns the echo off and checks what answers: an odocal board of a
+    /// known protocol version. Returns the `version` reply text.
+    ///
+    /// # Errors
+    /// No reply, another device, or an unknown protocol version, as text.
+    pub fn handshake(&mut self) -> Result<String, String> {
+        self.write_raw(b"\r").map_err(|e| e.to_string())?;
+        let wait = Duration::from_secs(5);
+        let echo = self
+            .command("echo off", wait)
+            .map_err(|e| format!("{e}: is this an odocal board at 115200 8N1?"))?;
+        if !echo.ok() {
+            return Err(format!("unexpected reply to `echo off`: {}", echo.last));
+        }
+        let v = self.command("version", wait).map_err(|e| e.to_string())?;
+        let text = v.text().to_string();
+        let mut w = text.split_whitespace();
+        if !v.ok() || w.next() != Some("odocal") {
+            return Err(format!(
+                "the device on {} is not an odocal board this tool knows (`version`: {}); \
+                 update its firmware",
+                self.path, v.last
+            ));
+        }
+        let protocol = w.nth(2).and_then(|p| p.parse::<u32>().ok());
+        if protocol != Some(odocal::protocol::record::PROTOCOL_VERSION) {
+            return Err(format!(
+                "the board speaks protocol {} but this tool speaks {}: update the firmware or \
+                 the tool",
+                protocol.map_or("?".into(), |p| p.to_string()),
+                odocal::protocol::record::PROTOCOL_VERSION
+            ));
+        }
+        Ok(text)
+    }
+}

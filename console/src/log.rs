@@ -1,0 +1,246 @@
+//! The session log: one JSON object a line, appended and flushed line by line (run records,
+//! measurements and results also reach the disk at once), so a crash, a pulled cable or a board
+//! reset loses nothing written so far.
+//!
+//! Every entry has `t` (seconds since the Unix epoch) and `kind`:
+//! - `tx` / `rx` with `line`: every line sent to and received from the board (`stream` and
+//!   `event` lines included);
+//! - `note` with `what`, `text`: the tool's own remarks (connect, disconnect, resume, reboot);
+//! - `plan` with `side_m`, `runs_per_direction`; `nominal` with the `params` data lines;
+//! - `run` with `slot` (the run's place in the session, kept across board resets), `board` (its
+//!   number on the board) and `record` (the data lines of `record <n>`: path, geometry,
+//!   odometry end, measurement, tick knots, lossless) and `path` (the stream poses of the run);
+//! - `measure` with `slot`, `line` (the `measure` command as sent) and `reply`;
+//! - `drop` with `slot`; `calibrate` with `table` (the reply's lines) and `source`
+//!   (`board` or `offline`); `apply`, `save`, `verify` with the replies.
+//!
+//! [`LogContents::read`] rebuilds the session from the file: the runs by slot (each the last
+//! record logged for it, read back with the library's [`RecordReader`]), the nominal geometry,
+//! the plan, and the tables shown.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use odocal::kinematics::geometry::Geometry;
+use odocal::motion::run::RunRecord;
+use odocal::protocol::record::RecordReader;
+use serde_json::{Value, json};
+
+/// Appends entries to a session log file.
+pub struct SessionLog {
+    file: Option<File>,
+    /// The file, for messages.
+    pub path: PathBuf,
+}
+
+fn now_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+impl SessionLog {
+    /// Opens `path` for appending (created if missing).
+    ///
+    /// # Errors
+    /// The file cannot be opened, as text.
+    pub fn open(path: &Path) -> Result<SessionLog, String> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        }
+        let mut file = OpenOptions::new()
+            .create(true)
+            .append(true)
+            .read(true)
+            .open(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        // A log cut in the middle of a line (the tool was killed while writing) gets its line
+        // ended, so the next entry starts on a line of its own.
+        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+        if len > 0 {
+            use std::io::{Read, Seek, SeekFrom};
+            let mut last = [0u8; 1];
+            let torn = file.seek(SeekFrom::End(-1)).is_ok()
+                && file.read_exact(&mut last).is_ok()
+                && last[0] != b'\n';
+            if torn {
+                file.write_all(b"\n")
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+            }
+        }
+        Ok(SessionLog {
+            file: Some(file),
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// Appends one entry (`t` added); `durable` also waits for the disk.
+    pub fn entry(&mut self, kind: &str, mut fields: Value, durable: bool) {
+        if let Value::Object(m) = &mut fields {
+            m.insert("t".into(), json!(now_s()));
+            m.insert("kind".into(), json!(kind));
+        }
+        if let Some(f) = &mut self.file {
+            // One write call per entry: a crash leaves whole lines (or one torn last line).
+            let ok = f
+                .write_all(format!("{fields}\n").as_bytes())
+                .and_then(|()| f.flush());
+            if durable {
+                let _ = f.sync_data();
+            }
+            if let Err(e) = ok {
+                eprintln!(
+                    "console: cannot write the session log {}: {e}",
+                    self.path.display()
+                );
+                self.file = None;
+            }
+        }
+    }
+
+    /// A line sent to the board.
+    pub fn tx(&mut self, line: &str) {
+        self.entry("tx", json!({ "line": line }), false);
+    }
+
+    /// A line received from the board.
+    pub fn rx(&mut self, line: &str) {
+        self.entry("rx", json!({ "line": line }), false);
+    }
+
+    /// A remark of the tool.
+    pub fn note(&mut self, what: &str, text: &str) {
+        self.entry("note", json!({ "what": what, "text": text }), true);
+    }
+}
+
+/// A session rebuilt from its log.
+#[derive(Debug, Default)]
+pub struct LogContents {
+    /// Runs by slot; `None` for a slot dropped later.
+    pub runs: Vec<Option<RunRecord>>,
+    /// The logged stream poses of every slot's run (x, y), for the plot.
+    pub paths: Vec<Vec<(f64, f64)>>,
+    /// The nominal geometry from the last logged `params`.
+    pub nominal: Option<Geometry>,
+    /// The plan: square side and runs per direction.
+    pub plan: Option<(f64, u32)>,
+    /// Every logged `calibrate` table (source, lines).
+    pub tables: Vec<(String, Vec<String>)>,
+    /// The method applied last, if any.
+    pub applied: Option<String>,
+    /// Whether the parameters were saved after the last apply.
+    pub saved: bool,
+}
+
+/// The value of one `params` data line `name value unit`.
+fn param(lines: &[String], name: &str) -> Option<f64> {
+    lines.iter().find_map(|l| {
+        let mut w = l.split_whitespace();
+        (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
+    })
+}
+
+/// The nominal geometry of a `params` reply's data lines.
+pub fn nominal_of(lines: &[String]) -> Option<Geometry> {
+    Some(Geometry {
+        diameter_right_m: param(lines, "d_right")?,
+        diameter_left_m: param(lines, "d_left")?,
+        wheelbase_m: param(lines, "wheelbase")?,
+        counts_per_rev: param(lines, "counts_per_rev")? as u32,
+    })
+}
+
+/// Reads `record` data lines back into a run record with the library's reader.
+///
+/// # Errors
+/// A malformed or incomplete record, as text.
+pub fn record_of(lines: &[String]) -> Result<RunRecord, String> {
+    let mut reader = RecordReader::new();
+    for l in lines {
+        reader.feed(l).map_err(|e| format!("{e}: `{l}`"))?;
+    }
+    reader.finish().map_err(|e| e.to_string())
+}
+
+fn strings(v: &Value) -> Vec<String> {
+    v.as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|s| s.as_str().map(str::to_string))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+impl LogContents {
+    /// Reads a session log. A torn last line (the tool died while writing it) is skipped.
+    ///
+    /// # Errors
+    /// The file cannot be read, or a run record in it is corrupt, as text.
+    pub fn read(path: &Path) -> Result<LogContents, String> {
+        let file = File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut c = LogContents::default();
+        for (n, line) in BufReader::new(file).lines().enumerate() {
+            let line = line.map_err(|e| format!("{}: {e}", path.display()))?;
+            let Ok(v) = serde_json::from_str::<Value>(&line) else {
+                eprintln!(
+                    "console: {} line {}: not a complete entry, skipped",
+                    path.display(),
+                    n + 1
+                );
+                continue;
+            };
+            let slot = v["slot"].as_u64().map(|s| s as usize);
+            match v["kind"].as_str().unwrap_or("") {
+                "nominal" => c.nominal = nominal_of(&strings(&v["params"])).or(c.nominal),
+                "plan" => {
+                    if let (Some(s), Some(n)) =
+                        (v["side_m"].as_f64(), v["runs_per_direction"].as_u64())
+                    {
+                        c.plan = Some((s, n as u32));
+                    }
+                }
+                "run" => {
+                    let Some(slot) = slot else { continue };
+                    let record = record_of(&strings(&v["record"]))
+                        .map_err(|e| format!("{} line {}: {e}", path.display(), n + 1))?;
+                    if c.runs.len() <= slot {
+                        c.runs.resize(slot + 1, None);
+                        c.paths.resize(slot + 1, Vec::new());
+                    }
+                    c.runs[slot] = Some(record);
+                    if let Some(p) = v["path"].as_array() {
+                        c.paths[slot] = p
+                            .iter()
+                            .filter_map(|xy| Some((xy[0].as_f64()?, xy[1].as_f64()?)))
+                            .collect();
+                    }
+                }
+                "drop" => {
+                    if let Some(r) = slot.and_then(|s| c.runs.get_mut(s)) {
+                        *r = None;
+                    }
+                }
+                "calibrate" => c.tables.push((
+                    v["source"].as_str().unwrap_or("board").to_string(),
+                    strings(&v["table"]),
+                )),
+                "apply" => {
+                    c.applied = v["method"].as_str().map(str::to_string);
+                    c.saved = false;
+                }
+                "save" => c.saved = v["ok"].as_bool().unwrap_or(false),
+                _ => {}
+            }
+        }
+        Ok(c)
+    }
+
+    /// The live runs in slot order.
+    pub fn live_runs(&self) -> Vec<RunRecord> {
+        self.runs.iter().flatten().cloned().collect()
+    }
+}

@@ -1,0 +1,144 @@
+//! `cargo console`: the guided calibration console for an odocal board.
+//!
+//! Plug in the board's USB-UART (or start `cargo sim serial --pty`), run `cargo console`, and
+//! follow the prompts: the tool checks the board, plans the 5 + 5 squares, starts each run,
+//! shows its progress from the pose stream, asks for the measured end pose (unit-checked by the
+//! library before `measure`), shows `calibrate`'s table, applies and saves the chosen method and
+//! reads `params` back. Everything goes to a JSON-lines session log (`--log`), which
+//! `--resume LOG` continues after a crash, a disconnect or a board reset, and which
+//! `cargo console recalibrate LOG [--method M]` recalibrates on the PC with the same library.
+//! An SVG of the runs is written next to the log.
+
+mod guide;
+mod link;
+mod log;
+mod plot;
+mod ui;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Parser, Subcommand};
+use odocal::session::library::LibraryCalibrator;
+use odocal::session::{Calibrator, write_calibration};
+
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Whether Ctrl-C was pressed.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::Relaxed)
+}
+
+extern "C" fn on_sigint(_: libc::c_int) {
+    INTERRUPTED.store(true, Ordering::Relaxed);
+}
+
+fn catch_ctrl_c() {
+    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+    unsafe {
+        libc::signal(
+            libc::SIGINT,
+            on_sigint as extern "C" fn(libc::c_int) as libc::sighandler_t,
+        );
+    }
+}
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "odocal-console",
+    about = "Guided odometry calibration on an odocal board over its serial port"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Cmd>,
+    #[command(flatten)]
+    session: guide::Options,
+}
+
+#[derive(Subcommand, Debug)]
+enum Cmd {
+    /// Recalibrate a session log on the PC with the library the board runs.
+    Recalibrate {
+        /// The session log (JSON lines).
+        log: PathBuf,
+        /// Only this method (default: every method, as `calibrate` shows them).
+        #[arg(long)]
+        method: Option<String>,
+    },
+    /// List candidate serial ports.
+    Ports,
+}
+
+fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
+    let contents = log::LogContents::read(log)?;
+    let runs = contents.live_runs();
+    let nominal = contents
+        .nominal
+        .ok_or_else(|| format!("{}: no `params` of the board in the log", log.display()))?;
+    let mut calibrator = LibraryCalibrator::default();
+    let method = match method {
+        None => None,
+        Some(m) => Some(
+            calibrator
+                .methods()
+                .iter()
+                .copied()
+                .find(|k| k.eq_ignore_ascii_case(m))
+                .ok_or_else(|| {
+                    format!(
+                        "unknown method `{m}`; one of {}",
+                        calibrator.methods().join("|")
+                    )
+                })?,
+        ),
+    };
+    println!(
+        "recalibrate {}: {} runs from the log, nominal D_R={} D_L={} b={} m",
+        log.display(),
+        runs.len(),
+        nominal.diameter_right_m,
+        nominal.diameter_left_m,
+        nominal.wheelbase_m
+    );
+    let mut out = String::new();
+    write_calibration(&mut calibrator, &runs, &nominal, method, &mut out)
+        .map_err(|e| e.to_string())?;
+    print!("{}", out.replace("\r\n", "\n"));
+    if out.lines().last().is_some_and(|l| l.starts_with("err ")) {
+        return Err("no calibration from this log".into());
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Some(Cmd::Recalibrate { log, method }) => recalibrate(log, method.as_deref()),
+        Some(Cmd::Ports) => {
+            let ports = link::candidate_ports();
+            if ports.is_empty() {
+                println!("no USB serial port found (plug in the board's USB-UART adapter)");
+            }
+            for p in ports {
+                println!("{p}");
+            }
+            Ok(())
+        }
+        None => {
+            catch_ctrl_c();
+            guide::run(&cli.session)
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("console: {e}");
+            if interrupted() {
+                ExitCode::from(130)
+            } else {
+                ExitCode::FAILURE
+            }
+        }
+    }
+}

@@ -1,0 +1,390 @@
+//! `guided_session`: the console tool, as an operator runs it, against the simulated board on
+//! its pseudo-terminal (`host-sim serial --pty --fast`, the same serial-port code path as a
+//! USB-UART).
+//!
+//! The test is the operator: it answers the tool's questions on stdin (`--yes` takes the
+//! defaults: the board's plan of 5 + 5 squares, start each run, the recommended method), and
+//! for each "measured end pose" question it types the pose the simulated tape measure reports
+//! (the simulator prints the true end pose of every run on its stderr). Then:
+//! 1. a full session: applied, saved, `params` read back; the log's `calibrate` table from the
+//!    board equals, line for line, `odocal-console recalibrate LOG` (every method) and
+//!    `recalibrate LOG --method exact`'s row — the same factors to the last printed digit;
+//! 2. a session whose tool is killed after its third run and whose board is restarted
+//!    (`reboot` on the simulator's stdin) before `--resume`: every run is still in the log
+//!    (3 + 7 = 10 measured runs in the calibration) and the log recalibrates offline to the table
+//!    the resumed session showed.
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Generous limit for any one wait (only to avoid a hang; nothing is timed).
+const WAIT: Duration = Duration::from_secs(120);
+
+fn target_dir() -> PathBuf {
+    // target/<profile>/deps/guided_session-… → target/<profile>
+    let exe = std::env::current_exe().unwrap();
+    exe.parent().unwrap().parent().unwrap().to_path_buf()
+}
+
+/// The simulated board's binary, built if needed (a no-op when it is up to date).
+fn host_sim() -> PathBuf {
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "-q", "-p", "host-sim", "--bin", "host-sim"])
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .status()
+        .expect("cargo runs");
+    assert!(status.success(), "building host-sim failed");
+    let path = target_dir().join("host-sim");
+    assert!(path.exists(), "{} missing", path.display());
+    path
+}
+
+struct Sim {
+    child: Child,
+    stdin: ChildStdin,
+    pty: String,
+    stderr: Arc<Mutex<Vec<String>>>,
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Sim {
+    fn start(bin: &Path) -> Sim {
+        let mut child = Command::new(bin)
+            .args(["serial", "--pty", "--fast"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("host-sim starts");
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let mut first = String::new();
+        out.read_line(&mut first).unwrap();
+        let pty = first
+            .trim()
+            .strip_prefix("pty ")
+            .unwrap_or_else(|| panic!("no pty line: {first:?}"))
+            .to_string();
+        let stderr = Arc::new(Mutex::new(Vec::new()));
+        let sink = stderr.clone();
+        let err = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for l in BufReader::new(err).lines().map_while(Result::ok) {
+                sink.lock().unwrap().push(l);
+            }
+        });
+        let stdin = child.stdin.take().unwrap();
+        Sim {
+            child,
+            stdin,
+            pty,
+            stderr,
+        }
+    }
+
+    /// The `k`-th (0-based) true end pose of a stored run, as `x y theta`.
+    fn true_end(&self, k: usize) -> String {
+        let deadline = Instant::now() + WAIT;
+        loop {
+            let found = self
+                .stderr
+                .lock()
+                .unwrap()
+                .iter()
+                .filter_map(|l| l.strip_prefix("sim: true end pose in the run's start frame: "))
+                .nth(k)
+                .map(|m| m.strip_prefix("measure ").unwrap().to_string());
+            if let Some(m) = found {
+                return m;
+            }
+            assert!(Instant::now() < deadline, "no true end pose {k}");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    fn count(&self, prefix: &str) -> usize {
+        let l = self.stderr.lock().unwrap();
+        l.iter().filter(|l| l.starts_with(prefix)).count()
+    }
+
+    fn reboot(&mut self) {
+        let boots = self.count("sim: event boot");
+        writeln!(self.stdin, "reboot").unwrap();
+        let deadline = Instant::now() + WAIT;
+        while self.count("sim: event boot") == boots {
+            assert!(Instant::now() < deadline, "the board did not reboot");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+struct Tool {
+    child: Child,
+    stdin: ChildStdin,
+    lines: Receiver<String>,
+    transcript: Vec<String>,
+}
+
+impl Drop for Tool {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Tool {
+    fn start(args: &[&str]) -> Tool {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("the console starts");
+        let out = child.stdout.take().unwrap();
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for l in BufReader::new(out).lines().map_while(Result::ok) {
+                if tx.send(l).is_err() {
+                    return;
+                }
+            }
+        });
+        let stdin = child.stdin.take().unwrap();
+        Tool {
+            child,
+            stdin,
+            lines,
+            transcript: Vec::new(),
+        }
+    }
+
+    /// The next output line; `None` at the end of the output.
+    fn next(&mut self) -> Option<String> {
+        let l = self.lines.recv_timeout(WAIT);
+        match l {
+            Ok(l) => {
+                self.transcript.push(l.clone());
+                Some(l)
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => None,
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                panic!(
+                    "the console said nothing for {WAIT:?}:\n{}",
+                    self.transcript.join("\n")
+                )
+            }
+        }
+    }
+
+    fn answer(&mut self, text: &str) {
+        writeln!(self.stdin, "{text}").unwrap();
+    }
+
+    /// Runs the dialogue: answers every measurement question with the simulator's true end
+    /// pose (`measured` counts the poses used so far); stops early when `stop_at` is printed.
+    fn converse(&mut self, sim: &Sim, measured: &mut usize, stop_at: Option<&str>) -> bool {
+        while let Some(l) = self.next() {
+            if stop_at.is_some_and(|s| l.starts_with(s)) {
+                return false;
+            }
+            if l.starts_with("? Measured end pose of run") {
+                let pose = sim.true_end(*measured);
+                *measured += 1;
+                self.answer(&pose);
+            }
+        }
+        true
+    }
+
+    fn finish(mut self) -> (bool, String) {
+        let status = self.child.wait().unwrap();
+        let text = std::mem::take(&mut self.transcript).join("\n");
+        (status.success(), text)
+    }
+}
+
+/// The log's entries; at most one line (the one the killed tool was writing) may be torn.
+fn json_lines(path: &Path) -> Vec<serde_json::Value> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let entries: Vec<serde_json::Value> = text
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect();
+    assert!(
+        text.lines().count() - entries.len() <= 1,
+        "torn lines in {}",
+        path.display()
+    );
+    entries
+}
+
+/// The `calibrate` tables logged (source, lines without the final line's prefix changes).
+fn tables(log: &[serde_json::Value]) -> Vec<(String, Vec<String>)> {
+    log.iter()
+        .filter(|v| v["kind"] == "calibrate")
+        .map(|v| {
+            (
+                v["source"].as_str().unwrap().to_string(),
+                v["table"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|s| s.as_str().unwrap().to_string())
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
+/// `odocal-console recalibrate LOG [--method M]`: the table lines (two leading spaces removed).
+fn recalibrate(log: &Path, method: Option<&str>) -> Vec<String> {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_odocal-console"));
+    cmd.arg("recalibrate").arg(log);
+    if let Some(m) = method {
+        cmd.args(["--method", m]);
+    }
+    let out = cmd.output().unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(out.status.success(), "{text}");
+    text.lines()
+        .skip(1)
+        .map(|l| l.strip_prefix("  ").unwrap_or(l).to_string())
+        .collect()
+}
+
+fn row<'a>(table: &'a [String], method: &str) -> &'a str {
+    table
+        .iter()
+        .find(|l| l.split_whitespace().next() == Some(method))
+        .unwrap_or_else(|| panic!("no {method} row in {table:#?}"))
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = target_dir().join("guided-session").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn guided_session() {
+    let bin = host_sim();
+
+    // 1. A full session, applied and saved, recalibrated offline from its log.
+    let sim = Sim::start(&bin);
+    let dir = out_dir("full");
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let mut measured = 0;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert_eq!(measured, 10, "{text}");
+    assert!(text.contains("board: odocal "), "{text}");
+    assert!(text.contains("plan: 5 CW + 5 CCW squares"), "{text}");
+    assert!(text.contains("run 10/10: square ccw"), "{text}");
+    assert!(text.contains("  progress 100 %"), "{text}");
+    let verified = text
+        .lines()
+        .find(|l| l.starts_with("verified: params shows calibration exact E_d="))
+        .unwrap_or_else(|| panic!("not verified:\n{text}"));
+    assert!(dir.join("session.svg").exists());
+
+    let entries = json_lines(&log);
+    let runs: Vec<_> = entries.iter().filter(|v| v["kind"] == "run").collect();
+    assert_eq!(runs.len(), 10);
+    for r in &runs {
+        let record = r["record"].as_array().unwrap();
+        assert!(
+            record
+                .iter()
+                .any(|l| l.as_str().unwrap().starts_with("knot 90 "))
+        );
+        assert!(!record.iter().any(|l| l == "measured none"));
+    }
+    for kind in ["tx", "rx", "measure", "apply", "save", "verify"] {
+        assert!(entries.iter().any(|v| v["kind"] == kind), "no {kind} entry");
+    }
+    assert!(entries.iter().all(|v| v["t"].as_f64().is_some()));
+    let logged = tables(&entries);
+    assert_eq!(logged.len(), 1);
+    let (source, board) = &logged[0];
+    assert_eq!(source, "board");
+    assert!(
+        board
+            .last()
+            .unwrap()
+            .starts_with("ok 6 solved from 10 measured runs (cw 5, ccw 5)"),
+        "{board:#?}"
+    );
+    // Offline, every method: the board's reply line for line.
+    let offline = recalibrate(&log, None);
+    assert_eq!(&offline, board);
+    // One method: its row is the board's, to the last digit.
+    let exact = recalibrate(&log, Some("exact"));
+    let board_row = row(board, "exact");
+    assert_eq!(row(&exact, "exact"), board_row);
+    let w: Vec<&str> = board_row.split_whitespace().collect();
+    assert!(
+        verified.contains(&format!("E_d={} E_b={}", w[1], w[2])),
+        "{verified} vs {board_row}"
+    );
+    println!("board:   {board_row}\noffline: {}", row(&exact, "exact"));
+    drop(sim);
+
+    // 2. The tool dies after run 3 and the board is reset; the session resumes from the log.
+    let mut sim = Sim::start(&bin);
+    let dir = out_dir("resumed");
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let mut measured = 0;
+    let ended = tool.converse(&sim, &mut measured, Some("run 4/10:"));
+    assert!(!ended);
+    assert_eq!(measured, 3);
+    let before_reset = measured;
+    let _ = tool.child.kill();
+    let _ = tool.finish();
+    sim.reboot();
+    // A run the killed tool had started is lost with the reset: measurements continue with the
+    // poses the simulator reports from now on.
+    measured = sim.count("sim: true end pose in the run's start frame: ");
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--resume",
+        log.to_str().unwrap(),
+        "--yes",
+    ]);
+    let after_reset = measured;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the resumed session failed:\n{text}");
+    assert_eq!(before_reset + measured - after_reset, 10, "{text}");
+    assert!(
+        text.contains("resuming: 3 measured run(s) in the log"),
+        "{text}"
+    );
+    let entries = json_lines(&log);
+    let runs = entries.iter().filter(|v| v["kind"] == "run").count();
+    assert_eq!(runs, 10);
+    let logged = tables(&entries);
+    let (_, resumed) = logged.last().unwrap();
+    assert!(
+        resumed
+            .last()
+            .unwrap()
+            .starts_with("ok 6 solved from 10 measured runs (cw 5, ccw 5)"),
+        "{resumed:#?}"
+    );
+    assert_eq!(&recalibrate(&log, None), resumed);
+}
