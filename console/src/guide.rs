@@ -700,8 +700,7 @@ impl Guide {
         let line = loop {
             let a = self.ui.ask(
                 &format!(
-                    "Measured end pose of run {n}: x y [theta] (metres, degrees; y positive to \
-                     the left; 12mm or 1.2cm also accepted)"
+                    "Measured end pose of run {n}: x y [theta] (m, deg; y to the left; or 41.8mm)"
                 ),
                 None,
             )?;
