@@ -411,11 +411,9 @@ impl Guide {
                 .ui
                 .confirm("Drop them to start a clean session", true)?
             {
-                for _ in 0..stored {
-                    let r = self.cmd("drop 1")?;
-                    if !r.ok() {
-                        return Err(Stop::Failed(format!("drop: {}", r.last)));
-                    }
+                let r = self.cmd("drop all")?;
+                if !r.ok() {
+                    return Err(Stop::Failed(format!("drop all: {}", r.last)));
                 }
             } else {
                 return Err(Stop::Failed(
@@ -496,21 +494,39 @@ impl Guide {
         ));
         let runs = self.cmd("runs")?;
         let stored = runs.data.len();
-        // Does the board still hold the logged runs (firmware that keeps them across a reset)?
-        let mut same = stored == logged.len();
-        let mut i = 0;
-        while same && i < stored {
-            let (record, _) = self.fetch_record(i + 1)?;
-            same = self.slots[logged[i]].record.as_ref() == Some(&record);
-            i += 1;
+        // Does the board still hold the logged runs (firmware that keeps them in flash across
+        // a reset)? Runs after them were driven after the last logged one (the tool died before
+        // logging them): they join the session, and an unmeasured one is measured now.
+        let mut board = Vec::new();
+        for n in 1..=stored {
+            board.push(self.fetch_record(n)?);
         }
-        if same {
+        let common = stored.min(logged.len());
+        let same = (0..common).all(|i| self.slots[logged[i]].record.as_ref() == Some(&board[i].0));
+        if same && stored >= logged.len() {
             self.board = logged;
             if stored > 0 {
-                self.ui
-                    .say("the board still holds every logged run: continuing on the board");
+                self.ui.say(&format!(
+                    "the board still holds the {} logged run(s): continuing on the board",
+                    common
+                ));
             }
-        } else if stored == 0 {
+            self.send_plan()?;
+            for (i, (record, lines)) in board.into_iter().enumerate().skip(common) {
+                let n = i + 1;
+                self.ui.say(&format!(
+                    "board run {n} ({}) is not in the log yet: it joins the session",
+                    path_text(&record.path)
+                ));
+                if record.measured.is_some() {
+                    self.adopt(n, record, lines, Vec::new());
+                } else {
+                    self.measure(n, &record, Vec::new())?;
+                }
+            }
+            return Ok(());
+        }
+        if stored == 0 {
             self.ui.say(&format!(
                 "the board holds none of the {} logged run(s) (it was reset): they stay in the \
                  log, the remaining runs are driven now, and the calibration is computed on the \
@@ -523,8 +539,8 @@ impl Guide {
             );
         } else {
             return Err(Stop::Failed(format!(
-                "the board holds {stored} run(s) that differ from the log's {}: `drop` them on \
-                 the board or start a new session",
+                "the board holds {stored} run(s) that differ from the log's {}: `drop all` on \
+                 the board (the log keeps them) or start a new session",
                 logged.len()
             )));
         }
@@ -734,7 +750,7 @@ impl Guide {
                 }
                 continue;
             }
-            let mut line = format!("measure {x} {y}");
+            let mut line = format!("measure #{n} {x} {y}");
             if let Some(t) = t {
                 line.push_str(&format!(" {t}"));
             }
@@ -752,6 +768,12 @@ impl Guide {
         }
         self.ui.say(&format!("  {}", r.last));
         let (record, lines) = self.fetch_record(n)?;
+        self.adopt(n, record, lines, path);
+        Ok(())
+    }
+
+    /// Logs board run `n`'s record as the session's next slot.
+    fn adopt(&mut self, n: usize, record: RunRecord, lines: Vec<String>, path: Vec<(f64, f64)>) {
         let slot = self.slots.len();
         self.link.log.entry(
             "run",
@@ -765,7 +787,6 @@ impl Guide {
         // The board numbers its runs 1..k: run n is the last one.
         self.board.truncate(n - 1);
         self.board.push(slot);
-        Ok(())
     }
 
     fn live(&self) -> Vec<RunRecord> {

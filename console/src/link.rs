@@ -265,6 +265,14 @@ impl Link {
     /// No reply, another device, or an unknown protocol version, as text.
     pub fn handshake(&mut self) -> Result<String, String> {
         self.write_raw(b"\r").map_err(|e| e.to_string())?;
+        // Whatever the board sent before (a boot line, replies to another program, an error for
+        // a half-typed line) is not a reply to this tool.
+        let quiet = Instant::now() + Duration::from_millis(300);
+        while Instant::now() < quiet {
+            self.recv(Duration::from_millis(50))
+                .map_err(|e| e.to_string())?;
+        }
+        self.pending.clear();
         let wait = Duration::from_secs(5);
         let echo = self
             .command("echo off", wait)

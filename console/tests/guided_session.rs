@@ -10,9 +10,10 @@
 //!    board equals, line for line, `odocal-console recalibrate LOG` (every method) and
 //!    `recalibrate LOG --method exact`'s row — the same factors to the last printed digit;
 //! 2. a session whose tool is killed after its third run and whose board is restarted
-//!    (`reboot` on the simulator's stdin) before `--resume`: every run is still in the log
-//!    (3 + 7 = 10 measured runs in the calibration) and the log recalibrates offline to the table
-//!    the resumed session showed.
+//!    (`reboot` on the simulator's stdin: a new board over the same flash, which keeps the runs)
+//!    before `--resume`: the session continues on the board with nothing lost (3 + 7 = 10
+//!    measured runs in the board's calibration, applied, saved, verified) and the log
+//!    recalibrates offline to the board's table.
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -114,6 +115,27 @@ impl Sim {
     fn count(&self, prefix: &str) -> usize {
         let l = self.stderr.lock().unwrap();
         l.iter().filter(|l| l.starts_with(prefix)).count()
+    }
+
+    /// Types one line into the board's console (as a person at a terminal would) and returns
+    /// its final reply line.
+    fn type_line(&self, line: &str) -> String {
+        let mut port = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&self.pty)
+            .unwrap();
+        write!(port, "{line}\r").unwrap();
+        let mut reader = BufReader::new(port);
+        let mut l = String::new();
+        loop {
+            l.clear();
+            reader.read_line(&mut l).unwrap();
+            let t = l.trim();
+            if t.starts_with("ok") || t.starts_with("err") {
+                return t.to_string();
+            }
+        }
     }
 
     fn reboot(&mut self) {
@@ -351,13 +373,10 @@ fn guided_session() {
     let ended = tool.converse(&sim, &mut measured, Some("run 4/10:"));
     assert!(!ended);
     assert_eq!(measured, 3);
-    let before_reset = measured;
+
     let _ = tool.child.kill();
     let _ = tool.finish();
     sim.reboot();
-    // A run the killed tool had started is lost with the reset: measurements continue with the
-    // poses the simulator reports from now on.
-    measured = sim.count("sim: true end pose in the run's start frame: ");
     let mut tool = Tool::start(&[
         "--port",
         &sim.pty,
@@ -365,20 +384,31 @@ fn guided_session() {
         log.to_str().unwrap(),
         "--yes",
     ]);
-    let after_reset = measured;
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
     assert!(ok, "the resumed session failed:\n{text}");
-    assert_eq!(before_reset + measured - after_reset, 10, "{text}");
+    // Every run measured once: a fourth run the killed tool had started (kept in the board's
+    // flash across the reset) is measured by the resumed tool.
+    assert_eq!(measured, 10, "{text}");
     assert!(
         text.contains("resuming: 3 measured run(s) in the log"),
+        "{text}"
+    );
+    // The board keeps its runs across a reset: the session continues on the board.
+    assert!(
+        text.contains("the board still holds the 3 logged run(s): continuing on the board"),
+        "{text}"
+    );
+    assert!(
+        text.contains("verified: params shows calibration exact"),
         "{text}"
     );
     let entries = json_lines(&log);
     let runs = entries.iter().filter(|v| v["kind"] == "run").count();
     assert_eq!(runs, 10);
     let logged = tables(&entries);
-    let (_, resumed) = logged.last().unwrap();
+    let (source, resumed) = logged.last().unwrap();
+    assert_eq!(source, "board");
     assert!(
         resumed
             .last()
@@ -387,4 +417,52 @@ fn guided_session() {
         "{resumed:#?}"
     );
     assert_eq!(&recalibrate(&log, None), resumed);
+    drop(sim);
+
+    // 3. The same with a board that lost its runs in the reset (firmware without run
+    //    persistence, or the flash wiped): the log keeps them, the missing runs are driven, and
+    //    the calibration of all ten is computed on the PC with the library.
+    let mut sim = Sim::start(&bin);
+    let dir = out_dir("lost");
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let mut measured = 0;
+    assert!(!tool.converse(&sim, &mut measured, Some("run 4/10:")));
+    let _ = tool.child.kill();
+    let _ = tool.finish();
+    sim.reboot();
+    assert!(sim.type_line("drop all").starts_with("ok dropped"));
+    // A run the killed tool had started went with them.
+    let lost = sim.count("sim: true end pose in the run's start frame: ") - measured;
+    measured += lost;
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--resume",
+        log.to_str().unwrap(),
+        "--yes",
+    ]);
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the resumed session failed:\n{text}");
+    assert_eq!(measured - lost, 10, "{text}");
+    assert!(
+        text.contains("the board holds none of the 3 logged run(s) (it was reset)"),
+        "{text}"
+    );
+    let entries = json_lines(&log);
+    assert_eq!(entries.iter().filter(|v| v["kind"] == "run").count(), 10);
+    let logged = tables(&entries);
+    let (source, offline) = logged.last().unwrap();
+    assert_eq!(source, "offline");
+    assert!(
+        offline
+            .last()
+            .unwrap()
+            .starts_with("ok 6 solved from 10 measured runs (cw 5, ccw 5)"),
+        "{offline:#?}"
+    );
+    assert_eq!(&recalibrate(&log, None), offline);
+    // Nothing was applied from the board's partial runs without asking.
+    assert!(!entries.iter().any(|v| v["kind"] == "apply"));
 }
