@@ -118,8 +118,9 @@ impl Sim {
     }
 
     /// Types one line into the board's console (as a person at a terminal would) and returns
-    /// its final reply line.
-    fn type_line(&self, line: &str) -> String {
+    /// its reply: the first `err` line or line starting with `reply` (output still queued for
+    /// the killed tool comes first and is skipped).
+    fn type_line(&self, line: &str, reply: &str) -> String {
         let mut port = std::fs::OpenOptions::new()
             .read(true)
             .write(true)
@@ -132,7 +133,7 @@ impl Sim {
             l.clear();
             reader.read_line(&mut l).unwrap();
             let t = l.trim();
-            if t.starts_with("ok") || t.starts_with("err") {
+            if t.starts_with(reply) || t.starts_with("err") {
                 return t.to_string();
             }
         }
@@ -431,7 +432,8 @@ fn guided_session() {
     let _ = tool.child.kill();
     let _ = tool.finish();
     sim.reboot();
-    assert!(sim.type_line("drop all").starts_with("ok dropped"));
+    let dropped = sim.type_line("drop all", "ok dropped all");
+    assert!(dropped.starts_with("ok dropped all"), "{dropped}");
     // A run the killed tool had started went with them.
     let lost = sim.count("sim: true end pose in the run's start frame: ") - measured;
     measured += lost;
