@@ -50,7 +50,7 @@ pub struct Options {
 const RUN_TIMEOUT: Duration = Duration::from_secs(600);
 /// Reply time of an ordinary command.
 const REPLY: Duration = Duration::from_secs(5);
-/// `calibrate` takes about 11 s on the board.
+/// `calibrate` takes about 6 s on the board.
 const CALIBRATE: Duration = Duration::from_secs(120);
 
 enum Stop {
@@ -802,7 +802,7 @@ impl Guide {
     fn calibrate(&mut self) -> Result<Vec<String>, Stop> {
         let (table, source) = if self.board_has_all() {
             self.ui
-                .say("calibrate: the board computes every method (about 11 s on the board)");
+                .say("calibrate: the board computes every method (about 6 s on the board)");
             let r = self.cmd_timeout("calibrate", CALIBRATE)?;
             let mut t = r.data.clone();
             t.push(r.last.clone());
