@@ -158,6 +158,11 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
             }
         }
         if (w["odometry", "n"] == 0) { print "qemu-bench: FAILED: no odometry windows counted"; fail = 1 }
+        # The controller period in one line (Controller::step driving the 1 m square).
+        if (w["control", "n"] > 0) {
+            printf "control step: mean %d max %d instructions\n",
+                int(w["control", "sum"] / w["control", "n"] - empty + 0.5), w["control", "max"] - empty
+        } else { print "qemu-bench: FAILED: no control windows counted"; fail = 1 }
         # SysTick cross-check: 1 instruction = 1 ns under -icount shift=0; SysTick at 168 MHz.
         est = sys["ticks"] * 1e9 / 168e6
         diff = est - w["block", "sum"]
