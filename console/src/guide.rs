@@ -179,6 +179,10 @@ pub fn run(opts: &Options) -> Result<(), String> {
         Err(Stop::Interrupted) => {
             // The robot first: Ctrl-C on the wire stops it within one control period.
             let stopped = g.link.stop_key().is_ok() && g.wait_event("event stopped", 2).is_ok();
+            // A run in progress is reported aborted right after.
+            if stopped && let Ok(l) = g.wait_event("event run ", 1) {
+                g.ui.say(&l);
+            }
             g.link
                 .log
                 .note("interrupted", "Ctrl-C: robot stopped, session left");

@@ -60,8 +60,13 @@ impl Drop for Sim {
 
 impl Sim {
     fn start(bin: &Path) -> Sim {
+        Sim::start_with(bin, &["--fast"])
+    }
+
+    fn start_with(bin: &Path, args: &[&str]) -> Sim {
         let mut child = Command::new(bin)
-            .args(["serial", "--pty", "--fast"])
+            .args(["serial", "--pty"])
+            .args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -155,6 +160,7 @@ struct Tool {
     stdin: ChildStdin,
     lines: Receiver<String>,
     transcript: Vec<String>,
+    stderr: Arc<Mutex<String>>,
 }
 
 impl Drop for Tool {
@@ -170,9 +176,18 @@ impl Tool {
             .args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
+            .stderr(Stdio::piped())
             .spawn()
             .expect("the console starts");
+        let err = child.stderr.take().unwrap();
+        let stderr = Arc::new(Mutex::new(String::new()));
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            for l in BufReader::new(err).lines().map_while(Result::ok) {
+                eprintln!("{l}");
+                sink.lock().unwrap().push_str(&format!("{l}\n"));
+            }
+        });
         let out = child.stdout.take().unwrap();
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
@@ -188,6 +203,7 @@ impl Tool {
             stdin,
             lines,
             transcript: Vec::new(),
+            stderr,
         }
     }
 
@@ -229,10 +245,19 @@ impl Tool {
         true
     }
 
-    fn finish(mut self) -> (bool, String) {
+    /// Waits for the tool to end: its exit code, stdout and stderr.
+    fn end(mut self) -> (Option<i32>, String, String) {
         let status = self.child.wait().unwrap();
+        // The output threads end with the process.
+        while self.next().is_some() {}
         let text = std::mem::take(&mut self.transcript).join("\n");
-        (status.success(), text)
+        let err = self.stderr.lock().unwrap().clone();
+        (status.code(), text, err)
+    }
+
+    fn finish(self) -> (bool, String) {
+        let (code, text, err) = self.end();
+        (code == Some(0), format!("{text}\n{err}"))
     }
 }
 
@@ -467,4 +492,72 @@ fn guided_session() {
     assert_eq!(&recalibrate(&log, None), offline);
     // Nothing was applied from the board's partial runs without asking.
     assert!(!entries.iter().any(|v| v["kind"] == "apply"));
+}
+
+/// Ctrl-C during a run stops the robot first (the stop key on the wire), then the tool ends
+/// saying how to resume; the run is reported aborted. The simulated board runs in real time
+/// here, so the run is still driving when Ctrl-C comes.
+#[test]
+fn ctrl_c_stops_the_robot() {
+    let sim = Sim::start_with(&host_sim(), &[]);
+    let dir = out_dir("ctrl-c");
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    while let Some(l) = tool.next() {
+        if l.starts_with("  progress") {
+            break;
+        }
+    }
+    let pid = tool.child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let (code, text, err) = tool.end();
+    assert_eq!(code, Some(130), "{text}\n{err}");
+    assert!(err.contains("Ctrl-C: the robot is stopped"), "{err}");
+    assert!(err.contains("--resume"), "{err}");
+    let entries = json_lines(&log);
+    let lines = |kind: &str| -> Vec<String> {
+        entries
+            .iter()
+            .filter(|v| v["kind"] == kind)
+            .map(|v| v["line"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert!(lines("tx").contains(&"^C".to_string()));
+    let rx = lines("rx");
+    assert!(rx.iter().any(|l| l == "event stopped (Ctrl-C)"), "{rx:#?}");
+    assert!(
+        rx.iter()
+            .any(|l| l.starts_with("event run 1 aborted, not stored"))
+    );
+}
+
+/// The board goes away in the middle of a session (cable pulled; here the simulator ends): the
+/// tool says so and how to resume, and the log keeps the measured run.
+#[test]
+fn disconnect_is_reported_and_the_log_keeps_the_runs() {
+    let mut sim = Sim::start(&host_sim());
+    let dir = out_dir("disconnect");
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let mut measured = 0;
+    assert!(!tool.converse(&sim, &mut measured, Some("run 2/10:")));
+    let _ = sim.child.kill();
+    let _ = sim.child.wait();
+    let (code, text, err) = tool.end();
+    assert_eq!(code, Some(1), "{text}\n{err}");
+    assert!(err.contains("lost the connection to the board"), "{err}");
+    assert!(err.contains("--resume"), "{err}");
+    let entries = json_lines(&log);
+    assert_eq!(entries.iter().filter(|v| v["kind"] == "run").count(), 1);
+    assert!(
+        entries
+            .iter()
+            .any(|v| v["kind"] == "note" && v["what"] == "disconnect")
+    );
 }
