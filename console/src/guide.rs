@@ -197,13 +197,16 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 log_path.display()
             ))
         }
-        Err(Stop::Disconnected(why)) => Err(format!(
-            "lost the connection to the board on {port} ({why}). The robot stops by itself \
+        Err(Stop::Disconnected(why)) => {
+            g.link.log.note("disconnect", &why);
+            Err(format!(
+                "lost the connection to the board on {port} ({why}). The robot stops by itself \
              when a run ends; every run and measurement so far is in {}: reconnect and continue \
              with `cargo console -- --port <PORT> --resume {}`",
-            log_path.display(),
-            log_path.display()
-        )),
+                log_path.display(),
+                log_path.display()
+            ))
+        }
         Err(Stop::Failed(e)) => Err(format!(
             "{e}\n(session log: {}; `--resume` continues it)",
             log_path.display()

@@ -179,7 +179,6 @@ impl Link {
                 Ok(Some(l))
             }
             Ok(Incoming::Closed(why)) => {
-                self.log.note("disconnect", &why);
                 self.closed = Some(why.clone());
                 Err(LinkError::Disconnected(why))
             }

@@ -161,6 +161,7 @@ struct Tool {
     lines: Receiver<String>,
     transcript: Vec<String>,
     stderr: Arc<Mutex<String>>,
+    stderr_done: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Drop for Tool {
@@ -182,7 +183,7 @@ impl Tool {
         let err = child.stderr.take().unwrap();
         let stderr = Arc::new(Mutex::new(String::new()));
         let sink = stderr.clone();
-        std::thread::spawn(move || {
+        let stderr_done = std::thread::spawn(move || {
             for l in BufReader::new(err).lines().map_while(Result::ok) {
                 eprintln!("{l}");
                 sink.lock().unwrap().push_str(&format!("{l}\n"));
@@ -204,6 +205,7 @@ impl Tool {
             lines,
             transcript: Vec::new(),
             stderr,
+            stderr_done: Some(stderr_done),
         }
     }
 
@@ -250,6 +252,9 @@ impl Tool {
         let status = self.child.wait().unwrap();
         // The output threads end with the process.
         while self.next().is_some() {}
+        if let Some(t) = self.stderr_done.take() {
+            t.join().unwrap();
+        }
         let text = std::mem::take(&mut self.transcript).join("\n");
         let err = self.stderr.lock().unwrap().clone();
         (status.code(), text, err)
@@ -332,14 +337,28 @@ fn guided_session() {
     let sim = Sim::start(&bin);
     let dir = out_dir("full");
     let log = dir.join("session.jsonl");
-    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    // The plan from an answers file (L in centimetres, converted), the rest by --yes and stdin.
+    let answers = dir.join("answers.txt");
+    std::fs::write(&answers, "150cm\n5\n").unwrap();
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+        "--yes",
+    ]);
     let mut measured = 0;
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
     assert!(ok, "the session failed:\n{text}");
     assert_eq!(measured, 10, "{text}");
     assert!(text.contains("board: odocal "), "{text}");
-    assert!(text.contains("plan: 5 CW + 5 CCW squares"), "{text}");
+    assert!(
+        text.contains("plan: 5 CW + 5 CCW squares of L = 1.500 m"),
+        "{text}"
+    );
     assert!(text.contains("run 10/10: square ccw"), "{text}");
     assert!(text.contains("  progress 100 %"), "{text}");
     let verified = text
