@@ -329,6 +329,41 @@ fn out_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// A session on a new simulated board whose tool is killed when it announces run 4 (three runs
+/// measured), then the board is reset (`reboot`; with `wipe`, its runs are dropped too, as on a
+/// board that does not keep them). Returns the board, the log and the poses measured.
+fn killed_after_three_runs(bin: &Path, name: &str, wipe: bool) -> (Sim, PathBuf, usize) {
+    let mut sim = Sim::start(bin);
+    let log = out_dir(name).join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let mut measured = 0;
+    assert!(!tool.converse(&sim, &mut measured, Some("run 4/10:")));
+    assert_eq!(measured, 3);
+    let _ = tool.child.kill();
+    let _ = tool.finish();
+    sim.reboot();
+    if wipe {
+        let dropped = sim.type_line("drop all", "ok dropped all");
+        assert!(dropped.starts_with("ok dropped all"), "{dropped}");
+    }
+    (sim, log, measured)
+}
+
+/// `--resume LOG --yes` on the board to the end; returns the transcript.
+fn resume(sim: &Sim, log: &Path, measured: &mut usize) -> String {
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--resume",
+        log.to_str().unwrap(),
+        "--yes",
+    ]);
+    tool.converse(sim, measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the resumed session failed:\n{text}");
+    text
+}
+
 #[test]
 fn guided_session() {
     let bin = host_sim();
@@ -410,28 +445,8 @@ fn guided_session() {
     drop(sim);
 
     // 2. The tool dies after run 3 and the board is reset; the session resumes from the log.
-    let mut sim = Sim::start(&bin);
-    let dir = out_dir("resumed");
-    let log = dir.join("session.jsonl");
-    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
-    let mut measured = 0;
-    let ended = tool.converse(&sim, &mut measured, Some("run 4/10:"));
-    assert!(!ended);
-    assert_eq!(measured, 3);
-
-    let _ = tool.child.kill();
-    let _ = tool.finish();
-    sim.reboot();
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--resume",
-        log.to_str().unwrap(),
-        "--yes",
-    ]);
-    tool.converse(&sim, &mut measured, None);
-    let (ok, text) = tool.finish();
-    assert!(ok, "the resumed session failed:\n{text}");
+    let (sim, log, mut measured) = killed_after_three_runs(&bin, "resumed", false);
+    let text = resume(&sim, &log, &mut measured);
     // Every run measured once: a fourth run the killed tool had started (kept in the board's
     // flash across the reset) is measured by the resumed tool.
     assert_eq!(measured, 10, "{text}");
@@ -467,30 +482,11 @@ fn guided_session() {
     // 3. The same with a board that lost its runs in the reset (firmware without run
     //    persistence, or the flash wiped): the log keeps them, the missing runs are driven, and
     //    the calibration of all ten is computed on the PC with the library.
-    let mut sim = Sim::start(&bin);
-    let dir = out_dir("lost");
-    let log = dir.join("session.jsonl");
-    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
-    let mut measured = 0;
-    assert!(!tool.converse(&sim, &mut measured, Some("run 4/10:")));
-    let _ = tool.child.kill();
-    let _ = tool.finish();
-    sim.reboot();
-    let dropped = sim.type_line("drop all", "ok dropped all");
-    assert!(dropped.starts_with("ok dropped all"), "{dropped}");
+    let (sim, log, mut measured) = killed_after_three_runs(&bin, "lost", true);
     // A run the killed tool had started went with them.
     let lost = sim.count("sim: true end pose in the run's start frame: ") - measured;
     measured += lost;
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--resume",
-        log.to_str().unwrap(),
-        "--yes",
-    ]);
-    tool.converse(&sim, &mut measured, None);
-    let (ok, text) = tool.finish();
-    assert!(ok, "the resumed session failed:\n{text}");
+    let text = resume(&sim, &log, &mut measured);
     assert_eq!(measured - lost, 10, "{text}");
     assert!(
         text.contains("the board holds none of the 3 logged run(s) (it was reset)"),

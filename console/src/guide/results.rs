@@ -1,0 +1,264 @@
+//! The results: `calibrate` (on the board, or on the PC when the board lost runs), the table
+//! shown readably, flagged runs offered again, `apply`, `save`, `params` read back, and the SVG.
+
+use std::path::PathBuf;
+
+use odocal::motion::run::RunRecord;
+use odocal::session::library::LibraryCalibrator;
+use odocal::session::{Calibrator, write_calibration};
+use serde_json::json;
+
+use super::{CALIBRATE, Guide, Stop, field};
+use crate::plot::{self, PlotRun};
+
+impl Guide {
+    /// `calibrate` on the board (or on the PC when the board lost runs); shows the table.
+    pub(super) fn calibrate(&mut self) -> Result<Vec<String>, Stop> {
+        let (table, source) = if self.board_has_all() {
+            self.ui
+                .say("calibrate: the board computes every method (about 6 s on the board)");
+            let r = self.cmd_timeout("calibrate", CALIBRATE)?;
+            let mut t = r.data.clone();
+            t.push(r.last.clone());
+            if !r.ok() {
+                return Err(Stop::Failed(format!("calibrate: {}", r.last)));
+            }
+            (t, "board")
+        } else {
+            self.ui.say(
+                "calibrate: computed on the PC from every logged run (the board lost some in \
+                 its reset)",
+            );
+            let mut out = String::new();
+            let runs = self.live();
+            write_calibration(
+                &mut LibraryCalibrator::default(),
+                &runs,
+                &self.nominal,
+                None,
+                &mut out,
+            )
+            .map_err(|e| Stop::Failed(e.to_string()))?;
+            let t: Vec<String> = out
+                .lines()
+                .map(|l| l.strip_prefix("  ").unwrap_or(l).to_string())
+                .collect();
+            (t, "offline")
+        };
+        self.link.log.entry(
+            "calibrate",
+            json!({ "source": source, "table": table }),
+            true,
+        );
+        self.show_table(&table);
+        Ok(table)
+    }
+
+    pub(super) fn show_table(&mut self, table: &[String]) {
+        self.ui
+            .say("  method        E_d          E_b          E_max_mm   sd_E_d     sd_E_b");
+        for l in table {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            let method = w.first().copied().unwrap_or("");
+            if LibraryCalibrator::default().methods().contains(&method) && l.len() > 14 {
+                if w.get(1) == Some(&"failed:") {
+                    self.ui
+                        .say(&format!("  {method:<12}  {}", w[1..].join(" ")));
+                } else if w.len() >= 10 {
+                    self.ui.say(&format!(
+                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {}",
+                        w[1], w[2], w[7], w[8], w[9]
+                    ));
+                }
+            } else if l.starts_with("run ") || l.starts_with("check run") || l.starts_with("advice")
+            {
+                self.ui.say(&format!("  {l}"));
+            } else if l.starts_with("ok ") || l.starts_with("err ") {
+                self.ui.say(&format!("  ({l})"));
+            }
+        }
+    }
+
+    /// Offers to drive again each run the robust fit flagged; returns whether any was dropped.
+    pub(super) fn offer_redrive(&mut self, table: &[String]) -> Result<bool, Stop> {
+        let flagged: Vec<usize> = table
+            .iter()
+            .find_map(|l| l.strip_prefix("check run"))
+            .map(|rest| {
+                rest.split(':')
+                    .next()
+                    .unwrap_or("")
+                    .split_whitespace()
+                    .filter_map(|w| w.parse().ok())
+                    .collect()
+            })
+            .unwrap_or_default();
+        let mut dropped = false;
+        // Highest first, so the board's numbers of the others stay valid.
+        for &n in flagged.iter().rev() {
+            if !self.ui.confirm(
+                &format!("Run {n} disagrees with the others: drop it and drive it again"),
+                true,
+            )? {
+                continue;
+            }
+            let live: Vec<usize> = (0..self.slots.len())
+                .filter(|&i| self.slots[i].record.is_some())
+                .collect();
+            let Some(&slot) = live.get(n - 1) else {
+                continue;
+            };
+            if self.board_has_all() {
+                let r = self.cmd(&format!("drop {n}"))?;
+                if !r.ok() {
+                    return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+                }
+                self.board.retain(|&s| s != slot);
+            }
+            self.slots[slot].record = None;
+            self.link.log.entry("drop", json!({ "slot": slot }), true);
+            dropped = true;
+        }
+        Ok(dropped)
+    }
+
+    pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<(), Stop> {
+        let solved: Vec<(String, f64)> = table
+            .iter()
+            .filter_map(|l| {
+                let w: Vec<&str> = l.split_whitespace().collect();
+                let m = *w.first()?;
+                if !LibraryCalibrator::default().methods().contains(&m) || w.len() < 10 {
+                    return None;
+                }
+                Some((m.to_string(), w[7].parse().unwrap_or(f64::INFINITY)))
+            })
+            .collect();
+        // The recommended method: exact (no small-angle approximation, robust), else the
+        // smallest predicted E_max.
+        let recommended = solved
+            .iter()
+            .find(|(m, _)| m == "exact")
+            .or_else(|| solved.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
+            .map(|(m, _)| m.clone())
+            .ok_or_else(|| Stop::Failed("no method solved".into()))?;
+        let method = loop {
+            let a = self.ui.ask(
+                "Apply which method (none: keep the current parameters)",
+                Some(&recommended),
+            )?;
+            if a.eq_ignore_ascii_case("none") {
+                self.ui
+                    .say("nothing applied; the board keeps its parameters");
+                return Ok(());
+            }
+            if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
+                break m.clone();
+            }
+            let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
+            self.ui.say(&format!("  one of {}", names.join(", ")));
+        };
+        if !self.board_has_all() {
+            self.ui.warn(&format!(
+                "the board holds {} of the session's {} runs: `apply {method}` on the board \
+                 would compute from those only. The result from all runs is in the table above \
+                 and in the log (`cargo console recalibrate LOG --method {method}`)",
+                self.board.len(),
+                self.live().len()
+            ));
+            if !self
+                .ui
+                .confirm("Apply the board's result from its runs anyway", false)?
+            {
+                return Ok(());
+            }
+        }
+        let applied = self.cmd(&format!("apply {method}"))?;
+        self.link.log.entry(
+            "apply",
+            json!({ "method": method, "reply": applied.last }),
+            true,
+        );
+        if !applied.ok() {
+            return Err(Stop::Failed(format!("apply {method}: {}", applied.last)));
+        }
+        self.ui.say(&format!("  {}", applied.last));
+        self.applied = Some(method.clone());
+        let saved = self.cmd("save")?;
+        self.link.log.entry(
+            "save",
+            json!({ "ok": saved.ok(), "reply": saved.last }),
+            true,
+        );
+        if !saved.ok() {
+            return Err(Stop::Failed(format!("save: {}", saved.last)));
+        }
+        self.ui.say(&format!("  {}", saved.last));
+        let params = self.cmd("params")?;
+        let line = params
+            .data
+            .iter()
+            .find_map(|l| l.strip_prefix("calibration "))
+            .unwrap_or("none")
+            .to_string();
+        let want = (field(applied.text(), "E_d"), field(applied.text(), "E_b"));
+        let ok = line.starts_with(&format!("{method} "))
+            && field(&line, "E_d") == want.0
+            && field(&line, "E_b") == want.1;
+        self.link
+            .log
+            .entry("verify", json!({ "ok": ok, "params": params.data }), true);
+        if !ok {
+            return Err(Stop::Failed(format!(
+                "verification failed: params shows `calibration {line}` after `{}`",
+                applied.last
+            )));
+        }
+        self.ui.say(&format!(
+            "verified: params shows calibration {line}; stored in flash, used from the next run \
+             and at every boot"
+        ));
+        Ok(())
+    }
+
+    /// Writes the SVG next to the log.
+    pub(super) fn plot(&mut self) -> Option<PathBuf> {
+        let runs: Vec<PlotRun<'_>> = self
+            .slots
+            .iter()
+            .filter_map(|s| {
+                Some(PlotRun {
+                    record: s.record.as_ref()?,
+                    path: &s.path,
+                })
+            })
+            .collect();
+        if runs.is_empty() {
+            return None;
+        }
+        let records: Vec<RunRecord> = runs.iter().map(|r| r.record.clone()).collect();
+        // The applied method's geometry from every run, by the library (none applied: exact).
+        let method = self.applied.as_deref().unwrap_or("exact");
+        let calibrated = LibraryCalibrator::default()
+            .solve(&records, &self.nominal, method)
+            .ok()
+            .map(|s| s.geometry);
+        let text = plot::svg(
+            &runs,
+            calibrated.as_ref(),
+            &format!(
+                "odocal session {}: {} runs",
+                self.link.log.path.display(),
+                runs.len()
+            ),
+        );
+        let path = self.link.log.path.with_extension("svg");
+        match std::fs::write(&path, text) {
+            Ok(()) => Some(path),
+            Err(e) => {
+                self.ui.warn(&format!("{}: {e}", path.display()));
+                None
+            }
+        }
+    }
+}
