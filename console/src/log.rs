@@ -136,11 +136,20 @@ pub struct LogContents {
 }
 
 /// The value of one `params` data line `name value unit`.
-fn param(lines: &[String], name: &str) -> Option<f64> {
+pub fn param(lines: &[String], name: &str) -> Option<f64> {
     lines.iter().find_map(|l| {
         let mut w = l.split_whitespace();
         (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
     })
+}
+
+/// The `calibration …` data line of a `params` reply, without its keyword (`none` if absent).
+pub fn calibration_of(lines: &[String]) -> String {
+    lines
+        .iter()
+        .find_map(|l| l.strip_prefix("calibration "))
+        .unwrap_or("none")
+        .to_string()
 }
 
 /// The nominal geometry of a `params` reply's data lines.

@@ -18,7 +18,7 @@ use odocal::motion::run::{PathKind, RunRecord};
 use serde_json::json;
 
 use crate::link::{Link, LinkError, Reply};
-use crate::log::{LogContents, SessionLog, nominal_of};
+use crate::log::{LogContents, SessionLog, calibration_of, nominal_of, param};
 use crate::ui::{AskError, Ui};
 
 /// Options of a guided session.
@@ -324,26 +324,13 @@ impl Guide {
             "geometry: D_R={:.6} m D_L={:.6} m b={:.6} m, {} counts/rev",
             n.diameter_right_m, n.diameter_left_m, n.wheelbase_m, n.counts_per_rev
         ));
-        let calibration = params
-            .data
-            .iter()
-            .find_map(|l| l.strip_prefix("calibration "))
-            .unwrap_or("none")
-            .to_string();
+        let calibration = calibration_of(&params.data);
         self.ui.say(&format!("calibration: {calibration}"));
-        for (name, value) in [("square_side", &mut self.side_m)] {
-            if let Some(v) = params.data.iter().find_map(|l| {
-                let mut w = l.split_whitespace();
-                (w.next() == Some(name)).then(|| w.next()?.parse::<f64>().ok())?
-            }) {
-                *value = v;
-            }
+        if let Some(v) = param(&params.data, "square_side") {
+            self.side_m = v;
         }
-        if let Some(v) = params.data.iter().find_map(|l| {
-            let mut w = l.split_whitespace();
-            (w.next() == Some("runs_per_direction")).then(|| w.next()?.parse::<u32>().ok())?
-        }) {
-            self.per_direction = v;
+        if let Some(v) = param(&params.data, "runs_per_direction") {
+            self.per_direction = v as u32;
         }
         let status = self.cmd("status")?;
         let fault = field(status.text(), "fault").unwrap_or("none").to_string();

@@ -9,6 +9,7 @@ use odocal::session::{Calibrator, write_calibration};
 use serde_json::json;
 
 use super::{CALIBRATE, Guide, Stop, field};
+use crate::log::calibration_of;
 use crate::plot::{self, PlotRun};
 
 impl Guide {
@@ -195,12 +196,7 @@ impl Guide {
         }
         self.ui.say(&format!("  {}", saved.last));
         let params = self.cmd("params")?;
-        let line = params
-            .data
-            .iter()
-            .find_map(|l| l.strip_prefix("calibration "))
-            .unwrap_or("none")
-            .to_string();
+        let line = calibration_of(&params.data);
         let want = (field(applied.text(), "E_d"), field(applied.text(), "E_b"));
         let ok = line.starts_with(&format!("{method} "))
             && field(&line, "E_d") == want.0

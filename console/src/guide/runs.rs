@@ -77,9 +77,23 @@ impl Guide {
                 self.ui.say(&format!("  {l}"));
                 continue;
             }
-            let r = self.cmd(&format!("run {dir} {}", self.side_m))?;
+            // Not retried when busy: a run started meanwhile (the button) is followed instead
+            // of starting another after it.
+            let r = self
+                .link
+                .command(&format!("run {dir} {}", self.side_m), super::REPLY)?;
             if r.ok() {
                 break start;
+            }
+            if r.err_code() == Some(10) {
+                let status = self.cmd("status")?;
+                if field(status.text(), "state") == Some("running") {
+                    self.ui.say(&format!(
+                        "  the board is busy ({}): a run was started on the board; following it",
+                        r.text()
+                    ));
+                    break start;
+                }
             }
             self.ui
                 .warn(&format!("the board refused the run: {}", r.last));
