@@ -144,6 +144,12 @@ impl Sim {
         }
     }
 
+    /// A short press of the board's button (the simulator's stdin).
+    fn press_button(&self) {
+        let mut stdin = &self.stdin;
+        writeln!(stdin, "button").unwrap();
+    }
+
     fn reboot(&mut self) {
         let boots = self.count("sim: event boot");
         writeln!(self.stdin, "reboot").unwrap();
@@ -237,6 +243,9 @@ impl Tool {
         while let Some(l) = self.next() {
             if stop_at.is_some_and(|s| l.starts_with(s)) {
                 return false;
+            }
+            if l == "  waiting for the button (short press)" {
+                sim.press_button();
             }
             if l.starts_with("? Measured end pose of run") {
                 let pose = sim.true_end(*measured);
@@ -372,9 +381,10 @@ fn guided_session() {
     let sim = Sim::start(&bin);
     let dir = out_dir("full");
     let log = dir.join("session.jsonl");
-    // The plan from an answers file (L in centimetres, converted), the rest by --yes and stdin.
+    // The plan from an answers file (L in centimetres, converted) and the first run started
+    // with the board's button; the rest by --yes and stdin.
     let answers = dir.join("answers.txt");
-    std::fs::write(&answers, "150cm\n5\n").unwrap();
+    std::fs::write(&answers, "150cm\n5\nb\n").unwrap();
     let mut tool = Tool::start(&[
         "--port",
         &sim.pty,
@@ -395,6 +405,7 @@ fn guided_session() {
         "{text}"
     );
     assert!(text.contains("run 10/10: square ccw"), "{text}");
+
     assert!(text.contains("  progress 100 %"), "{text}");
     let verified = text
         .lines()
@@ -414,6 +425,17 @@ fn guided_session() {
         );
         assert!(!record.iter().any(|l| l == "measured none"));
     }
+    // Run 1 came from the board's button, the others from the tool's `run`.
+    let line_of = |v: &serde_json::Value| v["line"].as_str().unwrap_or("").to_string();
+    assert!(entries.iter().any(|v| v["kind"] == "rx"
+        && line_of(v) == "event button: ok run 1 started: square cw L=1.500 m"));
+    let runs_sent: Vec<String> = entries
+        .iter()
+        .filter(|v| v["kind"] == "tx" && line_of(v).starts_with("run "))
+        .map(line_of)
+        .collect();
+    assert_eq!(runs_sent.len(), 9, "{runs_sent:?}");
+    assert_eq!(runs_sent[0], "run ccw 1.5");
     for kind in ["tx", "rx", "measure", "apply", "save", "verify"] {
         assert!(entries.iter().any(|v| v["kind"] == kind), "no {kind} entry");
     }
