@@ -33,21 +33,25 @@
 //! iteratively reweighted least squares (IRLS), run by run:
 //!
 //! 1. the plain least-squares fit gives the start;
-//! 2. each run `i` has `k_i` residual components (2 for x, y; 3 with the heading) and squared
-//!    length `d_i² = Σ r²` (for a path run: the mean squared position error plus the heading
-//!    term). Under the model `d_i²/σ²` is χ² with `k_i` degrees of freedom, so
-//!    `z_i = d_i² / med(χ²_{k_i})` has median `σ²` whatever `k_i`;
-//! 3. the scale of run `i` comes from the runs' own scatter: `σ_i² = median(z_j) · M/(M − n)` over
-//!    its *peers* `j` — the runs of the same kind of path (square, line, circle), measured the
+//! 2. each run `i` has residual channels `c`: x and y (end pose; for a path run the mean squared
+//!    position error along it) and, when used, the heading (times `ℓ`), with squared residuals
+//!    `d_ic²`. Under the model `d_ic²/σ_c²` is χ² with `k_c` degrees of freedom (1 for x, y or
+//!    the heading alone, 2 for x and y pooled), so `z_ic = d_ic² / med(χ²_{k_c})` has median
+//!    `σ_c²`;
+//! 3. the scales come from the runs' own scatter: `σ_c² = median(z_jc) · M/(M − n)` over run
+//!    `i`'s *peers* `j` — the runs of the same kind of path (square, line, circle), measured the
 //!    same way (end pose or path), with characteristic lengths within a factor
 //!    [`PEER_LENGTH_RATIO`] (longer paths scatter more, so a 15 m path is never judged against
 //!    1.7 m squares); `M/(M − n)` corrects for the `n` fitted parameters (`M` residual components
 //!    in all). The median ignores up to half of the peers being outliers. A run with fewer than
-//!    [`MIN_PEERS`] peers (itself included) has no scale and keeps weight 1. The scale is at
-//!    least [`SCALE_FLOOR_M`] (1 µm), far below any real measurement scatter, so that runs that
-//!    fit to rounding are not sorted by rounding errors;
-//! 4. `u_i² = d_i² / (k_i σ_i²)` (the run's mean squared residual component in units of the
-//!    scale, 1 on average under the model) gives the Cauchy weight `w_i = 1 / (1 + u_i²/c²)`,
+//!    [`MIN_PEERS`] peers (itself included) has no scale and keeps weight 1. No scale is taken
+//!    below the rounding error of the measurement, `resolution/√12`
+//!    ([`ExactOptions::resolution_m`], [`ExactOptions::resolution_rad`] times `ℓ`), so that runs
+//!    that fit to rounding are not sorted by rounding errors and a channel that happens to fit
+//!    perfectly cannot take unbounded weight (see *Channel weights*);
+//! 4. `u_i² = Σ_c d_ic²/σ_c² / k_i` (the run's mean squared residual component in units of the
+//!    scales, 1 on average under the model; `k_i` = 2 or 3 components) gives the Cauchy weight
+//!    `w_i = 1 / (1 + u_i²/c²)`,
 //!    `c =` [`CAUCHY_C`] `= 2.3849` (95 % efficiency at the normal model). The Cauchy loss
 //!    redescends: a run 10 σ off keeps about 5 % of its weight, so its pull on the factors is
 //!    about half that of a run at 1 σ, where a plain fit lets it pull ten times as hard. A run
@@ -64,15 +68,44 @@
 //! every run is reported with its residual ([`ExactFit`]). [`ExactOptions::plain`] is the plain
 //! least-squares fit.
 //!
+//! ## Channel weights
+//!
+//! How much an end heading counts against an end position is not known beforehand: slip in the
+//! turns, a jerk at the start and the way the end pose is measured make the heading scatter by a
+//! different amount than `x` and `y`, and `x` and `y` themselves differ (along and across the last
+//! leg of a square or a line). Weighting the heading by `ℓ` alone fixes their ratio a priori; a
+//! session whose headings scatter twice as much as that ratio assumes lets them pull the factors
+//! four times as hard as their precision deserves. The robust fit therefore treats the noise
+//! level of each channel as unknown and estimates it from the same peers (variance components,
+//! alternating with the run weights in the same IRLS loop, [`ExactOptions::channel_weights`]):
+//! the rows of channel `c` are weighted by `σ_p²/σ_c²`, `σ_p²` the pooled position scale of the
+//! peers (so the fit stays in metres of position, and runs of different kinds keep the relative
+//! weight they had). This is the maximum-likelihood weighting of a diagonal noise model, with
+//! robust (median) variance estimates; with the scales a priori equal it is the fit above.
+//!
+//! - Only an end pose gets x, y apart; a path's knots share no axes, its position stays pooled.
+//! - Channel weights need at least [`MIN_CHANNEL_PEERS`] = 6 peers (one UMBmark session, 3 CW +
+//!   3 CCW): a variance ratio estimated from medians of `k` runs is known only to within a factor
+//!   of 21 (its 10–90 % range when both variances are equal) at `k` = 6, 41 at 5 and 106 at 3.
+//!   Below that the a-priori weighting (by `ℓ`) is kept: fewer runs would replace it by noise.
+//! - The resolution floors bound the weight of a channel that fits perfectly; with ideal
+//!   kinematics every residual is zero, and any positive weights give the same exact answer.
+//! - Not modelled: correlations between the channels (a full 3×3 covariance per peer group,
+//!   mirrored between CW and CCW, is 6 numbers from 6–10 runs: in simulation it widened the spread
+//!   of `E_b` by 22 % against the a-priori weighting, where the diagonal one costs 5 %), and a
+//!   per-run start-heading offset (a free rotation of every run about its start point absorbs the
+//!   end heading of every closed path, so in-place turns and circles lose the information that
+//!   calibrates `E_b` best; it is the occasional slipping start, which the run weights handle).
+//!
 //! Jacobian: central differences with step `h = 1e-6` in each (dimensionless, ≈ 1) parameter:
 //! truncation error `O(h²) ≈ 1e-12` relative, rounding about `1e-16·|pose|/h ≈ 1e-10` m; the
 //! Jacobian only steers the iteration, the fixed point `JᵀWr = 0` is where the weighted
 //! residuals are smallest. Normal equations are accumulated run by run (3×3), so memory does not
 //! grow with the number of knots; the weights take one number per run (up to
 //! [`MAX_WEIGHTED_RUNS`] runs are reweighted; a larger set is fitted plainly and says so in
-//! [`ExactFit::reweighted`]). 1σ uncertainty: the weights act as the runs' relative precisions,
-//! `(JᵀWJ)⁻¹ s²` with `s² = Σ w_i d_i² / (M − n)` (the plain fit's `(JᵀJ)⁻¹ σ²` when every weight
-//! is 1).
+//! [`ExactFit::reweighted`]). 1σ uncertainty: the weights act as the rows' relative precisions,
+//! `(JᵀWJ)⁻¹ s²` with `s² = Σ_i w_i Σ_c λ_ic d_ic² / (M − n)` (`λ_ic` the channel weights; the
+//! plain fit's `(JᵀJ)⁻¹ σ²` when every weight is 1).
 
 // Dense 3×3 linear algebra reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
@@ -98,11 +131,11 @@ pub const COST_TOLERANCE: f64 = 1e-13;
 /// Cauchy constant `c` of the robust weights (95 % efficiency at the normal model).
 pub const CAUCHY_C: f64 = 2.3849;
 
-/// Smallest scale of a residual component, metres.
-pub const SCALE_FLOOR_M: f64 = 1e-6;
-
 /// Fewest peers (the run itself included) whose scatter gives a run's scale.
 pub const MIN_PEERS: usize = 3;
+
+/// Fewest peers (the run itself included) whose scatter weights a run's residual channels.
+pub const MIN_CHANNEL_PEERS: usize = 6;
 
 /// Runs are peers when their characteristic lengths differ by at most this factor.
 pub const PEER_LENGTH_RATIO: f64 = 1.2;
@@ -147,6 +180,14 @@ pub struct ExactOptions {
     pub max_iterations: u32,
     /// Robust fit (Cauchy weights per run, see the module docs); `false` = plain least squares.
     pub robust: bool,
+    /// In the robust fit, weight the heading channel by the runs' own scatter (position against
+    /// heading variance among a run's peers, see the module docs); `false` = by `ℓ` alone.
+    pub channel_weights: bool,
+    /// Resolution of a measured position, metres: no channel's scale is taken below its
+    /// rounding error `resolution/√12`.
+    pub resolution_m: f64,
+    /// Resolution of a measured heading, radians (as [`ExactOptions::resolution_m`]).
+    pub resolution_rad: f64,
 }
 
 impl Default for ExactOptions {
@@ -158,6 +199,9 @@ impl Default for ExactOptions {
             heading_length_m: None,
             max_iterations: 100,
             robust: true,
+            channel_weights: true,
+            resolution_m: 1e-3,
+            resolution_rad: 0.1 * core::f64::consts::PI / 180.0,
         }
     }
 }
@@ -167,6 +211,7 @@ impl ExactOptions {
     pub fn plain() -> Self {
         ExactOptions {
             robust: false,
+            channel_weights: false,
             ..ExactOptions::default()
         }
     }
@@ -193,6 +238,9 @@ pub struct RunFit {
     pub scale_heading_rad: Option<f64>,
     /// The weight the run ended with, in (0, 1]; 1 in the plain fit.
     pub weight: f64,
+    /// Relative weights of the run's x, y and heading rows against its position (see the
+    /// module docs, *Channel weights*); `[1, 1, 1]` is the a-priori weighting (heading by `ℓ`).
+    pub channel_weights: [f64; 3],
     /// The weight ended below [`OUTLIER_WEIGHT`]: the run disagrees with its peers.
     pub outlier: bool,
 }
@@ -207,6 +255,7 @@ impl RunFit {
         scale_m: None,
         scale_heading_rad: None,
         weight: 1.0,
+        channel_weights: [1.0; 3],
         outlier: false,
     };
 }
@@ -298,9 +347,35 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Weight of run `i`: 1 without weights.
-fn weight(weights: Option<&[f64]>, i: usize) -> f64 {
-    weights.map_or(1.0, |w| w[i])
+/// The weights of one run in the fit: its robust weight and the relative weight of its heading
+/// row against its position rows (the channel weight, see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Weight {
+    run: f64,
+    channel: [f64; CHANNELS],
+}
+
+impl Weight {
+    const ONE: Weight = Weight {
+        run: 1.0,
+        channel: [1.0; CHANNELS],
+    };
+
+    /// The weight of a residual row of channel `c`.
+    fn row(self, c: usize) -> f64 {
+        self.run * self.channel[c]
+    }
+}
+
+/// Residual channels: end (or path) position x, y, and the end heading.
+const CHANNELS: usize = 3;
+const X: usize = 0;
+const Y: usize = 1;
+const HEADING: usize = 2;
+
+/// Weights of run `i`: 1 without weights.
+fn weight(weights: Option<&[Weight]>, i: usize) -> Weight {
+    weights.map_or(Weight::ONE, |w| w[i])
 }
 
 /// The problem: runs, nominal geometry, which parameters are free, options.
@@ -366,7 +441,7 @@ impl Problem<'_, '_> {
         &self,
         run: &RunObservation<'_>,
         models: &[ArcModel],
-        mut row: impl FnMut(&[f64], bool),
+        mut row: impl FnMut(&[f64], usize),
     ) {
         let nm = models.len().min(MODELS);
         let mut v = [0.0; MODELS];
@@ -382,11 +457,11 @@ impl Problem<'_, '_> {
                 for m in 0..nm {
                     v[m] = (truth.x_m - end[m].x_m) * norm;
                 }
-                row(&v[..nm], false);
+                row(&v[..nm], X);
                 for m in 0..nm {
                     v[m] = (truth.y_m - end[m].y_m) * norm;
                 }
-                row(&v[..nm], false);
+                row(&v[..nm], Y);
             }
         } else {
             for (m, model) in models[..nm].iter().enumerate() {
@@ -396,33 +471,28 @@ impl Problem<'_, '_> {
             for m in 0..nm {
                 v[m] = meas.x_m - end[m].x_m;
             }
-            row(&v[..nm], false);
+            row(&v[..nm], X);
             for m in 0..nm {
                 v[m] = meas.y_m - end[m].y_m;
             }
-            row(&v[..nm], false);
+            row(&v[..nm], Y);
         }
         if let Some(t) = self.heading(run) {
             let l = self.heading_length(run);
             for m in 0..nm {
                 v[m] = wrap_angle(t - end[m].theta_rad) * l;
             }
-            row(&v[..nm], true);
+            row(&v[..nm], HEADING);
         }
     }
 
-    /// Squared length `d²` of a run's residual for `model`: (position part, heading part).
-    fn distance2(&self, run: &RunObservation<'_>, model: &ArcModel) -> (f64, f64) {
-        let mut pos = 0.0;
-        let mut head = 0.0;
-        self.rows(run, core::slice::from_ref(model), |v, heading| {
-            if heading {
-                head += v[0] * v[0];
-            } else {
-                pos += v[0] * v[0];
-            }
+    /// Squared length `d²` of a run's residual for `model`, by channel (x, y, heading).
+    fn distance2(&self, run: &RunObservation<'_>, model: &ArcModel) -> [f64; CHANNELS] {
+        let mut d2 = [0.0; CHANNELS];
+        self.rows(run, core::slice::from_ref(model), |v, c| {
+            d2[c] += v[0] * v[0]
         });
-        (pos, head)
+        d2
     }
 
     /// Number of residual rows of a run (2 per knot of a path run).
@@ -437,7 +507,7 @@ impl Problem<'_, '_> {
 
     /// Weighted sum of squared residuals and number of residual components; `None` for an
     /// invalid geometry.
-    fn cost(&self, p: &[f64; 3], weights: Option<&[f64]>) -> Option<(f64, usize)> {
+    fn cost(&self, p: &[f64; 3], weights: Option<&[Weight]>) -> Option<(f64, usize)> {
         if !(0..self.n).all(|i| FACTOR_RANGE.contains(&p[i])) {
             return None;
         }
@@ -446,8 +516,9 @@ impl Problem<'_, '_> {
         let mut m = 0;
         for (i, run) in self.runs.iter().enumerate() {
             if Self::usable(run) {
-                let (pos, head) = self.distance2(run, &model);
-                ss += weight(weights, i) * (pos + head);
+                let d2 = self.distance2(run, &model);
+                let w = weight(weights, i);
+                ss += (0..CHANNELS).map(|c| w.row(c) * d2[c]).sum::<f64>();
                 m += self.components(run);
             }
         }
@@ -455,7 +526,7 @@ impl Problem<'_, '_> {
     }
 
     /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p`.
-    fn normal(&self, p: &[f64; 3], weights: Option<&[f64]>) -> (Mat, [f64; 3]) {
+    fn normal(&self, p: &[f64; 3], weights: Option<&[Weight]>) -> (Mat, [f64; 3]) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
@@ -473,7 +544,8 @@ impl Problem<'_, '_> {
                 continue;
             }
             let w = weight(weights, k);
-            self.rows(run, &models[..1 + 2 * n], |v, _| {
+            self.rows(run, &models[..1 + 2 * n], |v, c| {
+                let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
                     // residual = measured − predicted, so ∂predicted = −∂residual.
@@ -494,7 +566,7 @@ impl Problem<'_, '_> {
     fn solve_lm(
         &self,
         mut p: [f64; 3],
-        weights: Option<&[f64]>,
+        weights: Option<&[Weight]>,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
         let (mut cost, _) = self.cost(&p, weights).ok_or(CalibrationError::OutOfRange)?;
@@ -565,18 +637,17 @@ impl Problem<'_, '_> {
     fn reweight(
         &self,
         p: &[f64; 3],
-        weights: &mut [f64; MAX_WEIGHTED_RUNS],
+        weights: &mut [Weight; MAX_WEIGHTED_RUNS],
         scales: &mut [Option<Scales>; MAX_WEIGHTED_RUNS],
     ) {
         let model = ArcModel::from_geometry(&self.geometry(p));
         let runs = &self.runs[..self.runs.len().min(MAX_WEIGHTED_RUNS)];
-        // Squared position and (ℓ-scaled) heading residuals of every run.
-        let mut pos2 = [0.0; MAX_WEIGHTED_RUNS];
-        let mut head2 = [0.0; MAX_WEIGHTED_RUNS];
+        // Squared x, y and (ℓ-scaled) heading residuals of every run.
+        let mut d2 = [[0.0; CHANNELS]; MAX_WEIGHTED_RUNS];
         let mut m = 0;
         for (i, run) in runs.iter().enumerate() {
             if Self::usable(run) {
-                (pos2[i], head2[i]) = self.distance2(run, &model);
+                d2[i] = self.distance2(run, &model);
                 m += self.components(run);
             }
         }
@@ -585,44 +656,79 @@ impl Problem<'_, '_> {
         } else {
             1.0
         };
-        let floor2 = SCALE_FLOOR_M * SCALE_FLOOR_M;
         let mut buf = [0.0; MAX_WEIGHTED_RUNS];
-        // σ² of one component from the peers' squared residuals with `k` components each.
-        let mut scale2 = |run: &RunObservation<'_>, heading: bool| -> Option<f64> {
+        // σ² of one component of `channels` (summed, all of one kind) from the squared
+        // residuals of `run`'s peers, not below the measurement's rounding, and the number of
+        // peers it came from; `None` with fewer than `MIN_PEERS` peers.
+        let mut scale2 = |run: &RunObservation<'_>, channels: &[usize]| -> Option<(f64, usize)> {
+            let heading = channels.contains(&HEADING);
+            let k = channels.len();
             let mut count = 0;
             for (j, other) in runs.iter().enumerate() {
                 let has = !heading || self.heading(other).is_some();
                 if Self::usable(other) && has && Self::peers(run, other) {
-                    buf[count] = if heading {
-                        head2[j] / chi2_median(1)
-                    } else {
-                        pos2[j] / chi2_median(2)
-                    };
+                    buf[count] = channels.iter().map(|&c| d2[j][c]).sum::<f64>() / chi2_median(k);
                     count += 1;
                 }
             }
-            (count >= MIN_PEERS).then(|| libm::fmax(median(&mut buf[..count]) * dof, floor2))
+            let floor = if heading {
+                self.options.resolution_rad * self.heading_length(run)
+            } else {
+                self.options.resolution_m
+            };
+            (count >= MIN_PEERS).then(|| {
+                let s2 = median(&mut buf[..count]) * dof;
+                (libm::fmax(s2, floor * floor / 12.0), count)
+            })
         };
         for (i, run) in runs.iter().enumerate() {
-            weights[i] = 1.0;
+            weights[i] = Weight::ONE;
             scales[i] = None;
             if !Self::usable(run) {
                 continue;
             }
-            let Some(sp2) = scale2(run, false) else {
+            let Some((sp2, peers)) = scale2(run, &[X, Y]) else {
                 continue;
             };
-            let mut u2 = pos2[i] / sp2;
-            let mut sh2 = None;
-            if self.heading(run).is_some() {
-                let Some(s) = scale2(run, true) else {
+            // Channel scales: x and y apart for an end pose with enough peers (a path's knots
+            // share no axes), the heading whenever it is used.
+            let mut s2 = [sp2; CHANNELS];
+            let channels =
+                self.options.channel_weights && !Self::is_path(run) && peers >= MIN_CHANNEL_PEERS;
+            if channels {
+                let (Some((sx2, _)), Some((sy2, _))) = (scale2(run, &[X]), scale2(run, &[Y]))
+                else {
                     continue;
                 };
-                u2 += head2[i] / s;
-                sh2 = Some(s);
+                s2[X] = sx2;
+                s2[Y] = sy2;
             }
-            u2 /= self.components(run) as f64;
-            weights[i] = 1.0 / (1.0 + u2 / (CAUCHY_C * CAUCHY_C));
+            let mut sh2 = None;
+            let mut heading_peers = 0;
+            if self.heading(run).is_some() {
+                let Some((s, count)) = scale2(run, &[HEADING]) else {
+                    continue;
+                };
+                s2[HEADING] = s;
+                sh2 = Some(s);
+                heading_peers = count;
+            }
+            let u2 =
+                (0..CHANNELS).map(|c| d2[i][c] / s2[c]).sum::<f64>() / self.components(run) as f64;
+            // Each channel weighted by the pooled position variance over its own, so that the
+            // fit stays in metres of position across runs of different kinds.
+            let mut channel = [1.0; CHANNELS];
+            if channels {
+                channel[X] = sp2 / s2[X];
+                channel[Y] = sp2 / s2[Y];
+                if heading_peers >= MIN_CHANNEL_PEERS {
+                    channel[HEADING] = sp2 / s2[HEADING];
+                }
+            }
+            weights[i] = Weight {
+                run: 1.0 / (1.0 + u2 / (CAUCHY_C * CAUCHY_C)),
+                channel,
+            };
             scales[i] = Some(Scales {
                 position_m: libm::sqrt(sp2),
                 heading_rad: sh2.map(|s| libm::sqrt(s) / self.heading_length(run)),
@@ -635,7 +741,7 @@ impl Problem<'_, '_> {
         &self,
         index: usize,
         model: &ArcModel,
-        weight: f64,
+        weight: Weight,
         scales: Option<Scales>,
     ) -> RunFit {
         let run = &self.runs[index];
@@ -659,8 +765,9 @@ impl Problem<'_, '_> {
             path_rms_m,
             scale_m: scales.map(|s| s.position_m),
             scale_heading_rad: scales.and_then(|s| s.heading_rad),
-            weight,
-            outlier: weight < OUTLIER_WEIGHT,
+            weight: weight.run,
+            channel_weights: weight.channel,
+            outlier: weight.run < OUTLIER_WEIGHT,
         }
     }
 }
@@ -713,18 +820,26 @@ pub fn calibrate_exact(
     let mut iterations = solved.iterations;
     let reweighted = options.robust && runs.len() <= MAX_WEIGHTED_RUNS;
     // Weights and scales indexed like `runs`.
-    let mut weights = [1.0; MAX_WEIGHTED_RUNS];
+    let mut weights = [Weight::ONE; MAX_WEIGHTED_RUNS];
     let mut scales = [None; MAX_WEIGHTED_RUNS];
     let mut reweights = 0;
     if reweighted {
         let len = runs.len();
         loop {
-            let mut next = [1.0; MAX_WEIGHTED_RUNS];
+            let mut next = [Weight::ONE; MAX_WEIGHTED_RUNS];
             problem.reweight(&solved.p, &mut next, &mut scales);
+            // Run weights lie in (0, 1]; a channel weight is a ratio of variances, compared
+            // relative to its size.
             let change = weights[..len]
                 .iter()
                 .zip(&next[..len])
-                .fold(0.0, |c, (a, b)| libm::fmax(c, libm::fabs(a - b)));
+                .fold(0.0, |c, (a, b)| {
+                    let channel = (0..CHANNELS).fold(0.0, |m, k| {
+                        let (x, y) = (a.channel[k], b.channel[k]);
+                        libm::fmax(m, libm::fabs(x - y) / libm::fmax(x, y))
+                    });
+                    libm::fmax(c, libm::fmax(libm::fabs(a.run - b.run), channel))
+                });
             weights = next;
             // The weights computed at the fitted parameters are those they were fitted with:
             // the fixed point of IRLS.
@@ -785,7 +900,7 @@ pub fn calibrate_exact(
             continue;
         }
         let wi = weight(w, i);
-        weighted_components += wi * problem.components(run) as f64;
+        weighted_components += wi.run * problem.components(run) as f64;
         let scale = if reweighted { scales[i] } else { None };
         let rf = problem.run_fit(i, &model, wi, scale);
         if rf.outlier {

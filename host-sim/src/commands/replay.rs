@@ -545,7 +545,7 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
         .flat_map(|s| (1..=s.runs.len()).map(move |r| (s.id.clone(), r)))
         .collect();
     println!(
-        "    per run: residual (truth − fit) x, y [mm], θ [mrad], path RMS [mm], weight{}",
+        "    per run: residual (truth − fit) x, y [mm], θ [mrad], path RMS [mm], weight, channel weights x y θ{}",
         if f.reweighted {
             ""
         } else {
@@ -555,13 +555,16 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
     for r in f.runs() {
         let (sid, run) = labels.get(r.index).cloned().unwrap_or_default();
         println!(
-            "      {sid} run {run:>2}: {:>8.1} {:>8.1} {:>8.1} {:>8} {:>6.3}{}",
+            "      {sid} run {run:>2}: {:>8.1} {:>8.1} {:>8.1} {:>8} {:>6.3}  {:>5.2} {:>5.2} {:>5.2}{}",
             r.residual_x_m * 1e3,
             r.residual_y_m * 1e3,
             r.residual_theta_rad.map_or(f64::NAN, |t| t * 1e3),
             r.path_rms_m
                 .map_or_else(|| "-".to_string(), |v| format!("{:.1}", v * 1e3)),
             r.weight,
+            r.channel_weights[0],
+            r.channel_weights[1],
+            r.channel_weights[2],
             if r.outlier { "  outlier" } else { "" }
         );
     }
