@@ -4,6 +4,13 @@
 //! are magnitudes (always positive). The ranges here are the protocol's hard bounds: a value
 //! outside them is rejected by the parser before anything else sees it.
 
+use crate::motion::speed::{MotorParams, SpeedTuning};
+
+/// An `f32` range (the speed loop's) as the parser's `f64` bounds.
+fn f32_range((lo, hi): (f32, f32)) -> (f64, f64) {
+    (f64::from(lo), f64::from(hi))
+}
+
 /// A parameter an operator may `set`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -36,11 +43,29 @@ pub enum ParamName {
     EncoderRightSign,
     /// Left encoder counting direction: 1 = standard wiring, −1 = reversed.
     EncoderLeftSign,
+    /// Right motor gain forward: steady wheel speed per unit duty above the dead-band, m/s.
+    MotorRightGainFwd,
+    /// Right motor gain backward, m/s per unit duty.
+    MotorRightGainBack,
+    /// Right motor time constant, s.
+    MotorRightTau,
+    /// Right motor dead-band (static friction), duty.
+    MotorRightDeadband,
+    /// Left motor gain forward, m/s per unit duty.
+    MotorLeftGainFwd,
+    /// Left motor gain backward, m/s per unit duty.
+    MotorLeftGainBack,
+    /// Left motor time constant, s.
+    MotorLeftTau,
+    /// Left motor dead-band (static friction), duty.
+    MotorLeftDeadband,
+    /// Speed-loop bandwidth: the closed-loop poles, rad/s.
+    SpeedBandwidth,
 }
 
 impl ParamName {
     /// Every parameter, in the order `params` lists them.
-    pub const ALL: [ParamName; 14] = [
+    pub const ALL: [ParamName; 23] = [
         ParamName::DiameterRight,
         ParamName::DiameterLeft,
         ParamName::Wheelbase,
@@ -55,6 +80,15 @@ impl ParamName {
         ParamName::MotorLeftSign,
         ParamName::EncoderRightSign,
         ParamName::EncoderLeftSign,
+        ParamName::MotorRightGainFwd,
+        ParamName::MotorRightGainBack,
+        ParamName::MotorRightTau,
+        ParamName::MotorRightDeadband,
+        ParamName::MotorLeftGainFwd,
+        ParamName::MotorLeftGainBack,
+        ParamName::MotorLeftTau,
+        ParamName::MotorLeftDeadband,
+        ParamName::SpeedBandwidth,
     ];
 
     /// The name used on the wire.
@@ -74,6 +108,15 @@ impl ParamName {
             ParamName::MotorLeftSign => "motor_left_sign",
             ParamName::EncoderRightSign => "encoder_right_sign",
             ParamName::EncoderLeftSign => "encoder_left_sign",
+            ParamName::MotorRightGainFwd => "motor_right_gain_fwd",
+            ParamName::MotorRightGainBack => "motor_right_gain_back",
+            ParamName::MotorRightTau => "motor_right_tau",
+            ParamName::MotorRightDeadband => "motor_right_deadband",
+            ParamName::MotorLeftGainFwd => "motor_left_gain_fwd",
+            ParamName::MotorLeftGainBack => "motor_left_gain_back",
+            ParamName::MotorLeftTau => "motor_left_tau",
+            ParamName::MotorLeftDeadband => "motor_left_deadband",
+            ParamName::SpeedBandwidth => "speed_bandwidth",
         }
     }
 
@@ -102,6 +145,13 @@ impl ParamName {
             | ParamName::MotorLeftSign
             | ParamName::EncoderRightSign
             | ParamName::EncoderLeftSign => "(1 standard, -1 reversed)",
+            ParamName::MotorRightGainFwd
+            | ParamName::MotorRightGainBack
+            | ParamName::MotorLeftGainFwd
+            | ParamName::MotorLeftGainBack => "m/s per duty",
+            ParamName::MotorRightTau | ParamName::MotorLeftTau => "s",
+            ParamName::MotorRightDeadband | ParamName::MotorLeftDeadband => "duty",
+            ParamName::SpeedBandwidth => "rad/s",
         }
     }
 
@@ -124,7 +174,32 @@ impl ParamName {
             | ParamName::MotorLeftSign
             | ParamName::EncoderRightSign
             | ParamName::EncoderLeftSign => (-1.0, 1.0),
+            ParamName::MotorRightGainFwd
+            | ParamName::MotorRightGainBack
+            | ParamName::MotorLeftGainFwd
+            | ParamName::MotorLeftGainBack => f32_range(MotorParams::GAIN_RANGE),
+            ParamName::MotorRightTau | ParamName::MotorLeftTau => f32_range(MotorParams::TAU_RANGE),
+            ParamName::MotorRightDeadband | ParamName::MotorLeftDeadband => {
+                f32_range(MotorParams::DEADBAND_RANGE)
+            }
+            ParamName::SpeedBandwidth => f32_range(SpeedTuning::BANDWIDTH_RANGE),
         }
+    }
+
+    /// Whether this is part of the speed-loop tuning (a motor model or the bandwidth).
+    pub fn is_tuning(self) -> bool {
+        matches!(
+            self,
+            ParamName::MotorRightGainFwd
+                | ParamName::MotorRightGainBack
+                | ParamName::MotorRightTau
+                | ParamName::MotorRightDeadband
+                | ParamName::MotorLeftGainFwd
+                | ParamName::MotorLeftGainBack
+                | ParamName::MotorLeftTau
+                | ParamName::MotorLeftDeadband
+                | ParamName::SpeedBandwidth
+        )
     }
 
     /// Whether the value must be a whole number.

@@ -27,6 +27,7 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
 use crate::motion::profile::MotionLimits;
+use crate::motion::speed::SpeedTuning;
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
@@ -150,6 +151,10 @@ impl Robot for Controller {
     fn take_check_report(&mut self) -> Option<CheckReport> {
         Controller::take_check_report(self)
     }
+
+    fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {
+        Controller::set_tuning(self, *tuning).map_err(set_error)
+    }
 }
 
 fn set_error(e: SetError) -> RobotError {
@@ -157,6 +162,7 @@ fn set_error(e: SetError) -> RobotError {
         SetError::Busy => RobotError::Busy,
         SetError::Geometry(_) => RobotError::Rejected("geometry not accepted by the controller"),
         SetError::Limits(_) => RobotError::Rejected("limits not accepted by the controller"),
+        SetError::Tuning(_) => RobotError::Rejected("tuning not accepted by the controller"),
     }
 }
 
@@ -240,6 +246,10 @@ impl<L: ControllerLock> Robot for Locked<L> {
     fn take_check_report(&mut self) -> Option<CheckReport> {
         self.0.with_controller(Robot::take_check_report)
     }
+    #[inline(never)]
+    fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::set_tuning(c, tuning))
+    }
 }
 
 impl From<&ParamRecord> for Settings {
@@ -265,6 +275,7 @@ impl From<&ParamRecord> for Settings {
             square_side_m: r.motion.square_side_m,
             runs_per_direction: r.motion.runs_per_direction,
             wiring: r.wiring,
+            tuning: r.tuning,
         }
     }
 }
@@ -296,6 +307,7 @@ impl Settings {
                 self.runs_per_direction,
             ),
             wiring: self.wiring,
+            tuning: self.tuning,
         })
     }
 }

@@ -786,6 +786,7 @@ impl<C: Calibrator> Session<C> {
             Changed::Motion => robot.set_limits(&new.motion),
             Changed::Plan | Changed::Nothing => Ok(()),
             Changed::Wiring => robot.set_wiring(new.wiring),
+            Changed::Tuning => robot.set_tuning(&new.tuning),
         };
         if let Err(e) = pushed {
             return robot_err(out, e);
@@ -1027,6 +1028,7 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = robot
             .set_geometry(defaults.active)
             .and_then(|()| robot.set_limits(&defaults.motion))
+            .and_then(|()| robot.set_tuning(&defaults.tuning))
         {
             return robot_err(out, e);
         }

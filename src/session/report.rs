@@ -166,6 +166,7 @@ pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamNa
     let places = match name {
         _ if name.is_integer() => 0,
         ParamName::DiameterRight | ParamName::DiameterLeft | ParamName::Wheelbase => 9,
+        _ if name.is_tuning() => 4,
         _ => 3,
     };
     write!(out, "{} {}", Decimal::fixed(v, places), name.unit())
@@ -176,6 +177,22 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
         write!(out, "  {} ", name.as_str())?;
         write_param_value(out, s, name)?;
         out.write_str(EOL)?;
+    }
+    let t = &s.tuning;
+    for (side, motor) in [("right", &t.right), ("left", &t.left)] {
+        // Gains in metres (meters per tick = 1): duty per m/s, per m, per m·s.
+        let g = t.gains(motor, 1.0);
+        write!(
+            out,
+            "  speed_loop {side} kp={} ki={} kii={} ff_fwd={} ff_back={} ff_accel={} deadband={}{EOL}",
+            Decimal::fixed(f64::from(g.kp), 3),
+            Decimal::fixed(f64::from(g.ki), 3),
+            Decimal::fixed(f64::from(g.kii), 3),
+            Decimal::fixed(f64::from(g.kff_v), 4),
+            Decimal::fixed(f64::from(g.kff_v_back), 4),
+            Decimal::fixed(f64::from(g.kff_v * g.tau_s), 4),
+            Decimal::fixed(f64::from(g.deadband), 4),
+        )?;
     }
     let a = &s.active;
     write!(

@@ -10,6 +10,7 @@ use core::fmt;
 use crate::kinematics::geometry::{Geometry, GeometryError};
 use crate::motion::controller::ControllerConfig;
 use crate::motion::profile::MotionLimits;
+use crate::motion::speed::{SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
 use crate::protocol::ParamName;
 
@@ -50,6 +51,9 @@ pub struct Settings {
     pub runs_per_direction: u8,
     /// Motors and encoders reversed against the standard wiring.
     pub wiring: Wiring,
+    /// Speed-loop tuning: both motors' models and the bandwidth (the PI gains and feed-forward
+    /// are derived from it).
+    pub tuning: SpeedTuning,
 }
 
 impl Default for Settings {
@@ -62,6 +66,7 @@ impl Default for Settings {
             square_side_m: 2.0,
             runs_per_direction: 5,
             wiring: Wiring::STANDARD,
+            tuning: SpeedTuning::DEFAULT,
         }
     }
 }
@@ -74,6 +79,8 @@ pub enum SettingsError {
     Geometry(GeometryError),
     /// A wiring sign other than 1 or −1.
     Sign,
+    /// The speed-loop tuning would be invalid as a whole.
+    Tuning(TuningError),
     /// `d_right / d_left` would be outside [`DIAMETER_RATIO_RANGE`].
     DiameterRatio {
         /// The ratio it would be.
@@ -97,6 +104,7 @@ impl fmt::Display for SettingsError {
         match self {
             SettingsError::Geometry(e) => write!(f, "{e}"),
             SettingsError::Sign => f.write_str("a wiring sign is 1 (standard) or -1 (reversed)"),
+            SettingsError::Tuning(e) => write!(f, "{e}"),
             SettingsError::DiameterRatio { ratio } => write!(
                 f,
                 "d_right/d_left would be {}, outside {}..{} (change the other diameter first, \
@@ -147,6 +155,8 @@ pub enum Changed {
     Plan,
     /// A motor or encoder sign.
     Wiring,
+    /// The speed-loop tuning.
+    Tuning,
 }
 
 impl Settings {
@@ -163,6 +173,7 @@ impl Settings {
         let mut c = ControllerConfig::new(self.active, rate_hz);
         c.limits = self.motion;
         c.wiring = self.wiring;
+        c.speed = self.tuning;
         c
     }
 
@@ -183,6 +194,7 @@ impl Settings {
             ParamName::MotorLeftSign => sign(self.wiring.motor_left_reversed),
             ParamName::EncoderRightSign => sign(self.wiring.encoder_right_reversed),
             ParamName::EncoderLeftSign => sign(self.wiring.encoder_left_reversed),
+            _ => tuning_field(&self.tuning, name).map_or(0.0, f64::from),
         }
     }
 
@@ -260,9 +272,19 @@ impl Settings {
                 } = reversed;
                 Changed::Wiring
             }
+            _ => {
+                let Some(field) = tuning_field_mut(&mut s.tuning, name) else {
+                    return Ok((s, Changed::Nothing));
+                };
+                *field = value as f32;
+                Changed::Tuning
+            }
         };
         if s == *self {
             return Ok((s, Changed::Nothing));
+        }
+        if changed == Changed::Tuning {
+            s.tuning.validate().map_err(SettingsError::Tuning)?;
         }
         if changed == Changed::Geometry {
             check_nominal(&s.nominal)?;
@@ -271,6 +293,28 @@ impl Settings {
         }
         Ok((s, changed))
     }
+}
+
+/// The tuning field a parameter names (`None` for the other parameters).
+fn tuning_field(t: &SpeedTuning, name: ParamName) -> Option<f32> {
+    let mut t = *t;
+    tuning_field_mut(&mut t, name).map(|v| *v)
+}
+
+/// See [`tuning_field`].
+fn tuning_field_mut(t: &mut SpeedTuning, name: ParamName) -> Option<&mut f32> {
+    Some(match name {
+        ParamName::MotorRightGainFwd => &mut t.right.gain_forward_mps,
+        ParamName::MotorRightGainBack => &mut t.right.gain_backward_mps,
+        ParamName::MotorRightTau => &mut t.right.time_constant_s,
+        ParamName::MotorRightDeadband => &mut t.right.deadband,
+        ParamName::MotorLeftGainFwd => &mut t.left.gain_forward_mps,
+        ParamName::MotorLeftGainBack => &mut t.left.gain_backward_mps,
+        ParamName::MotorLeftTau => &mut t.left.time_constant_s,
+        ParamName::MotorLeftDeadband => &mut t.left.deadband,
+        ParamName::SpeedBandwidth => &mut t.bandwidth_radps,
+        _ => return None,
+    })
 }
 
 /// A wiring flag as the protocol's sign: 1 standard, −1 reversed.

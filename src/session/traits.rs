@@ -13,6 +13,7 @@ use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::profile::MotionLimits;
+use crate::motion::speed::SpeedTuning;
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::wiring::Wiring;
 use crate::storage::record::RecordError;
@@ -113,8 +114,14 @@ pub trait Robot {
     /// # Errors
     /// [`RobotError::Busy`] unless idle, [`RobotError::Fault`] with a latched fault.
     fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError>;
-    /// The report of a bring-up check that finished since the last call.
+    /// The report of a bring-up check or motor identification that finished since the last
+    /// call.
     fn take_check_report(&mut self) -> Option<CheckReport>;
+    /// Uses `tuning` for the speed loops from the next control period on.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle; [`RobotError::Rejected`] for an invalid tuning.
+    fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError>;
 }
 
 /// Why a flash operation failed.

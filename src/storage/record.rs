@@ -1,4 +1,5 @@
-//! The one record the board persists: geometry, calibration result and motion settings.
+//! The one record the board persists: geometry, calibration result, motion settings, wiring and
+//! the speed-loop tuning.
 //!
 //! [`ParamRecord`] is what `save` writes and what boot loads. Its stored form is a hand-written,
 //! fixed-length little-endian layout ([`ParamRecord::ENCODED_LEN`] bytes, byte 0 = format
@@ -15,6 +16,7 @@ use core::fmt;
 use sequential_storage::map::{SerializationError, Value};
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
+use crate::motion::speed::{MotorParams, SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
 
 /// Longest calibration method name, bytes of ASCII.
@@ -220,6 +222,9 @@ pub struct ParamRecord {
     pub motion: MotionSettings,
     /// Motors and encoders reversed against the standard wiring.
     pub wiring: Wiring,
+    /// Speed-loop tuning: both motors' models and the bandwidth (the output limit is not
+    /// stored: always full duty).
+    pub tuning: SpeedTuning,
 }
 
 /// Why a record was rejected by [`ParamRecord::validate`] or [`MethodName::new`].
@@ -254,6 +259,8 @@ pub enum RecordError {
     SquareSide,
     /// Runs per direction outside 1 ..= 50.
     RunsPerDirection,
+    /// The speed-loop tuning is invalid.
+    Tuning(TuningError),
 }
 
 impl fmt::Display for RecordError {
@@ -276,6 +283,7 @@ impl fmt::Display for RecordError {
             }
             RecordError::SquareSide => f.write_str("square side must be within 0.1..20 m"),
             RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
+            RecordError::Tuning(e) => write!(f, "speed tuning: {e}"),
         }
     }
 }
@@ -371,6 +379,12 @@ impl Writer<'_> {
         self.f64(g.wheelbase_m);
         self.bytes(&g.counts_per_rev.to_le_bytes());
     }
+    fn motor(&mut self, m: &MotorParams) {
+        self.f32(m.gain_forward_mps);
+        self.f32(m.gain_backward_mps);
+        self.f32(m.time_constant_s);
+        self.f32(m.deadband);
+    }
 }
 
 /// Little-endian reader over a buffer whose length was checked up front.
@@ -408,22 +422,37 @@ impl Reader<'_> {
             counts_per_rev: u32::from_le_bytes(self.array()),
         }
     }
+    fn motor(&mut self) -> MotorParams {
+        MotorParams {
+            gain_forward_mps: self.f32(),
+            gain_backward_mps: self.f32(),
+            time_constant_s: self.f32(),
+            deadband: self.f32(),
+        }
+    }
 }
 
 impl ParamRecord {
     /// Format version written by this firmware (byte 0 of the stored record).
     ///
-    /// Version history: 1 = first format; 2 = version 1 + one wiring byte at the end. A
-    /// version-1 record is read as version 2 with the standard wiring (see
-    /// [`ParamRecord::decode`]); any other version is rejected.
-    pub const FORMAT_VERSION: u8 = 2;
+    /// Version history: 1 = first format; 2 = version 1 + one wiring byte at the end; 3 =
+    /// version 2 + the speed-loop tuning (right motor, left motor: forward gain, backward gain,
+    /// time constant, dead-band; bandwidth; nine `f32`). A version-1 record is read with the
+    /// standard wiring and a version-1 or -2 record with the default tuning
+    /// ([`SpeedTuning::DEFAULT`], what those firmwares used); the calibration, geometry and
+    /// motion settings carry over unchanged (see [`ParamRecord::decode`]). Any other version is
+    /// rejected.
+    pub const FORMAT_VERSION: u8 = 3;
 
     /// Length of a version-1 record, bytes: version 1 + nominal geometry 28 + `E_d, E_b, E_s`
     /// 24 + calibrated geometry 28 + method 1 + 12 + runs 2 + `E_max` 8 + motion 5 × 4 + 1.
     pub const V1_LEN: usize = 1 + 28 + 24 + 28 + 1 + METHOD_NAME_MAX + 2 + 8 + 20 + 1;
 
-    /// Length of the stored record, bytes: [`Self::V1_LEN`] + wiring 1.
-    pub const ENCODED_LEN: usize = Self::V1_LEN + 1;
+    /// Length of a version-2 record, bytes: [`Self::V1_LEN`] + wiring 1.
+    pub const V2_LEN: usize = Self::V1_LEN + 1;
+
+    /// Length of the stored record, bytes: [`Self::V2_LEN`] + tuning 9 × 4.
+    pub const ENCODED_LEN: usize = Self::V2_LEN + 9 * 4;
 
     /// The paper's nominal robot (D = 150 mm, b = 385 mm, 200,000 counts/rev), uncalibrated,
     /// factory motion settings.
@@ -432,6 +461,7 @@ impl ParamRecord {
         calibration: Calibration::none(Geometry::PAPER_NOMINAL),
         motion: MotionSettings::DEFAULT,
         wiring: Wiring::STANDARD,
+        tuning: SpeedTuning::DEFAULT,
     };
 
     /// The geometry odometry and the routine use: the calibrated one.
@@ -471,7 +501,8 @@ impl ParamRecord {
         if !(c.predicted_e_max_m.is_finite() && (0.0..=10.0).contains(&c.predicted_e_max_m)) {
             return Err(RecordError::PredictedError);
         }
-        self.motion.validate()
+        self.motion.validate()?;
+        self.tuning.validate().map_err(RecordError::Tuning)
     }
 
     /// Writes the stored form into `buf`; returns the number of bytes written
@@ -503,6 +534,10 @@ impl ParamRecord {
         w.f32(m.square_side_m);
         w.bytes(&[m.runs_per_direction]);
         w.bytes(&[self.wiring.to_bits()]);
+        let t = &self.tuning;
+        w.motor(&t.right);
+        w.motor(&t.left);
+        w.f32(t.bandwidth_radps);
         Ok(w.pos)
     }
 
@@ -520,9 +555,11 @@ impl ParamRecord {
                 found: 0,
             });
         };
-        // Migration: a version-1 record has no wiring byte and means the standard wiring.
+        // Migration: a version-1 record has no wiring byte and means the standard wiring; a
+        // version-1 or -2 record has no tuning and means the default one.
         let expected = match version {
             1 => Self::V1_LEN,
+            2 => Self::V2_LEN,
             Self::FORMAT_VERSION => Self::ENCODED_LEN,
             found => return Err(FormatError::UnsupportedVersion { found }),
         };
@@ -561,6 +598,16 @@ impl ParamRecord {
         } else {
             Wiring::from_bits(r.array::<1>()[0]).ok_or(FormatError::Wiring)?
         };
+        let tuning = if version < 3 {
+            SpeedTuning::DEFAULT
+        } else {
+            SpeedTuning {
+                right: r.motor(),
+                left: r.motor(),
+                bandwidth_radps: r.f32(),
+                output_limit: SpeedTuning::DEFAULT.output_limit,
+            }
+        };
         Ok(ParamRecord {
             nominal,
             calibration: Calibration {
@@ -574,6 +621,7 @@ impl ParamRecord {
             },
             motion,
             wiring,
+            tuning,
         })
     }
 }
@@ -621,6 +669,22 @@ mod tests {
                 encoder_right_reversed: true,
                 ..Wiring::STANDARD
             },
+            tuning: SpeedTuning {
+                right: MotorParams {
+                    gain_forward_mps: 0.512,
+                    gain_backward_mps: 0.498,
+                    time_constant_s: 0.121,
+                    deadband: 0.047,
+                },
+                left: MotorParams {
+                    gain_forward_mps: 0.603,
+                    gain_backward_mps: 0.611,
+                    time_constant_s: 0.149,
+                    deadband: 0.052,
+                },
+                bandwidth_radps: 25.0,
+                output_limit: 1.0,
+            },
         }
     }
 
@@ -651,10 +715,10 @@ mod tests {
     fn version_and_length_are_checked() {
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         calibrated().encode(&mut buf).unwrap();
-        buf[0] = 3;
+        buf[0] = 4;
         assert_eq!(
             ParamRecord::decode(&buf),
-            Err(FormatError::UnsupportedVersion { found: 3 })
+            Err(FormatError::UnsupportedVersion { found: 4 })
         );
         buf[0] = 0;
         assert_eq!(
@@ -673,27 +737,53 @@ mod tests {
         );
     }
 
-    /// A version-1 record (the first format, no wiring byte) as a version-1 firmware wrote it:
-    /// the current layout without its last byte, with version byte 1.
-    fn version_1_bytes(rec: &ParamRecord) -> [u8; ParamRecord::V1_LEN] {
+    /// A version-`v` record (1: no wiring byte, 2: no tuning) as that firmware wrote it: the
+    /// current layout cut to that version's length, with its version byte. Versions 1..3 only
+    /// ever appended fields, so this is byte for byte what those firmwares stored.
+    fn old_bytes(rec: &ParamRecord, v: u8) -> std::vec::Vec<u8> {
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         rec.encode(&mut buf).unwrap();
-        let mut v1 = [0u8; ParamRecord::V1_LEN];
-        v1.copy_from_slice(&buf[..ParamRecord::V1_LEN]);
-        v1[0] = 1;
-        v1
+        let len = if v == 1 {
+            ParamRecord::V1_LEN
+        } else {
+            ParamRecord::V2_LEN
+        };
+        let mut old = buf[..len].to_vec();
+        old[0] = v;
+        old
+    }
+
+    /// The first two bytes of the version-2 record a version-2 firmware wrote for the paper's
+    /// robot (version, then the first byte of `D_R` = 0.15 as little-endian `f64`), as a check
+    /// that [`old_bytes`] is anchored to the real layout, not only to the current encoder.
+    #[test]
+    fn the_old_layouts_start_where_the_old_firmware_started() {
+        let old = old_bytes(&ParamRecord::DEFAULT, 2);
+        assert_eq!(old.len(), 126);
+        assert_eq!(old[0], 2);
+        assert_eq!(&old[1..9], &0.15f64.to_le_bytes());
+        assert_eq!(old_bytes(&ParamRecord::DEFAULT, 1).len(), 125);
     }
 
     #[test]
-    fn a_version_1_record_migrates_with_its_calibration_and_the_standard_wiring() {
+    fn version_1_and_2_records_migrate_with_their_calibration_and_the_default_tuning() {
         let rec = calibrated();
-        let old = version_1_bytes(&rec);
-        let migrated = ParamRecord::decode(&old).unwrap();
-        assert_eq!(migrated.calibration, rec.calibration);
-        assert_eq!(migrated.nominal, rec.nominal);
-        assert_eq!(migrated.motion, rec.motion);
-        assert_eq!(migrated.wiring, Wiring::STANDARD);
-        assert_eq!(migrated.validate(), Ok(()));
+        for v in [1u8, 2] {
+            let migrated = ParamRecord::decode(&old_bytes(&rec, v)).unwrap();
+            assert_eq!(migrated.calibration, rec.calibration, "v{v}");
+            assert_eq!(migrated.nominal, rec.nominal);
+            assert_eq!(migrated.motion, rec.motion);
+            let wiring = if v == 1 { Wiring::STANDARD } else { rec.wiring };
+            assert_eq!(migrated.wiring, wiring);
+            assert_eq!(migrated.tuning, SpeedTuning::DEFAULT);
+            assert_eq!(migrated.validate(), Ok(()));
+            // Saved again, it is a version-3 record with the calibration intact.
+            let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+            migrated.encode(&mut buf).unwrap();
+            assert_eq!(buf[0], 3);
+            assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
+        }
+        let old = old_bytes(&rec, 1);
         // A version-1 record of the new length, or a version-2 record of the old, is refused.
         let mut long = [0u8; ParamRecord::ENCODED_LEN];
         rec.encode(&mut long).unwrap();
@@ -708,13 +798,19 @@ mod tests {
             ParamRecord::decode(&short),
             Err(FormatError::Length { .. })
         ));
+        let mut v2 = old_bytes(&rec, 2);
+        v2[0] = 3;
+        assert!(matches!(
+            ParamRecord::decode(&v2),
+            Err(FormatError::Length { .. })
+        ));
     }
 
     #[test]
     fn unknown_wiring_bits_are_a_format_error() {
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         calibrated().encode(&mut buf).unwrap();
-        buf[ParamRecord::ENCODED_LEN - 1] = 0x80;
+        buf[ParamRecord::V2_LEN - 1] = 0x80;
         assert_eq!(ParamRecord::decode(&buf), Err(FormatError::Wiring));
     }
 
@@ -722,7 +818,15 @@ mod tests {
     fn validation_rejects_every_bad_field() {
         let good = calibrated();
         type Spoil = fn(&mut ParamRecord);
-        let cases: [(Spoil, RecordError); 9] = [
+        let cases: [(Spoil, RecordError); 11] = [
+            (
+                |r| r.tuning.left.time_constant_s = f32::NAN,
+                RecordError::Tuning(TuningError::TimeConstant),
+            ),
+            (
+                |r| r.tuning.bandwidth_radps = 0.0,
+                RecordError::Tuning(TuningError::Bandwidth),
+            ),
             (|r| r.calibration.e_d = f64::NAN, RecordError::Factor),
             (
                 |r| r.calibration.geometry.wheelbase_m = f64::INFINITY,

@@ -202,6 +202,8 @@ pub enum SetError {
     Geometry(GeometryError),
     /// The limits are invalid.
     Limits(LimitsError),
+    /// The speed-loop tuning is invalid.
+    Tuning(TuningError),
 }
 
 impl fmt::Display for SetError {
@@ -210,6 +212,7 @@ impl fmt::Display for SetError {
             SetError::Busy => f.write_str("only allowed while idle"),
             SetError::Geometry(e) => write!(f, "{e}"),
             SetError::Limits(e) => write!(f, "{e}"),
+            SetError::Tuning(e) => write!(f, "{e}"),
         }
     }
 }
@@ -257,6 +260,21 @@ impl Controller {
         }
         limits.validate().map_err(SetError::Limits)?;
         self.config.limits = limits;
+        Ok(())
+    }
+
+    /// Applies a new speed-loop tuning (motor models and bandwidth); only while idle. The gains
+    /// are derived here, once, and used from the next control period on.
+    ///
+    /// # Errors
+    /// [`SetError::Busy`] while moving, [`SetError::Tuning`] for an invalid tuning.
+    pub fn set_tuning(&mut self, tuning: SpeedTuning) -> Result<(), SetError> {
+        if !self.is_idle() {
+            return Err(SetError::Busy);
+        }
+        tuning.validate().map_err(SetError::Tuning)?;
+        self.config.speed = tuning;
+        self.pi = Self::speed_pis(&self.config);
         Ok(())
     }
 

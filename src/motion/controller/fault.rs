@@ -110,6 +110,7 @@ impl Controller {
         self.fault = Some(fault);
         self.run = None;
         self.drive = None;
+        self.check = None;
         self.last_duty = (0.0, 0.0);
     }
 

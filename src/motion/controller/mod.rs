@@ -225,8 +225,16 @@ impl Controller {
     fn speed_pis(c: &ControllerConfig) -> (SpeedPi, SpeedPi) {
         let rate = c.rate_hz as f32;
         (
-            SpeedPi::new(c.speed.gains(c.geometry.meters_per_tick_right()), rate),
-            SpeedPi::new(c.speed.gains(c.geometry.meters_per_tick_left()), rate),
+            SpeedPi::new(
+                c.speed
+                    .gains(&c.speed.right, c.geometry.meters_per_tick_right()),
+                rate,
+            ),
+            SpeedPi::new(
+                c.speed
+                    .gains(&c.speed.left, c.geometry.meters_per_tick_left()),
+                rate,
+            ),
         )
     }
 
