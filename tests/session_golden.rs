@@ -13,6 +13,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
+use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
     Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
     Settings, Solution, SolveError, StorageError,
@@ -34,6 +35,7 @@ struct ScriptedRobot {
     wiring: Option<Wiring>,
     check: Option<CheckKind>,
     check_reports: Vec<CheckReport>,
+    tuning: Option<SpeedTuning>,
 }
 
 impl ScriptedRobot {
@@ -141,6 +143,11 @@ impl Robot for ScriptedRobot {
             self.check = None;
             Some(self.check_reports.remove(0))
         }
+    }
+    fn set_tuning(&mut self, t: &SpeedTuning) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.tuning = Some(*t);
+        Ok(())
     }
 }
 
@@ -347,6 +354,17 @@ fn params_golden() {
          \x20 motor_left_sign 1 (1 standard, -1 reversed)\r\n\
          \x20 encoder_right_sign 1 (1 standard, -1 reversed)\r\n\
          \x20 encoder_left_sign 1 (1 standard, -1 reversed)\r\n\
+         \x20 motor_right_gain_fwd 1.0000 m/s per duty\r\n\
+         \x20 motor_right_gain_back 1.0000 m/s per duty\r\n\
+         \x20 motor_right_tau 0.0500 s\r\n\
+         \x20 motor_right_deadband 0.0000 duty\r\n\
+         \x20 motor_left_gain_fwd 1.0000 m/s per duty\r\n\
+         \x20 motor_left_gain_back 1.0000 m/s per duty\r\n\
+         \x20 motor_left_tau 0.0500 s\r\n\
+         \x20 motor_left_deadband 0.0000 duty\r\n\
+         \x20 speed_bandwidth 30.0000 rad/s\r\n\
+         \x20 speed_loop right kp=3.500 ki=135.000 kii=1350.000 ff_fwd=1.0000 ff_back=1.0000 ff_accel=0.0500 deadband=0.0000\r\n\
+         \x20 speed_loop left kp=3.500 ki=135.000 kii=1350.000 ff_fwd=1.0000 ff_back=1.0000 ff_accel=0.0500 deadband=0.0000\r\n\
          \x20 active d_right=0.150000000 d_left=0.150000000 wheelbase=0.385000000 m\r\n\
          \x20 calibration none\r\n\
          ok\r\n"
@@ -379,11 +397,12 @@ fn help_lists_every_command_then_ok() {
          \x20 pose                      odometry pose\r\n\
          \x20 odom reset                set the odometry pose to the origin\r\n\
          \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\
+         \x20 identify [lifted|floor]   motor identification: duty steps, fit, speed-loop tuning\r\n\
          \x20 stream on [hz]|off        pose + wheel speed stream, 1..100 Hz\r\n\
          \x20 drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last\r\n\
          \x20 echo on|off               echo typed characters (on at boot; scripts: off)\r\n\
          \x20 version                   firmware and protocol version\r\n\
-         ok 25 commands\r\n"
+         ok 26 commands\r\n"
     );
 }
 
@@ -1080,4 +1099,118 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     assert_eq!(b.send("runs"), listing);
     assert_eq!(b.send("drop all"), "ok dropped all 1 runs\r\n");
     assert!(b.store.runs.is_empty());
+}
+
+/// Motor identification: the operator's instructions per mode, the result lines, the tuning it
+/// applies (seen by the robot and in `params`), and the refusal of an implausible response.
+#[test]
+fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
+    use odocal::motion::controller::Wheel;
+    use odocal::motion::identify::{
+        IdentifyFailure, IdentifyMode, IdentifyProblem, IdentifyReport, MotorFit,
+    };
+    let mut b = Bench::new();
+    assert_eq!(
+        b.send("identify"),
+        "ok identify lifted: wheels must be off the ground; right then left, duty steps 20/35/50 % forward and backward, 8.0 s\r\n"
+    );
+    assert_eq!(
+        b.robot.check,
+        Some(CheckKind::Identify(IdentifyMode::Lifted))
+    );
+    let fit = |k_fwd: f32, k_back: f32, tau: f32, d0: f32| MotorFit {
+        params: MotorParams {
+            gain_forward_mps: k_fwd,
+            gain_backward_mps: k_back,
+            time_constant_s: tau,
+            deadband: d0,
+        },
+        coast_decel_mps2: 0.4375,
+        coast_from_mps: 0.2125,
+        residual_mps: 0.00016,
+    };
+    let report = IdentifyReport {
+        mode: IdentifyMode::Lifted,
+        right: fit(0.5, 0.48, 0.12, 0.05),
+        left: fit(0.6, 0.61, 0.15, 0.04),
+    };
+    b.robot.check_reports.push(CheckReport::Identify(report));
+    assert_eq!(
+        b.poll(0),
+        "event identify right: gain_fwd=0.5000 gain_back=0.4800 m/s per duty, tau=0.1200 s, deadband=0.0500, coast 0.438 m/s^2 from 0.213 m/s, residual 0.00016 m/s\r\n\
+         event identify left: gain_fwd=0.6000 gain_back=0.6100 m/s per duty, tau=0.1500 s, deadband=0.0400, coast 0.438 m/s^2 from 0.213 m/s, residual 0.00016 m/s\r\n\
+         event identify done (lifted): speed-loop tuning applied (not saved; save to keep)\r\n"
+    );
+    let applied = b.robot.tuning.expect("the tuning reached the robot");
+    assert_eq!(applied.right, report.right.params);
+    assert_eq!(applied.left, report.left.params);
+    assert_eq!(
+        applied.bandwidth_radps,
+        SpeedTuning::DEFAULT.bandwidth_radps
+    );
+    let params = b.send("params");
+    assert!(
+        params.contains("  motor_right_tau 0.1200 s\r\n  motor_right_deadband 0.0500 duty\r\n"),
+        "{params}"
+    );
+    // Derived by pole placement at 30 rad/s: kp = (3·30·0.12 − 1)/0.49, ff = 1/K per direction.
+    assert!(
+        params.contains(
+            "  speed_loop right kp=20.000 ki=661.224 kii=6612.245 ff_fwd=2.0000 ff_back=2.0833 ff_accel=0.2400 deadband=0.0500\r\n"
+        ),
+        "{params}"
+    );
+    // Saved with the rest of the parameters.
+    assert_eq!(b.send("save"), "ok saved\r\n");
+    assert_eq!(b.store.saved.as_ref().map(|s| s.tuning), Some(applied));
+
+    assert_eq!(
+        b.send("identify floor"),
+        "ok identify floor: robot on the floor with about 1 m free ahead and behind; both wheels, duty steps 20/35/50 % forward and backward, 4.0 s\r\n"
+    );
+    b.robot
+        .check_reports
+        .push(CheckReport::IdentifyFailed(IdentifyFailure {
+            wheel: Wheel::Left,
+            problem: IdentifyProblem::Reversed,
+        }));
+    b.robot.fault = Some("identify");
+    assert_eq!(
+        b.poll(0),
+        "event identify err 23: left motor: counts run against the duty: motor or encoder reversed (run bringup); motors stopped, tuning unchanged, fault latched (clear)\r\n"
+    );
+    assert_eq!(b.robot.tuning, Some(applied));
+    assert!(
+        b.send("identify")
+            .starts_with("err 11: fault latched: identify")
+    );
+    assert!(b.send("identify sideways").starts_with("err 7: "));
+}
+
+/// The tuning parameters follow the geometry's rules: each value within its range (parser),
+/// the set as a whole consistent (a motor's two directions within 0.5..2 of each other), a
+/// value equal to the current one changes nothing.
+#[test]
+fn tuning_parameters_are_validated_like_the_geometry() {
+    let mut b = Bench::new();
+    assert_eq!(
+        b.send("set motor_left_gain_fwd 0.6"),
+        "ok motor_left_gain_fwd = 0.6000 m/s per duty\r\n"
+    );
+    assert_eq!(b.robot.tuning.map(|t| t.left.gain_forward_mps), Some(0.6));
+    assert_eq!(
+        b.send("set motor_left_gain_fwd 0.6"),
+        "ok motor_left_gain_fwd = 0.6000 m/s per duty (unchanged)\r\n"
+    );
+    assert_eq!(
+        b.send("set motor_left_gain_back 0.25"),
+        "err 17: a motor's forward/backward gain ratio must be within 0.5..2 (change the other direction first, or both in steps)\r\n"
+    );
+    assert!(b.send("set motor_right_tau 5").starts_with("err 6: "));
+    assert!(b.send("set speed_bandwidth 0").starts_with("err 6: "));
+    assert_eq!(
+        b.send("set speed_bandwidth 20"),
+        "ok speed_bandwidth = 20.0000 rad/s\r\n"
+    );
+    assert_eq!(b.robot.tuning.map(|t| t.bandwidth_radps), Some(20.0));
 }

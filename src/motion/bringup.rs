@@ -15,6 +15,7 @@
 //! so the session can print them and propose the wiring settings.
 
 use crate::motion::controller::Wheel;
+use crate::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyReport};
 
 /// Duty of a bring-up pulse: enough to overcome static friction of a free wheel, too little to
 /// hurt anything.
@@ -145,13 +146,17 @@ impl PushReport {
 }
 
 /// A finished check.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum CheckReport {
     /// The motor pulses.
     Pulses(PulseReport),
     /// The hand push.
     Push(PushReport),
+    /// A motor identification with a plausible result.
+    Identify(IdentifyReport),
+    /// A motor identification stopped by an abnormal response (a fault is latched).
+    IdentifyFailed(IdentifyFailure),
 }
 
 /// Which check to run.
@@ -162,6 +167,8 @@ pub enum CheckKind {
     Pulses,
     /// Hand push, motors off.
     Push,
+    /// Motor identification ([`crate::motion::identify`]).
+    Identify(IdentifyMode),
 }
 
 /// One of the pulse sequence's phases.

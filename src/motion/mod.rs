@@ -1,9 +1,10 @@
 //! Motion: what the control task steps. Owns the motor trait, speed loops, profiles, routines,
-//! run records, wiring corrections, the bring-up check, the button and the [`controller`]. May use [`crate::kinematics`] and [`crate::util`].
+//! run records, wiring corrections, the bring-up check, the motor identification, the button and the [`controller`]. May use [`crate::kinematics`] and [`crate::util`].
 
 pub mod bringup;
 pub mod button;
 pub mod controller;
+pub mod identify;
 pub mod motor;
 pub mod profile;
 pub mod routine;

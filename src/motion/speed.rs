@@ -459,7 +459,13 @@ mod tests {
     /// Worst position error (ticks) of a 0.3 m/s² backward ramp over 0.5 s on a motor with
     /// gains `k_fwd`/`k_back` (m/s per duty), lag `tau` and dead-band `d0`, controlled with
     /// `tuning`.
-    fn backward_ramp_error(tuning: &SpeedTuning, k_fwd: f64, k_back: f64, tau: f64, d0: f32) -> f64 {
+    fn backward_ramp_error(
+        tuning: &SpeedTuning,
+        k_fwd: f64,
+        k_back: f64,
+        tau: f64,
+        d0: f32,
+    ) -> f64 {
         let pi = SpeedPi::new(tuning.gains(&tuning.right, M_PER_TICK), 1000.0);
         let mut st = SpeedPiState::default();
         let (mut v, mut pos, mut meas_prev) = (0.0f64, 0.0f64, 0i64);
@@ -468,7 +474,11 @@ mod tests {
         let mut worst = 0.0f64;
         for i in 1..=500 {
             // The dead-band eats d0 of the duty; the direction picks the gain.
-            let eff = if duty.abs() > d0 { duty - d0.copysign(duty) } else { 0.0 };
+            let eff = if duty.abs() > d0 {
+                duty - d0.copysign(duty)
+            } else {
+                0.0
+            };
             let k = if eff >= 0.0 { k_fwd } else { k_back } / M_PER_TICK;
             plant(&mut v, &mut pos, eff, k, tau, 1e-3);
             let t = f64::from(i) * 1e-3;
@@ -504,7 +514,10 @@ mod tests {
         // a few ticks); the default model lags by hundreds of ticks while the integrators
         // catch up with the missing half of the duty and the dead-band.
         assert!(matched < 3.0, "matched model: {matched} ticks");
-        assert!(default > 30.0 * matched, "default {default} vs matched {matched} ticks");
+        assert!(
+            default > 30.0 * matched,
+            "default {default} vs matched {matched} ticks"
+        );
     }
 
     #[test]

@@ -11,6 +11,7 @@ use core::fmt;
 use super::number::parse_f64;
 use super::param::ParamName;
 use crate::motion::bringup::CheckKind;
+use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
 use crate::util::decimal::Plain;
 pub use crate::util::text::keyword_eq;
@@ -124,6 +125,12 @@ pub enum Command<'a> {
     Bringup {
         /// Which check.
         kind: CheckKind,
+    },
+    /// `identify [lifted|floor]`: motor identification (wheels off the ground, default, or the
+    /// robot on the floor); the result becomes the speed-loop tuning.
+    Identify {
+        /// Where the robot is.
+        mode: IdentifyMode,
     },
     /// `odom reset`: set the odometry pose to the origin.
     OdomReset,
@@ -448,6 +455,19 @@ impl<'a> Command<'a> {
                 }
             };
             Command::Bringup { kind }
+        } else if is("identify") {
+            let mode = match words.next() {
+                None => IdentifyMode::Lifted,
+                Some(w) if keyword_eq(w, "lifted") => IdentifyMode::Lifted,
+                Some(w) if keyword_eq(w, "floor") => IdentifyMode::Floor,
+                Some(_) => {
+                    return Err(ParseError::BadKeyword {
+                        what: "mode",
+                        expected: "lifted|floor",
+                    });
+                }
+            };
+            Command::Identify { mode }
         } else if is("odom") {
             let what = words.required("action")?;
             if !keyword_eq(what, "reset") {

@@ -71,6 +71,9 @@ pub enum ErrorCode {
     ReceiveError = 21,
     /// 22: a measurement is implausible for its run (e.g. typed in millimetres).
     Implausible = 22,
+    /// 23: the motor identification refused its result: the response was implausible (no
+    /// motion, reversed, saturated, …); the tuning is unchanged and a fault is latched.
+    IdentifyRefused = 23,
 }
 
 impl ErrorCode {

@@ -46,6 +46,7 @@ impl<C: Calibrator> Session<C> {
             return robot_err(out, e);
         }
         match kind {
+            CheckKind::Identify(mode) => self.write_identify_started(mode, out),
             CheckKind::Pulses => write!(
                 out,
                 "ok bringup motors: wheels must be off the ground; pulsing right then left at {} % duty, 2 s{EOL}",
@@ -83,6 +84,8 @@ impl<C: Calibrator> Session<C> {
                 self.report_push(&p, out)
             }
             Some(CheckReport::Pulses(p)) => self.report_pulses(&p, out),
+            Some(CheckReport::Identify(r)) => self.report_identify(&r, robot, out),
+            Some(CheckReport::IdentifyFailed(f)) => self.report_identify_failure(&f, out),
         }
     }
 

@@ -27,8 +27,8 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
 use crate::motion::profile::MotionLimits;
-use crate::motion::speed::SpeedTuning;
 use crate::motion::run::{Direction, PathKind, RunRecord};
+use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
 use crate::storage::record::{self, MethodName, ParamRecord};
@@ -41,6 +41,7 @@ pub fn fault_name(f: &Fault) -> &'static str {
         Fault::EncoderGlitch { .. } => "encoder-glitch",
         Fault::Stall { .. } => "stall",
         Fault::FollowingError { .. } => "following-error",
+        Fault::Identify(_) => "identify",
     }
 }
 

@@ -22,6 +22,7 @@
 //! prints the exact figures).
 
 mod bringup;
+mod identify;
 pub mod library;
 pub mod measure;
 mod report;
@@ -33,7 +34,7 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use crate::kinematics::encoder::WheelTicks;
-use crate::motion::bringup::PushReport;
+use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::record;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
@@ -611,6 +612,7 @@ impl<C: Calibrator> Session<C> {
                 self.start(path, robot, out)
             }
             Command::Bringup { kind } => self.bringup(kind, robot, out),
+            Command::Identify { mode } => self.bringup(CheckKind::Identify(mode), robot, out),
             Command::Stop => {
                 let before = self.active;
                 robot.abort();

@@ -4,6 +4,7 @@
 //! (parameters carry 1e-9 relative precision), geometry in the `calibrate` table in millimetres.
 
 use crate::motion::bringup::CheckKind;
+use crate::motion::identify::IdentifyMode;
 use core::fmt::{self, Write};
 
 use super::traits::{Activity, RobotStatus, Solution, SolveError};
@@ -36,6 +37,7 @@ const HELP: &[&str] = &[
     "pose                      odometry pose",
     "odom reset                set the odometry pose to the origin",
     "bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push",
+    "identify [lifted|floor]   motor identification: duty steps, fit, speed-loop tuning",
     "stream on [hz]|off        pose + wheel speed stream, 1..100 Hz",
     "drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last",
     "echo on|off               echo typed characters (on at boot; scripts: off)",
@@ -125,6 +127,12 @@ pub(super) fn write_status<C: Calibrator>(
         Activity::Driving => out.write_str("driving")?,
         Activity::Checking(CheckKind::Pulses) => out.write_str("bringup-motors")?,
         Activity::Checking(CheckKind::Push) => out.write_str("bringup-push")?,
+        Activity::Checking(CheckKind::Identify(IdentifyMode::Lifted)) => {
+            out.write_str("identify-lifted")?
+        }
+        Activity::Checking(CheckKind::Identify(IdentifyMode::Floor)) => {
+            out.write_str("identify-floor")?
+        }
         Activity::Running(path) => {
             out.write_str("running ")?;
             write_path(out, &path)?;

@@ -40,6 +40,12 @@ pub fn calibrated(n: u32) -> ParamRecord {
         },
         wiring: odocal::motion::wiring::Wiring::from_bits((n % 16) as u8)
             .unwrap_or(odocal::motion::wiring::Wiring::STANDARD),
+        tuning: {
+            let mut t = odocal::motion::speed::SpeedTuning::DEFAULT;
+            t.right.gain_forward_mps = 0.5 + 0.001 * (n % 500) as f32;
+            t.left.time_constant_s = 0.02 + 0.0001 * (n % 1000) as f32;
+            t
+        },
     }
 }
 

@@ -2,7 +2,10 @@
 
 use core::fmt;
 
+use super::mode::ActiveCheck;
 use super::{Controller, ControllerConfig};
+use crate::motion::bringup::CheckReport;
+use crate::motion::identify::{IdentifyFailure, IdentifyProblem};
 
 /// A wheel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,6 +44,8 @@ pub enum Fault {
         /// Largest |duty| commanded to that wheel since the motion started, percent.
         peak_duty_pct: u8,
     },
+    /// The motor identification met an abnormal response.
+    Identify(IdentifyFailure),
 }
 
 impl fmt::Display for Fault {
@@ -57,6 +62,12 @@ impl fmt::Display for Fault {
             } => write!(
                 f,
                 "{wheel:?} wheel following error {error_mm} mm (peak duty {peak_duty_pct} %): check its motor and encoder polarity"
+            ),
+            Fault::Identify(e) => write!(
+                f,
+                "{:?} motor identification: {}",
+                e.wheel,
+                e.problem.describe()
             ),
         }
     }
@@ -108,6 +119,22 @@ impl Controller {
             error!("fault: stopping motors");
         }
         self.fault = Some(fault);
+        // An identification stopped by another fault still ends with its report.
+        if let Some(ActiveCheck::Identify(_)) = self.check {
+            let failure = match fault {
+                Fault::Identify(e) => Some(e),
+                Fault::Stall { wheel } => Some(IdentifyFailure {
+                    wheel,
+                    problem: IdentifyProblem::Stalled,
+                }),
+                Fault::EncoderGlitch { wheel, .. } => Some(IdentifyFailure {
+                    wheel,
+                    problem: IdentifyProblem::EncoderGlitch,
+                }),
+                Fault::FollowingError { .. } => None,
+            };
+            self.check_report = failure.map(CheckReport::IdentifyFailed);
+        }
         self.run = None;
         self.drive = None;
         self.check = None;

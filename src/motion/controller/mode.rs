@@ -3,12 +3,13 @@
 
 use core::fmt;
 
-use super::{Controller, MotorCommand, Tracking};
+use super::{Controller, Fault, MotorCommand, Tracking};
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::odometry::{OdometryState, Pose};
 use crate::motion::bringup::{CheckKind, CheckReport, PulseCheck, PulseStep, PushCheck};
 use crate::motion::button::Press;
+use crate::motion::identify::{Identify, IdentifyStep};
 use crate::motion::motor::StopMode;
 use crate::motion::routine::{PathError, Routine, RunPlan, validate_path};
 use crate::motion::run::{PathKind, RunRecord};
@@ -88,6 +89,8 @@ pub(super) enum ActiveCheck {
     Pulses(PulseCheck),
     /// Hand push.
     Push(PushCheck),
+    /// Motor identification.
+    Identify(Identify),
 }
 
 impl ActiveCheck {
@@ -96,6 +99,7 @@ impl ActiveCheck {
         match self {
             ActiveCheck::Pulses(_) => CheckKind::Pulses,
             ActiveCheck::Push(_) => CheckKind::Push,
+            ActiveCheck::Identify(i) => CheckKind::Identify(i.mode()),
         }
     }
 }
@@ -346,8 +350,10 @@ impl Controller {
         }
     }
 
-    /// Starts a bring-up check ([`crate::motion::bringup`]): the motor pulses need the wheels
-    /// off the ground, the push check needs the operator to push the robot forward by hand.
+    /// Starts a bring-up check ([`crate::motion::bringup`]) or a motor identification
+    /// ([`crate::motion::identify`]): the motor pulses need the wheels off the ground, the push
+    /// check needs the operator to push the robot forward by hand, the identification wheels
+    /// off the ground or the robot on a free floor, as its mode says.
     ///
     /// # Errors
     /// As [`Controller::start`]: a latched fault, not idle, before the first step.
@@ -357,6 +363,11 @@ impl Controller {
         let g = &self.config.geometry;
         self.check = Some(match kind {
             CheckKind::Pulses => ActiveCheck::Pulses(PulseCheck::new(rate)),
+            CheckKind::Identify(mode) => ActiveCheck::Identify(Identify::new(
+                mode,
+                rate,
+                (g.meters_per_tick_right(), g.meters_per_tick_left()),
+            )),
             CheckKind::Push => ActiveCheck::Push(PushCheck::new(
                 rate,
                 (
@@ -399,6 +410,20 @@ impl Controller {
                 }
                 coast
             }
+            ActiveCheck::Identify(i) => match i.step(dr, dl) {
+                IdentifyStep::Duty(right, left) => MotorCommand::Duty { right, left },
+                IdentifyStep::Stop(mode) => MotorCommand::Stop(mode),
+                IdentifyStep::Failed(failure) => {
+                    // Latching reports the failure and ends the routine.
+                    self.latch(Fault::Identify(failure));
+                    coast
+                }
+                IdentifyStep::Done(report) => {
+                    self.check = None;
+                    self.check_report = Some(CheckReport::Identify(report));
+                    coast
+                }
+            },
         }
     }
 }
