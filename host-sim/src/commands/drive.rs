@@ -2,14 +2,23 @@
 //! sent to the library's [`Controller::drive`] the way a main computer would (a command every
 //! 100 ms), through the simulated robot; prints the odometry pose against the true pose.
 //!
-//! When the script ends, the commands stop and the controller's deadman stops the motors.
+//! When the script ends, the commands stop and the controller's deadman stops the motors. The
+//! peak wheel synchronisation error (how far one wheel got ahead of the other against their
+//! common reference) is printed as `peak sync error: <N> ticks`.
+//!
+//! The robot is the simulated board ([`Board`]): `--motor-gain`, `--motor-tau`,
+//! `--motor-deadband` give it other motors than the defaults the speed loops are tuned for, and
+//! `--identify` first sends it `identify` (the library's motor identification, through the
+//! serial protocol), which applies the identified tuning, and then drives the same script.
 
 use clap::ValueEnum;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, Fault};
 
-use crate::sim::robot::{Sim, WiringOption, default_controller, sim_config};
+use crate::sim::board::Board;
+use crate::sim::flash::SimParamFlash;
+use crate::sim::robot::{MotorArgs, Sim, WiringOption, sim_config};
 
 /// A scripted motion.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,17 +65,26 @@ pub struct DriveArgs {
     /// following-error fault, not a runaway).
     #[arg(long, value_enum, default_value_t = WiringOption::Standard)]
     pub wiring: WiringOption,
+    /// The simulated motors.
+    #[command(flatten)]
+    pub motors: MotorArgs,
+    /// Identify the motors first (`identify` on the simulated board, wheels lifted) and drive
+    /// with the tuning it applies.
+    #[arg(long)]
+    pub identify: bool,
 }
 
 /// Outcome of a scripted drive.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveResult {
-    /// Odometry pose at rest.
+    /// Odometry pose at rest, in the frame of the odometry pose at the start.
     pub odometry: PoseF64,
-    /// True pose at rest.
+    /// True pose at rest, in the frame of the true pose at the start.
     pub truth: PoseF64,
     /// Periods from the last `drive` call to the first stop command.
     pub stop_after_periods: u64,
+    /// Largest |wheel synchronisation error| while driving, ticks.
+    pub peak_sync_ticks: f64,
 }
 
 /// A drive that ended in a latched fault.
@@ -97,6 +115,12 @@ pub fn drive_script(
     let every = (rate / 10).max(1);
     let mut last_call = 0;
     let start = sim.true_pose();
+    let odometry_start = controller.pose().to_f64();
+    let mut peak_sync = 0.0f64;
+    let mut track = |c: &Controller| {
+        let (r, l) = c.wheel_errors_ticks();
+        peak_sync = peak_sync.max(f64::from(l - r).abs());
+    };
     for k in 0..periods {
         if k % every == 0 {
             controller
@@ -105,6 +129,7 @@ pub fn drive_script(
             last_call = k;
         }
         let out = sim.step(controller);
+        track(controller);
         if let Some(fault) = out.fault {
             sim.rest(controller, rate);
             return Ok(Err(DriveFault {
@@ -117,6 +142,7 @@ pub fn drive_script(
     let mut k = periods;
     loop {
         let out = sim.step(controller);
+        track(controller);
         if let Some(f) = out.fault {
             return Err(format!("fault: {f}"));
         }
@@ -131,9 +157,10 @@ pub fn drive_script(
     let stop_after_periods = k - last_call;
     sim.rest(controller, rate);
     Ok(Ok(DriveResult {
-        odometry: controller.pose().to_f64(),
-        truth: sim.true_pose(),
+        odometry: odometry_start.relative(&controller.pose().to_f64()),
+        truth: start.relative(&sim.true_pose()),
         stop_after_periods,
+        peak_sync_ticks: peak_sync,
     }))
 }
 
@@ -142,12 +169,19 @@ pub fn drive_script(
 /// # Errors
 /// Any failure of the scripted drive.
 pub fn run(args: &DriveArgs) -> Result<(), String> {
-    let nominal = Geometry::PAPER_NOMINAL;
     let mut config = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
     config.wiring = args.wiring.wiring();
-    let mut sim = Sim::new(config);
-    let mut controller = default_controller(nominal, args.rate)?;
-    sim.step(&mut controller);
+    args.motors.apply(&mut config)?;
+    // A fresh board (erased parameter flash: the default parameters and tuning).
+    let mut flash = SimParamFlash::erased();
+    let mut boot = String::new();
+    let mut board = Board::boot(config, &mut flash, &mut boot)?;
+    if args.identify {
+        let events = board.identify("lifted").map_err(|e| format!("identify: {e}"))?;
+        print!("{}", events.replace("\r\n", "\n"));
+    }
+    debug_assert_eq!(board.controller_geometry(), Geometry::PAPER_NOMINAL);
+    let (sim, controller) = (&mut board.sim, &mut board.controller);
     let (v, w) = match args.script {
         Script::Line => (args.speed, 0.0),
         Script::Turn => (0.0, args.turn_rate),
@@ -157,7 +191,7 @@ pub fn run(args: &DriveArgs) -> Result<(), String> {
         "{:?}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}; wiring {:?}",
         args.script, args.seconds, args.eb, args.ed, args.wiring
     );
-    let r = match drive_script(&mut sim, &mut controller, v, w, args.seconds)? {
+    let r = match drive_script(sim, controller, v, w, args.seconds)? {
         Ok(r) => r,
         Err(f) => {
             println!(
@@ -198,5 +232,6 @@ pub fn run(args: &DriveArgs) -> Result<(), String> {
         "deadman stopped the motors {} periods after the last command",
         r.stop_after_periods
     );
+    println!("peak sync error: {:.0} ticks", r.peak_sync_ticks);
     Ok(())
 }

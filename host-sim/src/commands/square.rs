@@ -7,6 +7,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::controller::Controller;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::motion::speed::SpeedTuning;
 
 use crate::sim::robot::{Sim, SimConfig, default_controller, sim_config};
 
@@ -49,7 +50,23 @@ pub fn drive_path(
     belief: Geometry,
     path: PathKind,
 ) -> Result<PathResult, String> {
+    drive_path_tuned(sim_config, belief, SpeedTuning::DEFAULT, path)
+}
+
+/// [`drive_path`] with the speed loops tuned by `tuning` (e.g. an identified one).
+///
+/// # Errors
+/// As [`drive_path`], and an invalid tuning.
+pub fn drive_path_tuned(
+    sim_config: SimConfig,
+    belief: Geometry,
+    tuning: SpeedTuning,
+    path: PathKind,
+) -> Result<PathResult, String> {
     let mut controller = default_controller(belief, sim_config.rate_hz)?;
+    controller
+        .set_tuning(tuning)
+        .map_err(|e| format!("tuning: {e}"))?;
     let mut sim = Sim::new(sim_config);
     sim.step(&mut controller);
     drive_path_with(&mut sim, &mut controller, path)

@@ -222,6 +222,38 @@ impl<'f> Board<'f> {
         self.run_start.map(|s| s.relative(&self.sim.true_pose()))
     }
 
+    /// Sends `identify <mode>` (`lifted` or `floor`) and steps the board until the motor
+    /// identification has ended and the robot is at rest; returns the reply and the
+    /// `event identify …` lines.
+    ///
+    /// # Errors
+    /// The text so far when the command is refused, the identification reports an error, or it
+    /// does not end within a minute of robot time.
+    pub fn identify(&mut self, mode: &str) -> Result<String, String> {
+        let mut out = self.send(&format!("identify {mode}"));
+        if !out.starts_with("ok") {
+            return Err(out);
+        }
+        let limit = 60 * u64::from(self.sim.config().rate_hz);
+        let mut n = 0;
+        while matches!(
+            self.controller.status(),
+            Status::Checking(CheckKind::Identify(_))
+        ) {
+            self.step(&mut out);
+            n += 1;
+            if n > limit {
+                return Err(format!("{out}identification did not end"));
+            }
+        }
+        self.run_until_rest(limit, &mut out);
+        if out.contains("event identify done") {
+            Ok(out)
+        } else {
+            Err(out)
+        }
+    }
+
     /// The geometry the controller uses.
     pub fn controller_geometry(&self) -> Geometry {
         self.controller.config().geometry

@@ -25,32 +25,56 @@ use odocal::motion::wiring::Wiring;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
-/// Motor model of both wheels.
+/// Motor model of both wheels: `τ ω̇ + ω = K·(duty − sign(duty)·d₀)` above the dead-band `d₀`
+/// (the wheel gets no drive below it), a braked stop with `τ/2`, a coasting one with `4τ`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotorModel {
-    /// Right wheel angular speed at duty 1 in steady state, rad/s.
+    /// Right wheel angular speed per unit duty above the dead-band in steady state, rad/s.
     pub gain_right_radps: f64,
-    /// Left wheel angular speed at duty 1 in steady state, rad/s.
+    /// Left wheel angular speed per unit duty above the dead-band in steady state, rad/s.
     pub gain_left_radps: f64,
-    /// Time constant of the duty → speed lag, s.
+    /// Time constant of the right motor's duty → speed lag, s.
     pub time_constant_s: f64,
-    /// Time constant of a braked stop, s.
-    pub brake_time_constant_s: f64,
-    /// Time constant of a coasting stop, s.
-    pub coast_time_constant_s: f64,
+    /// Time constant of the left motor's lag, s.
+    pub time_constant_left_s: f64,
+    /// Dead-band of the right and left motor, duty.
+    pub deadband: (f64, f64),
 }
+
+/// A braked stop's time constant against the motor's.
+pub const BRAKE_TAU_RATIO: f64 = 0.5;
+/// A coasting stop's time constant against the motor's.
+pub const COAST_TAU_RATIO: f64 = 4.0;
 
 impl MotorModel {
     /// Motors reaching `speed_mps` at full duty on wheels of `diameter_m`, lag `tau_s`; the left
-    /// motor is `left_ratio` times as strong as the right one.
+    /// motor is `left_ratio` times as strong as the right one; no dead-band.
     pub fn new(speed_mps: f64, diameter_m: f64, tau_s: f64, left_ratio: f64) -> Self {
         let w = 2.0 * speed_mps / diameter_m;
         MotorModel {
             gain_right_radps: w,
             gain_left_radps: w * left_ratio,
             time_constant_s: tau_s,
-            brake_time_constant_s: 0.5 * tau_s,
-            coast_time_constant_s: 4.0 * tau_s,
+            time_constant_left_s: tau_s,
+            deadband: (0.0, 0.0),
+        }
+    }
+
+    /// Motors per wheel (right, left): full-duty surface speeds `speed_mps` (above the
+    /// dead-band, m/s per unit duty) on wheels of `diameter_m`, lags `tau_s`, dead-bands
+    /// `deadband`.
+    pub fn per_wheel(
+        speed_mps: (f64, f64),
+        diameter_m: f64,
+        tau_s: (f64, f64),
+        deadband: (f64, f64),
+    ) -> Self {
+        MotorModel {
+            gain_right_radps: 2.0 * speed_mps.0 / diameter_m,
+            gain_left_radps: 2.0 * speed_mps.1 / diameter_m,
+            time_constant_s: tau_s.0,
+            time_constant_left_s: tau_s.1,
+            deadband,
         }
     }
 }
@@ -267,31 +291,44 @@ impl Sim {
             (1.0, 1.0)
         };
         let m = c.motor;
-        let (target_r, target_l, tau) = match self.command {
+        // The drive the dead-band leaves of a duty.
+        let drive = |duty: f32, d0: f64| {
+            let u = f64::from(odocal::motion::motor::clamp_duty(duty));
+            if u.abs() > d0 { u - d0.copysign(u) } else { 0.0 }
+        };
+        let (tr, tl) = (m.time_constant_s, m.time_constant_left_s);
+        let (target_r, target_l, tau_r, tau_l) = match self.command {
             MotorCommand::Duty { right, left } => (
-                m.gain_right_radps * f64::from(odocal::motion::motor::clamp_duty(right)),
-                m.gain_left_radps * f64::from(odocal::motion::motor::clamp_duty(left)),
-                m.time_constant_s,
+                m.gain_right_radps * drive(right, m.deadband.0),
+                m.gain_left_radps * drive(left, m.deadband.1),
+                tr,
+                tl,
             ),
-            MotorCommand::Stop(StopMode::Brake) => (0.0, 0.0, m.brake_time_constant_s),
-            MotorCommand::Stop(StopMode::Coast) => (0.0, 0.0, m.coast_time_constant_s),
+            MotorCommand::Stop(StopMode::Brake) => {
+                (0.0, 0.0, BRAKE_TAU_RATIO * tr, BRAKE_TAU_RATIO * tl)
+            }
+            MotorCommand::Stop(StopMode::Coast) => {
+                (0.0, 0.0, COAST_TAU_RATIO * tr, COAST_TAU_RATIO * tl)
+            }
         };
         let w = c.wiring;
-        let (target_r, target_l, tau) = match self.push_mps {
+        let (target_r, target_l, tau_r, tau_l) = match self.push_mps {
             // A push rolls both wheels at the pushed speed within about 20 ms.
             Some(v) => (
                 v / (0.5 * g.diameter_right_m),
                 v / (0.5 * g.diameter_left_m),
                 0.02,
+                0.02,
             ),
             None => (
                 target_r * f64::from(w.motor_sign(Wheel::Right)),
                 target_l * f64::from(w.motor_sign(Wheel::Left)),
-                tau,
+                tau_r,
+                tau_l,
             ),
         };
         let cpr = f64::from(g.counts_per_rev);
-        let turn = |w: &mut WheelState, target: f64| -> f64 {
+        let turn = |w: &mut WheelState, target: f64, tau: f64| -> f64 {
             if w.blocked {
                 w.omega = 0.0;
                 return 0.0;
@@ -318,8 +355,8 @@ impl Sim {
         let (s0, c0) = theta0.sin_cos();
         let mut offset = 0.0f64;
         for _ in 0..n {
-            let ds_r = turn(&mut self.right, target_r) * 0.5 * g.diameter_right_m * slip_r;
-            let ds_l = turn(&mut self.left, target_l) * 0.5 * g.diameter_left_m * slip_l;
+            let ds_r = turn(&mut self.right, target_r, tau_r) * 0.5 * g.diameter_right_m * slip_r;
+            let ds_l = turn(&mut self.left, target_l, tau_l) * 0.5 * g.diameter_left_m * slip_l;
             let ds = 0.5 * (ds_r + ds_l);
             let dtheta = (ds_r - ds_l) / g.wheelbase_m;
             let chord = ds * sinc(0.5 * dtheta);
@@ -426,6 +463,69 @@ pub fn sim_config(ed: f64, eb: f64, slip: f64, seed: u64, rate_hz: u32) -> SimCo
     c
 }
 
+/// The simulated motors as the command line sets them (`R,L` per wheel, or one value for
+/// both): `--motor-gain` (m/s at full duty above the dead-band), `--motor-tau` (s),
+/// `--motor-deadband` (duty). Without them the robot has the default motors (1 m/s, 50 ms, the
+/// left one 2 % weaker, no dead-band).
+#[derive(clap::Args, Debug, Clone, Default, PartialEq)]
+pub struct MotorArgs {
+    /// Motor gains R,L: wheel speed per unit duty above the dead-band, m/s (default 1.0,0.98).
+    #[arg(long, value_delimiter = ',', num_args = 1..=2)]
+    pub motor_gain: Vec<f64>,
+    /// Motor time constants R,L, s (default 0.05).
+    #[arg(long, value_delimiter = ',', num_args = 1..=2)]
+    pub motor_tau: Vec<f64>,
+    /// Motor dead-bands R,L, duty (default 0).
+    #[arg(long, value_delimiter = ',', num_args = 1..=2)]
+    pub motor_deadband: Vec<f64>,
+}
+
+impl MotorArgs {
+    /// Whether any motor option was given (the motors differ from the defaults).
+    pub fn any(&self) -> bool {
+        !(self.motor_gain.is_empty() && self.motor_tau.is_empty() && self.motor_deadband.is_empty())
+    }
+
+    /// `(right, left)` of an `R,L` option (one value: both), or `default`.
+    fn pair(v: &[f64], default: (f64, f64)) -> (f64, f64) {
+        match v {
+            [] => default,
+            [x] => (*x, *x),
+            [r, l, ..] => (*r, *l),
+        }
+    }
+
+    /// The motors of `config` with these options applied.
+    ///
+    /// # Errors
+    /// A value out of range, as text.
+    pub fn apply(&self, config: &mut SimConfig) -> Result<(), String> {
+        if !self.any() {
+            return Ok(());
+        }
+        let d = config.true_geometry.mean_diameter_m();
+        let m = config.motor;
+        let gain = Self::pair(
+            &self.motor_gain,
+            (m.gain_right_radps * d / 2.0, m.gain_left_radps * d / 2.0),
+        );
+        let tau = Self::pair(&self.motor_tau, (m.time_constant_s, m.time_constant_left_s));
+        let deadband = Self::pair(&self.motor_deadband, m.deadband);
+        let ok = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
+        if !(ok(gain.0, 0.01, 20.0) && ok(gain.1, 0.01, 20.0)) {
+            return Err("--motor-gain must be within 0.01..20 m/s".into());
+        }
+        if !(ok(tau.0, 0.001, 2.0) && ok(tau.1, 0.001, 2.0)) {
+            return Err("--motor-tau must be within 0.001..2 s".into());
+        }
+        if !(ok(deadband.0, 0.0, 0.5) && ok(deadband.1, 0.0, 0.5)) {
+            return Err("--motor-deadband must be within 0..0.5".into());
+        }
+        config.motor = MotorModel::per_wheel(gain, d, tau, deadband);
+        Ok(())
+    }
+}
+
 /// A wiring fault of the simulated robot, as the command-line option `--wiring` names it.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum WiringOption {
@@ -488,7 +588,9 @@ mod tests {
     fn true_pose_of_a_constant_arc_is_exact() {
         let g = Geometry::PAPER_NOMINAL;
         let mut cfg = SimConfig::new(g, 1000);
-        cfg.motor.time_constant_s = 0.0; // instant speed: a single constant-curvature arc
+        // Instant speed: a single constant-curvature arc.
+        cfg.motor.time_constant_s = 0.0;
+        cfg.motor.time_constant_left_s = 0.0;
         let mut sim = Sim::new(cfg);
         sim.apply(MotorCommand::Duty {
             right: 0.3,

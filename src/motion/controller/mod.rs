@@ -386,6 +386,15 @@ impl Controller {
         &self.config
     }
 
+    /// Position error (reference − measured) of each wheel's speed loop since the current motion
+    /// started, ticks (right, left); their difference is the wheel synchronisation error.
+    pub fn wheel_errors_ticks(&self) -> (f32, f32) {
+        (
+            self.pi_state.0.position_error_ticks(),
+            self.pi_state.1.position_error_ticks(),
+        )
+    }
+
     /// Tick totals since the first step.
     pub fn totals(&self) -> WheelTicks {
         self.totals

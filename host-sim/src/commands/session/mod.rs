@@ -38,13 +38,15 @@ use odocal::kinematics::reference::PoseF64;
 use odocal::motion::run::{Direction, PathKind};
 use rayon::prelude::*;
 
+use odocal::motion::speed::SpeedTuning;
+
 use crate::commands::montecarlo::Rng;
 use crate::commands::rectangle::{RectangleResult, RectangleSpec};
-use crate::commands::square::drive_path;
+use crate::commands::square::drive_path_tuned;
 use crate::commands::sweep::{SweepArgs, SweepResult, pilot_scatter, sweep};
 use crate::sim::board::Board;
 use crate::sim::flash::SimParamFlash;
-use crate::sim::robot::SimConfig;
+use crate::sim::robot::{MotorArgs, SimConfig};
 use crate::sim::robot::sim_config;
 
 /// Arguments of the simulated session (also the defaults of `cargo sim` with no subcommand).
@@ -98,6 +100,10 @@ pub struct SessionArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// The simulated motors; when they differ from the defaults, the session identifies them
+    /// (`identify floor`) before the pilot runs.
+    #[command(flatten)]
+    pub motors: MotorArgs,
 }
 
 #[derive(Parser)]
@@ -173,6 +179,8 @@ pub struct SessionReport {
     pub truth: Geometry,
     /// Scatter of the pilot squares (1 m, slip only), metres.
     pub pilot_scatter_m: f64,
+    /// The `identify floor` reply and events, when the motors differ from the defaults.
+    pub identification: Option<String>,
     /// The advice for `--method` (side, expected relative error), if computed.
     pub advice: Option<(f64, f64)>,
     /// Side used, metres.
@@ -392,6 +400,7 @@ fn verify(
     label: &str,
     belief: Geometry,
     cfg: &SimConfig,
+    tuning: SpeedTuning,
     side_m: f64,
     args: &SessionArgs,
 ) -> Result<Verification, String> {
@@ -403,7 +412,7 @@ fn verify(
                 .seed
                 .wrapping_mul(7919)
                 .wrapping_add(500 + 100 * d as u64 + i);
-            let r = drive_path(c, belief, PathKind::Square { direction, side_m })?;
+            let r = drive_path_tuned(c, belief, tuning, PathKind::Square { direction, side_m })?;
             let o = r.record.odometry_end;
             ends.push((direction, r.true_end.x_m - o.x_m, r.true_end.y_m - o.y_m));
         }
@@ -441,7 +450,8 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
         return Err("--runs must be 1..=6 (the board stores 12 runs)".into());
     }
     let nominal = Geometry::PAPER_NOMINAL;
-    let cfg = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
+    let mut cfg = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
+    args.motors.apply(&mut cfg)?;
     cfg.true_geometry
         .validate()
         .map_err(|e| format!("invalid truth: {e}"))?;
@@ -449,6 +459,23 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     pb.set_length(1 + 2 * n + 2 + 2 * n + 1 + Method::ALL.len() as u64 + 1);
     let mut rng = Rng::new(args.seed ^ 0x5EED_0DD0_CA1B_0000);
     let mut log = String::new();
+
+    // The board, and with unusual motors their identification first: the pilots and every
+    // later run use the tuning it applies (and `save` stores).
+    let mut flash = SimParamFlash::erased();
+    let mut board = Board::boot(cfg, &mut flash, &mut log)?;
+    let identification = if args.motors.any() {
+        pb.set_message("identify");
+        log.push_str("> identify floor\n");
+        let events = board.identify("floor").map_err(|e| {
+            format!("identify floor failed: {}", e.replace("\r\n", "\n"))
+        })?;
+        log.push_str(&events.replace("\r\n", "\n"));
+        Some(events.replace("\r\n", "\n"))
+    } else {
+        None
+    };
+    let tuning = board.session.settings().tuning;
 
     // Track size: pilot scatter at 1 m (slip only, nominal belief), then the advice.
     pb.set_message("advice");
@@ -464,7 +491,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
                 direction,
                 side_m: 1.0,
             };
-            let r = drive_path(c, nominal, path)?;
+            let r = drive_path_tuned(c, nominal, tuning, path)?;
             let o = r.record.odometry_end;
             pilot.push((direction, r.true_end.x_m - o.x_m, r.true_end.y_m - o.y_m));
         }
@@ -488,8 +515,6 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
 
     // Calibration runs through the serial path.
     pb.set_message("calibration runs");
-    let mut flash = SimParamFlash::erased();
-    let mut board = Board::boot(cfg, &mut flash, &mut log)?;
     send(&mut board, &format!("set square_side {side_m}"), &mut log)?;
     send(
         &mut board,
@@ -562,7 +587,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     let verifications = beliefs
         .par_iter()
         .map(|(label, g)| {
-            let v = verify(label, *g, &cfg, side_m, args);
+            let v = verify(label, *g, &cfg, tuning, side_m, args);
             pb.inc(1);
             v
         })
@@ -613,6 +638,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     pb.inc(1);
 
     Ok(SessionReport {
+        identification,
         args: args.clone(),
         truth: cfg.true_geometry,
         pilot_scatter_m,
