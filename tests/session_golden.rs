@@ -1139,7 +1139,7 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
         b.poll(0),
         "event identify right: gain_fwd=0.5000 gain_back=0.4800 m/s per duty, tau=0.1200 s, deadband=0.0500, coast 0.438 m/s^2 from 0.213 m/s, residual 0.00016 m/s\r\n\
          event identify left: gain_fwd=0.6000 gain_back=0.6100 m/s per duty, tau=0.1500 s, deadband=0.0400, coast 0.438 m/s^2 from 0.213 m/s, residual 0.00016 m/s\r\n\
-         event identify done (lifted): speed-loop tuning applied (not saved; save to keep)\r\n"
+         event identify done (lifted): speed-loop tuning applied, bandwidth 30.0 rad/s (not saved; save to keep)\r\n"
     );
     let applied = b.robot.tuning.expect("the tuning reached the robot");
     assert_eq!(applied.right, report.right.params);

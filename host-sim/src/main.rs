@@ -48,6 +48,9 @@ enum Command {
     /// First power-up of a robot with a reversed motor or encoder: the wiring check over the
     /// serial protocol, its proposed fix, save, reboot, a square.
     Bringup(host_sim::commands::bringup::BringupArgs),
+    /// Motor identification on robots whose motors differ from the defaults, and the squares
+    /// before and after the identified tuning.
+    Motors(host_sim::commands::motors::MotorsArgs),
     /// Host speed: a full simulated 5 + 5 session and a 1,000-trial Monte Carlo.
     Bench(host_sim::commands::bench::BenchArgs),
     /// Monte Carlo over square sides and noise levels: validates the track-size advice.
@@ -73,6 +76,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Command::Closedloop(args) => host_sim::commands::closedloop::run(&args),
         Command::Serial(args) => Ok(host_sim::commands::serial::run(&args)?),
         Command::Bringup(args) => Ok(host_sim::commands::bringup::run(&args)?),
+        Command::Motors(args) => Ok(host_sim::commands::motors::run(&args)?),
         Command::Bench(args) => host_sim::commands::bench::run(&args),
         Command::Sweep(args) => host_sim::commands::sweep::run(&args),
     }

@@ -31,7 +31,9 @@
 //! placement, all three closed-loop poles at `−ω_n`:
 //! `τ s³ + (1 + kp K) s² + ki K s + kii K = τ (s + ω_n)³`, so `kp = (3 ω_n τ − 1)/K`,
 //! `ki = 3 τ ω_n² / K`, `kii = τ ω_n³ / K` with `K` the mean of the two directions' gains, and the
-//! feed-forward is the inverse of the plant: `duty_ff = (v + τ a)/K_dir + sign(v)·d₀`. The gains
+//! feed-forward is the inverse of the plant: `duty_ff = (v + τ a)/K_dir`, and the dead-band is
+//! inverted on the whole command (feed-forward plus feedback): `d₀·sign(u)` is added once `|u|`
+//! exceeds a small smoothing width ([`DEADBAND_SMOOTHING`]). The gains
 //! are derived when the tuning or the geometry changes ([`crate::motion::controller::Controller::set_tuning`]),
 //! never per period.
 
@@ -54,8 +56,10 @@ pub struct PiGains {
     pub kff_v_back: f32,
     /// Motor time constant `τ`, s: the acceleration feed-forward is `kff_v·τ·a`.
     pub tau_s: f32,
-    /// Dead-band compensation, duty, added in the direction of the reference speed.
+    /// Dead-band compensation `d₀`, duty, added in the direction of the command.
     pub deadband: f32,
+    /// `d₀ /` [`DEADBAND_SMOOTHING`]: the slope of the compensation's smooth step.
+    pub deadband_slope: f32,
     /// Output limit (`0 < limit ≤ 1`), duty.
     pub output_limit: f32,
 }
@@ -210,6 +214,23 @@ impl SpeedTuning {
         Ok(())
     }
 
+    /// Stiffness of the default design: `3 ω_n τ` for 30 rad/s and 50 ms.
+    pub const DEFAULT_STIFFNESS: f32 = 4.5;
+
+    /// The bandwidth for motors whose faster time constant is `tau_min_s`: the default 30 rad/s,
+    /// or faster for a fast motor so that `3 ω_n τ` keeps the default design's 4.5 (the
+    /// proportional gain `kp·K = 3 ω_n τ − 1` is then never below the default's 3.5: a fast
+    /// motor with a dead-band would otherwise get a soft loop that lets the wheels drift apart
+    /// at low speed); at most 200 rad/s.
+    pub fn bandwidth_for(tau_min_s: f32) -> f32 {
+        let stiff = Self::DEFAULT_STIFFNESS / (3.0 * tau_min_s);
+        clamp(
+            libm::fmaxf(Self::DEFAULT.bandwidth_radps, stiff),
+            Self::BANDWIDTH_RANGE.0,
+            Self::BANDWIDTH_RANGE.1,
+        )
+    }
+
     /// The motor of `wheel`.
     pub fn motor(&self, wheel: crate::motion::controller::Wheel) -> &MotorParams {
         match wheel {
@@ -233,6 +254,7 @@ impl SpeedTuning {
             kff_v_back: 1.0 / ticks(motor.gain_backward_mps),
             tau_s: tau,
             deadband: motor.deadband,
+            deadband_slope: motor.deadband / DEADBAND_SMOOTHING,
             output_limit: self.output_limit,
         }
     }
@@ -303,19 +325,13 @@ impl SpeedPi {
         let dt = 1.0 / self.rate_hz;
         let err_step = reference.delta_ticks - measured_delta;
         let v = reference.velocity_tps;
-        // Inverse of the plant: the direction's gain, the lag, the dead-band.
-        let (kff, friction) = if v > 0.0 {
-            (g.kff_v, g.deadband)
-        } else if v < 0.0 {
-            (g.kff_v_back, -g.deadband)
-        } else {
-            (g.kff_v, 0.0)
-        };
-        let ff = kff * (v + g.tau_s * reference.accel_tps2) + friction;
+        // Inverse of the plant's gain (of the reference's direction) and lag.
+        let kff = if v < 0.0 { g.kff_v_back } else { g.kff_v };
+        let ff = kff * (v + g.tau_s * reference.accel_tps2);
         let p = g.kp * err_step * self.rate_hz;
         let i1 = state.integral_ticks + err_step;
         let i2 = state.integral2 + i1 * dt;
-        let unsat = ff + p + g.ki * i1 + g.kii * i2;
+        let unsat = deadband_inverse(g, ff + p + g.ki * i1 + g.kii * i2);
         let limit = g.output_limit;
         // Conditional integration: do not wind further into a saturated output.
         let high = unsat > limit;
@@ -336,13 +352,28 @@ impl SpeedPi {
             let m = limit / g.kii;
             state.integral2 = clamp(state.integral2, -m, m);
         }
-        let out = ff + p + g.ki * state.integral_ticks + g.kii * state.integral2;
+        let out = deadband_inverse(
+            g,
+            ff + p + g.ki * state.integral_ticks + g.kii * state.integral2,
+        );
         if out.is_nan() {
             0.0
         } else {
             clamp(out, -limit, limit)
         }
     }
+}
+
+/// Width of the smooth step of the dead-band inverse, duty.
+pub const DEADBAND_SMOOTHING: f32 = 0.01;
+
+/// The dead-band inverse on the linear command `u`: `u + d₀·sign(u)` once `|u|` exceeds
+/// [`DEADBAND_SMOOTHING`], a straight line through zero below (no chatter between ±d₀ at rest).
+/// It makes the motor with its dead-band look linear to the loop, also when the feedback alone
+/// (a wheel held at rest with a position error) has to move it.
+#[inline]
+fn deadband_inverse(g: &PiGains, u: f32) -> f32 {
+    u + clamp(u * g.deadband_slope, -g.deadband, g.deadband)
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ use core::fmt::{self, Write};
 use super::traits::{Calibrator, Robot};
 use super::{Session, storable};
 use crate::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyReport, LEVELS, MotorFit};
+use crate::motion::speed::SpeedTuning;
 use crate::protocol::EOL;
 use crate::protocol::reply::ErrorCode;
 use crate::util::decimal::Decimal;
@@ -65,7 +66,8 @@ impl<C: Calibrator> Session<C> {
         )
     }
 
-    /// Reports a finished identification and applies its tuning (the bandwidth stays).
+    /// Reports a finished identification and applies its tuning, with the bandwidth by
+    /// [`SpeedTuning::bandwidth_for`].
     pub(super) fn report_identify(
         &mut self,
         r: &IdentifyReport,
@@ -77,6 +79,10 @@ impl<C: Calibrator> Session<C> {
         let mut candidate = self.settings.clone();
         candidate.tuning.right = r.right.params;
         candidate.tuning.left = r.left.params;
+        candidate.tuning.bandwidth_radps = SpeedTuning::bandwidth_for(libm::fminf(
+            r.right.params.time_constant_s,
+            r.left.params.time_constant_s,
+        ));
         let code = ErrorCode::IdentifyRefused.code();
         if let Err(e) = storable(&candidate) {
             return write!(
@@ -90,11 +96,13 @@ impl<C: Calibrator> Session<C> {
                 "event identify err {code}: result not applied: {e}; tuning unchanged{EOL}"
             );
         }
+        let bandwidth = candidate.tuning.bandwidth_radps;
         self.settings = candidate;
         write!(
             out,
-            "event identify done ({}): speed-loop tuning applied (not saved; save to keep){EOL}",
-            mode_name(r.mode)
+            "event identify done ({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep){EOL}",
+            mode_name(r.mode),
+            Decimal::fixed(f64::from(bandwidth), 1)
         )
     }
 

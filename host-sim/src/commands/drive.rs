@@ -12,7 +12,6 @@
 //! serial protocol), which applies the identified tuning, and then drives the same script.
 
 use clap::ValueEnum;
-use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, Fault};
 
@@ -164,11 +163,21 @@ pub fn drive_script(
     }))
 }
 
-/// Runs the `drive` subcommand.
+/// What a `drive` run produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DriveOutcome {
+    /// The `identify` reply and events (with `--identify`).
+    pub identification: Option<String>,
+    /// The drive, or the fault that ended it.
+    pub result: Result<DriveResult, DriveFault>,
+}
+
+/// The `drive` subcommand's work without the printing: a fresh simulated board, the
+/// identification when asked, the script.
 ///
 /// # Errors
-/// Any failure of the scripted drive.
-pub fn run(args: &DriveArgs) -> Result<(), String> {
+/// Invalid options, a failed identification, a refused command.
+pub fn execute(args: &DriveArgs) -> Result<DriveOutcome, String> {
     let mut config = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
     config.wiring = args.wiring.wiring();
     args.motors.apply(&mut config)?;
@@ -176,22 +185,46 @@ pub fn run(args: &DriveArgs) -> Result<(), String> {
     let mut flash = SimParamFlash::erased();
     let mut boot = String::new();
     let mut board = Board::boot(config, &mut flash, &mut boot)?;
-    if args.identify {
-        let events = board.identify("lifted").map_err(|e| format!("identify: {e}"))?;
-        print!("{}", events.replace("\r\n", "\n"));
-    }
-    debug_assert_eq!(board.controller_geometry(), Geometry::PAPER_NOMINAL);
+    let identification = if args.identify {
+        let events = board
+            .identify("lifted")
+            .map_err(|e| format!("identify: {e}"))?;
+        Some(events.replace("\r\n", "\n"))
+    } else {
+        None
+    };
     let (sim, controller) = (&mut board.sim, &mut board.controller);
-    let (v, w) = match args.script {
+    let (v, w) = velocities(args);
+    let result = drive_script(sim, controller, v, w, args.seconds)?;
+    Ok(DriveOutcome {
+        identification,
+        result,
+    })
+}
+
+fn velocities(args: &DriveArgs) -> (f32, f32) {
+    match args.script {
         Script::Line => (args.speed, 0.0),
         Script::Turn => (0.0, args.turn_rate),
         Script::Arc => (args.speed, args.turn_rate),
-    };
+    }
+}
+
+/// Runs the `drive` subcommand.
+///
+/// # Errors
+/// Any failure of the scripted drive.
+pub fn run(args: &DriveArgs) -> Result<(), String> {
+    let outcome = execute(args)?;
+    if let Some(events) = &outcome.identification {
+        print!("{events}");
+    }
+    let (v, w) = velocities(args);
     println!(
         "{:?}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}; wiring {:?}",
         args.script, args.seconds, args.eb, args.ed, args.wiring
     );
-    let r = match drive_script(sim, controller, v, w, args.seconds)? {
+    let r = match outcome.result {
         Ok(r) => r,
         Err(f) => {
             println!(

@@ -9,6 +9,7 @@ pub mod drive;
 pub mod flash;
 pub mod geometry;
 pub mod montecarlo;
+pub mod motors;
 pub mod paper;
 pub mod rectangle;
 pub mod replay;

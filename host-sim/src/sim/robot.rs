@@ -294,7 +294,11 @@ impl Sim {
         // The drive the dead-band leaves of a duty.
         let drive = |duty: f32, d0: f64| {
             let u = f64::from(odocal::motion::motor::clamp_duty(duty));
-            if u.abs() > d0 { u - d0.copysign(u) } else { 0.0 }
+            if u.abs() > d0 {
+                u - d0.copysign(u)
+            } else {
+                0.0
+            }
         };
         let (tr, tl) = (m.time_constant_s, m.time_constant_left_s);
         let (target_r, target_l, tau_r, tau_l) = match self.command {

@@ -46,8 +46,8 @@ use crate::commands::square::drive_path_tuned;
 use crate::commands::sweep::{SweepArgs, SweepResult, pilot_scatter, sweep};
 use crate::sim::board::Board;
 use crate::sim::flash::SimParamFlash;
-use crate::sim::robot::{MotorArgs, SimConfig};
 use crate::sim::robot::sim_config;
+use crate::sim::robot::{MotorArgs, SimConfig};
 
 /// Arguments of the simulated session (also the defaults of `cargo sim` with no subcommand).
 #[derive(Args, Debug, Clone)]
@@ -467,9 +467,9 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     let identification = if args.motors.any() {
         pb.set_message("identify");
         log.push_str("> identify floor\n");
-        let events = board.identify("floor").map_err(|e| {
-            format!("identify floor failed: {}", e.replace("\r\n", "\n"))
-        })?;
+        let events = board
+            .identify("floor")
+            .map_err(|e| format!("identify floor failed: {}", e.replace("\r\n", "\n")))?;
         log.push_str(&events.replace("\r\n", "\n"));
         Some(events.replace("\r\n", "\n"))
     } else {

@@ -28,7 +28,10 @@ pub fn text(r: &SessionReport) -> String {
         a.eb, a.ed, a.slip, a.meas_mm, a.meas_deg, a.seed
     );
     if let Some(events) = &r.identification {
-        let _ = writeln!(s, "motors differ from the defaults: identified first (identify floor)");
+        let _ = writeln!(
+            s,
+            "motors differ from the defaults: identified first (identify floor)"
+        );
         for line in events.lines().filter(|l| l.starts_with("event identify")) {
             let _ = writeln!(s, "  {line}");
         }
