@@ -121,7 +121,7 @@ fn stored_nan_record_is_rejected_at_load() {
 fn other_format_versions_are_rejected_cleanly() {
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     calibrated(3).encode(&mut bytes).unwrap();
-    for version in [0u8, 3, 255] {
+    for version in [0u8, 4, 255] {
         let mut flash = Box::new(BoardFlash::default());
         bytes[0] = version;
         store_raw(&mut flash, &bytes);
@@ -147,28 +147,40 @@ fn other_format_versions_are_rejected_cleanly() {
     );
 }
 
-/// A board upgraded from the first record format: its stored version-1 record (no wiring byte)
-/// loads with its calibration intact and the standard wiring, and the next save writes the
-/// current version.
+/// A board upgraded from an older record format: its stored version-1 record (no wiring byte,
+/// no tuning) or version-2 record (no tuning) loads with its calibration intact, the standard
+/// wiring (v1) or its own (v2), and the default speed-loop tuning those firmwares used; the
+/// next save writes the current version.
 #[test]
-fn a_version_1_record_survives_the_upgrade() {
+fn version_1_and_2_records_survive_the_upgrade() {
     let old = calibrated(5);
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     old.encode(&mut bytes).unwrap();
-    bytes[0] = 1;
-    let mut flash = Box::new(BoardFlash::default());
-    store_raw(&mut flash, &bytes[..ParamRecord::V1_LEN]);
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
-    let out = store.load_blocking();
-    assert_eq!(out.warning, None);
-    assert_eq!(out.record.calibration, old.calibration);
-    assert_eq!(out.record.nominal, old.nominal);
-    assert_eq!(out.record.motion, old.motion);
-    assert_eq!(out.record.wiring, odocal::motion::wiring::Wiring::STANDARD);
-    store.save_blocking(&out.record, true).unwrap();
-    let again = store.load_blocking();
-    assert_eq!(again.warning, None);
-    assert_eq!(again.record, out.record);
+    for (version, len) in [(1u8, ParamRecord::V1_LEN), (2, ParamRecord::V2_LEN)] {
+        bytes[0] = version;
+        let mut flash = Box::new(BoardFlash::default());
+        store_raw(&mut flash, &bytes[..len]);
+        let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+        let out = store.load_blocking();
+        assert_eq!(out.warning, None);
+        assert_eq!(out.record.calibration, old.calibration);
+        assert_eq!(out.record.nominal, old.nominal);
+        assert_eq!(out.record.motion, old.motion);
+        let wiring = if version == 1 {
+            odocal::motion::wiring::Wiring::STANDARD
+        } else {
+            old.wiring
+        };
+        assert_eq!(out.record.wiring, wiring);
+        assert_eq!(
+            out.record.tuning,
+            odocal::motion::speed::SpeedTuning::DEFAULT
+        );
+        store.save_blocking(&out.record, true).unwrap();
+        let again = store.load_blocking();
+        assert_eq!(again.warning, None);
+        assert_eq!(again.record, out.record);
+    }
 }
 
 #[test]

@@ -523,7 +523,7 @@ fn fit_wheel(
         let u = LEVELS.map(f64::from);
         let slope_lo = (v[1] - v[0]) / (u[1] - u[0]);
         let slope_hi = (v[2] - v[1]) / (u[2] - u[1]);
-        if !(slope_lo > 0.0) {
+        if slope_lo.is_nan() || slope_lo <= 0.0 {
             return Err(bad);
         }
         if slope_hi < MIN_TOP_SLOPE_RATIO * slope_lo {

@@ -83,6 +83,11 @@ pub enum ButtonAction {
 }
 
 /// A bring-up check in progress.
+///
+/// The identification's statistics (≈0.9 KiB) make its variant the large one; without an
+/// allocator there is nothing to box them into, and only one check runs at a time, so the
+/// controller holds that space once either way.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum ActiveCheck {
     /// Motor pulses.
