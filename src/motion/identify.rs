@@ -10,9 +10,10 @@
 //! robot drives forward and back.
 //!
 //! **Fit, online, decimated.** The encoder is read every period and its counts are summed over
-//! blocks of [`BLOCK_MS`] (10 periods at 1 kHz); nothing is logged: each duty step keeps the
-//! sufficient statistics (six sums) of the pairs `(s_j, s_{j+1})` of successive block counts, so
-//! the RAM is fixed (about 0.8 KiB for both wheels) whatever the rate and length. For a
+//! blocks of [`BLOCK_MS`] (10 periods at 1 kHz); nothing is logged: the segment being driven
+//! keeps exact integer sums of the pairs `(s_j, s_{j+1})` of successive block counts, and a
+//! finished duty step only its means and centred moments, so the RAM is fixed (0.3 KiB for both
+//! wheels) whatever the rate and length. For a
 //! first-order motor with the duty held (zero-order hold), the block counts obey exactly
 //! `s_{j+1} = a·s_j + (1 − a)·v_ss` within a step (blocks start with the step, so none mixes two
 //! duties), with `a = e^{−T/τ}` for the block length `T` and `v_ss` the step's steady count per
@@ -166,53 +167,100 @@ pub struct IdentifyReport {
     pub left: MotorFit,
 }
 
-/// Sufficient statistics of pairs `(x, y)`.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Sums {
-    n: f64,
-    sx: f64,
-    sy: f64,
-    sxx: f64,
-    sxy: f64,
-    syy: f64,
+/// Exact integer sums of the block pairs `(x, y)` of the segment being driven.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Running {
+    n: u32,
+    sx: i64,
+    sy: i64,
+    sxx: i64,
+    sxy: i64,
+    syy: i64,
 }
 
-impl Sums {
-    fn add(&mut self, x: f64, y: f64) {
-        self.n += 1.0;
+/// Means and centred second moments of a segment's pairs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Moments {
+    n: f64,
+    mx: f64,
+    my: f64,
+    cxx: f64,
+    cxy: f64,
+    cyy: f64,
+}
+
+impl Running {
+    fn add(&mut self, x: i64, y: i64) {
+        self.n += 1;
         self.sx += x;
         self.sy += y;
-        self.sxx += x * x;
-        self.sxy += x * y;
-        self.syy += y * y;
+        // A block count is below 2 m/s for 10 ms (the routine stops faster wheels), so the
+        // sums of products stay far inside i64; saturating all the same.
+        self.sxx = self.sxx.saturating_add(x.saturating_mul(x));
+        self.sxy = self.sxy.saturating_add(x.saturating_mul(y));
+        self.syy = self.syy.saturating_add(y.saturating_mul(y));
     }
 
-    /// Centred second moments `(Σ(x−x̄)², Σ(x−x̄)(y−ȳ), Σ(y−ȳ)²)`.
-    fn centred(&self) -> (f64, f64, f64) {
-        if self.n < 1.0 {
-            return (0.0, 0.0, 0.0);
+    fn moments(&self) -> Moments {
+        if self.n == 0 {
+            return Moments::default();
         }
-        (
-            self.sxx - self.sx * self.sx / self.n,
-            self.sxy - self.sx * self.sy / self.n,
-            self.syy - self.sy * self.sy / self.n,
-        )
-    }
-
-    fn means(&self) -> (f64, f64) {
-        if self.n < 1.0 {
-            (0.0, 0.0)
-        } else {
-            (self.sx / self.n, self.sy / self.n)
+        let n = f64::from(self.n);
+        let (sx, sy) = (self.sx as f64, self.sy as f64);
+        Moments {
+            n,
+            mx: sx / n,
+            my: sy / n,
+            cxx: self.sxx as f64 - sx * sx / n,
+            cxy: self.sxy as f64 - sx * sy / n,
+            cyy: self.syy as f64 - sy * sy / n,
         }
     }
 }
 
-/// Statistics of one direction of one wheel.
+/// What is kept of one wheel: the running sums of the current segment, and of each finished
+/// segment only what the fit needs (160 B per wheel).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct DirectionLog {
-    levels: [Sums; 3],
-    coast: Sums,
+struct WheelLog {
+    running: Running,
+    /// Centred moments `(Σxx, Σxy, Σyy)` of all duty steps, each about its own means.
+    pooled: (f64, f64, f64),
+    /// Pairs and steps in `pooled`.
+    pairs: u32,
+    steps: u32,
+    /// Means `(x̄, ȳ)` of each duty step, per direction.
+    step_means: [[(f32, f32); 3]; 2],
+    /// Coast per direction: `Σxx`, `Σxy` (centred), `x̄`, `ȳ`.
+    coast: [[f32; 4]; 2],
+}
+
+impl WheelLog {
+    /// Keeps what the fit needs of the finished `seg` of direction `dir`, and clears the sums.
+    fn close(&mut self, seg: Segment, dir: usize) {
+        let m = self.running.moments();
+        self.running = Running::default();
+        match seg {
+            Segment::Level(i) => {
+                if m.n < 2.0 {
+                    return;
+                }
+                self.pooled.0 += m.cxx;
+                self.pooled.1 += m.cxy;
+                self.pooled.2 += m.cyy;
+                self.pairs += m.n as u32;
+                self.steps += 1;
+                if let Some(s) = self.step_means.get_mut(dir).and_then(|d| d.get_mut(i)) {
+                    *s = (m.mx as f32, m.my as f32);
+                }
+            }
+            Segment::Coast => {
+                if let Some(c) = self.coast.get_mut(dir) {
+                    *c = [m.cxx as f32, m.cxy as f32, m.mx as f32, m.my as f32];
+                }
+            }
+            Segment::Brake => {}
+        }
+    }
 }
 
 /// The segments of a pass.
@@ -270,8 +318,8 @@ pub struct Identify {
     /// Counts of the block being summed (right, left) and its periods so far.
     block: (i64, i64),
     in_block: u32,
-    /// Statistics per wheel (right, left) and direction (forward, backward).
-    logs: [[DirectionLog; 2]; 2],
+    /// Statistics per wheel (right, left).
+    logs: [WheelLog; 2],
 }
 
 impl Identify {
@@ -295,7 +343,7 @@ impl Identify {
             block_periods: (libm::round(f64::from(BLOCK_MS) * rate / 1000.0) as u32).max(1),
             block: (0, 0),
             in_block: 0,
-            logs: [[DirectionLog::default(); 2]; 2],
+            logs: [WheelLog::default(); 2],
         }
     }
 
@@ -340,6 +388,12 @@ impl Identify {
                 if let Some(f) = self.end_segment(seg) {
                     return IdentifyStep::Failed(f);
                 }
+                let ((on_r, on_l), dir) = self.pass_shape();
+                for (log, on) in self.logs.iter_mut().zip([on_r, on_l]) {
+                    if on {
+                        log.close(seg, dir);
+                    }
+                }
                 self.segment += 1;
                 if self.segment == SEGMENTS.len() {
                     self.segment = 0;
@@ -373,7 +427,7 @@ impl Identify {
 
     /// Adds the counts of the period that just ended to the current segment's statistics.
     fn record(&mut self, dr: i64, dl: i64) -> Option<IdentifyFailure> {
-        let ((on_r, on_l), dir) = self.pass_shape();
+        let ((on_r, on_l), _) = self.pass_shape();
         let seg = SEGMENTS[self.segment % SEGMENTS.len()];
         let tail_from = self.segment_periods(seg) * 3 / 4;
         if matches!(seg, Segment::Level(_)) && self.done_in_segment > tail_from {
@@ -409,10 +463,10 @@ impl Identify {
             } else {
                 &mut self.previous.1
             };
-            let log = &mut self.logs[w][dir];
+            let running = &mut self.logs[w].running;
             match (seg, *prev) {
-                (Segment::Level(i), Some(x)) => log.levels[i].add(x as f64, c as f64),
-                (Segment::Coast, Some(x)) if x != 0 && c != 0 => log.coast.add(x as f64, c as f64),
+                (Segment::Level(_), Some(x)) => running.add(x, c),
+                (Segment::Coast, Some(x)) if x != 0 && c != 0 => running.add(x, c),
                 _ => {}
             }
             *prev = Some(c);
@@ -485,21 +539,14 @@ impl Identify {
 /// Fits one wheel's two directions; `mps_per_count` converts counts per block to m/s,
 /// `block_hz` is the block rate.
 fn fit_wheel(
-    logs: &[DirectionLog; 2],
+    log: &WheelLog,
     mps_per_count: f64,
     block_hz: f64,
 ) -> Result<MotorFit, IdentifyProblem> {
     let bad = IdentifyProblem::Implausible;
     // Common slope over the six steps, one intercept per step.
-    let (mut cxx, mut cxy, mut cyy, mut n, mut groups) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for s in logs.iter().flat_map(|d| d.levels.iter()) {
-        let (xx, xy, yy) = s.centred();
-        cxx += xx;
-        cxy += xy;
-        cyy += yy;
-        n += s.n;
-        groups += 1.0;
-    }
+    let (cxx, cxy, cyy) = log.pooled;
+    let (n, groups) = (f64::from(log.pairs), f64::from(log.steps));
     if cxx <= 0.0 || n <= groups + 1.0 {
         return Err(bad);
     }
@@ -514,11 +561,10 @@ fn fit_wheel(
     let mut top = 0.0f64;
     let mut coast = 0.0f64;
     let mut coast_from = 0.0f64;
-    for (d, log) in logs.iter().enumerate() {
+    for (d, (means, c)) in log.step_means.iter().zip(log.coast.iter()).enumerate() {
         // Steady speed of each step, m/s (magnitude: the sign was checked per step).
-        let v = log.levels.map(|s| {
-            let (mx, my) = s.means();
-            libm::fabs((my - a * mx) / (1.0 - a)) * mps_per_count
+        let v = means.map(|(mx, my)| {
+            libm::fabs((f64::from(my) - a * f64::from(mx)) / (1.0 - a)) * mps_per_count
         });
         let u = LEVELS.map(f64::from);
         let slope_lo = (v[1] - v[0]) / (u[1] - u[0]);
@@ -540,8 +586,8 @@ fn fit_wheel(
         gains[d] = k;
         deadbands[d] = um - vm / k;
         top = libm::fmax(top, v[2]);
-        // Coast from the top step's speed: one period's speed loss, as a deceleration.
-        let (xx, xy, _) = log.coast.centred();
+        // Coast from the top step's speed, as a deceleration.
+        let [xx, xy, mx, my] = c.map(f64::from);
         if xx <= 0.0 {
             return Err(bad);
         }
@@ -549,7 +595,6 @@ fn fit_wheel(
         if !(ac > 0.0 && ac < 1.0) {
             return Err(bad);
         }
-        let (mx, my) = log.coast.means();
         // dv/dt = −(v − v∞)/τ_c: v∞ (the fixed point, beyond zero with constant friction)
         // and τ_c are the same for the block sums as for the continuous speed.
         let v_inf = (my - ac * mx) / (1.0 - ac);

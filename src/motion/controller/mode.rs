@@ -84,7 +84,7 @@ pub enum ButtonAction {
 
 /// A bring-up check in progress.
 ///
-/// The identification's statistics (≈0.9 KiB) make its variant the large one; without an
+/// The identification's statistics (0.3 KiB) make its variant the large one; without an
 /// allocator there is nothing to box them into, and only one check runs at a time, so the
 /// controller holds that space once either way.
 #[allow(clippy::large_enum_variant)]
