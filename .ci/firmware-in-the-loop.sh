@@ -8,6 +8,9 @@
 #            behind the board seam) runs a whole calibration session over USART2, keeps the
 #            parameters across an emulator restart, survives a 64 KiB random burst, streams the
 #            pose at 100 Hz, and must give host-sim's factors (fil/closed_loop.py).
+#   Stage 3: the guided console tool drives that app through a pty bridged to USART2 (3 + 3
+#            squares, measured from the plant's truth, apply, save, verify); its session log must
+#            recalibrate on the PC to the board's table line for line (fil/console_in_the_loop.py).
 # Needs: qemu-system-arm, gdb-multiarch, binutils-arm-none-eabi, python3, defmt-print, flip-link,
 # the thumbv7em-none-eabihf target. Method and limits: docs/performance.md (Fidelity).
 set -euo pipefail
@@ -51,7 +54,14 @@ cp "$ELF" "$OUT/firmware-emulator"
 cargo build --release --quiet -p host-sim
 python3 fil/closed_loop.py "$OUT/firmware-emulator" --workdir "$OUT" \
     --host-sim target/release/host-sim | tee "$OUT/stage2.txt"
-# Leave the shipped ELF at cargo's path again (nothing is rebuilt).
-cargo fw --quiet
 t2=$(date +%s.%N)
 awk -v a="$t1" -v b="$t2" 'BEGIN { printf "stage 2 wall time: %.1f s\n", b - a }'
+
+echo "== stage 3: the guided console (cargo console) against the emulated firmware"
+cargo build --quiet -p odocal-console
+python3 fil/console_in_the_loop.py "$OUT/firmware-emulator" --workdir "$OUT" \
+    --console target/debug/odocal-console | tee "$OUT/stage3.txt"
+# Leave the shipped ELF at cargo's path again (nothing is rebuilt).
+cargo fw --quiet
+t3=$(date +%s.%N)
+awk -v a="$t2" -v b="$t3" 'BEGIN { printf "stage 3 wall time: %.1f s\n", b - a }'
