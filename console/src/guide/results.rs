@@ -17,7 +17,7 @@ impl Guide {
     pub(super) fn calibrate(&mut self) -> Result<Vec<String>, Stop> {
         let (table, source) = if self.board_has_all() {
             self.ui
-                .say("calibrate: the board computes every method (about 6 s on the board)");
+                .say("calibrate: the board computes every method (several seconds on the board)");
             let r = self.cmd_timeout("calibrate", CALIBRATE)?;
             let mut t = r.data.clone();
             t.push(r.last.clone());
