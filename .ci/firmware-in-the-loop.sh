@@ -3,7 +3,8 @@
 # through its own serial port (USART2).
 #   Stage 1: the exact ELF `cargo fw` builds (sha256 printed) boots with a boot assist generated
 #            from the ELF (fil/emulator.py), answers a scripted console session compared with
-#            fil/golden/console.txt, and its defmt boot log is decoded from RTT.
+#            fil/golden/console.txt, and its defmt boot log is decoded from RTT; the same ELF
+#            boots without a crystal and as on a 512 KiB part (fil/degraded_boot_test.py).
 #   Stage 2: the same app built with `--features emulator` (src/board/emulator/: a simulated robot
 #            behind the board seam) runs a whole calibration session over USART2, keeps the
 #            parameters across an emulator restart, survives a 64 KiB random burst, streams the
@@ -45,6 +46,8 @@ fi
 python3 fil/boot_test.py "$OUT/firmware-shipped" --workdir "$OUT" | tee "$OUT/stage1.txt"
 # The motor outputs' safe state on the same ELF: boot order, HardFault path, panic handler.
 python3 fil/safe_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
+# The same ELF on a board whose crystal never starts, and on a 512 KiB part.
+python3 fil/degraded_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
 t1=$(date +%s.%N)
 awk -v a="$t0" -v b="$t1" 'BEGIN { printf "stage 1 wall time: %.1f s\n", b - a }'
 

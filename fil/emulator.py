@@ -10,8 +10,14 @@ What the emulator needs from outside the image, and why (QEMU 7.2 as shipped by 
   modelled either: SysTick runs at 168 MHz whatever RCC says, which is the shipped
   configuration's core clock.
 - The flash-size word at 0x1FFF7A22 (system memory) is not mapped: reading it HardFaults, and the
-  HAL reads it before every flash access. The boot assist breaks on each `ldrh` from that
-  address and supplies 1024 (KiB, the STM32F407VG's size) in the destination register.
+  HAL reads it before every flash access, the board once at boot to check that the storage map
+  fits. The boot assist breaks on each `ldrh` from that address and supplies 1024 (KiB, the
+  STM32F407VG's size) in the destination register — or another size, to boot the image as on a
+  smaller part (`flash_kib`).
+- The board waits a bounded time for the crystal (`odocal_hse_ready`, RCC_CR.HSERDY) and falls
+  back to the internal oscillator without it. The boot assist returns true from that function
+  (a crystal that starts at once); with `crystal=False` it leaves it alone, RCC reads 0, and the
+  image boots as on a board whose crystal never starts.
 - The parameter sectors of a freshly flashed board are erased (0xFF); QEMU's flash is ROM filled
   with zeros where the ELF has nothing. A 256 KiB 0xFF image is loaded at 0x080C0000 by QEMU's
   generic loader (or a given flash image).
@@ -34,6 +40,8 @@ RAM_ADDR = 0x20000000
 RAM_LEN = 128 * 1024
 RCC_BASE = 0x40023800
 FLASH_SIZE_ADDR = 0x1FFF7A22
+# objdump's names of r9..r12 as gdb names them.
+GDB_REGISTER = {"sb": "r9", "sl": "r10", "fp": "r11", "ip": "r12"}
 FLASH_SIZE_KIB = 1024
 
 
@@ -61,15 +69,16 @@ def boot_assist_points(elf):
     """
     insns = disassemble(elf)
     points = []
+    reg = r"(r\d+|sb|sl|fp|ip)"
     for i in range(len(insns) - 3):
         (a0, op0, arg0), (_, op1, arg1), (a2, op2, arg2), (a3, _, _) = insns[i:i + 4]
-        m0 = re.match(r"(r\d+), \[(r\d+), #0\]", arg0)
-        m1 = re.match(r"(r\d+), (r\d+), #(\d+)", arg1)
-        if (op0 == "ldr" and op1 == "lsls" and op2.startswith("bpl") and m0 and m1
+        m0 = re.match(reg + r", \[" + reg + r"(?:, #0)?\]$", arg0)
+        m1 = re.match(reg + ", " + reg + r", #(\d+)", arg1)
+        if (op0 in ("ldr", "ldr.w") and op1 == "lsls" and op2.startswith("bpl") and m0 and m1
                 and m1.group(1) == m1.group(2) == m0.group(1)
                 and int(m1.group(3)) in (6, 14)
                 and arg2.startswith(f"{a0:x} ")):
-            points.append(("rcc-ready", a2, a3, m0.group(2)))
+            points.append(("rcc-ready", a2, a3, GDB_REGISTER.get(m0.group(2), m0.group(2))))
     for i, (a, op, arg) in enumerate(insns):
         m = re.match(r"(r\d+), #31266\b", arg)
         if op != "movw" or not m:
@@ -88,9 +97,10 @@ def boot_assist_points(elf):
     return points
 
 
-def boot_assist_script(elf, port):
+def boot_assist_script(elf, port, flash_kib=FLASH_SIZE_KIB, crystal=True):
     """The gdb-multiarch script that lets the ELF boot in QEMU (see the module docs)."""
     points = boot_assist_points(elf)
+    hse_ready = optional_symbol_address(elf, "odocal_hse_ready")
     rcc = [p for p in points if p[0] == "rcc-ready"]
     size = [p for p in points if p[0] == "flash-size"]
     # The flash-size read is in every build that touches the flash; the ready loops may be
@@ -105,6 +115,17 @@ def boot_assist_script(elf, port):
         "set confirm off",
         f"target remote 127.0.0.1:{port}",
     ]
+    if hse_ready is not None and crystal:
+        lines += [
+            "# odocal_hse_ready (RCC is not modelled): the crystal is ready",
+            f"break *0x{hse_ready & ~1:x}",
+            "commands",
+            "silent",
+            "set $r0 = 1",
+            "set $pc = $lr & 0xfffffffe",
+            "continue",
+            "end",
+        ]
     for kind, bp, resume, reg in points:
         if kind == "rcc-ready":
             lines += [
@@ -123,11 +144,11 @@ def boot_assist_script(elf, port):
             ]
         else:
             lines += [
-                f"# flash-size read (0x{FLASH_SIZE_ADDR:X} is not mapped): {FLASH_SIZE_KIB} KiB",
+                f"# flash-size read (0x{FLASH_SIZE_ADDR:X} is not mapped): {flash_kib} KiB",
                 f"break *0x{bp:x}",
                 "commands",
                 "silent",
-                f"set ${reg} = {FLASH_SIZE_KIB}",
+                f"set ${reg} = {flash_kib}",
                 f"set $pc = 0x{resume:x}",
                 "continue",
                 "end",
@@ -150,7 +171,10 @@ class Emulator:
     arguments (e.g. `-icount`, `-semihosting-config`).
     """
 
-    def __init__(self, elf, workdir, assist=True, flash_image=None, extra=(), name="qemu"):
+    def __init__(self, elf, workdir, assist=True, flash_image=None, extra=(), name="qemu",
+                 flash_kib=FLASH_SIZE_KIB, crystal=True):
+        self.flash_kib = flash_kib
+        self.crystal = crystal
         self.elf = elf
         self.workdir = workdir
         os.makedirs(workdir, exist_ok=True)
@@ -199,7 +223,8 @@ class Emulator:
         if self.port is None:
             self.monitor("cont")
             return
-        script, self.points = boot_assist_script(self.elf, self.port)
+        script, self.points = boot_assist_script(self.elf, self.port, self.flash_kib,
+                                                 self.crystal)
         path = os.path.join(self.workdir, f"{self.name}-boot-assist.gdb")
         with open(path, "w") as f:
             f.write(script)
@@ -281,14 +306,22 @@ def watchdog_feeds(log_path):
     return n
 
 
-def symbol_address(elf, name):
+def optional_symbol_address(elf, name):
+    """The address of symbol `name` in the ELF, or None."""
     out = subprocess.run(["arm-none-eabi-nm", elf], check=True, capture_output=True,
                          text=True).stdout
     for line in out.splitlines():
         parts = line.split()
         if len(parts) == 3 and parts[2] == name:
             return int(parts[0], 16)
-    raise SystemExit(f"symbol {name} not in {elf}")
+    return None
+
+
+def symbol_address(elf, name):
+    address = optional_symbol_address(elf, name)
+    if address is None:
+        raise SystemExit(f"symbol {name} not in {elf}")
+    return address
 
 
 def rtt_up_bytes(elf, ram):

@@ -77,7 +77,9 @@ mod app {
     use odocal::protocol::reply::{ByteSink, ErrorCode, write_err};
     use odocal::protocol::rx::{self, InputItem, RxRead};
     use odocal::session::library::{LibraryCalibrator, Locked};
-    use odocal::session::{ParamStorage, Session, Settings, StorageError, write_boot_event};
+    use odocal::session::{
+        ParamStorage, Session, Settings, StorageError, write_boot_event, write_fault_event,
+    };
     use odocal::storage::{ParamStore, RunsLoaded, StoredRun};
     use rtic_monotonics::systick::prelude::*;
     use stm32f4xx_hal::prelude::*;
@@ -236,8 +238,11 @@ mod app {
                 loaded.warning.as_ref(),
                 Some(reset_cause.as_str()),
             );
+            if let Some(fault) = board.clock.fault() {
+                let _ = write_fault_event(&mut sink, fault);
+            }
         }
-        defmt::info!("reset cause: {}", reset_cause);
+        defmt::info!("reset cause: {}, clock: {}", reset_cause, board.clock);
         let (press_in, press_out) = cx.local.presses.split();
 
         report::spawn().ok();

@@ -199,3 +199,55 @@ fn foreign_or_damaged_run_bytes_are_refused_by_the_decoder() {
     assert_eq!(decode_run(&item[..60]), Err(RunFormatError::Length));
     assert_eq!(decode_run(&[]), Err(RunFormatError::Length));
 }
+
+/// A part whose flash is smaller than the storage map (a 512 KiB STM32F407VE): the store never
+/// touches the flash, boots with the defaults and says why, and refuses to save with a clear
+/// error; nothing panics.
+#[test]
+fn a_part_with_too_little_flash_refuses_storage_cleanly() {
+    use odocal::session::{ParamStorage, Settings, StorageError, write_boot_event};
+    use odocal::storage::{FlashTooSmall, LoadWarning, MapConfig, ParamRecord, StoreError};
+
+    let mut flash = Box::new(BoardFlash::default());
+    let too_small = FlashTooSmall {
+        part_kib: 512,
+        needed_kib: 1024,
+    };
+    let mut store = ParamStore::without_flash(
+        &mut *flash,
+        MapConfig::try_new(BOARD_RANGE).unwrap(),
+        too_small,
+    );
+    let loaded = store.load_blocking();
+    assert_eq!(loaded.record, ParamRecord::DEFAULT);
+    assert_eq!(loaded.warning, Some(LoadWarning::FlashTooSmall(too_small)));
+    let mut boot = String::new();
+    write_boot_event(&mut boot, loaded.warning.as_ref(), Some("power-on")).unwrap();
+    assert_eq!(
+        boot,
+        "event boot: default parameters (no storage: this part has 512 KiB of flash, the \
+         storage map needs 1024 KiB), reset: power-on\r\n"
+    );
+    assert_eq!(
+        store.save_blocking(&calibrated(1), true),
+        Err(StoreError::FlashTooSmall(too_small))
+    );
+    // Through the session's storage interface: the `err` text of `save`.
+    let e = ParamStorage::save(&mut store, &Settings::default(), true).unwrap_err();
+    assert_eq!(
+        e,
+        StorageError::Flash("no storage: this part's flash is smaller than the storage map")
+    );
+    assert_eq!(
+        e.to_string(),
+        "flash error: no storage: this part's flash is smaller than the storage map"
+    );
+    let runs = full_store();
+    let mut ids: Ids = runs.iter().map(|_| None).collect();
+    assert!(store.save_runs_blocking(&runs, &mut ids, true).is_err());
+    let (mut r, mut i) = (Runs::new(), Ids::new());
+    assert!(!store.load_runs_blocking(&mut r, &mut i).found);
+    assert!(r.is_empty());
+    // The flash was never written or erased.
+    assert_eq!(store.flash().bytes_touched(), 0);
+}

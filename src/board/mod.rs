@@ -18,6 +18,7 @@
 //! | `Board::watchdog`, `watchdog::set_timeout` | fed every control period, relaxed around flash writes |
 //! | `Board::params` | the parameter store, loaded by the app before anything moves |
 //! | `Board::reset_cause` | why the MCU last reset, reported at boot |
+//! | `Board::clock` | whether the crystal started (else the internal oscillator), reported at boot |
 //! | `safety` | motor pins safe from reset, emergency stop, panic and HardFault handlers |
 //! | `CONTROL_HZ`, `WATCHDOG_MS`, `FLASH_WATCHDOG_MS` | rates and timeouts |
 //!
@@ -43,6 +44,7 @@ pub use emulator::{
     ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
 };
 // The safe-state code and the reset cause are the MCU's, the same on both boards.
+pub use f407::ClockSource;
 #[cfg(feature = "emulator")]
 pub use f407::{ResetCause, safety};
 

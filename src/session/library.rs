@@ -322,6 +322,9 @@ fn store_error(e: crate::storage::StoreError) -> StorageError {
         E::Flash(_) => StorageError::Flash("flash driver error"),
         E::Corrupted => StorageError::Flash("parameter flash corrupted"),
         E::Full => StorageError::Flash("parameter flash full"),
+        E::FlashTooSmall(_) => {
+            StorageError::Flash("no storage: this part's flash is smaller than the storage map")
+        }
         _ => StorageError::Flash("storage error"),
     }
 }

@@ -146,6 +146,15 @@ pub fn write_boot_event(
     out.write_str(EOL)
 }
 
+/// A fault found at boot that the board works around (e.g. a missing crystal):
+/// `event fault: <text>`.
+///
+/// # Errors
+/// Only those of `out`.
+pub fn write_fault_event(out: &mut dyn Write, text: &str) -> fmt::Result {
+    write!(out, "event fault: {text}{EOL}")
+}
+
 /// The line that tells the operator which runs survived a reset:
 /// `event runs restored: <n> runs, <m> measured`, followed by `; <k> skipped: <first problem>`
 /// when stored runs could not be restored. Nothing when no runs are stored (a new board, or

@@ -121,6 +121,29 @@ pub enum StoreError {
     Encoding,
     /// `sequential-storage` reported an internal inconsistency.
     Internal,
+    /// This part's flash is smaller than the storage map needs: nothing is stored.
+    FlashTooSmall(FlashTooSmall),
+}
+
+/// A part with less flash than the storage map needs (e.g. a 512 KiB STM32F407VE for a map
+/// that ends at 1 MiB).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct FlashTooSmall {
+    /// Flash size the part reports, KiB.
+    pub part_kib: u32,
+    /// Flash the storage map needs (its end address), KiB.
+    pub needed_kib: u32,
+}
+
+impl fmt::Display for FlashTooSmall {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "no storage: this part has {} KiB of flash, the storage map needs {} KiB",
+            self.part_kib, self.needed_kib
+        )
+    }
 }
 
 impl fmt::Display for StoreError {
@@ -136,6 +159,7 @@ impl fmt::Display for StoreError {
             StoreError::Full => f.write_str("parameter flash full"),
             StoreError::Encoding => f.write_str("parameter record could not be encoded"),
             StoreError::Internal => f.write_str("storage internal error"),
+            StoreError::FlashTooSmall(t) => write!(f, "{t}"),
         }
     }
 }
@@ -174,6 +198,8 @@ pub enum LoadWarning {
     },
     /// The stored record decoded but a value is out of range (NaN, absurd geometry, …).
     Invalid(RecordError),
+    /// The part's flash is too small for the storage map: nothing can be stored.
+    FlashTooSmall(FlashTooSmall),
 }
 
 impl fmt::Display for LoadWarning {
@@ -188,6 +214,7 @@ impl fmt::Display for LoadWarning {
                 ParamRecord::FORMAT_VERSION
             ),
             LoadWarning::Invalid(e) => write!(f, "stored parameters invalid: {e}"),
+            LoadWarning::FlashTooSmall(t) => write!(f, "{t}"),
         }
     }
 }
@@ -214,6 +241,8 @@ pub struct ParamStore<F: MultiwriteNorFlash> {
     next_serial: u32,
     /// [`Self::wipes`] when the session's run ids were last valid (a wipe forgets every run).
     runs_wipes: u32,
+    /// Set when the part's flash cannot hold the map: the flash is never touched.
+    too_small: Option<FlashTooSmall>,
 }
 
 impl<F: MultiwriteNorFlash> ParamStore<F> {
@@ -237,13 +266,35 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             live_run_keys: 0,
             next_serial: 1,
             runs_wipes: 0,
+            too_small: None,
         }
+    }
+
+    /// A store that refuses to touch the flash, for a part whose flash is smaller than the
+    /// map: loading gives the defaults with [`LoadWarning::FlashTooSmall`], saving fails with
+    /// [`StoreError::FlashTooSmall`], no runs are restored or stored.
+    pub fn without_flash(flash: F, config: MapConfig<F>, too_small: FlashTooSmall) -> Self {
+        let mut store = Self::from_config(flash, config);
+        store.too_small = Some(too_small);
+        store
+    }
+
+    /// Why the store cannot use the flash, if it cannot.
+    pub fn flash_too_small(&self) -> Option<FlashTooSmall> {
+        self.too_small
     }
 
     /// Loads the stored record; falls back to [`ParamRecord::DEFAULT`] with a logged warning
     /// when it is missing, unreadable, of another version, or invalid. Never panics, never
     /// fails. May repair the flash after an interrupted save (writes/erases).
     pub async fn load(&mut self) -> LoadOutcome {
+        if let Some(t) = self.too_small {
+            warn!("{}; using default parameters", t);
+            return LoadOutcome {
+                record: ParamRecord::DEFAULT,
+                warning: Some(LoadWarning::FlashTooSmall(t)),
+            };
+        }
         let warning = match self
             .map
             .fetch_item::<&[u8]>(&mut self.buf.0, &PARAMS_KEY)
@@ -291,6 +342,9 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         record: &ParamRecord,
         motors_stopped: bool,
     ) -> Result<(), StoreError> {
+        if let Some(t) = self.too_small {
+            return Err(StoreError::FlashTooSmall(t));
+        }
         if !motors_stopped {
             return Err(StoreError::MotorsRunning);
         }

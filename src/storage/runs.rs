@@ -466,6 +466,10 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         self.live_run_keys = 0;
         self.runs_wipes = self.wipes;
         let mut loaded = RunsLoaded::default();
+        if self.too_small.is_some() {
+            // Nothing can have been stored (the boot event already says why).
+            return loaded;
+        }
         let index = match self
             .map
             .fetch_item::<&[u8]>(&mut self.buf.0, &RUN_INDEX_KEY)
@@ -533,6 +537,9 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
     ) -> Result<(), StoreError> {
+        if let Some(t) = self.too_small {
+            return Err(StoreError::FlashTooSmall(t));
+        }
         if !motors_stopped {
             return Err(StoreError::MotorsRunning);
         }

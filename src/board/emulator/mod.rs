@@ -32,6 +32,7 @@ use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
+use super::f407::ClockSource;
 pub use super::f407::watchdog;
 pub use super::f407::{CONTROL_HZ, FLASH_WATCHDOG_MS, WATCHDOG_MS};
 pub use flash::BoardFlash;
@@ -149,6 +150,9 @@ pub struct Board {
     pub params: ParamStore<BoardFlash>,
     /// Why the MCU last reset (QEMU models no reset flags: `Unknown`).
     pub reset_cause: ResetCause,
+    /// The clock source: QEMU models no oscillators, so there is no crystal to miss and
+    /// nothing to fall back from.
+    pub clock: ClockSource,
 }
 
 /// Brings up the emulated board.
@@ -197,5 +201,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         watchdog,
         params: flash::param_store(),
         reset_cause,
+        clock: ClockSource::Crystal,
     }
 }

@@ -22,7 +22,7 @@ use embedded_storage_async::nor_flash::{
 use stm32f4xx_hal::flash::{self as hal_flash, FlashExt, LockedFlash};
 use stm32f4xx_hal::pac::FLASH;
 
-use crate::storage::{MapConfig, ParamStore};
+use crate::storage::{FlashTooSmall, MapConfig, ParamStore};
 
 /// Base address of the internal flash in the memory map.
 pub const FLASH_BASE: u32 = 0x0800_0000;
@@ -54,13 +54,40 @@ const _: () = assert!(
 /// The parameter area as the store's range (offsets understood by [`BoardFlash`]).
 pub const PARAMS_RANGE: Range<u32> = PARAMS_START..PARAMS_END;
 
+/// Address of the flash size register (RM0090 §39.2: "Flash size", 16 bits, KiB).
+const FLASH_SIZE_REGISTER: *const u16 = 0x1FFF_7A22 as *const u16;
+
+/// The part's flash size in KiB, as its flash size register reports it (1024 on an
+/// STM32F407VG, 512 on an STM32F407VE).
+#[inline(never)]
+pub fn flash_size_kib() -> u16 {
+    // SAFETY: a 16-bit read of a read-only system-memory register that every STM32F4 has.
+    unsafe { core::ptr::read_volatile(FLASH_SIZE_REGISTER) }
+}
+
 /// The parameter store on sectors 10–11. The range is checked when the firmware is built
-/// (`MapConfig::new` in a const block), so this cannot fail at run time.
+/// (`MapConfig::new` in a const block), so this cannot fail at run time. On a part whose flash
+/// ends before sector 11 does (its flash size register says so), the store never touches the
+/// flash: boot uses the defaults and says why, `save` answers with an error.
 pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
-    ParamStore::from_config(
-        BoardFlash::new(flash),
-        const { MapConfig::<BoardFlash>::new(PARAMS_RANGE) },
-    )
+    let config = const { MapConfig::<BoardFlash>::new(PARAMS_RANGE) };
+    let part_kib = u32::from(flash_size_kib());
+    let needed_kib = PARAMS_END / 1024;
+    if part_kib < needed_kib {
+        error!(
+            "this part has {} KiB of flash, the storage map needs {} KiB: storage disabled",
+            part_kib, needed_kib
+        );
+        return ParamStore::without_flash(
+            BoardFlash::new(flash),
+            config,
+            FlashTooSmall {
+                part_kib,
+                needed_kib,
+            },
+        );
+    }
+    ParamStore::from_config(BoardFlash::new(flash), config)
 }
 
 /// Why a [`BoardFlash`] access failed.

@@ -54,6 +54,59 @@ pub const WATCHDOG_MS: u32 = 50;
 /// gives at least 6.8 s.
 pub const FLASH_WATCHDOG_MS: u32 = 10_000;
 
+/// Polls of the crystal oscillator's ready flag before the internal oscillator is used instead.
+/// Each poll is a volatile register read, a test and a loop branch (at least 5 cycles at the
+/// 16 MHz HSI the core runs on at reset), so the wait is at least 60 ms; an 8 MHz crystal starts
+/// within 2 ms (datasheet t_SU(HSE)).
+pub const HSE_POLLS: u32 = 200_000;
+
+/// Where the core clock comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ClockSource {
+    /// The 8 MHz crystal (HSE) through the PLL: 168 MHz, crystal accuracy.
+    Crystal,
+    /// The crystal did not start: the internal 16 MHz RC oscillator (HSI) through the PLL, still
+    /// 168 MHz (timers, PWM and the baud rate as configured), but only as accurate as the HSI
+    /// (±1 % at 25 °C, a few % over temperature).
+    Internal,
+}
+
+impl ClockSource {
+    /// The fault text of the boot event when the crystal did not start, `None` with a crystal.
+    pub fn fault(self) -> Option<&'static str> {
+        match self {
+            ClockSource::Crystal => None,
+            ClockSource::Internal => Some(
+                "no crystal: HSE did not start, running on the internal oscillator (HSI, 168 MHz \
+                 through the PLL; timing and baud rate within a few %)",
+            ),
+        }
+    }
+}
+
+/// The crystal oscillator's ready flag (RCC_CR.HSERDY). Out of line and unmangled, so the
+/// emulator's boot assist can answer it (QEMU does not model the RCC).
+#[unsafe(no_mangle)]
+#[inline(never)]
+pub extern "C" fn odocal_hse_ready() -> bool {
+    // SAFETY: a read of RCC_CR, which has no read side effects.
+    unsafe { (*pac::RCC::ptr()).cr().read().hserdy().bit_is_set() }
+}
+
+/// Starts the crystal oscillator and waits at most [`HSE_POLLS`] polls for it: the clock source
+/// to configure. Without a crystal the oscillator is switched off again.
+fn start_crystal(rcc: &pac::RCC) -> ClockSource {
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    for _ in 0..HSE_POLLS {
+        if odocal_hse_ready() {
+            return ClockSource::Crystal;
+        }
+    }
+    rcc.cr().modify(|_, w| w.hseon().clear_bit());
+    ClockSource::Internal
+}
+
 /// The two quadrature encoders: TIM2 (32-bit, right) and TIM3 (16-bit, left).
 pub struct Encoders {
     right: Qei<TIM2>,
@@ -147,6 +200,8 @@ pub struct Board {
     pub params: ParamStore<BoardFlash>,
     /// Why the MCU last reset.
     pub reset_cause: ResetCause,
+    /// Where the core clock comes from (the internal oscillator if the crystal did not start).
+    pub clock: ClockSource,
 }
 
 /// Encoder input filter (TIMx_CCMR1 IC1F/IC2F = 0b0110: f_DTS/4, 6 samples): an edge must be
@@ -197,11 +252,19 @@ pub fn init(dp: pac::Peripherals) -> Board {
     safety::motors_off_at_reset(&dp.RCC, &dp.GPIOE);
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
-    let mut rcc = dp.RCC.freeze(
-        Config::hse(HSE_HZ.Hz())
-            .sysclk(SYSCLK_HZ.Hz())
-            .pclk1(42.MHz()),
-    );
+    // The crystal, if it starts within the timeout; otherwise the internal oscillator, with
+    // the PLL derived from it for the same 168 MHz core and 42/84 MHz buses, so timers, PWM
+    // and baud rates stay as configured (a missing crystal must not hang the boot before the
+    // watchdog runs).
+    let clock = start_crystal(&dp.RCC);
+    let source = match clock {
+        ClockSource::Crystal => Config::hse(HSE_HZ.Hz()),
+        ClockSource::Internal => {
+            error!("the crystal (HSE) did not start: running on the internal oscillator (HSI)");
+            Config::hsi()
+        }
+    };
+    let mut rcc = dp.RCC.freeze(source.sysclk(SYSCLK_HZ.Hz()).pclk1(42.MHz()));
     let params = flash::param_store(dp.FLASH);
 
     let gpioa = dp.GPIOA.split(&mut rcc);
@@ -275,5 +338,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         watchdog,
         params,
         reset_cause,
+        clock,
     }
 }
