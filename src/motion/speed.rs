@@ -390,18 +390,24 @@ mod tests {
         *v = target + (*v - target) * e;
     }
 
-    #[test]
-    fn tracks_a_ramp_with_small_position_error() {
-        let tuning = SpeedTuning::DEFAULT;
-        let pi = SpeedPi::new(tuning.gains(&tuning.right, M_PER_TICK), 1000.0);
-        let k = 1.0 / M_PER_TICK; // ticks/s at duty 1, matching the tuning exactly
+    /// Worst position error (ticks) while `pi` drives a ramp of `accel` m/s² from rest for
+    /// `periods` 1 ms periods on a plant with lag `tau`; `motor` maps the commanded duty to the
+    /// duty that reaches the motor and its gain (ticks/s per duty).
+    fn ramp_error(
+        pi: &SpeedPi,
+        accel: f64,
+        periods: u32,
+        tau: f64,
+        motor: impl Fn(f32) -> (f32, f64),
+    ) -> f64 {
         let mut st = SpeedPiState::default();
         let (mut v, mut pos, mut meas_prev) = (0.0f64, 0.0f64, 0i64);
-        let a = 0.3 / M_PER_TICK; // 0.3 m/s² in ticks/s²
-        let mut duty = 0.0;
+        let a = accel / M_PER_TICK; // in ticks/s²
+        let mut duty = 0.0f32;
         let mut worst = 0.0f64;
-        for i in 1..=1000 {
-            plant(&mut v, &mut pos, duty, k, 0.05, 1e-3);
+        for i in 1..=periods {
+            let (eff, k) = motor(duty);
+            plant(&mut v, &mut pos, eff, k, tau, 1e-3);
             let t = f64::from(i) * 1e-3;
             let t0 = t - 1e-3;
             let r = WheelReference {
@@ -414,6 +420,15 @@ mod tests {
             meas_prev = meas;
             worst = worst.max((0.5 * a * t * t - pos).abs());
         }
+        worst
+    }
+
+    #[test]
+    fn tracks_a_ramp_with_small_position_error() {
+        let tuning = SpeedTuning::DEFAULT;
+        let pi = SpeedPi::new(tuning.gains(&tuning.right, M_PER_TICK), 1000.0);
+        // 1 m/s at duty 1 and τ = 50 ms, matching the tuning exactly; 0.3 m/s² for 1 s.
+        let worst = ramp_error(&pi, 0.3, 1000, 0.05, |duty| (duty, 1.0 / M_PER_TICK));
         // With an exact motor model the feed-forward alone tracks (the duty is held over a
         // period, so the lag sees a step where the ramp is smooth: a·dt²/8-order, 0.02 tick);
         // what is left is the encoder's floor quantisation (< 1 tick) that the PI reacts to.
@@ -498,12 +513,7 @@ mod tests {
         d0: f32,
     ) -> f64 {
         let pi = SpeedPi::new(tuning.gains(&tuning.right, M_PER_TICK), 1000.0);
-        let mut st = SpeedPiState::default();
-        let (mut v, mut pos, mut meas_prev) = (0.0f64, 0.0f64, 0i64);
-        let a = -0.3 / M_PER_TICK;
-        let mut duty = 0.0f32;
-        let mut worst = 0.0f64;
-        for i in 1..=500 {
+        ramp_error(&pi, -0.3, 500, tau, |duty| {
             // The dead-band eats d0 of the duty; the direction picks the gain.
             let eff = if duty.abs() > d0 {
                 duty - d0.copysign(duty)
@@ -511,20 +521,8 @@ mod tests {
                 0.0
             };
             let k = if eff >= 0.0 { k_fwd } else { k_back } / M_PER_TICK;
-            plant(&mut v, &mut pos, eff, k, tau, 1e-3);
-            let t = f64::from(i) * 1e-3;
-            let t0 = t - 1e-3;
-            let r = WheelReference {
-                delta_ticks: (0.5 * a * (t * t - t0 * t0)) as f32,
-                velocity_tps: (a * (t + 0.5e-3)) as f32,
-                accel_tps2: a as f32,
-            };
-            let meas = pos.floor() as i64;
-            duty = pi.step(&mut st, &r, (meas - meas_prev) as f32);
-            meas_prev = meas;
-            worst = worst.max((0.5 * a * t * t - pos).abs());
-        }
-        worst
+            (eff, k)
+        })
     }
 
     #[test]

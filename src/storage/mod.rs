@@ -279,6 +279,18 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         store
     }
 
+    /// Whether a write may go ahead: the part's flash holds the map and the motors are stopped
+    /// (an erase stalls the bus for up to seconds).
+    fn writable(&self, motors_stopped: bool) -> Result<(), StoreError> {
+        if let Some(t) = self.too_small {
+            return Err(StoreError::FlashTooSmall(t));
+        }
+        if !motors_stopped {
+            return Err(StoreError::MotorsRunning);
+        }
+        Ok(())
+    }
+
     /// Why the store cannot use the flash, if it cannot.
     pub fn flash_too_small(&self) -> Option<FlashTooSmall> {
         self.too_small
@@ -342,12 +354,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         record: &ParamRecord,
         motors_stopped: bool,
     ) -> Result<(), StoreError> {
-        if let Some(t) = self.too_small {
-            return Err(StoreError::FlashTooSmall(t));
-        }
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
+        self.writable(motors_stopped)?;
         record.validate().map_err(StoreError::InvalidRecord)?;
         let first = self
             .map

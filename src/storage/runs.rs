@@ -537,12 +537,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
     ) -> Result<(), StoreError> {
-        if let Some(t) = self.too_small {
-            return Err(StoreError::FlashTooSmall(t));
-        }
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
+        self.writable(motors_stopped)?;
         if runs.len() != ids.len() || runs.len() > MAX_RUNS {
             return Err(StoreError::Encoding);
         }
