@@ -303,3 +303,27 @@ fn a_path_with_ground_truth_along_it_is_fitted_along_the_path() {
     }];
     assert!(calibrate(&short, &NOMINAL, Method::Exact).is_err());
 }
+
+#[test]
+fn the_robust_fit_settles_on_every_noisy_set() {
+    // The scales are medians, which jump when two residuals swap places, so on rare data the
+    // scales and weights cycle instead of settling (seed 31 below did, with run weights only,
+    // before the scales were held after `FREEZE_SCALES_AFTER` rounds). 40 sets of 5 + 5 squares
+    // measured to 2 mm and 20 mrad, with and without channel weights: every fit returns, with
+    // E_b within 5σ of the truth (σ of E_b from 5 + 5 such runs is about 4e-4, see
+    // `a_heading_noisier_than_its_a_priori_weight_is_weighted_down`).
+    let truth = NOMINAL.with_factors(0.995, 1.010, 1.0);
+    let run_weights_only = ExactOptions {
+        channel_weights: false,
+        ..ExactOptions::default()
+    };
+    for options in [ExactOptions::default(), run_weights_only] {
+        for seed in 1..=40 {
+            let r = runs(&truth, None, 0.0, (2e-3, 20e-3), seed);
+            let obs: Vec<_> = r.iter().map(Run::obs).collect();
+            let c = calibrate_with(&obs, &NOMINAL, Method::Exact, &options);
+            let c = c.unwrap_or_else(|e| panic!("seed {seed}, {options:?}: {e:?}"));
+            assert!((c.e_b / 1.010 - 1.0).abs() < 2e-3, "seed {seed}: {}", c.e_b);
+        }
+    }
+}
