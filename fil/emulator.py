@@ -64,8 +64,9 @@ def boot_assist_points(elf):
     Returns a list of (kind, breakpoint address, resume address, register) tuples:
     - `("rcc-ready", branch, next, base_register)`: the loop `ldr rA, [rB]; lsls rA, rA, #n;
       bpl <ldr>` with n = 14 (RCC_CR.HSERDY, bit 17) or n = 6 (RCC_CR.PLLRDY, bit 25);
-    - `("flash-size", ldrh, next, destination)`: `movw rX, #0x7a22; movt rX, #0x1fff` followed
-      by `ldrh rD, [rX, #0]`.
+    - `("flash-size", ldrh, next, destination)`: the address into rX, by `movw rX, #0x7a22;
+      movt rX, #0x1fff` or (size-optimised code) by `ldr rX, [pc, #n]` from a literal word
+      0x1fff7a22, followed by `ldrh rD, [rX, #0]`.
     """
     insns = disassemble(elf)
     points = []
@@ -79,7 +80,21 @@ def boot_assist_points(elf):
                 and int(m1.group(3)) in (6, 14)
                 and arg2.startswith(f"{a0:x} ")):
             points.append(("rcc-ready", a2, a3, GDB_REGISTER.get(m0.group(2), m0.group(2))))
+    def flash_size_read(reg, start):
+        for k in range(start, min(start + 3, len(insns) - 1)):
+            ak, opk, argk = insns[k]
+            mk = re.match(r"(r\d+), \[" + reg + r", #0\]", argk)
+            if opk == "ldrh" and mk:
+                points.append(("flash-size", ak, insns[k + 1][0], mk.group(1)))
+                return
+
+    literals = {a for a, op, arg in insns
+                if op == ".word" and arg.lower() == f"0x{FLASH_SIZE_ADDR:08x}"}
     for i, (a, op, arg) in enumerate(insns):
+        m = re.match(r"(r\d+), \[pc, #\d+\]\s+@ \(([0-9a-f]+)", arg)
+        if op in ("ldr", "ldr.w") and m and int(m.group(2), 16) in literals:
+            flash_size_read(m.group(1), i + 1)
+            continue
         m = re.match(r"(r\d+), #31266\b", arg)
         if op != "movw" or not m:
             continue
@@ -87,12 +102,7 @@ def boot_assist_points(elf):
         for j in range(i + 1, min(i + 6, len(insns) - 1)):
             aj, opj, argj = insns[j]
             if opj == "movt" and argj.startswith(f"{reg}, #8191"):
-                for k in range(j + 1, min(j + 4, len(insns) - 1)):
-                    ak, opk, argk = insns[k]
-                    mk = re.match(r"(r\d+), \[" + reg + r", #0\]", argk)
-                    if opk == "ldrh" and mk:
-                        points.append(("flash-size", ak, insns[k + 1][0], mk.group(1)))
-                        break
+                flash_size_read(reg, j + 1)
                 break
     return points
 
