@@ -31,6 +31,7 @@ use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::util::decimal::Decimal;
+use crate::util::trig;
 
 pub mod exact;
 pub mod jung_chung;
@@ -145,7 +146,7 @@ impl<'a> RunObservation<'a> {
 
 /// Wraps an angle to (−π, π].
 pub fn wrap_angle(a: f64) -> f64 {
-    libm::atan2(libm::sin(a), libm::cos(a))
+    libm::atan2(trig::sin(a), trig::cos(a))
 }
 
 /// A calibration method.

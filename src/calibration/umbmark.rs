@@ -44,7 +44,7 @@ pub fn alpha_beta_y(y_cw: f64, y_ccw: f64, side_m: f64) -> (f64, f64) {
 /// [`CalibrationError::Degenerate`] when `R ≤ b/2` (the leg curves tighter than the wheelbase)
 /// or an input is not finite.
 pub fn diameter_ratio(beta: f64, side_m: f64, wheelbase_m: f64) -> Result<f64, CalibrationError> {
-    let s = libm::sin(0.5 * beta);
+    let s = crate::util::trig::sin(0.5 * beta);
     let num = side_m + wheelbase_m * s;
     let den = side_m - wheelbase_m * s;
     if !(num.is_finite() && den.is_finite()) || num <= 0.0 || den <= 0.0 {

@@ -12,10 +12,11 @@
 //!
 //! which is exact for an arc; the paper's eq. (1) is the same with `sinc = 1` (midpoint rule).
 //! Heading is always computed from the tick totals, never accumulated.
-//! All trigonometry goes through `libm`, so host and target compute the same bits.
+//! All trigonometry goes through `util::trig` and `libm`, so host and target compute the same bits.
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
+use crate::util::trig;
 
 /// A planar pose in `f64`: metres and radians, frame as in the crate docs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -46,7 +47,7 @@ impl PoseF64 {
 
     /// Expresses `world` (a pose in the frame where `self` is given) in the frame of `self`.
     pub fn relative(&self, world: &PoseF64) -> PoseF64 {
-        let (s, c) = libm::sincos(self.theta_rad);
+        let (s, c) = trig::sincos(self.theta_rad);
         let dx = world.x_m - self.x_m;
         let dy = world.y_m - self.y_m;
         PoseF64::new(
@@ -64,7 +65,7 @@ pub fn sinc(u: f64) -> f64 {
         let u2 = u * u;
         1.0 - u2 / 6.0 + u2 * u2 / 120.0
     } else {
-        libm::sin(u) / u
+        trig::sin(u) / u
     }
 }
 
@@ -113,7 +114,7 @@ impl ArcModel {
                 * (self.right_m_per_tick * d.right as f64 + self.left_m_per_tick * d.left as f64);
             let dtheta = theta - theta_prev;
             let chord = ds * sinc(0.5 * dtheta);
-            let (s, c) = libm::sincos(theta_prev + 0.5 * dtheta);
+            let (s, c) = trig::sincos(theta_prev + 0.5 * dtheta);
             x += chord * c;
             y += chord * s;
             prev = k;

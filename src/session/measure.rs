@@ -43,7 +43,7 @@ pub fn position_bound_m(path: &PathKind) -> f64 {
 
 /// Angle in degrees wrapped into (-180, 180].
 fn wrap_deg(d: f64) -> f64 {
-    let mut d = libm::fmod(d, 360.0);
+    let mut d = crate::util::trig::fmod(d, 360.0);
     if d > 180.0 {
         d -= 360.0;
     } else if d <= -180.0 {

@@ -339,7 +339,10 @@ impl<C: Calibrator> Session<C> {
                 " odometry end x={} y={} theta_deg={}; measure it{EOL}",
                 Decimal::signed(end.x_m, 6),
                 Decimal::signed(end.y_m, 6),
-                Decimal::signed(libm::fmod(end.theta_rad.to_degrees(), 360.0), 4),
+                Decimal::signed(
+                    crate::util::trig::fmod(end.theta_rad.to_degrees(), 360.0),
+                    4
+                ),
             )?;
         }
         if let Some(a) = self.active

@@ -76,7 +76,7 @@ pub(super) fn write_path(out: &mut dyn Write, path: &PathKind) -> fmt::Result {
 
 /// Heading in degrees wrapped into (-180, 180].
 fn wrapped_deg(theta_rad: f64) -> f64 {
-    let mut d = libm::fmod(theta_rad.to_degrees(), 360.0);
+    let mut d = crate::util::trig::fmod(theta_rad.to_degrees(), 360.0);
     if d > 180.0 {
         d -= 360.0;
     } else if d <= -180.0 {

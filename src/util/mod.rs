@@ -1,6 +1,7 @@
-//! Small number and text helpers with no domain knowledge: clamping, decimal formatting and
-//! keyword comparison. Uses nothing else in the crate.
+//! Small number and text helpers with no domain knowledge: clamping, decimal formatting, keyword
+//! comparison, sine/cosine and the floating remainder. Uses nothing else in the crate.
 
 pub mod decimal;
 pub mod num;
 pub mod text;
+pub mod trig;
