@@ -4,5 +4,6 @@
 pub mod board;
 pub mod flash;
 pub mod optiodom;
+pub mod pair;
 pub mod plot;
 pub mod robot;

@@ -22,6 +22,8 @@ use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
 use odocal::motion::motor::StopMode;
 use odocal::motion::routine::SegmentKind;
 use odocal::motion::wiring::Wiring;
+
+use crate::sim::pair::Pair;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
@@ -331,48 +333,64 @@ impl Sim {
                 tau_l,
             ),
         };
-        let cpr = f64::from(g.counts_per_rev);
-        // The lag's decay over one sub-step, `exp(−h/τ)`: the same in every sub-step of the
-        // period, so computed once per period and wheel.
-        let decay = |tau: f64| if tau > 0.0 { (-h / tau).exp() } else { 0.0 };
-        let (e_r, e_l) = (decay(tau_r), decay(tau_l));
-        let turn = |w: &mut WheelState, target: f64, tau: f64, e: f64| -> f64 {
-            if w.blocked {
+        // Both wheels side by side (lanes: right, left). A blocked wheel does not turn: with
+        // ω = 0 and target 0 the lag's solution below keeps it at rest.
+        let blocked = (self.right.blocked, self.left.blocked);
+        let (target_r, target_l) = (
+            if blocked.0 { 0.0 } else { target_r },
+            if blocked.1 { 0.0 } else { target_l },
+        );
+        for (w, b) in [(&mut self.right, blocked.0), (&mut self.left, blocked.1)] {
+            if b {
                 w.omega = 0.0;
-                return 0.0;
             }
-            // Exact solution of τ ω̇ + ω = target over h.
-            let (dphi, omega) = if tau > 0.0 {
-                (
-                    target * h + (w.omega - target) * tau * (1.0 - e),
-                    target + (w.omega - target) * e,
-                )
-            } else {
-                (target * h, target)
-            };
-            w.omega = omega;
-            w.counts += dphi / (2.0 * std::f64::consts::PI) * cpr;
-            dphi
-        };
-        // Half the sub-step's travel per unit wheel rotation, with the period's slip.
-        let (rho_r, rho_l) = (0.5 * g.diameter_right_m, 0.5 * g.diameter_left_m);
+        }
+        // The lag's decay over one sub-step, `e = exp(−h/τ)`: the same in every sub-step of
+        // the period, so computed once per period and wheel. τ = 0 (no lag) gives e = 0: the
+        // speed is the target at once.
+        let decay = |tau: f64| if tau > 0.0 { (-h / tau).exp() } else { 0.0 };
+        let target = Pair::new(target_r, target_l);
+        let target_h = target * Pair::splat(h);
+        let tau = Pair::new(tau_r, tau_l);
+        let e = Pair::new(decay(tau_r), decay(tau_l));
+        let one_minus_e = Pair::splat(1.0) - e;
+        let rad_per_rev = Pair::splat(2.0 * std::f64::consts::PI);
+        let cpr = Pair::splat(f64::from(g.counts_per_rev));
+        // Ground travel per unit wheel rotation, with the period's slip.
+        let rho = Pair::new(0.5 * g.diameter_right_m, 0.5 * g.diameter_left_m);
+        let slip = Pair::new(slip_r, slip_l);
+        let mut omega = Pair::new(self.right.omega, self.left.omega);
+        let mut counts = Pair::new(self.right.counts, self.left.counts);
+        let inv_b = 1.0 / g.wheelbase_m;
         // Heading at the period start; within the period the substeps rotate it by small
         // angles δ, whose sine and cosine come from their Taylor series up to δ⁷ and δ⁶ when
         // |δ| < 0.01 rad (truncation error below δ⁸/8! < 3e-21), so one sincos per period
-        // suffices instead of one per substep. The series' coefficients are multiplications by
-        // the reciprocals (a division costs several multiplications; the results differ by at
-        // most an ulp of the correction terms, far below the truncation error of the position).
-        // The state lives in locals during the sub-steps (registers, not memory).
+        // suffices instead of one per substep. Both series are evaluated side by side (lanes:
+        // sin δ / δ, cos δ), their coefficients as multiplications by the reciprocals (a
+        // division costs several multiplications; the results differ by at most an ulp of the
+        // correction terms, far below the truncation error of the position).
+        let one = Pair::splat(1.0);
+        let (k3, k2, k1) = (
+            Pair::new(1.0 / 42.0, 1.0 / 30.0),
+            Pair::new(1.0 / 20.0, 1.0 / 12.0),
+            Pair::new(1.0 / 6.0, 0.5),
+        );
         let theta0 = self.pose.theta_rad;
         let (s0, c0) = theta0.sin_cos();
-        let (mut right, mut left) = (self.right, self.left);
-        let (mut x, mut y) = (self.pose.x_m, self.pose.y_m);
+        // Lanes x, y: the position, and the rotation by θ₀ of a step (cos δ, sin δ).
+        let mut position = Pair::new(self.pose.x_m, self.pose.y_m);
+        let (rot_cos, rot_sin) = (Pair::new(c0, s0), Pair::new(-s0, c0));
         let mut offset = 0.0f64;
         for _ in 0..n {
-            let ds_r = turn(&mut right, target_r, tau_r, e_r) * rho_r * slip_r;
-            let ds_l = turn(&mut left, target_l, tau_l, e_l) * rho_l * slip_l;
+            // Exact solution of τ ω̇ + ω = target over h.
+            let lag = omega - target;
+            let dphi = target_h + lag * tau * one_minus_e;
+            omega = target + lag * e;
+            counts = counts + dphi / rad_per_rev * cpr;
+            let travel = dphi * rho * slip;
+            let (ds_r, ds_l) = (travel.a(), travel.b());
             let ds = 0.5 * (ds_r + ds_l);
-            let dtheta = (ds_r - ds_l) / g.wheelbase_m;
+            let dtheta = (ds_r - ds_l) * inv_b;
             let u = 0.5 * dtheta;
             // `sinc(u)` as the library computes it, its series by reciprocals.
             let chord = if u.abs() < 1e-4 {
@@ -383,23 +401,24 @@ impl Sim {
             };
             let d = offset + u;
             let (sd, cd) = if d.abs() < 0.01 {
-                let d2 = d * d;
-                (
-                    d * (1.0
-                        - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0)))),
-                    1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0))),
-                )
+                let d2 = Pair::splat(d * d);
+                let t = one - d2 * k3;
+                let t = one - d2 * k2 * t;
+                let t = one - d2 * k1 * t;
+                (d * t.a(), t.b())
             } else {
                 d.sin_cos()
             };
-            x += chord * (c0 * cd - s0 * sd);
-            y += chord * (s0 * cd + c0 * sd);
+            position = position
+                + Pair::splat(chord) * (rot_cos * Pair::splat(cd) + rot_sin * Pair::splat(sd));
             offset += dtheta;
         }
-        self.right = right;
-        self.left = left;
-        self.pose.x_m = x;
-        self.pose.y_m = y;
+        self.right.omega = omega.a();
+        self.left.omega = omega.b();
+        self.right.counts = counts.a();
+        self.left.counts = counts.b();
+        self.pose.x_m = position.a();
+        self.pose.y_m = position.b();
         self.pose.theta_rad = theta0 + offset;
         self.periods += 1;
     }
