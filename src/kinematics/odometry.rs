@@ -186,11 +186,16 @@ impl Odometry {
         const HALF: i128 = 1 << (SHIFT - 1);
         let dx = ((travel * i128::from(cos) + HALF) >> SHIFT) as i64;
         let dy = ((travel * i128::from(sin) + HALF) >> SHIFT) as i64;
-        state.pose.x = I24F40::from_bits(state.pose.x.to_bits().wrapping_add(dx));
-        state.pose.y = I24F40::from_bits(state.pose.y.to_bits().wrapping_add(dy));
-        state.pose.heading = heading;
+        // The new pose is built in registers and stored once (returning `state.pose` re-read
+        // just-written halves as one wide load, which stalls store forwarding on the host).
+        let pose = Pose {
+            x: I24F40::from_bits(state.pose.x.to_bits().wrapping_add(dx)),
+            y: I24F40::from_bits(state.pose.y.to_bits().wrapping_add(dy)),
+            heading,
+        };
+        state.pose = pose;
         state.last = totals;
-        state.pose
+        pose
     }
 }
 

@@ -163,6 +163,9 @@ pub struct Sim {
     pose_at_read: PoseF64,
     /// Speed at which a hand pushes the robot straight forward (motors ignored), m/s.
     push_mps: Option<f64>,
+    /// The last sub-step decay of each wheel's lag, `(h, τ, exp(−h/τ))`: commands change
+    /// rarely, so most periods reuse it.
+    decay: [(f64, f64, f64); 2],
 }
 
 impl Sim {
@@ -179,6 +182,7 @@ impl Sim {
             raw_offset: (0, 0),
             pose_at_read: PoseF64::default(),
             push_mps: None,
+            decay: [(f64::NAN, f64::NAN, f64::NAN); 2],
         }
     }
 
@@ -346,13 +350,19 @@ impl Sim {
             }
         }
         // The lag's decay over one sub-step, `e = exp(−h/τ)`: the same in every sub-step of
-        // the period, so computed once per period and wheel. τ = 0 (no lag) gives e = 0: the
-        // speed is the target at once.
-        let decay = |tau: f64| if tau > 0.0 { (-h / tau).exp() } else { 0.0 };
+        // the period (and in every period until h or τ change). τ = 0 (no lag) gives e = 0:
+        // the speed is the target at once.
+        let decay = |cache: &mut (f64, f64, f64), tau: f64| {
+            if cache.0 != h || cache.1 != tau {
+                *cache = (h, tau, if tau > 0.0 { (-h / tau).exp() } else { 0.0 });
+            }
+            cache.2
+        };
+        let [cache_r, cache_l] = &mut self.decay;
+        let e = Pair::new(decay(cache_r, tau_r), decay(cache_l, tau_l));
         let target = Pair::new(target_r, target_l);
         let target_h = target * Pair::splat(h);
         let tau = Pair::new(tau_r, tau_l);
-        let e = Pair::new(decay(tau_r), decay(tau_l));
         let one_minus_e = Pair::splat(1.0) - e;
         let rad_per_rev = Pair::splat(2.0 * std::f64::consts::PI);
         let cpr = Pair::splat(f64::from(g.counts_per_rev));
