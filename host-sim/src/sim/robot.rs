@@ -147,6 +147,113 @@ pub struct RunStats {
     pub completed: bool,
 }
 
+/// What stays the same in the sub-steps of one control period (lanes: right, left wheel;
+/// or x, y).
+struct Period {
+    /// Sub-steps.
+    n: u32,
+    /// Target wheel speeds, rad/s.
+    target: Pair,
+    /// Target speeds times the sub-step, rad.
+    target_h: Pair,
+    /// Lag time constants, s.
+    tau: Pair,
+    /// The lag's decay over a sub-step, `exp(−h/τ)`.
+    e: Pair,
+    /// `1 − e`.
+    one_minus_e: Pair,
+    /// Encoder counts per revolution.
+    cpr: Pair,
+    /// Wheel radii, m.
+    rho: Pair,
+    /// This period's slip factors of the wheels' ground travel.
+    slip: Pair,
+    /// 1 / wheelbase, 1/m.
+    inv_b: f64,
+    /// `(cos θ₀, sin θ₀)` and `(−sin θ₀, cos θ₀)`: a step `(cos δ, sin δ)` relative to the
+    /// heading θ₀ at the period start, rotated into the world frame, is
+    /// `rot_cos · cos δ + rot_sin · sin δ`.
+    rot_cos: Pair,
+    rot_sin: Pair,
+}
+
+/// The state the sub-steps integrate.
+#[derive(Clone, Copy)]
+struct Substep {
+    /// Wheel speeds, rad/s.
+    omega: Pair,
+    /// Wheel rotation since power-up, counts (continuous).
+    counts: Pair,
+    /// Position x, y, m.
+    position: Pair,
+    /// Heading change since the period start, rad.
+    offset: f64,
+}
+
+impl Period {
+    /// Integrates the period's sub-steps from `s`.
+    ///
+    /// The wheels follow the exact solution of `τ ω̇ + ω = target` over each sub-step; the
+    /// robot moves on the exact arc of the sub-step's wheel travel. Within the period the
+    /// sub-steps rotate the heading by small angles δ from θ₀, whose sine and cosine come from
+    /// their Taylor series up to δ⁷ and δ⁶ when |δ| < 0.01 rad (truncation error below
+    /// δ⁸/8! < 3e-21), so one sincos per period suffices instead of one per sub-step. Both
+    /// series are evaluated side by side (lanes: sin δ / δ, cos δ), their coefficients as
+    /// multiplications by the reciprocals (a division costs several multiplications; the
+    /// results differ by at most an ulp of the correction terms, far below the truncation error
+    /// of the position).
+    ///
+    /// Returns whether it integrated the whole period: with `SMALL_ONLY` it gives up (`false`,
+    /// `s` partly advanced) at the first angle beyond the series.
+    #[inline(always)]
+    fn integrate<const SMALL_ONLY: bool>(&self, s: &mut Substep) -> bool {
+        let one = Pair::splat(1.0);
+        let (k3, k2, k1) = (
+            Pair::new(1.0 / 42.0, 1.0 / 30.0),
+            Pair::new(1.0 / 20.0, 1.0 / 12.0),
+            Pair::new(1.0 / 6.0, 0.5),
+        );
+        let rad_per_rev = Pair::splat(2.0 * std::f64::consts::PI);
+        for _ in 0..self.n {
+            let lag = s.omega - self.target;
+            let dphi = self.target_h + lag * self.tau * self.one_minus_e;
+            s.omega = self.target + lag * self.e;
+            s.counts = s.counts + dphi / rad_per_rev * self.cpr;
+            let travel = dphi * self.rho * self.slip;
+            let (ds_r, ds_l) = (travel.a(), travel.b());
+            let ds = 0.5 * (ds_r + ds_l);
+            let dtheta = (ds_r - ds_l) * self.inv_b;
+            let u = 0.5 * dtheta;
+            // `sinc(u)` as the library computes it, its series by reciprocals.
+            let chord = if u.abs() < 1e-4 {
+                let u2 = u * u;
+                ds * (1.0 - u2 * (1.0 / 6.0) + u2 * u2 * (1.0 / 120.0))
+            } else if SMALL_ONLY {
+                return false;
+            } else {
+                ds * sinc(u)
+            };
+            let d = s.offset + u;
+            let (sd, cd) = if d.abs() < 0.01 {
+                let d2 = Pair::splat(d * d);
+                let t = one - d2 * k3;
+                let t = one - d2 * k2 * t;
+                let t = one - d2 * k1 * t;
+                (d * t.a(), t.b())
+            } else if SMALL_ONLY {
+                return false;
+            } else {
+                d.sin_cos()
+            };
+            s.position = s.position
+                + Pair::splat(chord)
+                    * (self.rot_cos * Pair::splat(cd) + self.rot_sin * Pair::splat(sd));
+            s.offset += dtheta;
+        }
+        true
+    }
+}
+
 /// The simulated robot.
 #[derive(Clone, Debug)]
 pub struct Sim {
@@ -361,75 +468,43 @@ impl Sim {
         let [cache_r, cache_l] = &mut self.decay;
         let e = Pair::new(decay(cache_r, tau_r), decay(cache_l, tau_l));
         let target = Pair::new(target_r, target_l);
-        let target_h = target * Pair::splat(h);
-        let tau = Pair::new(tau_r, tau_l);
-        let one_minus_e = Pair::splat(1.0) - e;
-        let rad_per_rev = Pair::splat(2.0 * std::f64::consts::PI);
-        let cpr = Pair::splat(f64::from(g.counts_per_rev));
-        // Ground travel per unit wheel rotation, with the period's slip.
-        let rho = Pair::new(0.5 * g.diameter_right_m, 0.5 * g.diameter_left_m);
-        let slip = Pair::new(slip_r, slip_l);
-        let mut omega = Pair::new(self.right.omega, self.left.omega);
-        let mut counts = Pair::new(self.right.counts, self.left.counts);
-        let inv_b = 1.0 / g.wheelbase_m;
-        // Heading at the period start; within the period the substeps rotate it by small
-        // angles δ, whose sine and cosine come from their Taylor series up to δ⁷ and δ⁶ when
-        // |δ| < 0.01 rad (truncation error below δ⁸/8! < 3e-21), so one sincos per period
-        // suffices instead of one per substep. Both series are evaluated side by side (lanes:
-        // sin δ / δ, cos δ), their coefficients as multiplications by the reciprocals (a
-        // division costs several multiplications; the results differ by at most an ulp of the
-        // correction terms, far below the truncation error of the position).
-        let one = Pair::splat(1.0);
-        let (k3, k2, k1) = (
-            Pair::new(1.0 / 42.0, 1.0 / 30.0),
-            Pair::new(1.0 / 20.0, 1.0 / 12.0),
-            Pair::new(1.0 / 6.0, 0.5),
-        );
         let theta0 = self.pose.theta_rad;
         let (s0, c0) = theta0.sin_cos();
-        // Lanes x, y: the position, and the rotation by θ₀ of a step (cos δ, sin δ).
-        let mut position = Pair::new(self.pose.x_m, self.pose.y_m);
-        let (rot_cos, rot_sin) = (Pair::new(c0, s0), Pair::new(-s0, c0));
-        let mut offset = 0.0f64;
-        for _ in 0..n {
-            // Exact solution of τ ω̇ + ω = target over h.
-            let lag = omega - target;
-            let dphi = target_h + lag * tau * one_minus_e;
-            omega = target + lag * e;
-            counts = counts + dphi / rad_per_rev * cpr;
-            let travel = dphi * rho * slip;
-            let (ds_r, ds_l) = (travel.a(), travel.b());
-            let ds = 0.5 * (ds_r + ds_l);
-            let dtheta = (ds_r - ds_l) * inv_b;
-            let u = 0.5 * dtheta;
-            // `sinc(u)` as the library computes it, its series by reciprocals.
-            let chord = if u.abs() < 1e-4 {
-                let u2 = u * u;
-                ds * (1.0 - u2 * (1.0 / 6.0) + u2 * u2 * (1.0 / 120.0))
-            } else {
-                ds * sinc(u)
-            };
-            let d = offset + u;
-            let (sd, cd) = if d.abs() < 0.01 {
-                let d2 = Pair::splat(d * d);
-                let t = one - d2 * k3;
-                let t = one - d2 * k2 * t;
-                let t = one - d2 * k1 * t;
-                (d * t.a(), t.b())
-            } else {
-                d.sin_cos()
-            };
-            position = position
-                + Pair::splat(chord) * (rot_cos * Pair::splat(cd) + rot_sin * Pair::splat(sd));
-            offset += dtheta;
+        let period = Period {
+            n,
+            target,
+            target_h: target * Pair::splat(h),
+            tau: Pair::new(tau_r, tau_l),
+            e,
+            one_minus_e: Pair::splat(1.0) - e,
+            cpr: Pair::splat(f64::from(g.counts_per_rev)),
+            rho: Pair::new(0.5 * g.diameter_right_m, 0.5 * g.diameter_left_m),
+            slip: Pair::new(slip_r, slip_l),
+            inv_b: 1.0 / g.wheelbase_m,
+            rot_cos: Pair::new(c0, s0),
+            rot_sin: Pair::new(-s0, c0),
+        };
+        let start = Substep {
+            omega: Pair::new(self.right.omega, self.left.omega),
+            counts: Pair::new(self.right.counts, self.left.counts),
+            position: Pair::new(self.pose.x_m, self.pose.y_m),
+            offset: 0.0,
+        };
+        // Nearly every period has only small angles: the pass without library calls (whose
+        // clobbered registers would cost spills in every sub-step) gives up at the first
+        // large one, and the general pass redoes the period from its start.
+        let mut end = start;
+        if !period.integrate::<true>(&mut end) {
+            end = start;
+            period.integrate::<false>(&mut end);
         }
-        self.right.omega = omega.a();
-        self.left.omega = omega.b();
-        self.right.counts = counts.a();
-        self.left.counts = counts.b();
-        self.pose.x_m = position.a();
-        self.pose.y_m = position.b();
-        self.pose.theta_rad = theta0 + offset;
+        self.right.omega = end.omega.a();
+        self.left.omega = end.omega.b();
+        self.right.counts = end.counts.a();
+        self.left.counts = end.counts.b();
+        self.pose.x_m = end.position.a();
+        self.pose.y_m = end.position.b();
+        self.pose.theta_rad = theta0 + end.offset;
         self.periods += 1;
     }
 
