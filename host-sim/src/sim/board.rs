@@ -187,22 +187,35 @@ impl<'f> Board<'f> {
     /// One control period: the controller reads the encoders and drives the motors, the robot
     /// moves, and the session gets its periodic poll (finished runs, pose stream).
     pub fn step(&mut self, out: &mut String) -> StepOutput {
+        let status = self.controller.status();
+        self.step_from(status, out).0
+    }
+
+    /// [`Board::step`] from the controller's `status` now; returns the output and the status
+    /// after the period.
+    fn step_from(&mut self, status: Status, out: &mut String) -> (StepOutput, Status) {
         // The simulated operator's hand: during `bringup push` it pushes the robot forward.
-        let pushing = matches!(self.controller.status(), Status::Checking(CheckKind::Push));
+        let pushing = matches!(status, Status::Checking(CheckKind::Push));
         self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
         let output = self.sim.step(&mut self.controller);
         self.now_us += self.period_us;
         let _ = self
             .session
             .poll(self.now_us, &mut self.controller, &mut self.store, out);
-        self.running = matches!(self.controller.status(), Status::Running { .. });
-        output
+        let status = self.controller.status();
+        self.running = matches!(status, Status::Running { .. });
+        (output, status)
     }
 
     /// Whether the controller is idle (or faulted) with the wheels at rest.
     pub fn at_rest(&self) -> bool {
+        self.at_rest_in(&self.controller.status())
+    }
+
+    /// [`Board::at_rest`] with the controller's `status` now.
+    fn at_rest_in(&self, status: &Status) -> bool {
         !matches!(
-            self.controller.status(),
+            status,
             Status::Running { .. } | Status::Driving | Status::Checking(_)
         ) && self.controller.motors_stopped()
     }
@@ -210,8 +223,9 @@ impl<'f> Board<'f> {
     /// Steps until [`Board::at_rest`] or `max_periods`; returns the periods stepped.
     pub fn run_until_rest(&mut self, max_periods: u64, out: &mut String) -> u64 {
         let mut n = 0;
-        while n < max_periods && !self.at_rest() {
-            self.step(out);
+        let mut status = self.controller.status();
+        while n < max_periods && !self.at_rest_in(&status) {
+            status = self.step_from(status, out).1;
             n += 1;
         }
         n

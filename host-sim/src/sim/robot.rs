@@ -147,6 +147,19 @@ pub struct RunStats {
     pub completed: bool,
 }
 
+/// `x.floor() as i64`, without the library call `floor` is on x86-64's baseline (which has
+/// no rounding instruction): truncation toward zero, one less for a negative non-integer.
+/// The same value for every `x`: beyond ±2^53 every `f64` is an integer, and out-of-range
+/// values saturate as `as` does.
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
 /// What stays the same in the sub-steps of one control period (lanes: right, left wheel;
 /// or x, y).
 struct Period {
@@ -325,10 +338,7 @@ impl Sim {
 
     /// Quantised wheel rotation since power-up (right, left), counts, forward positive.
     pub fn counts(&self) -> (i64, i64) {
-        (
-            self.right.counts.floor() as i64,
-            self.left.counts.floor() as i64,
-        )
+        (floor_i64(self.right.counts), floor_i64(self.left.counts))
     }
 
     /// The hardware counter values the board would read now (right 32-bit normal, left 16-bit
@@ -690,6 +700,35 @@ impl WiringOption {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_i64_is_floor() {
+        let cases = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.0 - f64::EPSILON,
+            2.0f64.powi(52) + 0.5,
+            -(2.0f64.powi(52) + 0.5),
+            2.0f64.powi(53) + 2.0,
+            -(2.0f64.powi(62)),
+            1e30,
+            -1e30,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            123_456_789.999_999_99,
+            -123_456_789.000_000_01,
+        ];
+        for x in cases {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x:e}");
+        }
+    }
 
     #[test]
     fn open_loop_motor_reaches_its_gain_and_counts_wrap() {

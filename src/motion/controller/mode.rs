@@ -335,7 +335,13 @@ impl Controller {
 
     /// The record of the last completed run, once.
     pub fn take_finished_run(&mut self) -> Option<RunRecord> {
-        self.finished.take()
+        // Checked first: `take` copies the whole slot, knot storage included, even when empty
+        // (the session polls this every period).
+        if self.finished.is_some() {
+            self.finished.take()
+        } else {
+            None
+        }
     }
 
     pub(super) fn is_idle(&self) -> bool {
