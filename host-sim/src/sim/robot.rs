@@ -782,6 +782,35 @@ mod tests {
     }
 
     #[test]
+    fn true_pose_of_a_fast_turn_is_exact() {
+        // 100 Hz and the wheels at full and half duty in opposite directions: the heading
+        // changes by 0.039 rad per period and 3.9e-3 rad per sub-step, beyond both series, so
+        // every period takes the general pass (sin, cos, the library's sinc).
+        let g = Geometry::PAPER_NOMINAL;
+        let mut cfg = SimConfig::new(g, 100);
+        cfg.motor.time_constant_s = 0.0;
+        cfg.motor.time_constant_left_s = 0.0;
+        let mut sim = Sim::new(cfg);
+        sim.apply(MotorCommand::Duty {
+            right: 1.0,
+            left: -0.5,
+        });
+        for _ in 0..500 {
+            sim.advance();
+        }
+        let vr = cfg.motor.gain_right_radps * 0.075;
+        let vl = -0.5 * cfg.motor.gain_left_radps * 0.075;
+        let theta = (vr - vl) * 5.0 / g.wheelbase_m;
+        let r = 0.5 * (vr + vl) * 5.0 / theta;
+        let p = sim.true_pose();
+        // About 3 turns in 5,000 exact arcs: f64 summation error only.
+        assert!(theta > 19.0, "{theta}");
+        assert!((p.x_m - r * theta.sin()).abs() < 1e-9, "{p:?}");
+        assert!((p.y_m - r * (1.0 - theta.cos())).abs() < 1e-9, "{p:?}");
+        assert!((p.theta_rad - theta).abs() < 1e-11, "{p:?}");
+    }
+
+    #[test]
     fn slip_noise_is_reproducible() {
         let mut cfg = SimConfig::new(Geometry::PAPER_NOMINAL, 1000);
         cfg.slip_sigma = 0.01;
