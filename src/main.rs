@@ -1,7 +1,8 @@
 //! odocal firmware entry point (RTIC 2, STM32F407).
 //!
 //! Wiring only: tasks own peripherals, call one library function each and publish the result.
-//! Priorities: control (TIM7, 1 kHz) 3 > serial/button 2 > background 1.
+//! Priorities: control (TIM7, 1–10 kHz: the stored `control_hz`) 3 > serial/button 2 >
+//! background 1.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(not(target_os = "none"))]
@@ -40,6 +41,11 @@ rtic_monotonics::systick_monotonic!(Mono, 1000);
 #[cfg(target_os = "none")]
 static LINES_DROPPED: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
 
+/// The control rate the control task runs at, Hz (published for `pace_control`).
+#[cfg(target_os = "none")]
+static CONTROL_RATE_HZ: core::sync::atomic::AtomicU32 =
+    core::sync::atomic::AtomicU32::new(odocal::motion::controller::DEFAULT_RATE_HZ);
+
 /// Set by the USART2 interrupt on Ctrl-C or Esc; the control task aborts any motion in its next
 /// period, before the console task parses any queued line.
 #[cfg(target_os = "none")]
@@ -66,12 +72,12 @@ mod app {
     use odocal::board::watchdog::{set_timeout, start_with_timeout, wait_for_update};
     use odocal::board::{
         BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_FROM_MONOTONIC,
-        CONTROL_HZ, CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders,
-        FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS,
+        CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds,
+        WATCHDOG_MS,
     };
     use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
-    use odocal::motion::controller::{Controller, ControllerConfig};
+    use odocal::motion::controller::{Controller, ControllerConfig, DEFAULT_RATE_HZ};
     use odocal::motion::run::{MAX_RUNS, RunRecord};
     use odocal::protocol::LineAssembler;
     use odocal::protocol::reply::{ByteSink, ErrorCode, write_err};
@@ -86,7 +92,9 @@ mod app {
     use stm32f4xx_hal::serial::{TxISR, TxListen};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-    use super::{ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ, STOP_REQUEST};
+    use super::{
+        CONTROL_RATE_HZ, ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ, STOP_REQUEST,
+    };
     use core::sync::atomic::Ordering;
 
     /// A received line, rejected line or stop key, from the USART2 interrupt to the console task.
@@ -125,9 +133,10 @@ mod app {
         Mono::now().ticks()
     }
 
-    /// A controller for `geometry`, or for the built-in default when the stored one is refused.
+    /// A controller for the stored settings (at the stored rate), or for the built-in defaults
+    /// when they are refused.
     fn make_controller(settings: &Settings) -> Controller {
-        match Controller::new(settings.controller_config(CONTROL_HZ)) {
+        match Controller::new(settings.controller_config()) {
             Ok(c) => c,
             Err(e) => {
                 defmt::warn!(
@@ -136,7 +145,7 @@ mod app {
                 );
                 // The built-in defaults are validated by the library's tests
                 // (`tests/controller.rs`), so this cannot fail at run time.
-                match Controller::new(ControllerConfig::new(Geometry::default(), CONTROL_HZ)) {
+                match Controller::new(ControllerConfig::new(Geometry::default(), DEFAULT_RATE_HZ)) {
                     Ok(c) => c,
                     Err(_) => defmt::panic!("built-in controller defaults rejected"),
                 }
@@ -223,6 +232,11 @@ mod app {
         let params = loaded.record;
         let settings = Settings::from(&params);
         let controller = make_controller(&settings);
+        // The control period from the stored rate on (the board started it at the default).
+        let rate_hz = controller.config().rate_hz;
+        let mut tick = board.tick;
+        tick.set_rate_hz(rate_hz);
+        CONTROL_RATE_HZ.store(rate_hz, Ordering::Relaxed);
         let session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
@@ -250,7 +264,7 @@ mod app {
         pace_control::spawn().ok();
         defmt::info!(
             "odocal up: control at {} Hz, calibration '{}'",
-            CONTROL_HZ,
+            rate_hz,
             params.calibration.method.as_str()
         );
 
@@ -262,7 +276,7 @@ mod app {
             },
             Local {
                 encoders: board.encoders,
-                tick: board.tick,
+                tick,
                 motors: board.motors,
                 button_pin: board.button,
                 leds: board.leds,
@@ -305,7 +319,7 @@ mod app {
             button.lock(|b| b.poll(now_ms()))
         };
         let mut controller = cx.shared.controller;
-        let fault = controller.lock(|c| {
+        let (fault, rate_hz) = controller.lock(|c| {
             if STOP_REQUEST.swap(false, Ordering::Relaxed) {
                 // Ctrl-C or Esc on the console: stop in this period.
                 c.abort();
@@ -321,12 +335,19 @@ mod app {
                 // The session (console task) acts on the press: next planned run, clear, stop.
                 let _ = cx.local.press_in.enqueue(p);
             }
-            out.fault.is_some()
+            (out.fault.is_some(), c.config().rate_hz)
         });
+        // `set control_hz` retimed the controller (only while idle): the period source follows
+        // from the next period on.
+        if rate_hz != cx.local.tick.rate_hz() {
+            cx.local.tick.set_rate_hz(rate_hz);
+            CONTROL_RATE_HZ.store(rate_hz, Ordering::Relaxed);
+            *cx.local.heartbeat_periods = 0;
+        }
         // The LEDs live here, at the control task's priority, so the heartbeat keeps blinking
         // while the console task runs a long calibration solve.
         *cx.local.heartbeat_periods += 1;
-        if *cx.local.heartbeat_periods >= CONTROL_HZ / 2 {
+        if *cx.local.heartbeat_periods >= rate_hz / 2 {
             *cx.local.heartbeat_periods = 0;
             cx.local.leds.toggle_heartbeat();
         }
@@ -334,17 +355,18 @@ mod app {
     }
 
     /// On a board without a control-period timer (the emulator), pends the control interrupt
-    /// every period from the monotonic (1 ms ticks; `CONTROL_HZ` divides 1000 there). On the
-    /// F407, TIM7 raises it and this task ends at once.
+    /// from the monotonic: every period at 1 kHz, one period per 1 ms tick at higher rates
+    /// (the emulator's plant counts periods, not wall time). On the F407, TIM7 raises it and
+    /// this task ends at once.
     #[task(priority = 3)]
     async fn pace_control(_cx: pace_control::Context) {
         if !CONTROL_FROM_MONOTONIC {
             return;
         }
-        let period = (1_000 / CONTROL_HZ).max(1).millis();
         let mut next = Mono::now();
         loop {
-            next += period;
+            let rate_hz = CONTROL_RATE_HZ.load(Ordering::Relaxed).max(1);
+            next += (1_000 / rate_hz).max(1).millis();
             Mono::delay_until(next).await;
             rtic::pend(CONTROL_INTERRUPT);
         }

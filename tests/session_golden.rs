@@ -36,6 +36,7 @@ struct ScriptedRobot {
     check: Option<CheckKind>,
     check_reports: Vec<CheckReport>,
     tuning: Option<SpeedTuning>,
+    rate_hz: Option<u32>,
 }
 
 impl ScriptedRobot {
@@ -147,6 +148,11 @@ impl Robot for ScriptedRobot {
     fn set_tuning(&mut self, t: &SpeedTuning) -> Result<(), RobotError> {
         self.check_idle()?;
         self.tuning = Some(*t);
+        Ok(())
+    }
+    fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError> {
+        self.check_idle()?;
+        self.rate_hz = Some(rate_hz);
         Ok(())
     }
 }
@@ -363,6 +369,7 @@ fn params_golden() {
          \x20 motor_left_tau 0.0500 s\r\n\
          \x20 motor_left_deadband 0.0000 duty\r\n\
          \x20 speed_bandwidth 30.0000 rad/s\r\n\
+         \x20 control_hz 1000 Hz\r\n\
          \x20 speed_loop right kp=3.500 ki=135.000 kii=1350.000 ff_fwd=1.0000 ff_back=1.0000 ff_accel=0.0500 deadband=0.0000\r\n\
          \x20 speed_loop left kp=3.500 ki=135.000 kii=1350.000 ff_fwd=1.0000 ff_back=1.0000 ff_accel=0.0500 deadband=0.0000\r\n\
          \x20 active d_right=0.150000000 d_left=0.150000000 wheelbase=0.385000000 m\r\n\
@@ -452,6 +459,43 @@ fn set_golden_and_pushes_to_the_robot() {
         "err 10: robot is busy (stop first)\r\n"
     );
     assert_eq!(b.session.settings().motion.max_speed_mps, 0.5);
+}
+
+#[test]
+fn control_rate_is_set_validated_pushed_and_saved() {
+    let mut b = Bench::new();
+    assert_eq!(b.session.settings().control_hz, 1000);
+    assert_eq!(
+        b.send("set control_hz 10000"),
+        "ok control_hz = 10000 Hz\r\n"
+    );
+    assert_eq!(b.robot.rate_hz, Some(10_000));
+    // Within 1..10 kHz but not a rate the timers divide to: refused, nothing changes.
+    let rule = "err 17: control rate must be 1000, 2000, 4000, 5000, 8000 or 10000 Hz \
+                (1..10 kHz, whole kHz with a whole number of microseconds per period)\r\n";
+    assert_eq!(b.send("set control_hz 3000"), rule);
+    assert_eq!(b.send("set control_hz 2500"), rule);
+    assert_eq!(
+        b.send("set control_hz 20000"),
+        "err 6: <value> must be within 1000..10000\r\n"
+    );
+    assert!(b.send("set control_hz 1000.5").starts_with("err "));
+    assert_eq!(b.robot.rate_hz, Some(10_000));
+    assert_eq!(b.session.settings().control_hz, 10_000);
+    assert_eq!(
+        b.send("set control_hz 10000"),
+        "ok control_hz = 10000 Hz (unchanged)\r\n"
+    );
+    assert!(b.send("params").contains("  control_hz 10000 Hz\r\n"));
+    assert!(b.send("save").starts_with("ok"));
+    assert_eq!(b.store.saved.as_ref().map(|s| s.control_hz), Some(10_000));
+    // Only while idle.
+    b.send("run cw");
+    assert_eq!(
+        b.send("set control_hz 2000"),
+        "err 10: robot is busy (stop first)\r\n"
+    );
+    assert_eq!(b.robot.rate_hz, Some(10_000));
 }
 
 #[test]

@@ -18,6 +18,16 @@ fn store_raw(flash: &mut BoardFlash, bytes: &[u8]) {
     embassy_futures::block_on(map.store_item(&mut buf, &PARAMS_KEY, &bytes)).unwrap();
 }
 
+/// The version byte of the record stored under the parameter key, read raw.
+fn last_stored_version(flash: &mut BoardFlash) -> Option<u8> {
+    let mut map =
+        MapStorage::<u8, _, _>::new(flash, MapConfig::new(BOARD_RANGE), Cache::new_uncached());
+    let mut buf = [0u8; 256];
+    let item: Option<&[u8]> =
+        embassy_futures::block_on(map.fetch_item(&mut buf, &PARAMS_KEY)).unwrap();
+    item.and_then(|b| b.first().copied())
+}
+
 #[test]
 fn empty_flash_gives_defaults_with_a_warning() {
     let mut flash = Box::new(BoardFlash::default());
@@ -121,7 +131,7 @@ fn stored_nan_record_is_rejected_at_load() {
 fn other_format_versions_are_rejected_cleanly() {
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     calibrated(3).encode(&mut bytes).unwrap();
-    for version in [0u8, 4, 255] {
+    for version in [0u8, 5, 255] {
         let mut flash = Box::new(BoardFlash::default());
         bytes[0] = version;
         store_raw(&mut flash, &bytes);
@@ -147,10 +157,36 @@ fn other_format_versions_are_rejected_cleanly() {
     );
 }
 
+/// A board upgraded from a version-3 record (everything but the control rate): it loads
+/// through the real flash store with its calibration, wiring and tuning intact and the 1 kHz
+/// that firmware ran at; the next save writes a version-4 record that loads back unchanged.
+#[test]
+fn version_3_records_survive_the_upgrade_at_1_khz() {
+    let mut old = calibrated(9);
+    old.control_hz = 1_000;
+    let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
+    old.encode(&mut bytes).unwrap();
+    bytes[0] = 3;
+    let mut flash = Box::new(BoardFlash::default());
+    store_raw(&mut flash, &bytes[..ParamRecord::V3_LEN]);
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let out = store.load_blocking();
+    assert_eq!(out.warning, None);
+    assert_eq!(out.record, old);
+    // The operator raises the rate and saves: version 4 on flash, read back exactly.
+    let mut faster = out.record;
+    faster.control_hz = 10_000;
+    store.save_blocking(&faster, true).unwrap();
+    let again = store.load_blocking();
+    assert_eq!(again.warning, None);
+    assert_eq!(again.record, faster);
+    assert_eq!(last_stored_version(&mut flash), Some(4));
+}
+
 /// A board upgraded from an older record format: its stored version-1 record (no wiring byte,
 /// no tuning) or version-2 record (no tuning) loads with its calibration intact, the standard
-/// wiring (v1) or its own (v2), and the default speed-loop tuning those firmwares used; the
-/// next save writes the current version.
+/// wiring (v1) or its own (v2), and the default speed-loop tuning and 1 kHz control rate those
+/// firmwares used; the next save writes the current version.
 #[test]
 fn version_1_and_2_records_survive_the_upgrade() {
     let old = calibrated(5);
@@ -176,6 +212,7 @@ fn version_1_and_2_records_survive_the_upgrade() {
             out.record.tuning,
             odocal::motion::speed::SpeedTuning::DEFAULT
         );
+        assert_eq!(out.record.control_hz, 1_000);
         store.save_blocking(&out.record, true).unwrap();
         let again = store.load_blocking();
         assert_eq!(again.warning, None);

@@ -11,6 +11,7 @@
 //! | `Board::encoders.read()` | raw right/left counter values each control period |
 //! | `Board::motors` ([`crate::motion::motor::MotorDriver`]) | the controller's motor command |
 //! | `Board::tick.clear()` | acknowledges the control-period interrupt (TIM7, [`CONTROL_INTERRUPT`]) |
+//! | `Board::tick.set_rate_hz()`, `rate_hz()` | the control rate: at boot from the stored `control_hz`, and when `set control_hz` changed it |
 //! | [`CONTROL_FROM_MONOTONIC`] | whether the app pends the control interrupt from the monotonic (a board without the timer) |
 //! | `Board::button.edge()` | acknowledges a button edge and reads the level |
 //! | `Board::leds` | heartbeat and fault LEDs |
@@ -20,7 +21,7 @@
 //! | `Board::reset_cause` | why the MCU last reset, reported at boot |
 //! | `Board::clock` | whether the crystal started (else the internal oscillator), reported at boot |
 //! | `safety` | motor pins safe from reset, emergency stop, panic and HardFault handlers |
-//! | `CONTROL_HZ`, `WATCHDOG_MS`, `FLASH_WATCHDOG_MS` | rates and timeouts |
+//! | `WATCHDOG_MS`, `FLASH_WATCHDOG_MS` | timeouts |
 //!
 //! [`f407`] is the STM32F407 board (pin map in its module docs). With the cargo feature
 //! `emulator`, `emulator` (QEMU's `netduinoplus2` with a simulated robot, for the
@@ -33,15 +34,15 @@ pub mod emulator;
 
 #[cfg(not(feature = "emulator"))]
 pub use f407::{
-    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx,
-    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, ResetCause, WATCHDOG_MS, init,
-    safety, watchdog,
+    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, ConsoleRx, ConsoleTx,
+    ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, ResetCause, WATCHDOG_MS, init, safety,
+    watchdog,
 };
 
 #[cfg(feature = "emulator")]
 pub use emulator::{
-    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_HZ, ConsoleRx,
-    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
+    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, ConsoleRx, ConsoleTx,
+    ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
 };
 // The safe-state code and the reset cause are the MCU's, the same on both boards.
 pub use f407::ClockSource;
@@ -51,6 +52,6 @@ pub use f407::{ResetCause, safety};
 /// The interrupt the control task is bound to (TIM7's vector on every board).
 pub const CONTROL_INTERRUPT: stm32f4xx_hal::pac::Interrupt = stm32f4xx_hal::pac::Interrupt::TIM7;
 
-/// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic at `CONTROL_HZ`: false on the
+/// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic (one period per 1 ms tick): false on the
 /// F407 (TIM7 raises it), true on the emulator (QEMU has no TIM7).
 pub const CONTROL_FROM_MONOTONIC: bool = cfg!(feature = "emulator");

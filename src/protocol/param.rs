@@ -61,11 +61,14 @@ pub enum ParamName {
     MotorLeftDeadband,
     /// Speed-loop bandwidth: the closed-loop poles, rad/s.
     SpeedBandwidth,
+    /// Control (and odometry) rate, Hz: one of
+    /// [`crate::motion::controller::RATES_HZ`] (1 kHz to 10 kHz).
+    ControlHz,
 }
 
 impl ParamName {
     /// Every parameter, in the order `params` lists them.
-    pub const ALL: [ParamName; 23] = [
+    pub const ALL: [ParamName; 24] = [
         ParamName::DiameterRight,
         ParamName::DiameterLeft,
         ParamName::Wheelbase,
@@ -89,6 +92,7 @@ impl ParamName {
         ParamName::MotorLeftTau,
         ParamName::MotorLeftDeadband,
         ParamName::SpeedBandwidth,
+        ParamName::ControlHz,
     ];
 
     /// The name used on the wire.
@@ -117,6 +121,7 @@ impl ParamName {
             ParamName::MotorLeftTau => "motor_left_tau",
             ParamName::MotorLeftDeadband => "motor_left_deadband",
             ParamName::SpeedBandwidth => "speed_bandwidth",
+            ParamName::ControlHz => "control_hz",
         }
     }
 
@@ -152,6 +157,7 @@ impl ParamName {
             ParamName::MotorRightTau | ParamName::MotorLeftTau => "s",
             ParamName::MotorRightDeadband | ParamName::MotorLeftDeadband => "duty",
             ParamName::SpeedBandwidth => "rad/s",
+            ParamName::ControlHz => "Hz",
         }
     }
 
@@ -183,6 +189,7 @@ impl ParamName {
                 f32_range(MotorParams::DEADBAND_RANGE)
             }
             ParamName::SpeedBandwidth => f32_range(SpeedTuning::BANDWIDTH_RANGE),
+            ParamName::ControlHz => (1_000.0, 10_000.0),
         }
     }
 
@@ -204,7 +211,10 @@ impl ParamName {
 
     /// Whether the value must be a whole number.
     pub fn is_integer(self) -> bool {
-        matches!(self, ParamName::CountsPerRev | ParamName::RunsPerDirection) || self.is_sign()
+        matches!(
+            self,
+            ParamName::CountsPerRev | ParamName::RunsPerDirection | ParamName::ControlHz
+        ) || self.is_sign()
     }
 
     /// Whether this is a wiring sign (±1; 0 is refused).

@@ -156,6 +156,10 @@ impl Robot for Controller {
     fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {
         Controller::set_tuning(self, *tuning).map_err(set_error)
     }
+
+    fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError> {
+        Controller::set_rate(self, rate_hz).map_err(set_error)
+    }
 }
 
 fn set_error(e: SetError) -> RobotError {
@@ -164,6 +168,7 @@ fn set_error(e: SetError) -> RobotError {
         SetError::Geometry(_) => RobotError::Rejected("geometry not accepted by the controller"),
         SetError::Limits(_) => RobotError::Rejected("limits not accepted by the controller"),
         SetError::Tuning(_) => RobotError::Rejected("tuning not accepted by the controller"),
+        SetError::Rate => RobotError::Rejected("control rate not accepted by the controller"),
     }
 }
 
@@ -251,6 +256,10 @@ impl<L: ControllerLock> Robot for Locked<L> {
     fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::set_tuning(c, tuning))
     }
+    #[inline(never)]
+    fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError> {
+        self.0.with_controller(|c| Robot::set_rate(c, rate_hz))
+    }
 }
 
 impl From<&ParamRecord> for Settings {
@@ -277,6 +286,7 @@ impl From<&ParamRecord> for Settings {
             runs_per_direction: r.motion.runs_per_direction,
             wiring: r.wiring,
             tuning: r.tuning,
+            control_hz: r.control_hz,
         }
     }
 }
@@ -309,6 +319,7 @@ impl Settings {
             ),
             wiring: self.wiring,
             tuning: self.tuning,
+            control_hz: self.control_hz,
         })
     }
 }
@@ -616,6 +627,7 @@ mod tests {
         s.motion.max_speed_mps = 0.45;
         s.square_side_m = 1.7;
         s.runs_per_direction = 4;
+        s.control_hz = 8_000;
         s.active = s.nominal.with_factors(0.995, 1.01, 1.0);
         let mut method = heapless::String::new();
         method.push_str("exact").unwrap();

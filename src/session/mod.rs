@@ -801,6 +801,7 @@ impl<C: Calibrator> Session<C> {
             Changed::Plan | Changed::Nothing => Ok(()),
             Changed::Wiring => robot.set_wiring(new.wiring),
             Changed::Tuning => robot.set_tuning(&new.tuning),
+            Changed::Rate => robot.set_rate(new.control_hz),
         };
         if let Err(e) = pushed {
             return robot_err(out, e);

@@ -2,13 +2,14 @@
 //!
 //! [`Settings`] is everything `params` shows and `save` persists: the nominal geometry, the
 //! applied calibration (factors relative to nominal and the resulting absolute geometry), the
-//! motion limits and the calibration plan. Units: metres, seconds, radians. Motion limits and the
+//! motion limits, the calibration plan, the wiring, the speed-loop tuning and the control rate.
+//! Units: metres, seconds, radians. Motion limits and the
 //! planned side are `f32` like the controller's limits and the stored record; geometry is `f64`.
 
 use core::fmt;
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
-use crate::motion::controller::ControllerConfig;
+use crate::motion::controller::{ControllerConfig, DEFAULT_RATE_HZ, rate_supported};
 use crate::motion::profile::MotionLimits;
 use crate::motion::speed::{SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
@@ -54,6 +55,8 @@ pub struct Settings {
     /// Speed-loop tuning: both motors' models and the bandwidth (the PI gains and feed-forward
     /// are derived from it).
     pub tuning: SpeedTuning,
+    /// Control (and odometry) rate, Hz: one of [`crate::motion::controller::RATES_HZ`].
+    pub control_hz: u32,
 }
 
 impl Default for Settings {
@@ -67,6 +70,7 @@ impl Default for Settings {
             runs_per_direction: 5,
             wiring: Wiring::STANDARD,
             tuning: SpeedTuning::DEFAULT,
+            control_hz: DEFAULT_RATE_HZ,
         }
     }
 }
@@ -91,6 +95,9 @@ pub enum SettingsError {
         /// The ratio it would be.
         ratio: f64,
     },
+    /// A control rate the controller does not run at (not one of
+    /// [`crate::motion::controller::RATES_HZ`]).
+    Rate,
 }
 
 /// Accepted nominal `d_right / d_left`: wheels of one robot differ by far less; a value outside
@@ -113,6 +120,7 @@ impl fmt::Display for SettingsError {
                 crate::util::decimal::Plain(DIAMETER_RATIO_RANGE.0),
                 crate::util::decimal::Plain(DIAMETER_RATIO_RANGE.1),
             ),
+            SettingsError::Rate => f.write_str(crate::motion::controller::RATE_RULE),
             SettingsError::WheelbaseRatio { ratio } => write!(
                 f,
                 "wheelbase/wheel diameter would be {}, outside {}..{}",
@@ -157,6 +165,8 @@ pub enum Changed {
     Wiring,
     /// The speed-loop tuning.
     Tuning,
+    /// The control rate.
+    Rate,
 }
 
 impl Settings {
@@ -166,11 +176,12 @@ impl Settings {
         libm::round(f64::from(self.square_side_m) * 1e6) / 1e6
     }
 
-    /// The controller configuration these settings ask for at `rate_hz`: the board's defaults
-    /// with the active geometry, the motion limits and the wiring corrections. The firmware and
-    /// the simulated board both boot their controller from it.
-    pub fn controller_config(&self, rate_hz: u32) -> ControllerConfig {
-        let mut c = ControllerConfig::new(self.active, rate_hz);
+    /// The controller configuration these settings ask for: the board's defaults at the stored
+    /// control rate with the active geometry, the motion limits, the wiring corrections and the
+    /// speed-loop tuning. The firmware and the simulated board both boot their controller from
+    /// it.
+    pub fn controller_config(&self) -> ControllerConfig {
+        let mut c = ControllerConfig::new(self.active, self.control_hz);
         c.limits = self.motion;
         c.wiring = self.wiring;
         c.speed = self.tuning;
@@ -194,6 +205,7 @@ impl Settings {
             ParamName::MotorLeftSign => sign(self.wiring.motor_left_reversed),
             ParamName::EncoderRightSign => sign(self.wiring.encoder_right_reversed),
             ParamName::EncoderLeftSign => sign(self.wiring.encoder_left_reversed),
+            ParamName::ControlHz => f64::from(self.control_hz),
             _ => tuning_field(&self.tuning, name).map_or(0.0, f64::from),
         }
     }
@@ -271,6 +283,14 @@ impl Settings {
                     _ => &mut w.encoder_left_reversed,
                 } = reversed;
                 Changed::Wiring
+            }
+            ParamName::ControlHz => {
+                let hz = libm::round(value) as u32;
+                if !rate_supported(hz) {
+                    return Err(SettingsError::Rate);
+                }
+                s.control_hz = hz;
+                Changed::Rate
             }
             _ => {
                 let Some(field) = tuning_field_mut(&mut s.tuning, name) else {

@@ -122,6 +122,12 @@ pub trait Robot {
     /// # Errors
     /// [`RobotError::Busy`] unless idle; [`RobotError::Rejected`] for an invalid tuning.
     fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError>;
+    /// Runs the control loop at `rate_hz` from the next period on: the controller converts
+    /// everything it times, and the board retimes its control-period source to match.
+    ///
+    /// # Errors
+    /// [`RobotError::Busy`] unless idle; [`RobotError::Rejected`] for a rate it cannot run at.
+    fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError>;
 }
 
 /// Why a flash operation failed.

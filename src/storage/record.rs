@@ -1,5 +1,5 @@
-//! The one record the board persists: geometry, calibration result, motion settings, wiring and
-//! the speed-loop tuning.
+//! The one record the board persists: geometry, calibration result, motion settings, wiring, the
+//! speed-loop tuning and the control rate.
 //!
 //! [`ParamRecord`] is what `save` writes and what boot loads. Its stored form is a hand-written,
 //! fixed-length little-endian layout ([`ParamRecord::ENCODED_LEN`] bytes, byte 0 = format
@@ -16,6 +16,7 @@ use core::fmt;
 use sequential_storage::map::{SerializationError, Value};
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
+use crate::motion::controller::{DEFAULT_RATE_HZ, rate_supported};
 use crate::motion::speed::{MotorParams, SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
 
@@ -225,6 +226,8 @@ pub struct ParamRecord {
     /// Speed-loop tuning: both motors' models and the bandwidth (the output limit is not
     /// stored: always full duty).
     pub tuning: SpeedTuning,
+    /// Control rate, Hz (one of [`crate::motion::controller::RATES_HZ`]).
+    pub control_hz: u32,
 }
 
 /// Why a record was rejected by [`ParamRecord::validate`] or [`MethodName::new`].
@@ -261,6 +264,8 @@ pub enum RecordError {
     RunsPerDirection,
     /// The speed-loop tuning is invalid.
     Tuning(TuningError),
+    /// The control rate is not one of [`crate::motion::controller::RATES_HZ`].
+    ControlRate,
 }
 
 impl fmt::Display for RecordError {
@@ -284,6 +289,7 @@ impl fmt::Display for RecordError {
             RecordError::SquareSide => f.write_str("square side must be within 0.1..20 m"),
             RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
             RecordError::Tuning(e) => write!(f, "speed tuning: {e}"),
+            RecordError::ControlRate => f.write_str(crate::motion::controller::RATE_RULE),
         }
     }
 }
@@ -440,9 +446,10 @@ impl ParamRecord {
     /// time constant, dead-band; bandwidth; nine `f32`). A version-1 record is read with the
     /// standard wiring and a version-1 or -2 record with the default tuning
     /// ([`SpeedTuning::DEFAULT`], what those firmwares used); the calibration, geometry and
-    /// motion settings carry over unchanged (see [`ParamRecord::decode`]). Any other version is
-    /// rejected.
-    pub const FORMAT_VERSION: u8 = 3;
+    /// motion settings carry over unchanged (see [`ParamRecord::decode`]). 4 = version 3 + the
+    /// control rate (`u32`, Hz); a version-1..3 record is read with [`DEFAULT_RATE_HZ`], the
+    /// fixed rate of those firmwares. Any other version is rejected.
+    pub const FORMAT_VERSION: u8 = 4;
 
     /// Length of a version-1 record, bytes: version 1 + nominal geometry 28 + `E_d, E_b, E_s`
     /// 24 + calibrated geometry 28 + method 1 + 12 + runs 2 + `E_max` 8 + motion 5 × 4 + 1.
@@ -451,8 +458,11 @@ impl ParamRecord {
     /// Length of a version-2 record, bytes: [`Self::V1_LEN`] + wiring 1.
     pub const V2_LEN: usize = Self::V1_LEN + 1;
 
-    /// Length of the stored record, bytes: [`Self::V2_LEN`] + tuning 9 × 4.
-    pub const ENCODED_LEN: usize = Self::V2_LEN + 9 * 4;
+    /// Length of a version-3 record, bytes: [`Self::V2_LEN`] + tuning 9 × 4.
+    pub const V3_LEN: usize = Self::V2_LEN + 9 * 4;
+
+    /// Length of the stored record, bytes: [`Self::V3_LEN`] + control rate 4.
+    pub const ENCODED_LEN: usize = Self::V3_LEN + 4;
 
     /// The paper's nominal robot (D = 150 mm, b = 385 mm, 200,000 counts/rev), uncalibrated,
     /// factory motion settings.
@@ -462,6 +472,7 @@ impl ParamRecord {
         motion: MotionSettings::DEFAULT,
         wiring: Wiring::STANDARD,
         tuning: SpeedTuning::DEFAULT,
+        control_hz: DEFAULT_RATE_HZ,
     };
 
     /// The geometry odometry and the routine use: the calibrated one.
@@ -502,7 +513,11 @@ impl ParamRecord {
             return Err(RecordError::PredictedError);
         }
         self.motion.validate()?;
-        self.tuning.validate().map_err(RecordError::Tuning)
+        self.tuning.validate().map_err(RecordError::Tuning)?;
+        if !rate_supported(self.control_hz) {
+            return Err(RecordError::ControlRate);
+        }
+        Ok(())
     }
 
     /// Writes the stored form into `buf`; returns the number of bytes written
@@ -538,6 +553,7 @@ impl ParamRecord {
         w.motor(&t.right);
         w.motor(&t.left);
         w.f32(t.bandwidth_radps);
+        w.bytes(&self.control_hz.to_le_bytes());
         Ok(w.pos)
     }
 
@@ -556,10 +572,12 @@ impl ParamRecord {
             });
         };
         // Migration: a version-1 record has no wiring byte and means the standard wiring; a
-        // version-1 or -2 record has no tuning and means the default one.
+        // version-1 or -2 record has no tuning and means the default one; a version-1..3
+        // record has no control rate and means the 1 kHz those firmwares ran at.
         let expected = match version {
             1 => Self::V1_LEN,
             2 => Self::V2_LEN,
+            3 => Self::V3_LEN,
             Self::FORMAT_VERSION => Self::ENCODED_LEN,
             found => return Err(FormatError::UnsupportedVersion { found }),
         };
@@ -608,6 +626,11 @@ impl ParamRecord {
                 output_limit: SpeedTuning::DEFAULT.output_limit,
             }
         };
+        let control_hz = if version < 4 {
+            DEFAULT_RATE_HZ
+        } else {
+            u32::from_le_bytes(r.array())
+        };
         Ok(ParamRecord {
             nominal,
             calibration: Calibration {
@@ -622,6 +645,7 @@ impl ParamRecord {
             motion,
             wiring,
             tuning,
+            control_hz,
         })
     }
 }
@@ -685,6 +709,7 @@ mod tests {
                 bandwidth_radps: 25.0,
                 output_limit: 1.0,
             },
+            control_hz: 5_000,
         }
     }
 
@@ -715,10 +740,10 @@ mod tests {
     fn version_and_length_are_checked() {
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         calibrated().encode(&mut buf).unwrap();
-        buf[0] = 4;
+        buf[0] = 5;
         assert_eq!(
             ParamRecord::decode(&buf),
-            Err(FormatError::UnsupportedVersion { found: 4 })
+            Err(FormatError::UnsupportedVersion { found: 5 })
         );
         buf[0] = 0;
         assert_eq!(
@@ -737,16 +762,17 @@ mod tests {
         );
     }
 
-    /// A version-`v` record (1: no wiring byte, 2: no tuning) as that firmware wrote it: the
-    /// current layout cut to that version's length, with its version byte. Versions 1..3 only
-    /// ever appended fields, so this is byte for byte what those firmwares stored.
+    /// A version-`v` record (1: no wiring byte, 2: no tuning, 3: no control rate) as that
+    /// firmware wrote it: the current layout cut to that version's length, with its version
+    /// byte. Versions 1..4 only ever appended fields, so this is byte for byte what those
+    /// firmwares stored.
     fn old_bytes(rec: &ParamRecord, v: u8) -> std::vec::Vec<u8> {
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         rec.encode(&mut buf).unwrap();
-        let len = if v == 1 {
-            ParamRecord::V1_LEN
-        } else {
-            ParamRecord::V2_LEN
+        let len = match v {
+            1 => ParamRecord::V1_LEN,
+            2 => ParamRecord::V2_LEN,
+            _ => ParamRecord::V3_LEN,
         };
         let mut old = buf[..len].to_vec();
         old[0] = v;
@@ -763,6 +789,44 @@ mod tests {
         assert_eq!(old[0], 2);
         assert_eq!(&old[1..9], &0.15f64.to_le_bytes());
         assert_eq!(old_bytes(&ParamRecord::DEFAULT, 1).len(), 125);
+        // Version 3 ends with the bandwidth: 25 rad/s as the default tuning stores it.
+        let v3 = old_bytes(&ParamRecord::DEFAULT, 3);
+        assert_eq!(v3.len(), 162);
+        assert_eq!(
+            &v3[158..],
+            &SpeedTuning::DEFAULT.bandwidth_radps.to_le_bytes()
+        );
+    }
+
+    #[test]
+    fn version_3_records_migrate_with_their_tuning_and_the_1_khz_rate() {
+        let rec = calibrated();
+        let migrated = ParamRecord::decode(&old_bytes(&rec, 3)).unwrap();
+        assert_eq!(
+            migrated,
+            ParamRecord {
+                control_hz: 1_000,
+                ..rec
+            }
+        );
+        assert_eq!(migrated.validate(), Ok(()));
+        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+        migrated.encode(&mut buf).unwrap();
+        assert_eq!(buf[0], 4);
+        assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
+        // A version-3 record of the version-4 length is refused, and so is the reverse.
+        let mut long = buf;
+        long[0] = 3;
+        assert!(matches!(
+            ParamRecord::decode(&long),
+            Err(FormatError::Length { .. })
+        ));
+        let mut short = old_bytes(&rec, 3);
+        short[0] = 4;
+        assert!(matches!(
+            ParamRecord::decode(&short),
+            Err(FormatError::Length { .. })
+        ));
     }
 
     #[test]
@@ -776,11 +840,12 @@ mod tests {
             let wiring = if v == 1 { Wiring::STANDARD } else { rec.wiring };
             assert_eq!(migrated.wiring, wiring);
             assert_eq!(migrated.tuning, SpeedTuning::DEFAULT);
+            assert_eq!(migrated.control_hz, 1_000);
             assert_eq!(migrated.validate(), Ok(()));
-            // Saved again, it is a version-3 record with the calibration intact.
+            // Saved again, it is a version-4 record with the calibration intact.
             let mut buf = [0u8; ParamRecord::ENCODED_LEN];
             migrated.encode(&mut buf).unwrap();
-            assert_eq!(buf[0], 3);
+            assert_eq!(buf[0], 4);
             assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
         }
         let old = old_bytes(&rec, 1);
@@ -799,7 +864,7 @@ mod tests {
             Err(FormatError::Length { .. })
         ));
         let mut v2 = old_bytes(&rec, 2);
-        v2[0] = 3;
+        v2[0] = 4;
         assert!(matches!(
             ParamRecord::decode(&v2),
             Err(FormatError::Length { .. })
@@ -818,7 +883,9 @@ mod tests {
     fn validation_rejects_every_bad_field() {
         let good = calibrated();
         type Spoil = fn(&mut ParamRecord);
-        let cases: [(Spoil, RecordError); 11] = [
+        let cases: [(Spoil, RecordError); 13] = [
+            (|r| r.control_hz = 3_000, RecordError::ControlRate),
+            (|r| r.control_hz = 0, RecordError::ControlRate),
             (
                 |r| r.tuning.left.time_constant_s = f32::NAN,
                 RecordError::Tuning(TuningError::TimeConstant),

@@ -46,6 +46,8 @@ pub fn calibrated(n: u32) -> ParamRecord {
             t.left.time_constant_s = 0.02 + 0.0001 * (n % 1000) as f32;
             t
         },
+        control_hz: odocal::motion::controller::RATES_HZ
+            [(n as usize) % odocal::motion::controller::RATES_HZ.len()],
     }
 }
 

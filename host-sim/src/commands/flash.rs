@@ -118,6 +118,7 @@ fn demo_record(n: u32) -> ParamRecord {
         motion: MotionSettings::DEFAULT,
         wiring: odocal::motion::wiring::Wiring::STANDARD,
         tuning: odocal::motion::speed::SpeedTuning::DEFAULT,
+        control_hz: odocal::motion::controller::DEFAULT_RATE_HZ,
     }
 }
 

@@ -52,18 +52,25 @@ impl<'f> Board<'f> {
     /// configures the controller with them, restores the stored runs and measurements, and
     /// reads the encoders once. The boot messages (`event` lines) are appended to `out`.
     ///
+    /// The board runs at its stored control rate (`control_hz`), and the robot is stepped once
+    /// per period of it. `config.rate_hz` is the rate the simulated operator wants: when the
+    /// stored one differs, the board is told with `set control_hz` (the reply is appended to
+    /// `out`), as an operator would type it.
+    ///
     /// # Errors
-    /// An invalid controller configuration or flash range, as text.
+    /// An invalid controller configuration or flash range, or a refused rate, as text.
     pub fn boot(
-        config: SimConfig,
+        mut config: SimConfig,
         flash: &'f mut SimParamFlash,
         out: &mut String,
     ) -> Result<Board<'f>, String> {
         let mut store = flash.store();
         let loaded = store.load_blocking();
         let settings = Settings::from(&loaded.record);
-        let controller = Controller::new(settings.controller_config(config.rate_hz))
+        let controller = Controller::new(settings.controller_config())
             .map_err(|e| format!("stored parameters: {e}"))?;
+        let (wanted_hz, stored_hz) = (config.rate_hz, settings.control_hz);
+        config.rate_hz = stored_hz;
         write_boot_event(out, loaded.warning.as_ref(), None).map_err(|e| e.to_string())?;
         let mut session = Session::new(settings, LibraryCalibrator::default());
         session
@@ -84,6 +91,13 @@ impl<'f> Board<'f> {
         };
         // The control task runs from boot on; the controller needs one encoder read to start.
         board.sim.step(&mut board.controller);
+        if wanted_hz != stored_hz {
+            let reply = board.send(&format!("set control_hz {wanted_hz}"));
+            if !reply.starts_with("ok") {
+                return Err(format!("set control_hz {wanted_hz}: {reply}"));
+            }
+            out.push_str(&reply);
+        }
         Ok(board)
     }
 
@@ -197,6 +211,12 @@ impl<'f> Board<'f> {
         // The simulated operator's hand: during `bringup push` it pushes the robot forward.
         let pushing = matches!(status, Status::Checking(CheckKind::Push));
         self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
+        // `set control_hz` retimed the controller: the board's period source follows.
+        let rate_hz = self.controller.config().rate_hz;
+        if rate_hz != self.sim.config().rate_hz {
+            self.sim.set_rate_hz(rate_hz);
+            self.period_us = 1_000_000 / u64::from(rate_hz);
+        }
         let output = self.sim.step(&mut self.controller);
         self.now_us += self.period_us;
         let _ = self

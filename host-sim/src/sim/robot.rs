@@ -311,6 +311,12 @@ impl Sim {
         &self.config
     }
 
+    /// Steps one control period of `rate_hz` per [`Sim::advance`] from now on (the board's
+    /// controller was retimed).
+    pub fn set_rate_hz(&mut self, rate_hz: u32) {
+        self.config.rate_hz = rate_hz;
+    }
+
     /// True pose (start frame: origin, heading +x).
     pub fn true_pose(&self) -> PoseF64 {
         self.pose

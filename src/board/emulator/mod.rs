@@ -11,12 +11,18 @@
 //! | clocks | HSE 8 MHz → PLL 168 MHz | HSI (QEMU has no RCC; its SysTick counts at 168 MHz whatever RCC says, so the monotonic is started at 168 MHz) |
 //! | `Encoders` | TIM2/TIM3 in encoder mode | the [`plant`]'s counters; each read first advances the plant by one control period with the last motor command |
 //! | `BoardMotors` | TIM1 PWM + direction pins | stores the command for the plant |
-//! | `ControlTick` | TIM7 update at 1 kHz | QEMU has no TIM6/TIM7: the control interrupt is pended from the SysTick monotonic every period (`CONTROL_FROM_MONOTONIC`, the app's `pace_control` task) |
+//! | `ControlTick` | TIM7 update at the control rate (1–10 kHz) | QEMU has no TIM6/TIM7: the control interrupt is pended from the SysTick monotonic (`CONTROL_FROM_MONOTONIC`, the app's `pace_control` task), one period per 1 ms tick whatever the rate; `set_rate_hz` retimes the plant instead |
 //! | `BoardFlash` | sectors 10–11 | a 256 KiB host file through semihosting ([`flash`]) |
 //! | button, LEDs, watchdog | GPIO, EXTI0, IWDG | the same HAL drivers; QEMU logs their register writes as unimplemented (`-d unimp`) and never resets on a missing feed |
 //!
 //! The plant runs inside the control interrupt, so it costs emulated CPU time there; the
 //! emulator does not reproduce the board's timing (QEMU counts instructions, not cycles).
+//!
+//! Control rate: the controller and the plant both count control periods (the plant advances
+//! `1 / rate` of robot time per read), so a run is the same at any rate. The monotonic's 1 ms
+//! tick paces one period per millisecond of emulated time, so above 1 kHz the emulated robot
+//! moves in slow motion (at 10 kHz a tenth of real speed): only what is timed by the
+//! monotonic (button debounce, the pose stream's rate, console polling) sees the difference.
 
 pub mod flash;
 pub mod plant;
@@ -34,19 +40,13 @@ use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use super::f407::ClockSource;
 pub use super::f407::watchdog;
-pub use super::f407::{CONTROL_HZ, FLASH_WATCHDOG_MS, WATCHDOG_MS};
+pub use super::f407::{FLASH_WATCHDOG_MS, WATCHDOG_MS};
 pub use flash::BoardFlash;
 use plant::Plant;
 
-use crate::motion::controller::MotorCommand;
+use crate::motion::controller::{DEFAULT_RATE_HZ, MotorCommand};
 use crate::motion::motor::{MotorDriver, StopMode};
 use crate::storage::ParamStore;
-
-// The app paces the control interrupt in whole ticks of the 1 kHz monotonic.
-const _: () = assert!(
-    1_000 % CONTROL_HZ == 0,
-    "the emulator's control rate must divide 1000 Hz"
-);
 
 /// SysTick's clock in QEMU's STM32F405 model, Hz (fixed, independent of RCC).
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -58,6 +58,9 @@ static DUTY_LEFT: AtomicU32 = AtomicU32::new(0);
 const KIND_DUTY: u8 = 0;
 const KIND_BRAKE: u8 = 1;
 const KIND_COAST: u8 = 2;
+
+/// The control rate, from [`ControlTick`] (control task) to [`Encoders`] (same task), Hz.
+static RATE_HZ: AtomicU32 = AtomicU32::new(DEFAULT_RATE_HZ);
 
 fn held_command() -> MotorCommand {
     match COMMAND_KIND.load(Ordering::Relaxed) {
@@ -80,6 +83,7 @@ impl Encoders {
     /// Advances the plant by one control period with the command held since the last read
     /// (none before the first read), then returns its counters (right, left).
     pub fn read(&mut self) -> (u32, u32) {
+        self.plant.set_rate_hz(RATE_HZ.load(Ordering::Relaxed));
         if self.started {
             self.plant.advance(held_command());
         }
@@ -113,6 +117,17 @@ pub struct ControlTick(());
 impl ControlTick {
     /// Acknowledges the period's interrupt (nothing to do: it was pended in software).
     pub fn clear(&mut self) {}
+
+    /// The control rate, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        RATE_HZ.load(Ordering::Relaxed)
+    }
+
+    /// Sets the control rate: the plant advances `1 / rate_hz` of robot time per period from
+    /// the next encoder read on (the app keeps pacing one period per monotonic tick).
+    pub fn set_rate_hz(&mut self, rate_hz: u32) {
+        RATE_HZ.store(rate_hz, Ordering::Relaxed);
+    }
 }
 
 // The button (QEMU drives no GPIO input), the LEDs (register writes only in QEMU) and the
@@ -186,7 +201,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
     Board {
         sysclk_hz: SYSCLK_HZ,
         encoders: Encoders {
-            plant: Plant::new(CONTROL_HZ),
+            plant: Plant::new(DEFAULT_RATE_HZ),
             started: false,
         },
         motors: BoardMotors(()),

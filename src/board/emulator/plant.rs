@@ -89,6 +89,11 @@ impl Plant {
         plant
     }
 
+    /// Steps periods of `rate_hz` from now on (the control rate was changed).
+    pub fn set_rate_hz(&mut self, rate_hz: u32) {
+        self.rate_hz = rate_hz;
+    }
+
     /// The hardware counter values (right 32-bit up, left 16-bit down) as the controller takes
     /// them.
     pub fn raw(&self) -> (u32, u32) {

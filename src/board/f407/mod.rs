@@ -10,7 +10,7 @@
 //! | left motor PWM            | TIM1 CH2 20 kHz | PE11 (AF1)           |
 //! | right / left motor DIR    | GPIO            | PE7 / PE8            |
 //! | H-bridge enable (low = coast) | GPIO        | PE13                 |
-//! | control tick 1 kHz        | TIM7            | —                    |
+//! | control tick 1–10 kHz     | TIM7            | —                    |
 //! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (ST-LINK VCP) |
 //! | user button               | EXTI0           | PA0 (active high)    |
 //! | heartbeat / fault LEDs    | GPIO            | PD12 green / PD14 red |
@@ -44,8 +44,6 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 pub const HSE_HZ: u32 = 8_000_000;
 /// Motor PWM frequency, Hz (above hearing, within the H-bridge's switching limit).
 pub const PWM_HZ: u32 = 20_000;
-/// Control and odometry rate, Hz.
-pub const CONTROL_HZ: u32 = 1_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
 pub const WATCHDOG_MS: u32 = 50;
 /// Watchdog timeout while the parameter flash is written, ms. The HAL erases with x8
@@ -120,13 +118,32 @@ impl Encoders {
     }
 }
 
-/// The control-period interrupt source (TIM7 update at [`CONTROL_HZ`]).
-pub struct ControlTick(CounterHz<TIM7>);
+/// The control-period interrupt source: TIM7's update at the control rate (84 MHz timer clock,
+/// so every rate of [`crate::motion::controller::RATES_HZ`] divides exactly).
+pub struct ControlTick {
+    timer: CounterHz<TIM7>,
+    rate_hz: u32,
+}
 
 impl ControlTick {
     /// Acknowledges the period's interrupt.
     pub fn clear(&mut self) {
-        self.0.clear_flags(Flag::Update);
+        self.timer.clear_flags(Flag::Update);
+    }
+
+    /// The rate TIM7 runs at, Hz.
+    pub fn rate_hz(&self) -> u32 {
+        self.rate_hz
+    }
+
+    /// Retimes TIM7 to `rate_hz`: the counter restarts, so the next update comes one new
+    /// period after the call (the update interrupt stays enabled).
+    pub fn set_rate_hz(&mut self, rate_hz: u32) {
+        if self.timer.start(rate_hz.Hz()).is_err() {
+            error!("control timer refused {} Hz", rate_hz);
+        } else {
+            self.rate_hz = rate_hz;
+        }
     }
 }
 
@@ -299,8 +316,10 @@ pub fn init(dp: pac::Peripherals) -> Board {
     button_pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
     button_pin.enable_interrupt(&mut exti);
 
+    // At the default rate until the app has loaded the stored one.
+    let rate_hz = crate::motion::controller::DEFAULT_RATE_HZ;
     let mut tick = dp.TIM7.counter_hz(&mut rcc);
-    if tick.start(CONTROL_HZ.Hz()).is_err() {
+    if tick.start(rate_hz.Hz()).is_err() {
         error!("control timer did not start");
     }
     tick.listen(Event::Update);
@@ -327,7 +346,10 @@ pub fn init(dp: pac::Peripherals) -> Board {
         sysclk_hz: SYSCLK_HZ,
         encoders: Encoders { right, left },
         motors,
-        tick: ControlTick(tick),
+        tick: ControlTick {
+            timer: tick,
+            rate_hz,
+        },
         button: ButtonInput::new(button_pin),
         leds: Leds::new(
             gpiod.pd12.into_push_pull_output(),

@@ -81,12 +81,42 @@ pub struct ControllerConfig {
     pub integration: Integration,
 }
 
+/// The control rate the board boots with when nothing else is stored, Hz.
+pub const DEFAULT_RATE_HZ: u32 = 1_000;
+
+/// The control rates the controller accepts, Hz: 1 kHz to 10 kHz in whole kilohertz that give a
+/// whole number of microseconds per period. Every time the controller keeps in milliseconds is
+/// then a whole number of periods, the board's TIM7 (84 MHz) divides exactly to each rate, and a
+/// simulated period is a whole number of microseconds.
+pub const RATES_HZ: [u32; 6] = [1_000, 2_000, 4_000, 5_000, 8_000, 10_000];
+
+/// Whether `rate_hz` is one of [`RATES_HZ`].
+pub fn rate_supported(rate_hz: u32) -> bool {
+    RATES_HZ.contains(&rate_hz)
+}
+
+/// `ms` milliseconds in control periods at `rate_hz` (at least one period).
+pub fn periods_of_ms(ms: u32, rate_hz: u32) -> u32 {
+    ((u64::from(ms) * u64::from(rate_hz) / 1000) as u32).max(1)
+}
+
+/// `periods` at `from_hz` as the periods of the same duration at `to_hz`.
+fn rescale(periods: u32, from_hz: u32, to_hz: u32) -> u32 {
+    let p = u64::from(periods) * u64::from(to_hz) / u64::from(from_hz.max(1));
+    u32::try_from(p).unwrap_or(u32::MAX)
+}
+
 /// Encoder glitch limit for `geometry` at `rate_hz`: 2 m/s of the smaller wheel, +50 %.
 pub(super) fn glitch_limit(width: CounterWidth, geometry: &Geometry, rate_hz: u32) -> u32 {
     let period_s = 1.0 / f64::from(rate_hz.max(1));
     let d_min = libm::fmin(geometry.diameter_right_m, geometry.diameter_left_m);
     max_step_for(width, geometry.counts_per_rev, d_min, 2.0, period_s)
 }
+
+/// How long both wheels must stay within the settling tolerance to end a segment, ms.
+const SETTLE_MS: u32 = 50;
+/// How long after its profile's end a segment ends anyway, ms.
+const SETTLE_TIMEOUT_MS: u32 = 2_000;
 
 impl ControllerConfig {
     /// The encoder configuration of `wheel` with the wiring correction applied.
@@ -101,6 +131,8 @@ impl ControllerConfig {
 
     /// Defaults for the board: right encoder on a 32-bit timer, left on a 16-bit timer counting
     /// backwards, glitch limit for 2 m/s; default limits and tuning; 500 ms deadman; brake.
+    /// Everything timed is set in seconds and converted with `rate_hz` (settling 50 ms, settle
+    /// timeout 2 s, stall 300 ms, following error 100 ms, deadman 500 ms).
     pub fn new(geometry: Geometry, rate_hz: u32) -> Self {
         let step = |w| glitch_limit(w, &geometry, rate_hz);
         ControllerConfig {
@@ -120,8 +152,8 @@ impl ControllerConfig {
             speed: SpeedTuning::DEFAULT,
             settle: SettleConfig {
                 tolerance_ticks: 20,
-                periods: rate_hz / 20,
-                timeout_periods: 2 * rate_hz,
+                periods: periods_of_ms(SETTLE_MS, rate_hz),
+                timeout_periods: periods_of_ms(SETTLE_TIMEOUT_MS, rate_hz),
             },
             stall: StallConfig {
                 min_duty: 0.1,
@@ -147,7 +179,7 @@ pub enum ConfigError {
     Limits(LimitsError),
     /// The speed tuning is invalid.
     Tuning(TuningError),
-    /// The rate is outside 1,000 ..= 10,000 Hz.
+    /// The rate is not one of [`RATES_HZ`].
     Rate,
     /// The stall duty is not within (0, 1] or the stall time is outside 1 ..= 10,000 ms.
     Stall,
@@ -163,7 +195,7 @@ impl fmt::Display for ConfigError {
             ConfigError::Geometry(e) => write!(f, "{e}"),
             ConfigError::Limits(e) => write!(f, "{e}"),
             ConfigError::Tuning(e) => write!(f, "{e}"),
-            ConfigError::Rate => f.write_str("control rate must be within 1000..10000 Hz"),
+            ConfigError::Rate => f.write_str(RATE_RULE),
             ConfigError::Stall => f.write_str("stall duty must be in (0, 1], time 1..10000 ms"),
             ConfigError::Deadman => f.write_str("deadman must be within 1..10000 ms"),
             ConfigError::Following => {
@@ -191,6 +223,10 @@ impl From<TuningError> for ConfigError {
     }
 }
 
+/// The rule of [`RATES_HZ`] as the error text the protocol shows.
+pub const RATE_RULE: &str = "control rate must be 1000, 2000, 4000, 5000, 8000 or 10000 Hz \
+     (1..10 kHz, whole kHz with a whole number of microseconds per period)";
+
 /// Why a setting was not applied.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -204,6 +240,8 @@ pub enum SetError {
     Limits(LimitsError),
     /// The speed-loop tuning is invalid.
     Tuning(TuningError),
+    /// The control rate is not one of [`RATES_HZ`].
+    Rate,
 }
 
 impl fmt::Display for SetError {
@@ -213,6 +251,7 @@ impl fmt::Display for SetError {
             SetError::Geometry(e) => write!(f, "{e}"),
             SetError::Limits(e) => write!(f, "{e}"),
             SetError::Tuning(e) => write!(f, "{e}"),
+            SetError::Rate => f.write_str(RATE_RULE),
         }
     }
 }
@@ -296,6 +335,44 @@ impl Controller {
             er.set_polarity(r.polarity);
             el.set_polarity(l.polarity);
         }
+        Ok(())
+    }
+
+    /// Changes the control rate; only while idle. Everything the controller counts in control
+    /// periods is converted from the same time in seconds: the glitch limit (counts per
+    /// period), the speed loops' discretisation, stall, following-error and deadman times, the
+    /// settling times and the at-rest window (the time already spent at rest is kept). Tick
+    /// totals, the pose and a latched fault are kept. The caller steps the controller at the new
+    /// rate from the next period on.
+    ///
+    /// # Errors
+    /// [`SetError::Busy`] while moving, [`SetError::Rate`] for a rate not in [`RATES_HZ`].
+    pub fn set_rate(&mut self, rate_hz: u32) -> Result<(), SetError> {
+        if !self.is_idle() {
+            return Err(SetError::Busy);
+        }
+        if !rate_supported(rate_hz) {
+            return Err(SetError::Rate);
+        }
+        let old = self.config.rate_hz;
+        if old == rate_hz {
+            return Ok(());
+        }
+        let c = &mut self.config;
+        c.rate_hz = rate_hz;
+        c.settle.periods = rescale(c.settle.periods, old, rate_hz).max(1);
+        c.settle.timeout_periods = rescale(c.settle.timeout_periods, old, rate_hz).max(1);
+        c.right_encoder.max_step = glitch_limit(c.right_encoder.width, &c.geometry, rate_hz);
+        c.left_encoder.max_step = glitch_limit(c.left_encoder.width, &c.geometry, rate_hz);
+        if let Some((r, l)) = self.encoders.as_mut() {
+            r.set_max_step(self.config.right_encoder.max_step);
+            l.set_max_step(self.config.left_encoder.max_step);
+        }
+        self.pi = Self::speed_pis(&self.config);
+        self.stall_periods = periods_of_ms(self.config.stall.time_ms, rate_hz);
+        self.deadman_periods = periods_of_ms(self.config.deadman_ms, rate_hz);
+        self.following = FollowingState::for_config(&self.config);
+        self.still_periods = rescale(self.still_periods, old, rate_hz);
         Ok(())
     }
 }

@@ -99,7 +99,7 @@ impl FollowingState {
                 (max / g.meters_per_tick_right()) as f32,
                 (max / g.meters_per_tick_left()) as f32,
             ),
-            periods: ((u64::from(f.time_ms) * u64::from(config.rate_hz) / 1000) as u32).max(1),
+            periods: super::periods_of_ms(f.time_ms, config.rate_hz),
             ..FollowingState::default()
         }
     }

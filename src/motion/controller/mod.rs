@@ -23,7 +23,10 @@ mod config;
 mod fault;
 mod mode;
 
-pub use config::{ConfigError, ControllerConfig, FollowingConfig, SetError, StallConfig};
+pub use config::{
+    ConfigError, ControllerConfig, DEFAULT_RATE_HZ, FollowingConfig, RATE_RULE, RATES_HZ, SetError,
+    StallConfig, periods_of_ms, rate_supported,
+};
 use fault::FollowingState;
 pub use fault::{Fault, Wheel};
 use mode::{ActiveCheck, ActiveRun, DriveState};
@@ -179,7 +182,7 @@ impl Controller {
     /// # Errors
     /// [`ConfigError`] for the first invalid setting.
     pub fn new(config: ControllerConfig) -> Result<Self, ConfigError> {
-        if !(1000..=10_000).contains(&config.rate_hz) {
+        if !rate_supported(config.rate_hz) {
             return Err(ConfigError::Rate);
         }
         config.limits.validate()?;
@@ -196,7 +199,7 @@ impl Controller {
             return Err(ConfigError::Following);
         }
         let odometry = Odometry::new(&config.geometry, config.integration)?;
-        let per_ms = |ms: u32| (u64::from(ms) * u64::from(config.rate_hz) / 1000) as u32;
+        let per_ms = |ms: u32| periods_of_ms(ms, config.rate_hz);
         Ok(Controller {
             config,
             odometry,
@@ -211,11 +214,11 @@ impl Controller {
             fault: None,
             finished: None,
             stall_count: (0, 0),
-            stall_periods: per_ms(config.stall.time_ms).max(1),
+            stall_periods: per_ms(config.stall.time_ms),
             following: FollowingState::for_config(&config),
             check: None,
             check_report: None,
-            deadman_periods: per_ms(config.deadman_ms).max(1),
+            deadman_periods: per_ms(config.deadman_ms),
             still_periods: 0,
             still_anchor: WheelTicks::default(),
             still_limit_ticks: still_limits(&config.geometry),
