@@ -12,8 +12,9 @@ sleep=off`, WFI idle). Over USART2 the client runs an operator's session:
 2. restart QEMU on the same flash image (a host file the emulator board reaches through
    semihosting): `params` must show the calibration, and the runs with their measurements must
    be restored (`event runs restored: 6 runs, 6 measured`, the same `runs` listing);
-3. on the restarted board: the pose stream at 100 Hz, the `drive` deadman, `stop` mid-run, and a
-   64 KiB burst of random bytes into RX (the console still answers, no reset);
+3. on the restarted board: the pose stream at 100 Hz, the `drive` deadman, `stop` mid-run, a
+   64 KiB burst of random bytes into RX (the console still answers, no reset), and
+   `set control_hz 10000` with a 0.2 m line at 10 kHz;
 4. the same session on host-sim (`serial --fast --auto-measure --settle`, same robot): every
    `measure` line, the whole `calibrate` table and the `apply exact` line must be identical.
 
@@ -236,6 +237,30 @@ def restarted_board(elf, workdir, apply, runs_before):
         checks.append(f"64 KiB random burst ({burst_s:.1f} s wall to send): {errs} error replies, "
                       "console answers `status`, "
                       f"no reset (control periods {before['periods']} -> {after['periods']})")
+
+        # The control rate at run time: `set control_hz 10000`, then a 0.2 m line. The plant
+        # advances 0.1 ms of robot time per period (paced one period per 1 ms tick of the
+        # monotonic: slow motion), so the line takes ten times the periods it takes at 1 kHz
+        # (at least 1.63 s of robot time: 0.2 m at 0.3 m/s^2 and 0.3 m/s) and ends 0.2 m on.
+        truth.settle()
+        _, final = send(con, "set control_hz 10000", log)
+        if final != "ok control_hz = 10000 Hz":
+            raise ConsoleError(f"set control_hz: {final}")
+        start = truth.settle()
+        # Events of the earlier runs (the stopped one) are not this line's.
+        con.events = [e for e in con.events if not e.startswith("event run")]
+        _, final = send(con, "line 0.2", log)
+        if not final.startswith("ok"):
+            raise ConsoleError(f"line 0.2 at 10 kHz: {final}")
+        log.append(con.wait_event("event run", 300))
+        end = truth.settle()
+        moved = math.hypot(end["x"] - start["x"], end["y"] - start["y"])
+        periods = end["periods"] - start["periods"]
+        if abs(moved - 0.2) > 0.002 or periods < 16_300:
+            raise ConsoleError(f"10 kHz line: moved {moved} m in {periods} periods")
+        checks.append(f"control at 10 kHz (`set control_hz 10000`): `line 0.2` moved "
+                      f"{moved:.4f} m; {periods} control periods until the wheels were at rest "
+                      "for good")
         final_periods = truth.read()["periods"]
         emu.monitor("stop")
         stopped_periods = truth.read()["periods"]
@@ -245,8 +270,8 @@ def restarted_board(elf, workdir, apply, runs_before):
     # period after the first (which only reads the counters): QEMU's log must hold the two feeds
     # that start the watchdog, then one per control period = plant periods + 1, plus four for
     # each flash access with the watchdog relaxed (restart and restore, twice two reload-key
-    # writes): restoring the runs at boot and storing the `line` run.
-    feeds = watchdog_feeds(emu.log) - 4 * 2
+    # writes): restoring the runs at boot and storing the two `line` runs.
+    feeds = watchdog_feeds(emu.log) - 4 * 3
     if not final_periods <= feeds - 3 <= stopped_periods:
         raise ConsoleError(f"watchdog feeds {feeds} vs control periods {final_periods}.."
                            f"{stopped_periods}")

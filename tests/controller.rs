@@ -70,6 +70,11 @@ fn config_is_validated() {
         Controller::new(ControllerConfig::new(g, 20_000)).err(),
         Some(ConfigError::Rate)
     );
+    // Within 1..10 kHz but not a whole number of microseconds per period.
+    assert_eq!(
+        Controller::new(ControllerConfig::new(g, 3_000)).err(),
+        Some(ConfigError::Rate)
+    );
     let mut cfg = ControllerConfig::new(g, 1000);
     cfg.limits.max_accel_mps2 = 0.0;
     assert!(matches!(
@@ -316,4 +321,164 @@ fn button_starts_alternating_runs_and_aborts() {
         c.on_press(Press::Short, &mut plan),
         ButtonAction::Started(square(Direction::Cw))
     );
+}
+
+/// Seconds from the first period after `start` until `done` holds, stepping `plant` (with
+/// `each` applied to the plant before every period); at most 10 s.
+fn seconds_until(
+    c: &mut Controller,
+    plant: &mut Plant,
+    rate: u32,
+    mut each: impl FnMut(&mut Plant),
+    done: impl Fn(&Controller, &odocal::motion::controller::StepOutput) -> bool,
+) -> f64 {
+    let mut periods = 0u32;
+    loop {
+        each(plant);
+        let out = plant.step(c);
+        periods += 1;
+        if done(c, &out) {
+            return f64::from(periods) / f64::from(rate);
+        }
+        assert!(periods < 10 * rate, "not done after 10 s at {rate} Hz");
+    }
+}
+
+/// The same routines at 1 kHz and 10 kHz: every time the controller keeps (deadman, stall,
+/// following error, the routine's own profile and settling) comes out the same in seconds,
+/// because each is converted from seconds with the rate, never counted as 1 kHz periods.
+///
+/// Tolerances: a time counted in periods is exact to one period (1 ms at 1 kHz); the deadman and
+/// the stall are pure period counts (500 ms, 300 ms after the wheel stops). The following error
+/// and the line's duration also depend on how the loop tracks, which a 10× finer period changes
+/// slightly. The reversed wheel's error grows through the loop's positive feedback until the
+/// duty saturates, and a period of sample-and-hold delay (1 ms vs 0.1 ms) changes that growth a
+/// little: measured 275.0 vs 272.8 ms; the bound, 5 ms (2 % of it), is the 100 ms count's
+/// period plus that. The line ends when both wheels have settled within 20 ticks for 50 ms
+/// after the same profile; 10 ms covers the tracking lag difference.
+#[test]
+fn timed_faults_take_the_same_seconds_at_1_and_10_khz() {
+    let g = Geometry::PAPER_NOMINAL;
+    let at = |rate: u32| {
+        let mut c = Controller::new(ControllerConfig::new(g, rate)).unwrap();
+        let mut plant = Plant::new(rate);
+        plant.step(&mut c);
+        (c, plant)
+    };
+    let mut times = Vec::new();
+    for rate in [1_000u32, 10_000] {
+        // Deadman: one `drive`, then nothing.
+        let (mut c, mut plant) = at(rate);
+        c.drive(0.2, 0.0).unwrap();
+        let deadman = seconds_until(&mut c, &mut plant, rate, |_| {}, |_, o| o.command.is_stop());
+        // The line's duration (same profile, settled the same way).
+        let (mut c, mut plant) = at(rate);
+        c.start(PathKind::Line { length_m: 0.5 }).unwrap();
+        let line = seconds_until(
+            &mut c,
+            &mut plant,
+            rate,
+            |_| {},
+            |c, _| c.status() == Status::Idle,
+        );
+        // Stall: the right wheel blocked at cruise speed (1.5 s into a 2 m line).
+        let (mut c, mut plant) = at(rate);
+        c.start(PathKind::Line { length_m: 2.0 }).unwrap();
+        for _ in 0..(3 * rate / 2) {
+            plant.step(&mut c);
+        }
+        let blocked_at = plant.pos[0];
+        let stall = seconds_until(
+            &mut c,
+            &mut plant,
+            rate,
+            |p| {
+                p.pos[0] = blocked_at;
+                p.vel[0] = 0.0;
+            },
+            |_, o| o.fault.is_some(),
+        );
+        assert_eq!(
+            c.fault(),
+            Some(Fault::Stall {
+                wheel: Wheel::Right
+            }),
+            "{rate} Hz"
+        );
+        // Following error: the right motor wired reversed (the controller is told the standard
+        // wiring), so the loop drives that wheel away from its reference.
+        let mut cfg = ControllerConfig::new(g, rate);
+        cfg.wiring.motor_right_reversed = true;
+        let mut c = Controller::new(cfg).unwrap();
+        let mut plant = Plant::new(rate);
+        plant.step(&mut c);
+        c.start(PathKind::Line { length_m: 2.0 }).unwrap();
+        let following = seconds_until(&mut c, &mut plant, rate, |_| {}, |_, o| o.fault.is_some());
+        assert!(
+            matches!(
+                c.fault(),
+                Some(Fault::FollowingError {
+                    wheel: Wheel::Right,
+                    ..
+                })
+            ),
+            "{rate} Hz: {:?}",
+            c.fault()
+        );
+        println!(
+            "{rate:>5} Hz: deadman {deadman:.4} s, line 0.5 m {line:.4} s, stall {stall:.4} s, \
+             following error {following:.4} s"
+        );
+        // Counted times, exact to a period at each rate: 500 ms driving, stop in the next.
+        let period = 1.0 / f64::from(rate);
+        assert!(
+            (deadman - (0.5 + period)).abs() < 1e-9,
+            "{rate} Hz deadman {deadman}"
+        );
+        assert!(
+            (stall - 0.3).abs() <= 2.0 * period + 1e-9,
+            "{rate} Hz stall {stall}"
+        );
+        times.push((deadman, line, stall, following));
+    }
+    let (a, b) = (times[0], times[1]);
+    assert!((a.0 - b.0).abs() <= 1e-3 + 1e-9, "deadman {a:?} vs {b:?}");
+    assert!((a.2 - b.2).abs() <= 2e-3 + 1e-9, "stall {a:?} vs {b:?}");
+    assert!((a.3 - b.3).abs() <= 5e-3, "following error {a:?} vs {b:?}");
+    assert!((a.1 - b.1).abs() <= 10e-3, "line {a:?} vs {b:?}");
+}
+
+/// `set_rate` on an idle controller converts what it counts in periods: after switching from
+/// 1 kHz to 10 kHz the deadman still stops the motors 500 ms after the last `drive`, and the
+/// glitch limit (counts per period) is a tenth of what it was.
+#[test]
+fn set_rate_retimes_an_idle_controller() {
+    let g = Geometry::PAPER_NOMINAL;
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    let step_1k = c.config().right_encoder.max_step;
+    assert_eq!(c.set_rate(3_000), Err(SetError::Rate));
+    c.set_rate(10_000).unwrap();
+    assert_eq!(c.config().rate_hz, 10_000);
+    // 2 m/s of a 150 mm wheel (+50 %) per 0.1 ms: a tenth of the 1 kHz limit (rounded).
+    assert!(c.config().right_encoder.max_step.abs_diff(step_1k / 10) <= 1);
+    assert_eq!(
+        c.config().settle,
+        ControllerConfig::new(g, 10_000).settle,
+        "settling times follow the rate"
+    );
+    let mut plant = Plant { dt: 1e-4, ..plant };
+    c.drive(0.2, 0.0).unwrap();
+    let t = seconds_until(
+        &mut c,
+        &mut plant,
+        10_000,
+        |_| {},
+        |_, o| o.command.is_stop(),
+    );
+    assert!((t - 0.5001).abs() < 1e-9, "deadman {t} s");
+    // Only while idle.
+    c.drive(0.2, 0.0).unwrap();
+    assert_eq!(c.set_rate(1_000), Err(SetError::Busy));
 }

@@ -199,3 +199,65 @@ fn drive_deadman_stops_within_500_ms_plus_one_period() {
     assert!(b.at_rest());
     assert!(b.send("run cw 0.5").starts_with("ok run 1 started"));
 }
+
+/// `set control_hz 10000` over the serial protocol: the simulated board's controller and robot
+/// step at 10 kHz from the next period on (a 0.5 m line takes ten times the periods, the same
+/// seconds), `save` keeps the rate, and the rebooted board runs at it without being told again.
+#[test]
+fn control_rate_set_saved_and_booted_at_10_khz() {
+    let mut flash = SimParamFlash::erased();
+    let mut log = String::new();
+    let line_periods = |b: &mut Board, log: &mut String| {
+        assert!(b.send("line 0.5").starts_with("ok run"));
+        b.run_until_rest(20 * 10_000, log)
+    };
+    let (periods_1k, periods_10k) = {
+        let (mut b, _) = boot(&mut flash);
+        let at_1k = line_periods(&mut b, &mut log);
+        assert_eq!(
+            b.send("set control_hz 10000"),
+            "ok control_hz = 10000 Hz\r\n"
+        );
+        assert_eq!(b.controller.config().rate_hz, 10_000);
+        let at_10k = line_periods(&mut b, &mut log);
+        assert!(b.send("save").starts_with("ok"));
+        (at_1k, at_10k)
+    };
+    // The same motion, ten times the periods (the run ends after the profile and 50 ms of
+    // settling; the rest window adds 0.1 s at either rate): within 1 %.
+    let ratio = periods_10k as f64 / periods_1k as f64;
+    assert!(
+        (ratio - 10.0).abs() < 0.1,
+        "{periods_1k} vs {periods_10k} periods"
+    );
+    let mut out = String::new();
+    // The operator wants 10 kHz and the flash says so: no `set` at boot.
+    let mut b = Board::boot(
+        sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 10_000),
+        &mut flash,
+        &mut out,
+    )
+    .expect("reboot");
+    assert_eq!(
+        out,
+        "event boot: parameters loaded\r\nevent runs restored: 2 runs, 0 measured\r\n"
+    );
+    assert_eq!(b.controller.config().rate_hz, 10_000);
+    assert_eq!(b.sim.config().rate_hz, 10_000);
+    assert!(b.send("params").contains("  control_hz 10000 Hz\r\n"));
+    let again = line_periods(&mut b, &mut log);
+    assert!(
+        again.abs_diff(periods_10k) < periods_10k / 100,
+        "{again} vs {periods_10k}"
+    );
+    // A rate the timers cannot divide to is refused at boot with the board's reply.
+    let mut flash = SimParamFlash::erased();
+    let err = Board::boot(
+        sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 3_000),
+        &mut flash,
+        &mut out,
+    )
+    .err()
+    .unwrap();
+    assert!(err.contains("err 17: control rate must be"), "{err}");
+}

@@ -35,8 +35,8 @@ pub struct BenchArgs {
     /// Repetitions of the session (the minimum and the median are reported).
     #[arg(long, default_value_t = 5)]
     pub repeat: u32,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000)]
+    /// Control rate, Hz: 1000, 2000, 4000, 5000, 8000 or 10000 (the board's `control_hz`).
+    #[arg(long = "rate-hz", visible_alias = "rate", default_value_t = odocal::motion::controller::DEFAULT_RATE_HZ, value_parser = crate::commands::parse_rate_hz)]
     pub rate: u32,
     /// Monte Carlo trials (0 skips the Monte Carlo).
     #[arg(long, default_value_t = 1000)]

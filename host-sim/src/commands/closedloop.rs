@@ -30,7 +30,8 @@ pub struct ClosedLoopArgs {
     /// Runs per direction.
     #[arg(long, default_value_t = 5)]
     pub runs: u32,
-    /// Relative slip noise of each wheel per control period (1σ).
+    /// Relative slip noise of each wheel per millisecond of travel (1σ; per control period at
+    /// 1 kHz, scaled by √(rate / 1 kHz) per period at other rates).
     #[arg(long, default_value_t = 0.0)]
     pub slip: f64,
     /// 1σ of a measured coordinate, metres.
@@ -48,8 +49,8 @@ pub struct ClosedLoopArgs {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000)]
+    /// Control rate, Hz: 1000, 2000, 4000, 5000, 8000 or 10000 (the board's `control_hz`).
+    #[arg(long = "rate-hz", visible_alias = "rate", default_value_t = odocal::motion::controller::DEFAULT_RATE_HZ, value_parser = crate::commands::parse_rate_hz)]
     pub rate: u32,
 }
 
@@ -105,8 +106,9 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
     // Per method: relative E_b and E_d errors over the trials.
     let mut acc = [Acc::default(); 6];
     println!(
-        "closed loop: {} trial(s), L = {} m, {}+{} runs, slip σ = {}/period, σ_meas = {} mm{}, truth E_b = {}, E_d = {}",
+        "closed loop: {} trial(s) at {} Hz, L = {} m, {}+{} runs, slip σ = {}/ms, σ_meas = {} mm{}, truth E_b = {}, E_d = {}",
         args.trials,
+        args.rate,
         args.side,
         args.runs,
         args.runs,

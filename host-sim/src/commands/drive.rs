@@ -57,8 +57,8 @@ pub struct DriveArgs {
     /// Seed of the slip noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000)]
+    /// Control rate, Hz: 1000, 2000, 4000, 5000, 8000 or 10000 (the board's `control_hz`).
+    #[arg(long = "rate-hz", visible_alias = "rate", default_value_t = odocal::motion::controller::DEFAULT_RATE_HZ, value_parser = crate::commands::parse_rate_hz)]
     pub rate: u32,
     /// How the simulated robot is wired (a reversed motor or encoder must end in a
     /// following-error fault, not a runaway).

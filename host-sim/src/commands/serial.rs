@@ -46,8 +46,8 @@ pub struct SerialArgs {
     /// Seed of the slip noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000)]
+    /// Control rate, Hz: 1000, 2000, 4000, 5000, 8000 or 10000 (the board's `control_hz`).
+    #[arg(long = "rate-hz", visible_alias = "rate", default_value_t = odocal::motion::controller::DEFAULT_RATE_HZ, value_parser = crate::commands::parse_rate_hz)]
     pub rate: u32,
     /// Flash image file: loaded at boot (missing = erased flash) and written back whenever the
     /// flash changed (`save`, a stored run, a measurement, `drop`), so parameters and runs

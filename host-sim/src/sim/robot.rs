@@ -92,7 +92,9 @@ pub struct SimConfig {
     pub rate_hz: u32,
     /// Integration sub-steps per control period.
     pub substeps: u32,
-    /// Standard deviation of the relative slip of each wheel's travel per control period.
+    /// Standard deviation of the relative slip of each wheel's travel per 1 ms control period.
+    /// At another rate each period draws `slip_sigma · √(rate / 1 kHz)`, so the slip
+    /// accumulated over a distance has the same spread at every rate.
     pub slip_sigma: f64,
     /// Seed of the slip noise.
     pub seed: u64,
@@ -412,10 +414,8 @@ impl Sim {
         let n = c.substeps.max(1);
         let h = 1.0 / (f64::from(c.rate_hz) * f64::from(n));
         let (slip_r, slip_l) = if c.slip_sigma > 0.0 {
-            (
-                1.0 + c.slip_sigma * self.normal(),
-                1.0 + c.slip_sigma * self.normal(),
-            )
+            let sigma = c.slip_sigma * (f64::from(c.rate_hz) / 1000.0).sqrt();
+            (1.0 + sigma * self.normal(), 1.0 + sigma * self.normal())
         } else {
             (1.0, 1.0)
         };

@@ -94,8 +94,8 @@ pub struct SessionArgs {
     /// Output directory for plots, transcript and CSV.
     #[arg(long, default_value = "target/odocal-sim")]
     pub out: PathBuf,
-    /// Control rate, Hz.
-    #[arg(long, default_value_t = 1000)]
+    /// Control rate, Hz: 1000, 2000, 4000, 5000, 8000 or 10000 (the board's `control_hz`).
+    #[arg(long = "rate-hz", visible_alias = "rate", default_value_t = odocal::motion::controller::DEFAULT_RATE_HZ, value_parser = crate::commands::parse_rate_hz)]
     pub rate: u32,
     /// No progress bar.
     #[arg(long)]
