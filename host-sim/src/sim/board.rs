@@ -201,13 +201,13 @@ impl<'f> Board<'f> {
     /// One control period: the controller reads the encoders and drives the motors, the robot
     /// moves, and the session gets its periodic poll (finished runs, pose stream).
     pub fn step(&mut self, out: &mut String) -> StepOutput {
-        let status = self.controller.status();
-        self.step_from(status, out).0
+        let output = self.period(&self.controller.status(), out);
+        self.running = matches!(self.controller.status(), Status::Running { .. });
+        output
     }
 
-    /// [`Board::step`] from the controller's `status` now; returns the output and the status
-    /// after the period.
-    fn step_from(&mut self, status: Status, out: &mut String) -> (StepOutput, Status) {
+    /// [`Board::step`] from the controller's `status` now, without noting the status after it.
+    fn period(&mut self, status: &Status, out: &mut String) -> StepOutput {
         // The simulated operator's hand: during `bringup push` it pushes the robot forward.
         let pushing = matches!(status, Status::Checking(CheckKind::Push));
         self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
@@ -222,9 +222,7 @@ impl<'f> Board<'f> {
         let _ = self
             .session
             .poll(self.now_us, &mut self.controller, &mut self.store, out);
-        let status = self.controller.status();
-        self.running = matches!(status, Status::Running { .. });
-        (output, status)
+        output
     }
 
     /// Whether the controller is idle (or faulted) with the wheels at rest.
@@ -245,7 +243,9 @@ impl<'f> Board<'f> {
         let mut n = 0;
         let mut status = self.controller.status();
         while n < max_periods && !self.at_rest_in(&status) {
-            status = self.step_from(status, out).1;
+            self.period(&status, out);
+            status = self.controller.status();
+            self.running = matches!(status, Status::Running { .. });
             n += 1;
         }
         n
