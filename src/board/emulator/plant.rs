@@ -119,8 +119,7 @@ impl Plant {
             MotorCommand::Stop(StopMode::Coast) => (0.0, 0.0, 4.0 * TAU_S),
         };
         let cpr = f64::from(g.counts_per_rev);
-        // host-sim evaluates `exp(-h/τ)` in every sub-step; the argument is the same in all of
-        // them, so once per period gives the same value.
+        // The decay over a sub-step is the same in all of them: once per period, as host-sim.
         let e = libm::exp(-h / tau);
         let turn = |w: &mut Wheel, target: f64| -> f64 {
             let dphi = target * h + (w.omega - target) * tau * (1.0 - e);
@@ -135,15 +134,23 @@ impl Plant {
             let ds_r = turn(&mut self.right, target_r) * 0.5 * g.diameter_right_m;
             let ds_l = turn(&mut self.left, target_l) * 0.5 * g.diameter_left_m;
             let ds = 0.5 * (ds_r + ds_l);
-            let dtheta = (ds_r - ds_l) / g.wheelbase_m;
-            let chord = ds * sinc(0.5 * dtheta);
-            let d = offset + 0.5 * dtheta;
-            // Taylor series for small rotations, as host-sim (truncation below 3e-21).
+            let dtheta = (ds_r - ds_l) * (1.0 / g.wheelbase_m);
+            let u = 0.5 * dtheta;
+            // sinc's and the small rotations' Taylor series with the coefficients as reciprocals,
+            // as host-sim (truncation below 3e-21).
+            let chord = if libm::fabs(u) < 1e-4 {
+                let u2 = u * u;
+                ds * (1.0 - u2 * (1.0 / 6.0) + u2 * u2 * (1.0 / 120.0))
+            } else {
+                ds * sinc(u)
+            };
+            let d = offset + u;
             let (sd, cd) = if libm::fabs(d) < 0.01 {
                 let d2 = d * d;
                 (
-                    d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0))),
-                    1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0)),
+                    d * (1.0
+                        - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0)))),
+                    1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0))),
                 )
             } else {
                 libm::sincos(d)
