@@ -236,6 +236,9 @@ struct WheelLog {
 
 impl WheelLog {
     /// Keeps what the fit needs of the finished `seg` of direction `dir`, and clears the sums.
+    /// Once per finished segment, not per period; `f64` because the centred moments subtract
+    /// sums of squares (up to ~1e10 over a step's blocks) whose difference `f32` would keep to a
+    /// few digits.
     fn close(&mut self, seg: Segment, dir: usize) {
         let m = self.running.moments();
         self.running = Running::default();
@@ -315,6 +318,9 @@ pub struct Identify {
     tail: (i64, i64),
     /// Periods per block.
     block_periods: u32,
+    /// Periods of a duty step, a coast and a brake segment (derived once: the control period
+    /// compares integers).
+    segment_periods: [u32; 3],
     /// Counts of the block being summed (right, left) and its periods so far.
     block: (i64, i64),
     in_block: u32,
@@ -341,6 +347,8 @@ impl Identify {
             previous: (None, None),
             tail: (0, 0),
             block_periods: (libm::round(f64::from(BLOCK_MS) * rate / 1000.0) as u32).max(1),
+            segment_periods: [LEVEL_MS, COAST_MS, BRAKE_MS]
+                .map(|ms| (libm::round(f64::from(ms) * rate / 1000.0) as u32).max(4)),
             block: (0, 0),
             in_block: 0,
             logs: [WheelLog::default(); 2],
@@ -353,12 +361,11 @@ impl Identify {
     }
 
     fn segment_periods(&self, s: Segment) -> u32 {
-        let ms = match s {
-            Segment::Level(_) => LEVEL_MS,
-            Segment::Coast => COAST_MS,
-            Segment::Brake => BRAKE_MS,
-        };
-        (libm::round(f64::from(ms) * self.rate_hz / 1000.0) as u32).max(4)
+        self.segment_periods[match s {
+            Segment::Level(_) => 0,
+            Segment::Coast => 1,
+            Segment::Brake => 2,
+        }]
     }
 
     /// The wheels driven in this pass (right, left) and the direction index (0 forward).

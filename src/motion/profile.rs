@@ -8,7 +8,14 @@
 //! radians for an in-place turn); [`crate::motion::routine`] maps it linearly to wheel ticks so that both
 //! wheels follow the one profile.
 //!
-//! Profiles are evaluated in closed form at `t = k / rate` (no integration, no drift), in `f64`.
+//! Profiles are evaluated in closed form at `t = k / rate` (no integration, no drift). A profile
+//! is planned in `f64` when its segment is planned (config time) and sampled in `f32` once per
+//! control period: the Cortex-M4F's FPU is single precision, so a sample costs a few
+//! instructions instead of soft-float calls. Why `f32` suffices: a sample's relative error is a
+//! few units of 2⁻²⁴ of the profile's own distance and duration (each of the ≤ 4 operations
+//! rounds once, the phase times are rounded once from `f64`), e.g. ≤ 0.5 µm on a 2 m leg; the
+//! routine maps it to ticks relative to the segment start and ends every segment on an exact
+//! integer target, so nothing of it accumulates.
 
 use core::fmt;
 
@@ -93,21 +100,29 @@ impl Default for MotionLimits {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ProfileSample {
     /// Distance travelled since the start, profile units.
-    pub position: f64,
+    pub position: f32,
     /// Speed, units/s (never negative).
-    pub velocity: f64,
+    pub velocity: f32,
     /// Acceleration, units/s².
-    pub accel: f64,
+    pub accel: f32,
 }
 
-/// A rest-to-rest trapezoidal (or triangular) velocity profile over a non-negative distance.
+/// A rest-to-rest trapezoidal (or triangular) velocity profile over a non-negative distance:
+/// planned in `f64`, sampled in `f32` (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Trapezoid {
-    distance: f64,
-    accel: f64,
-    peak: f64,
-    t_accel: f64,
-    t_cruise: f64,
+    /// Duration, seconds, as planned (`f64`: the routine turns it into a whole number of
+    /// control periods once).
+    duration: f64,
+    distance: f32,
+    accel: f32,
+    peak: f32,
+    /// Phase ends, seconds since the start: acceleration over, cruise over, profile over.
+    t1: f32,
+    t2: f32,
+    end: f32,
+    /// Distance at the end of the acceleration phase, units.
+    p1: f32,
 }
 
 impl Trapezoid {
@@ -123,46 +138,50 @@ impl Trapezoid {
             && max_accel > 0.0;
         if !valid {
             return Trapezoid {
+                duration: 0.0,
                 distance: 0.0,
                 accel: 1.0,
                 peak: 0.0,
-                t_accel: 0.0,
-                t_cruise: 0.0,
+                t1: 0.0,
+                t2: 0.0,
+                end: 0.0,
+                p1: 0.0,
             };
         }
         // Triangular when the speed limit cannot be reached: v_peak² / a = distance.
         let peak = libm::fmin(max_speed, libm::sqrt(distance * max_accel));
         let t_accel = peak / max_accel;
-        let t_cruise = (distance - peak * t_accel) / peak;
+        let t_cruise = libm::fmax((distance - peak * t_accel) / peak, 0.0);
         Trapezoid {
-            distance,
-            accel: max_accel,
-            peak,
-            t_accel,
-            t_cruise: libm::fmax(t_cruise, 0.0),
+            duration: 2.0 * t_accel + t_cruise,
+            distance: distance as f32,
+            accel: max_accel as f32,
+            peak: peak as f32,
+            t1: t_accel as f32,
+            t2: (t_accel + t_cruise) as f32,
+            end: (2.0 * t_accel + t_cruise) as f32,
+            p1: (0.5 * peak * t_accel) as f32,
         }
     }
 
     /// Total distance, units.
-    pub fn distance(&self) -> f64 {
+    pub fn distance(&self) -> f32 {
         self.distance
     }
 
     /// Peak speed, units/s.
-    pub fn peak_speed(&self) -> f64 {
+    pub fn peak_speed(&self) -> f32 {
         self.peak
     }
 
     /// Duration, seconds.
     pub fn duration(&self) -> f64 {
-        2.0 * self.t_accel + self.t_cruise
+        self.duration
     }
 
     /// The profile at time `t` seconds since its start (clamped to `[0, duration]`).
-    pub fn sample(&self, t: f64) -> ProfileSample {
-        let t1 = self.t_accel;
-        let t2 = t1 + self.t_cruise;
-        let end = t2 + t1;
+    pub fn sample(&self, t: f32) -> ProfileSample {
+        let (t1, t2, end) = (self.t1, self.t2, self.end);
         if t.is_nan() || t <= 0.0 {
             return ProfileSample::default();
         }
@@ -182,11 +201,12 @@ impl Trapezoid {
             }
         } else if t < t2 {
             ProfileSample {
-                position: 0.5 * self.peak * t1 + self.peak * (t - t1),
+                position: self.p1 + self.peak * (t - t1),
                 velocity: self.peak,
                 accel: 0.0,
             }
         } else {
+            // Time left, not time elapsed, so the end is approached without cancellation.
             let r = end - t;
             ProfileSample {
                 position: self.distance - 0.5 * a * r * r,
@@ -207,15 +227,19 @@ mod tests {
         // 1 s accelerating (0.15 m), 0.15 m decelerating, 1.7 m at 0.3 m/s: 7.667 s in all.
         assert!((p.duration() - (2.0 + 1.7 / 0.3)).abs() < 1e-12);
         let mut prev = p.sample(0.0);
-        let dt = 1e-3;
-        let mut k = 1;
-        while f64::from(k) * dt <= p.duration() + 2.0 * dt {
-            let s = p.sample(f64::from(k) * dt);
-            assert!(s.velocity <= 0.3 + 1e-12 && s.velocity >= 0.0);
-            assert!(s.accel.abs() <= 0.3 + 1e-12);
-            // Finite-difference speed agrees with the sampled speed within a·dt.
-            let fd = (s.position - prev.position) / dt;
-            assert!((fd - s.velocity).abs() <= 0.3 * dt + 1e-9, "t={k} ms");
+        let rate = 1000.0f32;
+        let mut k = 1u32;
+        while f64::from(k) / 1000.0 <= p.duration() + 2e-3 {
+            let s = p.sample(k as f32 / rate);
+            assert!(s.velocity <= 0.3 + 1e-6 && s.velocity >= 0.0);
+            assert!(s.accel.abs() <= 0.3 + 1e-6);
+            // Finite-difference speed agrees with the sampled speed within a·dt, plus the
+            // rounding of two f32 positions near 2 m (2 × 2⁻²² m) over dt.
+            let fd = (s.position - prev.position) * rate;
+            assert!(
+                (fd - s.velocity).abs() <= 0.3e-3 + 2.0 * 2.4e-7 * 1000.0,
+                "t={k} ms"
+            );
             prev = s;
             k += 1;
         }
@@ -223,13 +247,65 @@ mod tests {
         assert_eq!(prev.velocity, 0.0);
     }
 
+    /// The closed form in `f64`: the reference the `f32` samples are checked against.
+    fn exact(d: f64, v: f64, a: f64, t: f64) -> f64 {
+        let peak = v.min((d * a).sqrt());
+        let t1 = peak / a;
+        let t2 = t1 + (d - peak * t1) / peak;
+        let end = t2 + t1;
+        if t <= 0.0 {
+            0.0
+        } else if t >= end {
+            d
+        } else if t < t1 {
+            0.5 * a * t * t
+        } else if t < t2 {
+            0.5 * peak * t1 + peak * (t - t1)
+        } else {
+            d - 0.5 * a * (end - t) * (end - t)
+        }
+    }
+
+    #[test]
+    fn f32_samples_stay_within_a_few_ulp_of_the_distance() {
+        // A 2 m leg, a quarter turn (0.302 m of wheel travel as 1.571 rad) and the longest
+        // valid segment (a circle of 100 m radius: 628 m) at 1 kHz and 10 kHz, at the period
+        // instants the routine samples (t = k / rate, k an integer count).
+        for (d, v, a) in [
+            (2.0, 0.3, 0.3),
+            (0.5 * core::f64::consts::PI, 1.0, 2.0),
+            (628.3, 0.3, 0.3),
+        ] {
+            let p = Trapezoid::new(d, v, a);
+            for rate in [1000u32, 10_000] {
+                let periods = (p.duration() * f64::from(rate)).ceil() as u32;
+                let stride = (periods / 20_000).max(1);
+                let mut worst = 0.0f64;
+                let mut k = 0;
+                while k <= periods {
+                    let t = k as f32 / rate as f32;
+                    let s = p.sample(t);
+                    let e = exact(d, v, a, f64::from(k) / f64::from(rate));
+                    worst = worst.max((f64::from(s.position) - e).abs());
+                    k += stride;
+                }
+                // Stated bound: 8 units of 2⁻²⁴ of the distance (each of the time, the phase
+                // times and the ≤ 4 operations of a sample rounds once).
+                assert!(
+                    worst <= 8.0 * d / 16_777_216.0,
+                    "d {d} rate {rate}: worst {worst:e}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn short_distance_is_triangular() {
         let p = Trapezoid::new(0.01, 0.3, 0.3);
         // v_peak = sqrt(d a) = 0.0548 m/s < 0.3.
-        assert!((p.peak_speed() - (0.01f64 * 0.3).sqrt()).abs() < 1e-15);
-        let mid = p.sample(0.5 * p.duration());
-        assert!((mid.position - 0.005).abs() < 1e-12);
+        assert!((f64::from(p.peak_speed()) - (0.01f64 * 0.3).sqrt()).abs() < 1e-8);
+        let mid = p.sample((0.5 * p.duration()) as f32);
+        assert!((mid.position - 0.005).abs() < 1e-8);
     }
 
     #[test]

@@ -7,10 +7,10 @@
 //! turns), mapped *linearly* to both wheels' tick references, so the wheels follow one profile:
 //! on a leg they travel equal distances at every instant, on a turn equal and opposite ones.
 //!
-//! The tick targets of a segment are computed from the geometry handed in when the segment
-//! starts (the current calibrated `D_R`, `D_L`, `b`) and rounded to whole ticks; references are
-//! cumulative ticks since the run start and continue from the previous segment's *target*, so
-//! tracking errors do not add up along the path. A segment ends when its profile is over and
+//! The tick targets of a segment are computed from the geometry handed in when the run starts
+//! (the current calibrated `D_R`, `D_L`, `b`; the controller changes it only while idle) and
+//! rounded to whole ticks; references are cumulative ticks since the run start and continue
+//! from the previous segment's *target*, so tracking errors do not add up along the path. A segment ends when its profile is over and
 //! both wheels have stayed within `settle_tolerance_ticks` of the target for `settle_periods`
 //! periods (or `settle_timeout_periods` have passed since the profile ended): the robot stops at
 //! every corner, as UMBmark expects.
@@ -20,6 +20,15 @@
 //! (`(MAX_KNOTS − 1) / segments` knots per segment: 24 for a square, 199 for a line or circle).
 //!
 //! Signs: positive ticks roll forward; CCW turns drive the right wheel forward.
+//!
+//! Numerics: every segment is planned in `f64` when the run starts ([`Routine::new`]: profile,
+//! whole-tick targets, the period at which the profile ends). The control period then uses only
+//! integers and `f32` (the Cortex-M4F's FPU is single precision): the time since the segment
+//! start is an integer count of periods, turned into seconds by one division; the reference is
+//! `f32` ticks *relative to the segment start* (a few units of 2⁻²⁴ of the segment's length in
+//! ticks: ≤ 0.2 tick on a 2 m leg of 849k ticks, the encoder itself resolves 1 tick); segment
+//! starts, targets and knots stay integer ticks, so no rounding carries from one segment into
+//! the next and the reference ends every segment exactly on its integer target.
 
 use core::f64::consts::PI;
 use core::fmt;
@@ -135,14 +144,23 @@ pub struct SettleConfig {
     pub timeout_periods: u32,
 }
 
-/// A segment being driven: profile plus its linear map to wheel ticks.
+/// A segment as planned when the run starts: profile plus its linear map to wheel ticks.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Active {
+struct Plan {
     kind: SegmentKind,
     profile: Trapezoid,
     /// Ticks per profile unit, right and left (signed; scaled so the end is a whole tick).
-    scale_right: f64,
-    scale_left: f64,
+    scale: (f32, f32),
+    /// Reference ticks of the whole segment (end − start), right and left.
+    travel: (i64, i64),
+    /// The first period (counted from 0 at the segment start) whose instant `k / rate` is at or
+    /// past the profile's end.
+    profile_periods: u32,
+}
+
+/// A segment being driven.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Active {
     /// Cumulative reference ticks at the segment start and end.
     start: WheelTicks,
     end: WheelTicks,
@@ -152,6 +170,8 @@ struct Active {
     settled: u32,
     /// Next interior knot to record (1-based).
     next_knot: usize,
+    /// Reference position of the previous step, ticks since the segment start.
+    prev_ref: (f32, f32),
 }
 
 /// What the routine asks of the wheels for the next period.
@@ -166,24 +186,41 @@ pub struct RoutineStep {
     /// The segment being driven.
     pub kind: SegmentKind,
     /// Reference minus measured ticks, right and left, at the instant of the measurement.
-    pub error: (f64, f64),
+    pub error: (f32, f32),
     /// The path is complete: the knots are final, the motors should stop.
     pub finished: bool,
 }
+
+/// Number of distinct segments a path can have: the segments of every path repeat with period
+/// 2 (a square alternates legs and turns, a line and a circle are one segment), so
+/// `segment(path, i) == segment(path, i % PLANS)`.
+const PLANS: usize = 2;
 
 /// The routine state machine for one run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Routine {
     path: PathKind,
-    rate_hz: f64,
+    rate_hz: f32,
     settle: SettleConfig,
     index: usize,
+    /// The plan of segment `i` is `plans[i % PLANS]`.
+    plans: [Plan; PLANS],
     active: Active,
     knots_per_segment: usize,
     knots: Vec<WheelTicks, MAX_KNOTS>,
-    /// Reference position of the previous step, ticks since the run start.
-    prev_ref: (f64, f64),
     finished: bool,
+}
+
+/// `d` ticks as `f32`. Differences of tick totals within a run fit an `i32` (±2.1e9 ticks are
+/// ±5 km of the paper's robot); the `i32` conversion is one FPU instruction where an `i64` one
+/// is a library call.
+#[inline]
+pub(crate) fn ticks_f32(d: i64) -> f32 {
+    match i32::try_from(d) {
+        Ok(v) => v as f32,
+        Err(_) if d < 0 => i32::MIN as f32,
+        Err(_) => i32::MAX as f32,
+    }
 }
 
 /// Speed and acceleration limits of a segment's own parameter.
@@ -234,31 +271,42 @@ fn segment_scales(kind: &SegmentKind, g: &Geometry) -> (f64, f64, f64) {
     }
 }
 
-impl Active {
-    fn new(kind: SegmentKind, start: WheelTicks, g: &Geometry, l: &MotionLimits) -> Active {
+impl Plan {
+    /// Plans `kind` for `g` and `l` at `rate_hz` (config time, `f64`).
+    fn new(kind: SegmentKind, g: &Geometry, l: &MotionLimits, rate_hz: f64) -> Plan {
         let (distance, cr, cl) = segment_scales(&kind, g);
         let (v, a) = segment_limits(&kind, g, l);
         let profile = Trapezoid::new(distance, v, a);
         let end_r = libm::round(distance * cr);
         let end_l = libm::round(distance * cl);
-        let (scale_right, scale_left) = if distance > 0.0 {
-            (end_r / distance, end_l / distance)
+        let scale = if distance > 0.0 {
+            ((end_r / distance) as f32, (end_l / distance) as f32)
         } else {
             (0.0, 0.0)
         };
-        Active {
+        Plan {
             kind,
             profile,
-            scale_right,
-            scale_left,
+            scale,
+            travel: (end_r as i64, end_l as i64),
+            // Saturating: a profile longer than u32::MAX periods is not a valid path.
+            profile_periods: libm::ceil(profile.duration() * rate_hz) as u32,
+        }
+    }
+}
+
+impl Active {
+    fn new(plan: &Plan, start: WheelTicks) -> Active {
+        Active {
             start,
             end: WheelTicks::new(
-                start.right.saturating_add(end_r as i64),
-                start.left.saturating_add(end_l as i64),
+                start.right.saturating_add(plan.travel.0),
+                start.left.saturating_add(plan.travel.1),
             ),
             periods: 0,
             settled: 0,
             next_knot: 1,
+            prev_ref: (0.0, 0.0),
         }
     }
 }
@@ -281,15 +329,18 @@ impl Routine {
         // Cannot fail: the capacity is positive.
         let _ = knots.push(WheelTicks::default());
         let count = segment_count(&path);
+        let rate = rate_hz.max(1);
+        let plan = |i| Plan::new(segment(&path, i), geometry, limits, f64::from(rate));
+        let plans = [plan(0), plan(1)];
         Ok(Routine {
             path,
-            rate_hz: f64::from(rate_hz.max(1)),
+            rate_hz: rate as f32,
             settle,
             index: 0,
-            active: Active::new(segment(&path, 0), WheelTicks::default(), geometry, limits),
+            active: Active::new(&plans[0], WheelTicks::default()),
+            plans,
             knots_per_segment: (MAX_KNOTS - 1) / count,
             knots,
-            prev_ref: (0.0, 0.0),
             finished: false,
         })
     }
@@ -319,53 +370,66 @@ impl Routine {
         self.finished
     }
 
-    /// One control period. `measured` is the cumulative measured ticks since the run start;
-    /// `geometry` and `limits` are used only when a new segment starts in this step.
-    pub fn step(
-        &mut self,
-        measured: WheelTicks,
-        geometry: &Geometry,
-        limits: &MotionLimits,
-    ) -> RoutineStep {
+    /// One control period. `measured` is the cumulative measured ticks since the run start.
+    pub fn step(&mut self, measured: WheelTicks) -> RoutineStep {
         if self.finished {
             let end = self.active.end;
             return self.hold((
-                end.right as f64 - measured.right as f64,
-                end.left as f64 - measured.left as f64,
+                ticks_f32(end.right - measured.right),
+                ticks_f32(end.left - measured.left),
             ));
         }
+        let plan = &self.plans[self.index % PLANS];
         let a = &mut self.active;
-        // `now` is the instant of the measurement; the period that starts now is driven with
-        // the feed-forward of its midpoint.
+        // `k` counts the periods since the segment start: its instant is that of the
+        // measurement; the period that starts now is driven with the feed-forward of its
+        // midpoint. An integer count, so the time never accumulates rounding (below 2²⁴
+        // periods, 28 min at 10 kHz, `k` is exact in `f32`; above, the time's relative error
+        // stays 2⁻²⁴).
         a.periods = a.periods.saturating_add(1);
-        let now = f64::from(a.periods - 1) / self.rate_hz;
-        let done = now >= a.profile.duration();
-        let s = a.profile.sample(now);
-        let ff = a.profile.sample(now + 0.5 / self.rate_hz);
-        let (pos_r, pos_l) = if done {
-            (a.end.right as f64, a.end.left as f64)
-        } else {
+        let k = a.periods - 1;
+        let done = k >= plan.profile_periods;
+        let t = k as f32;
+        let s = plan.profile.sample(t / self.rate_hz);
+        let ff = plan.profile.sample((t + 0.5) / self.rate_hz);
+        // Reference and error relative to the segment start; once the profile is over the
+        // reference is the integer target itself.
+        let (pos_r, pos_l, error) = if done {
             (
-                a.start.right as f64 + a.scale_right * s.position,
-                a.start.left as f64 + a.scale_left * s.position,
+                ticks_f32(plan.travel.0),
+                ticks_f32(plan.travel.1),
+                (
+                    ticks_f32(a.end.right - measured.right),
+                    ticks_f32(a.end.left - measured.left),
+                ),
+            )
+        } else {
+            let (pr, pl) = (plan.scale.0 * s.position, plan.scale.1 * s.position);
+            (
+                pr,
+                pl,
+                (
+                    pr - ticks_f32(measured.right - a.start.right),
+                    pl - ticks_f32(measured.left - a.start.left),
+                ),
             )
         };
         let right = WheelReference {
-            delta_ticks: (pos_r - self.prev_ref.0) as f32,
-            velocity_tps: (a.scale_right * ff.velocity) as f32,
-            accel_tps2: (a.scale_right * ff.accel) as f32,
+            delta_ticks: pos_r - a.prev_ref.0,
+            velocity_tps: plan.scale.0 * ff.velocity,
+            accel_tps2: plan.scale.0 * ff.accel,
         };
         let left = WheelReference {
-            delta_ticks: (pos_l - self.prev_ref.1) as f32,
-            velocity_tps: (a.scale_left * ff.velocity) as f32,
-            accel_tps2: (a.scale_left * ff.accel) as f32,
+            delta_ticks: pos_l - a.prev_ref.1,
+            velocity_tps: plan.scale.1 * ff.velocity,
+            accel_tps2: plan.scale.1 * ff.accel,
         };
-        self.prev_ref = (pos_r, pos_l);
-        let error = (pos_r - measured.right as f64, pos_l - measured.left as f64);
+        a.prev_ref = (pos_r, pos_l);
 
         // Interior knots at evenly spaced fractions of the profile's distance.
         let per = self.knots_per_segment;
-        if a.next_knot < per && s.position * per as f64 >= a.profile.distance() * a.next_knot as f64
+        if a.next_knot < per
+            && s.position * per as f32 >= plan.profile.distance() * a.next_knot as f32
         {
             let _ = self.knots.push(measured);
             a.next_knot += 1;
@@ -375,19 +439,22 @@ impl Routine {
             right,
             left,
             segment: self.index,
-            kind: a.kind,
+            kind: plan.kind,
             error,
             finished: false,
         };
         if !done {
             return step;
         }
-        let tol = f64::from(self.settle.tolerance_ticks);
-        let in_tol = libm::fabs(a.end.right as f64 - measured.right as f64) <= tol
-            && libm::fabs(a.end.left as f64 - measured.left as f64) <= tol;
+        let tol = u64::from(self.settle.tolerance_ticks);
+        let in_tol = (a.end.right - measured.right).unsigned_abs() <= tol
+            && (a.end.left - measured.left).unsigned_abs() <= tol;
         a.settled = if in_tol { a.settled + 1 } else { 0 };
-        let after_end = now * self.rate_hz - a.profile.duration() * self.rate_hz;
-        if a.settled < self.settle.periods && after_end < f64::from(self.settle.timeout_periods) {
+        let timed_out = k
+            >= plan
+                .profile_periods
+                .saturating_add(self.settle.timeout_periods);
+        if a.settled < self.settle.periods && !timed_out {
             return step;
         }
         if a.settled < self.settle.periods {
@@ -408,17 +475,17 @@ impl Routine {
             };
         }
         self.index += 1;
-        self.active = Active::new(segment(&self.path, self.index), end, geometry, limits);
+        self.active = Active::new(&self.plans[self.index % PLANS], end);
         step
     }
 
     /// The reference once the path is complete: hold the last target.
-    fn hold(&self, error: (f64, f64)) -> RoutineStep {
+    fn hold(&self, error: (f32, f32)) -> RoutineStep {
         RoutineStep {
             right: WheelReference::default(),
             left: WheelReference::default(),
             segment: self.index,
-            kind: self.active.kind,
+            kind: self.plans[self.index % PLANS].kind,
             error,
             finished: true,
         }
@@ -480,7 +547,7 @@ mod tests {
         let mut seg_start = (0usize, pos);
         loop {
             let meas = WheelTicks::new(pos.0.floor() as i64, pos.1.floor() as i64);
-            let s = r.step(meas, g, &limits);
+            let s = r.step(meas);
             if s.finished {
                 break;
             }
@@ -525,6 +592,29 @@ mod tests {
     }
 
     #[test]
+    fn segments_repeat_with_the_plans_period() {
+        for path in [
+            PathKind::Square {
+                direction: Direction::Cw,
+                side_m: 1.0,
+            },
+            PathKind::Square {
+                direction: Direction::Ccw,
+                side_m: 3.0,
+            },
+            PathKind::Line { length_m: 2.0 },
+            PathKind::Circle {
+                direction: Direction::Ccw,
+                radius_m: 1.5,
+            },
+        ] {
+            for i in 0..segment_count(&path) {
+                assert_eq!(segment(&path, i), segment(&path, i % PLANS), "{path:?} {i}");
+            }
+        }
+    }
+
+    #[test]
     fn turn_direction_follows_the_path() {
         let g = Geometry::PAPER_NOMINAL;
         let limits = MotionLimits::DEFAULT;
@@ -533,7 +623,7 @@ mod tests {
             side_m: 1.0,
         };
         let r = Routine::new(path, &g, &limits, 1000, SETTLE).unwrap();
-        let turn = Active::new(segment(&path, 1), r.active.end, &g, &limits);
+        let turn = Active::new(&r.plans[1], r.active.end);
         // CW: right wheel backwards, left forwards, equal magnitude (π b / 4 ≈ 0.302 m).
         let dr = turn.end.right - turn.start.right;
         let dl = turn.end.left - turn.start.left;

@@ -299,12 +299,28 @@ impl SpeedPiState {
 pub struct SpeedPi {
     gains: PiGains,
     rate_hz: f32,
+    /// `1 / rate_hz`, s.
+    period_s: f32,
+    /// The integrals' clamps (`limit / ki`, `limit / kii`; infinite for a zero gain).
+    integral_max: (f32, f32),
 }
 
 impl SpeedPi {
     /// A controller with `gains` stepped at `rate_hz`.
     pub fn new(gains: PiGains, rate_hz: f32) -> Self {
-        SpeedPi { gains, rate_hz }
+        let bound = |k: f32| {
+            if k > 0.0 {
+                gains.output_limit / k
+            } else {
+                f32::INFINITY
+            }
+        };
+        SpeedPi {
+            gains,
+            rate_hz,
+            period_s: 1.0 / rate_hz,
+            integral_max: (bound(gains.ki), bound(gains.kii)),
+        }
     }
 
     /// The gains.
@@ -322,7 +338,7 @@ impl SpeedPi {
         measured_delta: f32,
     ) -> f32 {
         let g = &self.gains;
-        let dt = 1.0 / self.rate_hz;
+        let dt = self.period_s;
         let err_step = reference.delta_ticks - measured_delta;
         let v = reference.velocity_tps;
         // Inverse of the plant's gain (of the reference's direction) and lag.
@@ -344,14 +360,9 @@ impl SpeedPi {
             state.integral2 += state.integral_ticks * dt;
         }
         // Clamp: an integral alone never needs more than the full output.
-        if g.ki > 0.0 {
-            let m = limit / g.ki;
-            state.integral_ticks = clamp(state.integral_ticks, -m, m);
-        }
-        if g.kii > 0.0 {
-            let m = limit / g.kii;
-            state.integral2 = clamp(state.integral2, -m, m);
-        }
+        let (m1, m2) = self.integral_max;
+        state.integral_ticks = clamp(state.integral_ticks, -m1, m1);
+        state.integral2 = clamp(state.integral2, -m2, m2);
         let out = deadband_inverse(
             g,
             ff + p + g.ki * state.integral_ticks + g.kii * state.integral2,

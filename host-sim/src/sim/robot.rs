@@ -559,13 +559,14 @@ impl Sim {
             stats.periods += 1;
             if let Some(t) = out.tracking {
                 if let SegmentKind::Straight { .. } = t.kind {
-                    stats.peak_leg_sync_ticks =
-                        stats.peak_leg_sync_ticks.max(t.sync_error_ticks().abs());
+                    stats.peak_leg_sync_ticks = stats
+                        .peak_leg_sync_ticks
+                        .max(f64::from(t.sync_error_ticks().abs()));
                 }
                 stats.peak_tracking_ticks = stats
                     .peak_tracking_ticks
-                    .max(t.error_right_ticks.abs())
-                    .max(t.error_left_ticks.abs());
+                    .max(f64::from(t.error_right_ticks.abs()))
+                    .max(f64::from(t.error_left_ticks.abs()));
             }
             observe(self, controller, &out);
             stats.last = Some(out);

@@ -4,7 +4,7 @@
 use core::fmt;
 
 use super::fault::FollowingState;
-use super::{Controller, Wheel, still_limits};
+use super::{Controller, Wheel, still_limits, wheel_scales};
 
 use crate::kinematics::encoder::{CounterWidth, EncoderConfig, Polarity, max_step_for};
 use crate::kinematics::geometry::{Geometry, GeometryError};
@@ -286,6 +286,7 @@ impl Controller {
         // Bounds in counts follow the geometry too (only while idle: nothing is accumulated).
         self.following = FollowingState::for_config(&self.config);
         self.still_limit_ticks = still_limits(&geometry);
+        self.wheel_scales = wheel_scales(&geometry);
         Ok(())
     }
 

@@ -84,6 +84,8 @@ pub(super) struct FollowingState {
     over: (u32, u32),
     /// The bound in counts of each wheel.
     limit_ticks: (f32, f32),
+    /// Millimetres per count of each wheel (for the fault's report).
+    mm_per_tick: (f32, f32),
     /// Periods above the bound that latch the fault.
     periods: u32,
 }
@@ -98,6 +100,10 @@ impl FollowingState {
             limit_ticks: (
                 (max / g.meters_per_tick_right()) as f32,
                 (max / g.meters_per_tick_left()) as f32,
+            ),
+            mm_per_tick: (
+                (1000.0 * g.meters_per_tick_right()) as f32,
+                (1000.0 * g.meters_per_tick_left()) as f32,
             ),
             periods: super::periods_of_ms(f.time_ms, config.rate_hz),
             ..FollowingState::default()
@@ -135,7 +141,7 @@ impl Controller {
             };
             self.check_report = failure.map(CheckReport::IdentifyFailed);
         }
-        self.run = None;
+        self.discard_driven_run();
         self.drive = None;
         self.check = None;
         self.last_duty = (0.0, 0.0);
@@ -147,8 +153,15 @@ impl Controller {
         let f = &mut self.following;
         f.error_ticks.0 += err.0;
         f.error_ticks.1 += err.1;
-        f.peak_duty.0 = libm::fmaxf(f.peak_duty.0, libm::fabsf(duty.0));
-        f.peak_duty.1 = libm::fmaxf(f.peak_duty.1, libm::fabsf(duty.1));
+        // Duties are never NaN (the speed loop maps NaN to 0): a plain comparison suffices.
+        let peak = |p: &mut f32, d: f32| {
+            let d = libm::fabsf(d);
+            if d > *p {
+                *p = d;
+            }
+        };
+        peak(&mut f.peak_duty.0, duty.0);
+        peak(&mut f.peak_duty.1, duty.1);
         let limit = f.limit_ticks;
         let count = |c: &mut u32, e: f32, lim: f32| {
             *c = if libm::fabsf(e) > lim {
@@ -161,26 +174,21 @@ impl Controller {
         let r = count(&mut f.over.0, f.error_ticks.0, limit.0);
         let l = count(&mut f.over.1, f.error_ticks.1, limit.1);
         let periods = f.periods;
-        let (wheel, error, peak, m_per_tick) = if r >= periods {
+        let (wheel, error, peak, mm_per_tick) = if r >= periods {
             (
                 Wheel::Right,
                 f.error_ticks.0,
                 f.peak_duty.0,
-                self.config.geometry.meters_per_tick_right(),
+                f.mm_per_tick.0,
             )
         } else if l >= periods {
-            (
-                Wheel::Left,
-                f.error_ticks.1,
-                f.peak_duty.1,
-                self.config.geometry.meters_per_tick_left(),
-            )
+            (Wheel::Left, f.error_ticks.1, f.peak_duty.1, f.mm_per_tick.1)
         } else {
             return;
         };
         self.latch(Fault::FollowingError {
             wheel,
-            error_mm: (f64::from(error) * m_per_tick * 1000.0) as i32,
+            error_mm: (error * mm_per_tick) as i32,
             peak_duty_pct: (libm::fminf(peak, 1.0) * 100.0 + 0.5) as u8,
         });
     }

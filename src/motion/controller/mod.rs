@@ -37,7 +37,7 @@ use crate::kinematics::geometry::Geometry;
 use crate::kinematics::odometry::{Odometry, OdometryState, Pose};
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::motor::{MotorDriver, StopMode};
-use crate::motion::routine::SegmentKind;
+use crate::motion::routine::{SegmentKind, ticks_f32};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::{SpeedPi, SpeedPiState, WheelReference};
 
@@ -103,15 +103,15 @@ pub struct Tracking {
     /// The segment.
     pub kind: SegmentKind,
     /// Reference minus measured ticks of the right wheel.
-    pub error_right_ticks: f64,
+    pub error_right_ticks: f32,
     /// Reference minus measured ticks of the left wheel.
-    pub error_left_ticks: f64,
+    pub error_left_ticks: f32,
 }
 
 impl Tracking {
     /// Wheel synchronisation error: how far the right wheel is ahead of the left one relative
     /// to their common profile, ticks.
-    pub fn sync_error_ticks(&self) -> f64 {
+    pub fn sync_error_ticks(&self) -> f32 {
         self.error_left_ticks - self.error_right_ticks
     }
 }
@@ -157,6 +157,31 @@ pub struct Controller {
     still_anchor: WheelTicks,
     /// [`STILL_TRAVEL_M`] in counts of each wheel (right, left).
     still_limit_ticks: (u64, u64),
+    /// Velocity mode's conversion to wheel ticks (right, left), from the geometry.
+    wheel_scales: (WheelScale, WheelScale),
+}
+
+/// A wheel's speed in ticks/s is `v·ticks_per_m + ω·ticks_per_rad` for the robot's centre
+/// speed `v` and turn rate `ω` (derived in `f64` when the geometry changes, used in `f32`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct WheelScale {
+    /// `1 / (m per tick)`.
+    ticks_per_m: f32,
+    /// `±(b/2) / (m per tick)`: positive for the right wheel (CCW turns drive it forward).
+    ticks_per_rad: f32,
+}
+
+/// The velocity-mode scales of both wheels of `g` (right, left).
+fn wheel_scales(g: &Geometry) -> (WheelScale, WheelScale) {
+    let half_b = 0.5 * g.wheelbase_m;
+    let scale = |m_per_tick: f64, sign: f64| WheelScale {
+        ticks_per_m: (1.0 / m_per_tick) as f32,
+        ticks_per_rad: (sign * half_b / m_per_tick) as f32,
+    };
+    (
+        scale(g.meters_per_tick_right(), 1.0),
+        scale(g.meters_per_tick_left(), -1.0),
+    )
 }
 
 /// Periods without wheel motion after which the motors count as stopped (0.1 s).
@@ -222,6 +247,7 @@ impl Controller {
             still_periods: 0,
             still_anchor: WheelTicks::default(),
             still_limit_ticks: still_limits(&config.geometry),
+            wheel_scales: wheel_scales(&config.geometry),
         })
     }
 
@@ -288,7 +314,7 @@ impl Controller {
         if self.fault.is_some() {
             return self.output(stop, None);
         }
-        let (command, tracking) = if self.run.is_some() {
+        let (command, tracking) = if self.driving_run() {
             self.step_run(dr, dl)
         } else if self.drive.is_some() {
             (self.step_drive(dr, dl), None)
@@ -333,12 +359,12 @@ impl Controller {
     }
 
     fn duties(&mut self, r: &WheelReference, l: &WheelReference, dr: i64, dl: i64) -> MotorCommand {
-        let right = self.pi.0.step(&mut self.pi_state.0, r, dr as f32);
-        let left = self.pi.1.step(&mut self.pi_state.1, l, dl as f32);
-        self.check_following(
-            (r.delta_ticks - dr as f32, l.delta_ticks - dl as f32),
-            (right, left),
-        );
+        // A period's count is within the glitch limit (1,273 counts at 1 kHz for the paper's
+        // robot): exact in f32, which is exact to 2²⁴.
+        let (dr, dl) = (ticks_f32(dr), ticks_f32(dl));
+        let right = self.pi.0.step(&mut self.pi_state.0, r, dr);
+        let left = self.pi.1.step(&mut self.pi_state.1, l, dl);
+        self.check_following((r.delta_ticks - dr, l.delta_ticks - dl), (right, left));
         MotorCommand::Duty { right, left }
     }
 
@@ -346,7 +372,7 @@ impl Controller {
     pub fn status(&self) -> Status {
         if let Some(f) = self.fault {
             Status::Faulted(f)
-        } else if let Some(run) = &self.run {
+        } else if let Some(run) = self.run.as_ref().filter(|r| !r.done) {
             Status::Running {
                 path: *run.routine.path(),
                 segment: run.routine.segment_index() as u8,

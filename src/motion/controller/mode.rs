@@ -3,9 +3,10 @@
 
 use core::fmt;
 
-use super::{Controller, Fault, MotorCommand, Tracking};
+use super::{Controller, Fault, MotorCommand, Tracking, WheelScale};
 
 use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
 use crate::kinematics::odometry::{OdometryState, Pose};
 use crate::motion::bringup::{CheckKind, CheckReport, PulseCheck, PulseStep, PushCheck};
 use crate::motion::button::Press;
@@ -109,38 +110,58 @@ impl ActiveCheck {
     }
 }
 
-/// A routine in progress.
+/// A routine in progress, or complete and waiting for [`Controller::take_finished_run`]: the
+/// run stays where it was driven, so completing it costs the control period no copy of its
+/// knots and no conversion (the record is built when it is taken).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct ActiveRun {
     pub(super) routine: Routine,
     pub(super) start_totals: WheelTicks,
     /// Odometry in the run's start frame (origin, heading +x).
     pub(super) odometry: OdometryState,
+    /// The geometry the run was driven with.
+    pub(super) geometry: Geometry,
+    /// The path is complete.
+    pub(super) done: bool,
 }
 
-/// Velocity mode state.
+impl ActiveRun {
+    /// The record of a completed run.
+    fn into_record(self) -> RunRecord {
+        RunRecord {
+            path: *self.routine.path(),
+            geometry: self.geometry,
+            odometry_end: self.odometry.pose().to_f64(),
+            knots: self.routine.into_knots(),
+            measured: None,
+        }
+    }
+}
+
+/// Velocity mode state. `f32`: speeds are bounded by the limits (≤ 5 m/s, ≤ 20 rad/s) and
+/// ramped by bounded steps toward a target, never accumulated without bound; a speed's relative
+/// error stays a few units of 2⁻²⁴ (< 1 µm/s), and the speed loop integrates the wheels'
+/// per-period increments, not positions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct DriveState {
     /// Commanded centre speed (m/s) and turn rate (rad/s), clamped to the limits.
-    pub(super) target: (f64, f64),
+    pub(super) target: (f32, f32),
     /// Ramped reference speed and turn rate at the previous and at the current step.
-    pub(super) previous: (f64, f64),
+    pub(super) previous: (f32, f32),
     /// See `previous`.
-    pub(super) now: (f64, f64),
+    pub(super) now: (f32, f32),
     /// Periods left before the deadman stops the motors.
     pub(super) remaining: u32,
 }
 
 impl Controller {
     pub(super) fn step_run(&mut self, dr: i64, dl: i64) -> (MotorCommand, Option<Tracking>) {
-        let Some(run) = self.run.as_mut() else {
+        let Some(run) = self.run.as_mut().filter(|r| !r.done) else {
             return (MotorCommand::Stop(self.config.stop_mode), None);
         };
         let since_start = self.totals - run.start_totals;
         self.odometry.update(&mut run.odometry, since_start);
-        let s = run
-            .routine
-            .step(since_start, &self.config.geometry, &self.config.limits);
+        let s = run.routine.step(since_start);
         let tracking = Tracking {
             segment: s.segment,
             kind: s.kind,
@@ -148,32 +169,22 @@ impl Controller {
             error_left_ticks: s.error.1,
         };
         if s.finished {
-            self.finish_run();
+            run.done = true;
+            info!("run finished");
             return (MotorCommand::Stop(self.config.stop_mode), Some(tracking));
         }
         (self.duties(&s.right, &s.left, dr, dl), Some(tracking))
     }
 
-    pub(super) fn finish_run(&mut self) {
-        let Some(run) = self.run.take() else {
-            return;
-        };
-        let odometry_end = run.odometry.pose().to_f64();
-        let path = *run.routine.path();
-        info!("run finished");
-        self.finished = Some(RunRecord {
-            path,
-            geometry: self.config.geometry,
-            knots: run.routine.into_knots(),
-            odometry_end,
-            measured: None,
-        });
+    /// Whether a run is being driven (not complete).
+    pub(super) fn driving_run(&self) -> bool {
+        self.run.as_ref().is_some_and(|r| !r.done)
     }
 
     pub(super) fn step_drive(&mut self, dr: i64, dl: i64) -> MotorCommand {
-        let rate = f64::from(self.config.rate_hz);
+        let rate = self.config.rate_hz as f32;
         let l = &self.config.limits;
-        let g = &self.config.geometry;
+        let scales = self.wheel_scales;
         let Some(d) = self.drive.as_mut() else {
             return MotorCommand::Stop(self.config.stop_mode);
         };
@@ -184,7 +195,7 @@ impl Controller {
         }
         d.remaining -= 1;
         let ramp =
-            |cur: f64, target: f64, max_accel: f32| ramp_toward(cur, target, max_accel, rate);
+            |cur: f32, target: f32, max_accel: f32| ramp_toward(cur, target, max_accel, rate);
         // The reference ramps linearly between steps: the period that just ended went from
         // `previous` to `now` (its increment is compared with the encoders'); the one that
         // starts goes from `now` to `next` (its midpoint speed is the feed-forward).
@@ -195,23 +206,19 @@ impl Controller {
         );
         d.previous = now;
         d.now = next;
-        let half_b = 0.5 * g.wheelbase_m;
-        let wheel =
-            |(v, w): (f64, f64), sign: f64, m_per_tick: f64| (v + sign * w * half_b) / m_per_tick;
-        let reference = |sign: f64, k: f64| {
-            let (a, b, c) = (
-                wheel(prev, sign, k),
-                wheel(now, sign, k),
-                wheel(next, sign, k),
-            );
+        // Wheel speed in ticks/s: (v ± ω·b/2) / (m per tick), with both factors per wheel
+        // derived when the geometry changes.
+        let wheel = |(v, w): (f32, f32), s: &WheelScale| v * s.ticks_per_m + w * s.ticks_per_rad;
+        let reference = |s: &WheelScale| {
+            let (a, b, c) = (wheel(prev, s), wheel(now, s), wheel(next, s));
             WheelReference {
-                delta_ticks: (0.5 * (a + b) / rate) as f32,
-                velocity_tps: (0.5 * (b + c)) as f32,
-                accel_tps2: ((c - b) * rate) as f32,
+                delta_ticks: 0.5 * (a + b) / rate,
+                velocity_tps: 0.5 * (b + c),
+                accel_tps2: (c - b) * rate,
             }
         };
-        let r = reference(1.0, g.meters_per_tick_right());
-        let lf = reference(-1.0, g.meters_per_tick_left());
+        let r = reference(&scales.0);
+        let lf = reference(&scales.1);
         self.duties(&r, &lf, dr, dl)
     }
 
@@ -233,10 +240,16 @@ impl Controller {
         let mut odometry = OdometryState::default();
         self.odometry
             .reset(&mut odometry, WheelTicks::default(), Pose::default());
+        // A completed run not taken yet is kept for `take_finished_run`.
+        if let Some(done) = self.run.take().filter(|r| r.done) {
+            self.finished = Some(done.into_record());
+        }
         self.run = Some(ActiveRun {
             routine,
             start_totals: self.totals,
             odometry,
+            geometry: self.config.geometry,
+            done: false,
         });
         self.reset_loops();
         info!("run started");
@@ -255,7 +268,7 @@ impl Controller {
         if !self.is_idle() {
             warn!("motion aborted");
         }
-        self.run = None;
+        self.discard_driven_run();
         self.drive = None;
         self.check = None;
     }
@@ -271,7 +284,7 @@ impl Controller {
         if self.fault.is_some() {
             return Err(DriveError::Faulted);
         }
-        if self.run.is_some() || self.check.is_some() {
+        if self.driving_run() || self.check.is_some() {
             return Err(DriveError::Busy);
         }
         if self.encoders.is_none() {
@@ -282,12 +295,8 @@ impl Controller {
         }
         let l = &self.config.limits;
         let target = (
-            f64::from(clamp(v_mps, -l.max_speed_mps, l.max_speed_mps)),
-            f64::from(clamp(
-                w_radps,
-                -l.max_turn_rate_radps,
-                l.max_turn_rate_radps,
-            )),
+            clamp(v_mps, -l.max_speed_mps, l.max_speed_mps),
+            clamp(w_radps, -l.max_turn_rate_radps, l.max_turn_rate_radps),
         );
         let remaining = self.deadman_periods;
         match self.drive.as_mut() {
@@ -333,19 +342,28 @@ impl Controller {
         }
     }
 
-    /// The record of the last completed run, once.
+    /// The record of a completed run, once (the older first if two are waiting).
     pub fn take_finished_run(&mut self) -> Option<RunRecord> {
         // Checked first: `take` copies the whole slot, knot storage included, even when empty
         // (the session polls this every period).
         if self.finished.is_some() {
-            self.finished.take()
-        } else {
-            None
+            return self.finished.take();
+        }
+        if self.run.as_ref().is_some_and(|r| r.done) {
+            return self.run.take().map(ActiveRun::into_record);
+        }
+        None
+    }
+
+    /// Ends the run being driven, if any; a completed one stays to be taken.
+    pub(super) fn discard_driven_run(&mut self) {
+        if self.driving_run() {
+            self.run = None;
         }
     }
 
     pub(super) fn is_idle(&self) -> bool {
-        self.run.is_none() && self.drive.is_none() && self.check.is_none()
+        !self.driving_run() && self.drive.is_none() && self.check.is_none()
     }
 
     /// Whether a run or a check may start now: no fault, idle, encoders read.
@@ -442,7 +460,7 @@ impl Controller {
 /// One period of a velocity ramp: `cur` moved toward `target` by at most `max_accel / rate_hz`.
 /// Out of line: inlined at both call sites it would exist twice in flash.
 #[inline(never)]
-pub(super) fn ramp_toward(cur: f64, target: f64, max_accel: f32, rate_hz: f64) -> f64 {
-    let step = f64::from(max_accel) / rate_hz;
+pub(super) fn ramp_toward(cur: f32, target: f32, max_accel: f32, rate_hz: f32) -> f32 {
+    let step = max_accel / rate_hz;
     cur + clamp(target - cur, -step, step)
 }
