@@ -137,6 +137,42 @@ fn line_run_produces_a_record_once() {
     assert!(record.odometry_end.y_m.abs() < 1e-6);
 }
 
+/// Drives a 0.2 m line to its end (the record not taken).
+fn drive_line(c: &mut Controller, plant: &mut Plant) {
+    c.start(PathKind::Line { length_m: 0.2 }).unwrap();
+    let mut periods = 0;
+    while c.status() != Status::Idle {
+        plant.step(c);
+        periods += 1;
+        assert!(periods < 10_000, "the line never finished");
+    }
+}
+
+#[test]
+fn a_completed_run_waits_for_its_record_through_aborts_new_geometry_and_a_new_run() {
+    let g = Geometry::PAPER_NOMINAL;
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    drive_line(&mut c, &mut plant);
+    // Completed and not taken: idle, and an abort or a drive does not discard it.
+    assert!(c.drive(0.0, 0.0).is_ok());
+    c.abort();
+    // A new geometry does not reach the record of a run driven with the old one.
+    let calibrated = g.with_factors(0.995, 1.01, 1.0);
+    c.set_geometry(calibrated).unwrap();
+    // A second run while the first record waits: both come out, the older first.
+    drive_line(&mut c, &mut plant);
+    let first = c.take_finished_run().expect("the first record");
+    let second = c.take_finished_run().expect("the second record");
+    assert!(c.take_finished_run().is_none());
+    assert_eq!(first.geometry, g);
+    assert_eq!(second.geometry, calibrated);
+    for r in [&first, &second] {
+        assert!((r.odometry_end.x_m - 0.2).abs() < 5e-5, "{r:?}");
+    }
+}
+
 #[test]
 fn abort_stops_in_the_next_period() {
     let mut c = controller();

@@ -299,7 +299,7 @@ pub enum IdentifyStep {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Identify {
     mode: IdentifyMode,
-    rate_hz: f64,
+    rate_hz: u32,
     /// Metres per count, per wheel (right, left).
     m_per_tick: (f64, f64),
     /// Counts in the last quarter of a step that are motion, per wheel.
@@ -318,9 +318,6 @@ pub struct Identify {
     tail: (i64, i64),
     /// Periods per block.
     block_periods: u32,
-    /// Periods of a duty step, a coast and a brake segment (derived once: the control period
-    /// compares integers).
-    segment_periods: [u32; 3],
     /// Counts of the block being summed (right, left) and its periods so far.
     block: (i64, i64),
     in_block: u32,
@@ -336,7 +333,7 @@ impl Identify {
         let max = |m: f64| libm::ceil(MAX_SPEED_MPS / (m * rate)) as i64;
         Identify {
             mode,
-            rate_hz: rate,
+            rate_hz: rate_hz.max(1),
             m_per_tick,
             min_counts: (min(m_per_tick.0), min(m_per_tick.1)),
             max_counts: (max(m_per_tick.0), max(m_per_tick.1)),
@@ -347,8 +344,6 @@ impl Identify {
             previous: (None, None),
             tail: (0, 0),
             block_periods: (libm::round(f64::from(BLOCK_MS) * rate / 1000.0) as u32).max(1),
-            segment_periods: [LEVEL_MS, COAST_MS, BRAKE_MS]
-                .map(|ms| (libm::round(f64::from(ms) * rate / 1000.0) as u32).max(4)),
             block: (0, 0),
             in_block: 0,
             logs: [WheelLog::default(); 2],
@@ -360,12 +355,16 @@ impl Identify {
         self.mode
     }
 
+    /// Periods of segment `s`: its duration at the control rate, rounded (in integers: the
+    /// control period calls this).
     fn segment_periods(&self, s: Segment) -> u32 {
-        self.segment_periods[match s {
-            Segment::Level(_) => 0,
-            Segment::Coast => 1,
-            Segment::Brake => 2,
-        }]
+        let ms = match s {
+            Segment::Level(_) => LEVEL_MS,
+            Segment::Coast => COAST_MS,
+            Segment::Brake => BRAKE_MS,
+        };
+        // ≤ 500 ms × 10 kHz: far inside u32 (saturating all the same).
+        (ms.saturating_mul(self.rate_hz).saturating_add(500) / 1000).max(4)
     }
 
     /// The wheels driven in this pass (right, left) and the direction index (0 forward).
@@ -524,7 +523,7 @@ impl Identify {
 
     /// The fit of both wheels (see the module docs).
     fn fit(&self) -> Result<IdentifyReport, IdentifyFailure> {
-        let block_hz = self.rate_hz / f64::from(self.block_periods);
+        let block_hz = f64::from(self.rate_hz) / f64::from(self.block_periods);
         Ok(IdentifyReport {
             mode: self.mode,
             right: fit_wheel(&self.logs[0], self.m_per_tick.0 * block_hz, block_hz).map_err(

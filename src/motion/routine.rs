@@ -161,9 +161,8 @@ struct Plan {
 /// A segment being driven.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Active {
-    /// Cumulative reference ticks at the segment start and end.
+    /// Cumulative reference ticks at the segment start.
     start: WheelTicks,
-    end: WheelTicks,
     /// Periods since the segment start.
     periods: u32,
     /// Periods the wheels have been within tolerance after the profile ended.
@@ -206,7 +205,6 @@ pub struct Routine {
     /// The plan of segment `i` is `plans[i % PLANS]`.
     plans: [Plan; PLANS],
     active: Active,
-    knots_per_segment: usize,
     knots: Vec<WheelTicks, MAX_KNOTS>,
     finished: bool,
 }
@@ -296,13 +294,9 @@ impl Plan {
 }
 
 impl Active {
-    fn new(plan: &Plan, start: WheelTicks) -> Active {
+    fn new(start: WheelTicks) -> Active {
         Active {
             start,
-            end: WheelTicks::new(
-                start.right.saturating_add(plan.travel.0),
-                start.left.saturating_add(plan.travel.1),
-            ),
             periods: 0,
             settled: 0,
             next_knot: 1,
@@ -328,7 +322,6 @@ impl Routine {
         let mut knots = Vec::new();
         // Cannot fail: the capacity is positive.
         let _ = knots.push(WheelTicks::default());
-        let count = segment_count(&path);
         let rate = rate_hz.max(1);
         let plan = |i| Plan::new(segment(&path, i), geometry, limits, f64::from(rate));
         let plans = [plan(0), plan(1)];
@@ -337,9 +330,8 @@ impl Routine {
             rate_hz: rate as f32,
             settle,
             index: 0,
-            active: Active::new(&plans[0], WheelTicks::default()),
+            active: Active::new(WheelTicks::default()),
             plans,
-            knots_per_segment: (MAX_KNOTS - 1) / count,
             knots,
             finished: false,
         })
@@ -373,7 +365,7 @@ impl Routine {
     /// One control period. `measured` is the cumulative measured ticks since the run start.
     pub fn step(&mut self, measured: WheelTicks) -> RoutineStep {
         if self.finished {
-            let end = self.active.end;
+            let end = self.segment_end();
             return self.hold((
                 ticks_f32(end.right - measured.right),
                 ticks_f32(end.left - measured.left),
@@ -394,13 +386,17 @@ impl Routine {
         let ff = plan.profile.sample((t + 0.5) / self.rate_hz);
         // Reference and error relative to the segment start; once the profile is over the
         // reference is the integer target itself.
+        let end = WheelTicks::new(
+            a.start.right.wrapping_add(plan.travel.0),
+            a.start.left.wrapping_add(plan.travel.1),
+        );
         let (pos_r, pos_l, error) = if done {
             (
                 ticks_f32(plan.travel.0),
                 ticks_f32(plan.travel.1),
                 (
-                    ticks_f32(a.end.right - measured.right),
-                    ticks_f32(a.end.left - measured.left),
+                    ticks_f32(end.right - measured.right),
+                    ticks_f32(end.left - measured.left),
                 ),
             )
         } else {
@@ -427,7 +423,7 @@ impl Routine {
         a.prev_ref = (pos_r, pos_l);
 
         // Interior knots at evenly spaced fractions of the profile's distance.
-        let per = self.knots_per_segment;
+        let per = (MAX_KNOTS - 1) / segment_count(&self.path);
         if a.next_knot < per
             && s.position * per as f32 >= plan.profile.distance() * a.next_knot as f32
         {
@@ -447,8 +443,8 @@ impl Routine {
             return step;
         }
         let tol = u64::from(self.settle.tolerance_ticks);
-        let in_tol = (a.end.right - measured.right).unsigned_abs() <= tol
-            && (a.end.left - measured.left).unsigned_abs() <= tol;
+        let in_tol = (end.right - measured.right).unsigned_abs() <= tol
+            && (end.left - measured.left).unsigned_abs() <= tol;
         a.settled = if in_tol { a.settled + 1 } else { 0 };
         let timed_out = k
             >= plan
@@ -466,7 +462,6 @@ impl Routine {
             a.next_knot += 1;
         }
         let _ = self.knots.push(measured);
-        let end = a.end;
         if self.index + 1 >= segment_count(&self.path) {
             self.finished = true;
             return RoutineStep {
@@ -475,8 +470,19 @@ impl Routine {
             };
         }
         self.index += 1;
-        self.active = Active::new(&self.plans[self.index % PLANS], end);
+        self.active = Active::new(end);
         step
+    }
+
+    /// Cumulative reference ticks at the end of the segment being driven (its target).
+    fn segment_end(&self) -> WheelTicks {
+        let (start, travel) = (self.active.start, self.plans[self.index % PLANS].travel);
+        // Tick totals since the run start stay far from i64's range (2.1e13 km of the paper's
+        // robot): a plain wrapping add.
+        WheelTicks::new(
+            start.right.wrapping_add(travel.0),
+            start.left.wrapping_add(travel.1),
+        )
     }
 
     /// The reference once the path is complete: hold the last target.
@@ -623,10 +629,8 @@ mod tests {
             side_m: 1.0,
         };
         let r = Routine::new(path, &g, &limits, 1000, SETTLE).unwrap();
-        let turn = Active::new(&r.plans[1], r.active.end);
+        let (dr, dl) = r.plans[1].travel;
         // CW: right wheel backwards, left forwards, equal magnitude (π b / 4 ≈ 0.302 m).
-        let dr = turn.end.right - turn.start.right;
-        let dl = turn.end.left - turn.start.left;
         assert!(dr < 0 && dl > 0 && dr == -dl, "{dr} {dl}");
         let expected = (0.25 * PI * g.wheelbase_m / g.meters_per_tick_right()).round() as i64;
         assert_eq!(dl, expected);
@@ -699,5 +703,22 @@ mod tests {
         assert_eq!(p.next, Direction::Ccw);
         p.advance();
         assert_eq!(p.next, Direction::Cw);
+    }
+}
+#[cfg(test)]
+mod size_probe {
+    #[test]
+    fn sizes() {
+        use core::mem::size_of;
+        eprintln!(
+            "Plan {} Active {} Routine {} Trapezoid {} SegmentKind {} Controller {} SpeedPi {} ActiveRun? ",
+            size_of::<super::Plan>(),
+            size_of::<super::Active>(),
+            size_of::<super::Routine>(),
+            size_of::<crate::motion::profile::Trapezoid>(),
+            size_of::<super::SegmentKind>(),
+            size_of::<crate::motion::controller::Controller>(),
+            size_of::<crate::motion::speed::SpeedPi>()
+        );
     }
 }

@@ -350,9 +350,16 @@ impl SpeedPi {
         let unsat = deadband_inverse(g, ff + p + g.ki * i1 + g.kii * i2);
         let limit = g.output_limit;
         // Conditional integration: do not wind further into a saturated output.
-        let high = unsat > limit;
-        let low = unsat < -limit;
-        let winds = |inc: f32| (high && inc > 0.0) || (low && inc < 0.0);
+        // The sign of the saturation (0 when not saturated): an increment winds further into
+        // it when their product is positive (one multiply and compare instead of branches).
+        let saturation = if unsat > limit {
+            1.0
+        } else if unsat < -limit {
+            -1.0
+        } else {
+            0.0
+        };
+        let winds = |inc: f32| inc * saturation > 0.0;
         if !winds(err_step) {
             state.integral_ticks = i1;
         }

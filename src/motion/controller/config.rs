@@ -268,6 +268,7 @@ impl Controller {
         }
         let odometry =
             Odometry::new(&geometry, self.config.integration).map_err(SetError::Geometry)?;
+        self.stash_finished_run();
         let pose = self.odo_state.pose();
         self.odometry = odometry;
         self.odometry.reset(&mut self.odo_state, self.totals, pose);

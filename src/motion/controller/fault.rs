@@ -84,8 +84,6 @@ pub(super) struct FollowingState {
     over: (u32, u32),
     /// The bound in counts of each wheel.
     limit_ticks: (f32, f32),
-    /// Millimetres per count of each wheel (for the fault's report).
-    mm_per_tick: (f32, f32),
     /// Periods above the bound that latch the fault.
     periods: u32,
 }
@@ -100,10 +98,6 @@ impl FollowingState {
             limit_ticks: (
                 (max / g.meters_per_tick_right()) as f32,
                 (max / g.meters_per_tick_left()) as f32,
-            ),
-            mm_per_tick: (
-                (1000.0 * g.meters_per_tick_right()) as f32,
-                (1000.0 * g.meters_per_tick_left()) as f32,
             ),
             periods: super::periods_of_ms(f.time_ms, config.rate_hz),
             ..FollowingState::default()
@@ -174,18 +168,15 @@ impl Controller {
         let r = count(&mut f.over.0, f.error_ticks.0, limit.0);
         let l = count(&mut f.over.1, f.error_ticks.1, limit.1);
         let periods = f.periods;
-        let (wheel, error, peak, mm_per_tick) = if r >= periods {
-            (
-                Wheel::Right,
-                f.error_ticks.0,
-                f.peak_duty.0,
-                f.mm_per_tick.0,
-            )
+        let (wheel, error, peak, limit) = if r >= periods {
+            (Wheel::Right, f.error_ticks.0, f.peak_duty.0, limit.0)
         } else if l >= periods {
-            (Wheel::Left, f.error_ticks.1, f.peak_duty.1, f.mm_per_tick.1)
+            (Wheel::Left, f.error_ticks.1, f.peak_duty.1, limit.1)
         } else {
             return;
         };
+        // The bound is `max_error_m` in counts: its ratio converts counts to millimetres.
+        let mm_per_tick = 1000.0 * self.config.following.max_error_m / limit;
         self.latch(Fault::FollowingError {
             wheel,
             error_mm: (error * mm_per_tick) as i32,

@@ -119,18 +119,16 @@ pub(super) struct ActiveRun {
     pub(super) start_totals: WheelTicks,
     /// Odometry in the run's start frame (origin, heading +x).
     pub(super) odometry: OdometryState,
-    /// The geometry the run was driven with.
-    pub(super) geometry: Geometry,
     /// The path is complete.
     pub(super) done: bool,
 }
 
 impl ActiveRun {
-    /// The record of a completed run.
-    fn into_record(self) -> RunRecord {
+    /// The record of a completed run driven with `geometry`.
+    fn into_record(self, geometry: Geometry) -> RunRecord {
         RunRecord {
             path: *self.routine.path(),
-            geometry: self.geometry,
+            geometry,
             odometry_end: self.odometry.pose().to_f64(),
             knots: self.routine.into_knots(),
             measured: None,
@@ -240,15 +238,11 @@ impl Controller {
         let mut odometry = OdometryState::default();
         self.odometry
             .reset(&mut odometry, WheelTicks::default(), Pose::default());
-        // A completed run not taken yet is kept for `take_finished_run`.
-        if let Some(done) = self.run.take().filter(|r| r.done) {
-            self.finished = Some(done.into_record());
-        }
+        self.stash_finished_run();
         self.run = Some(ActiveRun {
             routine,
             start_totals: self.totals,
             odometry,
-            geometry: self.config.geometry,
             done: false,
         });
         self.reset_loops();
@@ -350,9 +344,19 @@ impl Controller {
             return self.finished.take();
         }
         if self.run.as_ref().is_some_and(|r| r.done) {
-            return self.run.take().map(ActiveRun::into_record);
+            let geometry = self.config.geometry;
+            return self.run.take().map(|r| r.into_record(geometry));
         }
         None
+    }
+
+    /// Turns a completed run not taken yet into its record, before a new run replaces it or
+    /// the geometry it was driven with changes (both only while idle, never in a period).
+    pub(super) fn stash_finished_run(&mut self) {
+        if self.run.as_ref().is_some_and(|r| r.done) {
+            let geometry = self.config.geometry;
+            self.finished = self.run.take().map(|r| r.into_record(geometry));
+        }
     }
 
     /// Ends the run being driven, if any; a completed one stays to be taken.
