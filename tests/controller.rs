@@ -174,6 +174,40 @@ fn a_completed_run_waits_for_its_record_through_aborts_new_geometry_and_a_new_ru
 }
 
 #[test]
+fn a_run_reports_its_end_pose_in_its_own_frame_after_a_turn_and_an_odometry_reset() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    // Turn the robot in place (about 0.6 rad) and let it come to rest: the odometry frame and
+    // the next run's frame now differ by a rotation.
+    let mut periods = 0;
+    while periods < 2000 {
+        if periods < 1000 {
+            c.drive(0.0, 0.6).unwrap();
+        }
+        plant.step(&mut c);
+        periods += 1;
+    }
+    let heading = c.pose().to_f64().theta_rad;
+    assert!(heading > 0.3, "turned {heading} rad");
+    // A line with the odometry reset half-way: the run keeps its start frame.
+    c.start(PathKind::Line { length_m: 0.2 }).unwrap();
+    for _ in 0..600 {
+        plant.step(&mut c);
+    }
+    c.reset_odometry();
+    while c.status() != Status::Idle {
+        plant.step(&mut c);
+    }
+    let r = c.take_finished_run().expect("a record");
+    // 0.2 m ahead within the 20-tick settle tolerance (47 µm); no sideways error beyond the
+    // wheels' tracking (a few ticks).
+    assert!((r.odometry_end.x_m - 0.2).abs() < 5e-5, "{r:?}");
+    assert!(r.odometry_end.y_m.abs() < 5e-5, "{r:?}");
+    assert!(r.odometry_end.theta_rad.abs() < 1e-3, "{r:?}");
+}
+
+#[test]
 fn abort_stops_in_the_next_period() {
     let mut c = controller();
     let mut plant = Plant::new(1000);

@@ -2,8 +2,8 @@
 //!
 //! Each [`Controller::step`] takes the raw hardware counter values of both encoders and:
 //! 1. extends them to `i64` tick totals (wrap-safe, glitch-checked, see [`crate::kinematics::encoder`]);
-//! 2. updates the odometry pose ([`crate::kinematics::odometry`]) and, during a run, a second odometry in the
-//!    run's start frame;
+//! 2. updates the odometry pose ([`crate::kinematics::odometry`]) (a run's end pose in its own start
+//!    frame is mapped from it when the run's record is taken);
 //! 3. steps the active mode — a routine ([`crate::motion::routine`]: square, line, circle), velocity
 //!    driving with a deadman, or idle — and the two wheel speed controllers ([`crate::motion::speed`]);
 //! 4. checks for faults (encoder glitch, stall) and returns the motor command.
@@ -394,6 +394,10 @@ impl Controller {
     /// Sets the odometry pose to the origin (heading +x) at the current tick totals. A run in
     /// progress keeps its own start frame.
     pub fn reset_odometry(&mut self) {
+        let at = self.odo_state.pose();
+        if let Some(run) = self.run.as_mut().filter(|r| !r.done) {
+            run.frame = run.frame.after_reset(&at);
+        }
         self.odometry
             .reset(&mut self.odo_state, self.totals, Pose::default());
     }
