@@ -13,7 +13,7 @@
 //! control period: the Cortex-M4F's FPU is single precision, so a sample costs a few
 //! instructions instead of soft-float calls. Why `f32` suffices: a sample's relative error is a
 //! few units of 2⁻²⁴ of the profile's own distance and duration (each of the ≤ 4 operations
-//! rounds once, the phase times are rounded once from `f64`), e.g. ≤ 0.5 µm on a 2 m leg; the
+//! rounds once, the phase times are rounded once from `f64`), e.g. ≤ 1 µm on a 2 m leg; the
 //! routine maps it to ticks relative to the segment start and ends every segment on an exact
 //! integer target, so nothing of it accumulates.
 

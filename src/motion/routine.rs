@@ -25,8 +25,8 @@
 //! whole-tick targets, the period at which the profile ends). The control period then uses only
 //! integers and `f32` (the Cortex-M4F's FPU is single precision): the time since the segment
 //! start is an integer count of periods, turned into seconds by one division; the reference is
-//! `f32` ticks *relative to the segment start* (a few units of 2⁻²⁴ of the segment's length in
-//! ticks: ≤ 0.2 tick on a 2 m leg of 849k ticks, the encoder itself resolves 1 tick); segment
+//! `f32` ticks *relative to the segment start* (within about 8·2⁻²⁴ of the segment's length in
+//! ticks: ≤ 0.5 tick on a 2 m leg of 849k ticks, the encoder itself resolves 1 tick); segment
 //! starts, targets and knots stay integer ticks, so no rounding carries from one segment into
 //! the next and the reference ends every segment exactly on its integer target.
 
