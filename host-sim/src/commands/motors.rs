@@ -168,7 +168,7 @@ pub struct MotorsArgs {
     /// Side of the squares, metres.
     #[arg(long, default_value_t = 2.0)]
     pub side: f64,
-    /// Relative slip noise per control period (standard deviation), as `cargo sim`'s default.
+    /// Relative slip noise per millisecond of travel (standard deviation; per control period at 1 kHz), as `cargo sim`'s default.
     #[arg(long, default_value_t = 0.02)]
     pub slip: f64,
 }

@@ -40,7 +40,7 @@ pub struct SerialArgs {
     /// True E_d of the simulated robot.
     #[arg(long, default_value_t = 0.995)]
     pub ed: f64,
-    /// Relative slip noise per control period (standard deviation).
+    /// Relative slip noise per millisecond of travel (standard deviation; per control period at 1 kHz).
     #[arg(long, default_value_t = 0.0)]
     pub slip: f64,
     /// Seed of the slip noise.

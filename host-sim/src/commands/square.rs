@@ -123,7 +123,7 @@ pub struct SquareArgs {
     /// Side lengths to drive, metres.
     #[arg(long, value_delimiter = ',', default_value = "1,2,4")]
     pub sides: Vec<f64>,
-    /// Relative slip noise per control period (standard deviation).
+    /// Relative slip noise per millisecond of travel (standard deviation; per control period at 1 kHz).
     #[arg(long, default_value_t = 0.0)]
     pub slip: f64,
     /// Seed of the slip noise.

@@ -9,7 +9,8 @@
 //!   on a 16-bit timer counting *down* when the wheel rolls forward.
 //! - **Slip**: optional zero-mean multiplicative noise on each wheel's ground travel (not on its
 //!   rotation, so the encoders do not see it), drawn once per control period from a seeded PCG
-//!   generator: runs are reproducible.
+//!   generator (runs are reproducible); σ is given per millisecond and scaled by √(rate / 1 kHz)
+//!   per period, so the slip accumulated over a path is the same at every control rate.
 //! - **True pose** in `f64`, integrated as exact arcs per sub-step.
 //!
 //! [`Sim::run_until_idle`] steps the library's own [`Controller`] against this robot; nothing of

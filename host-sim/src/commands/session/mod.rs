@@ -2,7 +2,7 @@
 //! floor, against the simulated robot, through the board's serial command path.
 //!
 //! 1. **Robot**: the paper's nominal robot with unknown true factors (default `E_b = 1.010`,
-//!    `E_d = 0.995`), wheel slip noise per control period, measurement noise on every measured
+//!    `E_d = 0.995`), wheel slip noise per millisecond of travel, measurement noise on every measured
 //!    end pose (x, y in metres, θ in degrees, as the operator enters them).
 //! 2. **Track size**: a short pilot (slip only, nominal belief) gives the end-position scatter;
 //!    [`odocal::calibration::track::advise`] picks the side `L` for the chosen method (or `--side`).
@@ -61,7 +61,7 @@ pub struct SessionArgs {
     /// Seed of the slip and measurement noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Relative slip noise of each wheel's ground travel per control period (1σ).
+    /// Relative slip noise of each wheel's ground travel per millisecond (1σ; per control period at 1 kHz).
     #[arg(long, default_value_t = 0.02)]
     pub slip: f64,
     /// 1σ of a measured end coordinate, millimetres.

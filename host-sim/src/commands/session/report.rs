@@ -23,7 +23,7 @@ pub fn text(r: &SessionReport) -> String {
     let _ = writeln!(s, "odocal simulated calibration session");
     let _ = writeln!(
         s,
-        "robot: true E_b = {}, E_d = {} (unknown to the robot); slip σ = {} per control period; \
+        "robot: true E_b = {}, E_d = {} (unknown to the robot); slip σ = {} per ms; \
          measurement σ = {} mm, {}°; seed {}",
         a.eb, a.ed, a.slip, a.meas_mm, a.meas_deg, a.seed
     );
