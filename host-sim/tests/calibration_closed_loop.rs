@@ -9,44 +9,17 @@ use odocal::motion::run::{Direction, Measurement, PathKind};
 
 #[test]
 fn exact_method_from_closed_loop_squares() {
-    let nominal = Geometry::PAPER_NOMINAL;
-    let truth = nominal.with_factors(0.995, 1.010, 1.0);
-    let mut records = Vec::new();
-    for direction in [Direction::Cw, Direction::Ccw] {
-        for i in 0..5 {
-            let mut cfg = SimConfig::new(truth, 1000);
-            cfg.seed = 1 + i;
-            let r = drive_path(
-                cfg,
-                nominal,
-                PathKind::Square {
-                    direction,
-                    side_m: 2.0,
-                },
-            )
-            .unwrap();
-            let mut rec = r.record;
-            rec.measured = Some(Measurement {
-                x_m: r.true_end.x_m,
-                y_m: r.true_end.y_m,
-                theta_rad: Some(r.true_end.theta_rad),
-            });
-            records.push(rec);
-        }
-    }
-    let obs: Vec<_> = records
-        .iter()
-        .filter_map(RunObservation::from_record)
-        .collect();
-    assert_eq!(obs.len(), 10);
-    let c = calibrate(&obs, &nominal, Method::Exact).unwrap();
+    let (exact, umbmark_x) = fit_errors(1000, 2.0, 5);
     // The bound. Measured: ~3e-7 — the knots sample the wheel-speed ratio only at
     // segment boundaries and inside segments, so re-integration is not bit-exact.
-    assert!((c.e_b / 1.010 - 1.0).abs() <= 1e-4, "E_b {}", c.e_b);
-    assert!((c.e_d / 0.995 - 1.0).abs() <= 1e-4, "E_d {}", c.e_d);
+    assert!(exact[0].abs() <= 1e-4, "E_b error {}", exact[0]);
+    assert!(exact[1].abs() <= 1e-4, "E_d error {}", exact[1]);
     // UMBmark on the same runs is off by ~1e-3 at this side (small-angle approximations).
-    let u = calibrate(&obs, &nominal, Method::UmbmarkX).unwrap();
-    assert!((u.e_b / 1.010 - 1.0).abs() > 1e-4);
+    assert!(
+        umbmark_x[0].abs() > 1e-4,
+        "UMBmark-x E_b error {}",
+        umbmark_x[0]
+    );
 }
 
 /// E_b, E_d relative errors of the exact and UMBmark (x) fits from `runs` CW + `runs` CCW
