@@ -273,22 +273,28 @@ impl Controller {
         self.odometry = odometry;
         self.odometry.reset(&mut self.odo_state, self.totals, pose);
         self.config.geometry = geometry;
-        // The glitch limit is a speed in counts per period: it follows the geometry.
-        let rate = self.config.rate_hz;
-        self.config.right_encoder.max_step =
-            glitch_limit(self.config.right_encoder.width, &geometry, rate);
-        self.config.left_encoder.max_step =
-            glitch_limit(self.config.left_encoder.width, &geometry, rate);
+        self.rederive();
+        Ok(())
+    }
+
+    /// Re-derives everything the controller keeps in counts or periods from the configuration's
+    /// geometry and rate (only while idle: nothing is accumulated): the glitch limit (a speed in
+    /// counts per period), the speed loops, the stall, deadman and following-error bounds, the
+    /// at-rest travel and velocity mode's scales.
+    fn rederive(&mut self) {
+        let c = &mut self.config;
+        c.right_encoder.max_step = glitch_limit(c.right_encoder.width, &c.geometry, c.rate_hz);
+        c.left_encoder.max_step = glitch_limit(c.left_encoder.width, &c.geometry, c.rate_hz);
         if let Some((r, l)) = self.encoders.as_mut() {
             r.set_max_step(self.config.right_encoder.max_step);
             l.set_max_step(self.config.left_encoder.max_step);
         }
         self.pi = Self::speed_pis(&self.config);
-        // Bounds in counts follow the geometry too (only while idle: nothing is accumulated).
+        self.stall_periods = periods_of_ms(self.config.stall.time_ms, self.config.rate_hz);
+        self.deadman_periods = periods_of_ms(self.config.deadman_ms, self.config.rate_hz);
         self.following = FollowingState::for_config(&self.config);
-        self.still_limit_ticks = still_limits(&geometry);
-        self.wheel_scales = wheel_scales(&geometry);
-        Ok(())
+        self.still_limit_ticks = still_limits(&self.config.geometry);
+        self.wheel_scales = wheel_scales(&self.config.geometry);
     }
 
     /// Applies new motion limits; only while idle.
@@ -364,16 +370,7 @@ impl Controller {
         c.rate_hz = rate_hz;
         c.settle.periods = rescale(c.settle.periods, old, rate_hz).max(1);
         c.settle.timeout_periods = rescale(c.settle.timeout_periods, old, rate_hz).max(1);
-        c.right_encoder.max_step = glitch_limit(c.right_encoder.width, &c.geometry, rate_hz);
-        c.left_encoder.max_step = glitch_limit(c.left_encoder.width, &c.geometry, rate_hz);
-        if let Some((r, l)) = self.encoders.as_mut() {
-            r.set_max_step(self.config.right_encoder.max_step);
-            l.set_max_step(self.config.left_encoder.max_step);
-        }
-        self.pi = Self::speed_pis(&self.config);
-        self.stall_periods = periods_of_ms(self.config.stall.time_ms, rate_hz);
-        self.deadman_periods = periods_of_ms(self.config.deadman_ms, rate_hz);
-        self.following = FollowingState::for_config(&self.config);
+        self.rederive();
         self.still_periods = rescale(self.still_periods, old, rate_hz);
         Ok(())
     }

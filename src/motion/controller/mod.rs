@@ -372,7 +372,7 @@ impl Controller {
     pub fn status(&self) -> Status {
         if let Some(f) = self.fault {
             Status::Faulted(f)
-        } else if let Some(run) = self.run.as_ref().filter(|r| !r.done) {
+        } else if let Some(run) = self.run.as_ref().filter(|r| !r.done()) {
             Status::Running {
                 path: *run.routine.path(),
                 segment: run.routine.segment_index() as u8,
@@ -395,7 +395,7 @@ impl Controller {
     /// progress keeps its own start frame.
     pub fn reset_odometry(&mut self) {
         let at = self.odo_state.pose();
-        if let Some(run) = self.run.as_mut().filter(|r| !r.done) {
+        if let Some(run) = self.run.as_mut().filter(|r| !r.done()) {
             run.frame = run.frame.after_reset(&at);
         }
         self.odometry

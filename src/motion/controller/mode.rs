@@ -123,11 +123,14 @@ pub(super) struct ActiveRun {
     pub(super) frame: RunFrame,
     /// The odometry pose (odometry frame) when the path was complete.
     pub(super) end: Pose,
-    /// The path is complete.
-    pub(super) done: bool,
 }
 
 impl ActiveRun {
+    /// Whether the path is complete.
+    pub(super) fn done(&self) -> bool {
+        self.routine.is_finished()
+    }
+
     /// The record of a completed run driven with `geometry`.
     fn into_record(self, geometry: Geometry) -> RunRecord {
         RunRecord {
@@ -211,7 +214,7 @@ pub(super) struct DriveState {
 
 impl Controller {
     pub(super) fn step_run(&mut self, dr: i64, dl: i64) -> (MotorCommand, Option<Tracking>) {
-        let Some(run) = self.run.as_mut().filter(|r| !r.done) else {
+        let Some(run) = self.run.as_mut().filter(|r| !r.done()) else {
             return (MotorCommand::Stop(self.config.stop_mode), None);
         };
         let since_start = self.totals - run.start_totals;
@@ -224,7 +227,6 @@ impl Controller {
         };
         if s.finished {
             run.end = self.odo_state.pose();
-            run.done = true;
             info!("run finished");
             return (MotorCommand::Stop(self.config.stop_mode), Some(tracking));
         }
@@ -233,7 +235,7 @@ impl Controller {
 
     /// Whether a run is being driven (not complete).
     pub(super) fn driving_run(&self) -> bool {
-        self.run.as_ref().is_some_and(|r| !r.done)
+        self.run.as_ref().is_some_and(|r| !r.done())
     }
 
     pub(super) fn step_drive(&mut self, dr: i64, dl: i64) -> MotorCommand {
@@ -298,7 +300,6 @@ impl Controller {
             start_totals: self.totals,
             frame: RunFrame::starting_at(&self.odo_state.pose()),
             end: Pose::default(),
-            done: false,
         });
         self.reset_loops();
         info!("run started");
@@ -398,7 +399,7 @@ impl Controller {
         if self.finished.is_some() {
             return self.finished.take();
         }
-        if self.run.as_ref().is_some_and(|r| r.done) {
+        if self.run.as_ref().is_some_and(|r| r.done()) {
             let geometry = self.config.geometry;
             return self.run.take().map(|r| r.into_record(geometry));
         }
@@ -408,7 +409,7 @@ impl Controller {
     /// Turns a completed run not taken yet into its record, before a new run replaces it or
     /// the geometry it was driven with changes (both only while idle, never in a period).
     pub(super) fn stash_finished_run(&mut self) {
-        if self.run.as_ref().is_some_and(|r| r.done) {
+        if self.run.as_ref().is_some_and(|r| r.done()) {
             let geometry = self.config.geometry;
             self.finished = self.run.take().map(|r| r.into_record(geometry));
         }
