@@ -23,7 +23,7 @@ use odocal::motion::controller::Status;
 
 use crate::sim::board::{Board, measure_line};
 use crate::sim::flash::{SimFlash, SimParamFlash};
-use crate::sim::robot::sim_config;
+use crate::sim::robot::{SimConfig, sim_config};
 
 /// Command-line arguments of the `serial` subcommand.
 #[derive(clap::Args, Debug, Clone)]
@@ -47,8 +47,10 @@ pub struct SerialArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Control rate, Hz: 1000, 2000, 4000, 5000, 8000 or 10000 (the board's `control_hz`).
-    #[arg(long = "rate-hz", visible_alias = "rate", default_value_t = odocal::motion::controller::DEFAULT_RATE_HZ, value_parser = crate::commands::parse_rate_hz)]
-    pub rate: u32,
+    /// Given, the simulated operator sets it with `set control_hz` at boot and after every
+    /// `reboot`; without it the board runs at its stored rate (1000 Hz on an erased flash).
+    #[arg(long = "rate-hz", visible_alias = "rate", value_parser = crate::commands::parse_rate_hz)]
+    pub rate: Option<u32>,
     /// Flash image file: loaded at boot (missing = erased flash) and written back whenever the
     /// flash changed (`save`, a stored run, a measurement, `drop`), so parameters and runs
     /// survive a restart of the simulator.
@@ -111,19 +113,42 @@ fn open_pty() -> Result<(std::fs::File, String, std::fs::File), String> {
     Ok((m, path, s))
 }
 
+/// Boots the simulated board: at the rate `config` asks for when `--rate-hz` was given (the
+/// simulated operator sets it), else at the board's stored rate.
+fn boot_board<'f>(
+    config: SimConfig,
+    operator_rate: bool,
+    flash: &'f mut SimParamFlash,
+    out: &mut String,
+) -> Result<Board<'f>, String> {
+    if operator_rate {
+        Board::boot(config, flash, out)
+    } else {
+        Board::boot_at_stored_rate(config, flash, out)
+    }
+}
+
 /// Runs the simulated board on stdin/stdout or a pseudo-terminal until the input ends (stdin)
 /// or the process is stopped (pty).
 ///
 /// # Errors
 /// I/O or configuration failures, as text.
 pub fn run(args: &SerialArgs) -> Result<(), String> {
-    let config = sim_config(args.ed, args.eb, args.slip, args.seed, args.rate);
+    let config = sim_config(
+        args.ed,
+        args.eb,
+        args.slip,
+        args.seed,
+        args.rate
+            .unwrap_or(odocal::motion::controller::DEFAULT_RATE_HZ),
+    );
+
     let mut out = String::new();
     let mut flash = match &args.image {
         Some(path) => SimParamFlash::open(path).map_err(|e| format!("{}: {e}", path.display()))?,
         None => SimParamFlash::erased(),
     };
-    let mut board = Board::boot(config, &mut flash, &mut out)?;
+    let mut board = boot_board(config, args.rate.is_some(), &mut flash, &mut out)?;
     let (tx, rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (ctl_tx, ctl_rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
@@ -140,7 +165,6 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         spawn_reader(|buf| std::io::stdin().read(buf), tx);
         (Box::new(std::io::stdout()), None)
     };
-    let slice_periods = u64::from(args.rate / 100).max(1);
     let mut control = Vec::new();
     let mut input_done = false;
     let mut deadline = Instant::now();
@@ -178,7 +202,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                             .map_err(|e| format!("{}: {e}", path.display()))?;
                     }
                     let mut boot = String::new();
-                    board = Board::boot(config, &mut flash, &mut boot)?;
+                    board = boot_board(config, args.rate.is_some(), &mut flash, &mut boot)?;
                     image_touched = board.store.flash().bytes_touched();
                     eprint!("sim: {boot}");
                     out.push_str(&boot);
@@ -203,6 +227,9 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         if !args.fast || settled(&board) {
             board.process(&mut out, args.fast);
         }
+        // 10 ms of robot time per slice at the rate the board runs at now (`set control_hz`
+        // retimes it).
+        let slice_periods = u64::from(board.controller.config().rate_hz / 100).max(1);
         for _ in 0..slice_periods {
             board.step(&mut out);
         }

@@ -60,6 +60,28 @@ impl<'f> Board<'f> {
     /// # Errors
     /// An invalid controller configuration or flash range, or a refused rate, as text.
     pub fn boot(
+        config: SimConfig,
+        flash: &'f mut SimParamFlash,
+        out: &mut String,
+    ) -> Result<Board<'f>, String> {
+        let wanted_hz = config.rate_hz;
+        let mut board = Board::boot_at_stored_rate(config, flash, out)?;
+        if wanted_hz != board.controller.config().rate_hz {
+            let reply = board.send(&format!("set control_hz {wanted_hz}"));
+            if !reply.starts_with("ok") {
+                return Err(format!("set control_hz {wanted_hz}: {reply}"));
+            }
+            out.push_str(&reply);
+        }
+        Ok(board)
+    }
+
+    /// [`Board::boot`] without the simulated operator: the board runs at its stored control
+    /// rate whatever `config.rate_hz` says, as a board does after a reset.
+    ///
+    /// # Errors
+    /// An invalid controller configuration or flash range, as text.
+    pub fn boot_at_stored_rate(
         mut config: SimConfig,
         flash: &'f mut SimParamFlash,
         out: &mut String,
@@ -69,8 +91,7 @@ impl<'f> Board<'f> {
         let settings = Settings::from(&loaded.record);
         let controller = Controller::new(settings.controller_config())
             .map_err(|e| format!("stored parameters: {e}"))?;
-        let (wanted_hz, stored_hz) = (config.rate_hz, settings.control_hz);
-        config.rate_hz = stored_hz;
+        config.rate_hz = settings.control_hz;
         write_boot_event(out, loaded.warning.as_ref(), None).map_err(|e| e.to_string())?;
         let mut session = Session::new(settings, LibraryCalibrator::default());
         session
@@ -91,13 +112,6 @@ impl<'f> Board<'f> {
         };
         // The control task runs from boot on; the controller needs one encoder read to start.
         board.sim.step(&mut board.controller);
-        if wanted_hz != stored_hz {
-            let reply = board.send(&format!("set control_hz {wanted_hz}"));
-            if !reply.starts_with("ok") {
-                return Err(format!("set control_hz {wanted_hz}: {reply}"));
-            }
-            out.push_str(&reply);
-        }
         Ok(board)
     }
 
