@@ -250,6 +250,20 @@ fn control_rate_set_saved_and_booted_at_10_khz() {
         again.abs_diff(periods_10k) < periods_10k / 100,
         "{again} vs {periods_10k}"
     );
+    drop(b);
+    // A reset (`serial` without `--rate-hz`, or its `reboot`): the board comes up at its stored
+    // rate whatever the simulator's own default is, and nobody tells it otherwise.
+    let mut out = String::new();
+    let b = Board::boot_at_stored_rate(
+        sim_config(TRUE_ED, TRUE_EB, 0.0, 1, 1_000),
+        &mut flash,
+        &mut out,
+    )
+    .expect("reset");
+    assert!(!out.contains("control_hz"), "{out}");
+    assert_eq!(b.controller.config().rate_hz, 10_000);
+    assert_eq!(b.sim.config().rate_hz, 10_000);
+    drop(b);
     // A rate the timers cannot divide to is refused at boot with the board's reply.
     let mut flash = SimParamFlash::erased();
     let err = Board::boot(
