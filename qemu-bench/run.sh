@@ -149,7 +149,7 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
             mn = w[name, "min"] - empty; mx = w[name, "max"] - empty
             # Time and load at 168 MHz if every instruction took one cycle (a lower bound; see
             # docs/performance.md). Load only for the per-period workloads.
-            periodic = (name == "odometry" || name == "midpoint" || name == "control")
+            periodic = (name == "odometry" || name == "midpoint" || name == "control" || name == "identify")
             printf "%-10s %8d %11.1f %11d %11d %11.2f %10s %10s %8.1f%% %5.1f%%\n", name, n, mean, mn, mx, mx / 168,
                 periodic ? sprintf("%.3f%%", 100 * mx * 1000 / 168e6) : "-",
                 periodic ? sprintf("%.3f%%", 100 * mx * 10000 / 168e6) : "-",
@@ -165,6 +165,14 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
             printf "control step: mean %d max %d instructions\n",
                 int(w["control", "sum"] / w["control", "n"] - empty + 0.5), w["control", "max"] - empty
         } else { print "qemu-bench: FAILED: no control windows counted"; fail = 1 }
+        # The controller period during a motor identification (its maximum: the closing period),
+        # and the console task polling for the report (its maximum: the poll that takes it).
+        if (w["identify", "n"] > 0 && w["id_report", "n"] > 0) {
+            printf "identify step: mean %d max %d instructions\n",
+                int(w["identify", "sum"] / w["identify", "n"] - empty + 0.5), w["identify", "max"] - empty
+            printf "identify report: max %d instructions (console task, taking the report)\n",
+                w["id_report", "max"] - empty
+        } else { print "qemu-bench: FAILED: no identify windows counted"; fail = 1 }
         # SysTick cross-check: 1 instruction = 1 ns under -icount shift=0; SysTick at 168 MHz.
         est = sys["ticks"] * 1e9 / 168e6
         diff = est - w["block", "sum"]

@@ -66,6 +66,7 @@ fn run_inner() -> Result<bool, String> {
     solve(&mut out)?;
     console(&mut out)?;
     control(&mut out)?;
+    identify(&mut out)?;
     print!("{out}");
     println!(
         "info accuracy steps={} path_m={path_m:.1} position_error_m={error_m:.3e} \
@@ -104,6 +105,20 @@ pub fn control(out: &mut String) -> Result<(), String> {
     let mut c = plant::controller().map_err(|e| e.to_string())?;
     let (periods, record) = plant::drive_square(&mut c, |c, r, l| c.step(r, l))?;
     report::run_line(out, "control_square", periods, &record).map_err(|e| e.to_string())
+}
+
+/// A motor identification of the simulated plant's motors: the result line.
+pub fn identify(out: &mut String) -> Result<(), String> {
+    use odocal::motion::controller::Controller;
+    use qemu_bench::plant;
+
+    let mut c = plant::controller().map_err(|e| e.to_string())?;
+    let (periods, report) = plant::identify(
+        &mut c,
+        |c, r, l| c.step(r, l),
+        Controller::take_check_report,
+    )?;
+    report::identify_line(out, "identify_lifted", periods, &report).map_err(|e| e.to_string())
 }
 
 /// The console's `calibrate` and `apply exact` on the recorded squares: the result line.

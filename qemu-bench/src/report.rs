@@ -7,6 +7,8 @@ use core::fmt::{self, Write};
 
 use odocal::calibration::{Calibration, CalibrationError};
 use odocal::kinematics::odometry::Pose;
+use odocal::motion::bringup::CheckReport;
+use odocal::motion::identify::MotorFit;
 use odocal::motion::run::RunRecord;
 
 /// Writes `result <label> x=<bits> y=<bits> heading=<bits>`: the raw `i64` bits of the Q40
@@ -77,4 +79,48 @@ pub fn run_line<W: Write>(w: &mut W, label: &str, periods: u32, record: &RunReco
         end.y_m.to_bits(),
         end.theta_rad.to_bits()
     )
+}
+
+/// Writes the result line of a motor identification: periods, then per wheel the bits of the
+/// fitted parameters (`f32`: gain forward and backward, time constant, dead-band, coasting
+/// deceleration and its speed, residual), or the failure.
+///
+/// # Errors
+/// Whatever the writer returns.
+pub fn identify_line<W: Write>(
+    w: &mut W,
+    label: &str,
+    periods: u32,
+    report: &CheckReport,
+) -> fmt::Result {
+    write!(w, "result {label} periods={periods}")?;
+    match report {
+        CheckReport::Identify(r) => {
+            for (side, fit) in [("r", &r.right), ("l", &r.left)] {
+                write!(w, " {side}=")?;
+                fit_bits(w, fit)?;
+            }
+            writeln!(w)
+        }
+        CheckReport::IdentifyFailed(f) => writeln!(w, " failed={:?}/{:?}", f.wheel, f.problem),
+        other => writeln!(w, " unexpected={other:?}"),
+    }
+}
+
+fn fit_bits<W: Write>(w: &mut W, fit: &MotorFit) -> fmt::Result {
+    let p = &fit.params;
+    let values = [
+        p.gain_forward_mps,
+        p.gain_backward_mps,
+        p.time_constant_s,
+        p.deadband,
+        fit.coast_decel_mps2,
+        fit.coast_from_mps,
+        fit.residual_mps,
+    ];
+    for (i, v) in values.iter().enumerate() {
+        let sep = if i == 0 { "" } else { "," };
+        write!(w, "{sep}{:08x}", v.to_bits())?;
+    }
+    Ok(())
 }

@@ -28,6 +28,7 @@ use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::odometry::{Integration, Odometry, OdometryState, Pose};
 use odocal::kinematics::reference::{ArcModel, PoseF64};
+use odocal::motion::bringup::CheckReport;
 use odocal::motion::controller::{Controller, StepOutput};
 use qemu_bench::console;
 use qemu_bench::plant;
@@ -95,6 +96,8 @@ selector!(bench_select_arc_run, 8);
 selector!(bench_select_control, 9);
 selector!(bench_select_calibrate, 10);
 selector!(bench_select_apply, 11);
+selector!(bench_select_identify, 12);
+selector!(bench_select_id_report, 13);
 
 /// One control period of odometry, as the firmware's control task performs it.
 #[inline(never)]
@@ -120,6 +123,12 @@ fn exact_solve(
 #[inline(never)]
 fn control_step(controller: &mut Controller, raw_right: u32, raw_left: u32) -> StepOutput {
     controller.step(raw_right, raw_left)
+}
+
+/// The console task's collection of a finished check's report (`Session::poll`).
+#[inline(never)]
+fn take_report(controller: &mut Controller) -> Option<CheckReport> {
+    controller.take_check_report()
 }
 
 /// Paints the free stack below the current stack pointer; returns the stack depth of the
@@ -349,6 +358,42 @@ fn main() -> ! {
     out(format_args!("{}", line.as_str()));
     out(format_args!(
         "info stack control high_water={stack} at_call={caller}\n"
+    ));
+
+    // The control task during a motor identification (wheels lifted, the plant's motors), one
+    // window per period, and the console task's poll of the report after each period.
+    let Ok(mut controller) = plant::controller() else {
+        fail("controller configuration rejected")
+    };
+    let caller = paint_stack();
+    let identified = plant::identify(
+        &mut controller,
+        |c, r, l| {
+            let (r, l) = (black_box(r), black_box(l));
+            bench_select_identify();
+            bench_start();
+            let out = control_step(black_box(c), r, l);
+            bench_end();
+            out
+        },
+        |c| {
+            bench_select_id_report();
+            bench_start();
+            let report = take_report(black_box(c));
+            bench_end();
+            report
+        },
+    );
+    let stack = stack_used();
+    let (periods, report) = match identified {
+        Ok(v) => v,
+        Err(e) => fail(e),
+    };
+    let mut line = heapless_line::Line::new();
+    let _ = report::identify_line(&mut line, "identify_lifted", periods, &report);
+    out(format_args!("{}", line.as_str()));
+    out(format_args!(
+        "info stack identify high_water={stack} at_call={caller}\n"
     ));
 
     out(format_args!("info done\n"));
