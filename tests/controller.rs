@@ -4,20 +4,26 @@
 //! tested in `host-sim/tests/closed_loop.rs`.
 
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::button::Press;
 use odocal::motion::controller::{
     ButtonAction, ConfigError, Controller, ControllerConfig, DriveError, Fault, MotorCommand,
     SetError, StartError, Status, Wheel,
 };
+use odocal::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyProblem};
+use odocal::motion::motor::StopMode;
 use odocal::motion::profile::MotionLimits;
 use odocal::motion::routine::RunPlan;
 use odocal::motion::run::{Direction, MAX_KNOTS, PathKind};
+use odocal::session::library::{ControllerLock, Locked};
 
 /// Two lagged motors; positions and speeds in ticks and ticks/s.
 struct Plant {
     pos: [f64; 2],
     vel: [f64; 2],
     dt: f64,
+    /// Largest |duty| the motors act on (a supply limit below 1 saturates them).
+    max_duty: f32,
 }
 
 impl Plant {
@@ -26,6 +32,7 @@ impl Plant {
             pos: [0.0; 2],
             vel: [0.0; 2],
             dt: 1.0 / f64::from(rate_hz),
+            max_duty: 1.0,
         }
     }
 
@@ -47,7 +54,7 @@ impl Plant {
         let tau = 0.05;
         let e = (-self.dt / tau).exp();
         for (i, d) in duty.iter().enumerate() {
-            let target = k * f64::from(*d);
+            let target = k * f64::from(d.clamp(-self.max_duty, self.max_duty));
             self.pos[i] += target * self.dt + (self.vel[i] - target) * tau * (1.0 - e);
             self.vel[i] = target + (self.vel[i] - target) * e;
         }
@@ -551,4 +558,153 @@ fn set_rate_retimes_an_idle_controller() {
     // Only while idle.
     c.drive(0.2, 0.0).unwrap();
     assert_eq!(c.set_rate(1_000), Err(SetError::Busy));
+}
+
+/// Steps a lifted motor identification on `plant` until its closing period; returns that
+/// period's output and the number of periods.
+fn identify_until_finished(
+    c: &mut Controller,
+    plant: &mut Plant,
+) -> (odocal::motion::controller::StepOutput, u32) {
+    plant.step(c);
+    c.start_check(CheckKind::Identify(IdentifyMode::Lifted))
+        .unwrap();
+    for n in 1..=20_000 {
+        let out = plant.step(c);
+        assert_eq!(out.fault, None);
+        if c.finished_identification().is_some() {
+            return (out, n);
+        }
+    }
+    panic!("the identification did not finish");
+}
+
+/// The closing period of a motor identification stops the motors and freezes its statistics;
+/// the fit runs when the report is taken, and a copy's fit (the firmware's console task, outside
+/// the controller's lock) gives the same report.
+#[test]
+fn identification_is_fitted_when_its_report_is_taken() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    let (closing, periods) = identify_until_finished(&mut c, &mut plant);
+    // Four passes of 3 × 400 + 500 + 300 ms at 1 kHz; the next period closes the last one.
+    assert_eq!(periods, 8_001);
+    // Stopped in the closing period (coasting, as a plausible identification always ended).
+    assert_eq!(closing.command, MotorCommand::Stop(StopMode::Coast));
+    assert_eq!(
+        c.status(),
+        Status::Checking(CheckKind::Identify(IdentifyMode::Lifted))
+    );
+    let frozen = *c.finished_identification().unwrap();
+    // Until the report is taken: stopped as when idle, frozen, busy for new motion; a stop
+    // or a fault does not lose it.
+    for _ in 0..5 {
+        assert_eq!(
+            plant.step(&mut c).command,
+            MotorCommand::Stop(StopMode::Brake)
+        );
+    }
+    assert_eq!(c.finished_identification(), Some(&frozen));
+    assert_eq!(
+        c.start(PathKind::Line { length_m: 0.5 }),
+        Err(StartError::Busy)
+    );
+    c.abort();
+    assert_eq!(c.finished_identification(), Some(&frozen));
+
+    let mut copy = c.clone();
+    let report = c.take_check_report();
+    let Some(CheckReport::Identify(r)) = report else {
+        panic!("{report:?}");
+    };
+    assert_eq!(c.status(), Status::Idle);
+    assert_eq!(c.take_check_report(), None);
+    // The plant's motors: 1 m/s at full duty, τ = 50 ms, no dead-band; without noise but
+    // through the counters' floor every parameter is within 1 %.
+    for fit in [r.right, r.left] {
+        let p = fit.params;
+        for gain in [p.gain_forward_mps, p.gain_backward_mps] {
+            assert!((gain - 1.0).abs() < 0.01, "{p:?}");
+        }
+        assert!((p.time_constant_s - 0.05).abs() < 0.01 * 0.05, "{p:?}");
+        assert!(p.deadband < 0.01, "{p:?}");
+    }
+
+    // The console task's way: the fit of a copy between two short locks, the same report.
+    let mut locks = 0;
+    let mut robot = Locked(Counting {
+        controller: &mut copy,
+        locks: &mut locks,
+    });
+    assert_eq!(
+        odocal::session::Robot::take_check_report(&mut robot),
+        report
+    );
+    assert_eq!(odocal::session::Robot::take_check_report(&mut robot), None);
+    assert_eq!(locks, 3);
+    assert_eq!(copy.status(), Status::Idle);
+}
+
+/// A failure only the fit detects (saturation) latches the `identify` fault when the report is
+/// taken, and is reported as a failure found in a period is.
+#[test]
+fn a_failure_the_fit_finds_is_latched_when_the_report_is_taken() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    // The top duty step (50 %) gains little above the 37 % the supply allows.
+    plant.max_duty = 0.37;
+    let (closing, _) = identify_until_finished(&mut c, &mut plant);
+    assert_eq!(closing.command, MotorCommand::Stop(StopMode::Coast));
+    assert_eq!(c.fault(), None);
+    let failure = IdentifyFailure {
+        wheel: Wheel::Right,
+        problem: IdentifyProblem::Saturated,
+    };
+    assert_eq!(
+        c.take_check_report(),
+        Some(CheckReport::IdentifyFailed(failure))
+    );
+    assert_eq!(c.fault(), Some(Fault::Identify(failure)));
+    assert_eq!(c.take_check_report(), None);
+    assert_eq!(
+        plant.step(&mut c).command,
+        MotorCommand::Stop(StopMode::Brake)
+    );
+    assert_eq!(
+        c.start(PathKind::Line { length_m: 0.5 }),
+        Err(StartError::Faulted)
+    );
+}
+
+/// A fault latched between the closing period and the report (here an encoder glitch) does not
+/// turn a finished identification into a failed one: its statistics were complete.
+#[test]
+fn a_fault_after_the_closing_period_keeps_the_identification() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    identify_until_finished(&mut c, &mut plant);
+    let (r, l) = plant.raw();
+    let out = c.step(r.wrapping_add(100_000), l);
+    assert!(
+        matches!(out.fault, Some(Fault::EncoderGlitch { .. })),
+        "{out:?}"
+    );
+    assert!(matches!(
+        c.take_check_report(),
+        Some(CheckReport::Identify(_))
+    ));
+    assert!(matches!(c.fault(), Some(Fault::EncoderGlitch { .. })));
+}
+
+/// Lends the controller and counts the locks.
+struct Counting<'a> {
+    controller: &'a mut Controller,
+    locks: &'a mut u32,
+}
+
+impl ControllerLock for Counting<'_> {
+    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
+        *self.locks += 1;
+        f(self.controller)
+    }
 }

@@ -26,6 +26,13 @@
 //! the dead-band `d₀`. The coast is fitted the same way (`s_{k+1} = a_c·s_k + c`, a viscous and
 //! a constant friction term) and reported as the deceleration from the top step's speed.
 //!
+//! **Fit, outside the control period.** The period in which the last segment ends only closes
+//! it and returns [`IdentifyStep::Finished`]: the statistics stay where they are, frozen, and the
+//! motors stop. The fit ([`Identify::fit`]: a few `log`, `sqrt` and divisions per wheel in `f64`,
+//! about 50,000 instructions of soft-float on the Cortex-M4F, three 10 kHz periods) runs when the
+//! report is taken ([`crate::motion::controller::Controller::take_check_report`]), in the task
+//! that takes it, at a lower priority than the control task.
+//!
 //! **Plausibility.** The routine stops the motors and reports a [`IdentifyFailure`] (the
 //! controller latches it as a fault) when a step shows no motion, counts against the duty (a
 //! reversed motor or encoder: the bring-up check's finding), motion of the other wheel's
@@ -291,8 +298,10 @@ pub enum IdentifyStep {
     Stop(StopMode),
     /// An abnormal response: stop the motors and latch the failure.
     Failed(IdentifyFailure),
-    /// Finished with a plausible result.
-    Done(IdentifyReport),
+    /// The last segment ended: the statistics are complete and frozen; stop the motors. The
+    /// result (a report, or a failure the fit detects) is [`Identify::fit`], computed outside
+    /// the control period.
+    Finished,
 }
 
 /// The identification routine (see the module docs); stepped once per control period.
@@ -355,6 +364,12 @@ impl Identify {
         self.mode
     }
 
+    /// Whether the last segment has ended ([`IdentifyStep::Finished`]): the statistics are
+    /// complete and no longer change.
+    pub fn is_finished(&self) -> bool {
+        self.pass >= self.mode.passes()
+    }
+
     /// Periods of segment `s`: its duration at the control rate, rounded (in integers: the
     /// control period calls this).
     fn segment_periods(&self, s: Segment) -> u32 {
@@ -385,6 +400,9 @@ impl Identify {
     /// One period: `dr`, `dl` are the counts of the period that just ended (during which the
     /// previous step's command was applied).
     pub fn step(&mut self, dr: i64, dl: i64) -> IdentifyStep {
+        if self.is_finished() {
+            return IdentifyStep::Finished;
+        }
         if self.started {
             if let Some(f) = self.record(dr, dl) {
                 return IdentifyStep::Failed(f);
@@ -410,11 +428,9 @@ impl Identify {
                 self.tail = (0, 0);
                 self.block = (0, 0);
                 self.in_block = 0;
-                if self.pass >= self.mode.passes() {
-                    return match self.fit() {
-                        Ok(r) => IdentifyStep::Done(r),
-                        Err(f) => IdentifyStep::Failed(f),
-                    };
+                if self.is_finished() {
+                    // The fit is not computed here, in the control period: see `fit`.
+                    return IdentifyStep::Finished;
                 }
             }
         }
@@ -521,8 +537,23 @@ impl Identify {
         None
     }
 
-    /// The fit of both wheels (see the module docs).
-    fn fit(&self) -> Result<IdentifyReport, IdentifyFailure> {
+    /// The fit of both wheels (see the module docs) from the statistics of a finished
+    /// identification ([`Identify::is_finished`]), where they are: a report with both motors'
+    /// parameters, or the failure the fit detects (slope, residual, saturation, parameters out of
+    /// range). Not for the control period: about 50,000 instructions of soft-float `f64` and
+    /// `libm` on the Cortex-M4F.
+    ///
+    /// # Errors
+    /// The wheel and [`IdentifyProblem`] when the fit does not describe a plausible motor;
+    /// [`IdentifyProblem::Implausible`] (right wheel) for an identification not finished yet,
+    /// whose statistics are incomplete.
+    pub fn fit(&self) -> Result<IdentifyReport, IdentifyFailure> {
+        if !self.is_finished() {
+            return Err(IdentifyFailure {
+                wheel: Wheel::Right,
+                problem: IdentifyProblem::Implausible,
+            });
+        }
         let block_hz = f64::from(self.rate_hz) / f64::from(self.block_periods);
         Ok(IdentifyReport {
             mode: self.mode,
@@ -642,7 +673,12 @@ mod tests {
     /// A lifted wheel pair with first-order motors `(K_fwd, K_back, τ, d0)` per wheel (m/s per
     /// duty), integrated exactly over each period (10 sub-steps are not needed: the duty is
     /// constant over a period), encoder floor-quantised; `sign` = −1 reverses a wheel's counts.
-    fn run(mode: IdentifyMode, motors: [(f64, f64, f64, f64); 2], sign: [i64; 2]) -> IdentifyStep {
+    /// The result: the fit of the finished identification, or the failure a period reported.
+    fn run(
+        mode: IdentifyMode,
+        motors: [(f64, f64, f64, f64); 2],
+        sign: [i64; 2],
+    ) -> Result<IdentifyReport, IdentifyFailure> {
         let rate = 1000u32;
         let dt = 1e-3;
         let mut id = Identify::new(mode, rate, (M_PER_TICK, M_PER_TICK));
@@ -656,7 +692,15 @@ mod tests {
                 IdentifyStep::Duty(r, l) => ([f64::from(r), f64::from(l)], 1.0),
                 IdentifyStep::Stop(StopMode::Coast) => ([0.0; 2], 4.0),
                 IdentifyStep::Stop(StopMode::Brake) => ([0.0; 2], 0.5),
-                other => return other,
+                IdentifyStep::Failed(f) => return Err(f),
+                IdentifyStep::Finished => {
+                    assert!(id.is_finished());
+                    // Frozen: stepping again changes nothing.
+                    let frozen = id;
+                    assert_eq!(id.step(dr, dl), IdentifyStep::Finished);
+                    assert_eq!(id, frozen);
+                    return id.fit();
+                }
             };
             let mut d = [0i64; 2];
             for w in 0..2 {
@@ -684,9 +728,7 @@ mod tests {
     #[test]
     fn lifted_identification_recovers_both_motors() {
         let motors = [(0.5, 0.45, 0.12, 0.05), (2.0, 2.1, 0.025, 0.08)];
-        let IdentifyStep::Done(r) = run(IdentifyMode::Lifted, motors, [1, 1]) else {
-            panic!("no result");
-        };
+        let r = run(IdentifyMode::Lifted, motors, [1, 1]).expect("a plausible fit");
         for (fit, (kf, kb, tau, d0)) in [(r.right, motors[0]), (r.left, motors[1])] {
             let p = fit.params;
             // Exact plant, 1 kHz, only the encoder's quantisation (2.4 µm) as noise: every
@@ -711,7 +753,7 @@ mod tests {
         let f = run(IdentifyMode::Floor, [ok, ok], [1, -1]);
         assert_eq!(
             f,
-            IdentifyStep::Failed(IdentifyFailure {
+            Err(IdentifyFailure {
                 wheel: Wheel::Left,
                 problem: IdentifyProblem::Reversed
             })
@@ -720,7 +762,7 @@ mod tests {
         let f = run(IdentifyMode::Lifted, [dead, ok], [1, 1]);
         assert_eq!(
             f,
-            IdentifyStep::Failed(IdentifyFailure {
+            Err(IdentifyFailure {
                 wheel: Wheel::Right,
                 problem: IdentifyProblem::NoMotion
             })
@@ -731,7 +773,7 @@ mod tests {
         assert!(
             matches!(
                 f,
-                IdentifyStep::Failed(IdentifyFailure {
+                Err(IdentifyFailure {
                     problem: IdentifyProblem::TooFast,
                     ..
                 })
@@ -750,20 +792,31 @@ mod tests {
             let duty = match id.step(dr, dl) {
                 IdentifyStep::Duty(r, _) => f64::from(r),
                 IdentifyStep::Stop(_) => 0.0,
-                other => {
+                // Saturation is the fit's finding: every duty step moved the wheel.
+                IdentifyStep::Finished => {
+                    let f = id.fit();
                     assert!(
                         matches!(
-                            other,
-                            IdentifyStep::Failed(IdentifyFailure {
+                            f,
+                            Err(IdentifyFailure {
                                 problem: IdentifyProblem::Saturated,
                                 ..
                             })
                         ),
-                        "{other:?}"
+                        "{f:?}"
                     );
                     return;
                 }
+                other => panic!("{other:?}"),
             };
+            // Until the last segment ends the statistics are incomplete: no fit.
+            assert_eq!(
+                id.fit(),
+                Err(IdentifyFailure {
+                    wheel: Wheel::Right,
+                    problem: IdentifyProblem::Implausible
+                })
+            );
             let capped = duty.clamp(-0.37, 0.37);
             let target = capped / M_PER_TICK;
             v = target + (v - target) * (-1e-3f64 / 0.05).exp();

@@ -248,9 +248,25 @@ impl<L: ControllerLock> Robot for Locked<L> {
     fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::start_check(c, kind))
     }
+    /// A finished motor identification's fit (soft-float `f64` on the board, tens of thousands
+    /// of instructions) runs between two locks, on a copy of its statistics on this task's
+    /// stack, so the control task is never held up by it.
     #[inline(never)]
     fn take_check_report(&mut self) -> Option<CheckReport> {
-        self.0.with_controller(Robot::take_check_report)
+        let (report, finished) = self
+            .0
+            .with_controller(|c| match c.finished_identification() {
+                Some(identify) => (None, Some(*identify)),
+                // Nothing to fit: a report (or none) as it is.
+                None => (Robot::take_check_report(c), None),
+            });
+        match finished {
+            None => report,
+            Some(identify) => {
+                let fit = identify.fit();
+                self.0.with_controller(|c| c.conclude_identification(fit))
+            }
+        }
     }
     #[inline(never)]
     fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {

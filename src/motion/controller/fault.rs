@@ -119,8 +119,11 @@ impl Controller {
             error!("fault: stopping motors");
         }
         self.fault = Some(fault);
-        // An identification stopped by another fault still ends with its report.
-        if let Some(ActiveCheck::Identify(_)) = self.check {
+        // An identification stopped by another fault still ends with its report (a finished one
+        // keeps its statistics for its own report).
+        if let Some(ActiveCheck::Identify(i)) = &self.check
+            && !i.is_finished()
+        {
             let failure = match fault {
                 Fault::Identify(e) => Some(e),
                 Fault::Stall { wheel } => Some(IdentifyFailure {
@@ -137,7 +140,7 @@ impl Controller {
         }
         self.discard_driven_run();
         self.drive = None;
-        self.check = None;
+        self.end_running_check();
         self.last_duty = (0.0, 0.0);
     }
 

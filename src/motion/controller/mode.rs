@@ -12,7 +12,7 @@ use crate::kinematics::odometry::Pose;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport, PulseCheck, PulseStep, PushCheck};
 use crate::motion::button::Press;
-use crate::motion::identify::{Identify, IdentifyStep};
+use crate::motion::identify::{Identify, IdentifyFailure, IdentifyReport, IdentifyStep};
 use crate::motion::motor::StopMode;
 use crate::motion::routine::{PathError, Routine, RunPlan, validate_path};
 use crate::motion::run::{PathKind, RunRecord};
@@ -97,7 +97,8 @@ pub(super) enum ActiveCheck {
     Pulses(PulseCheck),
     /// Hand push.
     Push(PushCheck),
-    /// Motor identification.
+    /// Motor identification: running, or finished and waiting for its fit (its statistics stay
+    /// here, frozen, until [`Controller::take_check_report`]).
     Identify(Identify),
 }
 
@@ -320,7 +321,7 @@ impl Controller {
         }
         self.discard_driven_run();
         self.drive = None;
-        self.check = None;
+        self.end_running_check();
     }
 
     /// Velocity mode: centre speed `v_mps` and turn rate `w_radps` (CCW positive), each clamped
@@ -472,8 +473,56 @@ impl Controller {
     }
 
     /// The report of the last completed bring-up check, once.
+    ///
+    /// A finished motor identification's report is computed here, by its fit
+    /// ([`Identify::fit`], tens of thousands of instructions of soft-float on the board), not in
+    /// the control period that finished it; a failure the fit finds latches
+    /// [`Fault::Identify`] and is reported as [`CheckReport::IdentifyFailed`], as a failure found
+    /// in a period is. A caller that must not hold the controller during the fit (the firmware's
+    /// console task, which shares it with the control task) computes the fit of a copy of
+    /// [`Controller::finished_identification`] and hands it to
+    /// [`Controller::conclude_identification`].
     pub fn take_check_report(&mut self) -> Option<CheckReport> {
-        self.check_report.take()
+        if let Some(report) = self.check_report.take() {
+            return Some(report);
+        }
+        let fit = self.finished_identification()?.fit();
+        self.conclude_identification(fit)
+    }
+
+    /// A motor identification whose last segment has ended, waiting for its fit: its frozen
+    /// statistics, where they are (the controller is busy until
+    /// [`Controller::conclude_identification`]).
+    pub fn finished_identification(&self) -> Option<&Identify> {
+        match &self.check {
+            Some(ActiveCheck::Identify(i)) if i.is_finished() => Some(i),
+            _ => None,
+        }
+    }
+
+    /// Ends the finished identification with `fit`, the result of its [`Identify::fit`]: its
+    /// report, or, for a failure, latches [`Fault::Identify`] and reports it. `None` (and `fit`
+    /// is dropped) when no finished identification is waiting.
+    pub fn conclude_identification(
+        &mut self,
+        fit: Result<IdentifyReport, IdentifyFailure>,
+    ) -> Option<CheckReport> {
+        self.finished_identification()?;
+        self.check = None;
+        Some(match fit {
+            Ok(report) => CheckReport::Identify(report),
+            Err(failure) => {
+                self.latch(Fault::Identify(failure));
+                CheckReport::IdentifyFailed(failure)
+            }
+        })
+    }
+
+    /// Ends a check in progress; a finished identification stays until its report is taken.
+    pub(super) fn end_running_check(&mut self) {
+        if self.finished_identification().is_none() {
+            self.check = None;
+        }
     }
 
     /// One period of the bring-up check (open loop: no speed loop, no following error).
@@ -499,6 +548,10 @@ impl Controller {
                 }
                 coast
             }
+            // Finished, waiting for the fit: stopped as when idle.
+            ActiveCheck::Identify(i) if i.is_finished() => {
+                MotorCommand::Stop(self.config.stop_mode)
+            }
             ActiveCheck::Identify(i) => match i.step(dr, dl) {
                 IdentifyStep::Duty(right, left) => MotorCommand::Duty { right, left },
                 IdentifyStep::Stop(mode) => MotorCommand::Stop(mode),
@@ -507,11 +560,8 @@ impl Controller {
                     self.latch(Fault::Identify(failure));
                     coast
                 }
-                IdentifyStep::Done(report) => {
-                    self.check = None;
-                    self.check_report = Some(CheckReport::Identify(report));
-                    coast
-                }
+                // The statistics stay frozen in place; the fit runs when the report is taken.
+                IdentifyStep::Finished => coast,
             },
         }
     }
