@@ -13,7 +13,8 @@ sleep=off`, WFI idle). Over USART2 the client runs an operator's session:
    semihosting): `params` must show the calibration, and the runs with their measurements must
    be restored (`event runs restored: 6 runs, 6 measured`, the same `runs` listing);
 3. on the restarted board: the pose stream at 100 Hz, the `drive` deadman, `stop` mid-run, a
-   64 KiB burst of random bytes into RX (the console still answers, no reset), and
+   64 KiB burst of random bytes into RX (the console still answers, no reset), a motor
+   identification (`identify floor`: the report arrives and finds the plant's motors), and
    `set control_hz 10000` with a 0.2 m line at 10 kHz;
 4. the same session on host-sim (`serial --fast --auto-measure --settle`, same robot): every
    `measure` line, the whole `calibrate` table and the `apply exact` line must be identical.
@@ -237,6 +238,35 @@ def restarted_board(elf, workdir, apply, runs_before):
         checks.append(f"64 KiB random burst ({burst_s:.1f} s wall to send): {errs} error replies, "
                       "console answers `status`, "
                       f"no reset (control periods {before['periods']} -> {after['periods']})")
+
+        # Motor identification on the floor: the control task only freezes its statistics in
+        # the period that ends it; the console task fits them when it takes the report (between
+        # two short locks of the controller) and reports as before. The plant's motors: 1 m/s
+        # (left 0.98 m/s) at full duty, 50 ms lag, no dead-band.
+        truth.settle()
+        _, final = send(con, "identify floor", log)
+        if not final.startswith("ok identify floor"):
+            raise ConsoleError(f"identify floor: {final}")
+        fits = {}
+        while True:
+            event = con.wait_event("event identify", 120)
+            log.append(event)
+            m = re.match(r"event identify (right|left): gain_fwd=(\S+) gain_back=(\S+) m/s per "
+                         r"duty, tau=(\S+) s", event)
+            if m:
+                fits[m.group(1)] = [float(v) for v in m.group(2, 3, 4)]
+            elif event.startswith("event identify done (floor)"):
+                break
+            else:
+                raise ConsoleError(f"identify floor: {event}")
+        for side, gain in (("right", 1.0), ("left", 0.98)):
+            fwd, back, tau = fits.get(side, (0.0, 0.0, 0.0))
+            if max(abs(fwd - gain), abs(back - gain)) > 0.02 * gain or abs(tau - 0.05) > 0.001:
+                raise ConsoleError(f"identify floor: {side} {fits.get(side)}")
+        checks.append(f"motor identification (`identify floor`): right gain/tau "
+                      f"{fits['right'][0]:.4f}/{fits['right'][2]:.4f} s, left "
+                      f"{fits['left'][0]:.4f}/{fits['left'][2]:.4f} s (true 1.0/0.98 m/s, 0.05 s); "
+                      "tuning applied")
 
         # The control rate at run time: `set control_hz 10000`, then a 0.2 m line. The plant
         # advances 0.1 ms of robot time per period (paced one period per 1 ms tick of the
