@@ -29,7 +29,7 @@
 //! **Fit, outside the control period.** The period in which the last segment ends only closes
 //! it and returns [`IdentifyStep::Finished`]: the statistics stay where they are, frozen, and the
 //! motors stop. The fit ([`Identify::fit`]: a few `log`, `sqrt` and divisions per wheel in `f64`,
-//! about 50,000 instructions of soft-float on the Cortex-M4F, three 10 kHz periods) runs when the
+//! about 52,000 instructions of soft-float on the Cortex-M4F, more than three 10 kHz periods) runs when the
 //! report is taken ([`crate::motion::controller::Controller::take_check_report`]), in the task
 //! that takes it, at a lower priority than the control task.
 //!
@@ -540,7 +540,7 @@ impl Identify {
     /// The fit of both wheels (see the module docs) from the statistics of a finished
     /// identification ([`Identify::is_finished`]), where they are: a report with both motors'
     /// parameters, or the failure the fit detects (slope, residual, saturation, parameters out of
-    /// range). Not for the control period: about 50,000 instructions of soft-float `f64` and
+    /// range). Not for the control period: about 52,000 instructions of soft-float `f64` and
     /// `libm` on the Cortex-M4F.
     ///
     /// # Errors
