@@ -250,11 +250,20 @@ impl Link {
         }
     }
 
-    /// Drops unsolicited lines received so far (stream lines of an earlier run).
-    pub fn drain(&mut self) -> Result<(), LinkError> {
-        self.pending.clear();
-        while self.recv(Duration::from_millis(0))?.is_some() {}
-        Ok(())
+    /// Drops unsolicited lines received so far (stream lines of an earlier run); returns the
+    /// last boot line among them (`event boot: …`: the board was reset meanwhile).
+    pub fn drain(&mut self) -> Result<Option<String>, LinkError> {
+        let mut boot = None;
+        let mut keep = |l: String| {
+            if l.starts_with("event boot:") {
+                boot = Some(l);
+            }
+        };
+        self.pending.drain(..).for_each(&mut keep);
+        while let Some(l) = self.recv(Duration::from_millis(0))? {
+            keep(l);
+        }
+        Ok(boot)
     }
 
     /// Ends a half-typed line, turns the echo off and checks what answers: an odocal board of a

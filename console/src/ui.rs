@@ -4,7 +4,10 @@
 //! script) every message is a plain line and the progress is printed at each quarter. Answers
 //! come from `--answers FILE` (one a line, in the order of the questions) first, then from
 //! `--yes` (the default of every question that has one), then from stdin. stdin is read on a
-//! thread, so Ctrl-C ends a question at once.
+//! thread, so Ctrl-C ends a question at once. On a terminal, what was typed before a question
+//! was shown (an Enter pressed twice, text typed while the robot drove) is not taken as its
+//! answer: it is shown as ignored, so a stray Enter cannot start the next run before the robot
+//! is back on its marks.
 
 use std::io::{BufRead, BufReader, IsTerminal, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -16,6 +19,10 @@ pub struct Ui {
     answers: std::vec::IntoIter<String>,
     yes: bool,
     stdin: Option<Receiver<Option<String>>>,
+    /// stdin is a terminal: lines typed before a question are not its answer.
+    discard_typeahead: bool,
+    /// stdin ended (seen while discarding typed-ahead lines).
+    stdin_ended: bool,
     /// Progress quarter last printed (no-TTY mode).
     quarter: Option<u32>,
     bar_shown: bool,
@@ -50,6 +57,8 @@ impl Ui {
             answers: answers.into_iter(),
             yes,
             stdin: None,
+            discard_typeahead: std::io::stdin().is_terminal(),
+            stdin_ended: false,
             quarter: None,
             bar_shown: false,
         }
@@ -75,7 +84,43 @@ impl Ui {
         eprintln!("console: {text}");
     }
 
+    /// Drops the lines typed before the question now being asked and says so.
+    fn discard_typeahead(&mut self) {
+        let Some(rx) = &self.stdin else {
+            return;
+        };
+        let mut typed = Vec::new();
+        while let Ok(line) = rx.try_recv() {
+            match line {
+                Some(l) => typed.push(l.trim().to_string()),
+                None => {
+                    self.stdin_ended = true;
+                    break;
+                }
+            }
+        }
+        if typed.is_empty() {
+            return;
+        }
+        let text: Vec<&str> = typed
+            .iter()
+            .map(String::as_str)
+            .filter(|l| !l.is_empty())
+            .collect();
+        if text.is_empty() {
+            println!("  (ignored: Enter pressed before this question)");
+        } else {
+            println!(
+                "  (ignored: `{}` typed before this question)",
+                text.join("`, `")
+            );
+        }
+    }
+
     fn stdin_line(&mut self) -> Result<Option<String>, AskError> {
+        if self.stdin_ended {
+            return Ok(None);
+        }
         let rx = self.stdin.get_or_insert_with(|| {
             let (tx, rx) = mpsc::channel();
             std::thread::spawn(move || {
@@ -121,6 +166,9 @@ impl Ui {
         {
             println!("{prompt}{d}");
             return Ok(d.to_string());
+        }
+        if self.discard_typeahead {
+            self.discard_typeahead();
         }
         if self.tty {
             print!("{prompt}");
@@ -185,5 +233,46 @@ fn pick(answer: String, default: Option<&str>) -> String {
         default.unwrap_or("").to_string()
     } else {
         a.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `Ui` whose stdin is `lines` (already typed, then the end of input).
+    fn ui_with_stdin(lines: &[&str], terminal: bool) -> Ui {
+        let (tx, rx) = mpsc::channel();
+        for l in lines {
+            tx.send(Some((*l).to_string())).unwrap();
+        }
+        tx.send(None).unwrap();
+        let mut ui = Ui::new(Vec::new(), false);
+        ui.stdin = Some(rx);
+        ui.discard_typeahead = terminal;
+        ui
+    }
+
+    #[test]
+    fn a_terminal_does_not_answer_with_what_was_typed_before_the_question() {
+        // An Enter pressed twice after a measurement, and text typed while the robot drove:
+        // neither starts the next run.
+        let mut ui = ui_with_stdin(&["", "0.01 0.02"], true);
+        match ui.ask("Enter starts the run", Some("go")) {
+            Err(AskError::NoAnswer(q)) => assert_eq!(q, "Enter starts the run"),
+            other => panic!("a typed-ahead line was taken as the answer: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_pipe_answers_in_order() {
+        // Scripts pipe their answers ahead of the questions: each line answers the next one.
+        let mut ui = ui_with_stdin(&["", "0.01 0.02"], false);
+        assert_eq!(ui.ask("Enter starts the run", Some("go")).unwrap(), "go");
+        assert_eq!(ui.ask("Measured end pose", None).unwrap(), "0.01 0.02");
+        assert!(matches!(
+            ui.ask("Enter starts the run", Some("go")),
+            Err(AskError::NoAnswer(_))
+        ));
     }
 }

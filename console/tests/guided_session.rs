@@ -556,7 +556,13 @@ fn ctrl_c_stops_the_robot() {
     let (code, text, err) = tool.end();
     assert_eq!(code, Some(130), "{text}\n{err}");
     assert!(err.contains("Ctrl-C: the robot is stopped"), "{err}");
-    assert!(err.contains("--resume"), "{err}");
+    // The command it names runs as typed (`cargo console` already ends its arguments with `--`).
+    let resume_hint = format!(
+        "continue with `cargo console --port {} --resume {}`",
+        sim.pty,
+        log.display()
+    );
+    assert!(err.contains(&resume_hint), "{err}");
     let entries = json_lines(&log);
     let lines = |kind: &str| -> Vec<String> {
         entries
@@ -574,6 +580,61 @@ fn ctrl_c_stops_the_robot() {
     );
 }
 
+/// The board is reset while a run drives (its reset button, a power dip, the watchdog): the
+/// tool sees the boot line, says the run was not stored, turns the echo off and the pose stream
+/// on again (a boot turns the echo on and the stream off) and drives the run again; the
+/// session ends calibrated. The simulated board runs in real time, so the run is still driving
+/// when the reset comes.
+#[test]
+fn reset_during_a_run_drives_it_again() {
+    let mut sim = Sim::start_with(&host_sim(), &[]);
+    let dir = out_dir("reset-during-run");
+    let log = dir.join("session.jsonl");
+    let answers = dir.join("answers.txt");
+    std::fs::write(&answers, "0.2\n1\n").unwrap();
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+        "--yes",
+    ]);
+    while let Some(l) = tool.next() {
+        if l.starts_with("  progress") {
+            break;
+        }
+    }
+    sim.reboot();
+    let mut measured = 0;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert_eq!(measured, 2, "{text}");
+    assert!(
+        text.contains("the board was reset during the run (event boot: "),
+        "{text}"
+    );
+    assert_eq!(text.matches("run 1/2: square cw").count(), 2, "{text}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
+    let entries = json_lines(&log);
+    let sent = |line: &str| {
+        entries
+            .iter()
+            .filter(|v| v["kind"] == "tx" && v["line"] == line)
+            .count()
+    };
+    assert_eq!(sent("echo off"), 2);
+    assert_eq!(sent("stream on 10"), 2);
+    // The run driven again was followed on the stream.
+    let again = text.rfind("run 1/2: square cw").unwrap();
+    assert!(text[again..].contains("  progress  25 %"), "{text}");
+}
+
 /// The board goes away in the middle of a session (cable pulled; here the simulator ends): the
 /// tool says so and how to resume, and the log keeps the measured run.
 #[test]
@@ -589,7 +650,13 @@ fn disconnect_is_reported_and_the_log_keeps_the_runs() {
     let (code, text, err) = tool.end();
     assert_eq!(code, Some(1), "{text}\n{err}");
     assert!(err.contains("lost the connection to the board"), "{err}");
-    assert!(err.contains("--resume"), "{err}");
+    assert!(
+        err.contains(&format!(
+            "`cargo console --port <PORT> --resume {}`",
+            log.display()
+        )),
+        "{err}"
+    );
     let entries = json_lines(&log);
     assert_eq!(entries.iter().filter(|v| v["kind"] == "run").count(), 1);
     assert!(

@@ -126,7 +126,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         } else {
             text.push_str("candidate ports:");
             for p in ports {
-                text.push_str(&format!("\n  cargo console -- --port {p}"));
+                text.push_str(&format!("\n  cargo console --port {p}"));
             }
         }
         return Err(text);
@@ -186,7 +186,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 .log
                 .note("interrupted", "Ctrl-C: robot stopped, session left");
             Err(format!(
-                "Ctrl-C: {}; nothing is lost: continue with `cargo console -- --port {port} \
+                "Ctrl-C: {}; nothing is lost: continue with `cargo console --port {port} \
                  --resume {}`",
                 if stopped {
                     "the robot is stopped"
@@ -201,7 +201,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
             Err(format!(
                 "lost the connection to the board on {port} ({why}). The robot stops by itself \
              when a run ends; every run and measurement so far is in {}: reconnect and continue \
-             with `cargo console -- --port <PORT> --resume {}`",
+             with `cargo console --port <PORT> --resume {}`",
                 log_path.display(),
                 log_path.display()
             ))
@@ -308,6 +308,25 @@ impl Guide {
             }
         }
         let _ = self.cmd("stream off")?;
+        Ok(())
+    }
+
+    /// Sets the board up again after a reset seen during a run: the echo off and the pose
+    /// stream on (a boot turns the echo on and the stream off); shows what the boot said (the
+    /// runs it restored).
+    pub(super) fn after_reset(&mut self) -> Result<(), Stop> {
+        let echo = self.cmd("echo off")?;
+        let stream = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+        for r in [echo, stream] {
+            if !r.ok() {
+                return Err(Stop::Failed(format!("after the reset: {}", r.last)));
+            }
+        }
+        while let Some(l) = self.link.next_unsolicited(Duration::ZERO)? {
+            if l.starts_with("event ") {
+                self.ui.say(&format!("  {l}"));
+            }
+        }
         Ok(())
     }
 

@@ -57,7 +57,12 @@ impl Guide {
                 "Enter starts the run (b: wait for the board's button)",
                 Some("go"),
             )?;
-            self.link.drain()?;
+            // Stream lines of the last run are dropped; a reset since then (the board's boot
+            // line) needs the echo off and the stream on again.
+            if let Some(boot) = self.link.drain()? {
+                self.ui.say(&format!("  the board was reset: {boot}"));
+                self.after_reset()?;
+            }
             let pose = self.cmd("pose")?;
             let start = (
                 field(pose.text(), "x").and_then(|v| v.parse::<f64>().ok()),
@@ -155,6 +160,15 @@ impl Guide {
                 break true;
             } else if l.starts_with("event run ") && l.contains(" aborted") {
                 self.ui.warn(&l);
+                break false;
+            } else if l.starts_with("event boot:") {
+                // A reset (the reset button, a power dip, the watchdog): the run had not
+                // finished, so the board did not store it; the new boot has the echo on and
+                // the stream off.
+                self.ui.warn(&format!(
+                    "the board was reset during the run ({l}): the run was not stored"
+                ));
+                self.after_reset()?;
                 break false;
             } else if l.starts_with("event ") {
                 self.ui.say(&format!("  {l}"));
