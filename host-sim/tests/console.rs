@@ -160,3 +160,37 @@ fn serial_pipe_answers_cr_line_ends_and_ctrl_c() {
     assert_eq!(finals[0], "ok 26 commands");
     assert_eq!(finals[2], "ok stopped");
 }
+
+#[test]
+fn serial_with_a_reversed_encoder_rehearses_the_bring_up_check() {
+    // `serial --wiring`: the robot on the console is miswired; the bring-up check names the fix
+    // and a square stops with the following-error fault instead of running away.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["serial", "--fast", "--wiring", "left-encoder-reversed"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("host-sim runs");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(b"bringup push\rrun cw 1\rstatus\r")
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("counts backward: encoder reversed"), "{text}");
+    assert!(
+        text.contains("event bringup propose: set encoder_left_sign -1"),
+        "{text}"
+    );
+    assert!(
+        text.contains(
+            "event run 1 aborted, not stored: square cw L=1.000 m (fault: following-error)"
+        ),
+        "{text}"
+    );
+    assert!(text.contains("fault=following-error"), "{text}");
+}

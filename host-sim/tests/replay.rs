@@ -236,3 +236,29 @@ fn lines_add_e_s_and_paths_fit_the_whole_trajectory() {
     let after = e_max_syst(&ev, &squares.geometry).unwrap();
     assert!(after < before / 3.0, "{before} → {after}");
 }
+
+#[test]
+fn a_fit_without_a_heading_residual_prints_a_dash_not_nan() {
+    // `exact-path` fits along the ground-truth paths: its runs have no end-heading residual.
+    let Some(square) = session_dir("square", "231220200029") else {
+        return;
+    };
+    let out = sim()
+        .args(["replay", "--method", "exact-path", "--calibrate"])
+        .arg(&square)
+        .args(["--out"])
+        .arg(std::env::temp_dir().join("odocal-replay-dash"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!text.contains("NaN"), "{text}");
+    let run2 = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("231220200029 run  2:"))
+        .unwrap_or_else(|| panic!("no run 2 line:\n{text}"));
+    let columns: Vec<&str> = run2.split_whitespace().collect();
+    // session, `run`, `2:`, x, y, θ, path RMS, …
+    assert_eq!(columns[5], "-", "{run2}");
+    assert_ne!(columns[6], "-", "{run2}");
+}

@@ -555,10 +555,11 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
     for r in f.runs() {
         let (sid, run) = labels.get(r.index).cloned().unwrap_or_default();
         println!(
-            "      {sid} run {run:>2}: {:>8.1} {:>8.1} {:>8.1} {:>8} {:>6.3}  {:>5.2} {:>5.2} {:>5.2}{}",
+            "      {sid} run {run:>2}: {:>8.1} {:>8.1} {:>8} {:>8} {:>6.3}  {:>5.2} {:>5.2} {:>5.2}{}",
             r.residual_x_m * 1e3,
             r.residual_y_m * 1e3,
-            r.residual_theta_rad.map_or(f64::NAN, |t| t * 1e3),
+            r.residual_theta_rad
+                .map_or_else(|| "-".to_string(), |t| format!("{:.1}", t * 1e3)),
             r.path_rms_m
                 .map_or_else(|| "-".to_string(), |v| format!("{:.1}", v * 1e3)),
             r.weight,

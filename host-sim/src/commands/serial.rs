@@ -23,7 +23,7 @@ use odocal::motion::controller::Status;
 
 use crate::sim::board::{Board, measure_line};
 use crate::sim::flash::{SimFlash, SimParamFlash};
-use crate::sim::robot::{SimConfig, sim_config};
+use crate::sim::robot::{SimConfig, WiringOption, sim_config};
 
 /// Command-line arguments of the `serial` subcommand.
 #[derive(clap::Args, Debug, Clone)]
@@ -67,6 +67,10 @@ pub struct SerialArgs {
     /// and compares the results.
     #[arg(long)]
     pub settle: bool,
+    /// How the simulated robot is wired: a reversed motor or encoder, to rehearse the bring-up
+    /// check (`bringup push`, `bringup`) and the following-error fault on the console.
+    #[arg(long, value_enum, default_value_t = WiringOption::Standard)]
+    pub wiring: WiringOption,
 }
 
 /// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The
@@ -134,7 +138,7 @@ fn boot_board<'f>(
 /// # Errors
 /// I/O or configuration failures, as text.
 pub fn run(args: &SerialArgs) -> Result<(), String> {
-    let config = sim_config(
+    let mut config = sim_config(
         args.ed,
         args.eb,
         args.slip,
@@ -142,6 +146,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         args.rate
             .unwrap_or(odocal::motion::controller::DEFAULT_RATE_HZ),
     );
+    config.wiring = args.wiring.wiring();
 
     let mut out = String::new();
     let mut flash = match &args.image {
