@@ -357,7 +357,9 @@ impl Guide {
         if fault != "none" {
             self.ui.warn(&format!(
                 "the board has a latched fault ({fault}): the motors are stopped. Fix the cause \
-                 (a blocked wheel, a loose encoder, a miswired motor: see README, Troubleshooting)"
+                 (likely: {}; see README, Troubleshooting)",
+                runs::fault_cause(&fault)
+                    .unwrap_or("a blocked wheel, a loose encoder, a miswired motor")
             ));
             if self.ui.confirm("Clear the fault now", true)? {
                 let r = self.cmd("clear")?;

@@ -181,6 +181,9 @@ impl Guide {
                     "fault: {f}: the motors are stopped. Fix the cause, then the fault is \
                      cleared and the run driven again"
                 ));
+                if let Some(cause) = fault_cause(f) {
+                    self.ui.say(&format!("  likely cause: {cause}"));
+                }
                 if self
                     .ui
                     .confirm("Clear the fault and drive the run again", true)?
@@ -304,5 +307,35 @@ impl Guide {
     /// Whether the board holds exactly the session's live runs.
     pub(super) fn board_has_all(&self) -> bool {
         self.board.len() == self.slots.iter().filter(|s| s.record.is_some()).count()
+    }
+}
+
+/// What usually causes a latched fault, as README's troubleshooting says (`None` for a fault
+/// without a usual cause).
+pub(super) fn fault_cause(fault: &str) -> Option<&'static str> {
+    match fault {
+        "following-error" => Some(
+            "a motor or encoder wired the other way round (run the bring-up check in a \
+             terminal: `bringup push`, then `bringup`), a wheel slipping badly, or motors too \
+             weak for the motion limits (lower `max_speed`, `max_accel`)",
+        ),
+        "stall" => Some("a blocked wheel, or no motor power"),
+        "encoder-glitch" => {
+            Some("an encoder count jumped: a loose connector or noise on its lines")
+        }
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fault_cause;
+
+    #[test]
+    fn a_following_error_points_to_the_bring_up_check() {
+        let cause = fault_cause("following-error").unwrap();
+        assert!(cause.contains("`bringup push`, then `bringup`"), "{cause}");
+        assert!(fault_cause("stall").is_some());
+        assert_eq!(fault_cause("identify"), None);
     }
 }
