@@ -104,7 +104,15 @@ impl Link {
         let port = serialport::new(path, BAUD)
             .timeout(Duration::from_millis(100))
             .open()
-            .map_err(|e| format!("cannot open {path}: {e}"))?;
+            .map_err(|e| {
+                // serialport locks the port (TIOCEXCL); so do picocom and screen.
+                let busy = if e.to_string().contains("exclusive lock") {
+                    " (another program has it open: quit picocom, screen or another console first)"
+                } else {
+                    ""
+                };
+                format!("cannot open {path}: {e}{busy}")
+            })?;
         let mut reader = port
             .try_clone()
             .map_err(|e| format!("cannot read {path}: {e}"))?;

@@ -571,7 +571,11 @@ fn ctrl_c_stops_the_robot() {
             .map(|v| v["line"].as_str().unwrap().to_string())
             .collect()
     };
-    assert!(lines("tx").contains(&"^C".to_string()));
+    let tx = lines("tx");
+    let stop = tx.iter().position(|l| l == "^C").expect("stop key sent");
+    // After the stop, the pose stream is turned off again (a terminal opened next is quiet).
+    assert_eq!(tx.last().map(String::as_str), Some("stream off"), "{tx:#?}");
+    assert!(stop < tx.len() - 1, "{tx:#?}");
     let rx = lines("rx");
     assert!(rx.iter().any(|l| l == "event stopped (Ctrl-C)"), "{rx:#?}");
     assert!(

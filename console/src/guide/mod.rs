@@ -166,6 +166,13 @@ pub fn run(opts: &Options) -> Result<(), String> {
         applied: None,
     };
     let result = g.session(resumed);
+    // Ctrl-C: the robot first.
+    let stopped = matches!(result, Err(Stop::Interrupted)) && g.stop_robot();
+    if matches!(result, Err(Stop::Interrupted | Stop::Failed(_))) {
+        // The pose stream the session turned on: a terminal opened on the port afterwards is
+        // not flooded with it.
+        let _ = g.link.command("stream off", REPLY);
+    }
     let svg = g.plot();
     match result {
         Ok(()) => {
@@ -176,12 +183,6 @@ pub fn run(opts: &Options) -> Result<(), String> {
             Ok(())
         }
         Err(Stop::Interrupted) => {
-            // The robot first: Ctrl-C on the wire stops it within one control period.
-            let stopped = g.link.stop_key().is_ok() && g.wait_event("event stopped", 2).is_ok();
-            // A run in progress is reported aborted right after.
-            if stopped && let Ok(l) = g.wait_event("event run ", 1) {
-                g.ui.say(&l);
-            }
             g.link
                 .log
                 .note("interrupted", "Ctrl-C: robot stopped, session left");
@@ -309,6 +310,17 @@ impl Guide {
         }
         let _ = self.cmd("stream off")?;
         Ok(())
+    }
+
+    /// Sends the stop key (the board stops any motion within one control period) and shows the
+    /// run it aborted; whether the board confirmed the stop.
+    fn stop_robot(&mut self) -> bool {
+        let stopped = self.link.stop_key().is_ok() && self.wait_event("event stopped", 2).is_ok();
+        // A run in progress is reported aborted right after.
+        if stopped && let Ok(l) = self.wait_event("event run ", 1) {
+            self.ui.say(&l);
+        }
+        stopped
     }
 
     /// Sets the board up again after a reset seen during a run: the echo off and the pose
