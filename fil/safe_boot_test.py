@@ -10,8 +10,9 @@
    seconds).
 2. Fault path (emulator run): without the boot assist's flash-size answer, the HAL's read of the
    unmapped flash-size word HardFaults — a real fault in the shipped image. The HardFault
-   handler must write PE13 low (BSRR = 0x20000000), clear TIM1 BDTR.MOE (bit 15), and reset the
-   MCU (QEMU runs with -no-reboot, so the reset ends it).
+   handler must drive PE9, PE11 and PE13 low again (BSRR = 0x2A000000) and make them GPIO
+   outputs (MODER), clear TIM1 BDTR.MOE (bit 15) and BDTR.AOE (bit 14, which would set MOE again
+   at the next update), and reset the MCU (QEMU runs with -no-reboot, so the reset ends it).
 3. Panic path (disassembly): the panic handler's and the HardFault handler's first call is
    `odocal_emergency_stop`, the function whose writes step 2 observed.
 """
@@ -108,18 +109,25 @@ def check_fault_path(elf, workdir):
     reset = not e.alive()
     e.stop()
     acc = accesses(e.log)
-    boot = next((i for i, a in enumerate(acc) if a[0] == "GPIOE" and a[3] == 0x2A000000), None)
+    low = ("write", 0x18, 0x2A000000)
+    boot = next((i for i, a in enumerate(acc) if a[0] == "GPIOE" and a[1:] == low), None)
     stop = next((i for i, a in enumerate(acc)
-                 if a[0] == "GPIOE" and a[1:] == ("write", 0x18, 0x20000000)), None)
-    if boot is None or stop is None or stop < boot:
-        return f"no PE13-low write after boot (boot {boot}, stop {stop})"
+                 if boot is not None and i > boot and a[0] == "GPIOE" and a[1:] == low), None)
+    if boot is None or stop is None:
+        return f"no second PE9/PE11/PE13-low write after boot (boot {boot}, stop {stop})"
+    mask = (3 << 18) | (3 << 22) | (3 << 26)
+    want = (1 << 18) | (1 << 22) | (1 << 26)
+    moder = [a for a in acc[stop:] if a[0] == "GPIOE" and a[1] == "write" and a[2] == 0x00]
+    if not moder or moder[0][3] & mask != want:
+        return f"PE9/PE11/PE13 not made GPIO outputs after the fault: {moder[:1]}"
     # QEMU names the unmodelled TIM1 "timer[1]".
     tim1 = [a for a in acc[stop:] if a[0] in ("TIM1", "timer[1]") and a[1] == "write" and a[2] == 0x44]
-    if not tim1 or tim1[0][3] & (1 << 15):
-        return f"TIM1 BDTR.MOE not cleared after the fault: {tim1[:1]}"
+    if not tim1 or tim1[0][3] & ((1 << 15) | (1 << 14)):
+        return f"TIM1 BDTR.MOE/AOE not cleared after the fault: {tim1[:1]}"
     if not reset:
         return "the MCU did not reset after the fault"
-    print(f"fault path: HardFault → PE13 low, TIM1 BDTR = 0x{tim1[0][3]:08x} (MOE off), reset")
+    print(f"fault path: HardFault → PE9/PE11/PE13 low GPIO outputs, "
+          f"TIM1 BDTR = 0x{tim1[0][3]:08x} (MOE and AOE off), reset")
     return None
 
 

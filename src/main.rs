@@ -69,7 +69,7 @@ const REPLY_ROOM: usize = 1_800;
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
-    use odocal::board::watchdog::{set_timeout, start_with_timeout, wait_for_update};
+    use odocal::board::watchdog::{set_timeout, wait_for_update, write_timeout};
     use odocal::board::{
         BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_FROM_MONOTONIC,
         CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds,
@@ -173,14 +173,17 @@ mod app {
                 return f(self.store);
             }
             // The waits for the low-power register domain stay outside the lock, so the
-            // control task is never held up by them.
+            // control task is never held up by them. The reload comes after the update has
+            // crossed over: an earlier one would load the old 50 ms reload value, counted at the
+            // new divider (about 1.1-1.6 s, shorter than an erase).
             wait_for_update();
-            self.watchdog
-                .lock(|w| start_with_timeout(w, FLASH_WATCHDOG_MS));
+            self.watchdog.lock(|w| write_timeout(w, FLASH_WATCHDOG_MS));
             wait_for_update();
+            self.watchdog.lock(|w| w.feed());
             let result = f(self.store);
-            self.watchdog.lock(|w| start_with_timeout(w, WATCHDOG_MS));
+            self.watchdog.lock(|w| write_timeout(w, WATCHDOG_MS));
             wait_for_update();
+            self.watchdog.lock(|w| w.feed());
             result
         }
     }

@@ -11,7 +11,7 @@
 //! | right / left motor DIR    | GPIO            | PE7 / PE8            |
 //! | H-bridge enable (low = coast) | GPIO        | PE13                 |
 //! | control tick 1–10 kHz     | TIM7            | —                    |
-//! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (ST-LINK VCP) |
+//! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (USB-UART adapter) |
 //! | user button               | EXTI0           | PA0 (active high)    |
 //! | heartbeat / fault LEDs    | GPIO            | PD12 green / PD14 red |
 //! | parameters                | flash sectors 10–11 | 0x080C_0000..0x0810_0000 |
@@ -40,6 +40,37 @@ pub use safety::ResetCause;
 
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
+/// APB1 clock (USART2; the bus maximum), Hz: core / 4.
+pub const PCLK1_HZ: u32 = 42_000_000;
+/// Clock of the APB1 timers (TIM2, TIM3, TIM7), Hz: twice PCLK1, because the APB1 prescaler is
+/// not 1 (RM0090 §6.2, "timer clock frequencies").
+pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
+/// Clock of the APB2 timers (TIM1), Hz: PCLK2 is the HAL's default, the 84 MHz bus maximum
+/// (core / 2), doubled for the same reason.
+pub const TIMCLK2_HZ: u32 = SYSCLK_HZ;
+
+// The periods the board programs are exact at these clocks: TIM7 (16-bit prescaler and
+// auto-reload, HAL `CounterHz::start`) at every control rate, TIM1's PWM period (ARR + 1 =
+// 8,400 timer ticks, the duty resolution).
+const _: () = {
+    let rates = crate::motion::controller::RATES_HZ;
+    let mut i = 0;
+    while i < rates.len() {
+        let ticks = TIMCLK1_HZ / rates[i];
+        assert!(
+            TIMCLK1_HZ.is_multiple_of(rates[i]),
+            "a control rate does not divide TIM7's clock"
+        );
+        // The HAL's split: prescaler (ticks - 1) / 2^16 + 1, then ARR = ticks / prescaler - 1.
+        let psc = (ticks - 1) / (1 << 16);
+        assert!(
+            ticks.is_multiple_of(psc + 1),
+            "a control period is not a whole number of prescaled ticks"
+        );
+        i += 1;
+    }
+    assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <= 1 << 16);
+};
 /// External crystal, Hz.
 pub const HSE_HZ: u32 = 8_000_000;
 /// Motor PWM frequency, Hz (above hearing, within the H-bridge's switching limit).
@@ -281,7 +312,26 @@ pub fn init(dp: pac::Peripherals) -> Board {
             Config::hsi()
         }
     };
-    let mut rcc = dp.RCC.freeze(source.sysclk(SYSCLK_HZ.Hz()).pclk1(42.MHz()));
+    let mut rcc = dp
+        .RCC
+        .freeze(source.sysclk(SYSCLK_HZ.Hz()).pclk1(PCLK1_HZ.Hz()));
+    // The HAL picks the PLL factors and bus prescalers (8 or 16 MHz / M = 2 MHz, × 168, / 2;
+    // APB1 / 4, APB2 / 2; 5 flash wait states for 168 MHz at 2.7–3.6 V, RM0090 Table 10): the
+    // timer periods, the PWM and the baud rate below assume exactly these clocks.
+    let clocks = rcc.clocks;
+    if clocks.sysclk().raw() != SYSCLK_HZ
+        || clocks.pclk1().raw() != PCLK1_HZ
+        || clocks.timclk1().raw() != TIMCLK1_HZ
+        || clocks.timclk2().raw() != TIMCLK2_HZ
+    {
+        error!(
+            "clocks differ from the board's: sysclk {} pclk1 {} timers {} / {} Hz",
+            clocks.sysclk().raw(),
+            clocks.pclk1().raw(),
+            clocks.timclk1().raw(),
+            clocks.timclk2().raw()
+        );
+    }
     let params = flash::param_store(dp.FLASH);
 
     let gpioa = dp.GPIOA.split(&mut rcc);
@@ -343,7 +393,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
     condition_inputs();
 
     Board {
-        sysclk_hz: SYSCLK_HZ,
+        sysclk_hz: clocks.sysclk().raw(),
         encoders: Encoders { right, left },
         motors,
         tick: ControlTick {

@@ -2,9 +2,15 @@
 //!
 //! The IWDG's prescaler and reload registers live in the low-power domain: after a write the
 //! hardware sets `PVU`/`RVU` in `IWDG_SR` until the value has crossed over (up to 5 cycles of the
-//! ~32 kHz LSI, about 150 µs), and a second write before then may be lost (RM0090 §21.4). The HAL's
-//! `start` does not wait, so a timeout changed twice in quick succession could stay at the first
-//! value. [`set_timeout`] waits before and after the change.
+//! ~32 kHz LSI, about 150 µs), and a second write before then may be lost (RM0090 §21.4). A
+//! reload (key 0xAAAA) while the update is still pending loads the counter with the *previous*
+//! reload value, now counted at the new prescaler: going from 50 ms (divider 4, reload 399) to
+//! 10 s (divider 128, reload 2499), a reload right after the writes leaves the counter at 399
+//! ticks of the new divider, about 1.1–1.6 s, which a sector erase (2–4 s) outlasts. So a change
+//! is: wait, write ([`write_timeout`]), wait, reload — the order of ST's own driver
+//! (`HAL_IWDG_Init`). The HAL's `start` reloads without waiting. [`set_timeout`] does the whole
+//! sequence; the app does it step by step so that it holds the watchdog's lock only for the
+//! register writes.
 
 use stm32f4xx_hal::pac::IWDG;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
@@ -52,29 +58,31 @@ const _: () = {
     assert!(code == 5 && reload == 2499, "10 s must be exact");
 };
 
-/// Sets the watchdog timeout to `ms` milliseconds ([`divider_and_reload`]), starts the
-/// watchdog if it is not running, and reloads the counter. Call [`wait_for_update`] before
-/// (and before the next change); it is kept outside so a caller can wait without holding the
-/// watchdog's lock. `watchdog` is the HAL's handle: owning it is what allows the change.
-pub fn start_with_timeout(watchdog: &mut IndependentWatchdog, ms: u32) {
+/// Writes the prescaler and reload for a timeout of `ms` milliseconds ([`divider_and_reload`])
+/// and starts the watchdog if it is not running. Does **not** reload the counter: call
+/// [`wait_for_update`] before (and before the next change), then [`wait_for_update`] again and
+/// feed, so the counter is loaded with the new reload value (see the module docs). The waits are
+/// kept outside so a caller can wait without holding the watchdog's lock. `_watchdog` is the
+/// HAL's handle: owning it is what allows the change.
+pub fn write_timeout(_watchdog: &mut IndependentWatchdog, ms: u32) {
     let (code, reload) = divider_and_reload(ms);
     // SAFETY: IWDG register writes in the order RM0090 §21.3.2 gives (unlock with 0x5555,
-    // prescaler, reload, reload the counter with 0xAAAA, start with 0xCCCC); the caller holds
-    // the only handle, so nothing else writes these registers meanwhile.
+    // prescaler, reload; start with 0xCCCC, which does nothing to a running watchdog); the
+    // caller holds the only handle, so nothing else writes these registers meanwhile.
     unsafe {
         let iwdg = &*IWDG::ptr();
         iwdg.kr().write(|w| w.bits(0x5555));
         iwdg.pr().write(|w| w.bits(u16::from(code)));
         iwdg.rlr().write(|w| w.bits(reload));
-        iwdg.kr().write(|w| w.bits(0xAAAA));
         iwdg.kr().write(|w| w.bits(0xCCCC));
     }
-    watchdog.feed();
 }
 
-/// [`wait_for_update`], [`start_with_timeout`], [`wait_for_update`].
+/// Sets the timeout to `ms` milliseconds and starts the watchdog if needed: [`wait_for_update`],
+/// [`write_timeout`], [`wait_for_update`], then a reload, which loads the new value.
 pub fn set_timeout(watchdog: &mut IndependentWatchdog, ms: u32) {
     wait_for_update();
-    start_with_timeout(watchdog, ms);
+    write_timeout(watchdog, ms);
     wait_for_update();
+    watchdog.feed();
 }
