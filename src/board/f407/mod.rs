@@ -84,9 +84,10 @@ pub const WATCHDOG_MS: u32 = 50;
 pub const FLASH_WATCHDOG_MS: u32 = 10_000;
 
 /// Polls of the crystal oscillator's ready flag before the internal oscillator is used instead.
-/// Each poll is a volatile register read, a test and a loop branch (at least 5 cycles at the
-/// 16 MHz HSI the core runs on at reset), so the wait is at least 60 ms; an 8 MHz crystal starts
-/// within 2 ms (datasheet t_SU(HSE)).
+/// Each poll is a call of [`odocal_hse_ready`], a volatile register read, a test and a loop
+/// branch (12 instructions in the release build, about 20 cycles at the 16 MHz HSI the core
+/// runs on at reset), so the wait is about 0.25 s, and at least 60 ms however the loop is
+/// compiled; an 8 MHz crystal starts within 2 ms (datasheet t_SU(HSE)).
 pub const HSE_POLLS: u32 = 200_000;
 
 /// Where the core clock comes from.

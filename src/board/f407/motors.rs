@@ -1,5 +1,6 @@
 //! Two H-bridge channels driven by TIM1 PWM (20 kHz) plus a direction pin each and a shared
-//! enable pin (sign-magnitude drive, e.g. Cytron MD10C / DRV8871-style bridges).
+//! enable pin (sign-magnitude drive, e.g. a Cytron MD10C; an IN1/IN2 bridge such as the DRV8871
+//! needs other wiring, see docs/hardware.md).
 //!
 //! Duty `d ∈ [-1, 1]`: `|d|` sets the compare value, the sign the DIR pin. The left motor is
 //! mounted mirrored, so its DIR level is inverted in software. `Brake` drives both PWM outputs
