@@ -10,7 +10,7 @@
 mod results;
 mod runs;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use odocal::kinematics::geometry::Geometry;
@@ -107,7 +107,20 @@ fn log_default() -> PathBuf {
     let t = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
-    PathBuf::from(format!("target/odocal-console/session-{t}.jsonl"))
+    new_log_path(Path::new("target/odocal-console"), t)
+}
+
+/// `dir/session-<t>.jsonl`, or `session-<t>-2.jsonl`, … when a session started in the same
+/// second already has that name (the log is opened for appending: two sessions must not share
+/// one).
+fn new_log_path(dir: &Path, t: u64) -> PathBuf {
+    let mut path = dir.join(format!("session-{t}.jsonl"));
+    let mut k = 2;
+    while path.exists() {
+        path = dir.join(format!("session-{t}-{k}.jsonl"));
+        k += 1;
+    }
+    path
 }
 
 /// Runs the guided session.
@@ -571,5 +584,28 @@ impl Guide {
             )));
         }
         self.send_plan()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::new_log_path;
+
+    #[test]
+    fn two_sessions_started_in_the_same_second_get_two_logs() {
+        let dir = std::env::temp_dir().join(format!("odocal-console-logs-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let first = new_log_path(&dir, 1_795_474_681);
+        assert_eq!(first, dir.join("session-1795474681.jsonl"));
+        std::fs::write(&first, "").unwrap();
+        let second = new_log_path(&dir, 1_795_474_681);
+        assert_eq!(second, dir.join("session-1795474681-2.jsonl"));
+        std::fs::write(&second, "").unwrap();
+        assert_eq!(
+            new_log_path(&dir, 1_795_474_681),
+            dir.join("session-1795474681-3.jsonl")
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
