@@ -52,12 +52,15 @@ impl std::fmt::Display for AskError {
 impl Ui {
     /// Answers from `answers` (lines), `--yes`, then stdin.
     pub fn new(answers: Vec<String>, yes: bool) -> Ui {
+        let terminal = std::io::stdin().is_terminal();
         Ui {
             tty: std::io::stdout().is_terminal(),
             answers: answers.into_iter(),
             yes,
-            stdin: None,
-            discard_typeahead: std::io::stdin().is_terminal(),
+            // On a terminal, read from the start, so what is typed before the first question
+            // (while the tool connects) is seen as typed ahead too.
+            stdin: terminal.then(spawn_stdin_reader),
+            discard_typeahead: terminal,
             stdin_ended: false,
             quarter: None,
             bar_shown: false,
@@ -121,20 +124,7 @@ impl Ui {
         if self.stdin_ended {
             return Ok(None);
         }
-        let rx = self.stdin.get_or_insert_with(|| {
-            let (tx, rx) = mpsc::channel();
-            std::thread::spawn(move || {
-                let mut lines = BufReader::new(std::io::stdin()).lines();
-                loop {
-                    let line = lines.next().and_then(Result::ok);
-                    let end = line.is_none();
-                    if tx.send(line).is_err() || end {
-                        return;
-                    }
-                }
-            });
-            rx
-        });
+        let rx = self.stdin.get_or_insert_with(spawn_stdin_reader);
         loop {
             if crate::interrupted() {
                 return Err(AskError::Interrupted);
@@ -225,6 +215,22 @@ impl Ui {
             }
         }
     }
+}
+
+/// Reads stdin line by line on a thread (`None` at its end), so Ctrl-C ends a wait at once.
+fn spawn_stdin_reader() -> Receiver<Option<String>> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut lines = BufReader::new(std::io::stdin()).lines();
+        loop {
+            let line = lines.next().and_then(Result::ok);
+            let end = line.is_none();
+            if tx.send(line).is_err() || end {
+                return;
+            }
+        }
+    });
+    rx
 }
 
 fn pick(answer: String, default: Option<&str>) -> String {
