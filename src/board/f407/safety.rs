@@ -13,8 +13,10 @@
 //!   their own) call it, log, and reset the MCU, so a fault never leaves the last duty on the
 //!   motors until the watchdog fires, and a panic before the watchdog runs does not hang for
 //!   ever.
-//! - [`freeze_when_halted`]: TIM1 (and, in debug builds, the watchdog) stop while a debugger
-//!   halts the core, so a breakpoint does not leave the motors at the last duty.
+//! - [`freeze_when_halted`]: TIM1's counter (and, in debug builds, the watchdog) stop while a
+//!   debugger halts the core, so the PWM does not run on at the last duty. Which level the
+//!   frozen PWM pins then hold is not established for this board (docs/hardware.md): keep the
+//!   motor supply off while the core is halted.
 //! - [`reset_cause`]: why the MCU last reset, from RCC_CSR (flags cleared after reading).
 
 use stm32f4xx_hal::pac;
