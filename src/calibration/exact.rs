@@ -104,10 +104,30 @@
 //!   end heading of every closed path, so in-place turns and circles lose the information that
 //!   calibrates `E_b` best; it is the occasional slipping start, which the run weights handle).
 //!
-//! Jacobian: central differences with step `h = 1e-6` in each (dimensionless, ≈ 1) parameter:
-//! truncation error `O(h²) ≈ 1e-12` relative, rounding about `1e-16·|pose|/h ≈ 1e-10` m; the
-//! Jacobian only steers the iteration, the fixed point `JᵀWr = 0` is where the weighted
-//! residuals are smallest. Normal equations are accumulated run by run (3×3), so memory does not
+//! # Jacobian in `f32`
+//!
+//! The residuals `r`, the cost, the normal equations, the solve and the convergence test are
+//! `f64`; only the Jacobian's columns are re-integrated in `f32` ([`ArcModelF32`], the
+//! Cortex-M4F's FPU), by central differences with step `h =` [`JACOBIAN_STEP`] `= 1e-3` in each
+//! (dimensionless, ≈ 1) parameter. An end pose in `f32` is good to about `ε ≈ 1e-7` m (one
+//! rounding per knot), so a column's error is the rounding `ε/h` plus the truncation `O(h²)`.
+//! Measured on a 1 m square (test `f32_jacobian_matches_f64`, largest error of a column against
+//! the `f64` one, relative to the column's size, for `E_d`, `E_b`, `E_s`): 2–10e-3 at
+//! `h = 1e-5` and 2–7e-4 at `1e-4` (rounding), 1.4–4.8e-5 at `1e-3`, 0.3–1.3e-4 at `3e-3` and
+//! 0.2–1.3e-3 at `1e-2` (truncation); the `f64` Jacobian's `h = 1e-6` would leave 2.5–12 %.
+//!
+//! Why an approximate Jacobian `J̃ = J + E` finds the same fit: the fit is defined by the `f64`
+//! residuals alone. Levenberg–Marquardt accepts a step only when the `f64` cost does not rise,
+//! and it stops where `J̃ᵀWr = 0`. Where the runs fit exactly (ideal kinematics) that is `r = 0`,
+//! the same point as with the exact `J`, to the rounding of the `f64` residuals. With noise the
+//! stationary point moves by `(JᵀWJ)⁻¹EᵀWr`: a column off by a relative `δ ≈ 5e-5` moves the
+//! factors by about `δ` times their own scatter (1σ), 1e-10 on recorded squares. Near the
+//! solution each Gauss–Newton step contracts the error by `O(δ)` (plus the usual term of the
+//! residuals' curvature), so the iteration converges as fast as with `J`. The 1σ is
+//! `(J̃ᵀWJ̃)⁻¹ s²` and so good to `O(δ)` relative, four digits: more than a reported uncertainty
+//! needs (it is printed to two or three).
+//!
+//! Normal equations are accumulated run by run (3×3), so memory does not
 //! grow with the number of knots; the weights take one number per run (up to
 //! [`MAX_WEIGHTED_RUNS`] runs are reweighted; a larger set is fitted plainly and says so in
 //! [`ExactFit::reweighted`]). 1σ uncertainty: the weights act as the rows' relative precisions,
@@ -123,11 +143,12 @@ use super::{
     Calibration, CalibrationError, FACTOR_RANGE, Method, RunObservation, factors_of, wrap_angle,
 };
 use crate::kinematics::geometry::Geometry;
-use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::kinematics::reference::{ArcModel, ArcModelF32, PoseF32, PoseF64};
 use crate::motion::run::PathKind;
 
-/// Central-difference step for the Jacobian, in units of the (≈ 1) factors.
-pub const JACOBIAN_STEP: f64 = 1e-6;
+/// Central-difference step for the `f32` Jacobian, in units of the (≈ 1) factors (see the module
+/// docs, *Jacobian in `f32`*).
+pub const JACOBIAN_STEP: f64 = 1e-3;
 
 /// Converged when no parameter moves by more than this in one step.
 pub const STEP_TOLERANCE: f64 = 1e-12;
@@ -340,7 +361,7 @@ pub(crate) fn solve(mut a: Mat, mut b: [f64; 3], n: usize) -> Option<[f64; 3]> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
-/// The most models a residual row is evaluated for at once (`1 + 2n`, n ≤ 3).
+/// The most models a residual row is evaluated for at once (one `f64` and `2n` `f32`, n ≤ 3).
 const MODELS: usize = 7;
 
 /// Median of χ² with `k` degrees of freedom, `k` = 1, 2, 3.
@@ -463,60 +484,82 @@ impl Problem<'_, '_> {
     }
 
     /// Calls `row` for every residual row of `run`, with the row's value under each of
-    /// `models` (at most [`MODELS`]).
+    /// `models` followed by its value under each of `models32` (at most [`MODELS`] in all).
     fn rows(
         &self,
         run: &RunObservation<'_>,
         models: &[ArcModel],
+        models32: &[ArcModelF32],
         mut row: impl FnMut(&[f64], usize),
     ) {
         let nm = models.len().min(MODELS);
+        let nm32 = models32.len().min(MODELS - nm);
+        let all = nm + nm32;
         let mut v = [0.0; MODELS];
         let mut end = [PoseF64::default(); MODELS];
+        let mut end32 = [PoseF32::default(); MODELS];
+        // The end (or knot) poses of all models, in `f64`.
+        let poses = |end: &[PoseF64; MODELS], end32: &[PoseF32; MODELS]| {
+            let mut out = *end;
+            for (m, e) in end32[..nm32].iter().enumerate() {
+                out[nm + m] = PoseF64::new(e.x_m.into(), e.y_m.into(), e.theta_rad.into());
+            }
+            out
+        };
+        let mut pose = [PoseF64::default(); MODELS];
         if Self::is_path(run) {
             let samples = (run.knots.len() - 1) as f64;
             let norm = 1.0 / libm::sqrt(samples);
             for j in 1..run.knots.len() {
                 let truth = run.truth_path[j];
+                let knots = &run.knots[j - 1..=j];
                 for (m, model) in models[..nm].iter().enumerate() {
-                    end[m] = model.integrate(end[m], &run.knots[j - 1..=j]);
+                    end[m] = model.integrate(end[m], knots);
                 }
-                for m in 0..nm {
-                    v[m] = (truth.x_m - end[m].x_m) * norm;
+                for (m, model) in models32[..nm32].iter().enumerate() {
+                    end32[m] = model.integrate(end32[m], knots);
                 }
-                row(&v[..nm], X);
-                for m in 0..nm {
-                    v[m] = (truth.y_m - end[m].y_m) * norm;
+                pose = poses(&end, &end32);
+                for m in 0..all {
+                    v[m] = (truth.x_m - pose[m].x_m) * norm;
                 }
-                row(&v[..nm], Y);
+                row(&v[..all], X);
+                for m in 0..all {
+                    v[m] = (truth.y_m - pose[m].y_m) * norm;
+                }
+                row(&v[..all], Y);
             }
         } else {
             for (m, model) in models[..nm].iter().enumerate() {
                 end[m] = model.integrate(PoseF64::default(), run.knots);
             }
+            for (m, model) in models32[..nm32].iter().enumerate() {
+                end32[m] = model.integrate(PoseF32::default(), run.knots);
+            }
+            pose = poses(&end, &end32);
             let meas = &run.measured;
-            for m in 0..nm {
-                v[m] = meas.x_m - end[m].x_m;
+            for m in 0..all {
+                v[m] = meas.x_m - pose[m].x_m;
             }
-            row(&v[..nm], X);
-            for m in 0..nm {
-                v[m] = meas.y_m - end[m].y_m;
+            row(&v[..all], X);
+            for m in 0..all {
+                v[m] = meas.y_m - pose[m].y_m;
             }
-            row(&v[..nm], Y);
+            row(&v[..all], Y);
         }
         if let Some(t) = self.heading(run) {
             let l = self.heading_length(run);
-            for m in 0..nm {
-                v[m] = wrap_angle(t - end[m].theta_rad) * l;
+            for m in 0..all {
+                v[m] = wrap_angle(t - pose[m].theta_rad) * l;
             }
-            row(&v[..nm], HEADING);
+            row(&v[..all], HEADING);
         }
     }
 
     /// Squared length `d²` of a run's residual for `model`, by channel (x, y, heading).
     fn distance2(&self, run: &RunObservation<'_>, model: &ArcModel) -> [f64; CHANNELS] {
         let mut d2 = [0.0; CHANNELS];
-        self.rows(run, core::slice::from_ref(model), |v, c| {
+        self.rows(run, core::slice::from_ref(model), &[], |v, c| {
             d2[c] += v[0] * v[0]
         });
         d2
@@ -552,26 +595,31 @@ impl Problem<'_, '_> {
         Some((ss, m))
     }
 
-    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p`.
+    /// `J̃ᵀWJ̃` and `J̃ᵀWr` at `p`, with `J̃ ≈ ∂predicted/∂p` from `f32` re-integrations and `r`
+    /// the `f64` residuals (see the module docs, *Jacobian in `f32`*).
     fn normal(&self, p: &[f64; 3], weights: Option<&[Weight]>) -> (Mat, [f64; 3]) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
-        // models[0] at p, models[1 + 2i] at p + h·e_i, models[2 + 2i] at p − h·e_i.
-        let mut models = [ArcModel::from_geometry(&self.geometry(p)); MODELS];
+        // The residuals at p in `f64`; models32[2i] at p + h·e_i, models32[2i + 1] at p − h·e_i,
+        // so that a row's values are v[0] at p, v[1 + 2i] at p + h·e_i, v[2 + 2i] at p − h·e_i.
+        let model = ArcModel::from_geometry(&self.geometry(p));
+        let mut models32 = [ArcModelF32::from_model(&model); MODELS - 1];
         for i in 0..n {
             let mut q = *p;
             q[i] += JACOBIAN_STEP;
-            models[1 + 2 * i] = ArcModel::from_geometry(&self.geometry(&q));
+            models32[2 * i] = ArcModelF32::from_model(&ArcModel::from_geometry(&self.geometry(&q)));
             q[i] = p[i] - JACOBIAN_STEP;
-            models[2 + 2 * i] = ArcModel::from_geometry(&self.geometry(&q));
+            models32[2 * i + 1] =
+                ArcModelF32::from_model(&ArcModel::from_geometry(&self.geometry(&q)));
         }
         for (k, run) in self.runs.iter().enumerate() {
             if !Self::usable(run) {
                 continue;
             }
             let w = weight(weights, k);
-            self.rows(run, &models[..1 + 2 * n], |v, c| {
+            let one = core::slice::from_ref(&model);
+            self.rows(run, one, &models32[..2 * n], |v, c| {
                 let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
@@ -908,7 +956,10 @@ pub fn calibrate_exact(
     geometry
         .validate()
         .map_err(|_| CalibrationError::InvalidGeometry)?;
-    let (e_d, e_b, e_s) = factors_of(&geometry, nominal);
+    // An unfitted E_s is the driving scale the fit held, reported as it was held (the geometry's
+    // mean diameter would give it back only to rounding).
+    let (e_d, e_b, fitted_e_s) = factors_of(&geometry, nominal);
+    let e_s = if n == 3 { fitted_e_s } else { problem.fixed_scale };
     if !(FACTOR_RANGE.contains(&e_d) && FACTOR_RANGE.contains(&e_b) && FACTOR_RANGE.contains(&e_s))
     {
         return Err(CalibrationError::OutOfRange);
@@ -987,6 +1038,62 @@ mod tests {
         }
         let singular = [[1.0, 2.0, 0.0], [2.0, 4.0, 0.0], [0.0, 0.0, 0.0]];
         assert!(solve(singular, [1.0, 2.0, 0.0], 2).is_none());
+    }
+
+    /// The `f32` Jacobian's columns match the `f64` ones (step 1e-6) to 1e-4 of the column's
+    /// size for the factors of a 1 m square run of the paper's robot (4 × 25 knots, 1 % off in
+    /// `E_d` and `E_b`): measured 1.4–4.8e-5, the bound twice the largest; with the `f64` step
+    /// the `f32` rounding would be at least 1e-2 of the column (measured 2.5–12 %, the reason
+    /// for `h = 1e-3`).
+    #[test]
+    fn f32_jacobian_matches_f64() {
+        use crate::kinematics::encoder::WheelTicks;
+        let nominal = Geometry::PAPER_NOMINAL;
+        let model = ArcModel::from_geometry(&nominal);
+        let side = (1.0 / model.right_m_per_tick).round() as i64;
+        let turn = (0.25 * core::f64::consts::PI * model.wheelbase_m / model.right_m_per_tick)
+            .round() as i64;
+        let mut knots = vec![WheelTicks::new(0, 0)];
+        let (mut r, mut l) = (0, 0);
+        for _ in 0..4 {
+            for i in 1..=20 {
+                knots.push(WheelTicks::new(r + side * i / 20, l + side * i / 20));
+            }
+            (r, l) = (r + side, l + side);
+            for i in 1..=5 {
+                knots.push(WheelTicks::new(r + turn * i / 5, l - turn * i / 5));
+            }
+            (r, l) = (r + turn, l - turn);
+        }
+        let p = [1.01, 0.99, 1.0];
+        let end = |q: [f64; 3]| {
+            let m = ArcModel::from_geometry(&nominal.with_factors(q[0], q[1], q[2]));
+            let e = m.integrate(PoseF64::default(), &knots);
+            [e.x_m, e.y_m, e.theta_rad]
+        };
+        let end32 = |q: [f64; 3]| {
+            let m = ArcModel::from_geometry(&nominal.with_factors(q[0], q[1], q[2]));
+            let e = ArcModelF32::from_model(&m).integrate(PoseF32::default(), &knots);
+            [e.x_m, e.y_m, e.theta_rad].map(f64::from)
+        };
+        let column = |f: &dyn Fn([f64; 3]) -> [f64; 3], i: usize, h: f64| {
+            let (mut plus, mut minus) = (p, p);
+            plus[i] += h;
+            minus[i] -= h;
+            let (a, b) = (f(plus), f(minus));
+            [0, 1, 2].map(|k| (a[k] - b[k]) / (2.0 * h))
+        };
+        let error = |a: [f64; 3], b: [f64; 3]| {
+            let size = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            (0..3).fold(0.0f64, |m, k| m.max((a[k] - b[k]).abs())) / size
+        };
+        for i in 0..3 {
+            let exact = column(&end, i, 1e-6);
+            let single = column(&end32, i, JACOBIAN_STEP);
+            assert!(error(exact, single) < 1e-4, "factor {i}: {exact:?} {single:?}");
+            let fine = column(&end32, i, 1e-6);
+            assert!(error(exact, fine) > 1e-2, "factor {i}: {exact:?} {fine:?}");
+        }
     }
 
     /// The insertion sort gives std's order: the sorted slice and the median are bit for bit

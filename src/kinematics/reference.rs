@@ -124,6 +124,95 @@ impl ArcModel {
     }
 }
 
+/// A planar pose in `f32`, as [`PoseF64`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PoseF32 {
+    /// x, metres.
+    pub x_m: f32,
+    /// y, metres.
+    pub y_m: f32,
+    /// Heading, radians (not wrapped).
+    pub theta_rad: f32,
+}
+
+/// `sin(u)/u` in `f32` (series below |u| = 1e-2, whose first omitted term `u⁶/5040` is 2e-16
+/// there, far below `f32`'s 6e-8).
+#[inline]
+fn sinc_f32(u: f32) -> f32 {
+    if libm::fabsf(u) < 1e-2 {
+        let u2 = u * u;
+        1.0 - u2 / 6.0 + u2 * u2 / 120.0
+    } else {
+        libm::sinf(u) / u
+    }
+}
+
+/// [`ArcModel`] in `f32`: the same arcs, with the model's numbers, the tick differences, the
+/// heading and the positions in single precision (the Cortex-M4F's FPU). It serves the exact
+/// calibration's finite-difference Jacobian, which only steers the fit (see
+/// `calibration::exact`); the residuals the fit minimises are [`ArcModel`]'s.
+///
+/// Precision: a tick total converts exactly below 2²⁴ ticks and to 2⁻²⁴ relative above; the
+/// heading, computed from the totals as in [`ArcModel`], is good to a few `f32` ulps of the
+/// wheels' travel over the wheelbase; every interval adds one rounding of the positions, so an
+/// end pose after ~100 knots is good to about 1e-7 m per metre travelled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArcModelF32 {
+    /// Right wheel travel per tick, metres.
+    pub right_m_per_tick: f32,
+    /// Left wheel travel per tick, metres.
+    pub left_m_per_tick: f32,
+    /// Wheelbase, metres.
+    pub wheelbase_m: f32,
+}
+
+impl ArcModelF32 {
+    /// `model` rounded to `f32`.
+    pub fn from_model(model: &ArcModel) -> Self {
+        ArcModelF32 {
+            right_m_per_tick: model.right_m_per_tick as f32,
+            left_m_per_tick: model.left_m_per_tick as f32,
+            wheelbase_m: model.wheelbase_m as f32,
+        }
+    }
+
+    /// Heading change for tick totals (relative to a start where both were 0), radians.
+    #[inline]
+    pub fn heading(&self, totals: WheelTicks) -> f32 {
+        (self.right_m_per_tick * totals.right as f32 - self.left_m_per_tick * totals.left as f32)
+            / self.wheelbase_m
+    }
+
+    /// As [`ArcModel::integrate`].
+    pub fn integrate(&self, start: PoseF32, knots: &[WheelTicks]) -> PoseF32 {
+        let Some(first) = knots.first() else {
+            return start;
+        };
+        let mut x = start.x_m;
+        let mut y = start.y_m;
+        let mut prev = *first;
+        let mut theta_prev = start.theta_rad;
+        for &k in &knots[1..] {
+            let theta = start.theta_rad + self.heading(k - *first);
+            let d = k - prev;
+            let ds = 0.5
+                * (self.right_m_per_tick * d.right as f32 + self.left_m_per_tick * d.left as f32);
+            let dtheta = theta - theta_prev;
+            let chord = ds * sinc_f32(0.5 * dtheta);
+            let (s, c) = libm::sincosf(theta_prev + 0.5 * dtheta);
+            x += chord * c;
+            y += chord * s;
+            prev = k;
+            theta_prev = theta;
+        }
+        PoseF32 {
+            x_m: x,
+            y_m: y,
+            theta_rad: theta_prev,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use core::f64::consts::PI;
@@ -161,6 +250,41 @@ mod tests {
         let r = b / 2.0;
         assert!((end.x_m - r * theta.sin()).abs() < 1e-12);
         assert!((end.y_m - r * (1.0 - theta.cos())).abs() < 1e-12);
+    }
+
+    /// The `f32` model follows the `f64` one to `f32` precision: a 1 m square (4 × 25 knots) of
+    /// the paper's robot ends within 1e-6 m and 1e-6 rad of the `f64` end pose (about 16 `f32`
+    /// ulps of the 4 m travelled).
+    #[test]
+    fn f32_model_follows_f64() {
+        let m = model();
+        let side = (1.0 / m.right_m_per_tick).round() as i64;
+        let turn = (0.25 * PI * m.wheelbase_m / m.right_m_per_tick).round() as i64;
+        let mut knots = heapless::Vec::<WheelTicks, 128>::new();
+        let (mut r, mut l) = (0, 0);
+        knots.push(WheelTicks::new(r, l)).unwrap();
+        for _ in 0..4 {
+            for i in 1..=20 {
+                knots
+                    .push(WheelTicks::new(r + side * i / 20, l + side * i / 20))
+                    .unwrap();
+            }
+            (r, l) = (r + side, l + side);
+            for i in 1..=5 {
+                knots
+                    .push(WheelTicks::new(r + turn * i / 5, l - turn * i / 5))
+                    .unwrap();
+            }
+            (r, l) = (r + turn, l - turn);
+        }
+        let exact = m.integrate(PoseF64::default(), &knots);
+        let single = ArcModelF32::from_model(&m).integrate(PoseF32::default(), &knots);
+        assert!((exact.x_m - f64::from(single.x_m)).abs() < 1e-6, "{exact:?} {single:?}");
+        assert!((exact.y_m - f64::from(single.y_m)).abs() < 1e-6, "{exact:?} {single:?}");
+        assert!((exact.theta_rad - f64::from(single.theta_rad)).abs() < 1e-6);
+        // The square closes: the f64 end pose is near the start and has turned once.
+        assert!(exact.x_m.abs() < 1e-2 && exact.y_m.abs() < 1e-2);
+        assert!((exact.theta_rad - 2.0 * PI).abs() < 1e-2);
     }
 
     #[test]
