@@ -146,9 +146,12 @@ use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, ArcModelF32, PoseF32, PoseF64};
 use crate::motion::run::PathKind;
 
+/// Central-difference step for the `f64` Jacobian, in units of the (≈ 1) factors.
+pub const JACOBIAN_STEP: f64 = 1e-6;
+
 /// Central-difference step for the `f32` Jacobian, in units of the (≈ 1) factors (see the module
 /// docs, *Jacobian in `f32`*).
-pub const JACOBIAN_STEP: f64 = 1e-3;
+pub const JACOBIAN_STEP_F32: f64 = 1e-3;
 
 /// Converged when no parameter moves by more than this in one step.
 pub const STEP_TOLERANCE: f64 = 1e-12;
@@ -361,8 +364,17 @@ pub(crate) fn solve(mut a: Mat, mut b: [f64; 3], n: usize) -> Option<[f64; 3]> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
-/// The most models a residual row is evaluated for at once (one `f64` and `2n` `f32`, n ≤ 3).
+/// The most models a residual row is evaluated for at once (`1 + 2n`, n ≤ 3).
 const MODELS: usize = 7;
+
+/// The precision of the Jacobian's re-integrations (see the module docs, *Jacobian in `f32`*).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Jacobian {
+    /// `f32` ([`ArcModelF32`], step [`JACOBIAN_STEP_F32`]): steers the iterations.
+    F32,
+    /// `f64` ([`ArcModel`], step [`JACOBIAN_STEP`]): defines where the fit ends, and its 1σ.
+    F64,
+}
 
 /// Median of χ² with `k` degrees of freedom, `k` = 1, 2, 3.
 fn chi2_median(k: usize) -> f64 {
@@ -595,36 +607,51 @@ impl Problem<'_, '_> {
         Some((ss, m))
     }
 
-    /// `J̃ᵀWJ̃` and `J̃ᵀWr` at `p`, with `J̃ ≈ ∂predicted/∂p` from `f32` re-integrations and `r`
-    /// the `f64` residuals (see the module docs, *Jacobian in `f32`*).
-    fn normal(&self, p: &[f64; 3], weights: Option<&[Weight]>) -> (Mat, [f64; 3]) {
+    /// `JᵀWJ` and `JᵀWr` at `p`, with `J ≈ ∂predicted/∂p` by central differences of
+    /// re-integrations in the precision `jacobian` and `r` the `f64` residuals (see the module
+    /// docs, *Jacobian in `f32`*).
+    fn normal(
+        &self,
+        p: &[f64; 3],
+        weights: Option<&[Weight]>,
+        jacobian: Jacobian,
+    ) -> (Mat, [f64; 3]) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
-        // The residuals at p in `f64`; models32[2i] at p + h·e_i, models32[2i + 1] at p − h·e_i,
-        // so that a row's values are v[0] at p, v[1 + 2i] at p + h·e_i, v[2 + 2i] at p − h·e_i.
-        let model = ArcModel::from_geometry(&self.geometry(p));
-        let mut models32 = [ArcModelF32::from_model(&model); MODELS - 1];
+        let h = match jacobian {
+            Jacobian::F32 => JACOBIAN_STEP_F32,
+            Jacobian::F64 => JACOBIAN_STEP,
+        };
+        // A row's values are v[0] at p (`f64`), v[1 + 2i] at p + h·e_i and v[2 + 2i] at
+        // p − h·e_i (in `models[1..]` or in `models32`).
+        let mut models = [ArcModel::from_geometry(&self.geometry(p)); MODELS];
         for i in 0..n {
             let mut q = *p;
-            q[i] += JACOBIAN_STEP;
-            models32[2 * i] = ArcModelF32::from_model(&ArcModel::from_geometry(&self.geometry(&q)));
-            q[i] = p[i] - JACOBIAN_STEP;
-            models32[2 * i + 1] =
-                ArcModelF32::from_model(&ArcModel::from_geometry(&self.geometry(&q)));
+            q[i] += h;
+            models[1 + 2 * i] = ArcModel::from_geometry(&self.geometry(&q));
+            q[i] = p[i] - h;
+            models[2 + 2 * i] = ArcModel::from_geometry(&self.geometry(&q));
         }
+        let mut models32 = [ArcModelF32::from_model(&models[0]); MODELS - 1];
+        for (m32, m) in models32.iter_mut().zip(&models[1..]) {
+            *m32 = ArcModelF32::from_model(m);
+        }
+        let (models, models32) = match jacobian {
+            Jacobian::F32 => (&models[..1], &models32[..2 * n]),
+            Jacobian::F64 => (&models[..1 + 2 * n], &models32[..0]),
+        };
         for (k, run) in self.runs.iter().enumerate() {
             if !Self::usable(run) {
                 continue;
             }
             let w = weight(weights, k);
-            let one = core::slice::from_ref(&model);
-            self.rows(run, one, &models32[..2 * n], |v, c| {
+            self.rows(run, models, models32, |v, c| {
                 let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
                     // residual = measured − predicted, so ∂predicted = −∂residual.
-                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * JACOBIAN_STEP);
+                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h);
                 }
                 for c in 0..n {
                     g[c] += w * j[c] * v[0];
@@ -637,11 +664,13 @@ impl Problem<'_, '_> {
         (a, g)
     }
 
-    /// Levenberg–Marquardt from `p` with fixed run weights.
+    /// Levenberg–Marquardt from `p` with fixed run weights, steered by a Jacobian in the
+    /// precision `jacobian`.
     fn solve_lm(
         &self,
         mut p: [f64; 3],
         weights: Option<&[Weight]>,
+        jacobian: Jacobian,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
         let (mut cost, _) = self.cost(&p, weights).ok_or(CalibrationError::OutOfRange)?;
@@ -650,7 +679,7 @@ impl Problem<'_, '_> {
         let mut converged = false;
         while iterations < self.options.max_iterations && !converged {
             iterations += 1;
-            let (a, g) = self.normal(&p, weights);
+            let (a, g) = self.normal(&p, weights, jacobian);
             loop {
                 let mut aug = a;
                 for (i, row) in aug.iter_mut().enumerate().take(n) {
@@ -925,12 +954,13 @@ pub fn calibrate_exact(
         return Err(CalibrationError::Degenerate);
     }
     // The plain least-squares fit: the result, or the robust fit's start.
-    let mut solved = problem.solve_lm(p0, None)?;
+    let mut solved = problem.solve_lm(p0, None, Jacobian::F32)?;
     let mut iterations = solved.iterations;
     let reweighted = options.robust && runs.len() <= MAX_WEIGHTED_RUNS;
-    // Weights and scales indexed like `runs`.
+    // Weights and scales indexed like `runs`, and the weights `solved` was fitted with.
     let mut weights = [Weight::ONE; MAX_WEIGHTED_RUNS];
     let mut scales = [None; MAX_WEIGHTED_RUNS];
+    let mut fitted_with = [Weight::ONE; MAX_WEIGHTED_RUNS];
     let mut reweights = 0;
     if reweighted {
         let len = runs.len();
@@ -945,11 +975,19 @@ pub fn calibrate_exact(
                 return Err(CalibrationError::NotConverged);
             }
             reweights += 1;
-            solved = problem.solve_lm(solved.p, Some(&weights[..len]))?;
+            fitted_with[..len].copy_from_slice(&weights[..len]);
+            solved = problem.solve_lm(solved.p, Some(&weights[..len]), Jacobian::F32)?;
             iterations += solved.iterations;
         }
     }
-    let w = reweighted.then_some(&weights[..runs.len().min(MAX_WEIGHTED_RUNS)]);
+    let len = runs.len().min(MAX_WEIGHTED_RUNS);
+    // The `f32` Jacobian's fixed point is off the cost's minimum by about its columns' error
+    // times the residuals (see the module docs); the last solve ends at the minimum with the
+    // `f64` Jacobian, from a start that close it takes one or two iterations.
+    let fitted_with = (reweighted && reweights > 0).then_some(&fitted_with[..len]);
+    solved = problem.solve_lm(solved.p, fitted_with, Jacobian::F64)?;
+    iterations += solved.iterations;
+    let w = reweighted.then_some(&weights[..len]);
     let p = solved.p;
     let cost = solved.cost;
     let geometry = problem.geometry(&p);
@@ -959,13 +997,17 @@ pub fn calibrate_exact(
     // An unfitted E_s is the driving scale the fit held, reported as it was held (the geometry's
     // mean diameter would give it back only to rounding).
     let (e_d, e_b, fitted_e_s) = factors_of(&geometry, nominal);
-    let e_s = if n == 3 { fitted_e_s } else { problem.fixed_scale };
+    let e_s = if n == 3 {
+        fitted_e_s
+    } else {
+        problem.fixed_scale
+    };
     if !(FACTOR_RANGE.contains(&e_d) && FACTOR_RANGE.contains(&e_b) && FACTOR_RANGE.contains(&e_s))
     {
         return Err(CalibrationError::OutOfRange);
     }
     // Uncertainty from the weighted residual scatter, the weights as relative precisions.
-    let (a, _) = problem.normal(&p, w);
+    let (a, _) = problem.normal(&p, w, Jacobian::F64);
     let sigma2 = if m > n {
         cost / (m - n) as f64
     } else {
@@ -1090,7 +1132,10 @@ mod tests {
         for i in 0..3 {
             let exact = column(&end, i, 1e-6);
             let single = column(&end32, i, JACOBIAN_STEP);
-            assert!(error(exact, single) < 1e-4, "factor {i}: {exact:?} {single:?}");
+            assert!(
+                error(exact, single) < 1e-4,
+                "factor {i}: {exact:?} {single:?}"
+            );
             let fine = column(&end32, i, 1e-6);
             assert!(error(exact, fine) > 1e-2, "factor {i}: {exact:?} {fine:?}");
         }

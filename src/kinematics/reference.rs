@@ -279,8 +279,14 @@ mod tests {
         }
         let exact = m.integrate(PoseF64::default(), &knots);
         let single = ArcModelF32::from_model(&m).integrate(PoseF32::default(), &knots);
-        assert!((exact.x_m - f64::from(single.x_m)).abs() < 1e-6, "{exact:?} {single:?}");
-        assert!((exact.y_m - f64::from(single.y_m)).abs() < 1e-6, "{exact:?} {single:?}");
+        assert!(
+            (exact.x_m - f64::from(single.x_m)).abs() < 1e-6,
+            "{exact:?} {single:?}"
+        );
+        assert!(
+            (exact.y_m - f64::from(single.y_m)).abs() < 1e-6,
+            "{exact:?} {single:?}"
+        );
         assert!((exact.theta_rad - f64::from(single.theta_rad)).abs() < 1e-6);
         // The square closes: the f64 end pose is near the start and has turned once.
         assert!(exact.x_m.abs() < 1e-2 && exact.y_m.abs() < 1e-2);
