@@ -1130,13 +1130,13 @@ mod tests {
             (0..3).fold(0.0f64, |m, k| m.max((a[k] - b[k]).abs())) / size
         };
         for i in 0..3 {
-            let exact = column(&end, i, 1e-6);
-            let single = column(&end32, i, JACOBIAN_STEP);
+            let exact = column(&end, i, JACOBIAN_STEP);
+            let single = column(&end32, i, JACOBIAN_STEP_F32);
             assert!(
                 error(exact, single) < 1e-4,
                 "factor {i}: {exact:?} {single:?}"
             );
-            let fine = column(&end32, i, 1e-6);
+            let fine = column(&end32, i, JACOBIAN_STEP);
             assert!(error(exact, fine) > 1e-2, "factor {i}: {exact:?} {fine:?}");
         }
     }
