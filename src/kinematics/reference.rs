@@ -143,7 +143,7 @@ fn sinc_f32(u: f32) -> f32 {
         let u2 = u * u;
         1.0 - u2 / 6.0 + u2 * u2 / 120.0
     } else {
-        libm::sinf(u) / u
+        trig::sincos_f32(u).0 / u
     }
 }
 
@@ -152,6 +152,7 @@ fn sinc_f32(u: f32) -> f32 {
 /// calibration's finite-difference Jacobian, which only steers the fit (see
 /// `calibration::exact`); the residuals the fit minimises are [`ArcModel`]'s.
 ///
+/// Sine and cosine are [`trig::sincos_f32`]'s, `f32` kernels within 1.2e-7 of the true values.
 /// Precision: a tick total converts exactly below 2²⁴ ticks and to 2⁻²⁴ relative above; the
 /// heading, computed from the totals as in [`ArcModel`], is good to a few `f32` ulps of the
 /// wheels' travel over the wheelbase; every interval adds one rounding of the positions, so an
@@ -199,7 +200,7 @@ impl ArcModelF32 {
                 * (self.right_m_per_tick * d.right as f32 + self.left_m_per_tick * d.left as f32);
             let dtheta = theta - theta_prev;
             let chord = ds * sinc_f32(0.5 * dtheta);
-            let (s, c) = libm::sincosf(theta_prev + 0.5 * dtheta);
+            let (s, c) = trig::sincos_f32(theta_prev + 0.5 * dtheta);
             x += chord * c;
             y += chord * s;
             prev = k;
