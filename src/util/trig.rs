@@ -98,8 +98,9 @@ const SINCOS_F32_REDUCED: f32 = 6000.0;
 /// evaluates its kernels in `f64`, which is soft-float there). Cody–Waite reduction by π/2 with
 /// a three-part constant (Cephes), then FreeBSD's `__sindf`/`__cosdf` polynomials on
 /// |r| ≤ π/4 (their coefficients rounded to `f32`). Within 1.2e-7 of the true values for
-/// |x| ≤ 6000 (test `sincos_f32_error`); larger or non-finite arguments are passed to
-/// `libm::sincosf`. Not bit-identical to `libm::sincosf`, but the same on every IEEE target:
+/// |x| ≤ 6000 (test `sincos_f32_error`); larger or non-finite arguments go through [`sincos`]
+/// (correctly rounded to `f32` there, and no Payne–Hanek table in the firmware as
+/// `libm::sincosf` would bring). Not bit-identical to `libm::sincosf`, but the same on every IEEE target:
 /// plain `f32` arithmetic, no fused operations.
 pub fn sincos_f32(x: f32) -> (f32, f32) {
     const FRAC_2_PI: f32 = core::f32::consts::FRAC_2_PI;
@@ -116,7 +117,8 @@ pub fn sincos_f32(x: f32) -> (f32, f32) {
     const C2: f32 = -0.001_388_676_4;
     const C3: f32 = 2.439_045e-5;
     if x.is_nan() || x.abs() > SINCOS_F32_REDUCED {
-        return libm::sincosf(x);
+        let (s, c) = sincos(f64::from(x));
+        return (s as f32, c as f32);
     }
     let half = if x < 0.0 { -0.5 } else { 0.5 };
     let k = (x * FRAC_2_PI + half) as i32;
@@ -327,7 +329,7 @@ mod tests {
 
     /// The `f32` kernel against `f64` sine and cosine of the same `f32` argument: within 1.2e-7
     /// (two `f32` ulps of values near 1) over |x| ≤ 6000, at multiples of π/2 and their
-    /// neighbours and at random arguments; beyond 6000 it is `libm::sincosf`'s.
+    /// neighbours and at random arguments; beyond 6000 it is the `f64` [`sincos`] rounded.
     #[test]
     fn sincos_f32_error() {
         let mut state = 0x9e37_79b9_7f4a_7c15_u64;
@@ -359,7 +361,8 @@ mod tests {
         check(-0.0);
         check(1e-30);
         assert!(worst > 0.0);
-        assert_eq!(sincos_f32(7000.0), libm::sincosf(7000.0));
+        let (s, c) = sincos(7000.0);
+        assert_eq!(sincos_f32(7000.0), (s as f32, c as f32));
         assert!(sincos_f32(f32::NAN).0.is_nan());
     }
 
