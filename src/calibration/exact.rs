@@ -107,25 +107,34 @@
 //! # Jacobian in `f32`
 //!
 //! The residuals `r`, the cost, the normal equations, the solve and the convergence test are
-//! `f64`; only the Jacobian's columns are re-integrated in `f32` ([`ArcModelF32`], the
-//! Cortex-M4F's FPU), by central differences with step `h =` [`JACOBIAN_STEP`] `= 1e-3` in each
-//! (dimensionless, ≈ 1) parameter. An end pose in `f32` is good to about `ε ≈ 1e-7` m (one
-//! rounding per knot), so a column's error is the rounding `ε/h` plus the truncation `O(h²)`.
-//! Measured on a 1 m square (test `f32_jacobian_matches_f64`, largest error of a column against
-//! the `f64` one, relative to the column's size, for `E_d`, `E_b`, `E_s`): 2–10e-3 at
-//! `h = 1e-5` and 2–7e-4 at `1e-4` (rounding), 1.4–4.8e-5 at `1e-3`, 0.3–1.3e-4 at `3e-3` and
-//! 0.2–1.3e-3 at `1e-2` (truncation); the `f64` Jacobian's `h = 1e-6` would leave 2.5–12 %.
+//! `f64`. The Jacobian `J = ∂predicted/∂p` is central differences of re-integrations, and those
+//! are most of the fit's work (two per fitted factor and run in every iteration). While the fit
+//! iterates they run in `f32` ([`ArcModelF32`] with [`crate::util::trig::sincos_f32`]: the
+//! Cortex-M4F's FPU instead of soft-float), with the step `h =` [`JACOBIAN_STEP_F32`] `= 1e-3` in
+//! each (dimensionless, ≈ 1) factor. An end pose in `f32` is good to about `ε ≈ 1e-7` m per metre
+//! travelled, so a column's error is the rounding `ε/h` plus the truncation `O(h²)`. Measured on
+//! a 1 m square (test `f32_jacobian_matches_f64`, largest error of a column against the `f64`
+//! one relative to the column's size, for `E_d`, `E_b`, `E_s`): 2–10e-3 at `h = 1e-5`, 2–7e-4
+//! at `1e-4` (rounding), 1.4–4.8e-5 at `1e-3`, 0.3–1.3e-4 at `3e-3`, 0.2–1.3e-3 at `1e-2`
+//! (truncation); the `f64` Jacobian's `h = 1e-6` would leave 2.5–12 %.
 //!
-//! Why an approximate Jacobian `J̃ = J + E` finds the same fit: the fit is defined by the `f64`
-//! residuals alone. Levenberg–Marquardt accepts a step only when the `f64` cost does not rise,
-//! and it stops where `J̃ᵀWr = 0`. Where the runs fit exactly (ideal kinematics) that is `r = 0`,
-//! the same point as with the exact `J`, to the rounding of the `f64` residuals. With noise the
-//! stationary point moves by `(JᵀWJ)⁻¹EᵀWr`: a column off by a relative `δ ≈ 5e-5` moves the
-//! factors by about `δ` times their own scatter (1σ), 1e-10 on recorded squares. Near the
-//! solution each Gauss–Newton step contracts the error by `O(δ)` (plus the usual term of the
-//! residuals' curvature), so the iteration converges as fast as with `J`. The 1σ is
-//! `(J̃ᵀWJ̃)⁻¹ s²` and so good to `O(δ)` relative, four digits: more than a reported uncertainty
-//! needs (it is printed to two or three).
+//! An approximate Jacobian `J̃ = J + E` steers Levenberg–Marquardt as well as `J` does: a step is
+//! accepted only when the `f64` cost does not rise, and near the solution each Gauss–Newton step
+//! contracts the error by `O(|E|/|J|)` (besides the usual term of the residuals' curvature), about
+//! 5e-5, so it converges as fast. But it stops where `J̃ᵀWr = 0`, not where the cost is least
+//! (`JᵀWr = 0`): the two coincide where the runs fit exactly (`r = 0`, ideal kinematics), and
+//! with noisy runs they are `(JᵀWJ)⁻¹EᵀWr` apart. On the recorded OptiOdom sessions that moved
+//! `E_b` by 4e-8–1e-7 relative on squares, 3e-5 on the path fit of the line session and 2e-4 on
+//! the end poses of two free paths (3 factors from 6 numbers; on long paths the `f32` heading
+//! error grows with the distance driven). The fit therefore ends with one more solve, from the
+//! `f32` solution and with the weights it was fitted with, whose Jacobian is `f64` ([`ArcModel`],
+//! step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12, rounding 1e-10 relative): it starts that
+//! close to the minimum that it takes two iterations, and it ends where an all-`f64` fit ends, to
+//! the convergence tolerances: plain fits of the recorded sessions agree to the nine printed
+//! digits (2–3e-8 on the free paths' flat minimum), the bench's robust fit of 10 squares to
+//! 2e-11; other robust fits differ by up to 7e-8 (6e-7, 1e-5 of its 1σ, for the line session's
+//! path fit), as their reweighting rounds start from the `f32` solutions and the weights settle
+//! within their tolerance at slightly different values. The 1σ comes from the `f64` Jacobian.
 //!
 //! Normal equations are accumulated run by run (3×3), so memory does not
 //! grow with the number of knots; the weights take one number per run (up to
