@@ -49,7 +49,7 @@ pub struct Options {
 const RUN_TIMEOUT: Duration = Duration::from_secs(600);
 /// Reply time of an ordinary command.
 const REPLY: Duration = Duration::from_secs(5);
-/// `calibrate` takes several seconds on the board (7 s measured under QEMU).
+/// `calibrate` takes several seconds on the board (4.3 s measured under QEMU).
 const CALIBRATE: Duration = Duration::from_secs(120);
 
 enum Stop {
