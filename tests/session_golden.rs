@@ -108,6 +108,7 @@ impl Robot for ScriptedRobot {
                 (None, false) => Activity::Idle,
             },
             fault: self.fault,
+            fault_detail: None,
         }
     }
     fn pose(&mut self) -> PoseF64 {

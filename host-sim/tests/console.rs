@@ -176,7 +176,7 @@ fn serial_with_a_reversed_encoder_rehearses_the_bring_up_check() {
         .stdin
         .take()
         .unwrap()
-        .write_all(b"bringup push\rrun cw 1\rstatus\r")
+        .write_all(b"bringup push\rrun cw 1\rstatus\rclear\rstatus\r")
         .unwrap();
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success());
@@ -193,4 +193,17 @@ fn serial_with_a_reversed_encoder_rehearses_the_bring_up_check() {
         "{text}"
     );
     assert!(text.contains("fault=following-error"), "{text}");
+    // The fault in full, once, naming the wheel (the short name in `status` does not); after
+    // `clear` it is gone and not announced again.
+    let full: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("event fault: "))
+        .collect();
+    assert_eq!(full.len(), 1, "{text}");
+    assert!(
+        full[0].starts_with("event fault: Left wheel following error ")
+            && full[0].ends_with("check its motor and encoder polarity"),
+        "{text}"
+    );
+    assert!(text.contains("fault=none"), "{text}");
 }

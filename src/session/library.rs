@@ -90,22 +90,27 @@ impl Robot for Controller {
             Status::Idle => RobotStatus {
                 activity: Activity::Idle,
                 fault: None,
+                fault_detail: None,
             },
             Status::Running { path, .. } => RobotStatus {
                 activity: Activity::Running(path),
                 fault: None,
+                fault_detail: None,
             },
             Status::Driving => RobotStatus {
                 activity: Activity::Driving,
                 fault: None,
+                fault_detail: None,
             },
             Status::Checking(kind) => RobotStatus {
                 activity: Activity::Checking(kind),
                 fault: None,
+                fault_detail: None,
             },
             Status::Faulted(f) => RobotStatus {
                 activity: Activity::Idle,
                 fault: Some(fault_name(&f)),
+                fault_detail: Some(f),
             },
         }
     }

@@ -35,6 +35,7 @@ use heapless::Vec;
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::motion::bringup::{CheckKind, PushReport};
+use crate::motion::controller::Fault;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::record;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
@@ -97,6 +98,8 @@ pub struct Session<C> {
     /// The last run ended by an abort (not stored); plain `measure` is refused until the next
     /// run finishes, so its measurement cannot land on an earlier run.
     last_aborted: Option<ActiveRun>,
+    /// The latched fault has been announced (`event fault: …`); cleared with the fault.
+    fault_announced: bool,
     /// The calibration the last geometry change dropped.
     dropped: Option<Dropped>,
     /// Where each run of `runs` is stored in flash (`None`: not stored yet).
@@ -146,12 +149,12 @@ pub fn write_boot_event(
     out.write_str(EOL)
 }
 
-/// A fault found at boot that the board works around (e.g. a missing crystal):
-/// `event fault: <text>`.
+/// `event fault: <text>`: a fault found at boot that the board works around (e.g. a missing
+/// crystal), or a fault the controller latched, in full.
 ///
 /// # Errors
 /// Only those of `out`.
-pub fn write_fault_event(out: &mut dyn Write, text: &str) -> fmt::Result {
+pub fn write_fault_event(out: &mut dyn Write, text: impl fmt::Display) -> fmt::Result {
     write!(out, "event fault: {text}{EOL}")
 }
 
@@ -204,6 +207,7 @@ impl<C: Calibrator> Session<C> {
             echo: true,
             active: None,
             last_aborted: None,
+            fault_announced: false,
             dropped: None,
             run_ids: Vec::new(),
             runs_dirty: false,
@@ -356,6 +360,23 @@ impl<C: Calibrator> Session<C> {
                 write!(out, " (fault: {fault})")?;
             }
             out.write_str(EOL)?;
+        }
+        self.announce_fault(status.fault_detail, out)
+    }
+
+    /// Announces a newly latched fault in full, once: `event fault: <what>` (which wheel, its
+    /// following error and peak duty, …), which the short name in `status` does not say. An
+    /// identification's failure has its own `event identify err …` line.
+    fn announce_fault(&mut self, fault: Option<Fault>, out: &mut dyn Write) -> fmt::Result {
+        match fault {
+            None => self.fault_announced = false,
+            Some(_) if self.fault_announced => {}
+            Some(f) => {
+                self.fault_announced = true;
+                if !matches!(f, Fault::Identify(_)) {
+                    write_fault_event(out, f)?;
+                }
+            }
         }
         Ok(())
     }

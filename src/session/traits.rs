@@ -12,6 +12,7 @@ use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
+use crate::motion::controller::Fault;
 use crate::motion::profile::MotionLimits;
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
@@ -39,6 +40,8 @@ pub struct RobotStatus {
     pub activity: Activity,
     /// The latched fault, if any (short lower-case name such as `stall`).
     pub fault: Option<&'static str>,
+    /// The latched fault in full (which wheel, how far off), when the robot knows it.
+    pub fault_detail: Option<Fault>,
 }
 
 /// Why the robot refused a request.
