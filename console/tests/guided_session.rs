@@ -639,6 +639,53 @@ fn reset_during_a_run_drives_it_again() {
     assert!(text[again..].contains("  progress  25 %"), "{text}");
 }
 
+/// The board is reset while the tool waits for its button to start a run: the tool sees the
+/// boot line, turns the echo off and the pose stream on again, and asks again how to start; the
+/// run then started by the tool is followed on the stream (its progress bar moves).
+#[test]
+fn reset_while_waiting_for_the_button_asks_again() {
+    let mut sim = Sim::start_with(&host_sim(), &[]);
+    let dir = out_dir("reset-waiting-for-button");
+    let log = dir.join("session.jsonl");
+    let answers = dir.join("answers.txt");
+    std::fs::write(&answers, "0.2\n1\nb\n").unwrap();
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+        "--yes",
+    ]);
+    while let Some(l) = tool.next() {
+        if l == "  waiting for the button (short press)" {
+            break;
+        }
+    }
+    sim.reboot();
+    let mut measured = 0;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert_eq!(measured, 2, "{text}");
+    assert!(
+        text.contains("the board was reset while waiting for the button (event boot: "),
+        "{text}"
+    );
+    let entries = json_lines(&log);
+    let sent = |line: &str| {
+        entries
+            .iter()
+            .filter(|v| v["kind"] == "tx" && v["line"] == line)
+            .count()
+    };
+    assert_eq!(sent("stream on 10"), 2);
+    // (Warnings go to stderr, after the transcript in `text`.)
+    let after = text.find("  waiting for the button (short press)").unwrap();
+    assert!(text[after..].contains("  progress  25 %"), "{text}");
+}
+
 /// The board goes away in the middle of a session (cable pulled; here the simulator ends): the
 /// tool says so and how to resume, and the log keeps the measured run.
 #[test]

@@ -292,15 +292,23 @@ impl Guide {
     }
 
     fn wait_event(&mut self, prefix: &str, seconds: u64) -> Result<String, Stop> {
+        self.wait_event_of(&[prefix], seconds)
+    }
+
+    /// The first unsolicited line that starts with one of `prefixes`, within `seconds`.
+    fn wait_event_of(&mut self, prefixes: &[&str], seconds: u64) -> Result<String, Stop> {
         let deadline = std::time::Instant::now() + Duration::from_secs(seconds);
         while std::time::Instant::now() < deadline {
             if let Some(l) = self.link.next_unsolicited(Duration::from_millis(200))?
-                && l.starts_with(prefix)
+                && prefixes.iter().any(|p| l.starts_with(p))
             {
                 return Ok(l);
             }
         }
-        Err(Stop::Failed(format!("no `{prefix}` from the board")))
+        Err(Stop::Failed(format!(
+            "no `{}` from the board",
+            prefixes.join("` or `")
+        )))
     }
 
     fn session(&mut self, resumed: Option<LogContents>) -> Result<(), Stop> {

@@ -75,7 +75,15 @@ impl Guide {
             };
             if a.eq_ignore_ascii_case("b") {
                 self.ui.say("  waiting for the button (short press)");
-                let l = self.wait_event("event button: ", 3600)?;
+                let l = self.wait_event_of(&["event button: ", "event boot:"], 3600)?;
+                if l.starts_with("event boot:") {
+                    // A reset while waiting: the new boot has the echo on and the stream off.
+                    self.ui.warn(&format!(
+                        "the board was reset while waiting for the button ({l})"
+                    ));
+                    self.after_reset()?;
+                    continue;
+                }
                 if l.contains("ok run") {
                     break start;
                 }
