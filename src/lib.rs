@@ -1,7 +1,8 @@
 //! odocal: odometry and odometry calibration for two-wheel differential-drive robots.
 //!
-//! Everything in this crate except [`board`] is portable `no_std` logic that is compiled for the
-//! STM32F4 target and for the host, where the tests and `host-sim` drive exactly the same code.
+//! Everything in this crate except `board` (the hardware layer, compiled for the target only) is
+//! portable `no_std` logic that is compiled for the STM32F4 target and for the host, where the
+//! tests and `host-sim` drive exactly the same code.
 //!
 //! # Layers
 //!

@@ -1,7 +1,7 @@
 //! The calibration session: executes protocol commands and button presses against the robot.
 //!
 //! Owns the run store, settings and command execution; may use every layer below it
-//! (protocol, storage, calibration, motion, kinematics, util), never [`crate::board`].
+//! (protocol, storage, calibration, motion, kinematics, util), never `crate::board`.
 //!
 //! The session owns the run store (up to [`MAX_RUNS`] [`RunRecord`]s, measured or not), the
 //! [`Settings`] and the pose-stream schedule. It never owns the hardware: every call takes the

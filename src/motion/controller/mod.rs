@@ -15,9 +15,9 @@
 //!
 //! Units: duties in `[-1, 1]` (positive forward), ticks forward positive, SI elsewhere.
 //!
-//! Parts: [`config`] (what the controller is built from, validated once, and the settings that
-//! change while idle), [`mode`] (the idle / run / drive state machine and its commands),
-//! [`fault`] (stall detection and the latched faults).
+//! Parts: `config` (what the controller is built from, validated once, and the settings that
+//! change while idle), `mode` (the idle / run / drive state machine and its commands),
+//! `fault` (stall detection and the latched faults).
 
 mod config;
 mod fault;
