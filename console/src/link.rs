@@ -258,6 +258,13 @@ impl Link {
         }
     }
 
+    /// Takes the first unsolicited line received so far (while waiting for replies) that starts
+    /// with `prefix`, if any; the others stay queued.
+    pub fn take_pending(&mut self, prefix: &str) -> Option<String> {
+        let i = self.pending.iter().position(|l| l.starts_with(prefix))?;
+        self.pending.remove(i)
+    }
+
     /// Drops unsolicited lines received so far (stream lines of an earlier run); returns the
     /// last boot line among them (`event boot: …`: the board was reset meanwhile).
     pub fn drain(&mut self) -> Result<Option<String>, LinkError> {

@@ -686,6 +686,41 @@ fn reset_while_waiting_for_the_button_asks_again() {
     assert!(text[after..].contains("  progress  25 %"), "{text}");
 }
 
+/// A miswired robot (right motor reversed): the run stops with the following-error fault and
+/// the tool shows the board's account of it — which wheel, how far off — with the likely cause.
+#[test]
+fn a_fault_is_shown_with_the_wheel_and_the_likely_cause() {
+    let mut sim = Sim::start_with(&host_sim(), &["--wiring", "right-motor-reversed"]);
+    let dir = out_dir("fault");
+    let log = dir.join("session.jsonl");
+    let answers = dir.join("answers.txt");
+    std::fs::write(&answers, "0.2\n1\n").unwrap();
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+        "--yes",
+    ]);
+    let mut measured = 0;
+    assert!(!tool.converse(&sim, &mut measured, Some("  likely cause: ")));
+    let _ = sim.child.kill();
+    let _ = sim.child.wait();
+    let (_, text, _) = tool.end();
+    let detail = text
+        .lines()
+        .find(|l| l.starts_with("  fault: "))
+        .unwrap_or_else(|| panic!("no fault detail:\n{text}"));
+    assert!(
+        detail.starts_with("  fault: Right wheel following error ")
+            && detail.ends_with("check its motor and encoder polarity"),
+        "{text}"
+    );
+    assert_eq!(measured, 0, "{text}");
+}
+
 /// The board goes away in the middle of a session (cable pulled; here the simulator ends): the
 /// tool says so and how to resume, and the log keeps the measured run.
 #[test]

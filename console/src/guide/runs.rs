@@ -189,6 +189,11 @@ impl Guide {
                     "fault: {f}: the motors are stopped. Fix the cause, then the fault is \
                      cleared and the run driven again"
                 ));
+                // The board's own account of it (which wheel, how far off), sent right after
+                // the aborted run.
+                if let Some(detail) = self.link.take_pending("event fault: ") {
+                    self.ui.say(&format!("  {}", &detail["event ".len()..]));
+                }
                 if let Some(cause) = fault_cause(f) {
                     self.ui.say(&format!("  likely cause: {cause}"));
                 }
