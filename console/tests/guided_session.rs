@@ -338,6 +338,25 @@ fn out_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// The tool on `sim`'s port with its session log in a fresh `out_dir(name)`, the plan's answers
+/// from `answers` (an answers file) and `--yes` for the rest; returns it and the log's path.
+fn tool_answering(sim: &Sim, name: &str, answers: &str) -> (Tool, PathBuf) {
+    let dir = out_dir(name);
+    let log = dir.join("session.jsonl");
+    let file = dir.join("answers.txt");
+    std::fs::write(&file, answers).unwrap();
+    let tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        file.to_str().unwrap(),
+        "--yes",
+    ]);
+    (tool, log)
+}
+
 /// A session on a new simulated board whose tool is killed when it announces run 4 (three runs
 /// measured), then the board is reset (`reboot`; with `wipe`, its runs are dropped too, as on a
 /// board that does not keep them). Returns the board, the log and the poses measured.
@@ -379,21 +398,9 @@ fn guided_session() {
 
     // 1. A full session, applied and saved, recalibrated offline from its log.
     let sim = Sim::start(&bin);
-    let dir = out_dir("full");
-    let log = dir.join("session.jsonl");
     // The plan from an answers file (L in centimetres, converted) and the first run started
     // with the board's button; the rest by --yes and stdin.
-    let answers = dir.join("answers.txt");
-    std::fs::write(&answers, "150cm\n5\nb\n").unwrap();
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--log",
-        log.to_str().unwrap(),
-        "--answers",
-        answers.to_str().unwrap(),
-        "--yes",
-    ]);
+    let (mut tool, log) = tool_answering(&sim, "full", "150cm\n5\nb\n");
     let mut measured = 0;
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
@@ -411,7 +418,7 @@ fn guided_session() {
         .lines()
         .find(|l| l.starts_with("verified: params shows calibration exact E_d="))
         .unwrap_or_else(|| panic!("not verified:\n{text}"));
-    assert!(dir.join("session.svg").exists());
+    assert!(log.with_file_name("session.svg").exists());
 
     let entries = json_lines(&log);
     let runs: Vec<_> = entries.iter().filter(|v| v["kind"] == "run").collect();
@@ -592,19 +599,7 @@ fn ctrl_c_stops_the_robot() {
 #[test]
 fn reset_during_a_run_drives_it_again() {
     let mut sim = Sim::start_with(&host_sim(), &[]);
-    let dir = out_dir("reset-during-run");
-    let log = dir.join("session.jsonl");
-    let answers = dir.join("answers.txt");
-    std::fs::write(&answers, "0.2\n1\n").unwrap();
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--log",
-        log.to_str().unwrap(),
-        "--answers",
-        answers.to_str().unwrap(),
-        "--yes",
-    ]);
+    let (mut tool, log) = tool_answering(&sim, "reset-during-run", "0.2\n1\n");
     while let Some(l) = tool.next() {
         if l.starts_with("  progress") {
             break;
@@ -645,19 +640,7 @@ fn reset_during_a_run_drives_it_again() {
 #[test]
 fn reset_while_waiting_for_the_button_asks_again() {
     let mut sim = Sim::start_with(&host_sim(), &[]);
-    let dir = out_dir("reset-waiting-for-button");
-    let log = dir.join("session.jsonl");
-    let answers = dir.join("answers.txt");
-    std::fs::write(&answers, "0.2\n1\nb\n").unwrap();
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--log",
-        log.to_str().unwrap(),
-        "--answers",
-        answers.to_str().unwrap(),
-        "--yes",
-    ]);
+    let (mut tool, log) = tool_answering(&sim, "reset-waiting-for-button", "0.2\n1\nb\n");
     while let Some(l) = tool.next() {
         if l == "  waiting for the button (short press)" {
             break;
@@ -691,19 +674,7 @@ fn reset_while_waiting_for_the_button_asks_again() {
 #[test]
 fn a_fault_is_shown_with_the_wheel_and_the_likely_cause() {
     let mut sim = Sim::start_with(&host_sim(), &["--wiring", "right-motor-reversed"]);
-    let dir = out_dir("fault");
-    let log = dir.join("session.jsonl");
-    let answers = dir.join("answers.txt");
-    std::fs::write(&answers, "0.2\n1\n").unwrap();
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--log",
-        log.to_str().unwrap(),
-        "--answers",
-        answers.to_str().unwrap(),
-        "--yes",
-    ]);
+    let (mut tool, _) = tool_answering(&sim, "fault", "0.2\n1\n");
     let mut measured = 0;
     assert!(!tool.converse(&sim, &mut measured, Some("  likely cause: ")));
     let _ = sim.child.kill();

@@ -132,25 +132,26 @@ fn calibrate_names_a_swapped_run() {
     assert!(!clean.contains("DISAGREES"), "{clean}");
 }
 
-#[test]
-fn serial_pipe_answers_cr_line_ends_and_ctrl_c() {
-    // What a terminal sends: CR on Enter, Ctrl-C before `stop`.
+/// `host-sim <args>` with `input` piped to its stdin (as a terminal would type it): what it
+/// wrote to stdout; it must exit successfully.
+fn serial_piped(args: &[&str], input: &[u8]) -> String {
     let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .arg("serial")
+        .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .expect("host-sim runs");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(b"help\rstatus\r\x03stop\rparams\r")
-        .unwrap();
+    child.stdin.take().unwrap().write_all(input).unwrap();
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success());
-    let text = String::from_utf8(out.stdout).unwrap();
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn serial_pipe_answers_cr_line_ends_and_ctrl_c() {
+    // What a terminal sends: CR on Enter, Ctrl-C before `stop`.
+    let text = serial_piped(&["serial"], b"help\rstatus\r\x03stop\rparams\r");
     let finals: Vec<&str> = text
         .lines()
         .filter(|l| l.starts_with("ok") || l.starts_with("err"))
@@ -165,22 +166,10 @@ fn serial_pipe_answers_cr_line_ends_and_ctrl_c() {
 fn serial_with_a_reversed_encoder_rehearses_the_bring_up_check() {
     // `serial --wiring`: the robot on the console is miswired; the bring-up check names the fix
     // and a square stops with the following-error fault instead of running away.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["serial", "--fast", "--wiring", "left-encoder-reversed"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("host-sim runs");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(b"bringup push\rrun cw 1\rstatus\rclear\rstatus\r")
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success());
-    let text = String::from_utf8(out.stdout).unwrap();
+    let text = serial_piped(
+        &["serial", "--fast", "--wiring", "left-encoder-reversed"],
+        b"bringup push\rrun cw 1\rstatus\rclear\rstatus\r",
+    );
     assert!(text.contains("counts backward: encoder reversed"), "{text}");
     assert!(
         text.contains("event bringup propose: set encoder_left_sign -1"),
