@@ -14,6 +14,8 @@
 //! Heading is always computed from the tick totals, never accumulated.
 //! All trigonometry goes through `util::trig` and `libm`, so host and target compute the same bits.
 
+use core::ops::{Add, Div, Mul, Sub};
+
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::util::trig;
@@ -93,35 +95,105 @@ impl ArcModel {
     /// Heading change for tick totals (relative to a start where both were 0), radians.
     #[inline]
     pub fn heading(&self, totals: WheelTicks) -> f64 {
-        (self.right_m_per_tick * totals.right as f64 - self.left_m_per_tick * totals.left as f64)
-            / self.wheelbase_m
+        arc_heading(
+            self.right_m_per_tick,
+            self.left_m_per_tick,
+            self.wheelbase_m,
+            totals,
+        )
     }
 
     /// Integrates a sequence of cumulative tick knots from `start`; the first knot is the tick
     /// total at `start`. Each interval is one exact arc.
     pub fn integrate(&self, start: PoseF64, knots: &[WheelTicks]) -> PoseF64 {
-        let Some(first) = knots.first() else {
-            return start;
-        };
-        let mut x = start.x_m;
-        let mut y = start.y_m;
-        let mut prev = *first;
-        let mut theta_prev = start.theta_rad;
-        for &k in &knots[1..] {
-            let theta = start.theta_rad + self.heading(k - *first);
-            let d = k - prev;
-            let ds = 0.5
-                * (self.right_m_per_tick * d.right as f64 + self.left_m_per_tick * d.left as f64);
-            let dtheta = theta - theta_prev;
-            let chord = ds * sinc(0.5 * dtheta);
-            let (s, c) = trig::sincos(theta_prev + 0.5 * dtheta);
-            x += chord * c;
-            y += chord * s;
-            prev = k;
-            theta_prev = theta;
-        }
-        PoseF64::new(x, y, theta_prev)
+        let (x, y, theta) = integrate_arcs(
+            (
+                self.right_m_per_tick,
+                self.left_m_per_tick,
+                self.wheelbase_m,
+            ),
+            (start.x_m, start.y_m, start.theta_rad),
+            knots,
+        );
+        PoseF64::new(x, y, theta)
     }
+}
+
+/// The number type of an arc integration: [`ArcModel`] integrates in `f64`, [`ArcModelF32`] in
+/// `f32`, with the same operations in the same order ([`integrate_arcs`]).
+trait ArcFloat:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
+{
+    /// One half.
+    const HALF: Self;
+    /// A tick count (difference) as this type.
+    fn from_ticks(t: i64) -> Self;
+    /// `(sin self, cos self)`.
+    fn sin_cos(self) -> (Self, Self);
+    /// `sin(self)/self`.
+    fn sinc(self) -> Self;
+}
+
+impl ArcFloat for f64 {
+    const HALF: f64 = 0.5;
+    fn from_ticks(t: i64) -> f64 {
+        t as f64
+    }
+    fn sin_cos(self) -> (f64, f64) {
+        trig::sincos(self)
+    }
+    fn sinc(self) -> f64 {
+        sinc(self)
+    }
+}
+
+impl ArcFloat for f32 {
+    const HALF: f32 = 0.5;
+    fn from_ticks(t: i64) -> f32 {
+        t as f32
+    }
+    fn sin_cos(self) -> (f32, f32) {
+        trig::sincos_f32(self)
+    }
+    fn sinc(self) -> f32 {
+        sinc_f32(self)
+    }
+}
+
+/// Heading change for tick totals (relative to a start where both were 0) of wheels travelling
+/// `right`, `left` per tick on a wheelbase `b`, radians.
+#[inline]
+fn arc_heading<F: ArcFloat>(right: F, left: F, b: F, totals: WheelTicks) -> F {
+    (right * F::from_ticks(totals.right) - left * F::from_ticks(totals.left)) / b
+}
+
+/// The arcs through cumulative tick `knots` (the first is the total at `start`) of the model
+/// `(right, left, b)` (travel per tick of each wheel, wheelbase) from `start` `(x, y, θ)`: the
+/// end `(x, y, θ)`. Each interval is one exact arc.
+#[inline]
+fn integrate_arcs<F: ArcFloat>(
+    (right, left, b): (F, F, F),
+    (mut x, mut y, theta_start): (F, F, F),
+    knots: &[WheelTicks],
+) -> (F, F, F) {
+    let Some(first) = knots.first() else {
+        return (x, y, theta_start);
+    };
+    let mut prev = *first;
+    let mut theta_prev = theta_start;
+    for &k in &knots[1..] {
+        let theta = theta_start + arc_heading(right, left, b, k - *first);
+        let d = k - prev;
+        let ds = F::HALF * (right * F::from_ticks(d.right) + left * F::from_ticks(d.left));
+        let dtheta = theta - theta_prev;
+        let chord = ds * (F::HALF * dtheta).sinc();
+        let (s, c) = (theta_prev + F::HALF * dtheta).sin_cos();
+        x = x + chord * c;
+        y = y + chord * s;
+        prev = k;
+        theta_prev = theta;
+    }
+    (x, y, theta_prev)
 }
 
 /// A planar pose in `f32`, as [`PoseF64`].
@@ -180,36 +252,29 @@ impl ArcModelF32 {
     /// Heading change for tick totals (relative to a start where both were 0), radians.
     #[inline]
     pub fn heading(&self, totals: WheelTicks) -> f32 {
-        (self.right_m_per_tick * totals.right as f32 - self.left_m_per_tick * totals.left as f32)
-            / self.wheelbase_m
+        arc_heading(
+            self.right_m_per_tick,
+            self.left_m_per_tick,
+            self.wheelbase_m,
+            totals,
+        )
     }
 
     /// As [`ArcModel::integrate`].
     pub fn integrate(&self, start: PoseF32, knots: &[WheelTicks]) -> PoseF32 {
-        let Some(first) = knots.first() else {
-            return start;
-        };
-        let mut x = start.x_m;
-        let mut y = start.y_m;
-        let mut prev = *first;
-        let mut theta_prev = start.theta_rad;
-        for &k in &knots[1..] {
-            let theta = start.theta_rad + self.heading(k - *first);
-            let d = k - prev;
-            let ds = 0.5
-                * (self.right_m_per_tick * d.right as f32 + self.left_m_per_tick * d.left as f32);
-            let dtheta = theta - theta_prev;
-            let chord = ds * sinc_f32(0.5 * dtheta);
-            let (s, c) = trig::sincos_f32(theta_prev + 0.5 * dtheta);
-            x += chord * c;
-            y += chord * s;
-            prev = k;
-            theta_prev = theta;
-        }
+        let (x_m, y_m, theta_rad) = integrate_arcs(
+            (
+                self.right_m_per_tick,
+                self.left_m_per_tick,
+                self.wheelbase_m,
+            ),
+            (start.x_m, start.y_m, start.theta_rad),
+            knots,
+        );
         PoseF32 {
-            x_m: x,
-            y_m: y,
-            theta_rad: theta_prev,
+            x_m,
+            y_m,
+            theta_rad,
         }
     }
 }
