@@ -262,3 +262,58 @@ fn a_fit_without_a_heading_residual_prints_a_dash_not_nan() {
     assert_eq!(columns[5], "-", "{run2}");
     assert_ne!(columns[6], "-", "{run2}");
 }
+
+#[test]
+fn every_shared_session_has_a_small_consistent_truth_heading_offset() {
+    // The same rigid body throughout: every session's recorded heading is a few mrad short of
+    // the direction the robot moves in (the estimator itself is exact on synthetic paths, see
+    // sim::optiodom's tests). Sessions with more rows along a path give a firmer median.
+    let sessions = [
+        ("square", "231220200029"),
+        ("square", "231220200040"),
+        ("square", "230620202042"),
+        ("square", "230620202144"),
+        ("ivanjko", "231220200057"),
+        ("circular", "231220200134"),
+        ("free", "030120210001"),
+    ];
+    for (kind, id) in sessions {
+        let Some(s) = session(kind, id) else {
+            return;
+        };
+        let o = s.truth_offset.unwrap_or_else(|| panic!("{id}: no offset"));
+        assert!(o.samples > 1000, "{id}: {o:?}");
+        assert!(
+            (0.002..0.012).contains(&o.heading_rad),
+            "{id}: {:.2} mrad",
+            o.heading_rad * 1e3
+        );
+    }
+    // The calibration reads the aligned truth unless asked not to, and says which it read.
+    let Some(iv) = session_dir("ivanjko", "231220200057") else {
+        return;
+    };
+    for (flag, said) in [
+        (
+            None,
+            "the fits read the truth turned onto the direction of motion",
+        ),
+        (Some("--raw-truth"), "the fits read the truth as recorded"),
+    ] {
+        let out_dir = std::env::temp_dir().join(format!("odocal-align-{}", std::process::id()));
+        let mut cmd = sim();
+        cmd.args(["replay", "--method", "exact", "--out"])
+            .arg(&out_dir)
+            .arg("--calibrate")
+            .arg(&iv);
+        cmd.args(flag);
+        let out = cmd.output().unwrap();
+        assert!(out.status.success());
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            text.contains("ground truth heading offset") && text.contains(said),
+            "{text}"
+        );
+        let _ = std::fs::remove_dir_all(&out_dir);
+    }
+}

@@ -17,7 +17,10 @@
 //! can do). Without `--method` every one is evaluated; with it, that one and `nominal`.
 //!
 //! **Calibration** uses each session's nominal geometry as the belief the runs were driven with;
-//! the result is absolute, so sessions with different nominal values can be mixed. `E_b`, `E_d`,
+//! the result is absolute, so sessions with different nominal values can be mixed. It reads the
+//! ground truth turned by the session's measured motion-capture heading offset into the robot's
+//! own start frame ([`crate::sim::optiodom`], *The motion-capture heading offset*; `--raw-truth`:
+//! as recorded). `E_b`, `E_d`,
 //! `E_s` are reported relative to the first calibration session's nominal geometry (or the first
 //! evaluated one's when nothing is calibrated), for every row, `nominal` included.
 //!
@@ -84,6 +87,10 @@ pub struct ReplayArgs {
     /// Length scale of heading residuals in the exact fits, metres (default: each run's length).
     #[arg(long)]
     pub heading_length: Option<f64>,
+    /// Calibrate against the ground truth as recorded, without turning it by the session's
+    /// measured motion-capture heading offset.
+    #[arg(long)]
+    pub raw_truth: bool,
 }
 
 /// A parameter set name beyond the library's methods.
@@ -129,6 +136,8 @@ pub struct FitOptions {
     pub fit_scale: bool,
     /// Heading residual length scale.
     pub heading_length_m: Option<f64>,
+    /// Calibrate against the ground truth as recorded (not turned by its heading offset).
+    pub recorded_truth: bool,
 }
 
 impl Default for FitOptions {
@@ -137,6 +146,7 @@ impl Default for FitOptions {
             heading: true,
             fit_scale: false,
             heading_length_m: None,
+            recorded_truth: false,
         }
     }
 }
@@ -160,7 +170,8 @@ pub fn calibrate_method(
         .iter()
         .flat_map(|s| {
             s.runs.iter().map(move |r| {
-                let mut o = r.observation(s.kind, s.side_m, &s.nominal, along_path);
+                let mut o =
+                    r.observation(s.kind, s.side_m, &s.nominal, along_path, fit.recorded_truth);
                 if !fit.heading {
                     o.measured.theta_rad = None;
                 }
@@ -441,8 +452,11 @@ pub fn json_lines(
         .iter()
         .zip(&eval.sessions)
         .map(|(s, m)| {
+            let offset = s.truth_offset.map_or_else(String::new, |o| {
+                format!(",\"truth_heading_offset_rad\":{:e}", o.heading_rad)
+            });
             format!(
-                "{}:{{\"kind\":\"{}\",{}}}",
+                "{}:{{\"kind\":\"{}\",{}{offset}}}",
                 json_str(&s.id),
                 s.kind.as_str(),
                 m.json()
@@ -614,6 +628,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         heading: !args.no_heading,
         fit_scale: args.fit_scale,
         heading_length_m: args.heading_length,
+        recorded_truth: args.raw_truth,
     };
     let all = calibrated_methods();
     let names: Vec<&str> = match args.method.as_deref() {
@@ -669,7 +684,14 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
                 println!("{l}");
             }
         }
-        Format::Text => print_text(&sets, &evals_of, &calib, &evals, &reference),
+        Format::Text => print_text(
+            &sets,
+            &evals_of,
+            &calib,
+            &evals,
+            &reference,
+            fit.recorded_truth,
+        ),
     }
     eprintln!("wrote {}", jsonl.display());
     for s in svgs {
@@ -684,6 +706,7 @@ fn print_text(
     calib: &[Session],
     evals: &[Session],
     reference: &Geometry,
+    recorded: bool,
 ) {
     let ids = |v: &[Session]| {
         v.iter()
@@ -693,6 +716,31 @@ fn print_text(
     };
     if !calib.is_empty() {
         println!("calibrated on {}", ids(calib));
+        let offsets = calib
+            .iter()
+            .map(|s| {
+                s.truth_offset.map_or_else(
+                    || format!("{} not measured (no rows along a path)", s.id),
+                    |o| {
+                        format!(
+                            "{} {:+.1} mrad ({} rows)",
+                            s.id,
+                            o.heading_rad * 1e3,
+                            o.samples
+                        )
+                    },
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        println!(
+            "  ground truth heading offset (direction of motion − recorded heading): {offsets}; {}",
+            if recorded {
+                "the fits read the truth as recorded"
+            } else {
+                "the fits read the truth turned onto the direction of motion"
+            }
+        );
     }
     println!(
         "evaluated on {} (error = truth − odometry, means over runs)",
