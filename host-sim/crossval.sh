@@ -3,7 +3,7 @@
 # calibrate on one set of sessions, evaluate on every other session (never on a calibration
 # session). Prints a markdown table of the mean final position error per evaluated session (mm),
 # with the uncalibrated (nominal) row and the in-sample floor (exact-path fitted on the very
-# session it is evaluated on). Needs jq.
+# session it is evaluated on, to the truth as recorded that it is evaluated against). Needs jq.
 #
 #   bash host-sim/crossval.sh [DATA_DIR]        # DATA_DIR default: ../shared/data
 set -euo pipefail
@@ -55,7 +55,7 @@ for e in "${EVAL[@]}"; do row+=" $(cell "$OUT/nominal.json" nominal "$e") |"; do
 echo "$row"
 row="| the evaluated session itself (in-sample floor) | exact-path |"
 for e in "${EVAL[@]}"; do
-  "$SIM" replay --calibrate "${DIR[$e]}" --evaluate "${DIR[$e]}" --method exact-path --format json --out "$OUT/f" > "$OUT/floor-$e.json" 2>/dev/null
+  "$SIM" replay --calibrate "${DIR[$e]}" --evaluate "${DIR[$e]}" --method exact-path --raw-truth --format json --out "$OUT/f" > "$OUT/floor-$e.json" 2>/dev/null
   row+=" $(cell "$OUT/floor-$e.json" exact-path "$e") |"
 done
 echo "$row"
