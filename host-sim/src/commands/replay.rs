@@ -12,7 +12,8 @@
 //! the closed forms (`umbmark-x`, `umbmark-y`, `lee-x`, `lee-y`, `jung-chung`; they read the
 //! square runs only, all of one side and one driving geometry), `exact` — the library's default,
 //! the robust exact fit of the end poses of every run (squares give `E_b`, `E_d`; Ivanjko's lines
-//! add `E_s`) —, `exact-ls` (the same fit by plain least squares) and `exact-path` (the robust
+//! add `E_s`), free paths fitted along their whole path (an end pose of a path that need not
+//! close says little) —, `exact-ls` (the same fit by plain least squares) and `exact-path` (the robust
 //! exact fit to the ground truth along every run's whole path, as a user with a motion-capture log
 //! can do). Without `--method` every one is evaluated; with it, that one and `nominal`.
 //!
@@ -161,7 +162,9 @@ pub fn calibrate_method(
     fit: &FitOptions,
 ) -> Result<Calibration, String> {
     let first = sessions.first().ok_or("no calibration session")?;
-    let along_path = method == EXACT_PATH;
+    // A free path is fitted along its whole path by every exact fit: its end pose alone (a few
+    // numbers from a path of metres that need not close) does not determine the factors.
+    let along_path = |kind: Kind| method == EXACT_PATH || kind == Kind::Free;
     let lib_method = match method {
         EXACT_LS | EXACT_PATH => Method::Exact,
         m => Method::parse(m).ok_or_else(|| format!("unknown method {m:?}"))?,
@@ -170,8 +173,13 @@ pub fn calibrate_method(
         .iter()
         .flat_map(|s| {
             s.runs.iter().map(move |r| {
-                let mut o =
-                    r.observation(s.kind, s.side_m, &s.nominal, along_path, fit.recorded_truth);
+                let mut o = r.observation(
+                    s.kind,
+                    s.side_m,
+                    &s.nominal,
+                    along_path(s.kind),
+                    fit.recorded_truth,
+                );
                 if !fit.heading {
                     o.measured.theta_rad = None;
                 }
