@@ -217,6 +217,9 @@ fn lines_add_e_s_and_paths_fit_the_whole_trajectory() {
     // In-sample, the fit along the free paths must beat nominal along those paths, and the
     // end-pose fit of the same runs cannot beat it on the path RMS it did not minimise.
     let path = calibrate_method(std::slice::from_ref(&free), EXACT_PATH, &fit).unwrap();
+    // The default reads a free path along its whole path too (its end pose alone says little).
+    let default = calibrate_method(std::slice::from_ref(&free), "exact", &fit).unwrap();
+    assert_eq!(default.geometry, path.geometry);
     let set = |c: Option<&odocal::calibration::Calibration>| ParamSet {
         method: "x".into(),
         calib_sessions: Vec::new(),
