@@ -261,9 +261,12 @@ fn a_fit_without_a_heading_residual_prints_a_dash_not_nan() {
         .find(|l| l.trim_start().starts_with("231220200029 run  2:"))
         .unwrap_or_else(|| panic!("no run 2 line:\n{text}"));
     let columns: Vec<&str> = run2.split_whitespace().collect();
-    // session, `run`, `2:`, x, y, θ, path RMS, …
+    // session, `run`, `2:`, x, y, θ, path RMS, weight, channel weights x y θ, start θ
     assert_eq!(columns[5], "-", "{run2}");
     assert_ne!(columns[6], "-", "{run2}");
+    // The slipped start: the odometry has turned tens of mrad more than the robot after 0.1 m.
+    let start: f64 = columns[11].parse().unwrap();
+    assert!(start < -50.0, "{run2}");
 }
 
 #[test]

@@ -561,13 +561,18 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
     let Some(f) = &c.fit else {
         return;
     };
-    // Run index → (session, run) in the order the observations were built.
-    let labels: Vec<(String, usize)> = calib
+    // Run index → (session, run, start heading error) in the order the observations were built.
+    let labels: Vec<(String, usize, Option<f64>)> = calib
         .iter()
-        .flat_map(|s| (1..=s.runs.len()).map(move |r| (s.id.clone(), r)))
+        .flat_map(|s| {
+            s.runs
+                .iter()
+                .enumerate()
+                .map(move |(i, r)| (s.id.clone(), i + 1, r.start_heading_error(&s.nominal)))
+        })
         .collect();
     println!(
-        "    per run: residual (truth − fit) x, y [mm], θ [mrad], path RMS [mm], weight, channel weights x y θ{}",
+        "    per run: residual (truth − fit) x, y [mm], θ [mrad], path RMS [mm], weight, channel weights x y θ, start θ [mrad]{}",
         if f.reweighted {
             ""
         } else {
@@ -575,9 +580,9 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
         }
     );
     for r in f.runs() {
-        let (sid, run) = labels.get(r.index).cloned().unwrap_or_default();
+        let (sid, run, start) = labels.get(r.index).cloned().unwrap_or_default();
         println!(
-            "      {sid} run {run:>2}: {:>8.1} {:>8.1} {:>8} {:>8} {:>6.3}  {:>5.2} {:>5.2} {:>5.2}{}",
+            "      {sid} run {run:>2}: {:>8.1} {:>8.1} {:>8} {:>8} {:>6.3}  {:>5.2} {:>5.2} {:>5.2} {:>8}{}",
             r.residual_x_m * 1e3,
             r.residual_y_m * 1e3,
             r.residual_theta_rad
@@ -588,6 +593,7 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
             r.channel_weights[0],
             r.channel_weights[1],
             r.channel_weights[2],
+            start.map_or_else(|| "-".to_string(), |t| format!("{:+.1}", t * 1e3)),
             if r.outlier { "  outlier" } else { "" }
         );
     }

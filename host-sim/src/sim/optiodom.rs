@@ -146,6 +146,9 @@ pub fn truth_heading_offset(runs: &[OptiRun]) -> Option<TruthOffset> {
     })
 }
 
+/// Mean wheel travel after which [`OptiRun::start_heading_error`] compares the headings, metres.
+pub const START_TRAVEL_M: f64 = 0.1;
+
 /// One recorded run.
 #[derive(Clone, Debug)]
 pub struct OptiRun {
@@ -371,6 +374,26 @@ impl OptiRun {
                     + (d.left as f64 * g.meters_per_tick_left()).abs())
             })
             .sum()
+    }
+
+    /// Odometry heading with `g` minus ground-truth heading once the wheels have rolled
+    /// [`START_TRAVEL_M`] on average, radians: what a slipping start leaves (the encoders turn
+    /// while the robot does not, or not as far). `None` when the run never rolls that far.
+    pub fn start_heading_error(&self, g: &Geometry) -> Option<f64> {
+        let model = ArcModel::from_geometry(g);
+        let mut pose = PoseF64::default();
+        let mut travel = 0.0;
+        for (j, w) in self.knots.windows(2).enumerate() {
+            pose = model.integrate(pose, w);
+            let d = w[1] - w[0];
+            travel += 0.5
+                * ((d.right as f64 * g.meters_per_tick_right()).abs()
+                    + (d.left as f64 * g.meters_per_tick_left()).abs());
+            if travel >= START_TRAVEL_M {
+                return Some(pose.theta_rad - self.truth[j + 1].theta_rad);
+            }
+        }
+        None
     }
 
     /// The path this run drove, as the calibration describes it (see the module docs).
@@ -609,6 +632,40 @@ mod tests {
             r.observation(kind, 0.0, &g, true, true).truth_path,
             &r.truth[..]
         );
+    }
+
+    #[test]
+    fn a_slipping_start_shows_as_the_start_heading_error() {
+        let g = Geometry {
+            diameter_right_m: 0.084,
+            diameter_left_m: 0.084,
+            wheelbase_m: 0.2,
+            counts_per_rev: 27_968,
+        };
+        // The encoders record a phantom turn in place (right +300, left −300 ticks) while the
+        // robot stays put, then 1 cm straight ahead per row, which the robot does drive.
+        let per_cm = (0.01 / g.meters_per_tick_right()).round() as i64;
+        let mut knots = vec![WheelTicks::new(0, 0), WheelTicks::new(300, -300)];
+        let mut truth = vec![PoseF64::default(); 2];
+        for i in 1..=20 {
+            knots.push(WheelTicks::new(300 + i * per_cm, -300 + i * per_cm));
+            truth.push(PoseF64::new(f64::from(i as i32) * 0.01, 0.0, 0.0));
+        }
+        let run = OptiRun {
+            direction: None,
+            truth_end: *truth.last().unwrap(),
+            aligned: truth.clone(),
+            knots,
+            truth,
+        };
+        let phantom = 600.0 * g.meters_per_tick_right() / g.wheelbase_m;
+        let e = run.start_heading_error(&g).unwrap();
+        assert!((e - phantom).abs() < 1e-12, "{e} vs {phantom}");
+        // A run that never rolls 0.1 m has none.
+        let mut short = run.clone();
+        short.knots.truncate(4);
+        short.truth.truncate(4);
+        assert_eq!(short.start_heading_error(&g), None);
     }
 
     #[test]
