@@ -23,7 +23,8 @@
 //! A motion-capture rigid body's heading is whatever direction its creator gave it, never exactly
 //! the robot's forward axis. In the shared sessions the recorded heading is 4–9 mrad short of the
 //! direction the robot moves in, the same in every run and in both turn directions (so not slip),
-//! and the rigid body's origin sits on the axle centre (in-place turns move it by under 2 mm). In
+//! and the rigid body's origin sits on the axle centre (a lever arm fitted to the in-place turns
+//! is under 2 mm). In
 //! the recorded start frame a point `d` metres away is then misplaced by `δ·d` across: on squares
 //! and circles, whose end lies near the start, a fraction of a millimetre; at the end of a 2 m
 //! line 10–20 mm, more than the lateral drift that calibrates `E_d`; along a free path of metres,
@@ -82,7 +83,7 @@ impl Kind {
 pub const OFFSET_HALF_WINDOW: usize = 4;
 
 /// Shortest chord across the window that enters the heading-offset estimate, metres: at 0.1 mm of
-/// motion-capture noise its direction is known to about 5 mrad per row, and in-place turns and
+/// motion-capture noise its direction is known to about 7 mrad per row, and in-place turns and
 /// stops (whose chord direction is noise) stay out.
 pub const OFFSET_MIN_CHORD_M: f64 = 0.02;
 
