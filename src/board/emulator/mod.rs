@@ -32,10 +32,10 @@ use crate::board::f407::ResetCause;
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
 use stm32f4xx_hal::gpio::{Edge, Pull};
-use stm32f4xx_hal::pac::{self, USART2};
+use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Config;
-use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
+use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use super::f407::ClockSource;
@@ -132,14 +132,7 @@ impl ControlTick {
 
 // The button (QEMU drives no GPIO input), the LEDs (register writes only in QEMU) and the
 // console USART are the F407 board's own.
-pub use crate::board::f407::{ButtonInput, Leds};
-
-/// The console port's receive half (USART2 RX interrupt).
-pub type ConsoleRx = Rx<USART2>;
-/// The console port's transmit half (USART2 TXE interrupt).
-pub type ConsoleTx = Tx<USART2>;
-/// The interrupt that serves the console port; the console task pends it to start sending.
-pub const CONSOLE_INTERRUPT: pac::Interrupt = pac::Interrupt::USART2;
+pub use crate::board::f407::{ButtonInput, CONSOLE_INTERRUPT, ConsoleRx, ConsoleTx, Leds};
 
 /// Everything the board gives the application (see [`crate::board`]).
 pub struct Board {
