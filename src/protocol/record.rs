@@ -46,7 +46,7 @@ pub const RECORD_PAGE_KNOTS: usize = 32;
 pub fn write_version(out: &mut dyn Write) -> fmt::Result {
     write!(
         out,
-        "ok odocal {} protocol {PROTOCOL_VERSION}{EOL}",
+        "ok odocal {} protocol {PROTOCOL_VERSION}\r\n",
         env!("CARGO_PKG_VERSION")
     )
 }
@@ -85,7 +85,7 @@ pub fn write_record_page(
     let g = &run.geometry;
     write!(
         out,
-        "  geometry {} {} {} {}{EOL}",
+        "  geometry {} {} {} {}\r\n",
         Bits(g.diameter_right_m),
         Bits(g.diameter_left_m),
         Bits(g.wheelbase_m),
@@ -94,35 +94,35 @@ pub fn write_record_page(
     let o = &run.odometry_end;
     write!(
         out,
-        "  odometry_end {} {} {}{EOL}",
+        "  odometry_end {} {} {}\r\n",
         Bits(o.x_m),
         Bits(o.y_m),
         Bits(o.theta_rad)
     )?;
     match &run.measured {
-        None => write!(out, "  measured none{EOL}")?,
+        None => write!(out, "  measured none\r\n")?,
         Some(m) => {
             write!(out, "  measured {} {} ", Bits(m.x_m), Bits(m.y_m))?;
             match m.theta_rad {
-                Some(t) => write!(out, "{}{EOL}", Bits(t))?,
-                None => write!(out, "-{EOL}")?,
+                Some(t) => write!(out, "{}\r\n", Bits(t))?,
+                None => write!(out, "-\r\n")?,
             }
         }
     }
     let total = run.knots.len();
-    write!(out, "  knots {total}{EOL}")?;
+    write!(out, "  knots {total}\r\n")?;
     let end = total.min(first.saturating_add(RECORD_PAGE_KNOTS));
     for (i, k) in run.knots.iter().enumerate().take(end).skip(first) {
-        write!(out, "  knot {i} {} {}{EOL}", k.right, k.left)?;
+        write!(out, "  knot {i} {} {}\r\n", k.right, k.left)?;
     }
     if end > first {
         write!(
             out,
-            "ok run {number} knots {first}..{} of {total}{EOL}",
+            "ok run {number} knots {first}..{} of {total}\r\n",
             end - 1
         )
     } else {
-        write!(out, "ok run {number} knots none of {total}{EOL}")
+        write!(out, "ok run {number} knots none of {total}\r\n")
     }
 }
 

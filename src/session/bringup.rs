@@ -15,7 +15,6 @@ use crate::motion::bringup::{
     PushReport, PushVerdict, WheelVerdict,
 };
 use crate::motion::controller::Wheel;
-use crate::protocol::EOL;
 use crate::protocol::ParamName;
 
 fn wheel_name(w: Wheel) -> &'static str {
@@ -49,12 +48,12 @@ impl<C: Calibrator> Session<C> {
             CheckKind::Identify(mode) => self.write_identify_started(mode, out),
             CheckKind::Pulses => write!(
                 out,
-                "ok bringup motors: wheels must be off the ground; pulsing right then left at {} % duty, 2 s{EOL}",
+                "ok bringup motors: wheels must be off the ground; pulsing right then left at {} % duty, 2 s\r\n",
                 (PULSE_DUTY * 100.0) as u32
             ),
             CheckKind::Push => write!(
                 out,
-                "ok bringup push: motors off; push the robot straight forward by hand about {} cm within {} s{EOL}",
+                "ok bringup push: motors off; push the robot straight forward by hand about {} cm within {} s\r\n",
                 (PUSH_DISTANCE_M * 100.0) as u32,
                 PUSH_MS / 1000
             ),
@@ -94,7 +93,7 @@ impl<C: Calibrator> Session<C> {
         let flipped = -self.settings.value(name);
         write!(
             out,
-            "event bringup propose: set {} {}{EOL}",
+            "event bringup propose: set {} {}\r\n",
             name.as_str(),
             flipped as i32
         )
@@ -111,7 +110,7 @@ impl<C: Calibrator> Session<C> {
             };
             write!(
                 out,
-                "event bringup push: {} encoder {counts:+} counts, {text}{EOL}",
+                "event bringup push: {} encoder {counts:+} counts, {text}\r\n",
                 wheel_name(wheel)
             )?;
             if verdict == PushVerdict::Reversed {
@@ -147,10 +146,10 @@ impl<C: Calibrator> Session<C> {
                         Some(enc) => {
                             let motor = counts_reversed != enc;
                             match (enc, motor) {
-                                (false, false) => write!(out, "ok{EOL}")?,
-                                (true, false) => write!(out, "encoder reversed (push check){EOL}")?,
-                                (false, true) => write!(out, "motor reversed{EOL}")?,
-                                (true, true) => write!(out, "motor and encoder reversed{EOL}")?,
+                                (false, false) => write!(out, "ok\r\n")?,
+                                (true, false) => write!(out, "encoder reversed (push check)\r\n")?,
+                                (false, true) => write!(out, "motor reversed\r\n")?,
+                                (true, true) => write!(out, "motor and encoder reversed\r\n")?,
                             }
                             if enc {
                                 self.propose(wheel, false, out)?;
@@ -164,24 +163,24 @@ impl<C: Calibrator> Session<C> {
                         None if counts_reversed => {
                             write!(
                                 out,
-                                "counts run against the duty: motor or encoder reversed; run `bringup push` to tell which{EOL}"
+                                "counts run against the duty: motor or encoder reversed; run `bringup push` to tell which\r\n"
                             )?;
                             changes += 1;
                         }
-                        None => write!(out, "ok{EOL}")?,
+                        None => write!(out, "ok\r\n")?,
                     }
                 }
                 WheelVerdict::NoMotion => write!(
                     out,
-                    "no motion: check motor power and wiring, the encoder, and that the wheel is free{EOL}"
+                    "no motion: check motor power and wiring, the encoder, and that the wheel is free\r\n"
                 )?,
                 WheelVerdict::CrossWired => write!(
                     out,
-                    "the other wheel's encoder moved: motors or encoders are swapped between the sides{EOL}"
+                    "the other wheel's encoder moved: motors or encoders are swapped between the sides\r\n"
                 )?,
                 WheelVerdict::Inconsistent => write!(
                     out,
-                    "counts disagree between directions: check the encoder mounting and coupling{EOL}"
+                    "counts disagree between directions: check the encoder mounting and coupling\r\n"
                 )?,
             }
             if matches!(
@@ -197,11 +196,11 @@ impl<C: Calibrator> Session<C> {
 
 fn write_done(changes: u32, out: &mut dyn Write) -> fmt::Result {
     if changes == 0 {
-        write!(out, "event bringup done: wiring ok{EOL}")
+        write!(out, "event bringup done: wiring ok\r\n")
     } else {
         write!(
             out,
-            "event bringup done: {changes} finding(s); apply the proposals with set, then save and check again{EOL}"
+            "event bringup done: {changes} finding(s); apply the proposals with set, then save and check again\r\n"
         )
     }
 }

@@ -14,7 +14,6 @@ use super::traits::{Calibrator, Robot};
 use super::{Session, storable};
 use crate::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyReport, LEVELS, MotorFit};
 use crate::motion::speed::SpeedTuning;
-use crate::protocol::EOL;
 use crate::protocol::reply::ErrorCode;
 use crate::util::decimal::Decimal;
 
@@ -31,7 +30,7 @@ fn write_fit(out: &mut dyn Write, side: &str, fit: &MotorFit) -> fmt::Result {
     write!(
         out,
         "event identify {side}: gain_fwd={} gain_back={} m/s per duty, tau={} s, deadband={}, \
-         coast {} m/s^2 from {} m/s, residual {} m/s{EOL}",
+         coast {} m/s^2 from {} m/s, residual {} m/s\r\n",
         d(p.gain_forward_mps, 4),
         d(p.gain_backward_mps, 4),
         d(p.time_constant_s, 4),
@@ -57,7 +56,7 @@ impl<C: Calibrator> Session<C> {
         };
         write!(
             out,
-            "ok identify {}: {where_}, duty steps {}/{}/{} % forward and backward, {} s{EOL}",
+            "ok identify {}: {where_}, duty steps {}/{}/{} % forward and backward, {} s\r\n",
             mode_name(mode),
             (LEVELS[0] * 100.0) as u32,
             (LEVELS[1] * 100.0) as u32,
@@ -87,20 +86,20 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = storable(&candidate) {
             return write!(
                 out,
-                "event identify err {code}: result not applied: {e}; tuning unchanged{EOL}"
+                "event identify err {code}: result not applied: {e}; tuning unchanged\r\n"
             );
         }
         if let Err(e) = robot.set_tuning(&candidate.tuning) {
             return write!(
                 out,
-                "event identify err {code}: result not applied: {e}; tuning unchanged{EOL}"
+                "event identify err {code}: result not applied: {e}; tuning unchanged\r\n"
             );
         }
         let bandwidth = candidate.tuning.bandwidth_radps;
         self.settings = candidate;
         write!(
             out,
-            "event identify done ({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep){EOL}",
+            "event identify done ({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep)\r\n",
             mode_name(r.mode),
             Decimal::fixed(f64::from(bandwidth), 1)
         )
@@ -118,7 +117,7 @@ impl<C: Calibrator> Session<C> {
         };
         write!(
             out,
-            "event identify err {}: {side} motor: {}; motors stopped, tuning unchanged, fault latched (clear){EOL}",
+            "event identify err {}: {side} motor: {}; motors stopped, tuning unchanged, fault latched (clear)\r\n",
             ErrorCode::IdentifyRefused.code(),
             f.problem.describe()
         )

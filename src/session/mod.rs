@@ -155,7 +155,7 @@ pub fn write_boot_event(
 /// # Errors
 /// Only those of `out`.
 pub fn write_fault_event(out: &mut dyn Write, text: impl fmt::Display) -> fmt::Result {
-    write!(out, "event fault: {text}{EOL}")
+    write!(out, "event fault: {text}\r\n")
 }
 
 /// The line that tells the operator which runs survived a reset:
@@ -266,7 +266,7 @@ impl<C: Calibrator> Session<C> {
             }
             Err(e) => {
                 self.runs_store_failed = true;
-                write!(out, "event runs not stored: {e}{EOL}")
+                write!(out, "event runs not stored: {e}\r\n")
             }
         }
     }
@@ -329,7 +329,7 @@ impl<C: Calibrator> Session<C> {
             // Starting a run is refused while the store is full, so this only fails if runs
             // were started behind the session's back; the oldest unmeasured data is then lost.
             if self.runs.is_full() {
-                write!(out, "event run discarded: run store full{EOL}")?;
+                write!(out, "event run discarded: run store full\r\n")?;
                 continue;
             }
             let _ = self.runs.push(run);
@@ -340,7 +340,7 @@ impl<C: Calibrator> Session<C> {
             report::write_path(out, &path)?;
             write!(
                 out,
-                " odometry end x={} y={} theta_deg={}; measure it{EOL}",
+                " odometry end x={} y={} theta_deg={}; measure it\r\n",
                 Decimal::signed(end.x_m, 6),
                 Decimal::signed(end.y_m, 6),
                 Decimal::signed(
@@ -460,7 +460,7 @@ impl<C: Calibrator> Session<C> {
         write!(out, "event button: ")?;
         if robot.status().fault.is_some() {
             robot.clear_fault();
-            return write!(out, "ok fault cleared{EOL}");
+            return write!(out, "ok fault cleared\r\n");
         }
         self.start_next(robot, out)
     }
@@ -472,7 +472,7 @@ impl<C: Calibrator> Session<C> {
     pub fn button_long(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         robot.abort();
         self.collect_finished(robot, out)?;
-        write!(out, "event button: ok stopped{EOL}")
+        write!(out, "event button: ok stopped\r\n")
     }
 
     /// Ctrl-C or Esc: stops any motion (the board's receive interrupt has already told the
@@ -495,7 +495,7 @@ impl<C: Calibrator> Session<C> {
                 StopKey::CtrlC => "Ctrl-C",
                 StopKey::Escape => "Esc",
             };
-            write!(out, "event stopped ({name}){EOL}")?;
+            write!(out, "event stopped ({name})\r\n")?;
         }
         self.collect_finished(robot, out)
     }
@@ -652,17 +652,17 @@ impl<C: Calibrator> Session<C> {
                 self.collect_finished(robot, out)?;
                 match before {
                     Some(a) if self.last_aborted == Some(a) => {
-                        write!(out, "ok stopped: run {} aborted, not stored{EOL}", a.number)
+                        write!(out, "ok stopped: run {} aborted, not stored\r\n", a.number)
                     }
-                    _ => write!(out, "ok stopped{EOL}"),
+                    _ => write!(out, "ok stopped\r\n"),
                 }
             }
             Command::Clear => match robot.status().fault {
                 Some(name) => {
                     robot.clear_fault();
-                    write!(out, "ok fault cleared ({name}){EOL}")
+                    write!(out, "ok fault cleared ({name})\r\n")
                 }
-                None => write!(out, "ok no fault latched{EOL}"),
+                None => write!(out, "ok no fault latched\r\n"),
             },
             Command::Measure {
                 run,
@@ -676,14 +676,14 @@ impl<C: Calibrator> Session<C> {
                     let n = self.runs.len();
                     return write!(
                         out,
-                        "err {}: no run {index} ({n} stored){EOL}",
+                        "err {}: no run {index} ({n} stored)\r\n",
                         ErrorCode::NoSuchRun.code()
                     );
                 };
                 if first_knot > 0 && first_knot >= run.knots.len() {
                     return write!(
                         out,
-                        "err {}: run {index} has {} knots{EOL}",
+                        "err {}: run {index} has {} knots\r\n",
                         ErrorCode::OutOfRange.code(),
                         run.knots.len()
                     );
@@ -696,7 +696,7 @@ impl<C: Calibrator> Session<C> {
                     let n = self.runs.len();
                     return write!(
                         out,
-                        "err {}: no run {index} ({n} stored){EOL}",
+                        "err {}: no run {index} ({n} stored)\r\n",
                         ErrorCode::NoSuchRun.code()
                     );
                 }
@@ -707,7 +707,7 @@ impl<C: Calibrator> Session<C> {
                 self.runs_changed();
                 write!(out, "ok dropped run {index}: ")?;
                 report::write_path(out, &run.path)?;
-                write!(out, "; {} runs left{EOL}", self.runs.len())
+                write!(out, "; {} runs left\r\n", self.runs.len())
             }
             Command::DropAll => {
                 if self.active.is_some() || robot.status().activity != Activity::Idle {
@@ -717,7 +717,7 @@ impl<C: Calibrator> Session<C> {
                 self.runs.clear();
                 self.run_ids.clear();
                 self.runs_changed();
-                write!(out, "ok dropped all {n} runs{EOL}")
+                write!(out, "ok dropped all {n} runs\r\n")
             }
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method } => self.apply(method, robot, out),
@@ -731,7 +731,7 @@ impl<C: Calibrator> Session<C> {
                         if !self.runs.is_empty() {
                             self.store_runs_again();
                         }
-                        write!(out, "ok saved{EOL}")
+                        write!(out, "ok saved\r\n")
                     }
                     Err(e) => storage_err(out, e),
                 }
@@ -744,7 +744,7 @@ impl<C: Calibrator> Session<C> {
                 out.write_str(EOL)
             }
             Command::OdomReset => match robot.reset_odometry() {
-                Ok(()) => write!(out, "ok odometry reset{EOL}"),
+                Ok(()) => write!(out, "ok odometry reset\r\n"),
                 Err(e) => robot_err(out, e),
             },
             Command::Stream { on: Some(hz) } => {
@@ -754,15 +754,15 @@ impl<C: Calibrator> Session<C> {
                     next_due_us: None,
                     last: None,
                 });
-                write!(out, "ok stream on {hz} Hz{EOL}")
+                write!(out, "ok stream on {hz} Hz\r\n")
             }
             Command::Stream { on: None } => {
                 self.stream = None;
-                write!(out, "ok stream off{EOL}")
+                write!(out, "ok stream off\r\n")
             }
             Command::Echo { on } => {
                 self.echo = on;
-                write!(out, "ok echo {}{EOL}", if on { "on" } else { "off" })
+                write!(out, "ok echo {}\r\n", if on { "on" } else { "off" })
             }
             Command::Drive { v_mps, w_radps } => match robot.drive(v_mps, w_radps) {
                 Ok(()) => {
@@ -771,11 +771,11 @@ impl<C: Calibrator> Session<C> {
                     let v = clamp(v_mps, -l.max_speed_mps, l.max_speed_mps);
                     let w = clamp(w_radps, -l.max_turn_rate_radps, l.max_turn_rate_radps);
                     if v == v_mps && w == w_radps {
-                        write!(out, "ok{EOL}")
+                        write!(out, "ok\r\n")
                     } else {
                         write!(
                             out,
-                            "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate){EOL}",
+                            "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate)\r\n",
                             Decimal::signed(f64::from(v), 3),
                             Decimal::signed(f64::from(w), 3)
                         )
@@ -803,7 +803,7 @@ impl<C: Calibrator> Session<C> {
         if changed == Changed::Nothing {
             write!(out, "ok {} = ", name.as_str())?;
             report::write_param_value(out, &self.settings, name)?;
-            return write!(out, " (unchanged){EOL}");
+            return write!(out, " (unchanged)\r\n");
         }
         // A calibration is relative to the nominal geometry it was computed for: it is dropped
         // when that changes, and restored when the geometry is set back.
@@ -880,7 +880,7 @@ impl<C: Calibrator> Session<C> {
             Some(n) if n > stored => {
                 return write!(
                     out,
-                    "err {}: no run {n} ({stored} stored){EOL}",
+                    "err {}: no run {n} ({stored} stored)\r\n",
                     ErrorCode::NoSuchRun.code()
                 );
             }
@@ -890,7 +890,7 @@ impl<C: Calibrator> Session<C> {
                     return write!(
                         out,
                         "err {}: run {} was aborted and not stored: nothing to measure (drive \
-                         it again; measure #<n> x y fills an earlier run){EOL}",
+                         it again; measure #<n> x y fills an earlier run)\r\n",
                         ErrorCode::NoRun.code(),
                         a.number
                     );
@@ -907,7 +907,7 @@ impl<C: Calibrator> Session<C> {
                         return write!(
                             out,
                             "err {}: run {stored} is already measured (measure #{stored} x y \
-                             [theta] replaces it){EOL}",
+                             [theta] replaces it)\r\n",
                             ErrorCode::NoRun.code()
                         );
                     }
@@ -921,7 +921,7 @@ impl<C: Calibrator> Session<C> {
         if let Err(why) = measure::check(run, x_m, y_m, theta_deg) {
             write!(out, "err {}: run {n} ", ErrorCode::Implausible.code())?;
             report::write_path(out, &run.path)?;
-            return write!(out, ": {why}{EOL}");
+            return write!(out, ": {why}\r\n");
         }
         let replaced = run.measured.replace(Measurement {
             x_m,
@@ -941,7 +941,7 @@ impl<C: Calibrator> Session<C> {
         }
         write!(
             out,
-            ": error vs odometry dx={} dy={} m{EOL}",
+            ": error vs odometry dx={} dy={} m\r\n",
             Decimal::signed(x_m - odo.x_m, 6),
             Decimal::signed(y_m - odo.y_m, 6),
         )
@@ -1036,7 +1036,7 @@ impl<C: Calibrator> Session<C> {
         self.dropped = None;
         write!(
             out,
-            "ok applied {name}: E_d={} E_b={} E_s={} (not saved; save to keep){EOL}",
+            "ok applied {name}: E_d={} E_b={} E_s={} (not saved; save to keep)\r\n",
             Decimal::fixed(sol.e_d, 9),
             Decimal::fixed(sol.e_b, 9),
             Decimal::fixed(sol.e_s, 9)
@@ -1070,7 +1070,7 @@ impl<C: Calibrator> Session<C> {
         }
         self.settings = defaults;
         self.dropped = None;
-        write!(out, "ok parameters reset to defaults and stored{EOL}")
+        write!(out, "ok parameters reset to defaults and stored\r\n")
     }
 }
 
@@ -1137,7 +1137,7 @@ pub fn write_calibration<C: Calibrator>(
     calibrator.advice(runs, nominal, method, out)?;
     write!(
         out,
-        "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one{EOL}",
+        "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one\r\n",
         p.cw_measured + p.ccw_measured,
         p.cw_measured,
         p.ccw_measured,
@@ -1172,7 +1172,7 @@ fn refuse_calibration(p: &Progress, out: &mut dyn Write) -> Option<fmt::Result> 
         return Some(write!(
             out,
             "err {}: need measured square runs in both directions \
-             (measured: cw {}, ccw {}){EOL}",
+             (measured: cw {}, ccw {})\r\n",
             ErrorCode::NotEnoughRuns.code(),
             p.cw_measured,
             p.ccw_measured,

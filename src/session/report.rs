@@ -46,9 +46,9 @@ const HELP: &[&str] = &[
 
 pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
     for line in HELP {
-        write!(out, "  {line}{EOL}")?;
+        write!(out, "  {line}\r\n")?;
     }
-    write!(out, "ok {} commands{EOL}", HELP.len())
+    write!(out, "ok {} commands\r\n", HELP.len())
 }
 
 pub(super) fn write_path(out: &mut dyn Write, path: &PathKind) -> fmt::Result {
@@ -104,7 +104,7 @@ pub(super) fn write_stream_line(
 ) -> fmt::Result {
     write!(
         out,
-        "stream {}.{:06} {} {} {} {} {}{EOL}",
+        "stream {}.{:06} {} {} {} {} {}\r\n",
         now_us / 1_000_000,
         now_us % 1_000_000,
         Decimal::signed(p.x_m, 6),
@@ -156,7 +156,7 @@ pub(super) fn write_status<C: Calibrator>(
     }
     write!(
         out,
-        " measured cw {} ccw {} runs {}/{} calibration={}{EOL}",
+        " measured cw {} ccw {} runs {}/{} calibration={}\r\n",
         p.cw_measured,
         p.ccw_measured,
         session.runs.len(),
@@ -192,7 +192,7 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
         let g = t.gains(motor, 1.0);
         write!(
             out,
-            "  speed_loop {side} kp={} ki={} kii={} ff_fwd={} ff_back={} ff_accel={} deadband={}{EOL}",
+            "  speed_loop {side} kp={} ki={} kii={} ff_fwd={} ff_back={} ff_accel={} deadband={}\r\n",
             Decimal::fixed(f64::from(g.kp), 3),
             Decimal::fixed(f64::from(g.ki), 3),
             Decimal::fixed(f64::from(g.kii), 3),
@@ -205,16 +205,16 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
     let a = &s.active;
     write!(
         out,
-        "  active d_right={} d_left={} wheelbase={} m{EOL}",
+        "  active d_right={} d_left={} wheelbase={} m\r\n",
         Decimal::fixed(a.diameter_right_m, 9),
         Decimal::fixed(a.diameter_left_m, 9),
         Decimal::fixed(a.wheelbase_m, 9)
     )?;
     match &s.calibration {
-        None => write!(out, "  calibration none{EOL}")?,
+        None => write!(out, "  calibration none\r\n")?,
         Some(c) => write!(
             out,
-            "  calibration {} E_d={} E_b={} E_s={} runs={} E_max={} mm{EOL}",
+            "  calibration {} E_d={} E_b={} E_s={} runs={} E_max={} mm\r\n",
             c.method,
             Decimal::fixed(c.e_d, 9),
             Decimal::fixed(c.e_b, 9),
@@ -223,7 +223,7 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
             Decimal::fixed(c.e_max_m * 1e3, 3)
         )?,
     }
-    write!(out, "ok{EOL}")
+    write!(out, "ok\r\n")
 }
 
 pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result {
@@ -255,7 +255,7 @@ pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result
         }
         out.write_str(EOL)?;
     }
-    write!(out, "ok {} runs, {measured} measured{EOL}", runs.len())
+    write!(out, "ok {} runs, {measured} measured\r\n", runs.len())
 }
 
 /// The per-run residual list of one result, then a line naming the runs that disagree with the
@@ -267,7 +267,7 @@ pub(super) fn write_residuals(
 ) -> fmt::Result {
     write!(
         out,
-        "  residuals vs {method} (measured - fitted end; weight of the robust fit){EOL}"
+        "  residuals vs {method} (measured - fitted end; weight of the robust fit)\r\n"
     )?;
     for r in residuals {
         write!(
@@ -298,7 +298,7 @@ pub(super) fn write_residuals(
         write!(
             out,
             ": disagrees with the others by more than the robust scale (x/y swapped, a sign, a \
-             unit?); drop <n> or measure #<n> x y, then calibrate again{EOL}"
+             unit?); drop <n> or measure #<n> x y, then calibrate again\r\n"
         )?;
     }
     Ok(())
@@ -308,7 +308,7 @@ pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
     write!(
         out,
         "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
-         E_max_mm  sd_E_d    sd_E_b{EOL}"
+         E_max_mm  sd_E_d    sd_E_b\r\n"
     )
 }
 
