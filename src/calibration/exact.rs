@@ -352,7 +352,14 @@ pub(crate) fn solve(mut a: Mat, mut b: [f64; 3], n: usize) -> Option<[f64; 3]> {
         if libm::fabs(a[piv][c]) <= 1e-14 * scale {
             return None;
         }
-        a.swap(c, piv);
+        // Element by element, not `a.swap(c, piv)` (nor whole-row assignments): those may
+        // overlap (`c == piv`) and compile to `memmove`, 1.5 KiB of flash the firmware
+        // otherwise does without.
+        for k in 0..3 {
+            let t = a[c][k];
+            a[c][k] = a[piv][k];
+            a[piv][k] = t;
+        }
         b.swap(c, piv);
         for r in c + 1..n {
             let f = a[r][c] / a[c][c];
