@@ -81,9 +81,10 @@ pub enum ErrorCode {
 }
 
 impl ErrorCode {
-    /// The number on the wire.
-    pub fn code(self) -> u8 {
-        self as u8
+    /// The number on the wire (a `u32`: the replies print unsigned numbers through the `u32`
+    /// formatter only).
+    pub fn code(self) -> u32 {
+        self as u32
     }
 }
 

@@ -90,12 +90,16 @@ impl<C: Calibrator> Session<C> {
 
     fn propose(&self, wheel: Wheel, motor: bool, out: &mut dyn Write) -> fmt::Result {
         let name = sign_param(wheel, motor);
-        let flipped = -self.settings.value(name);
+        // A sign parameter is 1 or -1: propose the other one.
+        let flipped = if self.settings.value(name) < 0.0 {
+            "1"
+        } else {
+            "-1"
+        };
         write!(
             out,
-            "event bringup propose: set {} {}\r\n",
-            name.as_str(),
-            flipped as i32
+            "event bringup propose: set {} {flipped}\r\n",
+            name.as_str()
         )
     }
 

@@ -105,8 +105,10 @@ pub(super) fn write_stream_line(
     write!(
         out,
         "stream {}.{:06} {} {} {} {} {}\r\n",
-        now_us / 1_000_000,
-        now_us % 1_000_000,
+        // Both casts are exact (the quotient is below 2^64 / 10^6 < 2^63, the remainder below
+        // 10^6): the replies print integers through the `i64` and `u32` formatters only.
+        (now_us / 1_000_000) as i64,
+        (now_us % 1_000_000) as u32,
         Decimal::signed(p.x_m, 6),
         Decimal::signed(p.y_m, 6),
         Decimal::signed(wrapped_deg(p.theta_rad), 4),
@@ -141,8 +143,9 @@ pub(super) fn write_status<C: Calibrator>(
     write!(out, " fault={} ", status.fault.unwrap_or("none"))?;
     write_pose(out, pose)?;
     let p = session.progress();
-    let n = session.settings.runs_per_direction;
-    let planned = usize::from(n);
+    // Widened: the replies print unsigned numbers through the `u32` formatter only.
+    let n = u32::from(session.settings.runs_per_direction);
+    let planned = usize::from(session.settings.runs_per_direction);
     // Squares beyond the plan (`run cw|ccw`) are counted apart, never as `6/5`.
     let extra = p.cw.saturating_sub(planned) + p.ccw.saturating_sub(planned);
     write!(
@@ -219,7 +222,7 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
             Decimal::fixed(c.e_d, 9),
             Decimal::fixed(c.e_b, 9),
             Decimal::fixed(c.e_s, 9),
-            c.runs_used,
+            u32::from(c.runs_used),
             Decimal::fixed(c.e_max_m * 1e3, 3)
         )?,
     }
@@ -227,7 +230,7 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
 }
 
 pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result {
-    let mut measured = 0;
+    let mut measured = 0u32;
     for (i, r) in runs.iter().enumerate() {
         write!(out, "  run {} ", i + 1)?;
         write_path(out, &r.path)?;

@@ -210,8 +210,10 @@ impl fmt::Display for LoadWarning {
             LoadWarning::Malformed(e) => write!(f, "stored parameters malformed: {e}"),
             LoadWarning::UnsupportedVersion { found } => write!(
                 f,
-                "stored parameters have format version {found}, this firmware reads {}",
-                ParamRecord::FORMAT_VERSION
+                "stored parameters have format version {}, this firmware reads {}",
+                // Widened: the replies print unsigned numbers through the `u32` formatter only.
+                u32::from(*found),
+                u32::from(ParamRecord::FORMAT_VERSION)
             ),
             LoadWarning::Invalid(e) => write!(f, "stored parameters invalid: {e}"),
             LoadWarning::FlashTooSmall(t) => write!(f, "{t}"),

@@ -326,12 +326,19 @@ impl fmt::Display for FormatError {
         match self {
             FormatError::BufferTooSmall => f.write_str("buffer too small for a parameter record"),
             FormatError::Length { expected, found } => {
-                write!(f, "record is {found} bytes, expected {expected}")
+                // Widened: the replies print unsigned numbers through the `u32` formatter only.
+                write!(
+                    f,
+                    "record is {} bytes, expected {}",
+                    u32::from(*found),
+                    u32::from(*expected)
+                )
             }
             FormatError::UnsupportedVersion { found } => write!(
                 f,
-                "record format version {found} is not supported (this firmware reads {})",
-                ParamRecord::FORMAT_VERSION
+                "record format version {} is not supported (this firmware reads {})",
+                u32::from(*found),
+                u32::from(ParamRecord::FORMAT_VERSION)
             ),
             FormatError::MethodName => f.write_str("stored method name is not printable ASCII"),
             FormatError::Wiring => f.write_str("stored wiring byte has unknown bits"),

@@ -61,7 +61,10 @@ impl fmt::Display for Fault {
                 peak_duty_pct,
             } => write!(
                 f,
-                "{wheel:?} wheel following error {error_mm} mm (peak duty {peak_duty_pct} %): check its motor and encoder polarity"
+                "{wheel:?} wheel following error {} mm (peak duty {} %): check its motor and encoder polarity",
+                // Widened: the replies print integers through the `i64` and `u32` formatters only.
+                i64::from(*error_mm),
+                u32::from(*peak_duty_pct)
             ),
             Fault::Identify(e) => write!(
                 f,
