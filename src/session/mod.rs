@@ -993,7 +993,7 @@ impl<C: Calibrator> Session<C> {
         )?;
         for (i, m) in self.calibrator.methods().iter().enumerate() {
             if i > 0 {
-                out.write_char('|')?;
+                out.write_str("|")?;
             }
             out.write_str(m)?;
         }
@@ -1022,12 +1022,14 @@ impl<C: Calibrator> Session<C> {
             Err(e) => return write_err(out, ErrorCode::CalibrationFailed, &e),
         };
         let p = self.progress();
-        let mut method_name = heapless::String::new();
-        for c in name.chars() {
-            if method_name.push(c).is_err() {
-                break;
-            }
+        // The longest whole-character prefix that fits (method names are short ASCII), copied
+        // as one `str`: pushing `char`s would link the UTF-8 encoder for this one use.
+        let mut end = name.len().min(settings::METHOD_NAME_LEN);
+        while !name.is_char_boundary(end) {
+            end -= 1;
         }
+        let mut method_name = heapless::String::new();
+        let _ = method_name.push_str(name.get(..end).unwrap_or(""));
         let mut candidate = self.settings.clone();
         candidate.active = sol.geometry;
         candidate.calibration = Some(AppliedCalibration {
