@@ -14,39 +14,46 @@ use crate::motion::run::{PathKind, RunRecord};
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
 
-/// `help` text: one data line per command.
+/// `help` text: one data line per command, the command and its description separated by a tab
+/// (printed as a command column of [`HELP_COLUMN`] characters: no padding is stored).
 const HELP: &[&str] = &[
-    "help                      this list",
-    "status                    state, pose, faults, session progress",
-    "params                    parameters and the active calibration",
-    "set <name> <value>        change a parameter (names as in params)",
-    "run cw|ccw [L]            drive a square of side L m (default: planned side)",
-    "next                      start the next planned run (button short press)",
-    "line [d]                  drive straight d m",
-    "circle cw|ccw [r]         drive a full circle of radius r m",
-    "stop                      stop now (Ctrl-C or Esc also stop at once)",
-    "clear                     clear a latched fault (stall, glitch, following)",
-    "measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)",
-    "runs                      list stored runs",
-    "record <n> [first]        run n's full record with its tick knots (host tools)",
-    "drop <n>|all              delete run n, or every run",
-    "calibrate [method]        compute all methods (or one) from measured runs",
-    "apply <method>            use a method's result (then save)",
-    "save                      store parameters in flash (motors stopped)",
-    "reset-params              restore and store defaults",
-    "pose                      odometry pose",
-    "odom reset                set the odometry pose to the origin",
-    "bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push",
-    "identify [lifted|floor]   motor identification: duty steps, fit, speed-loop tuning",
-    "stream on [hz]|off        pose + wheel speed stream, 1..100 Hz",
-    "drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last",
-    "echo on|off               echo typed characters (on at boot; scripts: off)",
-    "version                   firmware and protocol version",
+    "help\tthis list",
+    "status\tstate, pose, faults, session progress",
+    "params\tparameters and the active calibration",
+    "set <name> <value>\tchange a parameter (names as in params)",
+    "run cw|ccw [L]\tdrive a square of side L m (default: planned side)",
+    "next\tstart the next planned run (button short press)",
+    "line [d]\tdrive straight d m",
+    "circle cw|ccw [r]\tdrive a full circle of radius r m",
+    "stop\tstop now (Ctrl-C or Esc also stop at once)",
+    "clear\tclear a latched fault (stall, glitch, following)",
+    "measure [#n] <x> <y> [th]\ttrue end pose of the last run, or of run n (m, m, deg)",
+    "runs\tlist stored runs",
+    "record <n> [first]\trun n's full record with its tick knots (host tools)",
+    "drop <n>|all\tdelete run n, or every run",
+    "calibrate [method]\tcompute all methods (or one) from measured runs",
+    "apply <method>\tuse a method's result (then save)",
+    "save\tstore parameters in flash (motors stopped)",
+    "reset-params\trestore and store defaults",
+    "pose\todometry pose",
+    "odom reset\tset the odometry pose to the origin",
+    "bringup [motors|push]\twiring check: motor pulses (wheels up) or a hand push",
+    "identify [lifted|floor]\tmotor identification: duty steps, fit, speed-loop tuning",
+    "stream on [hz]|off\tpose + wheel speed stream, 1..100 Hz",
+    "drive <v_mps> <w_radps>\tvelocity command, motors stop 500 ms after the last",
+    "echo on|off\techo typed characters (on at boot; scripts: off)",
+    "version\tfirmware and protocol version",
 ];
+
+/// Width of the `help` command column.
+const HELP_COLUMN: usize = 26;
 
 pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
     for line in HELP {
-        write!(out, "  {line}\r\n")?;
+        let tab = line.bytes().position(|b| b == b'\t').unwrap_or(line.len());
+        let command = line.get(..tab).unwrap_or(line);
+        let description = line.get(tab + 1..).unwrap_or("");
+        write!(out, "  {command:<HELP_COLUMN$}{description}\r\n")?;
     }
     write!(out, "ok {} commands\r\n", HELP.len())
 }
