@@ -154,6 +154,7 @@ use super::{
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, ArcModelF32, PoseF32, PoseF64};
 use crate::motion::run::PathKind;
+use crate::util::num::{fmax, fmin};
 
 /// Central-difference step for the `f64` Jacobian, in units of the (≈ 1) factors.
 pub const JACOBIAN_STEP: f64 = 1e-6;
@@ -338,7 +339,7 @@ type Mat = [[f64; 3]; 3];
 /// Solves `a x = b` for the leading `n × n` block (Gaussian elimination, partial pivoting).
 /// `None` when the matrix is singular to working precision.
 pub(crate) fn solve(mut a: Mat, mut b: [f64; 3], n: usize) -> Option<[f64; 3]> {
-    let scale = (0..n).fold(0.0, |m, i| libm::fmax(m, libm::fabs(a[i][i])));
+    let scale = (0..n).fold(0.0, |m, i| fmax(m, libm::fabs(a[i][i])));
     if !(scale > 0.0 && scale.is_finite()) {
         return None;
     }
@@ -702,9 +703,7 @@ impl Problem<'_, '_> {
                     row[i] += lambda * a[i][i];
                 }
                 let delta = solve(aug, g, n).ok_or(CalibrationError::Degenerate)?;
-                let step = delta[..n]
-                    .iter()
-                    .fold(0.0, |s, v| libm::fmax(s, libm::fabs(*v)));
+                let step = delta[..n].iter().fold(0.0, |s, v| fmax(s, libm::fabs(*v)));
                 let mut q = p;
                 for i in 0..n {
                     q[i] += delta[i];
@@ -717,7 +716,7 @@ impl Problem<'_, '_> {
                         converged = step < STEP_TOLERANCE || cost - c <= COST_TOLERANCE * cost;
                         p = q;
                         cost = c;
-                        lambda = libm::fmax(lambda * 0.1, 1e-12);
+                        lambda = fmax(lambda * 0.1, 1e-12);
                         break;
                     }
                     _ if step < STEP_TOLERANCE => {
@@ -749,7 +748,7 @@ impl Problem<'_, '_> {
         let (la, lb) = (a.characteristic_length_m(), b.characteristic_length_m());
         core::mem::discriminant(&a.path) == core::mem::discriminant(&b.path)
             && Self::is_path(a) == Self::is_path(b)
-            && libm::fmax(la, lb) <= PEER_LENGTH_RATIO * libm::fmin(la, lb)
+            && fmax(la, lb) <= PEER_LENGTH_RATIO * fmin(la, lb)
     }
 
     /// Robust weights and scales of the runs at `p` (weights into `weights`, scales into
@@ -804,7 +803,7 @@ impl Problem<'_, '_> {
             };
             (count >= MIN_PEERS).then(|| {
                 let s2 = median(&mut buf[..count]) * dof;
-                (libm::fmax(s2, floor * floor / 12.0), count)
+                (fmax(s2, floor * floor / 12.0), count)
             })
         };
         for (i, run) in runs.iter().enumerate() {
@@ -879,7 +878,7 @@ impl Problem<'_, '_> {
             stable &= libm::fabs(new.run - old.run) <= WEIGHT_TOLERANCE
                 && (0..CHANNELS).all(|c| {
                     let (a, b) = (old.channel[c], new.channel[c]);
-                    libm::fabs(a - b) <= CHANNEL_TOLERANCE * libm::fmax(a, b)
+                    libm::fabs(a - b) <= CHANNEL_TOLERANCE * fmax(a, b)
                 });
             weights[i] = new;
             scales[i] = Some(Scales {
@@ -1034,7 +1033,7 @@ pub fn calibrate_exact(
         let mut e = [0.0; 3];
         e[i] = 1.0;
         if let Some(col) = solve(a, e, n) {
-            *s = Some(libm::sqrt(libm::fmax(col[i], 0.0) * sigma2));
+            *s = Some(libm::sqrt(fmax(col[i], 0.0) * sigma2));
         }
     }
     let sigma_out = sigma[0]

@@ -17,6 +17,7 @@ use super::{ClosedFormInputs, Method, RunObservation, closed_form, square_direct
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
 use crate::motion::run::Direction;
+use crate::util::num::fmax;
 
 /// Quality figures of one calibration.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -78,7 +79,7 @@ pub fn predicted_e_max(runs: &[RunObservation<'_>], g: &Geometry) -> Option<f64>
     Some(
         acc.iter()
             .map(|a| libm::hypot(a.0.mean, a.1.mean))
-            .fold(0.0, libm::fmax),
+            .fold(0.0, fmax),
     )
 }
 

@@ -13,6 +13,7 @@
 use super::{CalibrationError, ClosedFormInputs, Method, RunObservation, square_direction};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::run::Direction;
+use crate::util::num::fmax;
 
 /// Mean and sample variance of one coordinate, accumulated one value at a time.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -177,7 +178,7 @@ impl SquareStats {
 
     /// UMBmark's `E_max,syst = max(|cg_cw|, |cg_ccw|)`, metres.
     pub fn e_max_m(&self) -> f64 {
-        libm::fmax(self.cw.cg_distance_m(), self.ccw.cg_distance_m())
+        fmax(self.cw.cg_distance_m(), self.ccw.cg_distance_m())
     }
 
     /// Scatter of the runs around their direction's centre of gravity: root of the pooled

@@ -27,6 +27,7 @@ use super::{Method, closed_form, wrap_angle};
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
 use crate::motion::run::Direction;
+use crate::util::num::fmax;
 
 /// Sides the advice chooses from, metres.
 pub const CANDIDATE_SIDES_M: [f64; 14] = [
@@ -173,8 +174,8 @@ fn exact_sigma(
     let c1 = solve(a, [0.0, 1.0, 0.0], 2)?;
     // The second parameter scales truth.b, so its σ is the relative error of b directly.
     Some([
-        libm::sqrt(libm::fmax(c0[0], 0.0) * var),
-        libm::sqrt(libm::fmax(c1[1], 0.0) * var),
+        libm::sqrt(fmax(c0[0], 0.0) * var),
+        libm::sqrt(fmax(c1[1], 0.0) * var),
     ])
 }
 

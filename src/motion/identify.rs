@@ -44,6 +44,7 @@
 use crate::motion::controller::Wheel;
 use crate::motion::motor::StopMode;
 use crate::motion::speed::MotorParams;
+use crate::util::num::fmax;
 
 /// The duty steps of a pass, in order (magnitudes). The lowest must exceed the dead-band and
 /// the stall check's 0.1.
@@ -591,7 +592,7 @@ fn fit_wheel(
     if !(a > 0.0 && a < 1.0) {
         return Err(bad);
     }
-    let residual = libm::sqrt(libm::fmax(cyy - a * cxy, 0.0) / (n - groups - 1.0)) * mps_per_count;
+    let residual = libm::sqrt(fmax(cyy - a * cxy, 0.0) / (n - groups - 1.0)) * mps_per_count;
     let tau = -1.0 / (block_hz * libm::log(a));
     let mut gains = [0.0f64; 2];
     let mut deadbands = [0.0f64; 2];
@@ -622,7 +623,7 @@ fn fit_wheel(
         let k = suv / suu;
         gains[d] = k;
         deadbands[d] = um - vm / k;
-        top = libm::fmax(top, v[2]);
+        top = fmax(top, v[2]);
         // Coast from the top step's speed, as a deceleration.
         let [xx, xy, mx, my] = c.map(f64::from);
         if xx <= 0.0 {
@@ -653,7 +654,7 @@ fn fit_wheel(
         gain_forward_mps: gains[0] as f32,
         gain_backward_mps: gains[1] as f32,
         time_constant_s: tau as f32,
-        deadband: libm::fmax(deadband, 0.0) as f32,
+        deadband: fmax(deadband, 0.0) as f32,
     };
     params.validate().map_err(|_| bad)?;
     Ok(MotorFit {

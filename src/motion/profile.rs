@@ -17,6 +17,7 @@
 //! routine maps it to ticks relative to the segment start and ends every segment on an exact
 //! integer target, so nothing of it accumulates.
 
+use crate::util::num::{fmax, fmin};
 use core::fmt;
 
 /// Speed and acceleration limits of the robot's motion (validated by [`MotionLimits::validate`]).
@@ -141,9 +142,9 @@ impl Trapezoid {
             };
         }
         // Triangular when the speed limit cannot be reached: v_peak² / a = distance.
-        let peak = libm::fmin(max_speed, libm::sqrt(distance * max_accel));
+        let peak = fmin(max_speed, libm::sqrt(distance * max_accel));
         let t_accel = peak / max_accel;
-        let t_cruise = libm::fmax((distance - peak * t_accel) / peak, 0.0);
+        let t_cruise = fmax((distance - peak * t_accel) / peak, 0.0);
         Trapezoid {
             distance: distance as f32,
             accel: max_accel as f32,

@@ -40,6 +40,7 @@ use crate::kinematics::geometry::Geometry;
 use crate::motion::profile::{MotionLimits, Trapezoid};
 use crate::motion::run::{Direction, MAX_KNOTS, PathKind};
 use crate::motion::speed::WheelReference;
+use crate::util::num::fmin;
 
 /// One segment of a path.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -231,13 +232,13 @@ fn segment_limits(kind: &SegmentKind, g: &Geometry, l: &MotionLimits) -> (f64, f
     match *kind {
         SegmentKind::Straight { .. } => (v, a),
         // Wheel speed is ω·b/2.
-        SegmentKind::Turn { .. } => (libm::fmin(w, v / half_b), libm::fmin(aw, a / half_b)),
+        SegmentKind::Turn { .. } => (fmin(w, v / half_b), fmin(aw, a / half_b)),
         SegmentKind::Arc { radius_m, .. } => {
             // The outer wheel is the faster one: v·(1 + b/2r).
             let outer = 1.0 + half_b / radius_m;
             (
-                libm::fmin(v / outer, w * radius_m),
-                libm::fmin(a / outer, aw * radius_m),
+                fmin(v / outer, w * radius_m),
+                fmin(a / outer, aw * radius_m),
             )
         }
     }

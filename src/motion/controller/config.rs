@@ -14,6 +14,7 @@ use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::routine::SettleConfig;
 use crate::motion::speed::{SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
+use crate::util::num::fmin;
 
 /// Stall detection: a wheel commanded with at least `min_duty` that counts no tick for
 /// `time_ms` is stalled.
@@ -109,7 +110,7 @@ fn rescale(periods: u32, from_hz: u32, to_hz: u32) -> u32 {
 /// Encoder glitch limit for `geometry` at `rate_hz`: 2 m/s of the smaller wheel, +50 %.
 pub(super) fn glitch_limit(width: CounterWidth, geometry: &Geometry, rate_hz: u32) -> u32 {
     let period_s = 1.0 / f64::from(rate_hz.max(1));
-    let d_min = libm::fmin(geometry.diameter_right_m, geometry.diameter_left_m);
+    let d_min = fmin(geometry.diameter_right_m, geometry.diameter_left_m);
     max_step_for(width, geometry.counts_per_rev, d_min, 2.0, period_s)
 }
 
