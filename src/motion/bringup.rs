@@ -16,6 +16,7 @@
 
 use crate::motion::controller::Wheel;
 use crate::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyReport};
+use crate::util::num::ceil_i64;
 
 /// Duty of a bring-up pulse: enough to overcome static friction of a free wheel, too little to
 /// hurt anything.
@@ -276,7 +277,7 @@ impl PushCheck {
     /// A watch at `rate_hz` that ends early once a wheel has moved `PUSH_DISTANCE_M`
     /// (`counts_per_m` per wheel).
     pub fn new(rate_hz: u32, counts_per_m: (f64, f64)) -> Self {
-        let c = |k: f64| libm::ceil(PUSH_DISTANCE_M * k) as i64;
+        let c = |k: f64| ceil_i64(PUSH_DISTANCE_M * k);
         PushCheck {
             left_periods: (u64::from(PUSH_MS) * u64::from(rate_hz) / 1000).max(1) as u32,
             target_counts: (c(counts_per_m.0), c(counts_per_m.1)),

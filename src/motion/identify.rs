@@ -44,7 +44,7 @@
 use crate::motion::controller::Wheel;
 use crate::motion::motor::StopMode;
 use crate::motion::speed::MotorParams;
-use crate::util::num::fmax;
+use crate::util::num::{ceil_i64, fmax};
 
 /// The duty steps of a pass, in order (magnitudes). The lowest must exceed the dead-band and
 /// the stall check's 0.1.
@@ -339,8 +339,8 @@ impl Identify {
     /// A routine at `rate_hz` for wheels of `m_per_tick` metres per count (right, left).
     pub fn new(mode: IdentifyMode, rate_hz: u32, m_per_tick: (f64, f64)) -> Self {
         let rate = f64::from(rate_hz.max(1));
-        let min = |m: f64| libm::ceil(MIN_MOTION_M / m) as i64;
-        let max = |m: f64| libm::ceil(MAX_SPEED_MPS / (m * rate)) as i64;
+        let min = |m: f64| ceil_i64(MIN_MOTION_M / m);
+        let max = |m: f64| ceil_i64(MAX_SPEED_MPS / (m * rate));
         Identify {
             mode,
             rate_hz: rate_hz.max(1),

@@ -16,6 +16,7 @@ use crate::motion::bringup::{
 };
 use crate::motion::controller::Wheel;
 use crate::protocol::ParamName;
+use crate::util::num::ceil_i64;
 
 fn wheel_name(w: Wheel) -> &'static str {
     match w {
@@ -67,7 +68,7 @@ impl<C: Calibrator> Session<C> {
             Wheel::Right => g.meters_per_tick_right(),
             Wheel::Left => g.meters_per_tick_left(),
         };
-        libm::ceil(MIN_MOTION_M / m_per_tick) as i64
+        ceil_i64(MIN_MOTION_M / m_per_tick)
     }
 
     /// Announces a finished bring-up check with `event bringup …` lines.

@@ -20,6 +20,13 @@ pub fn clamp<T: PartialOrd>(x: T, lo: T, hi: T) -> T {
     }
 }
 
+/// `libm::ceil(x) as i64` (saturating; NaN gives 0), out of line: the saturating conversion
+/// is a few soft-float comparisons at each of the callers that turn a distance into counts.
+#[inline(never)]
+pub fn ceil_i64(x: f64) -> i64 {
+    libm::ceil(x) as i64
+}
+
 /// `libm::fmax` (the larger of `x` and `y`; the other one when either is NaN), out of line.
 #[inline(never)]
 pub fn fmax(x: f64, y: f64) -> f64 {
@@ -34,7 +41,17 @@ pub fn fmin(x: f64, y: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::clamp;
+    use super::{ceil_i64, clamp};
+
+    #[test]
+    fn ceil_i64_saturates() {
+        assert_eq!(ceil_i64(1.2), 2);
+        assert_eq!(ceil_i64(-1.5), -1);
+        assert_eq!(ceil_i64(3.0), 3);
+        assert_eq!(ceil_i64(f64::NAN), 0);
+        assert_eq!(ceil_i64(1e30), i64::MAX);
+        assert_eq!(ceil_i64(f64::NEG_INFINITY), i64::MIN);
+    }
 
     #[test]
     fn same_as_core_for_ordered_bounds() {
