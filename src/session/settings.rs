@@ -36,7 +36,7 @@ pub struct AppliedCalibration {
 }
 
 /// Everything the session persists.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct Settings {
     /// Nominal geometry (as built / as specified).
     pub nominal: Geometry,
@@ -57,6 +57,17 @@ pub struct Settings {
     pub tuning: SpeedTuning,
     /// Control (and odometry) rate, Hz: one of [`crate::motion::controller::RATES_HZ`].
     pub control_hz: u32,
+}
+
+impl Clone for Settings {
+    // Out of line: `set`, `apply` and the parameter resets each inlined their own copy.
+    #[inline(never)]
+    fn clone(&self) -> Self {
+        Settings {
+            calibration: self.calibration.clone(),
+            ..*self
+        }
+    }
 }
 
 impl Default for Settings {
