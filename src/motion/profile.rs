@@ -17,7 +17,7 @@
 //! routine maps it to ticks relative to the segment start and ends every segment on an exact
 //! integer target, so nothing of it accumulates.
 
-use crate::util::num::{fmax, fmin};
+use crate::util::num::{fmax, fmin, within};
 use core::fmt;
 
 /// Speed and acceleration limits of the robot's motion (validated by [`MotionLimits::validate`]).
@@ -74,7 +74,7 @@ impl MotionLimits {
     /// # Errors
     /// The first offending field, as a [`LimitsError`].
     pub fn validate(&self) -> Result<(), LimitsError> {
-        let ok = |v: f32, max: f32| v.is_finite() && (0.001..=max).contains(&v);
+        let ok = |v: f32, max: f32| within(v, 0.001, max);
         if !ok(self.max_speed_mps, 5.0) {
             return Err(LimitsError::Speed);
         }

@@ -40,6 +40,7 @@
 use core::fmt;
 
 use crate::util::num::clamp;
+use crate::util::num::within;
 
 /// Gains of one wheel's controller (ticks-based units, see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,22 +103,22 @@ impl MotorParams {
     /// # Errors
     /// The first offending field, as a [`TuningError`].
     pub fn validate(&self) -> Result<(), TuningError> {
-        let within = |v: f32, (lo, hi): (f32, f32)| v.is_finite() && (lo..=hi).contains(&v);
-        if !within(self.gain_forward_mps, Self::GAIN_RANGE)
-            || !within(self.gain_backward_mps, Self::GAIN_RANGE)
+        let in_range = |v: f32, (lo, hi): (f32, f32)| within(v, lo, hi);
+        if !in_range(self.gain_forward_mps, Self::GAIN_RANGE)
+            || !in_range(self.gain_backward_mps, Self::GAIN_RANGE)
         {
             return Err(TuningError::MotorGain);
         }
-        if !within(
+        if !in_range(
             self.gain_forward_mps / self.gain_backward_mps,
             Self::DIRECTION_RATIO_RANGE,
         ) {
             return Err(TuningError::DirectionRatio);
         }
-        if !within(self.time_constant_s, Self::TAU_RANGE) {
+        if !in_range(self.time_constant_s, Self::TAU_RANGE) {
             return Err(TuningError::TimeConstant);
         }
-        if !within(self.deadband, Self::DEADBAND_RANGE) {
+        if !in_range(self.deadband, Self::DEADBAND_RANGE) {
             return Err(TuningError::Deadband);
         }
         Ok(())

@@ -19,6 +19,7 @@ use crate::kinematics::geometry::{Geometry, GeometryError};
 use crate::motion::controller::{DEFAULT_RATE_HZ, rate_supported};
 use crate::motion::speed::{MotorParams, SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
+use crate::util::num::within;
 
 /// Longest calibration method name, bytes of ASCII.
 pub const METHOD_NAME_MAX: usize = 12;
@@ -155,7 +156,6 @@ impl MotionSettings {
     /// # Errors
     /// The first offending setting, as a [`RecordError`].
     pub fn validate(&self) -> Result<(), RecordError> {
-        let within = |v: f32, lo: f32, hi: f32| v.is_finite() && v >= lo && v <= hi;
         if !within(self.max_speed_mps, 0.001, 5.0) {
             return Err(RecordError::MaxSpeed);
         }
