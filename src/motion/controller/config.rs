@@ -96,7 +96,9 @@ pub fn rate_supported(rate_hz: u32) -> bool {
     RATES_HZ.contains(&rate_hz)
 }
 
-/// `ms` milliseconds in control periods at `rate_hz` (at least one period).
+/// `ms` milliseconds in control periods at `rate_hz` (at least one period). Out of line: its
+/// 64-bit division call and clamp were inlined at each of its seven configuration callers.
+#[inline(never)]
 pub fn periods_of_ms(ms: u32, rate_hz: u32) -> u32 {
     ((u64::from(ms) * u64::from(rate_hz) / 1000) as u32).max(1)
 }
