@@ -44,7 +44,7 @@
 use crate::motion::controller::Wheel;
 use crate::motion::motor::StopMode;
 use crate::motion::speed::MotorParams;
-use crate::util::num::{ceil_i64, fmax};
+use crate::util::num::{ceil_i64, fmax, round_u32};
 
 /// The duty steps of a pass, in order (magnitudes). The lowest must exceed the dead-band and
 /// the stall check's 0.1.
@@ -353,7 +353,7 @@ impl Identify {
             started: false,
             previous: (None, None),
             tail: (0, 0),
-            block_periods: (libm::round(f64::from(BLOCK_MS) * rate / 1000.0) as u32).max(1),
+            block_periods: round_u32(f64::from(BLOCK_MS) * rate / 1000.0).max(1),
             block: (0, 0),
             in_block: 0,
             logs: [WheelLog::default(); 2],

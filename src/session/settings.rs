@@ -14,6 +14,7 @@ use crate::motion::profile::MotionLimits;
 use crate::motion::speed::{SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
 use crate::protocol::ParamName;
+use crate::util::num::round_u32;
 
 /// Longest stored method name, bytes.
 pub const METHOD_NAME_LEN: usize = 12;
@@ -250,7 +251,7 @@ impl Settings {
                 Changed::Geometry
             }
             ParamName::CountsPerRev => {
-                s.nominal.counts_per_rev = libm::round(value) as u32;
+                s.nominal.counts_per_rev = round_u32(value);
                 Changed::Geometry
             }
             ParamName::MaxSpeed => {
@@ -274,7 +275,7 @@ impl Settings {
                 Changed::Plan
             }
             ParamName::RunsPerDirection => {
-                s.runs_per_direction = libm::round(value) as u8;
+                s.runs_per_direction = u8::try_from(round_u32(value)).unwrap_or(u8::MAX);
                 Changed::Plan
             }
             ParamName::MotorRightSign
@@ -296,7 +297,7 @@ impl Settings {
                 Changed::Wiring
             }
             ParamName::ControlHz => {
-                let hz = libm::round(value) as u32;
+                let hz = round_u32(value);
                 if !rate_supported(hz) {
                     return Err(SettingsError::Rate);
                 }

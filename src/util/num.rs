@@ -27,6 +27,13 @@ pub fn within(v: f32, lo: f32, hi: f32) -> bool {
     v.is_finite() && v >= lo && v <= hi
 }
 
+/// `libm::round(x) as u32` (saturating; NaN gives 0), out of line: the integer parameters
+/// and the identification's block length share one copy of the saturating conversion.
+#[inline(never)]
+pub fn round_u32(x: f64) -> u32 {
+    libm::round(x) as u32
+}
+
 /// `libm::ceil(x) as i64` (saturating; NaN gives 0), out of line: the saturating conversion
 /// is a few soft-float comparisons at each of the callers that turn a distance into counts.
 #[inline(never)]
@@ -48,7 +55,16 @@ pub fn fmin(x: f64, y: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{ceil_i64, clamp, within};
+    use super::{ceil_i64, clamp, round_u32, within};
+
+    #[test]
+    fn round_u32_saturates() {
+        assert_eq!(round_u32(2.5), 3);
+        assert_eq!(round_u32(2.49), 2);
+        assert_eq!(round_u32(-3.0), 0);
+        assert_eq!(round_u32(f64::NAN), 0);
+        assert_eq!(round_u32(1e12), u32::MAX);
+    }
 
     #[test]
     fn within_is_finite_and_inclusive() {
