@@ -331,13 +331,7 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
         } else {
             Direction::Ccw
         });
-        runs.push(OptiRun {
-            direction,
-            truth_end: *truth.last().unwrap_or(&PoseF64::default()),
-            aligned: truth.clone(),
-            knots,
-            truth,
-        });
+        runs.push(OptiRun::new(direction, knots, truth));
     }
     let truth_offset = truth_heading_offset(&runs);
     if let Some(o) = truth_offset {
@@ -359,7 +353,26 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
     })
 }
 
+/// Mean absolute wheel travel between the two knots of `w` with `g`, metres.
+fn step_travel_m(w: &[WheelTicks], g: &Geometry) -> f64 {
+    let d = w[1] - w[0];
+    0.5 * ((d.right as f64 * g.meters_per_tick_right()).abs()
+        + (d.left as f64 * g.meters_per_tick_left()).abs())
+}
+
 impl OptiRun {
+    /// A run from its knots and ground truth (start frame); its aligned truth starts as the
+    /// recorded one (the session turns it once its heading offset is known).
+    pub fn new(direction: Option<Direction>, knots: Vec<WheelTicks>, truth: Vec<PoseF64>) -> Self {
+        OptiRun {
+            direction,
+            truth_end: truth.last().copied().unwrap_or_default(),
+            aligned: truth.clone(),
+            knots,
+            truth,
+        }
+    }
+
     /// Length of the ground-truth path, metres.
     pub fn truth_length_m(&self) -> f64 {
         self.truth.windows(2).map(|w| w[0].distance_to(&w[1])).sum()
@@ -367,14 +380,7 @@ impl OptiRun {
 
     /// Mean absolute wheel travel with `g`, metres (the arc the wheels roll for a turn).
     pub fn wheel_travel_m(&self, g: &Geometry) -> f64 {
-        self.knots
-            .windows(2)
-            .map(|w| {
-                let d = w[1] - w[0];
-                0.5 * ((d.right as f64 * g.meters_per_tick_right()).abs()
-                    + (d.left as f64 * g.meters_per_tick_left()).abs())
-            })
-            .sum()
+        self.knots.windows(2).map(|w| step_travel_m(w, g)).sum()
     }
 
     /// Odometry heading with `g` minus ground-truth heading once the wheels have rolled
@@ -386,10 +392,7 @@ impl OptiRun {
         let mut travel = 0.0;
         for (j, w) in self.knots.windows(2).enumerate() {
             pose = model.integrate(pose, w);
-            let d = w[1] - w[0];
-            travel += 0.5
-                * ((d.right as f64 * g.meters_per_tick_right()).abs()
-                    + (d.left as f64 * g.meters_per_tick_left()).abs());
+            travel += step_travel_m(w, g);
             if travel >= START_TRAVEL_M {
                 return Some(pose.theta_rad - self.truth[j + 1].theta_rad);
             }
@@ -522,13 +525,7 @@ mod tests {
             .collect();
         let start = truth[0];
         let truth: Vec<PoseF64> = truth.iter().map(|w| start.relative(w)).collect();
-        OptiRun {
-            direction: None,
-            knots: vec![WheelTicks::new(0, 0); truth.len()],
-            truth_end: *truth.last().unwrap(),
-            aligned: truth.clone(),
-            truth,
-        }
+        OptiRun::new(None, vec![WheelTicks::new(0, 0); truth.len()], truth)
     }
 
     #[test]
@@ -652,13 +649,7 @@ mod tests {
             knots.push(WheelTicks::new(300 + i * per_cm, -300 + i * per_cm));
             truth.push(PoseF64::new(f64::from(i as i32) * 0.01, 0.0, 0.0));
         }
-        let run = OptiRun {
-            direction: None,
-            truth_end: *truth.last().unwrap(),
-            aligned: truth.clone(),
-            knots,
-            truth,
-        };
+        let run = OptiRun::new(None, knots, truth);
         let phantom = 600.0 * g.meters_per_tick_right() / g.wheelbase_m;
         let e = run.start_heading_error(&g).unwrap();
         assert!((e - phantom).abs() < 1e-12, "{e} vs {phantom}");
