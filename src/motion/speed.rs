@@ -206,7 +206,7 @@ impl SpeedTuning {
         self.right.validate()?;
         self.left.validate()?;
         let (lo, hi) = Self::BANDWIDTH_RANGE;
-        if !(self.bandwidth_radps.is_finite() && (lo..=hi).contains(&self.bandwidth_radps)) {
+        if !within(self.bandwidth_radps, lo, hi) {
             return Err(TuningError::Bandwidth);
         }
         if !(self.output_limit > 0.0 && self.output_limit <= 1.0) {
