@@ -52,7 +52,7 @@ use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::Direction;
 
 use crate::commands::paper::Format;
-use crate::sim::optiodom::{Kind, OptiRun, Session, read_session};
+use crate::sim::optiodom::{Kind, OptiRun, Session, TruthGaps, read_session};
 use crate::sim::plot::{Figure, Series, Style, write_svg};
 
 /// Arguments of `host-sim replay`.
@@ -760,6 +760,17 @@ fn print_text(
         "evaluated on {} (error = truth − odometry, means over runs)",
         ids(evals)
     );
+    let mut listed: Vec<&str> = Vec::new();
+    for s in calib.iter().chain(evals) {
+        let g = s.truth_gaps;
+        if g != TruthGaps::default() && !listed.contains(&s.id.as_str()) {
+            listed.push(&s.id);
+            println!(
+                "  {}: rows without ground truth (motion-capture dropouts): {} interpolated between their neighbours, {} cut from run ends",
+                s.id, g.interpolated, g.cut
+            );
+        }
+    }
     println!(
         "  {:<11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
         "method", "E_b", "E_d", "E_s", "sd E_b", "final mm", "head mrad", "rms mm", "max mm"

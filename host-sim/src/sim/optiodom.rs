@@ -5,7 +5,13 @@
 //! cycle; the ticks are per-cycle increments (the motion from the previous row). The reader turns
 //! them into cumulative knots, one knot per row, and expresses every ground-truth pose in the
 //! frame of the first one (the run's start frame: origin, heading +x), so that knot `j` and truth
-//! pose `j` belong together. For squares and circles the first `N/2` runs are CW, the rest CCW.
+//! pose `j` belong together. A square or circle run turns in the direction its wheels turned it
+//! (about ∓2π of odometry heading); the file order (the first `N/2` runs CW, the rest CCW) decides
+//! only for a run that turned less than half a turn.
+//! Rows whose ground truth the motion capture lost (the three fields empty or `NaN`) keep their
+//! ticks; inside a run their truth is interpolated in time between the neighbouring rows, at a run's
+//! ends they are cut (the run starts and ends at rows with ground truth), and `replay` says how many
+//! ([`TruthGaps`]). Any other unreadable value is an error naming file, line and field.
 //!
 //! The encoder resolution `ngear · encRes` is not an integer (43.7 · 64 = 2796.8 ticks per wheel
 //! revolution); [`Geometry::counts_per_rev`] is, so ticks and resolution are both multiplied by
@@ -38,6 +44,7 @@
 //! evaluation compares with the truth as recorded (the published protocol, so that its numbers
 //! can be reproduced from the files alone).
 
+use std::f64::consts::TAU;
 use std::fs;
 use std::path::Path;
 
@@ -153,7 +160,7 @@ pub const START_TRAVEL_M: f64 = 0.1;
 /// One recorded run.
 #[derive(Clone, Debug)]
 pub struct OptiRun {
-    /// Turn direction of a square or circle run (first half CW); `None` for other kinds.
+    /// Turn direction of a square or circle run (as its wheels turned it); `None` for other kinds.
     pub direction: Option<Direction>,
     /// Cumulative (scaled) ticks, one knot per row, first `(0, 0)`.
     pub knots: Vec<WheelTicks>,
@@ -183,6 +190,8 @@ pub struct Session {
     pub runs: Vec<OptiRun>,
     /// Heading offset of the ground truth, when it could be measured.
     pub truth_offset: Option<TruthOffset>,
+    /// Rows without ground truth (motion-capture dropouts), over all runs.
+    pub truth_gaps: TruthGaps,
 }
 
 fn parse_f64(s: &str, what: &str, file: &Path) -> Result<f64, String> {
@@ -291,45 +300,17 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
         0.0
     };
     let mut runs = Vec::with_capacity(n);
+    let mut truth_gaps = TruthGaps::default();
     for i in 0..n {
         let file = dir.join(format!("{id}_run-{:02}.csv", i + 1));
         let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-        let mut knots = Vec::new();
-        let mut world = Vec::new();
-        let mut total = WheelTicks::new(0, 0);
-        for (ln, line) in text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty())
-        {
-            let f: Vec<&str> = line.split(',').collect();
-            if f.len() < 6 {
-                return Err(format!("{}:{}: expected 6 fields", file.display(), ln + 1));
-            }
-            let v: Vec<f64> = f[..6]
-                .iter()
-                .map(|s| parse_f64(s, "value", &file))
-                .collect::<Result<_, _>>()?;
-            world.push(PoseF64::new(v[1], v[2], v[3]));
-            // The first row's ticks are the motion before the run started: not part of it.
-            if !knots.is_empty() {
-                let (dr, dl) = (v[4].round() as i64, v[5].round() as i64);
-                total =
-                    WheelTicks::new(total.right + dr * tick_scale, total.left + dl * tick_scale);
-            }
-            knots.push(total);
-        }
-        let start = *world
-            .first()
-            .ok_or_else(|| format!("{}: empty", file.display()))?;
-        if world.len() < 2 {
-            return Err(format!("{}: a run needs at least two rows", file.display()));
-        }
-        let truth: Vec<PoseF64> = world.iter().map(|w| start.relative(w)).collect();
-        let direction = matches!(kind, Kind::Square | Kind::Circular).then_some(if i < n / 2 {
-            Direction::Cw
-        } else {
-            Direction::Ccw
+        let (knots, truth) = read_run(&text, tick_scale, &file, &mut truth_gaps)?;
+        let direction = matches!(kind, Kind::Square | Kind::Circular).then(|| {
+            turn_direction(&knots, &nominal).unwrap_or(if i < n / 2 {
+                Direction::Cw
+            } else {
+                Direction::Ccw
+            })
         });
         runs.push(OptiRun::new(direction, knots, truth));
     }
@@ -350,7 +331,137 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
         side_m,
         runs,
         truth_offset,
+        truth_gaps,
     })
+}
+
+/// The direction a closed run (square, circle) turned in, from its wheels: the odometry heading
+/// turns by about −2π (CW) or +2π (CCW) over the run, far more than any calibration error changes;
+/// `None` below half a turn, where the file order decides.
+fn turn_direction(knots: &[WheelTicks], g: &Geometry) -> Option<Direction> {
+    let d = *knots.last()? - *knots.first()?;
+    let turn = (d.right as f64 * g.meters_per_tick_right()
+        - d.left as f64 * g.meters_per_tick_left())
+        / g.wheelbase_m;
+    (turn.abs() > std::f64::consts::PI).then_some(if turn < 0.0 {
+        Direction::Cw
+    } else {
+        Direction::Ccw
+    })
+}
+
+/// One row of a run file: time, ground truth (`None` where the motion capture lost the robot: the
+/// three fields empty or NaN), and the ticks of this cycle.
+fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), String> {
+    let f: Vec<&str> = line.split(',').map(str::trim).collect();
+    if f.len() < 6 {
+        return Err(format!("{at}: expected 6 fields, found {}", f.len()));
+    }
+    let value = |s: &str, what: &str| {
+        s.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{at}: bad {what} {s:?}"))
+    };
+    let lost = |s: &str| s.is_empty() || s.eq_ignore_ascii_case("nan");
+    let truth = if f[1..4].iter().all(|s| lost(s)) {
+        None
+    } else {
+        Some(PoseF64::new(
+            value(f[1], "x")?,
+            value(f[2], "y")?,
+            value(f[3], "heading")?,
+        ))
+    };
+    let ticks = |s: &str| value(s, "tick count").map(|v| v.round() as i64);
+    Ok((value(f[0], "time")?, truth, [ticks(f[4])?, ticks(f[5])?]))
+}
+
+/// Rows whose ground truth the motion capture lost, over a session's runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TruthGaps {
+    /// Rows inside a run, filled by interpolating between the neighbouring rows in time.
+    pub interpolated: usize,
+    /// Rows before the first or after the last row with ground truth: the run is cut to the rows
+    /// with ground truth at both ends (the ticks before its new start are motion before it).
+    pub cut: usize,
+}
+
+/// The cumulative knots and the ground truth in the start frame of one run file (`text`), one of
+/// each per row; rows without ground truth are counted in `gaps` (see [`TruthGaps`]).
+fn read_run(
+    text: &str,
+    tick_scale: i64,
+    file: &Path,
+    gaps: &mut TruthGaps,
+) -> Result<(Vec<WheelTicks>, Vec<PoseF64>), String> {
+    let mut times = Vec::new();
+    let mut world = Vec::new();
+    let mut knots = Vec::new();
+    let mut total = WheelTicks::new(0, 0);
+    for (ln, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let (t, pose, [dr, dl]) = read_row(line, &format!("{}:{}", file.display(), ln + 1))?;
+        // The first row's ticks are the motion before the run started: not part of it.
+        if !knots.is_empty() {
+            total = WheelTicks::new(total.right + dr * tick_scale, total.left + dl * tick_scale);
+        }
+        times.push(t);
+        world.push(pose);
+        knots.push(total);
+    }
+    let first = world.iter().position(Option::is_some);
+    let last = world.iter().rposition(Option::is_some);
+    let (first, last) = match (first, last) {
+        (Some(a), Some(b)) if b > a => (a, b),
+        _ => {
+            return Err(format!(
+                "{}: a run needs at least two rows with ground truth",
+                file.display()
+            ));
+        }
+    };
+    gaps.cut += world.len() - (last + 1 - first);
+    let origin = knots[first];
+    let knots: Vec<WheelTicks> = knots[first..=last].iter().map(|&k| k - origin).collect();
+    let mut filled = Vec::with_capacity(knots.len());
+    let mut prev = first;
+    for j in first..=last {
+        let pose = match world[j] {
+            Some(p) => {
+                prev = j;
+                p
+            }
+            None => {
+                gaps.interpolated += 1;
+                // `last` has ground truth, so a later row with it exists.
+                let next = (j + 1..=last).find(|&k| world[k].is_some()).unwrap_or(last);
+                let (a, b) = (
+                    world[prev].unwrap_or_default(),
+                    world[next].unwrap_or_default(),
+                );
+                let span = times[next] - times[prev];
+                let f = if span > 0.0 {
+                    (times[j] - times[prev]) / span
+                } else {
+                    (j - prev) as f64 / (next - prev) as f64
+                };
+                // The heading the short way round, whether the file unwraps it or not.
+                let turn = b.theta_rad - a.theta_rad;
+                let turn = turn - TAU * (turn / TAU).round();
+                PoseF64::new(
+                    a.x_m + f * (b.x_m - a.x_m),
+                    a.y_m + f * (b.y_m - a.y_m),
+                    a.theta_rad + f * turn,
+                )
+            }
+        };
+        filled.push(pose);
+    }
+    let start = filled[0];
+    Ok((knots, filled.iter().map(|w| start.relative(w)).collect()))
 }
 
 /// Mean absolute wheel travel between the two knots of `w` with `g`, metres.
@@ -658,6 +769,89 @@ mod tests {
         short.knots.truncate(4);
         short.truth.truncate(4);
         assert_eq!(short.start_heading_error(&g), None);
+    }
+
+    #[test]
+    fn motion_capture_dropouts_are_interpolated_inside_a_run_and_cut_at_its_ends() {
+        let file = Path::new("77_run-01.csv");
+        // A line along +x at 0.1 m/s (5 mm and 10 ticks per 50 ms row): the truth is lost in
+        // the first row, in rows 3–4 (empty fields) and 6 (NaN), and in the last row.
+        let lost = |i: i32| [0, 3, 4, 6, 9].contains(&i);
+        let rows: String = (0..10)
+            .map(|i| {
+                let t = f64::from(i) * 0.05;
+                if lost(i) {
+                    let gap = if i == 6 { "NaN,NaN,NaN" } else { ",," };
+                    format!("{t},{gap},10,10\n")
+                } else {
+                    format!("{t},{},0,0,10,10\n", f64::from(i) * 0.005)
+                }
+            })
+            .collect();
+        let mut gaps = TruthGaps::default();
+        let (knots, truth) = read_run(&rows, 1, file, &mut gaps).unwrap();
+        assert_eq!(
+            gaps,
+            TruthGaps {
+                interpolated: 3,
+                cut: 2
+            }
+        );
+        // The run starts at row 1: its ticks count from there, its truth is in that row's frame.
+        assert_eq!(knots.len(), 8);
+        assert_eq!(knots[0], WheelTicks::new(0, 0));
+        assert_eq!(knots[7], WheelTicks::new(70, 70));
+        // On a straight line at constant speed the interpolation is exact (to rounding).
+        for (j, p) in truth.iter().enumerate() {
+            assert!((p.x_m - j as f64 * 0.005).abs() < 1e-15, "{j}: {p:?}");
+            assert!(p.y_m == 0.0 && p.theta_rad == 0.0, "{j}: {p:?}");
+        }
+        // A run with fewer than two rows of truth cannot be placed: a clear error.
+        let err = read_run("0,,,,0,0\n0.05,1,0,0,3,3\n", 1, file, &mut gaps).unwrap_err();
+        assert!(err.contains("at least two rows with ground truth"), "{err}");
+        // A value that is neither a number nor a dropout names its file, line and field.
+        let err = read_run("0,0,0,0,0,0\n0.05,abc,0,0,3,3\n", 1, file, &mut gaps).unwrap_err();
+        assert!(err.contains("77_run-01.csv:2: bad x \"abc\""), "{err}");
+        let err = read_run("0,0,0,0,0,0\n0.05,0,0,0,,3\n", 1, file, &mut gaps).unwrap_err();
+        assert!(err.contains(":2: bad tick count"), "{err}");
+    }
+
+    #[test]
+    fn the_turn_direction_of_a_closed_run_is_read_from_its_wheels() {
+        let root = std::env::temp_dir().join(format!("odocal-turns-{}", std::process::id()));
+        let dir = root.join("circular").join("88");
+        fs::create_dir_all(&dir).unwrap();
+        fs::write(
+            dir.join("88_metadata.csv"),
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,3,,\n",
+        )
+        .unwrap();
+        // Full turns in place: each wheel rolls π·b = 0.628 m = 2.38 wheel turns = 6,658 raw
+        // ticks, in ten rows of ±666. The file order would make run 1 CW and runs 2–3 CCW; the
+        // wheels turned run 1 CCW (right forwards) and run 2 CW. Run 3 turns a quarter turn
+        // only, so the file order decides.
+        let turn = |right: i32, rows: i32| -> String {
+            (0..=rows)
+                .map(|i| {
+                    let k = if i == 0 { 0 } else { right };
+                    format!("{},0,0,0,{k},{}\n", f64::from(i) * 0.05, -k)
+                })
+                .collect()
+        };
+        fs::write(dir.join("88_run-01.csv"), turn(666, 10)).unwrap();
+        fs::write(dir.join("88_run-02.csv"), turn(-666, 10)).unwrap();
+        fs::write(dir.join("88_run-03.csv"), turn(-666, 3)).unwrap();
+        let s = read_session(&dir).unwrap();
+        fs::remove_dir_all(&root).unwrap();
+        let dirs: Vec<_> = s.runs.iter().map(|r| r.direction).collect();
+        assert_eq!(
+            dirs,
+            [
+                Some(Direction::Ccw),
+                Some(Direction::Cw),
+                Some(Direction::Ccw)
+            ]
+        );
     }
 
     #[test]
