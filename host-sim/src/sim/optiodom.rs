@@ -255,6 +255,14 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
             .ok_or_else(|| format!("{}: empty {key}", meta_path.display()))?;
         parse_f64(s, key, &meta_path)
     };
+    // Omnidirectional and other robots' sessions have other columns and another kinematics.
+    let kinematics = field("type").unwrap_or_default();
+    if let Some(t) = kinematics.first().filter(|t| t.as_str() != "diff") {
+        return Err(format!(
+            "{}: type {t:?} is not a differential-drive session (type diff)",
+            meta_path.display()
+        ));
+    }
     let resolution = first("ngear")? * first("encRes")?;
     let tick_scale = [1i64, 10, 100, 1000, 10_000]
         .into_iter()
@@ -851,6 +859,24 @@ mod tests {
                 Some(Direction::Cw),
                 Some(Direction::Ccw)
             ]
+        );
+    }
+
+    #[test]
+    fn a_session_of_another_kinematics_is_a_clear_error() {
+        let root = std::env::temp_dir().join(format!("odocal-omni-{}", std::process::id()));
+        let dir = root.join("square").join("99");
+        fs::create_dir_all(&dir).unwrap();
+        fs::write(
+            dir.join("99_metadata.csv"),
+            "type,omni3,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,1,,\nL,1,,\n",
+        )
+        .unwrap();
+        let err = read_session(&dir).unwrap_err();
+        fs::remove_dir_all(&root).unwrap();
+        assert!(
+            err.contains("type \"omni3\" is not a differential-drive session"),
+            "{err}"
         );
     }
 
