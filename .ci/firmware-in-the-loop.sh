@@ -28,9 +28,11 @@ command -v defmt-print >/dev/null || [ -x "$HOME/.cargo/bin/defmt-print" ] || {
     exit 1
 }
 
-OUT=target/fil
+# Cargo's output folder (CARGO_TARGET_DIR when set).
+TARGET=${CARGO_TARGET_DIR:-target}
+OUT=$TARGET/fil
 mkdir -p "$OUT"
-ELF=target/thumbv7em-none-eabihf/release/firmware
+ELF=$TARGET/thumbv7em-none-eabihf/release/firmware
 
 echo "== stage 1: the shipped ELF"
 t0=$(date +%s.%N)
@@ -56,14 +58,14 @@ cargo build --release --quiet --target thumbv7em-none-eabihf --bin firmware --fe
 cp "$ELF" "$OUT/firmware-emulator"
 cargo build --release --quiet -p host-sim
 python3 fil/closed_loop.py "$OUT/firmware-emulator" --workdir "$OUT" \
-    --host-sim target/release/host-sim | tee "$OUT/stage2.txt"
+    --host-sim "$TARGET/release/host-sim" | tee "$OUT/stage2.txt"
 t2=$(date +%s.%N)
 awk -v a="$t1" -v b="$t2" 'BEGIN { printf "stage 2 wall time: %.1f s\n", b - a }'
 
 echo "== stage 3: the guided console (cargo console) against the emulated firmware"
 cargo build --quiet -p odocal-console
 python3 fil/console_in_the_loop.py "$OUT/firmware-emulator" --workdir "$OUT" \
-    --console target/debug/odocal-console | tee "$OUT/stage3.txt"
+    --console "$TARGET/debug/odocal-console" | tee "$OUT/stage3.txt"
 # Leave the shipped ELF at cargo's path again (nothing is rebuilt).
 cargo fw --quiet
 t3=$(date +%s.%N)

@@ -15,7 +15,11 @@ if [ ! -d "$D" ]; then
   exit 2
 fi
 cargo build --release -q -p host-sim
-SIM=target/release/host-sim
+SIM=${CARGO_TARGET_DIR:-target}/release/host-sim
+if [ ! -x "$SIM" ]; then
+  echo "crossval: $SIM was not built (CARGO_TARGET_DIR is relative to the repository root)" >&2
+  exit 1
+fi
 OUT=$(mktemp -d)
 trap 'rm -rf "$OUT"' EXIT
 

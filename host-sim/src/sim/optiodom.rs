@@ -8,10 +8,11 @@
 //! pose `j` belong together. A square or circle run turns in the direction its wheels turned it
 //! (about ∓2π of odometry heading); the file order (the first `N/2` runs CW, the rest CCW) decides
 //! only for a run that turned less than half a turn.
-//! Rows whose ground truth the motion capture lost (the three fields empty or `NaN`) keep their
+//! Rows whose ground truth the motion capture lost (any of its fields empty or `NaN`) keep their
 //! ticks; inside a run their truth is interpolated in time between the neighbouring rows, at a run's
 //! ends they are cut (the run starts and ends at rows with ground truth), and `replay` says how many
-//! ([`TruthGaps`]). Any other unreadable value is an error naming file, line and field.
+//! ([`TruthGaps`]). Any other unreadable value is an error naming file, line and field, and so is
+//! a glitch: motion faster than [`MAX_ROW_SPEED_M_S`] between two rows.
 //!
 //! The encoder resolution `ngear · encRes` is not an integer (43.7 · 64 = 2796.8 ticks per wheel
 //! revolution); [`Geometry::counts_per_rev`] is, so ticks and resolution are both multiplied by
@@ -312,7 +313,7 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
     for i in 0..n {
         let file = dir.join(format!("{id}_run-{:02}.csv", i + 1));
         let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-        let (knots, truth) = read_run(&text, tick_scale, &file, &mut truth_gaps)?;
+        let (knots, truth) = read_run(&text, tick_scale, &nominal, &file, &mut truth_gaps)?;
         let direction = matches!(kind, Kind::Square | Kind::Circular).then(|| {
             turn_direction(&knots, &nominal).unwrap_or(if i < n / 2 {
                 Direction::Cw
@@ -358,8 +359,8 @@ fn turn_direction(knots: &[WheelTicks], g: &Geometry) -> Option<Direction> {
     })
 }
 
-/// One row of a run file: time, ground truth (`None` where the motion capture lost the robot: the
-/// three fields empty or NaN), and the ticks of this cycle.
+/// One row of a run file: time, ground truth (`None` where the motion capture lost the robot: any
+/// of its three fields empty or NaN), and the ticks of this cycle.
 fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), String> {
     let f: Vec<&str> = line.split(',').map(str::trim).collect();
     if f.len() < 6 {
@@ -372,7 +373,7 @@ fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), St
             .ok_or_else(|| format!("{at}: bad {what} {s:?}"))
     };
     let lost = |s: &str| s.is_empty() || s.eq_ignore_ascii_case("nan");
-    let truth = if f[1..4].iter().all(|s| lost(s)) {
+    let truth = if f[1..4].iter().any(|s| lost(s)) {
         None
     } else {
         Some(PoseF64::new(
@@ -383,6 +384,58 @@ fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), St
     };
     let ticks = |s: &str| value(s, "tick count").map(|v| v.round() as i64);
     Ok((value(f[0], "time")?, truth, [ticks(f[4])?, ticks(f[5])?]))
+}
+
+/// Fastest wheel or ground-truth motion a run may show between two rows, m/s: 40 times what the
+/// shared sessions' robot reaches (0.26 m/s); beyond it a row is a glitch, not motion.
+pub const MAX_ROW_SPEED_M_S: f64 = 10.0;
+
+/// Refuses a run in which a wheel or the ground truth moves faster than [`MAX_ROW_SPEED_M_S`]
+/// between two rows (an encoder or motion-capture glitch would silently distort every result). The
+/// row interval is the run's median, so that a bad time stamp does not hide a glitch or make one.
+fn check_speeds(
+    lines: &[usize],
+    times: &[f64],
+    world: &[Option<PoseF64>],
+    knots: &[WheelTicks],
+    g: &Geometry,
+    file: &Path,
+) -> Result<(), String> {
+    let mut steps: Vec<f64> = times.windows(2).map(|t| t[1] - t[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let Some(&dt) = steps.get(steps.len() / 2).filter(|&&dt| dt > 0.0) else {
+        return Ok(());
+    };
+    let at = |j: usize| format!("{}:{}", file.display(), lines[j]);
+    for j in 1..knots.len() {
+        let d = knots[j] - knots[j - 1];
+        let wheel = (d.right as f64 * g.meters_per_tick_right())
+            .abs()
+            .max((d.left as f64 * g.meters_per_tick_left()).abs());
+        if wheel > MAX_ROW_SPEED_M_S * dt {
+            return Err(format!(
+                "{}: a wheel travels {wheel:.3} m in one row ({:.0} m/s, over {MAX_ROW_SPEED_M_S} m/s): an encoder glitch",
+                at(j),
+                wheel / dt
+            ));
+        }
+    }
+    let mut prev: Option<(usize, PoseF64)> = None;
+    for (j, p) in world.iter().enumerate() {
+        let Some(p) = *p else { continue };
+        if let Some((i, q)) = prev {
+            let moved = (p.x_m - q.x_m).hypot(p.y_m - q.y_m);
+            if moved > MAX_ROW_SPEED_M_S * dt * (j - i) as f64 {
+                return Err(format!(
+                    "{}: the ground truth moves {moved:.3} m in {} row(s) (over {MAX_ROW_SPEED_M_S} m/s): a motion-capture glitch",
+                    at(j),
+                    j - i
+                ));
+            }
+        }
+        prev = Some((j, p));
+    }
+    Ok(())
 }
 
 /// Rows whose ground truth the motion capture lost, over a session's runs.
@@ -400,9 +453,11 @@ pub struct TruthGaps {
 fn read_run(
     text: &str,
     tick_scale: i64,
+    g: &Geometry,
     file: &Path,
     gaps: &mut TruthGaps,
 ) -> Result<(Vec<WheelTicks>, Vec<PoseF64>), String> {
+    let mut lines = Vec::new();
     let mut times = Vec::new();
     let mut world = Vec::new();
     let mut knots = Vec::new();
@@ -416,10 +471,12 @@ fn read_run(
         if !knots.is_empty() {
             total = WheelTicks::new(total.right + dr * tick_scale, total.left + dl * tick_scale);
         }
+        lines.push(ln + 1);
         times.push(t);
         world.push(pose);
         knots.push(total);
     }
+    check_speeds(&lines, &times, &world, &knots, g, file)?;
     let first = world.iter().position(Option::is_some);
     let last = world.iter().rposition(Option::is_some);
     let (first, last) = match (first, last) {
@@ -782,14 +839,15 @@ mod tests {
     #[test]
     fn motion_capture_dropouts_are_interpolated_inside_a_run_and_cut_at_its_ends() {
         let file = Path::new("77_run-01.csv");
-        // A line along +x at 0.1 m/s (5 mm and 10 ticks per 50 ms row): the truth is lost in
-        // the first row, in rows 3–4 (empty fields) and 6 (NaN), and in the last row.
+        let g = optiodom_robot();
+        // A line along +x at 0.1 m/s (5 mm per 50 ms row): the truth is lost in the first row,
+        // in rows 3–4 (empty fields) and 6 (NaN x only), and in the last row.
         let lost = |i: i32| [0, 3, 4, 6, 9].contains(&i);
         let rows: String = (0..10)
             .map(|i| {
                 let t = f64::from(i) * 0.05;
                 if lost(i) {
-                    let gap = if i == 6 { "NaN,NaN,NaN" } else { ",," };
+                    let gap = if i == 6 { "NaN,0,0" } else { ",," };
                     format!("{t},{gap},10,10\n")
                 } else {
                     format!("{t},{},0,0,10,10\n", f64::from(i) * 0.005)
@@ -797,7 +855,7 @@ mod tests {
             })
             .collect();
         let mut gaps = TruthGaps::default();
-        let (knots, truth) = read_run(&rows, 1, file, &mut gaps).unwrap();
+        let (knots, truth) = read_run(&rows, 1, &g, file, &mut gaps).unwrap();
         assert_eq!(
             gaps,
             TruthGaps {
@@ -815,13 +873,69 @@ mod tests {
             assert!(p.y_m == 0.0 && p.theta_rad == 0.0, "{j}: {p:?}");
         }
         // A run with fewer than two rows of truth cannot be placed: a clear error.
-        let err = read_run("0,,,,0,0\n0.05,1,0,0,3,3\n", 1, file, &mut gaps).unwrap_err();
+        let err = read_run("0,,,,0,0\n0.05,1,0,0,3,3\n", 1, &g, file, &mut gaps).unwrap_err();
         assert!(err.contains("at least two rows with ground truth"), "{err}");
         // A value that is neither a number nor a dropout names its file, line and field.
-        let err = read_run("0,0,0,0,0,0\n0.05,abc,0,0,3,3\n", 1, file, &mut gaps).unwrap_err();
+        let err = read_run("0,0,0,0,0,0\n0.05,abc,0,0,3,3\n", 1, &g, file, &mut gaps).unwrap_err();
         assert!(err.contains("77_run-01.csv:2: bad x \"abc\""), "{err}");
-        let err = read_run("0,0,0,0,0,0\n0.05,0,0,0,,3\n", 1, file, &mut gaps).unwrap_err();
+        let err = read_run("0,0,0,0,0,0\n0.05,0,0,0,,3\n", 1, &g, file, &mut gaps).unwrap_err();
         assert!(err.contains(":2: bad tick count"), "{err}");
+    }
+
+    /// The shared sessions' robot with the reader's scaled resolution (27,968 counts per turn).
+    fn optiodom_robot() -> Geometry {
+        Geometry {
+            diameter_right_m: 0.084,
+            diameter_left_m: 0.084,
+            wheelbase_m: 0.2,
+            counts_per_rev: 27_968,
+        }
+    }
+
+    #[test]
+    fn encoder_and_motion_capture_glitches_are_refused_with_their_line() {
+        let (g, file, mut gaps) = (
+            optiodom_robot(),
+            Path::new("5_run-01.csv"),
+            TruthGaps::default(),
+        );
+        // 0.1 m/s: 5 mm and 53 raw ticks (530 scaled, 9.4e-6 m each) per 50 ms row.
+        let run = |row3: &str| -> String {
+            (0..6)
+                .map(|i| {
+                    if i == 3 {
+                        format!("{row3}\n")
+                    } else {
+                        format!(
+                            "{},{},0,0,53,53\n",
+                            f64::from(i) * 0.05,
+                            f64::from(i) * 0.005
+                        )
+                    }
+                })
+                .collect()
+        };
+        assert!(read_run(&run("0.15,0.015,0,0,53,53"), 10, &g, file, &mut gaps).is_ok());
+        // A counter glitch: 99,999,999 raw ticks in 50 ms is 9.4 km of wheel travel.
+        let err =
+            read_run(&run("0.15,0.015,0,0,99999999,53"), 10, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:4: a wheel travels") && err.contains("encoder glitch"),
+            "{err}"
+        );
+        // 20 m/s is refused, 8 m/s is not (10 m/s: 0.5 m per row); the time column does not
+        // matter (the run's median interval is used).
+        let err = read_run(&run("0.15,0,0,0,10600,10600"), 10, &g, file, &mut gaps).unwrap_err();
+        assert!(err.contains("encoder glitch"), "{err}");
+        let fast = read_run(&run("0.15,0.015,0,0,4240,4240"), 10, &g, file, &mut gaps);
+        assert!(fast.is_ok(), "{fast:?}");
+        // The motion capture places the robot 1,000 km away for one row.
+        let err = read_run(&run("0.15,1e6,0,0,53,53"), 10, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:4: the ground truth moves")
+                && err.contains("motion-capture glitch"),
+            "{err}"
+        );
     }
 
     #[test]
