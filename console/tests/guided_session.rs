@@ -443,6 +443,13 @@ fn guided_session() {
         .collect();
     assert_eq!(runs_sent.len(), 9, "{runs_sent:?}");
     assert_eq!(runs_sent[0], "run ccw 1.5");
+    // The session leaves the board echoing, as a boot does.
+    let last_tx = entries
+        .iter()
+        .rev()
+        .find(|v| v["kind"] == "tx")
+        .map(line_of);
+    assert_eq!(last_tx.as_deref(), Some("echo on"));
     for kind in ["tx", "rx", "measure", "apply", "save", "verify"] {
         assert!(entries.iter().any(|v| v["kind"] == kind), "no {kind} entry");
     }
@@ -580,9 +587,10 @@ fn ctrl_c_stops_the_robot() {
     };
     let tx = lines("tx");
     let stop = tx.iter().position(|l| l == "^C").expect("stop key sent");
-    // After the stop, the pose stream is turned off again (a terminal opened next is quiet).
-    assert_eq!(tx.last().map(String::as_str), Some("stream off"), "{tx:#?}");
-    assert!(stop < tx.len() - 1, "{tx:#?}");
+    // After the stop, the pose stream is turned off and the echo on again: a terminal opened
+    // next is quiet and shows what is typed.
+    assert_eq!(tx[tx.len() - 2..], ["stream off", "echo on"], "{tx:#?}");
+    assert!(stop < tx.len() - 2, "{tx:#?}");
     let rx = lines("rx");
     assert!(rx.iter().any(|l| l == "event stopped (Ctrl-C)"), "{rx:#?}");
     assert!(

@@ -35,7 +35,7 @@ enum Command {
     Flash(host_sim::commands::flash::FlashArgs),
     /// Lee, Jung & Chung 2011 §3 simulation: ideal kinematics, every calibration method.
     Paper(host_sim::commands::paper::PaperArgs),
-    /// Calibrate on one OptiOdom session, evaluate on others.
+    /// Calibrate on OptiOdom sessions of any kind, evaluate any parameter set on others.
     Replay(host_sim::commands::replay::ReplayArgs),
     /// Paper-mode Monte Carlo with measurement and slip noise.
     Montecarlo(host_sim::commands::montecarlo::MonteCarloArgs),
@@ -57,8 +57,19 @@ enum Command {
     Sweep(host_sim::commands::sweep::SweepArgs),
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let cli = Cli::parse();
+/// Runs the command; an error is printed as the message it is (not as a debug string) and the
+/// exit status is 1.
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("host-sim: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     let Some(command) = cli.command else {
         return host_sim::commands::session::run(&cli.session);
     };

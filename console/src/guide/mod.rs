@@ -186,6 +186,11 @@ pub fn run(opts: &Options) -> Result<(), String> {
         // not flooded with it.
         let _ = g.link.command("stream off", REPLY);
     }
+    if !matches!(result, Err(Stop::Disconnected(_))) {
+        // The echo the handshake turned off, on again (as after a boot): a terminal opened on
+        // the port afterwards shows what is typed.
+        let _ = g.link.command("echo on", REPLY);
+    }
     let svg = g.plot();
     match result {
         Ok(()) => {
