@@ -468,11 +468,11 @@ impl Guide {
                     return Err(Stop::Failed(format!("drop all: {}", r.last)));
                 }
             } else {
-                return Err(Stop::Failed(
-                    "the board holds runs of another session (drop them or calibrate them \
-                     first)"
-                        .into(),
-                ));
+                return Err(Stop::Failed(format!(
+                    "the board's {stored} run(s) are kept; a new session starts from an empty \
+                     run store: calibrate them first (`calibrate` on a terminal, or \
+                     `cargo console --resume <log>` if this console drove them), or drop them"
+                )));
             }
         }
         Ok(())
