@@ -34,6 +34,8 @@ SCRIPT = [
     (b"SET Runs_Per_Direction 1\r\n", True),
     (b"set bogus 1\r\n", True),
     (b"set d_right abc\r\n", True),
+    (b"set wheelbase 0,385\r\n", True),
+    (b"set wheelbase 385mm\r\n", True),
     (b"set d_right nan\r\n", True),
     (b"set wheelbase 99\r\n", True),
     (b"set max_speed\r\n", True),

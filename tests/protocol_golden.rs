@@ -146,8 +146,19 @@ fn error_replies_are_exact() {
         ("measure 0.1", "err 2: missing argument <y_m>\r\n"),
         ("stop now", "err 3: too many arguments\r\n"),
         ("measure 0.1 0.2 3 4", "err 3: too many arguments\r\n"),
-        ("measure 0,1 0.2", "err 4: <x_m> is not a number\r\n"),
-        ("measure 0.1 0.2deg", "err 4: <y_m> is not a number\r\n"),
+        (
+            "measure 0,1 0.2",
+            "err 4: <x_m> is not a number (use a decimal point)\r\n",
+        ),
+        (
+            "measure 0.1 0.2deg",
+            "err 4: <y_m> is not a number (type the number alone: the unit is in its name)\r\n",
+        ),
+        (
+            "measure 41.8mm 39.5mm -0.04",
+            "err 4: <x_m> is not a number (type the number alone: the unit is in its name)\r\n",
+        ),
+        ("run cw abc", "err 4: <side_m> is not a number\r\n"),
         ("drop 1.5", "err 4: <n> is not a number\r\n"),
         ("drop -1", "err 4: <n> is not a number\r\n"),
         ("stream on 0x10", "err 4: <hz> is not a number\r\n"),
@@ -211,7 +222,7 @@ fn error_replies_are_exact() {
         ("odom zero", "err 7: <action> must be one of reset\r\n"),
         (
             "set color red",
-            "err 7: <name> must be one of a parameter listed by params\r\n",
+            "err 7: <name> must be one of the parameters listed by params\r\n",
         ),
         (
             "apply ex@ct",

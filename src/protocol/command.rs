@@ -172,6 +172,8 @@ pub enum ParseError {
     BadNumber {
         /// Name of the argument.
         what: &'static str,
+        /// What the word seems to hold besides a number.
+        hint: NumberHint,
     },
     /// A number is NaN or infinite (or overflows to infinity).
     NotFinite {
@@ -203,7 +205,14 @@ impl fmt::Display for ParseError {
             ParseError::UnknownCommand => f.write_str("unknown command (try help)"),
             ParseError::MissingArgument { what } => write!(f, "missing argument <{what}>"),
             ParseError::TooManyArguments => f.write_str("too many arguments"),
-            ParseError::BadNumber { what } => write!(f, "<{what}> is not a number"),
+            ParseError::BadNumber { what, hint } => {
+                write!(f, "<{what}> is not a number")?;
+                f.write_str(match hint {
+                    NumberHint::None => "",
+                    NumberHint::Unit => " (type the number alone: the unit is in its name)",
+                    NumberHint::Comma => " (use a decimal point)",
+                })
+            }
             ParseError::NotFinite { what } => write!(f, "<{what}> must be finite"),
             ParseError::OutOfRange { what, min, max } => {
                 write!(
@@ -244,10 +253,41 @@ impl<'a> Words<'a> {
     }
 }
 
+/// What a word that is not a number seems to hold besides one, for the reply's hint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum NumberHint {
+    /// Nothing recognisable.
+    None,
+    /// A number followed by a unit (`41.8mm`, `90deg`).
+    Unit,
+    /// A decimal comma (`0,25`).
+    Comma,
+}
+
+/// The error for `word`, which is not a number for `what`.
+#[inline(never)]
+fn bad_number(word: &str, what: &'static str) -> ParseError {
+    let b = word.as_bytes();
+    let starts_numeric = b
+        .first()
+        .is_some_and(|c| c.is_ascii_digit() || matches!(c, b'.' | b'-' | b'+'));
+    let hint = if !starts_numeric {
+        NumberHint::None
+    } else if b.contains(&b',') {
+        NumberHint::Comma
+    } else if b.last().is_some_and(u8::is_ascii_alphabetic) {
+        NumberHint::Unit
+    } else {
+        NumberHint::None
+    };
+    ParseError::BadNumber { what, hint }
+}
+
 /// Reads a finite `f64` within `[min, max]`.
 #[inline(never)]
 fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
-    let value = parse_f64(word).map_err(|_| ParseError::BadNumber { what })?;
+    let value = parse_f64(word).map_err(|_| bad_number(word, what))?;
     if !value.is_finite() {
         return Err(ParseError::NotFinite { what });
     }
@@ -260,7 +300,7 @@ fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, Par
 /// Reads a whole number within `[min, max]` (written without sign, fraction or exponent).
 fn whole(word: &str, what: &'static str, min: u32, max: u32) -> Result<u32, ParseError> {
     if word.is_empty() || !word.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(ParseError::BadNumber { what });
+        return Err(bad_number(word, what));
     }
     let out_of_range = ParseError::OutOfRange {
         what,
@@ -347,7 +387,7 @@ impl<'a> Command<'a> {
             let name_word = words.required("name")?;
             let name = ParamName::from_name(name_word).ok_or(ParseError::BadKeyword {
                 what: "name",
-                expected: "a parameter listed by params",
+                expected: "the parameters listed by params",
             })?;
             let value_word = words.required("value")?;
             let (min, max) = name.range();
