@@ -557,7 +557,7 @@ impl Guide {
         let same = (0..common).all(|i| self.slots[logged[i]].record.as_ref() == Some(&board[i].0));
         if same && stored >= logged.len() {
             self.board = logged;
-            if stored > 0 {
+            if common > 0 {
                 self.ui.say(&format!(
                     "the board still holds the {} logged run(s): continuing on the board",
                     common

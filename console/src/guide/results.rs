@@ -157,7 +157,8 @@ impl Guide {
                 break m.clone();
             }
             let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
-            self.ui.say(&format!("  one of {}", names.join(", ")));
+            self.ui
+                .say(&format!("  one of {}, or none", names.join(", ")));
         };
         if !self.board_has_all() {
             self.ui.warn(&format!(
