@@ -163,8 +163,13 @@ pub fn run(opts: &Options) -> Result<(), String> {
     );
     let mut ui = Ui::new(answers, opts.yes);
     ui.say(&format!("odocal console: board on {port}"));
+    let mut link = Link::open(port, log).inspect_err(|_| {
+        // A port that cannot be opened leaves no new log behind (a resumed one is kept).
+        if resumed.is_none() {
+            let _ = std::fs::remove_file(&log_path);
+        }
+    })?;
     ui.say(&format!("session log: {}", log_path.display()));
-    let mut link = Link::open(port, log)?;
     let version = link.handshake()?;
     ui.say(&format!("board: {version}"));
     let mut g = Guide {
