@@ -629,17 +629,26 @@ impl OptiRun {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
+
+    /// A session folder `<temp>/odocal-<tag>-<pid>/<kind>/<id>` holding `metadata` as its
+    /// metadata file: (the folder to remove afterwards, the session folder).
+    fn session_folder(tag: &str, kind: &str, id: &str, metadata: &str) -> (PathBuf, PathBuf) {
+        let root = std::env::temp_dir().join(format!("odocal-{tag}-{}", std::process::id()));
+        let dir = root.join(kind).join(id);
+        fs::create_dir_all(&dir).unwrap();
+        fs::write(dir.join(format!("{id}_metadata.csv")), metadata).unwrap();
+        (root, dir)
+    }
 
     #[test]
     fn reads_a_session_and_moves_truth_into_the_start_frame() {
-        let root = std::env::temp_dir().join(format!("odocal-optiodom-{}", std::process::id()));
-        let dir = root.join("square").join("1234");
-        fs::create_dir_all(&dir).unwrap();
-        fs::write(
-            dir.join("1234_metadata.csv"),
+        let (root, dir) = session_folder(
+            "optiodom",
+            "square",
+            "1234",
             "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,2,,\nL,0.75,,\n",
-        )
-        .unwrap();
+        );
         // Start at (1, 2) heading +y; the robot ends 1 m ahead (world (1, 3)), heading −x.
         let run = "0,1,2,1.5707963267948966,0,0\n0.05,1,2.5,1.5707963267948966,3,4\n0.1,1,3,3.141592653589793,-2,5\n";
         fs::write(dir.join("1234_run-01.csv"), run).unwrap();
@@ -761,14 +770,12 @@ mod tests {
 
     #[test]
     fn the_aligned_truth_is_the_robot_start_frame() {
-        let root = std::env::temp_dir().join(format!("odocal-align-{}", std::process::id()));
-        let dir = root.join("ivanjko").join("77");
-        fs::create_dir_all(&dir).unwrap();
-        fs::write(
-            dir.join("77_metadata.csv"),
+        let (root, dir) = session_folder(
+            "align",
+            "ivanjko",
+            "77",
             "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,1,,\n",
-        )
-        .unwrap();
+        );
         // A straight line of 2 m along +x in the world, 0.2 m/s, recorded with a heading 10 mrad
         // short of the direction of motion.
         let rows: String = (0..=200)
@@ -940,14 +947,12 @@ mod tests {
 
     #[test]
     fn the_turn_direction_of_a_closed_run_is_read_from_its_wheels() {
-        let root = std::env::temp_dir().join(format!("odocal-turns-{}", std::process::id()));
-        let dir = root.join("circular").join("88");
-        fs::create_dir_all(&dir).unwrap();
-        fs::write(
-            dir.join("88_metadata.csv"),
+        let (root, dir) = session_folder(
+            "turns",
+            "circular",
+            "88",
             "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,3,,\n",
-        )
-        .unwrap();
+        );
         // Full turns in place: each wheel rolls π·b = 0.628 m = 2.38 wheel turns = 6,658 raw
         // ticks, in ten rows of ±666. The file order would make run 1 CW and runs 2–3 CCW; the
         // wheels turned run 1 CCW (right forwards) and run 2 CW. Run 3 turns a quarter turn
@@ -978,14 +983,12 @@ mod tests {
 
     #[test]
     fn a_session_of_another_kinematics_is_a_clear_error() {
-        let root = std::env::temp_dir().join(format!("odocal-omni-{}", std::process::id()));
-        let dir = root.join("square").join("99");
-        fs::create_dir_all(&dir).unwrap();
-        fs::write(
-            dir.join("99_metadata.csv"),
+        let (root, dir) = session_folder(
+            "omni",
+            "square",
+            "99",
             "type,omni3,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,1,,\nL,1,,\n",
-        )
-        .unwrap();
+        );
         let err = read_session(&dir).unwrap_err();
         fs::remove_dir_all(&root).unwrap();
         assert!(
