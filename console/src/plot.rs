@@ -56,6 +56,51 @@ impl Frame {
             self.top + PANEL - (y - self.min.1) * self.scale,
         )
     }
+
+    /// Light grid lines at round values (1, 2 or 5 times a power of ten, three to eight per axis),
+    /// labelled inside the panel's left and bottom edges, so that the plot can be read.
+    fn grid(&self, s: &mut String) {
+        let span = PANEL / self.scale;
+        let raw = span / 4.0;
+        let power = 10f64.powf(raw.log10().floor());
+        let step = power
+            * match raw / power {
+                m if m < 1.5 => 1.0,
+                m if m < 3.5 => 2.0,
+                m if m < 7.5 => 5.0,
+                _ => 10.0,
+            };
+        let decimals = (-step.log10().floor()).max(0.0) as usize;
+        let (right, bottom) = (self.left + PANEL, self.top + PANEL);
+        for axis in 0..2 {
+            let min = if axis == 0 { self.min.0 } else { self.min.1 };
+            let mut k = (min / step).ceil();
+            while k * step <= min + span {
+                let v = k * step;
+                // `+ 0.0` turns −0 into 0 for the label.
+                let label = format!("{:.decimals$}", v + 0.0);
+                if axis == 0 {
+                    let (x, _) = self.at((v, self.min.1));
+                    let _ = writeln!(
+                        s,
+                        r##"<line x1="{x:.1}" y1="{}" x2="{x:.1}" y2="{bottom}" stroke="#eee"/><text x="{x:.1}" y="{}" font-size="10" fill="#666" text-anchor="middle">{label}</text>"##,
+                        self.top,
+                        bottom - 3.0
+                    );
+                } else {
+                    let (_, y) = self.at((self.min.0, v));
+                    let _ = writeln!(
+                        s,
+                        r##"<line x1="{}" y1="{y:.1}" x2="{right}" y2="{y:.1}" stroke="#eee"/><text x="{}" y="{:.1}" font-size="10" fill="#666">{label}</text>"##,
+                        self.left,
+                        self.left + 3.0,
+                        y - 2.0
+                    );
+                }
+                k += 1.0;
+            }
+        }
+    }
 }
 
 fn colour(r: &RunRecord) -> &'static str {
@@ -80,6 +125,7 @@ pub fn svg(runs: &[PlotRun<'_>], calibrated: Option<&Geometry>, title: &str) -> 
 
     let all: Vec<(f64, f64)> = runs.iter().flat_map(|r| r.path.iter().copied()).collect();
     let f = Frame::new(30.0, 40.0, &all);
+    f.grid(&mut s);
     let _ = writeln!(
         s,
         r##"<rect x="30" y="40" width="{PANEL}" height="{PANEL}" fill="none" stroke="#999"/><text x="30" y="{}">odometry paths (pose stream), m; red CW, blue CCW</text>"##,
@@ -126,6 +172,7 @@ pub fn svg(runs: &[PlotRun<'_>], calibrated: Option<&Geometry>, title: &str) -> 
     pts.push((0.0, 0.0));
     let left = 30.0 + PANEL + 40.0;
     let e = Frame::new(left, 40.0, &pts);
+    e.grid(&mut s);
     let _ = writeln!(
         s,
         r##"<rect x="{left}" y="40" width="{PANEL}" height="{PANEL}" fill="none" stroke="#999"/><text x="{left}" y="{}">end error, mm: open = measured - odometry, filled = after calibration</text>"##,
@@ -151,4 +198,37 @@ pub fn svg(runs: &[PlotRun<'_>], calibrated: Option<&Geometry>, title: &str) -> 
     }
     s.push_str("</svg>\n");
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The labels of the grid lines, in drawing order (x axis, then y axis).
+    fn labels(svg: &str) -> Vec<&str> {
+        svg.split("fill=\"#666\"")
+            .skip(1)
+            .filter_map(|t| t.split('>').nth(1)?.split('<').next())
+            .collect()
+    }
+
+    #[test]
+    fn grid_lines_sit_at_round_values_across_the_panel() {
+        // Points spanning 2 m by 1 m: the panel shows 2.2 m around (1, 0.5); steps of 0.5 m.
+        let f = Frame::new(0.0, 0.0, &[(0.0, 0.0), (2.0, 1.0)]);
+        let mut s = String::new();
+        f.grid(&mut s);
+        assert_eq!(
+            labels(&s),
+            [
+                "0.0", "0.5", "1.0", "1.5", "2.0", "-0.5", "0.0", "0.5", "1.0", "1.5"
+            ]
+        );
+        // Millimetres of end error from −3 to 12 (the panel −3.75 to 12.75): steps of 5, no
+        // decimals.
+        let e = Frame::new(0.0, 0.0, &[(-3.0, -3.0), (12.0, 12.0)]);
+        let mut s = String::new();
+        e.grid(&mut s);
+        assert_eq!(labels(&s), ["0", "5", "10", "0", "5", "10"]);
+    }
 }
