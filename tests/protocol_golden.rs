@@ -199,15 +199,20 @@ fn error_replies_are_exact() {
         ("drop 99999999999", "err 6: <n> must be within 1..12\r\n"),
         (
             "set wheelbase 0",
-            "err 6: <value> must be within 0.01..5\r\n",
+            "err 6: <value> must be within 0.01..5 m\r\n",
+        ),
+        // Millimetres typed for metres: the range names the unit.
+        (
+            "set wheelbase 385",
+            "err 6: <value> must be within 0.01..5 m\r\n",
         ),
         (
             "set d_right -0.15",
-            "err 6: <value> must be within 0.001..2\r\n",
+            "err 6: <value> must be within 0.001..2 m\r\n",
         ),
         (
             "set runs_per_direction 7",
-            "err 6: <value> must be within 1..6\r\n",
+            "err 6: <value> must be within 1..6 runs\r\n",
         ),
         ("measure #0 0 0", "err 6: <n> must be within 1..12\r\n"),
         ("measure #13 0 0", "err 6: <n> must be within 1..12\r\n"),

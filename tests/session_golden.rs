@@ -450,7 +450,7 @@ fn set_golden_and_pushes_to_the_robot() {
     // Out-of-range values never reach the settings.
     assert_eq!(
         b.send("set max_speed 2.01"),
-        "err 6: <value> must be within 0.01..2\r\n"
+        "err 6: <value> must be within 0.01..2 m/s\r\n"
     );
     assert_eq!(b.session.settings().motion.max_speed_mps, 0.5);
     // Busy robot: the change is refused and not kept.
@@ -478,7 +478,7 @@ fn control_rate_is_set_validated_pushed_and_saved() {
     assert_eq!(b.send("set control_hz 2500"), rule);
     assert_eq!(
         b.send("set control_hz 20000"),
-        "err 6: <value> must be within 1000..10000\r\n"
+        "err 6: <value> must be within 1000..10000 Hz\r\n"
     );
     assert!(b.send("set control_hz 1000.5").starts_with("err "));
     assert_eq!(b.robot.rate_hz, Some(10_000));

@@ -188,6 +188,8 @@ pub enum ParseError {
         min: f64,
         /// Largest accepted value.
         max: f64,
+        /// Unit of the range, shown after it (`""` where the argument's name carries it).
+        unit: &'static str,
     },
     /// A keyword argument is not one of the accepted words.
     BadKeyword {
@@ -214,13 +216,22 @@ impl fmt::Display for ParseError {
                 })
             }
             ParseError::NotFinite { what } => write!(f, "<{what}> must be finite"),
-            ParseError::OutOfRange { what, min, max } => {
+            ParseError::OutOfRange {
+                what,
+                min,
+                max,
+                unit,
+            } => {
                 write!(
                     f,
                     "<{what}> must be within {}..{}",
                     Plain(*min),
                     Plain(*max)
-                )
+                )?;
+                if !unit.is_empty() {
+                    write!(f, " {unit}")?;
+                }
+                Ok(())
             }
             ParseError::BadKeyword { what, expected } => {
                 write!(f, "<{what}> must be one of {expected}")
@@ -292,7 +303,12 @@ fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, Par
         return Err(ParseError::NotFinite { what });
     }
     if !(min..=max).contains(&value) {
-        return Err(ParseError::OutOfRange { what, min, max });
+        return Err(ParseError::OutOfRange {
+            what,
+            min,
+            max,
+            unit: "",
+        });
     }
     Ok(value)
 }
@@ -306,6 +322,7 @@ fn whole(word: &str, what: &'static str, min: u32, max: u32) -> Result<u32, Pars
         what,
         min: f64::from(min),
         max: f64::from(max),
+        unit: "",
     };
     // All digits: the only possible parse failure is overflow, which is out of range.
     let value: u32 = word.parse().map_err(|_| out_of_range)?;
@@ -392,13 +409,23 @@ impl<'a> Command<'a> {
             let value_word = words.required("value")?;
             let (min, max) = name.range();
             let value = if name.is_sign() {
-                sign(value_word)?
+                sign(value_word)
             } else if name.is_integer() {
                 // Integer ranges are small enough to be exact in f64 and u32.
-                f64::from(whole(value_word, "value", min as u32, max as u32)?)
+                whole(value_word, "value", min as u32, max as u32).map(f64::from)
             } else {
-                number(value_word, "value", min, max)?
-            };
+                number(value_word, "value", min, max)
+            }
+            // `<value>` does not say its unit; the range does (`0.01..5 m` for 385 typed in mm).
+            .map_err(|e| match e {
+                ParseError::OutOfRange { what, min, max, .. } => ParseError::OutOfRange {
+                    what,
+                    min,
+                    max,
+                    unit: name.unit(),
+                },
+                e => e,
+            })?;
             Command::Set { name, value }
         } else if is("run") {
             let direction = direction(words.required("direction")?)?;
