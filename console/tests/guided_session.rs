@@ -730,3 +730,94 @@ fn disconnect_is_reported_and_the_log_keeps_the_runs() {
             .any(|v| v["kind"] == "note" && v["what"] == "disconnect")
     );
 }
+
+/// The operator types run 3's y with the wrong sign; `calibrate` flags the run, and the
+/// operator chooses to measure it again instead of driving it again: the board replaces the
+/// measurement (`measure #3`), the calibration is computed again, and the session ends applied
+/// with ten runs driven, not eleven. The log holds both records of the run's slot; a reader
+/// (`--resume`, `recalibrate`) keeps the newer.
+#[test]
+fn a_flagged_run_is_measured_again_instead_of_driven_again() {
+    let sim = Sim::start(&host_sim());
+    let dir = out_dir("remeasure");
+    let log = dir.join("session.jsonl");
+    let answers = dir.join("answers.txt");
+    // The plan (L = 1.5 m, 5 + 5); every other question is answered on stdin below.
+    std::fs::write(&answers, "150cm\n5\n").unwrap();
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+    ]);
+    let (mut measured, mut again, mut asked) = (0, false, 0);
+    while let Some(l) = tool.next() {
+        // A question waiting for an answer ends with its colon (one answered from the file
+        // shows the answer after it).
+        let waiting = l.starts_with("? ") && l.trim_end().ends_with(':');
+        if l == "  waiting for the button (short press)" {
+            sim.press_button();
+        } else if !waiting {
+            continue;
+        } else if l.starts_with("? Measured end pose of run") {
+            if again {
+                // The run's true pose this time (it was the third measured).
+                let pose = sim.true_end(2);
+                tool.answer(&pose);
+                again = false;
+                continue;
+            }
+            let pose = sim.true_end(measured);
+            measured += 1;
+            if measured == 3 {
+                // y typed with the wrong sign (it is positive to the left).
+                let mut w: Vec<String> = pose.split_whitespace().map(str::to_string).collect();
+                w[1] = match w[1].strip_prefix('-') {
+                    Some(v) => v.to_string(),
+                    None => format!("-{}", w[1]),
+                };
+                tool.answer(&w.join(" "));
+            } else {
+                tool.answer(&pose);
+            }
+        } else if l.starts_with("? Run 3 disagrees with the others: [m]easure it again") {
+            asked += 1;
+            tool.answer("m");
+            again = true;
+        } else {
+            // Every other question: its default (start the run, apply the recommended method,
+            // save).
+            tool.answer("");
+        }
+    }
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert_eq!(asked, 1, "{text}");
+    assert_eq!(measured, 10, "{text}");
+    assert!(text.contains("measured (replaced x="), "{text}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
+    let entries = json_lines(&log);
+    let runs_sent = entries
+        .iter()
+        .filter(|v| v["kind"] == "tx" && v["line"].as_str().unwrap_or("").starts_with("run "))
+        .count();
+    assert_eq!(runs_sent, 10);
+    let slot_2: Vec<&serde_json::Value> = entries
+        .iter()
+        .filter(|v| v["kind"] == "run" && v["slot"] == 2)
+        .collect();
+    assert_eq!(slot_2.len(), 2, "both records of the run's slot are logged");
+    assert!(entries.iter().all(|v| v["kind"] != "drop"));
+    // Offline from the log (the newer record of slot 2): the board's second table, line for
+    // line.
+    let logged = tables(&entries);
+    assert_eq!(logged.len(), 2);
+    assert_eq!(&recalibrate(&log, None), &logged[1].1);
+    assert_ne!(logged[0].1, logged[1].1);
+    println!("{text}");
+}

@@ -334,7 +334,7 @@ impl Guide {
         loop {
             self.drive_missing_runs()?;
             let table = self.calibrate()?;
-            if !self.offer_redrive(&table)? {
+            if !self.review_flagged_runs(&table)? {
                 self.apply_save_verify(&table)?;
                 break;
             }

@@ -80,8 +80,10 @@ impl Guide {
         }
     }
 
-    /// Offers to drive again each run the robust fit flagged; returns whether any was dropped.
-    pub(super) fn offer_redrive(&mut self, table: &[String]) -> Result<bool, Stop> {
+    /// For each run the robust fit flagged, offers to measure it again (a typing mistake: x and y
+    /// swapped, a sign) or to drop it and drive it again; returns whether any run changed, so
+    /// that the calibration is computed again.
+    pub(super) fn review_flagged_runs(&mut self, table: &[String]) -> Result<bool, Stop> {
         let flagged: Vec<usize> = table
             .iter()
             .find_map(|l| l.strip_prefix("check run"))
@@ -94,33 +96,69 @@ impl Guide {
                     .collect()
             })
             .unwrap_or_default();
-        let mut dropped = false;
+        let mut changed = false;
         // Highest first, so the board's numbers of the others stay valid.
         for &n in flagged.iter().rev() {
-            if !self.ui.confirm(
-                &format!("Run {n} disagrees with the others: drop it and drive it again"),
-                true,
-            )? {
-                continue;
-            }
             let live: Vec<usize> = (0..self.slots.len())
                 .filter(|&i| self.slots[i].record.is_some())
                 .collect();
             let Some(&slot) = live.get(n - 1) else {
                 continue;
             };
-            if self.board_has_all() {
-                let r = self.cmd(&format!("drop {n}"))?;
-                if !r.ok() {
-                    return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+            // Measuring again needs the run on the board (`measure #n`).
+            let on_board = self.board_has_all();
+            let question = if on_board {
+                format!(
+                    "Run {n} disagrees with the others: [m]easure it again (a typing mistake), \
+                     [d]rop it and drive it again, or [k]eep it"
+                )
+            } else {
+                format!(
+                    "Run {n} disagrees with the others: [d]rop it and drive it again, or [k]eep it"
+                )
+            };
+            let choice = loop {
+                let a = self.ui.ask(&question, Some("d"))?.to_ascii_lowercase();
+                match a.as_str() {
+                    "m" | "measure" if on_board => break 'm',
+                    "d" | "drop" => break 'd',
+                    "k" | "keep" => break 'k',
+                    _ => self
+                        .ui
+                        .say(if on_board { "  m, d or k" } else { "  d or k" }),
                 }
-                self.board.retain(|&s| s != slot);
+            };
+            match choice {
+                'm' => {
+                    let Some(old) = self.slots[slot].record.clone() else {
+                        continue;
+                    };
+                    let (record, lines) = self.send_measurement(n, &old)?;
+                    let path = self.slots[slot].path.clone();
+                    // The same slot again: a log reader keeps the newer record.
+                    self.link.log.entry(
+                        "run",
+                        json!({ "slot": slot, "board": n, "record": lines, "path": path }),
+                        true,
+                    );
+                    self.slots[slot].record = Some(record);
+                }
+                'd' => {
+                    if on_board {
+                        let r = self.cmd(&format!("drop {n}"))?;
+                        if !r.ok() {
+                            return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+                        }
+                        self.board.retain(|&s| s != slot);
+                    }
+                    self.slots[slot].record = None;
+                    self.link.log.entry("drop", json!({ "slot": slot }), true);
+                }
+                _ => continue,
             }
-            self.slots[slot].record = None;
-            self.link.log.entry("drop", json!({ "slot": slot }), true);
-            dropped = true;
+            changed = true;
         }
-        Ok(dropped)
+        Ok(changed)
     }
 
     pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<(), Stop> {

@@ -231,6 +231,18 @@ impl Guide {
         record: &RunRecord,
         path: Vec<(f64, f64)>,
     ) -> Result<(), Stop> {
+        let (record, lines) = self.send_measurement(n, record)?;
+        self.adopt(n, record, lines, path);
+        Ok(())
+    }
+
+    /// Asks for board run `n`'s measured end pose until the board takes it (`measure #n …`,
+    /// which also replaces an earlier measurement); the run's record as the board now holds it.
+    pub(super) fn send_measurement(
+        &mut self,
+        n: usize,
+        record: &RunRecord,
+    ) -> Result<(RunRecord, Vec<String>), Stop> {
         let line = loop {
             let a = self.ui.ask(
                 &format!(
@@ -282,12 +294,10 @@ impl Guide {
         );
         if !r.ok() {
             self.ui.warn(&format!("the board refused it: {}", r.last));
-            return self.measure(n, record, path);
+            return self.send_measurement(n, record);
         }
         self.ui.say(&format!("  {}", r.last));
-        let (record, lines) = self.fetch_record(n)?;
-        self.adopt(n, record, lines, path);
-        Ok(())
+        self.fetch_record(n)
     }
 
     /// Logs board run `n`'s record as the session's next slot.
