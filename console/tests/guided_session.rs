@@ -341,20 +341,28 @@ fn out_dir(name: &str) -> PathBuf {
 /// The tool on `sim`'s port with its session log in a fresh `out_dir(name)`, the plan's answers
 /// from `answers` (an answers file) and `--yes` for the rest; returns it and the log's path.
 fn tool_answering(sim: &Sim, name: &str, answers: &str) -> (Tool, PathBuf) {
+    tool_with_answers(sim, name, answers, true)
+}
+
+/// The tool with its first answers from a file; then, with `yes`, every default (`--yes`),
+/// without it, whatever the test types on its stdin.
+fn tool_with_answers(sim: &Sim, name: &str, answers: &str, yes: bool) -> (Tool, PathBuf) {
     let dir = out_dir(name);
     let log = dir.join("session.jsonl");
     let file = dir.join("answers.txt");
     std::fs::write(&file, answers).unwrap();
-    let tool = Tool::start(&[
+    let mut args = vec![
         "--port",
         &sim.pty,
         "--log",
         log.to_str().unwrap(),
         "--answers",
         file.to_str().unwrap(),
-        "--yes",
-    ]);
-    (tool, log)
+    ];
+    if yes {
+        args.push("--yes");
+    }
+    (Tool::start(&args), log)
 }
 
 /// A session on a new simulated board whose tool is killed when it announces run 4 (three runs
@@ -739,19 +747,8 @@ fn disconnect_is_reported_and_the_log_keeps_the_runs() {
 #[test]
 fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     let sim = Sim::start(&host_sim());
-    let dir = out_dir("remeasure");
-    let log = dir.join("session.jsonl");
-    let answers = dir.join("answers.txt");
     // The plan (L = 1.5 m, 5 + 5); every other question is answered on stdin below.
-    std::fs::write(&answers, "150cm\n5\n").unwrap();
-    let mut tool = Tool::start(&[
-        "--port",
-        &sim.pty,
-        "--log",
-        log.to_str().unwrap(),
-        "--answers",
-        answers.to_str().unwrap(),
-    ]);
+    let (mut tool, log) = tool_with_answers(&sim, "remeasure", "150cm\n5\n", false);
     let (mut measured, mut again, mut asked) = (0, false, 0);
     while let Some(l) = tool.next() {
         // A question waiting for an answer ends with its colon (one answered from the file
