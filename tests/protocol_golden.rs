@@ -152,11 +152,11 @@ fn error_replies_are_exact() {
         ),
         (
             "measure 0.1 0.2deg",
-            "err 4: <y_m> is not a number (type the number alone: the unit is in its name)\r\n",
+            "err 4: <y_m> is not a number (type the number alone, without a unit)\r\n",
         ),
         (
             "measure 41.8mm 39.5mm -0.04",
-            "err 4: <x_m> is not a number (type the number alone: the unit is in its name)\r\n",
+            "err 4: <x_m> is not a number (type the number alone, without a unit)\r\n",
         ),
         ("run cw abc", "err 4: <side_m> is not a number\r\n"),
         ("drop 1.5", "err 4: <n> is not a number\r\n"),

@@ -211,7 +211,7 @@ impl fmt::Display for ParseError {
                 write!(f, "<{what}> is not a number")?;
                 f.write_str(match hint {
                     NumberHint::None => "",
-                    NumberHint::Unit => " (type the number alone: the unit is in its name)",
+                    NumberHint::Unit => " (type the number alone, without a unit)",
                     NumberHint::Comma => " (use a decimal point)",
                 })
             }
