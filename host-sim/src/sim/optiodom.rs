@@ -348,10 +348,8 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
 /// turns by about −2π (CW) or +2π (CCW) over the run, far more than any calibration error changes;
 /// `None` below half a turn, where the file order decides.
 fn turn_direction(knots: &[WheelTicks], g: &Geometry) -> Option<Direction> {
-    let d = *knots.last()? - *knots.first()?;
-    let turn = (d.right as f64 * g.meters_per_tick_right()
-        - d.left as f64 * g.meters_per_tick_left())
-        / g.wheelbase_m;
+    let (right, left) = wheel_travel(*knots.last()? - *knots.first()?, g);
+    let turn = (right - left) / g.wheelbase_m;
     (turn.abs() > std::f64::consts::PI).then_some(if turn < 0.0 {
         Direction::Cw
     } else {
@@ -408,10 +406,8 @@ fn check_speeds(
     };
     let at = |j: usize| format!("{}:{}", file.display(), lines[j]);
     for j in 1..knots.len() {
-        let d = knots[j] - knots[j - 1];
-        let wheel = (d.right as f64 * g.meters_per_tick_right())
-            .abs()
-            .max((d.left as f64 * g.meters_per_tick_left()).abs());
+        let (right, left) = wheel_travel(knots[j] - knots[j - 1], g);
+        let wheel = right.abs().max(left.abs());
         if wheel > MAX_ROW_SPEED_M_S * dt {
             return Err(format!(
                 "{}: a wheel travels {wheel:.3} m in one row ({:.0} m/s, over {MAX_ROW_SPEED_M_S} m/s): an encoder glitch",
@@ -477,63 +473,61 @@ fn read_run(
         knots.push(total);
     }
     check_speeds(&lines, &times, &world, &knots, g, file)?;
-    let first = world.iter().position(Option::is_some);
-    let last = world.iter().rposition(Option::is_some);
-    let (first, last) = match (first, last) {
-        (Some(a), Some(b)) if b > a => (a, b),
-        _ => {
-            return Err(format!(
-                "{}: a run needs at least two rows with ground truth",
-                file.display()
-            ));
-        }
-    };
+    // The rows with ground truth; the run is cut to the first and last of them.
+    let known: Vec<(usize, PoseF64)> = world
+        .iter()
+        .enumerate()
+        .filter_map(|(j, p)| p.map(|p| (j, p)))
+        .collect();
+    if known.len() < 2 {
+        return Err(format!(
+            "{}: a run needs at least two rows with ground truth",
+            file.display()
+        ));
+    }
+    let ((first, start), (last, _)) = (known[0], known[known.len() - 1]);
     gaps.cut += world.len() - (last + 1 - first);
     let origin = knots[first];
     let knots: Vec<WheelTicks> = knots[first..=last].iter().map(|&k| k - origin).collect();
+    // Rows between two with ground truth: interpolated in time between them.
     let mut filled = Vec::with_capacity(knots.len());
-    let mut prev = first;
-    for j in first..=last {
-        let pose = match world[j] {
-            Some(p) => {
-                prev = j;
-                p
-            }
-            None => {
-                gaps.interpolated += 1;
-                // `last` has ground truth, so a later row with it exists.
-                let next = (j + 1..=last).find(|&k| world[k].is_some()).unwrap_or(last);
-                let (a, b) = (
-                    world[prev].unwrap_or_default(),
-                    world[next].unwrap_or_default(),
-                );
-                let span = times[next] - times[prev];
-                let f = if span > 0.0 {
-                    (times[j] - times[prev]) / span
-                } else {
-                    (j - prev) as f64 / (next - prev) as f64
-                };
-                // The heading the short way round, whether the file unwraps it or not.
-                let turn = b.theta_rad - a.theta_rad;
-                let turn = turn - TAU * (turn / TAU).round();
-                PoseF64::new(
-                    a.x_m + f * (b.x_m - a.x_m),
-                    a.y_m + f * (b.y_m - a.y_m),
-                    a.theta_rad + f * turn,
-                )
-            }
-        };
-        filled.push(pose);
+    filled.push(start);
+    for pair in known.windows(2) {
+        let ((i, a), (k, b)) = (pair[0], pair[1]);
+        // The heading the short way round, whether the file unwraps it or not.
+        let turn = b.theta_rad - a.theta_rad;
+        let turn = turn - TAU * (turn / TAU).round();
+        let span = times[k] - times[i];
+        for j in i + 1..k {
+            gaps.interpolated += 1;
+            let f = if span > 0.0 {
+                (times[j] - times[i]) / span
+            } else {
+                (j - i) as f64 / (k - i) as f64
+            };
+            filled.push(PoseF64::new(
+                a.x_m + f * (b.x_m - a.x_m),
+                a.y_m + f * (b.y_m - a.y_m),
+                a.theta_rad + f * turn,
+            ));
+        }
+        filled.push(b);
     }
-    let start = filled[0];
     Ok((knots, filled.iter().map(|w| start.relative(w)).collect()))
 }
 
 /// Mean absolute wheel travel between the two knots of `w` with `g`, metres.
 fn step_travel_m(w: &[WheelTicks], g: &Geometry) -> f64 {
-    let d = w[1] - w[0];
-    0.5 * ((d.right as f64 * g.meters_per_tick_right()).abs()
-        + (d.left as f64 * g.meters_per_tick_left()).abs())
+    let (right, left) = wheel_travel(w[1] - w[0], g);
+    0.5 * (right.abs() + left.abs())
+}
+
+/// The signed travel of the right and left wheel for the tick counts `d` with `g`, metres.
+fn wheel_travel(d: WheelTicks, g: &Geometry) -> (f64, f64) {
+    (
+        d.right as f64 * g.meters_per_tick_right(),
+        d.left as f64 * g.meters_per_tick_left(),
+    )
 }
 
 impl OptiRun {
