@@ -98,7 +98,7 @@ impl Guide {
             .unwrap_or_default();
         let mut changed = false;
         // Highest first, so the board's numbers of the others stay valid.
-        for &n in flagged.iter().rev() {
+        'runs: for &n in flagged.iter().rev() {
             let live: Vec<usize> = (0..self.slots.len())
                 .filter(|&i| self.slots[i].record.is_some())
                 .collect();
@@ -107,54 +107,44 @@ impl Guide {
             };
             // Measuring again needs the run on the board (`measure #n`).
             let on_board = self.board_has_all();
-            let question = if on_board {
-                format!(
-                    "Run {n} disagrees with the others: [m]easure it again (a typing mistake), \
-                     [d]rop it and drive it again, or [k]eep it"
-                )
-            } else {
-                format!(
-                    "Run {n} disagrees with the others: [d]rop it and drive it again, or [k]eep it"
-                )
-            };
-            let choice = loop {
+            let question = format!(
+                "Run {n} disagrees with the others: {}[d]rop it and drive it again, or [k]eep it",
+                if on_board {
+                    "[m]easure it again (a typing mistake), "
+                } else {
+                    ""
+                }
+            );
+            loop {
                 let a = self.ui.ask(&question, Some("d"))?.to_ascii_lowercase();
                 match a.as_str() {
-                    "m" | "measure" if on_board => break 'm',
-                    "d" | "drop" => break 'd',
-                    "k" | "keep" => break 'k',
+                    "m" | "measure" if on_board => {
+                        let Some(old) = self.slots[slot].record.clone() else {
+                            continue 'runs;
+                        };
+                        let (record, lines) = self.send_measurement(n, &old)?;
+                        // The same slot again: a log reader keeps the newer record.
+                        self.log_run(slot, n, &lines);
+                        self.slots[slot].record = Some(record);
+                        break;
+                    }
+                    "d" | "drop" => {
+                        if on_board {
+                            let r = self.cmd(&format!("drop {n}"))?;
+                            if !r.ok() {
+                                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+                            }
+                            self.board.retain(|&s| s != slot);
+                        }
+                        self.slots[slot].record = None;
+                        self.link.log.entry("drop", json!({ "slot": slot }), true);
+                        break;
+                    }
+                    "k" | "keep" => continue 'runs,
                     _ => self
                         .ui
                         .say(if on_board { "  m, d or k" } else { "  d or k" }),
                 }
-            };
-            match choice {
-                'm' => {
-                    let Some(old) = self.slots[slot].record.clone() else {
-                        continue;
-                    };
-                    let (record, lines) = self.send_measurement(n, &old)?;
-                    let path = self.slots[slot].path.clone();
-                    // The same slot again: a log reader keeps the newer record.
-                    self.link.log.entry(
-                        "run",
-                        json!({ "slot": slot, "board": n, "record": lines, "path": path }),
-                        true,
-                    );
-                    self.slots[slot].record = Some(record);
-                }
-                'd' => {
-                    if on_board {
-                        let r = self.cmd(&format!("drop {n}"))?;
-                        if !r.ok() {
-                            return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
-                        }
-                        self.board.retain(|&s| s != slot);
-                    }
-                    self.slots[slot].record = None;
-                    self.link.log.entry("drop", json!({ "slot": slot }), true);
-                }
-                _ => continue,
             }
             changed = true;
         }

@@ -309,18 +309,21 @@ impl Guide {
         path: Vec<(f64, f64)>,
     ) {
         let slot = self.slots.len();
-        self.link.log.entry(
-            "run",
-            json!({ "slot": slot, "board": n, "record": lines, "path": path }),
-            true,
-        );
         self.slots.push(Slot {
             record: Some(record),
             path,
         });
+        self.log_run(slot, n, &lines);
         // The board numbers its runs 1..k: run n is the last one.
         self.board.truncate(n - 1);
         self.board.push(slot);
+    }
+
+    /// Logs slot `slot` (board run `n`) with its record `lines` and its path.
+    pub(super) fn log_run(&mut self, slot: usize, n: usize, lines: &[String]) {
+        let path = &self.slots[slot].path;
+        let entry = json!({ "slot": slot, "board": n, "record": lines, "path": path });
+        self.link.log.entry("run", entry, true);
     }
 
     pub(super) fn live(&self) -> Vec<RunRecord> {
