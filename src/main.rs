@@ -51,6 +51,11 @@ static CONTROL_RATE_HZ: core::sync::atomic::AtomicU32 =
 #[cfg(target_os = "none")]
 static STOP_REQUEST: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
 
+/// Set by the console task while it executes a line: a line that starts meanwhile is echoed
+/// with its reply, not into it.
+#[cfg(target_os = "none")]
+static CONSOLE_BUSY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
 /// Whether the USART2 interrupt echoes received characters (the session's `echo on|off`,
 /// published by the console task).
 #[cfg(target_os = "none")]
@@ -81,7 +86,9 @@ mod app {
     use odocal::motion::run::{MAX_RUNS, RunRecord};
     use odocal::protocol::LineAssembler;
     use odocal::protocol::reply::{ByteSink, ErrorCode, write_err};
-    use odocal::protocol::rx::{self, InputItem, RxRead};
+    use odocal::protocol::rx::{
+        self, INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender, RxRead,
+    };
     use odocal::session::library::{LibraryCalibrator, Locked};
     use odocal::session::{
         ParamStorage, Session, Settings, StorageError, write_boot_event, write_fault_event,
@@ -93,12 +100,10 @@ mod app {
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
     use super::{
-        CONTROL_RATE_HZ, ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ, STOP_REQUEST,
+        CONSOLE_BUSY, CONTROL_RATE_HZ, ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ,
+        STOP_REQUEST,
     };
     use core::sync::atomic::Ordering;
-
-    /// A received line, rejected line or stop key, from the USART2 interrupt to the console task.
-    type LineItem = InputItem;
 
     #[shared]
     struct Shared {
@@ -120,8 +125,8 @@ mod app {
         usart_tx: ConsoleTx,
         assembler: LineAssembler,
         echo_out: heapless::Deque<u8, 64>,
-        line_in: Producer<'static, LineItem>,
-        line_out: Consumer<'static, LineItem>,
+        line_in: InputSender<'static>,
+        line_out: InputReceiver<'static>,
         tx_in: Producer<'static, u8>,
         tx_out: Consumer<'static, u8>,
         press_in: Producer<'static, Press>,
@@ -221,7 +226,7 @@ mod app {
     }
 
     #[init(local = [
-        lines: Queue<LineItem, 8> = Queue::new(),
+        lines: InputQueue<INPUT_QUEUE_BYTES> = InputQueue::new(),
         tx_bytes: Queue<u8, 2048> = Queue::new(),
         presses: Queue<Press, 4> = Queue::new(),
     ])]
@@ -407,6 +412,11 @@ mod app {
         let line_in = cx.local.line_in;
         let echo_out = cx.local.echo_out;
         let echo = ECHO.load(Ordering::Relaxed);
+        let usart_tx = cx.local.usart_tx;
+        let tx_out = cx.local.tx_out;
+        // What waits to go out or to be executed (updated as this interrupt adds to it).
+        let echo_waits = core::cell::Cell::new(!echo_out.is_empty());
+        let lines_wait = core::cell::Cell::new(!line_in.is_empty());
         // Each read checks SR and, on an overrun, framing, noise or parity error, reads DR,
         // which clears the flag (an ORE with RXNE clear would otherwise re-enter this
         // interrupt for ever); the error poisons the line being received.
@@ -418,35 +428,43 @@ mod app {
             },
             cx.local.assembler,
             RX_READS_PER_IRQ,
-            |event| {
-                let item = InputItem::from_event(event);
-                if item.is_stop() {
+            // A line is echoed as it is typed only while nothing else is on its way out or
+            // waiting; otherwise the console echoes it right before its reply.
+            || {
+                echo && !echo_waits.get()
+                    && !lines_wait.get()
+                    && !tx_out.ready()
+                    && !CONSOLE_BUSY.load(Ordering::Relaxed)
+            },
+            |event, echoed| {
+                if rx::is_stop(&event) {
                     STOP_REQUEST.store(true, Ordering::Relaxed);
                 }
                 // A full queue drops the line; the console reports how many were lost. A stop
                 // key has already reached the control task.
-                if line_in.enqueue(item).is_err() {
+                if line_in.send(&event, echoed) {
+                    lines_wait.set(true);
+                } else {
                     LINES_DROPPED.fetch_add(1, Ordering::Relaxed);
                 }
             },
             |bytes| {
-                if echo {
-                    for &b in bytes {
-                        let _ = echo_out.push_back(b);
-                    }
+                for &b in bytes {
+                    let _ = echo_out.push_back(b);
+                    echo_waits.set(true);
                 }
             },
         );
-        while cx.local.usart_tx.is_tx_empty() {
-            let Some(byte) = echo_out.pop_front().or_else(|| cx.local.tx_out.dequeue()) else {
+        while usart_tx.is_tx_empty() {
+            let Some(byte) = echo_out.pop_front().or_else(|| tx_out.dequeue()) else {
                 break;
             };
-            let _ = cx.local.usart_tx.write(byte);
+            let _ = usart_tx.write(byte);
         }
-        if !echo_out.is_empty() || cx.local.tx_out.ready() {
-            cx.local.usart_tx.listen();
+        if !echo_out.is_empty() || tx_out.ready() {
+            usart_tx.listen();
         } else {
-            cx.local.usart_tx.unlisten();
+            usart_tx.unlisten();
         }
     }
 
@@ -491,9 +509,15 @@ mod app {
                         ErrorCode::Busy,
                         &format_args!("{lost} line(s) dropped: input queue full"),
                     );
-                } else if let Some(item) = cx.local.line_out.dequeue() {
-                    let _ = session.handle_event(item.as_event(), &mut robot, store, &mut out);
+                } else if let Some(received) = cx.local.line_out.take() {
+                    CONSOLE_BUSY.store(true, Ordering::Relaxed);
+                    if session.echo() {
+                        let _ = received.write_echo(&mut out);
+                    }
+                    let event = received.item.as_event();
+                    let _ = session.handle_event(event, &mut robot, store, &mut out);
                     ECHO.store(session.echo(), Ordering::Relaxed);
+                    CONSOLE_BUSY.store(false, Ordering::Relaxed);
                 }
                 dropped += out.dropped;
             }

@@ -89,6 +89,52 @@ fn receive_errors_reject_the_line_and_stop_still_works() {
     );
 }
 
+#[test]
+fn a_pasted_script_reads_command_reply_command_reply() {
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    // Typed while the console is idle: echoed as it arrives, Backspace included.
+    let mut out = String::new();
+    b.receive(b"stax", &mut out);
+    assert_eq!(out, "stax");
+    b.receive(b"\x7ftus\r", &mut out);
+    b.process(&mut out, false);
+    assert!(
+        out.starts_with("stax\x08 \x08tus\r\nok state=idle"),
+        "{out:?}"
+    );
+    // Pasted: the first line is echoed as it arrives, every later one right before its reply.
+    let mut out = String::new();
+    b.receive(
+        b"set square_side 1.2\rset runs_per_direction 3\r\nstatus\r",
+        &mut out,
+    );
+    assert_eq!(out, "set square_side 1.2\r\n");
+    b.process(&mut out, false);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 6, "{out}");
+    assert_eq!(
+        lines[..5],
+        [
+            "set square_side 1.2",
+            "ok square_side = 1.200 m",
+            "set runs_per_direction 3",
+            "ok runs_per_direction = 3 runs",
+            "status",
+        ]
+    );
+    assert!(lines[5].starts_with("ok state=idle"), "{out}");
+    // With echo off nothing is echoed, as it arrives or later.
+    assert_eq!(b.send("echo off"), "ok echo off\r\n");
+    let mut out = String::new();
+    b.receive(b"set square_side 1.3\rstatus\r", &mut out);
+    b.process(&mut out, false);
+    assert!(
+        out.starts_with("ok square_side = 1.300 m\r\nok state=idle"),
+        "{out}"
+    );
+}
+
 /// Drives the planned 5 + 5 squares and measures each at its true end pose, except run
 /// `swapped`, whose x and y are entered the wrong way round.
 fn session_with_swapped_run(swapped: usize) -> String {

@@ -137,7 +137,7 @@ enum Escape {
 }
 
 /// Accumulates bytes into lines of at most `N` bytes.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct LineAssembler<const N: usize = LINE_MAX> {
     buf: Vec<u8, N>,
     overflowed: bool,
@@ -154,6 +154,15 @@ pub struct LineAssembler<const N: usize = LINE_MAX> {
     word_len: u8,
     /// What to echo for the last byte.
     echo: Echo,
+    /// The current line is echoed byte by byte as it arrives (decided at its first byte,
+    /// [`LineAssembler::set_echo_live`]); otherwise it is echoed whole when it is executed.
+    echo_live: bool,
+}
+
+impl<const N: usize> Default for LineAssembler<N> {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl<const N: usize> LineAssembler<N> {
@@ -169,6 +178,7 @@ impl<const N: usize> LineAssembler<N> {
             tail: [0; 4],
             word_len: 0,
             echo: Echo::Nothing,
+            echo_live: true,
         }
     }
 
@@ -209,6 +219,19 @@ impl<const N: usize> LineAssembler<N> {
     /// What to echo for the byte last pushed.
     pub fn echo(&self) -> Echo {
         self.echo
+    }
+
+    /// Whether the current line is echoed byte by byte as it arrives. [`crate::protocol::rx`]
+    /// decides it at each line's first byte: live when the console is idle (a person typing);
+    /// otherwise (a paste, or typing during a long reply) the line is echoed whole right before
+    /// its reply, so echo never cuts into a reply.
+    pub fn echo_live(&self) -> bool {
+        self.echo_live
+    }
+
+    /// Sets [`LineAssembler::echo_live`] for the line that starts with the next byte.
+    pub fn set_echo_live(&mut self, live: bool) {
+        self.echo_live = live;
     }
 
     /// A receive error (overrun, framing, noise, parity) at this point of the input: the line
@@ -335,7 +358,13 @@ impl<const N: usize> LineAssembler<N> {
 
     /// Whether no partial line is held.
     pub fn is_empty(&self) -> bool {
-        self.len() == 0 && !self.overflowed && !self.poisoned && self.escape == Escape::None
+        (self.consumed || self.buf.is_empty()) && !self.overflowed && !self.poisoned && self.escape == Escape::None
+    }
+
+    /// Whether the next byte starts a line: nothing of one is held (an escape sequence may be
+    /// under way: it leaves no trace in the line).
+    pub fn at_line_start(&self) -> bool {
+        (self.consumed || self.buf.is_empty()) && !self.overflowed && !self.poisoned
     }
 
     /// Whether the current line has already overflowed and will be rejected.

@@ -7,7 +7,10 @@
 //! simulated reboot. Bytes go through the library's receive loop and [`LineAssembler`], exactly
 //! as the USART2 RX interrupt feeds them on the board: a stop key (Ctrl-C, Esc) stops the
 //! controller at once, before any queued line; lines wait in an input queue for the session, as
-//! they wait for the console task on the board; the echo goes out as the bytes arrive.
+//! they wait for the console task on the board; a line that starts while others wait is echoed
+//! with its reply, any other as its bytes arrive. The queue here is unbounded (the simulated
+//! board executes a line as soon as it is its turn; the board's queue holds
+//! [`odocal::protocol::rx::INPUT_QUEUE_BYTES`]).
 
 use std::collections::VecDeque;
 
@@ -16,7 +19,7 @@ use odocal::kinematics::reference::PoseF64;
 use odocal::motion::bringup::CheckKind;
 use odocal::motion::controller::{Controller, Status, StepOutput};
 use odocal::protocol::LineAssembler;
-use odocal::protocol::rx::{self, InputItem, RxRead};
+use odocal::protocol::rx::{self, InputItem, Received, RxRead};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Session, Settings, write_boot_event};
 use odocal::storage::ParamStore;
@@ -39,7 +42,7 @@ pub struct Board<'f> {
     pub store: ParamStore<&'f mut SimFlash>,
     assembler: LineAssembler,
     /// Received lines and stop keys not yet handled by the session.
-    input: VecDeque<InputItem>,
+    input: VecDeque<Received>,
     now_us: u64,
     period_us: u64,
     /// True pose when the current (or last) run started.
@@ -131,18 +134,21 @@ impl<'f> Board<'f> {
     pub fn receive_reads(&mut self, reads: impl IntoIterator<Item = RxRead>, out: &mut String) {
         let echo = self.session.echo();
         let (input, controller) = (&mut self.input, &mut self.controller);
+        let lines_wait = std::cell::Cell::new(!input.is_empty());
         let mut reads = reads.into_iter();
         rx::drain(
             || reads.next().unwrap_or(RxRead::Empty),
             &mut self.assembler,
             usize::MAX,
-            |event| {
+            || echo && !lines_wait.get(),
+            |event, echoed| {
                 let item = InputItem::from_event(event);
                 if item.is_stop() {
                     // The board's control task does this within one period.
                     controller.abort();
                 }
-                input.push_back(item);
+                input.push_back(Received { item, echoed });
+                lines_wait.set(true);
             },
             |bytes| {
                 if echo {
@@ -161,15 +167,18 @@ impl<'f> Board<'f> {
     /// a line waits until the robot is at rest (stop keys never wait), for scripts that send
     /// everything at once.
     pub fn process(&mut self, out: &mut String, lines_at_rest: bool) {
-        while let Some(item) = self.input.front() {
-            if lines_at_rest && !item.is_stop() && !self.at_rest() {
+        while let Some(received) = self.input.front() {
+            if lines_at_rest && !received.item.is_stop() && !self.at_rest() {
                 break;
             }
-            let Some(item) = self.input.pop_front() else {
+            let Some(received) = self.input.pop_front() else {
                 break;
             };
+            if self.session.echo() {
+                let _ = received.write_echo(out);
+            }
             let _ = self.session.handle_event(
-                item.as_event(),
+                received.item.as_event(),
                 &mut self.controller,
                 &mut self.store,
                 out,
