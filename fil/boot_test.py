@@ -4,7 +4,9 @@
 Boots the exact image `cargo fw` builds (with the boot assist of `emulator.py`), waits for the
 `event boot` line on USART2, sends the console script below (every command family, error cases,
 an over-long line, CR endings, garbage bytes, Ctrl-C, escape sequences) and compares each reply with
-`fil/golden/console.txt`; then decodes the defmt boot log from the RTT buffer of a RAM dump.
+`fil/golden/console.txt`; pastes a block of 31 lines with echo on and checks that each is echoed
+right before its reply, in order; then decodes the defmt boot log from the RTT buffer of a RAM
+dump.
 
     python3 fil/boot_test.py ELF [--regen] [--workdir DIR]
 
@@ -81,6 +83,33 @@ REPLY_TIMEOUT = 5.0
 NO_REPLY_WAIT = 0.5
 
 
+# A block pasted into a terminal with echo on: 30 `set` lines and `runs`, sent at once (QEMU has
+# no baud rate, so it all waits in the input queue before the console takes the second line).
+PASTE = [f"set square_side {1 + i / 100:.2f}" for i in range(30)] + ["runs"]
+
+
+def paste_check(con):
+    """Pastes PASTE with echo on; returns the problems found (none: every line answered, in
+    order, each echoed right before its reply)."""
+    con.ok("echo on")
+    # The echo of `echo on`'s own line ends before its reply; nothing else is pending.
+    con.send_raw("\r".join(PASTE).encode() + b"\r")
+    got = []
+    while len(got) < 2 * len(PASTE):
+        line = con.read_line(REPLY_TIMEOUT)
+        if line is None:
+            break
+        if con._sort(line) == "reply":
+            got.append(line)
+    con.ok("echo off")
+    problems = []
+    for i, cmd in enumerate(PASTE):
+        pair = got[2 * i:2 * i + 2]
+        if len(pair) < 2 or pair[0] != cmd or not pair[1].startswith("ok"):
+            problems.append(f"line {i + 1} `{cmd}`: got {pair}")
+    return problems, got
+
+
 def shown(data):
     """Sent bytes as one printable line."""
     return "".join(chr(b) if 32 <= b < 127 and b != 92 else f"\\x{b:02x}" for b in data)
@@ -105,6 +134,8 @@ def run(elf, workdir):
             else:
                 got = con.quiet(NO_REPLY_WAIT) or ["(no reply)"]
             blocks.append((shown(data), got))
+        con.quiet(NO_REPLY_WAIT)
+        paste = paste_check(con)
         # Events (e.g. the stop a Ctrl-C causes) come when the console task gets to them, not
         # at a fixed place among the replies: they are compared as one set at the end.
         con.quiet(NO_REPLY_WAIT)
@@ -114,7 +145,7 @@ def run(elf, workdir):
     finally:
         emu.stop()
     log = defmt_log(elf, rtt_up_bytes(elf, ram))
-    return blocks, log, alive, emu.points
+    return blocks, log, alive, emu.points, paste
 
 
 def collapse(lines):
@@ -154,7 +185,7 @@ def main():
     args = ap.parse_args()
     sha = hashlib.sha256(open(args.elf, "rb").read()).hexdigest()
     print(f"boot test: {args.elf} sha256 {sha}")
-    blocks, log, alive, points = run(args.elf, args.workdir)
+    blocks, log, alive, points, (paste_problems, paste_got) = run(args.elf, args.workdir)
     print("boot assist (generated from the ELF):")
     for kind, bp, resume, reg in points:
         print(f"  {kind:10} break 0x{bp:08x} resume 0x{resume:08x} ({reg})")
@@ -187,6 +218,14 @@ def main():
     if not alive:
         print("FAILED: QEMU exited during the test")
         fail = 1
+    if paste_problems:
+        print(f"FAILED: a pasted block of {len(PASTE)} lines with echo on:")
+        for p in paste_problems[:5]:
+            print("  " + p)
+        fail = 1
+    else:
+        print(f"paste: {len(PASTE)} lines pasted at once with echo on, each echoed right before "
+              f"its reply, in order (`{paste_got[0]}` … `{paste_got[-1]}`)")
     # QEMU has no TIM7, so the control task never runs here: after the one feed that starts the
     # watchdog and the two of the console task's one flash access with the watchdog relaxed
     # (restoring the stored runs at boot: 10 s and back to 50 ms, one reload-key write after
