@@ -358,7 +358,7 @@ impl<const N: usize> LineAssembler<N> {
 
     /// Whether no partial line is held.
     pub fn is_empty(&self) -> bool {
-        (self.consumed || self.buf.is_empty()) && !self.overflowed && !self.poisoned && self.escape == Escape::None
+        self.at_line_start() && self.escape == Escape::None
     }
 
     /// Whether the next byte starts a line: nothing of one is held (an escape sequence may be
