@@ -150,11 +150,7 @@ impl<'f> Board<'f> {
                 input.push_back(Received { item, echoed });
                 lines_wait.set(true);
             },
-            |bytes| {
-                if echo {
-                    out.push_str(&String::from_utf8_lossy(bytes));
-                }
-            },
+            |bytes| out.push_str(&String::from_utf8_lossy(bytes)),
         );
     }
 
