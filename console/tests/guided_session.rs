@@ -749,7 +749,7 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     let sim = Sim::start(&host_sim());
     // The plan (L = 1.5 m, 5 + 5); every other question is answered on stdin below.
     let (mut tool, log) = tool_with_answers(&sim, "remeasure", "150cm\n5\n", false);
-    let (mut measured, mut again, mut asked) = (0, false, 0);
+    let (mut measured, mut again, mut asked, mut stray) = (0, false, 0, false);
     while let Some(l) = tool.next() {
         // A question waiting for an answer ends with its colon (one answered from the file
         // shows the answer after it).
@@ -783,6 +783,11 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
             asked += 1;
             tool.answer("m");
             again = true;
+        } else if l.starts_with("? Enter starts the run") && !stray {
+            // A measurement typed once more where the start is asked: it must not move the
+            // robot; the question comes again.
+            stray = true;
+            tool.answer("-9.1mm, -9.2mm");
         } else {
             // Every other question: its default (start the run, apply the recommended method,
             // save).
@@ -794,6 +799,18 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     assert_eq!(asked, 1, "{text}");
     assert_eq!(measured, 10, "{text}");
     assert!(text.contains("measured (replaced x="), "{text}");
+    assert!(
+        text.contains(
+            "  `-9.1mm, -9.2mm` starts nothing: press Enter (or type go) to start the run, or b \
+             to wait for the board's button"
+        ),
+        "{text}"
+    );
+    assert_eq!(
+        text.matches("? Enter starts the run").count(),
+        11,
+        "the stray answer asks again: {text}"
+    );
     assert!(
         text.contains("verified: params shows calibration exact"),
         "{text}"

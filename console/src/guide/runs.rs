@@ -57,6 +57,19 @@ impl Guide {
                 "Enter starts the run (b: wait for the board's button)",
                 Some("go"),
             )?;
+            // Only Enter (or `go`) moves the robot: anything else typed here (a measurement
+            // typed once more, a stray word) asks again.
+            let button = match a.to_ascii_lowercase().as_str() {
+                "go" => false,
+                "b" => true,
+                _ => {
+                    self.ui.say(&format!(
+                        "  `{a}` starts nothing: press Enter (or type go) to start the run, or b \
+                         to wait for the board's button"
+                    ));
+                    continue;
+                }
+            };
             // Stream lines of the last run are dropped; a reset since then (the board's boot
             // line) needs the echo off and the stream on again.
             if let Some(boot) = self.link.drain()? {
@@ -73,7 +86,7 @@ impl Guide {
                 (Some(x), Some(y), Some(t)) => (x, y, t.to_radians()),
                 _ => (0.0, 0.0, 0.0),
             };
-            if a.eq_ignore_ascii_case("b") {
+            if button {
                 self.ui.say("  waiting for the button (short press)");
                 let l = self.wait_event_of(&["event button: ", "event boot:"], 3600)?;
                 if l.starts_with("event boot:") {
