@@ -166,7 +166,10 @@ fn calibrate_names_a_swapped_run() {
     let table = session_with_swapped_run(4);
     println!("{table}");
     assert!(
-        table.contains("  check run 4: disagrees with the others"),
+        table.contains(
+            "  check run 4: disagrees with the others by more than the robust scale (x/y \
+             swapped, a sign, a unit?); drop 4 or measure #4 x y, then calibrate again\r\n"
+        ),
         "{table}"
     );
     let flagged: Vec<&str> = table.lines().filter(|l| l.ends_with("DISAGREES")).collect();

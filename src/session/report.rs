@@ -296,22 +296,26 @@ pub(super) fn write_residuals(
         }
         out.write_str(EOL)?;
     }
-    let mut first = true;
-    for r in residuals.iter().filter(|r| r.outlier) {
-        if first {
-            out.write_str("  check run")?;
-            first = false;
-        }
-        write!(out, " {}", r.run)?;
+    let mut flagged = residuals.iter().filter(|r| r.outlier).map(|r| r.run);
+    let Some(first) = flagged.next() else {
+        return Ok(());
+    };
+    write!(out, "  check run {first}")?;
+    let mut only = true;
+    for run in flagged {
+        write!(out, " {run}")?;
+        only = false;
     }
-    if !first {
-        write!(
-            out,
-            ": disagrees with the others by more than the robust scale (x/y swapped, a sign, a \
-             unit?); drop <n> or measure #<n> x y, then calibrate again\r\n"
-        )?;
+    out.write_str(
+        ": disagrees with the others by more than the robust scale (x/y swapped, a sign, a \
+         unit?); ",
+    )?;
+    if only {
+        write!(out, "drop {first} or measure #{first} x y")?;
+    } else {
+        out.write_str("drop <n> or measure #<n> x y for each")?;
     }
-    Ok(())
+    write!(out, ", then calibrate again\r\n")
 }
 
 pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
