@@ -95,18 +95,79 @@ pub fn candidate_ports() -> Vec<String> {
     ports
 }
 
+/// The other processes that have the serial device `path` open, as `name (pid N)`, from
+/// `/proc/<pid>/fd` (Linux; elsewhere, or for processes this user may not inspect, none are
+/// found and the port's own lock is the only guard). For a pseudo-terminal `/dev/pts/<n>`, the
+/// process that holds its master side (`/dev/ptmx` with `tty-index: <n>`: the simulated board)
+/// is its other end, not a competitor, and is not counted.
+pub fn port_holders(path: &str) -> Vec<String> {
+    let Ok(device) = std::fs::canonicalize(path) else {
+        return Vec::new();
+    };
+    let pty_index = device
+        .strip_prefix("/dev/pts")
+        .ok()
+        .and_then(|n| n.to_str())
+        .map(|n| format!("tty-index:\t{n}"));
+    let me = std::process::id().to_string();
+    let Ok(procs) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    let mut found = Vec::new();
+    for entry in procs.flatten() {
+        let pid = entry.file_name().to_string_lossy().into_owned();
+        if pid == me || !pid.bytes().all(|b| b.is_ascii_digit()) {
+            continue;
+        }
+        let Ok(fds) = std::fs::read_dir(entry.path().join("fd")) else {
+            continue;
+        };
+        let (mut holds, mut master) = (false, false);
+        for fd in fds.flatten() {
+            let Ok(target) = std::fs::read_link(fd.path()) else {
+                continue;
+            };
+            holds |= target == device;
+            if let Some(index) = &pty_index
+                && target.ends_with("ptmx")
+            {
+                let info = entry.path().join("fdinfo").join(fd.file_name());
+                master |= std::fs::read_to_string(info)
+                    .is_ok_and(|text| text.lines().any(|l| l == index));
+            }
+        }
+        if holds && !master {
+            let name = std::fs::read_to_string(entry.path().join("comm")).unwrap_or_default();
+            found.push(format!("{} (pid {pid})", name.trim()));
+        }
+    }
+    found.sort();
+    found
+}
+
 impl Link {
     /// Opens `path` at 115200 8N1 and starts the reader.
     ///
     /// # Errors
     /// The port cannot be opened, as text.
     pub fn open(path: &str, log: SessionLog) -> Result<Link, String> {
+        // A terminal program on the same port would take part of every reply: refused, whether
+        // or not it locked the port (screen does not; root opens a locked port anyway).
+        let holders = port_holders(path);
+        if !holders.is_empty() {
+            return Err(format!(
+                "cannot open {path}: {} has it open: quit it first (two programs on one port \
+                 each get part of the board's replies)",
+                holders.join(", ")
+            ));
+        }
         let port = serialport::new(path, BAUD)
             .timeout(Duration::from_millis(100))
             .open()
             .map_err(|e| {
-                // serialport locks the port (TIOCEXCL); so do picocom and screen.
-                let busy = if e.to_string().contains("exclusive lock") {
+                // serialport locks the port (TIOCEXCL); so does picocom.
+                let text = e.to_string();
+                let busy = if text.contains("exclusive lock") || text.contains("resource busy") {
                     " (another program has it open: quit picocom, screen or another console first)"
                 } else {
                     ""
@@ -323,5 +384,37 @@ impl Link {
             ));
         }
         Ok(text)
+    }
+}
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use super::port_holders;
+
+    #[test]
+    fn another_process_holding_the_port_is_named() {
+        let dir = std::env::temp_dir().join(format!("odocal-holders-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let device = dir.join("ttyFAKE");
+        std::fs::write(&device, b"").unwrap();
+        let path = device.to_str().unwrap();
+        assert!(port_holders(path).is_empty(), "nobody holds it yet");
+        let mut child = std::process::Command::new("sleep")
+            .arg("30")
+            .stdin(std::fs::File::open(&device).unwrap())
+            .spawn()
+            .unwrap();
+        // Also through a symbolic link to it (as /dev/serial/by-id/… names an adapter).
+        let link = dir.join("by-id");
+        std::os::unix::fs::symlink(&device, &link).unwrap();
+        let holders = port_holders(path);
+        let via_link = port_holders(link.to_str().unwrap());
+        let _ = child.kill();
+        let _ = child.wait();
+        let expected = [format!("sleep (pid {})", child.id())];
+        assert_eq!(holders, expected);
+        assert_eq!(via_link, expected);
+        assert!(port_holders(path).is_empty(), "the holder has quit");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

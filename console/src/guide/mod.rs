@@ -163,14 +163,16 @@ pub fn run(opts: &Options) -> Result<(), String> {
     );
     let mut ui = Ui::new(answers, opts.yes);
     ui.say(&format!("odocal console: board on {port}"));
-    let mut link = Link::open(port, log).inspect_err(|_| {
-        // A port that cannot be opened leaves no new log behind (a resumed one is kept).
+    // A port that cannot be opened, or a device that does not answer as a board, leaves no new
+    // log behind (a resumed one is kept).
+    let forget_log = |_: &String| {
         if resumed.is_none() {
             let _ = std::fs::remove_file(&log_path);
         }
-    })?;
+    };
+    let mut link = Link::open(port, log).inspect_err(forget_log)?;
+    let version = link.handshake().inspect_err(forget_log)?;
     ui.say(&format!("session log: {}", log_path.display()));
-    let version = link.handshake()?;
     ui.say(&format!("board: {version}"));
     let mut g = Guide {
         link,
