@@ -33,6 +33,22 @@ fn commands_parse_to_the_documented_values() {
                 value: 4096.0,
             },
         ),
+        // A whole number written as a decimal or with an exponent is that number.
+        (
+            "set counts_per_rev 200000.0",
+            Command::Set {
+                name: ParamName::CountsPerRev,
+                value: 200_000.0,
+            },
+        ),
+        (
+            "set counts_per_rev 2e5",
+            Command::Set {
+                name: ParamName::CountsPerRev,
+                value: 200_000.0,
+            },
+        ),
+        ("drop +3.0", Command::Drop { index: 3 }),
         (
             "run cw",
             Command::Run {
@@ -159,13 +175,21 @@ fn error_replies_are_exact() {
             "err 4: <x_m> is not a number (type the number alone, without a unit)\r\n",
         ),
         ("run cw abc", "err 4: <side_m> is not a number\r\n"),
-        ("drop 1.5", "err 4: <n> is not a number\r\n"),
-        ("drop -1", "err 4: <n> is not a number\r\n"),
+        ("drop 1.5", "err 4: <n> is not a whole number\r\n"),
+        ("drop -1", "err 6: <n> must be within 1..12\r\n"),
+        (
+            "set counts_per_rev 2e5.5",
+            "err 4: <value> is not a number\r\n",
+        ),
+        (
+            "set runs_per_direction 2.5",
+            "err 4: <value> is not a whole number\r\n",
+        ),
         ("stream on 0x10", "err 4: <hz> is not a number\r\n"),
         // 20 significant digits: more than the parser's u64 mantissa holds.
         (
             "measure 0.12345678901234567891 0",
-            "err 4: <x_m> is not a number\r\n",
+            "err 4: <x_m> has too many digits (at most 19 significant)\r\n",
         ),
         // Trailing zeros are not significant: 1e20, out of range rather than malformed.
         (

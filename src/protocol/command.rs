@@ -8,7 +8,7 @@
 
 use core::fmt;
 
-use super::number::parse_f64;
+use super::number::{MAX_DIGITS, NumberError, parse_f64};
 use super::param::ParamName;
 use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
@@ -208,11 +208,15 @@ impl fmt::Display for ParseError {
             ParseError::MissingArgument { what } => write!(f, "missing argument <{what}>"),
             ParseError::TooManyArguments => f.write_str("too many arguments"),
             ParseError::BadNumber { what, hint } => {
-                write!(f, "<{what}> is not a number")?;
+                write!(f, "<{what}> ")?;
                 f.write_str(match hint {
-                    NumberHint::None => "",
-                    NumberHint::Unit => " (type the number alone, without a unit)",
-                    NumberHint::Comma => " (use a decimal point)",
+                    NumberHint::None => "is not a number",
+                    NumberHint::Unit => "is not a number (type the number alone, without a unit)",
+                    NumberHint::Comma => "is not a number (use a decimal point)",
+                    NumberHint::Fraction => "is not a whole number",
+                    NumberHint::Digits => {
+                        return write!(f, "has too many digits (at most {MAX_DIGITS} significant)");
+                    }
                 })
             }
             ParseError::NotFinite { what } => write!(f, "<{what}> must be finite"),
@@ -274,6 +278,10 @@ pub enum NumberHint {
     Unit,
     /// A decimal comma (`0,25`).
     Comma,
+    /// A number with a fraction where a whole number is needed (`drop 1.5`).
+    Fraction,
+    /// More significant digits than the parser keeps ([`super::number::MAX_DIGITS`]).
+    Digits,
 }
 
 /// The error for `word`, which is not a number for `what`.
@@ -298,7 +306,13 @@ fn bad_number(word: &str, what: &'static str) -> ParseError {
 /// Reads a finite `f64` within `[min, max]`.
 #[inline(never)]
 fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
-    let value = parse_f64(word).map_err(|_| bad_number(word, what))?;
+    let value = parse_f64(word).map_err(|e| match e {
+        NumberError::TooManyDigits => ParseError::BadNumber {
+            what,
+            hint: NumberHint::Digits,
+        },
+        NumberError::Malformed => bad_number(word, what),
+    })?;
     if !value.is_finite() {
         return Err(ParseError::NotFinite { what });
     }
@@ -313,19 +327,32 @@ fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, Par
     Ok(value)
 }
 
-/// Reads a whole number within `[min, max]` (written without sign, fraction or exponent).
+/// Reads a whole number within `[min, max]`: digits, or any number whose value is whole
+/// (`200000.0`, `2e5`); a fraction is refused as such, a negative value as out of range.
 fn whole(word: &str, what: &'static str, min: u32, max: u32) -> Result<u32, ParseError> {
-    if word.is_empty() || !word.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(bad_number(word, what));
-    }
     let out_of_range = ParseError::OutOfRange {
         what,
         min: f64::from(min),
         max: f64::from(max),
         unit: "",
     };
-    // All digits: the only possible parse failure is overflow, which is out of range.
-    let value: u32 = word.parse().map_err(|_| out_of_range)?;
+    let value = if !word.is_empty() && word.bytes().all(|b| b.is_ascii_digit()) {
+        // All digits: the only possible parse failure is overflow, which is out of range.
+        word.parse::<u32>().map_err(|_| out_of_range)?
+    } else {
+        let value = number(word, what, f64::NEG_INFINITY, f64::INFINITY)?;
+        if libm::trunc(value) != value {
+            return Err(ParseError::BadNumber {
+                what,
+                hint: NumberHint::Fraction,
+            });
+        }
+        if !(f64::from(min)..=f64::from(max)).contains(&value) {
+            return Err(out_of_range);
+        }
+        // Whole and within a u32 range: exact.
+        value as u32
+    };
     if !(min..=max).contains(&value) {
         return Err(out_of_range);
     }
@@ -339,7 +366,7 @@ fn sign(word: &str) -> Result<f64, ParseError> {
         "-1" => Ok(-1.0),
         _ => Err(ParseError::BadKeyword {
             what: "value",
-            expected: "1 or -1",
+            expected: "1|-1",
         }),
     }
 }
