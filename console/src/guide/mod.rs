@@ -256,13 +256,35 @@ fn quantity(word: &str, angle: bool) -> Result<f64, String> {
         .iter()
         .find_map(|(u, k)| word.strip_suffix(u).map(|n| (n, *k)))
         .unwrap_or((word, 1.0));
-    let v: f64 = num
-        .parse()
-        .map_err(|_| format!("`{word}` is not a number"))?;
+    let v: f64 = num.parse().map_err(|_| {
+        let hint = if num.contains(',') {
+            " (use a decimal point)"
+        } else {
+            ""
+        };
+        format!("`{word}` is not a number{hint}")
+    })?;
     if !v.is_finite() {
         return Err(format!("`{word}` is not finite"));
     }
     Ok(v * k)
+}
+
+/// The words of a typed measurement: a unit typed apart (`41.8 mm`) joins its number, and a
+/// comma or semicolon that separates the values (`41.8mm, -39.5mm`) is dropped (a comma inside
+/// a number stays, for [`quantity`] to name it).
+fn measurement_words(text: &str) -> Vec<String> {
+    let mut words: Vec<String> = Vec::new();
+    for w in text.split_whitespace() {
+        let w = w.trim_end_matches([',', ';']);
+        let unit = ["mm", "cm", "m", "deg", "°"].contains(&w);
+        match words.last_mut() {
+            Some(last) if unit && last.parse::<f64>().is_ok() => last.push_str(w),
+            _ if !w.is_empty() => words.push(w.to_string()),
+            _ => {}
+        }
+    }
+    words
 }
 
 fn path_text(p: &PathKind) -> String {
@@ -609,7 +631,32 @@ impl Guide {
 
 #[cfg(test)]
 mod tests {
-    use super::new_log_path;
+    use super::{measurement_words, new_log_path, quantity};
+
+    #[test]
+    fn a_measurement_is_read_as_a_person_types_it() {
+        for typed in [
+            "0.0418 -0.0395 0.3",
+            "41.8mm -39.5mm 0.3",
+            "41.8 mm -39.5 mm 0.3 deg",
+            "41.8mm, -39.5mm, 0.3",
+            "4.18cm; -3.95 cm",
+        ] {
+            let words = measurement_words(typed);
+            let x = quantity(&words[0], false).unwrap();
+            let y = quantity(&words[1], false).unwrap();
+            assert!((x - 0.0418).abs() < 1e-12, "{typed}: {words:?}");
+            assert!((y + 0.0395).abs() < 1e-12, "{typed}: {words:?}");
+            if let Some(t) = words.get(2) {
+                assert_eq!(quantity(t, true).unwrap(), 0.3, "{typed}");
+            }
+        }
+        assert_eq!(
+            quantity(&measurement_words("-0,009 -0,009")[0], false).unwrap_err(),
+            "`-0,009` is not a number (use a decimal point)"
+        );
+        assert_eq!(quantity("4x", false).unwrap_err(), "`4x` is not a number");
+    }
 
     #[test]
     fn two_sessions_started_in_the_same_second_get_two_logs() {

@@ -263,15 +263,15 @@ impl Guide {
                 ),
                 None,
             )?;
-            let words: Vec<&str> = a.split_whitespace().collect();
+            let words = super::measurement_words(&a);
             if !(2..=3).contains(&words.len()) {
                 self.ui.say("  two or three numbers: x y [theta]");
                 continue;
             }
             let parsed = (|| -> Result<(f64, f64, Option<f64>), String> {
                 Ok((
-                    quantity(words[0], false)?,
-                    quantity(words[1], false)?,
+                    quantity(&words[0], false)?,
+                    quantity(&words[1], false)?,
                     words.get(2).map(|w| quantity(w, true)).transpose()?,
                 ))
             })();
