@@ -12,7 +12,10 @@
 //! ticks; inside a run their truth is interpolated in time between the neighbouring rows, at a run's
 //! ends they are cut (the run starts and ends at rows with ground truth), and `replay` says how many
 //! ([`TruthGaps`]). Any other unreadable value is an error naming file, line and field, and so is
-//! a glitch: motion faster than [`MAX_ROW_SPEED_M_S`] between two rows.
+//! a glitch: motion faster than [`MAX_ROW_SPEED_M_S`] between two rows, or a tick count that is not
+//! a whole number within ±[`MAX_ROW_TICKS`]. A run whose wheels turn it more than
+//! [`SWAP_MIN_TURN_RAD`] one way while its ground truth turns more than that the other way is refused
+//! too: its right and left tick columns are swapped (or an encoder counts backwards).
 //!
 //! The encoder resolution `ngear · encRes` is not an integer (43.7 · 64 = 2796.8 ticks per wheel
 //! revolution); [`Geometry::counts_per_rev`] is, so ticks and resolution are both multiplied by
@@ -200,7 +203,57 @@ fn parse_f64(s: &str, what: &str, file: &Path) -> Result<f64, String> {
         .parse::<f64>()
         .ok()
         .filter(|v| v.is_finite())
-        .ok_or_else(|| format!("{}: bad {what} {s:?}", file.display()))
+        .ok_or_else(|| format!("{}: bad {what} {s:?}{}", file.display(), number_hint(s, s)))
+}
+
+/// A hint for a value `s` of `line` that is not a number, when the file looks written with another
+/// convention: fields separated by semicolons or tabs, or a decimal comma in a quoted field.
+fn number_hint(s: &str, line: &str) -> &'static str {
+    if line.contains(';') || line.contains('\t') {
+        " (fields are separated by commas and decimals use a point, e.g. 0.05,0.0012,…)"
+    } else if s.contains('"') {
+        " (a decimal point is expected: 0.2, not \"0,2\")"
+    } else {
+        ""
+    }
+}
+
+/// The error for a session file that cannot be read, with how the files must be named when it is
+/// absent: `<folder name>_metadata.csv` and `<folder name>_run-01.csv` … (two digits), and the
+/// metadata file the folder holds instead, if any.
+fn unreadable(
+    path: &Path,
+    e: &std::io::Error,
+    dir: &Path,
+    id: &str,
+    runs: Option<usize>,
+) -> String {
+    let mut msg = format!("{}: {e}", path.display());
+    if e.kind() != std::io::ErrorKind::NotFound {
+        return msg;
+    }
+    msg.push_str(&format!(
+        " (the files of a session folder are named after it: {id}_metadata.csv, {id}_run-01.csv, {id}_run-02.csv, …"
+    ));
+    if let Some(n) = runs {
+        msg.push_str(&format!(
+            "; its metadata says N = {n}, so up to {id}_run-{n:02}.csv"
+        ));
+    }
+    let other = fs::read_dir(dir).ok().and_then(|entries| {
+        entries
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter(|name| name.ends_with("_metadata.csv"))
+            .min()
+    });
+    if let Some(other) = other.filter(|o| *o != format!("{id}_metadata.csv")) {
+        let other_id = other.trim_end_matches("_metadata.csv");
+        msg.push_str(&format!(
+            "; this folder holds {other}: name the folder {other_id}"
+        ));
+    }
+    msg.push(')');
+    msg
 }
 
 /// Reads one session folder; its kind is the parent folder's name.
@@ -235,7 +288,8 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
     })?;
     let meta_path = dir.join(format!("{id}_metadata.csv"));
     let meta =
-        fs::read_to_string(&meta_path).map_err(|e| format!("{}: {e}", meta_path.display()))?;
+        fs::read_to_string(&meta_path).map_err(|e| unreadable(&meta_path, &e, dir, &id, None))?;
+    let separator_hint = number_hint("", &meta);
     let field = |key: &str| -> Result<Vec<String>, String> {
         meta.lines()
             .map(|l| l.split(',').map(str::trim).collect::<Vec<_>>())
@@ -247,7 +301,7 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
                     .map(|s| s.to_string())
                     .collect()
             })
-            .ok_or_else(|| format!("{}: no {key}", meta_path.display()))
+            .ok_or_else(|| format!("{}: no {key}{separator_hint}", meta_path.display()))
     };
     let first = |key: &str| -> Result<f64, String> {
         let v = field(key)?;
@@ -312,8 +366,10 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
     let mut truth_gaps = TruthGaps::default();
     for i in 0..n {
         let file = dir.join(format!("{id}_run-{:02}.csv", i + 1));
-        let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+        let text =
+            fs::read_to_string(&file).map_err(|e| unreadable(&file, &e, dir, &id, Some(n)))?;
         let (knots, truth) = read_run(&text, tick_scale, &nominal, &file, &mut truth_gaps)?;
+        check_turn(&knots, &truth, &nominal, &file)?;
         let direction = matches!(kind, Kind::Square | Kind::Circular).then(|| {
             turn_direction(&knots, &nominal).unwrap_or(if i < n / 2 {
                 Direction::Cw
@@ -357,18 +413,72 @@ fn turn_direction(knots: &[WheelTicks], g: &Geometry) -> Option<Direction> {
     })
 }
 
+/// Smallest turn, radians, that both the odometry (with the session's belief) and the ground truth
+/// must show over a run before turns of opposite sign refuse it: a quarter turn, far beyond what
+/// any wheel or wheelbase error makes of a turn (in the shared sessions the two differ by at most
+/// 0.25 rad over a run, two full circles), and below the half turns of Ivanjko's in-place turns.
+pub const SWAP_MIN_TURN_RAD: f64 = std::f64::consts::FRAC_PI_2;
+
+/// Refuses a run whose wheels turn it clearly the other way than its ground truth turns (both more
+/// than [`SWAP_MIN_TURN_RAD`]): the right and left tick columns are swapped, or one encoder counts
+/// backwards. The truth's turn is the sum of its row-to-row turns the short way round, whether
+/// the file unwraps the heading or not.
+fn check_turn(
+    knots: &[WheelTicks],
+    truth: &[PoseF64],
+    g: &Geometry,
+    file: &Path,
+) -> Result<(), String> {
+    let (Some(&first), Some(&last)) = (knots.first(), knots.last()) else {
+        return Ok(());
+    };
+    let (right, left) = wheel_travel(last - first, g);
+    let odometry = (right - left) / g.wheelbase_m;
+    let truth_turn: f64 = truth
+        .windows(2)
+        .map(|w| {
+            let t = w[1].theta_rad - w[0].theta_rad;
+            t - TAU * (t / TAU).round()
+        })
+        .sum();
+    if odometry.abs() > SWAP_MIN_TURN_RAD
+        && truth_turn.abs() > SWAP_MIN_TURN_RAD
+        && (odometry > 0.0) != (truth_turn > 0.0)
+    {
+        return Err(format!(
+            "{}: the wheels turn the robot {odometry:+.2} rad over the run, the ground truth {truth_turn:+.2} rad, the other way: are the right and left tick columns swapped (the fifth field is the right wheel, the sixth the left), or does an encoder count backwards?",
+            file.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Largest tick count one row may hold (raw, before scaling): a 32-bit counter's range. Beyond it
+/// a value is a glitch whatever the row interval; within it, scaled ticks and their sums stay far
+/// inside `i64` (the speed check then refuses any that is too fast).
+pub const MAX_ROW_TICKS: i64 = i32::MAX as i64;
+
+/// Largest cumulative (scaled) tick count of a run: half the `i64` range, so that the difference
+/// of any two knots is exact.
+const MAX_RUN_TICKS: i64 = i64::MAX / 2;
+
 /// One row of a run file: time, ground truth (`None` where the motion capture lost the robot: any
-/// of its three fields empty or NaN), and the ticks of this cycle.
+/// of its three fields empty or NaN), and the ticks of this cycle (whole numbers within
+/// ±[`MAX_ROW_TICKS`]).
 fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), String> {
     let f: Vec<&str> = line.split(',').map(str::trim).collect();
     if f.len() < 6 {
-        return Err(format!("{at}: expected 6 fields, found {}", f.len()));
+        return Err(format!(
+            "{at}: expected 6 fields, found {}{}",
+            f.len(),
+            number_hint("", line)
+        ));
     }
     let value = |s: &str, what: &str| {
         s.parse::<f64>()
             .ok()
             .filter(|v| v.is_finite())
-            .ok_or_else(|| format!("{at}: bad {what} {s:?}"))
+            .ok_or_else(|| format!("{at}: bad {what} {s:?}{}", number_hint(s, line)))
     };
     let lost = |s: &str| s.is_empty() || s.eq_ignore_ascii_case("nan");
     let truth = if f[1..4].iter().any(|s| lost(s)) {
@@ -380,8 +490,26 @@ fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), St
             value(f[3], "heading")?,
         ))
     };
-    let ticks = |s: &str| value(s, "tick count").map(|v| v.round() as i64);
-    Ok((value(f[0], "time")?, truth, [ticks(f[4])?, ticks(f[5])?]))
+    let ticks = |s: &str, wheel: &str| -> Result<i64, String> {
+        let v = value(s, &format!("tick count ({wheel})"))?;
+        if v.abs() > MAX_ROW_TICKS as f64 {
+            Err(format!(
+                "{at}: tick count ({wheel}) {s:?} out of range (over ±{MAX_ROW_TICKS} in one row): an encoder glitch"
+            ))
+        } else if v.fract() != 0.0 {
+            Err(format!(
+                "{at}: bad tick count ({wheel}) {s:?}: not a whole number"
+            ))
+        } else {
+            // A whole number within ±2³¹: exact as i64.
+            Ok(v as i64)
+        }
+    };
+    Ok((
+        value(f[0], "time")?,
+        truth,
+        [ticks(f[4], "right")?, ticks(f[5], "left")?],
+    ))
 }
 
 /// Fastest wheel or ground-truth motion a run may show between two rows, m/s: 40 times what the
@@ -409,8 +537,13 @@ fn check_speeds(
         let (right, left) = wheel_travel(knots[j] - knots[j - 1], g);
         let wheel = right.abs().max(left.abs());
         if wheel > MAX_ROW_SPEED_M_S * dt {
+            let hint = if looks_cumulative(&knots[..=j]) {
+                " (are the tick columns cumulative counts? The reader expects each row to hold the ticks of its own cycle, the motion since the previous row)"
+            } else {
+                ""
+            };
             return Err(format!(
-                "{}: a wheel travels {wheel:.3} m in one row ({:.0} m/s, over {MAX_ROW_SPEED_M_S} m/s): an encoder glitch",
+                "{}: a wheel travels {wheel:.3} m in one row ({:.0} m/s, over {MAX_ROW_SPEED_M_S} m/s): an encoder glitch{hint}",
                 at(j),
                 wheel / dt
             ));
@@ -433,6 +566,30 @@ fn check_speeds(
     }
     Ok(())
 }
+
+/// Whether the per-row ticks of the knots `k` look like cumulative counts: a wheel's column never
+/// turns back (per-row increments that only grow, or only shrink) over at least
+/// [`CUMULATIVE_MIN_ROWS`] rows, changing in at least half of them. Per-cycle increments of a
+/// driving robot go up and down with its speed from row to row.
+fn looks_cumulative(k: &[WheelTicks]) -> bool {
+    let steps: Vec<WheelTicks> = k.windows(2).map(|w| w[1] - w[0]).collect();
+    if steps.len() < CUMULATIVE_MIN_ROWS {
+        return false;
+    }
+    let monotone = |column: &dyn Fn(&WheelTicks) -> i64| {
+        let changes: Vec<i64> = steps
+            .windows(2)
+            .map(|w| column(&w[1]) - column(&w[0]))
+            .collect();
+        let moved = changes.iter().filter(|&&c| c != 0).count();
+        (changes.iter().all(|&c| c >= 0) || changes.iter().all(|&c| c <= 0))
+            && 2 * moved >= changes.len()
+    };
+    monotone(&|t| t.right) || monotone(&|t| t.left)
+}
+
+/// Fewest rows before an encoder glitch for [`looks_cumulative`] to judge them.
+const CUMULATIVE_MIN_ROWS: usize = 5;
 
 /// Rows whose ground truth the motion capture lost, over a session's runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -462,10 +619,19 @@ fn read_run(
         if line.trim().is_empty() {
             continue;
         }
-        let (t, pose, [dr, dl]) = read_row(line, &format!("{}:{}", file.display(), ln + 1))?;
+        let at = format!("{}:{}", file.display(), ln + 1);
+        let (t, pose, [dr, dl]) = read_row(line, &at)?;
         // The first row's ticks are the motion before the run started: not part of it.
         if !knots.is_empty() {
-            total = WheelTicks::new(total.right + dr * tick_scale, total.left + dl * tick_scale);
+            let add = |sum: i64, d: i64| {
+                d.checked_mul(tick_scale)
+                    .and_then(|d| sum.checked_add(d))
+                    .filter(|s| s.unsigned_abs() <= MAX_RUN_TICKS.unsigned_abs())
+                    .ok_or_else(|| {
+                        format!("{at}: the run's cumulative tick count is out of range (over ±{MAX_RUN_TICKS} scaled ticks)")
+                    })
+            };
+            total = WheelTicks::new(add(total.right, dr)?, add(total.left, dl)?);
         }
         lines.push(ln + 1);
         times.push(t);
@@ -937,6 +1103,204 @@ mod tests {
                 && err.contains("motion-capture glitch"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn huge_or_fractional_tick_counts_are_refused_with_their_line_and_field() {
+        let (g, file, mut gaps) = (
+            optiodom_robot(),
+            Path::new("5_run-01.csv"),
+            TruthGaps::default(),
+        );
+        let run = |right: &str| -> String {
+            (0..6)
+                .map(|i| {
+                    let r = if i == 3 { right } else { "53" };
+                    format!(
+                        "{},{},0,0,{r},53\n",
+                        f64::from(i) * 0.05,
+                        f64::from(i) * 0.005
+                    )
+                })
+                .collect()
+        };
+        // Values an i64 saturates at or a product with the scale overflows: refused as read, never
+        // turned into a wrong travel (or an overflow).
+        for v in [
+            "99999999999999999999",
+            "-99999999999999999999",
+            "9223372036854775807",
+            "-9223372036854775807",
+            "1e18",
+            "2147483648",
+        ] {
+            let err = read_run(&run(v), 10, &g, file, &mut gaps).unwrap_err();
+            assert!(
+                err.contains(&format!(
+                    "5_run-01.csv:4: tick count (right) {v:?} out of range"
+                )) && err.contains("encoder glitch"),
+                "{v}: {err}"
+            );
+        }
+        // Within ±2³¹ the speed check judges it; a whole number written with a point is one.
+        let err = read_run(&run("2147483647"), 10, &g, file, &mut gaps).unwrap_err();
+        assert!(err.contains("5_run-01.csv:4: a wheel travels"), "{err}");
+        assert!(read_run(&run("53.0"), 10, &g, file, &mut gaps).is_ok());
+        let err = read_run(&run("53.5"), 10, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:4: bad tick count (right) \"53.5\": not a whole number"),
+            "{err}"
+        );
+        // Rows each within range whose sum leaves the cumulative range (here at the largest
+        // scale) are refused before any knot difference could wrap.
+        let rows = 1 + (MAX_RUN_TICKS / (MAX_ROW_TICKS * 10_000)) as usize;
+        let text: String = (0..=rows)
+            .map(|i| format!("{i},0,0,0,0,{MAX_ROW_TICKS}\n"))
+            .collect();
+        let err = read_run(&text, 10_000, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains(&format!(
+                "5_run-01.csv:{}: the run's cumulative tick count is out of range",
+                rows + 1
+            )),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn cumulative_ticks_and_other_separators_get_a_hint() {
+        let (g, file, mut gaps) = (
+            optiodom_robot(),
+            Path::new("5_run-01.csv"),
+            TruthGaps::default(),
+        );
+        // Cumulative counts of a robot at 0.1 m/s (53 raw ticks per row): at row 101 a row holds
+        // 5,300 raw ticks, 0.5 m, over 10 m/s.
+        let rows: String = (0..200)
+            .map(|i| {
+                let t = f64::from(i) * 0.05;
+                format!("{t},{},0,0,{},{}\n", f64::from(i) * 0.005, 53 * i, 53 * i)
+            })
+            .collect();
+        let err = read_run(&rows, 10, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:101: a wheel travels")
+                && err.contains("are the tick columns cumulative counts?"),
+            "{err}"
+        );
+        // A single glitch among per-row increments gets no such hint.
+        let rows: String = (0..20)
+            .map(|i| {
+                let r = if i == 10 { 99_999 } else { 53 + i % 3 };
+                format!(
+                    "{},{},0,0,{r},53\n",
+                    f64::from(i) * 0.05,
+                    f64::from(i) * 0.005
+                )
+            })
+            .collect();
+        let err = read_run(&rows, 10, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:11: a wheel travels") && !err.contains("cumulative"),
+            "{err}"
+        );
+        // Semicolons between fields (and decimal commas).
+        let err = read_run("0;0;0;0;0;0\n", 10, &g, file, &mut gaps).unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:1: expected 6 fields, found 1")
+                && err.contains("fields are separated by commas and decimals use a point"),
+            "{err}"
+        );
+        let err = read_run("0;0,0012;0;0;0;0\n", 10, &g, file, &mut gaps).unwrap_err();
+        assert!(err.contains("separated by commas"), "{err}");
+        // A plain bad field gets no hint.
+        let err = read_run("abc,0,0,0,0,0\n", 10, &g, file, &mut gaps).unwrap_err();
+        assert!(err.ends_with("bad time \"abc\""), "{err}");
+    }
+
+    #[test]
+    fn a_quoted_decimal_comma_in_the_metadata_asks_for_a_decimal_point() {
+        let (root, dir) = session_folder(
+            "comma",
+            "ivanjko",
+            "66",
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,\"0,2\",,\nDi,0.084,0.084,\nN,1,,\n",
+        );
+        let err = read_session(&dir).unwrap_err();
+        fs::remove_dir_all(&root).unwrap();
+        assert!(
+            err.contains("66_metadata.csv: bad Li \"\\\"0\"")
+                && err.contains("a decimal point is expected"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_renamed_session_folder_says_how_the_files_are_named() {
+        let root = std::env::temp_dir().join(format!("odocal-renamed-{}", std::process::id()));
+        let dir = root.join("square").join("mysession");
+        fs::create_dir_all(&dir).unwrap();
+        fs::write(dir.join("22_metadata.csv"), "type,diff\n").unwrap();
+        let err = read_session(&dir).unwrap_err();
+        // A run file named with one digit.
+        let (root2, dir2) = session_folder(
+            "onedigit",
+            "ivanjko",
+            "23",
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,2,,\n",
+        );
+        fs::write(dir2.join("23_run-1.csv"), "0,0,0,0,0,0\n").unwrap();
+        let err2 = read_session(&dir2).unwrap_err();
+        fs::remove_dir_all(&root).unwrap();
+        fs::remove_dir_all(&root2).unwrap();
+        assert!(
+            err.contains("mysession_metadata.csv: ")
+                && err.contains("named after it: mysession_metadata.csv, mysession_run-01.csv")
+                && err.contains("this folder holds 22_metadata.csv: name the folder 22"),
+            "{err}"
+        );
+        assert!(
+            err2.contains("23_run-01.csv: ")
+                && err2.contains("metadata says N = 2, so up to 23_run-02.csv")
+                && !err2.contains("this folder holds"),
+            "{err2}"
+        );
+    }
+
+    #[test]
+    fn a_run_turning_against_its_ground_truth_is_refused_as_swapped_columns() {
+        let (root, dir) = session_folder(
+            "swapped",
+            "circular",
+            "89",
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,2,,\n",
+        );
+        // A full turn in place to the left (CCW) in ten rows: each wheel rolls 666 raw ticks
+        // per row, 2π·0.1 m in all, and the ground truth turns 2π, its heading written wrapped
+        // into (−π, π]. Run 2 is run 1 with the tick columns swapped.
+        let turn = |swap: bool| -> String {
+            (0..=10)
+                .map(|i| {
+                    let k = if i == 0 { 0 } else { 666 };
+                    let (r, l) = if swap { (-k, k) } else { (k, -k) };
+                    let th = odocal::calibration::wrap_angle(f64::from(i) * TAU / 10.0);
+                    format!("{},0,0,{th},{r},{l}\n", f64::from(i) * 0.05)
+                })
+                .collect()
+        };
+        fs::write(dir.join("89_run-01.csv"), turn(false)).unwrap();
+        fs::write(dir.join("89_run-02.csv"), turn(true)).unwrap();
+        let err = read_session(&dir).unwrap_err();
+        // Unswapped, the session is read and both runs turned CCW.
+        fs::write(dir.join("89_run-02.csv"), turn(false)).unwrap();
+        let s = read_session(&dir).unwrap();
+        fs::remove_dir_all(&root).unwrap();
+        assert!(
+            err.contains("89_run-02.csv: the wheels turn the robot -6.28 rad over the run, the ground truth +6.28 rad")
+                && err.contains("right and left tick columns swapped"),
+            "{err}"
+        );
+        assert_eq!(s.runs[1].direction, Some(Direction::Ccw));
     }
 
     #[test]
