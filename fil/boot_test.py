@@ -86,6 +86,7 @@ NO_REPLY_WAIT = 0.5
 # A block pasted into a terminal with echo on: 30 `set` lines and `runs`, sent at once (QEMU has
 # no baud rate, so it all waits in the input queue before the console takes the second line).
 PASTE = [f"set square_side {1 + i / 100:.2f}" for i in range(30)] + ["runs"]
+OVERFLOW = [f"set square_side {1 + i / 100:.2f}" for i in range(95)]
 
 
 def paste_check(con):
@@ -107,6 +108,17 @@ def paste_check(con):
         pair = got[2 * i:2 * i + 2]
         if len(pair) < 2 or pair[0] != cmd or not pair[1].startswith("ok"):
             problems.append(f"line {i + 1} `{cmd}`: got {pair}")
+    # More than the input queue holds (OVERFLOW lines, about 2 KB): every line is answered or
+    # counted, and the lines lost are reported once, after the last reply.
+    con.send_raw("\r".join(OVERFLOW).encode() + b"\r")
+    replies = con.quiet(3.0)
+    answered = sum(1 for r in replies if r.startswith("ok "))
+    notices = [r for r in replies if "dropped: input queue full" in r]
+    lost = int(notices[0].split()[2]) if len(notices) == 1 else -1
+    if len(notices) != 1 or replies[-1] != notices[0] or answered + lost != len(OVERFLOW):
+        problems.append(f"{len(OVERFLOW)} lines pasted: {answered} answered, notices {notices}, "
+                        f"last reply `{replies[-1] if replies else None}`")
+    got.append(f"{len(OVERFLOW)} lines: {answered} answered, `{notices[0] if notices else None}`")
     return problems, got
 
 
@@ -225,7 +237,8 @@ def main():
         fail = 1
     else:
         print(f"paste: {len(PASTE)} lines pasted at once with echo on, each echoed right before "
-              f"its reply, in order (`{paste_got[0]}` … `{paste_got[-1]}`)")
+              f"its reply, in order (`{paste_got[0]}` … `{paste_got[-2]}`); "
+              f"{paste_got[-1]}, as the last line")
     # QEMU has no TIM7, so the control task never runs here: after the one feed that starts the
     # watchdog and the two of the console task's one flash access with the watchdog relaxed
     # (restoring the stored runs at boot: 10 s and back to 50 ms, one reload-key write after

@@ -501,7 +501,13 @@ mod app {
             // One line per pass, and only while the transmit queue has room for the longest
             // reply, so a burst of commands never cuts a reply short.
             if tx_in.capacity() - tx_in.len() >= REPLY_ROOM {
-                let lost = LINES_DROPPED.swap(0, Ordering::Relaxed);
+                // Lines lost to a full queue are reported once the lines kept have been
+                // answered: one notice for a whole paste, after its last reply.
+                let lost = if cx.local.line_out.is_empty() {
+                    LINES_DROPPED.swap(0, Ordering::Relaxed)
+                } else {
+                    0
+                };
                 let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
                 if lost > 0 {
                     let _ = write_err(

@@ -257,6 +257,11 @@ impl Received {
 }
 
 impl InputReceiver<'_> {
+    /// Whether nothing waits.
+    pub fn is_empty(&self) -> bool {
+        self.0.len() == 0
+    }
+
     /// The next item, if any.
     pub fn take(&mut self) -> Option<Received> {
         let header = self.0.dequeue()?;
