@@ -379,6 +379,9 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
         });
         runs.push(OptiRun::new(direction, knots, truth));
     }
+    if kind == Kind::Square {
+        check_side(side_m, &runs, &meta_path)?;
+    }
     let truth_offset = truth_heading_offset(&runs);
     if let Some(o) = truth_offset {
         let (s, c) = o.heading_rad.sin_cos();
@@ -398,6 +401,29 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
         truth_offset,
         truth_gaps,
     })
+}
+
+/// Largest factor between the metadata's square side and the side the ground truth drove (a
+/// quarter of a run's path length, the median over the runs): a side in centimetres or
+/// millimetres is 100 or 1000 times off, a real square within a few per cent.
+pub const SIDE_MISMATCH: f64 = 2.0;
+
+/// Refuses a square session whose `L` is not the side its runs drove (e.g. given in
+/// centimetres): the closed-form methods compute with it.
+fn check_side(side_m: f64, runs: &[OptiRun], meta_path: &Path) -> Result<(), String> {
+    let mut sides: Vec<f64> = runs.iter().map(|r| r.truth_length_m() / 4.0).collect();
+    sides.sort_by(f64::total_cmp);
+    let Some(&driven) = sides.get(sides.len() / 2) else {
+        return Ok(());
+    };
+    if driven > 0.0 && (side_m / driven).max(driven / side_m) <= SIDE_MISMATCH {
+        return Ok(());
+    }
+    Err(format!(
+        "{}: L = {side_m} m, but the runs drive squares of about {driven:.3} m (a quarter of \
+         the ground-truth path): L is the square's side in metres",
+        meta_path.display()
+    ))
 }
 
 /// The direction a closed run (square, circle) turned in, from its wheels: the odometry heading
@@ -620,7 +646,20 @@ fn read_run(
             continue;
         }
         let at = format!("{}:{}", file.display(), ln + 1);
-        let (t, pose, [dr, dl]) = read_row(line, &at)?;
+        let (t, pose, [dr, dl]) = read_row(line, &at).map_err(|e| {
+            // A first line of words is a header the format does not have.
+            let words = line
+                .split(',')
+                .all(|f| f.trim().starts_with(char::is_alphabetic));
+            if ln == 0 && words {
+                format!(
+                    "{e} (a header row? The format has none: every row holds t, x, y, theta, \
+                     right ticks, left ticks)"
+                )
+            } else {
+                e
+            }
+        })?;
         // The first row's ticks are the motion before the run started: not part of it.
         if !knots.is_empty() {
             let add = |sum: i64, d: i64| {
@@ -802,14 +841,73 @@ mod tests {
     }
 
     #[test]
+    fn a_header_row_is_named() {
+        let (root, dir) = session_folder(
+            "header",
+            "square",
+            "1234",
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,1,,\nL,0.25,,\n",
+        );
+        let run = "t,x_gt_m,y_gt_m,theta_gt_rad,right,left\n0,1,2,0,0,0\n";
+        fs::write(dir.join("1234_run-01.csv"), run).unwrap();
+        let e = read_session(&dir).map(|_| ()).unwrap_err();
+        fs::remove_dir_all(&root).unwrap();
+        assert!(
+            e.ends_with(
+                "1234_run-01.csv:1: bad x \"x_gt_m\" (a header row? The format has none: every \
+                 row holds t, x, y, theta, right ticks, left ticks)"
+            ),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_square_side_not_in_metres_is_refused() {
+        // The runs drive 1 m (a square of 0.25 m); L typed in centimetres is refused, in
+        // metres (within a factor of 2 of the driven side) accepted.
+        for (l, ok) in [
+            ("25", false),
+            ("0.025", false),
+            ("0.25", true),
+            ("0.4", true),
+        ] {
+            let (root, dir) = session_folder(
+                "side",
+                "square",
+                "1234",
+                &format!(
+                    "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,1,,\nL,{l},,\n"
+                ),
+            );
+            let run = "0,1,2,1.5707963267948966,0,0\n0.05,1,2.5,1.5707963267948966,3,4\n0.1,1,3,1.5707963267948966,5,5\n";
+            fs::write(dir.join("1234_run-01.csv"), run).unwrap();
+            let r = read_session(&dir);
+            fs::remove_dir_all(&root).unwrap();
+            match (r, ok) {
+                (Ok(s), true) => assert_eq!(s.side_m, l.parse::<f64>().unwrap()),
+                (Err(e), false) => assert!(
+                    e.ends_with(&format!(
+                        "1234_metadata.csv: L = {l} m, but the runs drive squares of about \
+                         0.250 m (a quarter of the ground-truth path): L is the square's side in \
+                         metres"
+                    )),
+                    "{e}"
+                ),
+                (r, _) => panic!("L = {l}: {:?}", r.map(|s| s.side_m)),
+            }
+        }
+    }
+
+    #[test]
     fn reads_a_session_and_moves_truth_into_the_start_frame() {
         let (root, dir) = session_folder(
             "optiodom",
             "square",
             "1234",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,2,,\nL,0.75,,\n",
+            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,2,,\nL,0.25,,\n",
         );
-        // Start at (1, 2) heading +y; the robot ends 1 m ahead (world (1, 3)), heading −x.
+        // Start at (1, 2) heading +y; the robot ends 1 m ahead (world (1, 3)), heading −x: a
+        // path of 4 × 0.25 m.
         let run = "0,1,2,1.5707963267948966,0,0\n0.05,1,2.5,1.5707963267948966,3,4\n0.1,1,3,3.141592653589793,-2,5\n";
         fs::write(dir.join("1234_run-01.csv"), run).unwrap();
         fs::write(dir.join("1234_run-02.csv"), run).unwrap();
