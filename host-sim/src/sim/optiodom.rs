@@ -1157,6 +1157,24 @@ mod tests {
         }
     }
 
+    /// Six rows at 0.1 m/s (5 mm and 53 raw ticks, 530 scaled at 9.4e-6 m each, per 50 ms row),
+    /// the fourth replaced by `row3`.
+    fn steady_run_with_row3(row3: &str) -> String {
+        (0..6)
+            .map(|i| {
+                if i == 3 {
+                    format!("{row3}\n")
+                } else {
+                    format!(
+                        "{},{},0,0,53,53\n",
+                        f64::from(i) * 0.05,
+                        f64::from(i) * 0.005
+                    )
+                }
+            })
+            .collect()
+    }
+
     #[test]
     fn encoder_and_motion_capture_glitches_are_refused_with_their_line() {
         let (g, file, mut gaps) = (
@@ -1164,22 +1182,7 @@ mod tests {
             Path::new("5_run-01.csv"),
             TruthGaps::default(),
         );
-        // 0.1 m/s: 5 mm and 53 raw ticks (530 scaled, 9.4e-6 m each) per 50 ms row.
-        let run = |row3: &str| -> String {
-            (0..6)
-                .map(|i| {
-                    if i == 3 {
-                        format!("{row3}\n")
-                    } else {
-                        format!(
-                            "{},{},0,0,53,53\n",
-                            f64::from(i) * 0.05,
-                            f64::from(i) * 0.005
-                        )
-                    }
-                })
-                .collect()
-        };
+        let run = steady_run_with_row3;
         assert!(read_run(&run("0.15,0.015,0,0,53,53"), 10, &g, file, &mut gaps).is_ok());
         // A counter glitch: 99,999,999 raw ticks in 50 ms is 9.4 km of wheel travel.
         let err =
@@ -1210,18 +1213,7 @@ mod tests {
             Path::new("5_run-01.csv"),
             TruthGaps::default(),
         );
-        let run = |right: &str| -> String {
-            (0..6)
-                .map(|i| {
-                    let r = if i == 3 { right } else { "53" };
-                    format!(
-                        "{},{},0,0,{r},53\n",
-                        f64::from(i) * 0.05,
-                        f64::from(i) * 0.005
-                    )
-                })
-                .collect()
-        };
+        let run = |right: &str| steady_run_with_row3(&format!("0.15,0.015,0,0,{right},53"));
         // Values an i64 saturates at or a product with the scale overflows: refused as read, never
         // turned into a wrong travel (or an overflow).
         for v in [
