@@ -430,13 +430,19 @@ fn check_side(side_m: f64, runs: &[OptiRun], meta_path: &Path) -> Result<(), Str
 /// turns by about −2π (CW) or +2π (CCW) over the run, far more than any calibration error changes;
 /// `None` below half a turn, where the file order decides.
 fn turn_direction(knots: &[WheelTicks], g: &Geometry) -> Option<Direction> {
-    let (right, left) = wheel_travel(*knots.last()? - *knots.first()?, g);
-    let turn = (right - left) / g.wheelbase_m;
+    let turn = odometry_turn_rad(knots, g)?;
     (turn.abs() > std::f64::consts::PI).then_some(if turn < 0.0 {
         Direction::Cw
     } else {
         Direction::Ccw
     })
+}
+
+/// How far the wheels turn the robot over a run with `g` (odometry heading change, radians,
+/// unwrapped); `None` without knots.
+fn odometry_turn_rad(knots: &[WheelTicks], g: &Geometry) -> Option<f64> {
+    let (right, left) = wheel_travel(*knots.last()? - *knots.first()?, g);
+    Some((right - left) / g.wheelbase_m)
 }
 
 /// Smallest turn, radians, that both the odometry (with the session's belief) and the ground truth
@@ -455,11 +461,9 @@ fn check_turn(
     g: &Geometry,
     file: &Path,
 ) -> Result<(), String> {
-    let (Some(&first), Some(&last)) = (knots.first(), knots.last()) else {
+    let Some(odometry) = odometry_turn_rad(knots, g) else {
         return Ok(());
     };
-    let (right, left) = wheel_travel(last - first, g);
-    let odometry = (right - left) / g.wheelbase_m;
     let truth_turn: f64 = truth
         .windows(2)
         .map(|w| {
