@@ -546,9 +546,16 @@ fn read_row(line: &str, at: &str) -> Result<(f64, Option<PoseF64>, [i64; 2]), St
 /// shared sessions' robot reaches (0.26 m/s); beyond it a row is a glitch, not motion.
 pub const MAX_ROW_SPEED_M_S: f64 = 10.0;
 
-/// Refuses a run in which a wheel or the ground truth moves faster than [`MAX_ROW_SPEED_M_S`]
-/// between two rows (an encoder or motion-capture glitch would silently distort every result). The
-/// row interval is the run's median, so that a bad time stamp does not hide a glitch or make one.
+/// Largest step between two rows' times, in the run's median row intervals, before rows count
+/// as missing (a logger's jitter stays well within it; the shared sessions' rows are 50 ms apart
+/// to 1e-10 s).
+pub const MAX_ROW_GAP: f64 = 5.0;
+
+/// Refuses a run with rows missing (a time step over [`MAX_ROW_GAP`] row intervals: their ticks
+/// are lost) or a time that runs backwards, and a run in which a wheel or the ground truth
+/// moves faster than [`MAX_ROW_SPEED_M_S`] between two rows (an encoder or motion-capture glitch
+/// would silently distort every result). The row interval is the run's median, so that a bad
+/// time stamp does not hide a glitch or make one.
 fn check_speeds(
     lines: &[usize],
     times: &[f64],
@@ -563,6 +570,24 @@ fn check_speeds(
         return Ok(());
     };
     let at = |j: usize| format!("{}:{}", file.display(), lines[j]);
+    // Each row holds its own cycle's ticks: rows missing from the file are ticks lost, and the
+    // odometry of the run would be wrong from there on.
+    for j in 1..times.len() {
+        let step = times[j] - times[j - 1];
+        if !(step >= 0.0 && step <= MAX_ROW_GAP * dt) {
+            return Err(format!(
+                "{}: the time goes from {:.3} s to {:.3} s (the rows are {dt:.3} s apart): {}",
+                at(j),
+                times[j - 1],
+                times[j],
+                if step > 0.0 {
+                    "rows are missing, and with them their ticks"
+                } else {
+                    "the time runs backwards"
+                }
+            ));
+        }
+    }
     for j in 1..knots.len() {
         let (right, left) = wheel_travel(knots[j] - knots[j - 1], g);
         let wheel = right.abs().max(left.abs());
@@ -1177,6 +1202,56 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    #[test]
+    fn missing_rows_and_a_backward_time_are_refused_with_their_line() {
+        let (g, file, mut gaps) = (
+            optiodom_robot(),
+            Path::new("5_run-01.csv"),
+            TruthGaps::default(),
+        );
+        // Row 4's time 0.15 s: in step. 0.4 s: rows missing (their ticks with them), 0.1 s:
+        // backwards. A repeated time or jitter (0.17 s) is read.
+        assert!(
+            read_run(
+                &steady_run_with_row3("0.15,0.015,0,0,53,53"),
+                10,
+                &g,
+                file,
+                &mut gaps
+            )
+            .is_ok()
+        );
+        let err = read_run(
+            &steady_run_with_row3("0.4,0.015,0,0,53,53"),
+            10,
+            &g,
+            file,
+            &mut gaps,
+        )
+        .unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:4: the time goes from 0.100 s to 0.400 s (the rows are 0.050 s apart): rows are missing, and with them their ticks"),
+            "{err}"
+        );
+        let err = read_run(
+            &steady_run_with_row3("0.05,0.015,0,0,53,53"),
+            10,
+            &g,
+            file,
+            &mut gaps,
+        )
+        .unwrap_err();
+        assert!(
+            err.contains("5_run-01.csv:4: the time goes from 0.100 s to 0.050 s"),
+            "{err}"
+        );
+        assert!(err.ends_with("the time runs backwards"), "{err}");
+        for t in ["0.1", "0.17"] {
+            let text = steady_run_with_row3(&format!("{t},0.015,0,0,53,53"));
+            assert!(read_run(&text, 10, &g, file, &mut gaps).is_ok(), "{t}");
+        }
     }
 
     #[test]
