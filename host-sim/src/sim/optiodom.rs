@@ -1186,6 +1186,15 @@ mod tests {
         }
     }
 
+    /// The robot, a run file's name and an empty dropout count, for [`read_run`] tests.
+    fn run_fixture() -> (Geometry, &'static Path, TruthGaps) {
+        (
+            optiodom_robot(),
+            Path::new("5_run-01.csv"),
+            TruthGaps::default(),
+        )
+    }
+
     /// Six rows at 0.1 m/s (5 mm and 53 raw ticks, 530 scaled at 9.4e-6 m each, per 50 ms row),
     /// the fourth replaced by `row3`.
     fn steady_run_with_row3(row3: &str) -> String {
@@ -1206,11 +1215,7 @@ mod tests {
 
     #[test]
     fn missing_rows_and_a_backward_time_are_refused_with_their_line() {
-        let (g, file, mut gaps) = (
-            optiodom_robot(),
-            Path::new("5_run-01.csv"),
-            TruthGaps::default(),
-        );
+        let (g, file, mut gaps) = run_fixture();
         // Row 4's time 0.15 s: in step. 0.4 s: rows missing (their ticks with them), 0.1 s:
         // backwards. A repeated time or jitter (0.17 s) is read.
         assert!(
@@ -1256,11 +1261,7 @@ mod tests {
 
     #[test]
     fn encoder_and_motion_capture_glitches_are_refused_with_their_line() {
-        let (g, file, mut gaps) = (
-            optiodom_robot(),
-            Path::new("5_run-01.csv"),
-            TruthGaps::default(),
-        );
+        let (g, file, mut gaps) = run_fixture();
         let run = steady_run_with_row3;
         assert!(read_run(&run("0.15,0.015,0,0,53,53"), 10, &g, file, &mut gaps).is_ok());
         // A counter glitch: 99,999,999 raw ticks in 50 ms is 9.4 km of wheel travel.
@@ -1287,11 +1288,7 @@ mod tests {
 
     #[test]
     fn huge_or_fractional_tick_counts_are_refused_with_their_line_and_field() {
-        let (g, file, mut gaps) = (
-            optiodom_robot(),
-            Path::new("5_run-01.csv"),
-            TruthGaps::default(),
-        );
+        let (g, file, mut gaps) = run_fixture();
         let run = |right: &str| steady_run_with_row3(&format!("0.15,0.015,0,0,{right},53"));
         // Values an i64 saturates at or a product with the scale overflows: refused as read, never
         // turned into a wrong travel (or an overflow).
@@ -1338,11 +1335,7 @@ mod tests {
 
     #[test]
     fn cumulative_ticks_and_other_separators_get_a_hint() {
-        let (g, file, mut gaps) = (
-            optiodom_robot(),
-            Path::new("5_run-01.csv"),
-            TruthGaps::default(),
-        );
+        let (g, file, mut gaps) = run_fixture();
         // Cumulative counts of a robot at 0.1 m/s (53 raw ticks per row): at row 101 a row holds
         // 5,300 raw ticks, 0.5 m, over 10 m/s.
         let rows: String = (0..200)
