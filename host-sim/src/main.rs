@@ -60,6 +60,12 @@ enum Command {
 /// Runs the command; an error is printed as the message it is (not as a debug string) and the
 /// exit status is 1.
 fn main() -> std::process::ExitCode {
+    // Output into a closed pipe (`… | head`) ends the program quietly, as for any Unix tool,
+    // instead of a panic in `println!`.
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

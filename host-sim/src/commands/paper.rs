@@ -26,7 +26,7 @@ pub enum Format {
 /// How the true wheel diameters follow from `E_d`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TruthModel {
-    /// Mean diameter nominal: `D_R = 2D/(1 + 1/E_d)`, `D_L = 2D/(1 + E_d)` (the model).
+    /// Mean diameter nominal: `D_R = 2D/(1 + 1/E_d)`, `D_L = 2D/(1 + E_d)` (odocal's default model).
     Mean,
     /// Left wheel nominal, `D_R = E_d·D` (the model of the paper's derivation, eq. 6 and 9).
     Right,
@@ -42,7 +42,7 @@ pub struct PaperArgs {
     #[arg(long, default_value_t = 0.995)]
     pub ed: f64,
     /// Square sides L, metres.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.2, 1.0, 2.0, 4.0, 16.0])]
+    #[arg(long, value_delimiter = ',', num_args = 1.., default_values_t = [0.2, 1.0, 2.0, 4.0, 16.0])]
     pub sides: Vec<f64>,
     /// How the true diameters follow from E_d.
     #[arg(long, value_enum, default_value_t = TruthModel::Mean)]

@@ -193,11 +193,19 @@ where
     Ok(())
 }
 
-/// Writes `fig` as an SVG file (800 × 700 px for planar paths, 900 × 600 otherwise).
+/// Writes `fig` as an SVG file (800 × 700 px for planar paths, 900 × 600 otherwise), creating
+/// its folder if needed.
 ///
 /// # Errors
-/// File or drawing errors.
+/// File or drawing errors, naming the file.
 pub fn write_svg(path: &Path, fig: &Figure) -> Result<(), Box<dyn std::error::Error>> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    draw_svg(path, fig).map_err(|e| format!("{}: {e}", path.display()).into())
+}
+
+fn draw_svg(path: &Path, fig: &Figure) -> Result<(), Box<dyn std::error::Error>> {
     let size = if fig.equal_aspect {
         (800, 760)
     } else {
@@ -234,6 +242,10 @@ mod tests {
         };
         write_svg(&path, &fig).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
+        // A folder that does not exist yet is made.
+        let nested = dir.join("new").join("t.svg");
+        write_svg(&nested, &fig).unwrap();
+        assert!(nested.exists());
         assert!(svg.contains("<svg") && svg.contains("square") && svg.contains("ends"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
