@@ -220,9 +220,17 @@ pub fn run(args: &DriveArgs) -> Result<(), String> {
         print!("{events}");
     }
     let (v, w) = velocities(args);
+    // The names the command line takes (`line`, `left-encoder-reversed`).
+    let name = |v: Option<clap::builder::PossibleValue>| {
+        v.map_or_else(String::new, |v| v.get_name().to_string())
+    };
     println!(
-        "{:?}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}; wiring {:?}",
-        args.script, args.seconds, args.eb, args.ed, args.wiring
+        "{}: v = {v} m/s, w = {w} rad/s for {} s; true E_b = {}, E_d = {}; wiring {}",
+        name(clap::ValueEnum::to_possible_value(&args.script)),
+        args.seconds,
+        args.eb,
+        args.ed,
+        name(clap::ValueEnum::to_possible_value(&args.wiring))
     );
     let r = match outcome.result {
         Ok(r) => r,

@@ -191,8 +191,10 @@ pub fn run_cli(args: &RectangleArgs) -> Result<(), Box<dyn std::error::Error>> {
     let spec = RectangleSpec::default();
     let r = run(&spec, &truth, &belief)?;
     println!(
-        "rectangle {} x {} m, {} CCW laps, truth E_b={eb} E_d={ed}, belief E_b={belief_eb} E_d={belief_ed}",
-        spec.side_a_m, spec.side_b_m, spec.laps
+        "rectangle {} m × {} m, {} CCW laps, truth E_b={eb} E_d={ed}, belief E_b={belief_eb} E_d={belief_ed}",
+        spec.side_a_m.min(spec.side_b_m),
+        spec.side_a_m.max(spec.side_b_m),
+        spec.laps
     );
     println!("final position error: {:.4} m", r.final_error_m);
     if let Some(prefix) = svg {
