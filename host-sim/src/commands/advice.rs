@@ -52,6 +52,11 @@ pub fn run(args: &AdviceArgs) -> Result<(), Box<dyn std::error::Error>> {
         runs_per_direction: args.runs,
         max_side_m: args.max_side,
     };
+    println!(
+        "expected relative parameter error sqrt(bias² + σ² of E_b and E_d) of each method against the \
+         square side L ({} + {} runs)",
+        args.runs, args.runs
+    );
     print!("{:>11}", "L/m:");
     for l in CANDIDATE_SIDES_M.iter().filter(|&&l| l <= args.max_side) {
         print!(" {l:>8}");

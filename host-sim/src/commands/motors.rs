@@ -180,18 +180,12 @@ pub struct MotorsArgs {
 pub fn run(args: &MotorsArgs) -> Result<(), String> {
     println!("motor identification (identify lifted) on simulated robots, true = simulated motor");
     println!(
-        "{:<20} {:>5} | {:>7} {:>7} {:>7} {:>8} | {:>7} {:>7} {:>7} {:>8} | {:>6}",
-        "robot",
-        "wheel",
-        "K true",
-        "K fwd",
-        "K back",
-        "tau true",
-        "tau",
-        "d0 true",
-        "d0",
-        "worst",
-        ""
+        "gain K in m/s per duty (forward, backward), time constant tau in s, dead-band d0 in duty; \
+         worst: the largest relative error of the identified values"
+    );
+    println!(
+        "{:<20} {:>5} | {:>7} {:>7} {:>7} | {:>8} {:>7} | {:>7} {:>7} | {:>9}",
+        "robot", "wheel", "K true", "K fwd", "K back", "tau true", "tau", "d0 true", "d0", "worst"
     );
     let mut tunings = Vec::new();
     for case in &CASES {
@@ -199,7 +193,7 @@ pub fn run(args: &MotorsArgs) -> Result<(), String> {
         for (right, est) in [(true, tuning.right), (false, tuning.left)] {
             let t = case.truth(right);
             println!(
-                "{:<20} {:>5} | {:>7.4} {:>7.4} {:>7.4} {:>8.4} | {:>7.4} {:>7.4} {:>7.4} {:>7.2} %",
+                "{:<20} {:>5} | {:>7.4} {:>7.4} {:>7.4} | {:>8.4} {:>7.4} | {:>7.4} {:>7.4} | {:>7.2} %",
                 case.name,
                 if right { "right" } else { "left" },
                 t.gain_forward_mps,
