@@ -7,7 +7,7 @@
 //! x and y (and on θ with `--heading`).
 
 use clap::Args;
-use odocal::calibration::{Method, RunObservation, calibrate};
+use odocal::calibration::{CalibrationError, Method, RunObservation, calibrate};
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
 
@@ -118,6 +118,9 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
         args.eb,
         args.ed
     );
+    if args.trials == 1 {
+        println!("  (in parentheses: the relative error, estimate / truth − 1)");
+    }
     for trial in 0..args.trials {
         let records = drive_set(args, &truth, trial, &mut rng)?;
         let obs: Vec<_> = records
@@ -145,7 +148,12 @@ pub fn run(args: &ClosedLoopArgs) -> Result<(), Box<dyn std::error::Error>> {
                 Err(e) => {
                     acc[k].fail();
                     if args.trials == 1 {
-                        println!("{:>11}  error: {e}", m.as_str());
+                        let hint = if matches!(e, CalibrationError::NoHeading) {
+                            " (run with --heading)"
+                        } else {
+                            ""
+                        };
+                        println!("{:>11}  error: {e}{hint}", m.as_str());
                     }
                 }
             }
