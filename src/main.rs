@@ -414,9 +414,13 @@ mod app {
         let echo = ECHO.load(Ordering::Relaxed);
         let usart_tx = cx.local.usart_tx;
         let tx_out = cx.local.tx_out;
-        // What waits to go out or to be executed (updated as this interrupt adds to it).
-        let echo_waits = core::cell::Cell::new(!echo_out.is_empty());
-        let lines_wait = core::cell::Cell::new(!line_in.is_empty());
+        // A line is echoed as it is typed only while nothing else is on its way out or
+        // waiting; otherwise the console echoes it right before its reply.
+        let idle = echo
+            && echo_out.is_empty()
+            && !tx_out.ready()
+            && line_in.is_empty()
+            && !CONSOLE_BUSY.load(Ordering::Relaxed);
         // Each read checks SR and, on an overrun, framing, noise or parity error, reads DR,
         // which clears the flag (an ORE with RXNE clear would otherwise re-enter this
         // interrupt for ever); the error poisons the line being received.
@@ -428,30 +432,20 @@ mod app {
             },
             cx.local.assembler,
             RX_READS_PER_IRQ,
-            // A line is echoed as it is typed only while nothing else is on its way out or
-            // waiting; otherwise the console echoes it right before its reply.
-            || {
-                echo && !echo_waits.get()
-                    && !lines_wait.get()
-                    && !tx_out.ready()
-                    && !CONSOLE_BUSY.load(Ordering::Relaxed)
-            },
+            idle,
             |event, echoed| {
                 if rx::is_stop(&event) {
                     STOP_REQUEST.store(true, Ordering::Relaxed);
                 }
                 // A full queue drops the line; the console reports how many were lost. A stop
                 // key has already reached the control task.
-                if line_in.send(&event, echoed) {
-                    lines_wait.set(true);
-                } else {
+                if !line_in.send(&event, echoed) {
                     LINES_DROPPED.fetch_add(1, Ordering::Relaxed);
                 }
             },
             |bytes| {
                 for &b in bytes {
                     let _ = echo_out.push_back(b);
-                    echo_waits.set(true);
                 }
             },
         );

@@ -107,7 +107,7 @@ fn run(wire: &[u8], fault: Option<(usize, Fault)>) -> Vec<InputItem> {
                 || usart.read(),
                 &mut asm,
                 32,
-                || false,
+                false,
                 |e, _| items.push(InputItem::from_event(e)),
                 |_| {},
             );
@@ -162,7 +162,7 @@ fn an_overrun_with_rxne_clear_is_cleared_in_one_interrupt() {
     usart.ore = true;
     let mut asm = LineAssembler::<80>::new();
     assert!(usart.interrupt_pending());
-    let reads = drain(|| usart.read(), &mut asm, 32, || false, |_, _| {}, |_| {});
+    let reads = drain(|| usart.read(), &mut asm, 32, false, |_, _| {}, |_| {});
     assert_eq!(reads, 1);
     assert!(!usart.interrupt_pending());
     // And the line it hit is rejected at its terminator.

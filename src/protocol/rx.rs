@@ -38,32 +38,34 @@ pub enum RxRead {
 }
 
 /// Reads at most `max_reads` times from `read` (until it returns [`RxRead::Empty`]), feeding
-/// the bytes to `assembler`. At the first byte of each line, `echo_live` says whether that line
-/// is echoed as it arrives (echo on and the console idle); `echo` then gets the echo of each of
-/// its bytes. `on_event` gets each completed line or stop key, and whether it was echoed live
-/// (if not, the console echoes it when it takes it). Returns the number of reads that returned
-/// data or an error.
+/// the bytes to `assembler`. A line is echoed as it arrives (`echo` gets the echo of each of its
+/// bytes) when it starts while the console is `idle` (echo on, nothing waiting or going out)
+/// and no line has completed earlier in this call (the console has not taken that one yet);
+/// the decision stays with the line across calls. `on_event` gets each completed line or stop
+/// key, and whether it was echoed as it arrived (if not, the console echoes it when it takes
+/// it). Returns the number of reads that returned data or an error.
 pub fn drain<const N: usize>(
     mut read: impl FnMut() -> RxRead,
     assembler: &mut LineAssembler<N>,
     max_reads: usize,
-    mut echo_live: impl FnMut() -> bool,
+    idle: bool,
     mut on_event: impl FnMut(LineEvent<'_>, bool),
     mut echo: impl FnMut(&[u8]),
 ) -> usize {
     let mut n = 0;
+    let mut queued = false;
     while n < max_reads {
         match read() {
             RxRead::Empty => break,
             RxRead::Error => assembler.receive_error(),
             RxRead::Byte(b) => {
                 if assembler.at_line_start() {
-                    let live = echo_live();
-                    assembler.set_echo_live(live);
+                    assembler.set_echo_live(idle && !queued);
                 }
                 let live = assembler.echo_live();
                 if let Some(e) = assembler.push(b) {
                     on_event(e, live);
+                    queued = true;
                 }
                 if live {
                     echo(assembler.echo().bytes());
@@ -422,22 +424,18 @@ mod tests {
         assert_eq!(echo.as_str(), "");
     }
 
-    /// Feeds `wire` in one interrupt with the console idle only before the first line.
+    /// Feeds `wire` in one interrupt to an idle console.
     fn paste(wire: &[u8]) -> (std::vec::Vec<(InputItem, bool)>, std::vec::Vec<u8>) {
         let mut asm = LineAssembler::<LINE_MAX>::new();
         let mut bytes = wire.iter();
-        let waiting = core::cell::Cell::new(false);
         let mut items = std::vec::Vec::new();
         let mut echoed = std::vec::Vec::new();
         drain(
             || bytes.next().map_or(RxRead::Empty, |&b| RxRead::Byte(b)),
             &mut asm,
             usize::MAX,
-            || !waiting.get(),
-            |e, live| {
-                items.push((InputItem::from_event(e), live));
-                waiting.set(true);
-            },
+            true,
+            |e, live| items.push((InputItem::from_event(e), live)),
             |b| echoed.extend_from_slice(b),
         );
         (items, echoed)
@@ -468,7 +466,7 @@ mod tests {
                 || bytes.next().map_or(RxRead::Empty, |&b| RxRead::Byte(b)),
                 &mut asm,
                 usize::MAX,
-                || idle,
+                idle,
                 |e, live| events.push((InputItem::from_event(e), live)),
                 |b| echoed.extend_from_slice(b),
             );

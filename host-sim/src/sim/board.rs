@@ -134,13 +134,14 @@ impl<'f> Board<'f> {
     pub fn receive_reads(&mut self, reads: impl IntoIterator<Item = RxRead>, out: &mut String) {
         let echo = self.session.echo();
         let (input, controller) = (&mut self.input, &mut self.controller);
-        let lines_wait = std::cell::Cell::new(!input.is_empty());
+        // The simulated board answers at once: only lines still waiting make it busy.
+        let idle = echo && input.is_empty();
         let mut reads = reads.into_iter();
         rx::drain(
             || reads.next().unwrap_or(RxRead::Empty),
             &mut self.assembler,
             usize::MAX,
-            || echo && !lines_wait.get(),
+            idle,
             |event, echoed| {
                 let item = InputItem::from_event(event);
                 if item.is_stop() {
@@ -148,7 +149,6 @@ impl<'f> Board<'f> {
                     controller.abort();
                 }
                 input.push_back(Received { item, echoed });
-                lines_wait.set(true);
             },
             |bytes| out.push_str(&String::from_utf8_lossy(bytes)),
         );
