@@ -511,11 +511,7 @@ mod app {
                     );
                 } else if let Some(received) = cx.local.line_out.take() {
                     CONSOLE_BUSY.store(true, Ordering::Relaxed);
-                    if session.echo() {
-                        let _ = received.write_echo(&mut out);
-                    }
-                    let event = received.item.as_event();
-                    let _ = session.handle_event(event, &mut robot, store, &mut out);
+                    let _ = session.handle_input(&received, &mut robot, store, &mut out);
                     ECHO.store(session.echo(), Ordering::Relaxed);
                     CONSOLE_BUSY.store(false, Ordering::Relaxed);
                 }

@@ -39,6 +39,7 @@ use crate::motion::controller::Fault;
 use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::protocol::record;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError, StopKey};
 use crate::storage::{LoadWarning, RunsLoaded, StoredRun};
 use crate::util::decimal::Decimal;
@@ -511,6 +512,25 @@ impl<C: Calibrator> Session<C> {
             write!(out, "event stopped ({name})\r\n")?;
         }
         self.collect_finished(robot, out)
+    }
+
+    /// A received input as the console takes it from its queue: a line that was not echoed as
+    /// it arrived is echoed first (when echo is on), so the echo stands right before its reply;
+    /// then as [`Session::handle_event`].
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn handle_input(
+        &mut self,
+        input: &Received,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if self.echo {
+            input.write_echo(out)?;
+        }
+        self.handle_event(input.item.as_event(), robot, storage, out)
     }
 
     /// One event from the line assembler: a line is executed, a rejected line answered with its

@@ -170,15 +170,9 @@ impl<'f> Board<'f> {
             let Some(received) = self.input.pop_front() else {
                 break;
             };
-            if self.session.echo() {
-                let _ = received.write_echo(out);
-            }
-            let _ = self.session.handle_event(
-                received.item.as_event(),
-                &mut self.controller,
-                &mut self.store,
-                out,
-            );
+            let _ =
+                self.session
+                    .handle_input(&received, &mut self.controller, &mut self.store, out);
             self.note_run_start();
         }
     }
