@@ -424,26 +424,32 @@ mod tests {
         assert_eq!(echo.as_str(), "");
     }
 
-    /// Feeds `wire` in one interrupt to an idle console.
-    fn paste(wire: &[u8]) -> (std::vec::Vec<(InputItem, bool)>, std::vec::Vec<u8>) {
-        let mut asm = LineAssembler::<LINE_MAX>::new();
+    /// Feeds `wire` to `asm` in one interrupt, the console `idle` or not; appends the events
+    /// (with whether each was echoed as it arrived) and the echo.
+    fn feed(
+        asm: &mut LineAssembler<LINE_MAX>,
+        wire: &[u8],
+        idle: bool,
+        events: &mut std::vec::Vec<(InputItem, bool)>,
+        echoed: &mut std::vec::Vec<u8>,
+    ) {
         let mut bytes = wire.iter();
-        let mut items = std::vec::Vec::new();
-        let mut echoed = std::vec::Vec::new();
         drain(
             || bytes.next().map_or(RxRead::Empty, |&b| RxRead::Byte(b)),
-            &mut asm,
+            asm,
             usize::MAX,
-            true,
-            |e, live| items.push((InputItem::from_event(e), live)),
+            idle,
+            |e, live| events.push((InputItem::from_event(e), live)),
             |b| echoed.extend_from_slice(b),
         );
-        (items, echoed)
     }
 
     #[test]
     fn a_paste_echoes_its_first_line_live_and_leaves_the_rest_to_the_console() {
-        let (items, echoed) = paste(b"params\rstatus\r\nset square_side 1\x7f2\r");
+        let (mut items, mut echoed) = (std::vec::Vec::new(), std::vec::Vec::new());
+        let mut asm = LineAssembler::<LINE_MAX>::new();
+        let wire = b"params\rstatus\r\nset square_side 1\x7f2\r";
+        feed(&mut asm, wire, true, &mut items, &mut echoed);
         assert_eq!(
             items,
             [
@@ -461,15 +467,7 @@ mod tests {
         let mut echoed = std::vec::Vec::new();
         let mut events = std::vec::Vec::new();
         for (wire, idle) in [(&b"\x1b"[..], false), (b"status\r", true)] {
-            let mut bytes = wire.iter();
-            drain(
-                || bytes.next().map_or(RxRead::Empty, |&b| RxRead::Byte(b)),
-                &mut asm,
-                usize::MAX,
-                idle,
-                |e, live| events.push((InputItem::from_event(e), live)),
-                |b| echoed.extend_from_slice(b),
-            );
+            feed(&mut asm, wire, idle, &mut events, &mut echoed);
         }
         assert_eq!(
             events,

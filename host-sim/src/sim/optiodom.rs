@@ -869,18 +869,37 @@ mod tests {
         (root, dir)
     }
 
+    /// Reads a session folder made by [`session_folder`] with `runs` as its run files (run 1
+    /// first), then removes it.
+    fn read_folder(
+        tag: &str,
+        kind: &str,
+        id: &str,
+        metadata: &str,
+        runs: &[&str],
+    ) -> Result<Session, String> {
+        let (root, dir) = session_folder(tag, kind, id, metadata);
+        for (i, run) in runs.iter().enumerate() {
+            fs::write(dir.join(format!("{id}_run-{:02}.csv", i + 1)), run).unwrap();
+        }
+        let r = read_session(&dir);
+        fs::remove_dir_all(&root).unwrap();
+        r
+    }
+
+    /// Metadata of a differential-drive session of the shared robot's kind (gear 43.7, 64
+    /// counts, Li 0.2 m) with wheel diameters `di` (right,left), `n` runs and `extra` lines.
+    fn metadata(di: &str, n: usize, extra: &str) -> String {
+        format!("type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,{di},\nN,{n},,\n{extra}")
+    }
+
     #[test]
     fn a_header_row_is_named() {
-        let (root, dir) = session_folder(
-            "header",
-            "square",
-            "1234",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,1,,\nL,0.25,,\n",
-        );
         let run = "t,x_gt_m,y_gt_m,theta_gt_rad,right,left\n0,1,2,0,0,0\n";
-        fs::write(dir.join("1234_run-01.csv"), run).unwrap();
-        let e = read_session(&dir).map(|_| ()).unwrap_err();
-        fs::remove_dir_all(&root).unwrap();
+        let metadata = metadata("0.084,0.083", 1, "L,0.25,,\n");
+        let e = read_folder("header", "square", "1234", &metadata, &[run])
+            .map(|_| ())
+            .unwrap_err();
         assert!(
             e.ends_with(
                 "1234_run-01.csv:1: bad x \"x_gt_m\" (a header row? The format has none: every \
@@ -900,19 +919,9 @@ mod tests {
             ("0.25", true),
             ("0.4", true),
         ] {
-            let (root, dir) = session_folder(
-                "side",
-                "square",
-                "1234",
-                &format!(
-                    "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,1,,\nL,{l},,\n"
-                ),
-            );
             let run = "0,1,2,1.5707963267948966,0,0\n0.05,1,2.5,1.5707963267948966,3,4\n0.1,1,3,1.5707963267948966,5,5\n";
-            fs::write(dir.join("1234_run-01.csv"), run).unwrap();
-            let r = read_session(&dir);
-            fs::remove_dir_all(&root).unwrap();
-            match (r, ok) {
+            let metadata = metadata("0.084,0.083", 1, &format!("L,{l},,\n"));
+            match (read_folder("side", "square", "1234", &metadata, &[run]), ok) {
                 (Ok(s), true) => assert_eq!(s.side_m, l.parse::<f64>().unwrap()),
                 (Err(e), false) => assert!(
                     e.ends_with(&format!(
@@ -929,19 +938,11 @@ mod tests {
 
     #[test]
     fn reads_a_session_and_moves_truth_into_the_start_frame() {
-        let (root, dir) = session_folder(
-            "optiodom",
-            "square",
-            "1234",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.083,\nN,2,,\nL,0.25,,\n",
-        );
         // Start at (1, 2) heading +y; the robot ends 1 m ahead (world (1, 3)), heading −x: a
         // path of 4 × 0.25 m.
         let run = "0,1,2,1.5707963267948966,0,0\n0.05,1,2.5,1.5707963267948966,3,4\n0.1,1,3,3.141592653589793,-2,5\n";
-        fs::write(dir.join("1234_run-01.csv"), run).unwrap();
-        fs::write(dir.join("1234_run-02.csv"), run).unwrap();
-        let s = read_session(&dir).unwrap();
-        fs::remove_dir_all(&root).unwrap();
+        let metadata = metadata("0.084,0.083", 2, "L,0.25,,\n");
+        let s = read_folder("optiodom", "square", "1234", &metadata, &[run, run]).unwrap();
         assert_eq!(s.tick_scale, 10);
         assert_eq!(s.nominal.counts_per_rev, 27_968);
         assert_eq!(s.nominal.diameter_left_m, 0.083);
@@ -1057,12 +1058,7 @@ mod tests {
 
     #[test]
     fn the_aligned_truth_is_the_robot_start_frame() {
-        let (root, dir) = session_folder(
-            "align",
-            "ivanjko",
-            "77",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,1,,\n",
-        );
+        let (root, dir) = session_folder("align", "ivanjko", "77", &metadata("0.084,0.084", 1, ""));
         // A straight line of 2 m along +x in the world, 0.2 m/s, recorded with a heading 10 mrad
         // short of the direction of motion.
         let rows: String = (0..=200)
@@ -1382,14 +1378,11 @@ mod tests {
 
     #[test]
     fn a_quoted_decimal_comma_in_the_metadata_asks_for_a_decimal_point() {
-        let (root, dir) = session_folder(
-            "comma",
-            "ivanjko",
-            "66",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,\"0,2\",,\nDi,0.084,0.084,\nN,1,,\n",
-        );
-        let err = read_session(&dir).unwrap_err();
-        fs::remove_dir_all(&root).unwrap();
+        // The wheelbase written with a decimal comma, quoted.
+        let metadata = metadata("0.084,0.084", 1, "").replace("Li,0.2", "Li,\"0,2\"");
+        let err = read_folder("comma", "ivanjko", "66", &metadata, &[])
+            .map(|_| ())
+            .unwrap_err();
         assert!(
             err.contains("66_metadata.csv: bad Li \"\\\"0\"")
                 && err.contains("a decimal point is expected"),
@@ -1405,12 +1398,8 @@ mod tests {
         fs::write(dir.join("22_metadata.csv"), "type,diff\n").unwrap();
         let err = read_session(&dir).unwrap_err();
         // A run file named with one digit.
-        let (root2, dir2) = session_folder(
-            "onedigit",
-            "ivanjko",
-            "23",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,2,,\n",
-        );
+        let (root2, dir2) =
+            session_folder("onedigit", "ivanjko", "23", &metadata("0.084,0.084", 2, ""));
         fs::write(dir2.join("23_run-1.csv"), "0,0,0,0,0,0\n").unwrap();
         let err2 = read_session(&dir2).unwrap_err();
         fs::remove_dir_all(&root).unwrap();
@@ -1431,12 +1420,8 @@ mod tests {
 
     #[test]
     fn a_run_turning_against_its_ground_truth_is_refused_as_swapped_columns() {
-        let (root, dir) = session_folder(
-            "swapped",
-            "circular",
-            "89",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,2,,\n",
-        );
+        let (root, dir) =
+            session_folder("swapped", "circular", "89", &metadata("0.084,0.084", 2, ""));
         // A full turn in place to the left (CCW) in ten rows: each wheel rolls 666 raw ticks
         // per row, 2π·0.1 m in all, and the ground truth turns 2π, its heading written wrapped
         // into (−π, π]. Run 2 is run 1 with the tick columns swapped.
@@ -1467,12 +1452,8 @@ mod tests {
 
     #[test]
     fn the_turn_direction_of_a_closed_run_is_read_from_its_wheels() {
-        let (root, dir) = session_folder(
-            "turns",
-            "circular",
-            "88",
-            "type,diff,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,3,,\n",
-        );
+        let (root, dir) =
+            session_folder("turns", "circular", "88", &metadata("0.084,0.084", 3, ""));
         // Full turns in place: each wheel rolls π·b = 0.628 m = 2.38 wheel turns = 6,658 raw
         // ticks, in ten rows of ±666. The file order would make run 1 CW and runs 2–3 CCW; the
         // wheels turned run 1 CCW (right forwards) and run 2 CW. Run 3 turns a quarter turn
@@ -1503,14 +1484,10 @@ mod tests {
 
     #[test]
     fn a_session_of_another_kinematics_is_a_clear_error() {
-        let (root, dir) = session_folder(
-            "omni",
-            "square",
-            "99",
-            "type,omni3,,\nngear,43.7,,\nencRes,64,,\nLi,0.2,,\nDi,0.084,0.084,\nN,1,,\nL,1,,\n",
-        );
-        let err = read_session(&dir).unwrap_err();
-        fs::remove_dir_all(&root).unwrap();
+        let metadata = metadata("0.084,0.084", 1, "L,1,,\n").replace("type,diff", "type,omni3");
+        let err = read_folder("omni", "square", "99", &metadata, &[])
+            .map(|_| ())
+            .unwrap_err();
         assert!(
             err.contains("type \"omni3\" is not a differential-drive session"),
             "{err}"
