@@ -59,7 +59,7 @@ for e in "${EVAL[@]}"; do row+=" $(cell "$OUT/nominal.json" nominal "$e") |"; do
 echo "$row"
 row="| the evaluated session itself (in-sample floor) | exact-path |"
 for e in "${EVAL[@]}"; do
-  "$SIM" replay --calibrate "${DIR[$e]}" --evaluate "${DIR[$e]}" --method exact-path --raw-truth --format json --out "$OUT/f" > "$OUT/floor-$e.json" 2>/dev/null
+  "$SIM" replay --calibrate "${DIR[$e]}" --evaluate "${DIR[$e]}" --method exact-path --raw-truth --from-start --format json --out "$OUT/f" > "$OUT/floor-$e.json" 2>/dev/null
   row+=" $(cell "$OUT/floor-$e.json" exact-path "$e") |"
 done
 echo "$row"

@@ -327,3 +327,61 @@ fn the_robust_fit_settles_on_every_noisy_set() {
         }
     }
 }
+
+#[test]
+fn a_factor_the_runs_do_not_determine_is_an_error_not_a_guess() {
+    // Three 2 m straight lines with ground truth along them (5 mm of motion-capture noise) and
+    // no end heading: the wheels differ by up to ±100 ticks (±1 mm) per 5 cm knot, so the
+    // wheelbase moves the path by a fraction of a millimetre and the runs hardly see E_b.
+    // Without `MAX_FACTOR_SIGMA` the fit returned E_b = 0.90 with a 1σ of 1.7; it fails
+    // instead, and says why.
+    let truth = NOMINAL.with_factors(0.998, 1.0, 1.0);
+    let mut rng = Rng(7);
+    let per_knot = (0.05 / NOMINAL.meters_per_tick_right()).round() as i64;
+    let runs: Vec<(Vec<WheelTicks>, Vec<PoseF64>)> = (0..3)
+        .map(|_| {
+            let mut knots = vec![WheelTicks::new(0, 0)];
+            for _ in 0..40 {
+                let last = *knots.last().unwrap();
+                let jitter = rng.below(201) as i64 - 100;
+                knots.push(WheelTicks::new(
+                    last.right + per_knot + jitter,
+                    last.left + per_knot - jitter,
+                ));
+            }
+            let model = ArcModel::from_geometry(&truth);
+            let mut pose = PoseF64::default();
+            let mut path = vec![pose];
+            for w in knots.windows(2) {
+                pose = model.integrate(pose, w);
+                path.push(PoseF64::new(
+                    pose.x_m + 5e-3 * normal(&mut rng),
+                    pose.y_m + 5e-3 * normal(&mut rng),
+                    pose.theta_rad,
+                ));
+            }
+            (knots, path)
+        })
+        .collect();
+    let obs: Vec<_> = runs
+        .iter()
+        .map(|(knots, path)| RunObservation {
+            path: PathKind::Line { length_m: 2.0 },
+            geometry: NOMINAL,
+            knots,
+            odometry_end: ArcModel::from_geometry(&NOMINAL).integrate(PoseF64::default(), knots),
+            measured: Measurement {
+                x_m: path[40].x_m,
+                y_m: path[40].y_m,
+                theta_rad: None,
+            },
+            truth_path: path,
+        })
+        .collect();
+    let e = calibrate_with(&obs, &NOMINAL, Method::Exact, &ExactOptions::plain()).unwrap_err();
+    assert_eq!(e, odocal::calibration::CalibrationError::Degenerate);
+    assert_eq!(
+        e.to_string(),
+        "degenerate: the runs do not determine every factor"
+    );
+}

@@ -205,6 +205,16 @@ pub const CHANNEL_TOLERANCE: f64 = 1e-2;
 /// A run whose weight ends below this is flagged as an outlier (`u > c`).
 pub const OUTLIER_WEIGHT: f64 = 0.5;
 
+/// The largest 1σ a fitted factor may keep: a factor known no better than 10 % has not been
+/// determined by the runs (a real robot's factors are within a few per cent of 1, the OptiOdom
+/// robot's within 2 %), and the fit fails with [`CalibrationError::Degenerate`] instead of
+/// returning whatever value its minimum drifted to. Measured on the OptiOdom sessions: 1e-4–7e-3
+/// for squares, circles and lines; 0.02–0.03 for `E_b` and `E_s` of two free paths fitted
+/// along their paths (their ratio is known far better: the turns fix `E_s/E_b`); 6.5 for `E_b`
+/// of straight lines and in-place turns fitted along their paths, which a turn in place does not
+/// move.
+pub const MAX_FACTOR_SIGMA: f64 = 0.1;
+
 /// When the mean diameter `E_s` is fitted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -929,7 +939,8 @@ impl Problem<'_, '_> {
 ///
 /// # Errors
 /// `NoRuns` when no run has at least two knots, `Degenerate` when the parameters are not
-/// determined by the runs, `NotConverged`, `OutOfRange`, `InvalidGeometry`.
+/// determined by the runs (a singular system, or a factor's 1σ above [`MAX_FACTOR_SIGMA`]),
+/// `NotConverged`, `OutOfRange`, `InvalidGeometry`.
 pub fn calibrate_exact(
     runs: &[RunObservation<'_>],
     nominal: &Geometry,
@@ -1035,6 +1046,9 @@ pub fn calibrate_exact(
         if let Some(col) = solve(a, e, n) {
             *s = Some(libm::sqrt(fmax(col[i], 0.0) * sigma2));
         }
+    }
+    if sigma.iter().flatten().any(|s| *s > MAX_FACTOR_SIGMA) {
+        return Err(CalibrationError::Degenerate);
     }
     let sigma_out = sigma[0]
         .zip(sigma[1])

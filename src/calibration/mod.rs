@@ -338,7 +338,9 @@ impl fmt::Display for CalibrationError {
                 f.write_str("runs were driven with different geometries")
             }
             CalibrationError::InvalidGeometry => f.write_str("invalid geometry"),
-            CalibrationError::Degenerate => f.write_str("degenerate configuration"),
+            CalibrationError::Degenerate => {
+                f.write_str("degenerate: the runs do not determine every factor")
+            }
             CalibrationError::NotConverged => f.write_str("solver did not converge"),
             CalibrationError::OutOfRange => f.write_str("factor outside 0.5..2"),
         }

@@ -21,7 +21,9 @@
 //! the result is absolute, so sessions with different nominal values can be mixed. It reads the
 //! ground truth turned by the session's measured motion-capture heading offset into the robot's
 //! own start frame ([`crate::sim::optiodom`], *The motion-capture heading offset*; `--raw-truth`:
-//! as recorded). `E_b`, `E_d`,
+//! as recorded), and every run that rolls at least 1 m from its anchor, 0.1 m of wheel travel
+//! after its start, so that a slipping start does not read as a wheelbase error (*The start
+//! transient*; `--from-start`: from the recorded start). `E_b`, `E_d`,
 //! `E_s` are reported relative to the first calibration session's nominal geometry (or the first
 //! evaluated one's when nothing is calibrated), for every row, `nominal` included.
 //!
@@ -52,7 +54,9 @@ use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::Direction;
 
 use crate::commands::paper::Format;
-use crate::sim::optiodom::{Kind, OptiRun, Session, TruthGaps, read_session};
+use crate::sim::optiodom::{
+    ANCHOR_MIN_TRAVEL_M, Kind, OptiRun, START_TRAVEL_M, Session, TruthGaps, read_session,
+};
 use crate::sim::plot::{Figure, Series, Style, write_svg};
 
 /// Arguments of `host-sim replay`.
@@ -92,6 +96,10 @@ pub struct ReplayArgs {
     /// measured motion-capture heading offset.
     #[arg(long)]
     pub raw_truth: bool,
+    /// Calibrate from each run's recorded start, its start transient included (default: from
+    /// 0.1 m of wheel travel on, for runs whose wheels roll at least 1 m).
+    #[arg(long)]
+    pub from_start: bool,
 }
 
 /// A parameter set name beyond the library's methods.
@@ -139,6 +147,8 @@ pub struct FitOptions {
     pub heading_length_m: Option<f64>,
     /// Calibrate against the ground truth as recorded (not turned by its heading offset).
     pub recorded_truth: bool,
+    /// Calibrate from each run's first knot, not from its anchor.
+    pub from_start: bool,
 }
 
 impl Default for FitOptions {
@@ -148,6 +158,7 @@ impl Default for FitOptions {
             fit_scale: false,
             heading_length_m: None,
             recorded_truth: false,
+            from_start: false,
         }
     }
 }
@@ -179,6 +190,7 @@ pub fn calibrate_method(
                     &s.nominal,
                     along_path(s.kind),
                     fit.recorded_truth,
+                    fit.from_start,
                 );
                 if !fit.heading {
                     o.measured.theta_rad = None;
@@ -643,6 +655,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         fit_scale: args.fit_scale,
         heading_length_m: args.heading_length,
         recorded_truth: args.raw_truth,
+        from_start: args.from_start,
     };
     let all = calibrated_methods();
     let names: Vec<&str> = match args.method.as_deref() {
@@ -698,14 +711,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
                 println!("{l}");
             }
         }
-        Format::Text => print_text(
-            &sets,
-            &evals_of,
-            &calib,
-            &evals,
-            &reference,
-            fit.recorded_truth,
-        ),
+        Format::Text => print_text(&sets, &evals_of, &calib, &evals, &reference, &fit),
     }
     eprintln!("wrote {}", jsonl.display());
     for s in svgs {
@@ -720,7 +726,7 @@ fn print_text(
     calib: &[Session],
     evals: &[Session],
     reference: &Geometry,
-    recorded: bool,
+    fit: &FitOptions,
 ) {
     let ids = |v: &[Session]| {
         v.iter()
@@ -749,12 +755,25 @@ fn print_text(
             .join(", ");
         println!(
             "  ground truth heading offset (direction of motion − recorded heading): {offsets}; {}",
-            if recorded {
+            if fit.recorded_truth {
                 "the fits read the truth as recorded"
             } else {
                 "the fits read the truth turned onto the direction of motion"
             }
         );
+        let runs = calib.iter().map(|s| s.runs.len()).sum::<usize>();
+        let anchored = calib
+            .iter()
+            .flat_map(|s| &s.runs)
+            .filter(|r| r.anchor > 0)
+            .count();
+        if fit.from_start {
+            println!("  every calibration run measured from its recorded start (--from-start)");
+        } else {
+            println!(
+                "  {anchored} of {runs} calibration runs measured from {START_TRAVEL_M} m of wheel travel on, leaving their start transient out (runs rolling under {ANCHOR_MIN_TRAVEL_M} m from their start; --from-start: all from their start)"
+            );
+        }
     }
     println!(
         "evaluated on {} (error = truth − odometry, means over runs)",

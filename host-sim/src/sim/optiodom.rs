@@ -47,6 +47,29 @@
 //! `−δ` about the start into the robot's own start frame; the calibration reads it, while the
 //! evaluation compares with the truth as recorded (the published protocol, so that its numbers
 //! can be reproduced from the files alone).
+//!
+//! # The start transient
+//!
+//! A run starts from standstill, and in the first centimetres the wheels can turn without the
+//! robot following: in 231220200029 run 2 the wheels first spin in place (right −88, left +85
+//! ticks in 0.15 s), the odometry turns 82 mrad, the robot 50 mrad. Such a start error turns the
+//! whole rest of the run about the start point. On a closed path (a square, a circle) the end
+//! position, near the start, hardly moves, but the end heading takes it in full, and since it is
+//! on average of opposite sign in CW and CCW runs on the 1.7 m squares (`start θ` in `replay`'s
+//! per-run listing), it reads like a wheelbase error: the end headings of 231220200029 say
+//! `E_b` = 1.0121 (Jung & Chung) where its end positions say 1.0078–1.0092.
+//!
+//! A motion-capture log shows where the transient ends, so the calibration measures each run from
+//! its *anchor* ([`OptiRun::anchor`]): the first knot at which the wheels have rolled
+//! [`START_TRAVEL_M`] (0.1 m) on average. Odometry is integrated from the anchor's knot, and the
+//! ground truth is expressed in the truth's own frame at that knot, so the end pose (and for a
+//! fit along the path, every pose after it) is what the robot did from there, whatever the wheels
+//! did before. The path is still the path the method expects: a square measured from a point on
+//! its first leg ends at the same place, with the same corners on the way. Runs whose wheels roll
+//! less than [`ANCHOR_MIN_TRAVEL_M`] (1 m; Ivanjko's in-place turns, 0.3 m of wheel arc) keep
+//! their start: cutting 0.1 m would cut a third of the turn they calibrate `E_b` with. The
+//! evaluation keeps the start (the published protocol), and `replay --from-start` calibrates from
+//! it too.
 
 use std::f64::consts::TAU;
 use std::fs;
@@ -158,8 +181,13 @@ pub fn truth_heading_offset(runs: &[OptiRun]) -> Option<TruthOffset> {
     })
 }
 
-/// Mean wheel travel after which [`OptiRun::start_heading_error`] compares the headings, metres.
+/// Mean wheel travel after which [`OptiRun::start_heading_error`] compares the headings, and at
+/// which the calibration's [anchor](OptiRun::anchor) lies, metres.
 pub const START_TRAVEL_M: f64 = 0.1;
+
+/// The wheel travel from which a run is calibrated from its [anchor](OptiRun::anchor) rather
+/// than its start, metres (see the module docs, *The start transient*).
+pub const ANCHOR_MIN_TRAVEL_M: f64 = 10.0 * START_TRAVEL_M;
 
 /// One recorded run.
 #[derive(Clone, Debug)]
@@ -175,6 +203,12 @@ pub struct OptiRun {
     /// Ground truth in the robot's start frame: [`OptiRun::truth`] turned by the session's
     /// heading offset (equal to it when the session has none; see the module docs).
     pub aligned: Vec<PoseF64>,
+    /// The knot from which the calibration measures the run (0: its start; see the module docs,
+    /// *The start transient*).
+    pub anchor: usize,
+    /// From the anchor on (empty when it is 0): the aligned truth, then the recorded truth, each
+    /// in its own frame at the anchor.
+    from_anchor: [Vec<PoseF64>; 2],
 }
 
 /// One session (one folder).
@@ -390,6 +424,9 @@ pub fn read_session(dir: &Path) -> Result<Session, String> {
                 *p = PoseF64::new(c * p.x_m + s * p.y_m, c * p.y_m - s * p.x_m, p.theta_rad);
             }
         }
+    }
+    for r in &mut runs {
+        r.set_anchor(&nominal);
     }
     Ok(Session {
         id,
@@ -774,7 +811,40 @@ impl OptiRun {
             aligned: truth.clone(),
             knots,
             truth,
+            anchor: 0,
+            from_anchor: [Vec::new(), Vec::new()],
         }
+    }
+
+    /// Sets the [anchor](OptiRun::anchor) for wheel travel measured with `g`; call it once the
+    /// aligned truth is final.
+    pub fn set_anchor(&mut self, g: &Geometry) {
+        self.anchor = 0;
+        self.from_anchor = [Vec::new(), Vec::new()];
+        if self.wheel_travel_m(g) < ANCHOR_MIN_TRAVEL_M {
+            return;
+        }
+        let Some(k) = self.knot_after(START_TRAVEL_M, g) else {
+            return;
+        };
+        let frame = |truth: &[PoseF64]| {
+            let origin = truth[k];
+            truth[k..].iter().map(|t| origin.relative(t)).collect()
+        };
+        self.anchor = k;
+        self.from_anchor = [frame(&self.aligned), frame(&self.truth)];
+    }
+
+    /// The first knot at which the wheels have rolled `travel_m` on average with `g`.
+    fn knot_after(&self, travel_m: f64, g: &Geometry) -> Option<usize> {
+        let mut travel = 0.0;
+        self.knots
+            .windows(2)
+            .position(|w| {
+                travel += step_travel_m(w, g);
+                travel >= travel_m
+            })
+            .map(|j| j + 1)
     }
 
     /// Length of the ground-truth path, metres.
@@ -791,17 +861,9 @@ impl OptiRun {
     /// [`START_TRAVEL_M`] on average, radians: what a slipping start leaves (the encoders turn
     /// while the robot does not, or not as far). `None` when the run never rolls that far.
     pub fn start_heading_error(&self, g: &Geometry) -> Option<f64> {
-        let model = ArcModel::from_geometry(g);
-        let mut pose = PoseF64::default();
-        let mut travel = 0.0;
-        for (j, w) in self.knots.windows(2).enumerate() {
-            pose = model.integrate(pose, w);
-            travel += step_travel_m(w, g);
-            if travel >= START_TRAVEL_M {
-                return Some(pose.theta_rad - self.truth[j + 1].theta_rad);
-            }
-        }
-        None
+        let k = self.knot_after(START_TRAVEL_M, g)?;
+        let pose = ArcModel::from_geometry(g).integrate(PoseF64::default(), &self.knots[..=k]);
+        Some(pose.theta_rad - self.truth[k].theta_rad)
     }
 
     /// The path this run drove, as the calibration describes it (see the module docs).
@@ -827,7 +889,9 @@ impl OptiRun {
 
     /// The run as a calibration input, driven with `belief` (odometry re-integrated with it);
     /// with `along_path`, the ground truth at every knot is passed too (fit to the whole path).
-    /// The truth is the [aligned](OptiRun::aligned) one, or with `recorded` the one in the file.
+    /// The truth is the [aligned](OptiRun::aligned) one, or with `recorded` the one in the file;
+    /// the run is measured from its [anchor](OptiRun::anchor), or with `from_start` from its
+    /// first knot.
     pub fn observation(
         &self,
         kind: Kind,
@@ -835,15 +899,20 @@ impl OptiRun {
         belief: &Geometry,
         along_path: bool,
         recorded: bool,
+        from_start: bool,
     ) -> RunObservation<'_> {
-        let truth = if recorded { &self.truth } else { &self.aligned };
+        let (first, truth) = if from_start || self.anchor == 0 {
+            (0, if recorded { &self.truth } else { &self.aligned })
+        } else {
+            (self.anchor, &self.from_anchor[usize::from(recorded)])
+        };
+        let knots = &self.knots[first..];
         let end = truth.last().copied().unwrap_or_default();
         RunObservation {
             path: self.path(kind, side_m, belief),
             geometry: *belief,
-            knots: &self.knots,
-            odometry_end: ArcModel::from_geometry(belief)
-                .integrate(PoseF64::default(), &self.knots),
+            knots,
+            odometry_end: ArcModel::from_geometry(belief).integrate(PoseF64::default(), knots),
             measured: Measurement {
                 x_m: end.x_m,
                 y_m: end.y_m,
@@ -1089,11 +1158,13 @@ mod tests {
         let g = s.nominal;
         let kind = Kind::Ivanjko;
         assert_eq!(
-            r.observation(kind, 0.0, &g, false, false).measured.y_m,
+            r.observation(kind, 0.0, &g, false, false, true)
+                .measured
+                .y_m,
             a.y_m
         );
         assert_eq!(
-            r.observation(kind, 0.0, &g, true, true).truth_path,
+            r.observation(kind, 0.0, &g, true, true, true).truth_path,
             &r.truth[..]
         );
     }
@@ -1124,6 +1195,57 @@ mod tests {
         short.knots.truncate(4);
         short.truth.truncate(4);
         assert_eq!(short.start_heading_error(&g), None);
+    }
+
+    #[test]
+    fn a_run_is_calibrated_from_its_anchor_without_its_start_transient() {
+        let g = Geometry {
+            diameter_right_m: 0.084,
+            diameter_left_m: 0.084,
+            wheelbase_m: 0.2,
+            counts_per_rev: 27_968,
+        };
+        // A phantom turn in place at the start (the robot stays put), then 1.2 m straight ahead.
+        let per_cm = (0.01 / g.meters_per_tick_right()).round() as i64;
+        let mut knots = vec![WheelTicks::new(0, 0), WheelTicks::new(300, -300)];
+        let mut truth = vec![PoseF64::default(); 2];
+        for i in 1..=120 {
+            knots.push(WheelTicks::new(300 + i * per_cm, -300 + i * per_cm));
+            truth.push(PoseF64::new(f64::from(i as i32) * 0.01, 0.0, 0.0));
+        }
+        let mut run = OptiRun::new(None, knots, truth);
+        run.set_anchor(&g);
+        // The phantom turn (28 mrad) rolls each wheel 2.8 mm, so 0.1 m on average is reached
+        // 10 cm along the line, at knot 11.
+        assert_eq!(run.anchor, 11);
+        let phantom = 600.0 * g.meters_per_tick_right() / g.wheelbase_m;
+        let kind = Kind::Ivanjko;
+        // From its start the odometry ends turned by the phantom turn, the robot straight.
+        let o = run.observation(kind, 0.0, &g, false, false, true);
+        assert!((o.odometry_end.theta_rad - phantom).abs() < 1e-12);
+        assert_eq!(o.measured.theta_rad, Some(0.0));
+        // From the anchor both drove the remaining 1.1 m straight ahead.
+        let o = run.observation(kind, 0.0, &g, false, false, false);
+        assert_eq!(o.knots.len(), 122 - 11);
+        assert!(
+            o.odometry_end.theta_rad.abs() < 1e-12,
+            "{:?}",
+            o.odometry_end
+        );
+        assert!((o.measured.x_m - 1.1).abs() < 1e-12 && o.measured.y_m == 0.0);
+        assert!((o.odometry_end.x_m - o.measured.x_m).abs() < 1e-3);
+        // Along the path too: the truth starts at the anchor, in its frame.
+        let o = run.observation(kind, 0.0, &g, true, true, false);
+        assert_eq!(o.truth_path.len(), o.knots.len());
+        assert_eq!(o.truth_path[0], PoseF64::default());
+        // A run that rolls less than 1 m (a turn in place) keeps its start.
+        run.knots.truncate(60);
+        run.truth.truncate(60);
+        run.aligned.truncate(60);
+        run.set_anchor(&g);
+        assert_eq!(run.anchor, 0);
+        let o = run.observation(kind, 0.0, &g, false, false, false);
+        assert_eq!(o.knots.len(), 60);
     }
 
     #[test]
