@@ -5,10 +5,15 @@
 # with the uncalibrated (nominal) row and the in-sample floor (exact-path fitted on the very
 # session it is evaluated on, to the truth as recorded that it is evaluated against). Needs jq.
 #
-#   bash host-sim/crossval.sh [DATA_DIR]        # DATA_DIR default: ../shared/data
+#   bash host-sim/crossval.sh [DATA_DIR [REPLAY FLAGS...]]   # DATA_DIR default: ../shared/data
+#
+# REPLAY FLAGS go to every calibration (not to the nominal and floor rows), e.g. --from-start or
+# --raw-truth to see what the start anchor or the heading offset changes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 DATA=${1:-../shared/data}
+shift || true
+FLAGS=("$@")
 D=$DATA/optiodom/diff
 if [ ! -d "$D" ]; then
   echo "crossval: $D does not exist (give the folder that holds optiodom/ as the first argument)" >&2
@@ -72,7 +77,7 @@ for s in "${SETS[@]}"; do
     [[ " ${keys[*]} " == *" $e "* ]] || { ev+=("${DIR[$e]}"); evk+=("$e"); }
   done
   f="$OUT/set.json"
-  "$SIM" replay --calibrate "${cal[@]}" --evaluate "${ev[@]}" --format json --out "$OUT/s" > "$f" 2>/dev/null
+  "$SIM" replay --calibrate "${cal[@]}" --evaluate "${ev[@]}" ${FLAGS[@]+"${FLAGS[@]}"} --format json --out "$OUT/s" > "$f" 2>/dev/null
   for m in $(jq -r 'select(.run=="all" and .method!="nominal") | .method' "$f"); do
     tag=$m
     [ "$(jq -r --arg m "$m" 'select(.run=="all" and .method==$m) | .default' "$f")" = true ] && tag="**$m** (default)"
