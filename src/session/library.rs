@@ -537,7 +537,7 @@ fn solve_error(e: CalibrationError) -> SolveError {
             SolveError::Failed("runs driven with different geometries (drop the older ones)")
         }
         E::InvalidGeometry => SolveError::Failed("invalid geometry"),
-        E::Degenerate => SolveError::Failed("degenerate configuration"),
+        E::Degenerate => SolveError::Failed("the runs do not determine every factor"),
         E::NotConverged => SolveError::Failed("did not converge"),
         E::OutOfRange => SolveError::Failed("factor outside 0.5..2"),
     }

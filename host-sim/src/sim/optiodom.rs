@@ -1169,25 +1169,30 @@ mod tests {
         );
     }
 
-    #[test]
-    fn a_slipping_start_shows_as_the_start_heading_error() {
+    /// A run of the OptiOdom robot (`g`) whose encoders record a phantom turn in place (right
+    /// +300, left −300 ticks: 28 mrad) while the robot stays put, then `cm` rows of 1 cm straight
+    /// ahead, which the robot does drive; and the phantom turn in radians.
+    fn phantom_start_run(cm: i64) -> (Geometry, OptiRun, f64) {
         let g = Geometry {
             diameter_right_m: 0.084,
             diameter_left_m: 0.084,
             wheelbase_m: 0.2,
             counts_per_rev: 27_968,
         };
-        // The encoders record a phantom turn in place (right +300, left −300 ticks) while the
-        // robot stays put, then 1 cm straight ahead per row, which the robot does drive.
         let per_cm = (0.01 / g.meters_per_tick_right()).round() as i64;
         let mut knots = vec![WheelTicks::new(0, 0), WheelTicks::new(300, -300)];
         let mut truth = vec![PoseF64::default(); 2];
-        for i in 1..=20 {
+        for i in 1..=cm {
             knots.push(WheelTicks::new(300 + i * per_cm, -300 + i * per_cm));
-            truth.push(PoseF64::new(f64::from(i as i32) * 0.01, 0.0, 0.0));
+            truth.push(PoseF64::new(i as f64 * 0.01, 0.0, 0.0));
         }
-        let run = OptiRun::new(None, knots, truth);
         let phantom = 600.0 * g.meters_per_tick_right() / g.wheelbase_m;
+        (g, OptiRun::new(None, knots, truth), phantom)
+    }
+
+    #[test]
+    fn a_slipping_start_shows_as_the_start_heading_error() {
+        let (g, run, phantom) = phantom_start_run(20);
         let e = run.start_heading_error(&g).unwrap();
         assert!((e - phantom).abs() < 1e-12, "{e} vs {phantom}");
         // A run that never rolls 0.1 m has none.
@@ -1199,26 +1204,12 @@ mod tests {
 
     #[test]
     fn a_run_is_calibrated_from_its_anchor_without_its_start_transient() {
-        let g = Geometry {
-            diameter_right_m: 0.084,
-            diameter_left_m: 0.084,
-            wheelbase_m: 0.2,
-            counts_per_rev: 27_968,
-        };
-        // A phantom turn in place at the start (the robot stays put), then 1.2 m straight ahead.
-        let per_cm = (0.01 / g.meters_per_tick_right()).round() as i64;
-        let mut knots = vec![WheelTicks::new(0, 0), WheelTicks::new(300, -300)];
-        let mut truth = vec![PoseF64::default(); 2];
-        for i in 1..=120 {
-            knots.push(WheelTicks::new(300 + i * per_cm, -300 + i * per_cm));
-            truth.push(PoseF64::new(f64::from(i as i32) * 0.01, 0.0, 0.0));
-        }
-        let mut run = OptiRun::new(None, knots, truth);
+        // The phantom turn in place at the start, then 1.2 m straight ahead.
+        let (g, mut run, phantom) = phantom_start_run(120);
         run.set_anchor(&g);
         // The phantom turn (28 mrad) rolls each wheel 2.8 mm, so 0.1 m on average is reached
         // 10 cm along the line, at knot 11.
         assert_eq!(run.anchor, 11);
-        let phantom = 600.0 * g.meters_per_tick_right() / g.wheelbase_m;
         let kind = Kind::Ivanjko;
         // From its start the odometry ends turned by the phantom turn, the robot straight.
         let o = run.observation(kind, 0.0, &g, false, false, true);
