@@ -52,7 +52,7 @@
 //!
 //! A run starts from standstill, and in the first centimetres the wheels can turn without the
 //! robot following: in 231220200029 run 2 the wheels first spin in place (right −88, left +85
-//! ticks in 0.15 s), the odometry turns 82 mrad, the robot 50 mrad. Such a start error turns the
+//! ticks in 0.15 s), the odometry turns 82 mrad, the robot 42 mrad. Such a start error turns the
 //! whole rest of the run about the start point. On a closed path (a square, a circle) the end
 //! position, near the start, hardly moves, but the end heading takes it in full, and since it is
 //! on average of opposite sign in CW and CCW runs on the 1.7 m squares (`start θ` in `replay`'s
