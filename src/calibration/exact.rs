@@ -125,9 +125,9 @@
 //! (`JᵀWr = 0`): the two coincide where the runs fit exactly (`r = 0`, ideal kinematics), and
 //! with noisy runs they are `(JᵀWJ)⁻¹EᵀWr` apart. On the recorded OptiOdom sessions (read from
 //! their recorded starts) that moved `E_b` by 4e-8–1e-7 relative on squares, 3e-5 on the path fit
-//! of the line session and 2e-4 on the end poses of two free paths (3 factors from 6 numbers; on long paths the `f32` heading
-//! error grows with the distance driven). The fit therefore ends with one more solve, from the
-//! `f32` solution and with the weights it was fitted with, whose Jacobian is `f64` ([`ArcModel`],
+//! of the line session and 2e-4 on the end poses of two free paths (3 factors from 6 numbers; on
+//! long paths the `f32` heading error grows with the distance driven). The fit therefore ends
+//! with one more solve, from the `f32` solution and with the weights it was fitted with, whose Jacobian is `f64` ([`ArcModel`],
 //! step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12, rounding 1e-10 relative): it starts that
 //! close to the minimum that it takes two iterations, and it ends where an all-`f64` fit ends, to
 //! the convergence tolerances: plain fits of the recorded sessions agree to the nine printed
