@@ -122,19 +122,20 @@
 //! accepted only when the `f64` cost does not rise, and near the solution each Gauss–Newton step
 //! contracts the error by `O(|E|/|J|)` (besides the usual term of the residuals' curvature), about
 //! 5e-5, so it converges as fast. But it stops where `J̃ᵀWr = 0`, not where the cost is least
-//! (`JᵀWr = 0`): the two coincide where the runs fit exactly (`r = 0`, ideal kinematics), and
-//! with noisy runs they are `(JᵀWJ)⁻¹EᵀWr` apart. On the recorded OptiOdom sessions (read from
-//! their recorded starts) that moved `E_b` by 4e-8–1e-7 relative on squares, 3e-5 on the path fit
-//! of the line session and 2e-4 on the end poses of two free paths (3 factors from 6 numbers; on
-//! long paths the `f32` heading error grows with the distance driven). The fit therefore ends
-//! with one more solve, from the `f32` solution and with the weights it was fitted with, whose Jacobian is `f64` ([`ArcModel`],
-//! step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12, rounding 1e-10 relative): it starts that
-//! close to the minimum that it takes two iterations, and it ends where an all-`f64` fit ends, to
-//! the convergence tolerances: plain fits of the recorded sessions agree to the nine printed
-//! digits (2–3e-8 on the free paths' flat minimum), the bench's robust fit of 10 squares to
-//! 2e-11; other robust fits differ by up to 7e-8 (6e-7, 1e-5 of its 1σ, for the line session's
-//! path fit), as their reweighting rounds start from the `f32` solutions and the weights settle
-//! within their tolerance at slightly different values. The 1σ comes from the `f64` Jacobian.
+//! (`JᵀWr = 0`): the two coincide where the runs fit exactly (`r = 0`, ideal kinematics), and with
+//! noisy runs they are `(JᵀWJ)⁻¹EᵀWr` apart. On the recorded OptiOdom sessions (read from their
+//! recorded starts) that moved `E_b` by 4e-8–1e-7 relative on squares, 3e-5 on the path fit of the
+//! line session and 2e-4 on the end poses of two free paths (3 factors from 6 numbers; on long
+//! paths the `f32` heading error grows with the distance driven). The fit therefore ends with one
+//! more solve, from the `f32` solution and with the weights it was fitted with, whose Jacobian is
+//! `f64` ([`ArcModel`], step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12, rounding 1e-10
+//! relative): it starts that close to the minimum that it takes two iterations, and it ends where
+//! an all-`f64` fit ends, to the convergence tolerances: plain fits of the recorded sessions agree
+//! to the nine printed digits (2–3e-8 on the free paths' flat minimum), the bench's robust fit of
+//! 10 squares to 2e-11; other robust fits differ by up to 7e-8 (6e-7, 1e-5 of its 1σ, for the line
+//! session's path fit), as their reweighting rounds start from the `f32` solutions and the weights
+//! settle within their tolerance at slightly different values. The 1σ comes from the `f64`
+//! Jacobian.
 //!
 //! Normal equations are accumulated run by run (3×3), so memory does not
 //! grow with the number of knots; the weights take one number per run (up to
