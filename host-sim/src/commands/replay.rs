@@ -771,7 +771,7 @@ fn print_text(
             println!("  every calibration run measured from its recorded start (--from-start)");
         } else {
             println!(
-                "  {anchored} of {runs} calibration runs measured from {START_TRAVEL_M} m of wheel travel on, leaving their start transient out (runs rolling under {ANCHOR_MIN_TRAVEL_M} m from their start; --from-start: all from their start)"
+                "  {anchored} of {runs} calibration runs measured from {START_TRAVEL_M} m of wheel travel on, leaving their start transient out (runs rolling under {ANCHOR_MIN_TRAVEL_M} m keep their start; --from-start: every run from its start)"
             );
         }
     }

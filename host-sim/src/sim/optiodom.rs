@@ -52,12 +52,13 @@
 //!
 //! A run starts from standstill, and in the first centimetres the wheels can turn without the
 //! robot following: in 231220200029 run 2 the wheels first spin in place (right −88, left +85
-//! ticks in 0.15 s), the odometry turns 82 mrad, the robot 42 mrad. Such a start error turns the
-//! whole rest of the run about the start point. On a closed path (a square, a circle) the end
-//! position, near the start, hardly moves, but the end heading takes it in full, and since it is
-//! on average of opposite sign in CW and CCW runs on the 1.7 m squares (`start θ` in `replay`'s
-//! per-run listing), it reads like a wheelbase error: the end headings of 231220200029 say
-//! `E_b` = 1.0121 (Jung & Chung) where its end positions say 1.0078–1.0092.
+//! ticks in 0.15 s): both turn clockwise, the odometry by 82 mrad, the robot by 42 mrad. Such a
+//! start error turns the whole rest of the run about the start point. On a closed path (a square,
+//! a circle) the end position, near the start, hardly moves, but the end heading takes it in
+//! full, and since it is on average of opposite sign in CW and CCW runs on the 1.7 m squares
+//! (`start θ` in `replay`'s per-run listing), it reads like a wheelbase error: measured from the
+//! recorded starts, the end headings of 231220200029 say `E_b` = 1.0121 (Jung & Chung) where its
+//! end positions say 1.0078–1.0092; from the anchors the headings say 1.0082.
 //!
 //! A motion-capture log shows where the transient ends, so the calibration measures each run from
 //! its *anchor* ([`OptiRun::anchor`]): the first knot at which the wheels have rolled
