@@ -5,8 +5,9 @@ Boots the exact image `cargo fw` builds (with the boot assist of `emulator.py`),
 `event boot` line on USART2, sends the console script below (every command family, error cases,
 an over-long line, CR endings, garbage bytes, Ctrl-C, escape sequences) and compares each reply with
 `fil/golden/console.txt`; pastes a block of 31 lines with echo on and checks that each is echoed
-right before its reply, in order; then decodes the defmt boot log from the RTT buffer of a RAM
-dump.
+right before its reply, in order; types `status` key by key with the pose stream on and checks
+that no stream line lands between its keys; then decodes the defmt boot log from the RTT buffer
+of a RAM dump.
 
     python3 fil/boot_test.py ELF [--regen] [--workdir DIR]
 
@@ -17,7 +18,9 @@ every reply matches; `--regen` rewrites the golden file from this run instead.
 import argparse
 import hashlib
 import os
+import re
 import sys
+import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console, ConsoleError  # noqa: E402
@@ -122,6 +125,49 @@ def paste_check(con):
     return problems, got
 
 
+# A line typed key by key while the pose stream runs (echo on): one key per TYPING_GAP seconds.
+TYPED = b"status\r"
+TYPING_GAP = 0.1
+STREAM = re.compile(r"stream -?\d+\.\d{6}( [+-]\d+\.\d+){5}")
+
+
+def typing_check(con):
+    """Types `status` key by key with echo on and the pose stream at 20 Hz; returns the
+    problems found (none: the echo reads `status` whole, right before its reply, and every other
+    line is a whole stream line) and the lines seen."""
+    con.ok("echo on")
+    con.ok("stream on 20")
+    con.quiet(0.5)
+    for key in TYPED:
+        con.send_raw(bytes([key]))
+        time.sleep(TYPING_GAP)
+    # The stream never falls silent: read for one second after Enter.
+    lines = []
+    deadline = time.time() + 1.0
+    while time.time() < deadline:
+        line = con.read_line(deadline - time.time())
+        if line is None:
+            break
+        lines.append(line)
+    con.ok("stream off")
+    con.ok("echo off")
+    problems = []
+    typed = TYPED.decode().strip()
+    if typed not in lines:
+        problems.append(f"no `{typed}` line (the echo was cut): {lines[:8]}")
+    else:
+        at = lines.index(typed)
+        if at + 1 >= len(lines) or not lines[at + 1].startswith("ok state="):
+            problems.append(f"`{typed}` not followed by its reply: {lines[at:at + 3]}")
+        others = [l for i, l in enumerate(lines) if i not in (at, at + 1)]
+        cut = [l for l in others if not STREAM.fullmatch(l)]
+        if cut:
+            problems.append(f"lines that are not whole stream lines: {cut[:4]}")
+        if len(others) < 5:
+            problems.append(f"the stream did not resume after the line: {lines}")
+    return problems, lines
+
+
 def shown(data):
     """Sent bytes as one printable line."""
     return "".join(chr(b) if 32 <= b < 127 and b != 92 else f"\\x{b:02x}" for b in data)
@@ -148,6 +194,7 @@ def run(elf, workdir):
             blocks.append((shown(data), got))
         con.quiet(NO_REPLY_WAIT)
         paste = paste_check(con)
+        typing = typing_check(con)
         # Events (e.g. the stop a Ctrl-C causes) come when the console task gets to them, not
         # at a fixed place among the replies: they are compared as one set at the end.
         con.quiet(NO_REPLY_WAIT)
@@ -157,7 +204,7 @@ def run(elf, workdir):
     finally:
         emu.stop()
     log = defmt_log(elf, rtt_up_bytes(elf, ram))
-    return blocks, log, alive, emu.points, paste
+    return blocks, log, alive, emu.points, paste, typing
 
 
 def collapse(lines):
@@ -197,7 +244,8 @@ def main():
     args = ap.parse_args()
     sha = hashlib.sha256(open(args.elf, "rb").read()).hexdigest()
     print(f"boot test: {args.elf} sha256 {sha}")
-    blocks, log, alive, points, (paste_problems, paste_got) = run(args.elf, args.workdir)
+    blocks, log, alive, points, (paste_problems, paste_got), (typing_problems, typed) = run(
+        args.elf, args.workdir)
     print("boot assist (generated from the ELF):")
     for kind, bp, resume, reg in points:
         print(f"  {kind:10} break 0x{bp:08x} resume 0x{resume:08x} ({reg})")
@@ -239,6 +287,16 @@ def main():
         print(f"paste: {len(PASTE)} lines pasted at once with echo on, each echoed right before "
               f"its reply, in order (`{paste_got[0]}` … `{paste_got[-2]}`); "
               f"{paste_got[-1]}, as the last line")
+    if typing_problems:
+        print("FAILED: `status` typed key by key with the pose stream on:")
+        for p in typing_problems:
+            print("  " + p)
+        fail = 1
+    else:
+        streams = sum(1 for l in typed if l.startswith("stream "))
+        print(f"typing: `status` typed key by key ({TYPING_GAP} s apart) with the pose stream at "
+              f"20 Hz: echoed whole right before its reply, {streams} whole stream lines around "
+              "it, none between its keys")
     # QEMU has no TIM7, so the control task never runs here: after the one feed that starts the
     # watchdog and the two of the console task's one flash access with the watchdog relaxed
     # (restoring the stored runs at boot: 10 s and back to 50 ms, one reload-key write after

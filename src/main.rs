@@ -61,6 +61,11 @@ static CONSOLE_BUSY: core::sync::atomic::AtomicBool = core::sync::atomic::Atomic
 #[cfg(target_os = "none")]
 static ECHO: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
 
+/// Set by the USART2 interrupt while a line is being typed and echoed as it is typed: the
+/// console task holds the pose stream meanwhile, so its lines do not cut into the echo.
+#[cfg(target_os = "none")]
+static TYPING: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
 /// Most receive-register reads per USART2 interrupt (the rest re-enters the interrupt).
 #[cfg(target_os = "none")]
 const RX_READS_PER_IRQ: usize = 32;
@@ -101,7 +106,7 @@ mod app {
 
     use super::{
         CONSOLE_BUSY, CONTROL_RATE_HZ, ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ,
-        STOP_REQUEST,
+        STOP_REQUEST, TYPING,
     };
     use core::sync::atomic::Ordering;
 
@@ -449,6 +454,7 @@ mod app {
                 }
             },
         );
+        TYPING.store(cx.local.assembler.typing(), Ordering::Relaxed);
         while usart_tx.is_tx_empty() {
             let Some(byte) = echo_out.pop_front().or_else(|| tx_out.dequeue()) else {
                 break;
@@ -525,6 +531,7 @@ mod app {
                 };
             }
             let now_us = u64::from(Mono::now().ticks()) * 1_000;
+            session.set_typing(TYPING.load(Ordering::Relaxed));
             let _ = session.poll(now_us, &mut robot, store, &mut out);
             dropped += out.dropped;
             if dropped > 0 {

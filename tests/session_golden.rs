@@ -1007,6 +1007,24 @@ fn stream_schedule_and_text() {
 }
 
 #[test]
+fn the_stream_holds_while_a_line_is_typed() {
+    let mut b = Bench::new();
+    assert_eq!(b.send("stream on 100"), "ok stream on 100 Hz\r\n");
+    assert_eq!(b.poll(0).lines().count(), 1);
+    // A person types a line (echoed as typed): no stream line lands between the characters,
+    // however long it takes.
+    b.session.set_typing(true);
+    for t in (1_000..=500_000).step_by(1_000) {
+        assert_eq!(b.poll(t), "", "at {t} µs");
+    }
+    // Enter: the stream resumes at once and keeps its period from there.
+    b.session.set_typing(false);
+    assert_eq!(b.poll(501_000).lines().count(), 1);
+    assert_eq!(b.poll(505_000), "");
+    assert_eq!(b.poll(511_000).lines().count(), 1);
+}
+
+#[test]
 fn run_store_ram() {
     // The store holds MAX_RUNS records inline; report its size so the RAM budget is visible.
     let record = size_of::<RunRecord>();

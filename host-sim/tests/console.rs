@@ -1,6 +1,7 @@
 //! The console as an operator and a script use it, on the simulated board: stop keys stop the
 //! motors in the same control period, a swapped x/y measurement among 5 + 5 squares is named by
-//! `calibrate`, and the `cargo sim serial` pipe answers a terminal's CR line ends and Ctrl-C.
+//! `calibrate`, the pose stream never lands between the keys of a typed line, and the
+//! `cargo sim serial` pipe answers a terminal's CR line ends and Ctrl-C.
 
 use std::io::Write;
 use std::process::{Command, Stdio};
@@ -133,6 +134,42 @@ fn a_pasted_script_reads_command_reply_command_reply() {
         out.starts_with("ok square_side = 1.300 m\r\nok state=idle"),
         "{out}"
     );
+}
+
+#[test]
+fn the_pose_stream_never_cuts_into_a_line_being_typed() {
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    assert_eq!(b.send("stream on 100"), "ok stream on 100 Hz\r\n");
+    // 100 ms of stream, then a person types `status`, one key every 50 ms (50 control periods):
+    // 350 ms in which the stream would have written 35 lines.
+    let mut out = String::new();
+    for _ in 0..100 {
+        b.step(&mut out);
+    }
+    for &key in b"status\r" {
+        b.receive(&[key], &mut out);
+        b.process(&mut out, false);
+        for _ in 0..50 {
+            b.step(&mut out);
+        }
+    }
+    // The echo reads `status` in one piece, right before its reply, and every stream line is
+    // whole: before the first key and after Enter, none in between.
+    let lines: Vec<&str> = out.lines().collect();
+    let at = lines
+        .iter()
+        .position(|l| *l == "status")
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(lines[at + 1].starts_with("ok state=idle"), "{out}");
+    assert!(
+        lines
+            .iter()
+            .enumerate()
+            .all(|(i, l)| i == at || i == at + 1 || l.starts_with("stream ")),
+        "{out}"
+    );
+    assert_eq!((at, lines.len() - at - 2), (10, 5), "{out}");
 }
 
 /// Drives the planned 5 + 5 squares and measures each at its true end pose, except run

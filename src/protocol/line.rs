@@ -229,6 +229,13 @@ impl<const N: usize> LineAssembler<N> {
         self.echo_live
     }
 
+    /// Whether a line is being typed: part of it is held and it is echoed as it arrives (a
+    /// person at a terminal; [`crate::session::Session::set_typing`] holds the pose stream
+    /// meanwhile).
+    pub fn typing(&self) -> bool {
+        self.echo_live && !self.at_line_start()
+    }
+
     /// Sets [`LineAssembler::echo_live`] for the line that starts with the next byte.
     pub fn set_echo_live(&mut self, live: bool) {
         self.echo_live = live;

@@ -462,6 +462,30 @@ mod tests {
     }
 
     #[test]
+    fn a_line_typed_at_an_idle_console_is_typing_until_its_end() {
+        let (mut items, mut echoed) = (std::vec::Vec::new(), std::vec::Vec::new());
+        let mut asm = LineAssembler::<LINE_MAX>::new();
+        assert!(!asm.typing());
+        // Key by key at an idle console: echoed live, typing from the first key to Enter.
+        for &key in b"stat" {
+            feed(&mut asm, &[key], true, &mut items, &mut echoed);
+            assert!(asm.typing());
+        }
+        feed(&mut asm, b"us\r", true, &mut items, &mut echoed);
+        assert!(!asm.typing());
+        // Ctrl-C cancels the line and ends it too; Esc (a stop key, or the start of an arrow
+        // key's sequence) keeps what was typed.
+        feed(&mut asm, b"ru", true, &mut items, &mut echoed);
+        feed(&mut asm, b"\x1b", true, &mut items, &mut echoed);
+        assert!(asm.typing());
+        feed(&mut asm, b"\x03", true, &mut items, &mut echoed);
+        assert!(!asm.typing());
+        // A line that starts while the console is busy is echoed with its reply: not typing.
+        feed(&mut asm, b"par", false, &mut items, &mut echoed);
+        assert!(!asm.typing());
+    }
+
+    #[test]
     fn a_line_after_a_lone_esc_decides_its_own_echo() {
         let mut asm = LineAssembler::<LINE_MAX>::new();
         let mut echoed = std::vec::Vec::new();

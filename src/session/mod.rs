@@ -94,6 +94,9 @@ pub struct Session<C> {
     last_push: Option<PushReport>,
     /// Echo received characters (a person at a terminal); `echo off` for programs.
     echo: bool,
+    /// A line is being typed and echoed as it is typed: the pose stream holds meanwhile
+    /// ([`Session::set_typing`]).
+    typing: bool,
     /// The run in progress, as far as the session knows.
     active: Option<ActiveRun>,
     /// The last run ended by an abort (not stored); plain `measure` is refused until the next
@@ -219,6 +222,7 @@ impl<C: Calibrator> Session<C> {
             stream: None,
             last_push: None,
             echo: true,
+            typing: false,
             active: None,
             last_aborted: None,
             fault_announced: false,
@@ -397,7 +401,8 @@ impl<C: Calibrator> Session<C> {
 
     /// Periodic work: collects finished runs (announcing them with `event` lines), stores
     /// changed runs in flash once the motors are stopped, and writes a `stream` line when one
-    /// is due at `now_us` (a monotonic time, microseconds).
+    /// is due at `now_us` (a monotonic time, microseconds) and no line is being typed
+    /// ([`Session::set_typing`]).
     ///
     /// # Errors
     /// Only if `out` refuses the text.
@@ -411,7 +416,7 @@ impl<C: Calibrator> Session<C> {
         self.collect_finished(robot, out)?;
         self.collect_check(robot, out)?;
         self.store_runs(robot, storage, out)?;
-        if self.stream_due(now_us) {
+        if !self.typing && self.stream_due(now_us) {
             let pose = robot.pose();
             let totals = robot.totals();
             let (vr, vl) = self.wheel_speeds(now_us, totals);
@@ -439,6 +444,14 @@ impl<C: Calibrator> Session<C> {
         };
         stream.last = Some((now_us, totals));
         speeds
+    }
+
+    /// Tells the session whether a line is being typed at the console and echoed as it is typed
+    /// ([`crate::protocol::line::LineAssembler::typing`]). Meanwhile the pose stream holds: its
+    /// lines would land between the typed characters, cutting both. It resumes with the next
+    /// poll after the line ends (Enter or Ctrl-C), restarting its schedule from there.
+    pub fn set_typing(&mut self, typing: bool) {
+        self.typing = typing;
     }
 
     /// Whether a stream line is due at `now_us`; if so, schedules the next one. The schedule

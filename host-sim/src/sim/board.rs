@@ -232,6 +232,7 @@ impl<'f> Board<'f> {
         }
         let output = self.sim.step(&mut self.controller);
         self.now_us += self.period_us;
+        self.session.set_typing(self.assembler.typing());
         let _ = self
             .session
             .poll(self.now_us, &mut self.controller, &mut self.store, out);
