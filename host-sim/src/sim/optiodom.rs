@@ -929,6 +929,13 @@ mod tests {
     use super::*;
     use std::path::PathBuf;
 
+    /// Asserts that the error `err` says every one of `parts`.
+    fn assert_mentions(err: &str, parts: &[&str]) {
+        for part in parts {
+            assert!(err.contains(part), "{err:?} does not say {part:?}");
+        }
+    }
+
     /// A session folder `<temp>/odocal-<tag>-<pid>/<kind>/<id>` holding `metadata` as its
     /// metadata file: (the folder to remove afterwards, the session folder).
     fn session_folder(tag: &str, kind: &str, id: &str, metadata: &str) -> (PathBuf, PathBuf) {
@@ -1377,10 +1384,7 @@ mod tests {
         // A counter glitch: 99,999,999 raw ticks in 50 ms is 9.4 km of wheel travel.
         let err =
             read_run(&run("0.15,0.015,0,0,99999999,53"), 10, &g, file, &mut gaps).unwrap_err();
-        assert!(
-            err.contains("5_run-01.csv:4: a wheel travels") && err.contains("encoder glitch"),
-            "{err}"
-        );
+        assert_mentions(&err, &["5_run-01.csv:4: a wheel travels", "encoder glitch"]);
         // 20 m/s is refused, 8 m/s is not (10 m/s: 0.5 m per row); the time column does not
         // matter (the run's median interval is used).
         let err = read_run(&run("0.15,0,0,0,10600,10600"), 10, &g, file, &mut gaps).unwrap_err();
@@ -1389,10 +1393,12 @@ mod tests {
         assert!(fast.is_ok(), "{fast:?}");
         // The motion capture places the robot 1,000 km away for one row.
         let err = read_run(&run("0.15,1e6,0,0,53,53"), 10, &g, file, &mut gaps).unwrap_err();
-        assert!(
-            err.contains("5_run-01.csv:4: the ground truth moves")
-                && err.contains("motion-capture glitch"),
-            "{err}"
+        assert_mentions(
+            &err,
+            &[
+                "5_run-01.csv:4: the ground truth moves",
+                "motion-capture glitch",
+            ],
         );
     }
 
@@ -1455,10 +1461,12 @@ mod tests {
             })
             .collect();
         let err = read_run(&rows, 10, &g, file, &mut gaps).unwrap_err();
-        assert!(
-            err.contains("5_run-01.csv:101: a wheel travels")
-                && err.contains("are the tick columns cumulative counts?"),
-            "{err}"
+        assert_mentions(
+            &err,
+            &[
+                "5_run-01.csv:101: a wheel travels",
+                "are the tick columns cumulative counts?",
+            ],
         );
         // A single glitch among per-row increments gets no such hint.
         let rows: String = (0..20)
@@ -1478,10 +1486,12 @@ mod tests {
         );
         // Semicolons between fields (and decimal commas).
         let err = read_run("0;0;0;0;0;0\n", 10, &g, file, &mut gaps).unwrap_err();
-        assert!(
-            err.contains("5_run-01.csv:1: expected 6 fields, found 1")
-                && err.contains("fields are separated by commas and decimals use a point"),
-            "{err}"
+        assert_mentions(
+            &err,
+            &[
+                "5_run-01.csv:1: expected 6 fields, found 1",
+                "fields are separated by commas and decimals use a point",
+            ],
         );
         let err = read_run("0;0,0012;0;0;0;0\n", 10, &g, file, &mut gaps).unwrap_err();
         assert!(err.contains("separated by commas"), "{err}");
@@ -1497,10 +1507,12 @@ mod tests {
         let err = read_folder("comma", "ivanjko", "66", &metadata, &[])
             .map(|_| ())
             .unwrap_err();
-        assert!(
-            err.contains("66_metadata.csv: bad Li \"\\\"0\"")
-                && err.contains("a decimal point is expected"),
-            "{err}"
+        assert_mentions(
+            &err,
+            &[
+                "66_metadata.csv: bad Li \"\\\"0\"",
+                "a decimal point is expected",
+            ],
         );
     }
 
@@ -1518,11 +1530,13 @@ mod tests {
         let err2 = read_session(&dir2).unwrap_err();
         fs::remove_dir_all(&root).unwrap();
         fs::remove_dir_all(&root2).unwrap();
-        assert!(
-            err.contains("mysession_metadata.csv: ")
-                && err.contains("named after it: mysession_metadata.csv, mysession_run-01.csv")
-                && err.contains("this folder holds 22_metadata.csv: name the folder 22"),
-            "{err}"
+        assert_mentions(
+            &err,
+            &[
+                "mysession_metadata.csv: ",
+                "named after it: mysession_metadata.csv, mysession_run-01.csv",
+                "this folder holds 22_metadata.csv: name the folder 22",
+            ],
         );
         assert!(
             err2.contains("23_run-01.csv: ")
@@ -1556,10 +1570,12 @@ mod tests {
         fs::write(dir.join("89_run-02.csv"), turn(false)).unwrap();
         let s = read_session(&dir).unwrap();
         fs::remove_dir_all(&root).unwrap();
-        assert!(
-            err.contains("89_run-02.csv: the wheels turn the robot -6.28 rad over the run, the ground truth +6.28 rad")
-                && err.contains("right and left tick columns swapped"),
-            "{err}"
+        assert_mentions(
+            &err,
+            &[
+                "89_run-02.csv: the wheels turn the robot -6.28 rad over the run, the ground truth +6.28 rad",
+                "right and left tick columns swapped",
+            ],
         );
         assert_eq!(s.runs[1].direction, Some(Direction::Ccw));
     }
