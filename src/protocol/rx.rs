@@ -123,10 +123,7 @@ impl InputItem {
     /// Whether this item asks for an immediate stop (Ctrl-C, Esc, or a garbled line ending in
     /// `stop`).
     pub fn is_stop(&self) -> bool {
-        matches!(
-            self,
-            InputItem::Stop(_) | InputItem::Rejected { stop: true, .. }
-        )
+        is_stop(&self.as_event())
     }
 }
 
