@@ -245,13 +245,15 @@ fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
         .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
 }
 
-/// A number with an optional unit suffix (`m`, `cm`, `mm`; `deg` for angles) in base units.
+/// Length units a measurement may carry, with their factor to metres (longest suffix first).
+const LENGTH_UNITS: [(&str, f64); 3] = [("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)];
+/// Angle units a measurement may carry, with their factor to degrees.
+const ANGLE_UNITS: [(&str, f64); 2] = [("deg", 1.0), ("°", 1.0)];
+
+/// A number with an optional unit suffix ([`LENGTH_UNITS`]; [`ANGLE_UNITS`] for angles) in base
+/// units.
 fn quantity(word: &str, angle: bool) -> Result<f64, String> {
-    let units: &[(&str, f64)] = if angle {
-        &[("deg", 1.0), ("°", 1.0)]
-    } else {
-        &[("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)]
-    };
+    let units: &[(&str, f64)] = if angle { &ANGLE_UNITS } else { &LENGTH_UNITS };
     let (num, k) = units
         .iter()
         .find_map(|(u, k)| word.strip_suffix(u).map(|n| (n, *k)))
@@ -277,7 +279,10 @@ fn measurement_words(text: &str) -> Vec<String> {
     let mut words: Vec<String> = Vec::new();
     for w in text.split_whitespace() {
         let w = w.trim_end_matches([',', ';']);
-        let unit = ["mm", "cm", "m", "deg", "°"].contains(&w);
+        let unit = LENGTH_UNITS
+            .iter()
+            .chain(&ANGLE_UNITS)
+            .any(|(u, _)| *u == w);
         match words.last_mut() {
             Some(last) if unit && last.parse::<f64>().is_ok() => last.push_str(w),
             _ if !w.is_empty() => words.push(w.to_string()),
