@@ -1333,46 +1333,23 @@ mod tests {
     #[test]
     fn missing_rows_and_a_backward_time_are_refused_with_their_line() {
         let (g, file, mut gaps) = run_fixture();
+        let mut read = |row3: &str| read_run(&steady_run_with_row3(row3), 10, &g, file, &mut gaps);
         // Row 4's time 0.15 s: in step. 0.4 s: rows missing (their ticks with them), 0.1 s:
         // backwards. A repeated time or jitter (0.17 s) is read.
-        assert!(
-            read_run(
-                &steady_run_with_row3("0.15,0.015,0,0,53,53"),
-                10,
-                &g,
-                file,
-                &mut gaps
-            )
-            .is_ok()
-        );
-        let err = read_run(
-            &steady_run_with_row3("0.4,0.015,0,0,53,53"),
-            10,
-            &g,
-            file,
-            &mut gaps,
-        )
-        .unwrap_err();
+        assert!(read("0.15,0.015,0,0,53,53").is_ok());
+        let err = read("0.4,0.015,0,0,53,53").unwrap_err();
         assert!(
             err.contains("5_run-01.csv:4: the time goes from 0.100 s to 0.400 s (the rows are 0.050 s apart): rows are missing, and with them their ticks"),
             "{err}"
         );
-        let err = read_run(
-            &steady_run_with_row3("0.05,0.015,0,0,53,53"),
-            10,
-            &g,
-            file,
-            &mut gaps,
-        )
-        .unwrap_err();
+        let err = read("0.05,0.015,0,0,53,53").unwrap_err();
         assert!(
             err.contains("5_run-01.csv:4: the time goes from 0.100 s to 0.050 s"),
             "{err}"
         );
         assert!(err.ends_with("the time runs backwards"), "{err}");
         for t in ["0.1", "0.17"] {
-            let text = steady_run_with_row3(&format!("{t},0.015,0,0,53,53"));
-            assert!(read_run(&text, 10, &g, file, &mut gaps).is_ok(), "{t}");
+            assert!(read(&format!("{t},0.015,0,0,53,53")).is_ok(), "{t}");
         }
     }
 
