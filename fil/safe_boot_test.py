@@ -12,14 +12,17 @@
    unmapped flash-size word HardFaults — a real fault in the shipped image. The HardFault
    handler must drive PE9, PE11 and PE13 low again (BSRR = 0x2A000000) and make them GPIO
    outputs (MODER), clear TIM1 BDTR.MOE (bit 15) and BDTR.AOE (bit 14, which would set MOE again
-   at the next update), and reset the MCU (QEMU runs with -no-reboot, so the reset ends it).
+   at the next update), and reset the MCU (QEMU runs with -no-reboot, so the reset ends it; QMP's
+   SHUTDOWN event must give the reason `guest-reset`, which a crash of QEMU does not).
 3. Panic path (disassembly): the panic handler's and the HardFault handler's first call is
    `odocal_emergency_stop`, the function whose writes step 2 observed.
 """
 
 import argparse
+import json
 import os
 import re
+import socket
 import subprocess
 import sys
 import time
@@ -57,8 +60,8 @@ def check_boot_order(elf, workdir):
     e = emulator.Emulator(elf, workdir, name="safe-boot")
     try:
         e.start()
-        if not wait_for(e.log, "Flash Int", 20):
-            return "no flash interface access within 20 s"
+        if not wait_for(e.log, "Flash Int", 60):
+            return "no flash interface access within 60 s"
     finally:
         e.stop()
     acc = accesses(e.log)
@@ -82,8 +85,57 @@ def check_boot_order(elf, workdir):
     return None
 
 
+def qmp_connect(path, timeout=60.0):
+    """A QMP session on QEMU's socket `path`, past the greeting and capabilities negotiation."""
+    deadline = time.time() + timeout
+    while True:
+        s = socket.socket(socket.AF_UNIX)
+        try:
+            s.connect(path)
+            break
+        except OSError:
+            s.close()
+            if time.time() > deadline:
+                raise
+            time.sleep(0.02)
+    s.settimeout(timeout)
+    f = s.makefile("rb")
+    json.loads(f.readline())
+    s.sendall(b'{"execute": "qmp_capabilities"}\n')
+    while "return" not in json.loads(f.readline()):
+        pass
+    return s, f
+
+
+def qmp_shutdown(sock, f, timeout):
+    """Reads QMP events until QEMU's SHUTDOWN event; returns its data (`reason`: `guest-reset`
+    for a reset the guest asked for, with -no-reboot), or None if QEMU ended without one (a
+    crash) or `timeout` wall seconds passed (a bound on a hang)."""
+    deadline = time.time() + timeout
+    sock.settimeout(timeout)
+    while time.time() < deadline:
+        try:
+            line = f.readline()
+        except OSError:
+            return None
+        if not line:
+            return None
+        msg = json.loads(line)
+        if msg.get("event") == "SHUTDOWN":
+            return msg.get("data", {})
+    return None
+
+
 def check_fault_path(elf, workdir):
-    e = emulator.Emulator(elf, workdir, name="safe-fault", extra=["-no-reboot"])
+    qmp = os.path.join(os.path.abspath(workdir), "safe-fault-qmp.sock")
+    if os.path.exists(qmp):
+        os.unlink(qmp)
+    # With -no-reboot a reset the guest asks for (SYSRESETREQ) ends QEMU with a SHUTDOWN event
+    # whose reason is `guest-reset`, and exit status 0; a crash of QEMU (e.g. a lockup: a fault
+    # in the fault handler) sends no such event.
+    e = emulator.Emulator(elf, workdir, name="safe-fault",
+                          extra=["-no-reboot", "-qmp", f"unix:{qmp},server=on,wait=off"])
+    qmp_sock, qmp_in = qmp_connect(qmp)
     script, _ = emulator.boot_assist_script(elf, e.port)
     # Drop the flash-size answers: the read then HardFaults as it would on a part without the
     # word mapped.
@@ -103,11 +155,14 @@ def check_fault_path(elf, workdir):
     e.gdb = subprocess.Popen(["gdb-multiarch", "-q", "-nx", "-batch", "-x", path, elf],
                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
-    deadline = time.time() + 20
-    while e.alive() and time.time() < deadline:
-        time.sleep(0.1)
-    reset = not e.alive()
+    shutdown = qmp_shutdown(qmp_sock, qmp_in, 60.0)
+    try:
+        status = e.qemu.wait(30)
+    except subprocess.TimeoutExpired:
+        status = None
+    qmp_sock.close()
     e.stop()
+    reset = shutdown == {"guest": True, "reason": "guest-reset"} and status == 0
     acc = accesses(e.log)
     low = ("write", 0x18, 0x2A000000)
     boot = next((i for i, a in enumerate(acc) if a[0] == "GPIOE" and a[1:] == low), None)
@@ -125,9 +180,11 @@ def check_fault_path(elf, workdir):
     if not tim1 or tim1[0][3] & ((1 << 15) | (1 << 14)):
         return f"TIM1 BDTR.MOE/AOE not cleared after the fault: {tim1[:1]}"
     if not reset:
-        return "the MCU did not reset after the fault"
+        return (f"the MCU did not reset after the fault: QEMU's shutdown event {shutdown}, exit "
+                f"status {status} (a guest reset is `guest-reset`, status 0)")
     print(f"fault path: HardFault → PE9/PE11/PE13 low GPIO outputs, "
-          f"TIM1 BDTR = 0x{tim1[0][3]:08x} (MOE and AOE off), reset")
+          f"TIM1 BDTR = 0x{tim1[0][3]:08x} (MOE and AOE off), reset (QEMU: shutdown "
+          f"`{shutdown['reason']}`, status {status})")
     return None
 
 
