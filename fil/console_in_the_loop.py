@@ -18,6 +18,7 @@ import argparse
 import json
 import os
 import pty
+import queue
 import socket
 import subprocess
 import sys
@@ -31,6 +32,25 @@ from emulator import PARAMS_LEN, Emulator  # noqa: E402
 
 SIDE_M = 0.3
 RUNS_PER_DIRECTION = 3
+# Bounds on a hung tool (wall seconds), generous for a loaded machine: the longest the guided
+# tool may stay silent (a run and its settling take a few seconds), and the longest the tool
+# may take to exit after its last line or to recalibrate the log offline.
+TOOL_SILENCE = 300.0
+TOOL_EXIT = 60.0
+
+
+def lines_of(stream):
+    """A queue that receives the lines of `stream` (without their newline), then None at its
+    end, read by a thread so that the reader can wait for a line with a timeout."""
+    q = queue.Queue()
+
+    def pump():
+        for line in stream:
+            q.put(line.rstrip("\n"))
+        q.put(None)
+
+    threading.Thread(target=pump, daemon=True).start()
+    return q
 
 
 def bridge(sock_path):
@@ -86,9 +106,16 @@ def main():
     transcript = []
     start = None
     measured = 0
+    lines = lines_of(tool.stdout)
     try:
-        for line in tool.stdout:
-            line = line.rstrip("\n")
+        while True:
+            try:
+                line = lines.get(timeout=TOOL_SILENCE)
+            except queue.Empty:
+                raise SystemExit(f"console-in-the-loop: FAILED: the tool printed nothing for "
+                                 f"{TOOL_SILENCE:.0f} s (hung?); its last lines: {transcript[-3:]}")
+            if line is None:
+                break
             transcript.append(line)
             print(line, flush=True)
             answer = None
@@ -108,7 +135,11 @@ def main():
             if answer is not None:
                 tool.stdin.write(answer + "\n")
                 tool.stdin.flush()
-        code = tool.wait(60)
+        try:
+            code = tool.wait(TOOL_EXIT)
+        except subprocess.TimeoutExpired:
+            raise SystemExit(f"console-in-the-loop: FAILED: the tool did not exit within "
+                             f"{TOOL_EXIT:.0f} s after its last line `{transcript[-1:]}`")
     finally:
         if tool.poll() is None:
             tool.kill()
@@ -123,8 +154,15 @@ def main():
     board = [json.loads(l) for l in open(log) if '"kind":"calibrate"' in l][-1]
     if board["source"] != "board":
         raise SystemExit("console-in-the-loop: FAILED: the table was not the board's")
-    out = subprocess.run([args.console, "recalibrate", log], capture_output=True, text=True,
-                         check=True).stdout
+    try:
+        out = subprocess.run([args.console, "recalibrate", log], capture_output=True, text=True,
+                             check=True, timeout=TOOL_EXIT).stdout
+    except subprocess.TimeoutExpired:
+        raise SystemExit(f"console-in-the-loop: FAILED: `odocal-console recalibrate` did not "
+                         f"finish within {TOOL_EXIT:.0f} s")
+    except subprocess.CalledProcessError as e:
+        raise SystemExit(f"console-in-the-loop: FAILED: `odocal-console recalibrate` exited "
+                         f"with {e.returncode}: {e.stderr.strip()[-500:]}")
     offline = [l[2:] if l.startswith("  ") else l for l in out.splitlines()[1:]]
     if offline != board["table"]:
         raise SystemExit("console-in-the-loop: FAILED: offline table differs:\n"
