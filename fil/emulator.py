@@ -222,7 +222,8 @@ class Emulator:
                                      stderr=subprocess.STDOUT)
         self.points = []
         self.name = name
-        deadline = time.time() + 10
+        # A bound on a hung start only (wall seconds).
+        deadline = time.time() + 60
         while not (os.path.exists(self.u2) and os.path.exists(self.mon)):
             if self.qemu.poll() is not None or time.time() > deadline:
                 raise SystemExit(f"qemu did not start (see {workdir}/{name}.out)")
@@ -243,27 +244,32 @@ class Emulator:
                                     stdout=open(os.path.join(self.workdir, f"{self.name}-gdb.out"), "wb"),
                                     stderr=subprocess.STDOUT)
 
-    def monitor(self, command, wait=1.0):
-        """One HMP monitor command; returns its output."""
+    def monitor(self, command, wait=30.0):
+        """One HMP monitor command; returns its output (up to the next prompt). `wait` bounds
+        a hung monitor (wall seconds); the output is complete when the prompt comes back,
+        however long that takes."""
         with socket.socket(socket.AF_UNIX) as s:
             s.connect(self.mon)
             s.settimeout(wait)
-            out = b""
-            try:
-                while b"(qemu)" not in out:
-                    out += s.recv(4096)
-            except socket.timeout:
-                pass
-            s.sendall(command.encode() + b"\n")
-            out = b""
-            try:
-                while out.count(b"(qemu)") < 1:
-                    chunk = s.recv(4096)
-                    if not chunk:
-                        break
-                    out += chunk
-            except socket.timeout:
-                pass
+
+            def until_prompt(out):
+                try:
+                    while b"(qemu)" not in out:
+                        chunk = s.recv(4096)
+                        if not chunk:
+                            return out, "the monitor closed the connection"
+                        out += chunk
+                except socket.timeout:
+                    return out, f"no monitor prompt within {wait} s"
+                return out, None
+
+            _, problem = until_prompt(b"")
+            if problem is None:
+                s.sendall(command.encode() + b"\n")
+                out, problem = until_prompt(b"")
+            if problem is not None:
+                raise SystemExit(f"monitor `{command}`: {problem} (QEMU "
+                                 f"{'running' if self.alive() else 'exited'})")
             return out.decode(errors="replace")
 
     def dump_ram(self, path):
@@ -271,7 +277,8 @@ class Emulator:
         if os.path.exists(path):
             os.unlink(path)
         self.monitor(f'pmemsave 0x{RAM_ADDR:x} {RAM_LEN} "{path}"')
-        deadline = time.time() + 5
+        # pmemsave writes the file before the monitor prompts again; the wait bounds a slow disk.
+        deadline = time.time() + 30
         while not (os.path.exists(path) and os.path.getsize(path) == RAM_LEN):
             if time.time() > deadline:
                 raise SystemExit("RAM dump failed")
