@@ -13,11 +13,14 @@ sleep=off`, WFI idle). Over USART2 the client runs an operator's session:
    semihosting): `params` must show the calibration, and the runs with their measurements must
    be restored (`event runs restored: 6 runs, 6 measured`, the same `runs` listing);
 3. on the restarted board: the pose stream at 100 Hz, the `drive` deadman, `stop` mid-run, a
-   64 KiB burst of random bytes into RX (the console still answers, no reset), a motor
-   identification (`identify floor`: the report arrives and finds the plant's motors), and
-   `set control_hz 10000` with a 0.2 m line at 10 kHz;
+   motor identification (`identify floor`: the report arrives and finds the plant's motors),
+   `set control_hz 10000` with a 0.2 m line at 10 kHz, and last a 64 KiB burst of random bytes
+   into RX (the console still answers, no reset);
 4. the same session on host-sim (`serial --fast --auto-measure --settle`, same robot): every
-   `measure` line, the whole `calibrate` table and the `apply exact` line must be identical.
+   `measure` line, the whole `calibrate` table and the `apply exact` line must be identical;
+5. the applied E_b and E_d must be the plant's true factors (`TRUE_E_B`, `TRUE_E_D` of
+   src/board/emulator/plant.rs) within FACTOR_TOLERANCE (about 10x the measured error): host-sim runs the same library, so
+   step 4 alone would not see a calibration that is wrong the same way in both.
 
 Every command is sent only once the plant's wheels are at rest for good (speed below the
 smallest normal f64), as host-sim's `--settle` does, so the number of idle control periods between commands (which the
@@ -41,12 +44,37 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console, ConsoleError  # noqa: E402
 from emulator import PARAMS_LEN, Emulator, symbol_address, watchdog_feeds  # noqa: E402
 
-TRUE_E_B = 1.010
-TRUE_E_D = 0.995
+# The plant's true factors, as src/board/emulator/plant.rs defines them (the firmware never sees
+# them; host-sim is given the same values).
+PLANT_RS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                        "src", "board", "emulator", "plant.rs")
+
+
+def plant_constant(name):
+    m = re.search(rf"^pub const {name}: f64 = ([0-9.]+);", open(PLANT_RS).read(), re.M)
+    if not m:
+        raise SystemExit(f"closed loop: `pub const {name}: f64` not found in {PLANT_RS}")
+    return float(m.group(1))
+
+
+TRUE_E_B = plant_constant("TRUE_E_B")
+TRUE_E_D = plant_constant("TRUE_E_D")
 SIDE_M = 0.3
 RUNS_PER_DIRECTION = 3
 # Virtual time runs from instruction counts: 8 ns per instruction (2^3), idle skipped.
 QEMU_TIME = ["-icount", "shift=3,sleep=off", "-semihosting-config", "enable=on,target=native"]
+# How far the applied E_b and E_d may be from the plant's true factors. The run is deterministic
+# (virtual time, commands sent at rest) and measures 6.2e-7 (E_b) and 1.5e-7 (E_d): what the
+# counts' quantisation and the `measure` lines' rounding leave (1 um, 1e-4 deg = 1.7e-6 rad per
+# run; over a square's 2 pi of turning about 3e-7 of E_b). About 10x those: a change that moves
+# the fitted factors by more than a few counts' worth fails, where host-sim's agreement alone
+# would not see it.
+FACTOR_TOLERANCE = {"E_b": 6e-6, "E_d": 1.5e-6}
+# Control periods of `run ccw` before it is stopped mid-run (0.5 s of robot time: at speed on the
+# first side).
+STOP_AFTER = 500
+# Wall seconds without a reply after which the burst's marker is taken as dropped and sent again.
+MARKER_RESEND = 5.0
 SETUP = ["echo off", f"set square_side {SIDE_M}", f"set runs_per_direction {RUNS_PER_DIRECTION}"]
 
 
@@ -199,45 +227,30 @@ def restarted_board(elf, workdir, apply, runs_before):
         checks.append(f"drive deadman: one `drive 0.2 0`, moved {moved:.3f} m and stopped "
                       f"without a further command ({status.split()[1]})")
 
-        # Stop mid-run.
+        # Stop mid-run: once the plant has run STOP_AFTER periods of the run (counted by the
+        # plant, not by the wall clock), the emulator is paused, the true state read (the robot
+        # must still be moving), `stop` queued on USART2 and the emulator resumed: the stop lands
+        # within a few periods of that state, however fast the host runs the emulator.
+        start = truth.settle()
         send(con, "run ccw", log)
-        truth.moving()
-        time.sleep(0.5)
+        deadline = time.time() + 120
+        while truth.read()["periods"] - start["periods"] < STOP_AFTER:
+            if time.time() > deadline:
+                raise ConsoleError(f"stop mid-run: the plant did not run {STOP_AFTER} periods")
+            time.sleep(0.01)
+        emu.monitor("stop")
         mid = truth.read()
-        _, final = send(con, "stop", log)
+        con.send_raw(b"stop\r\n")
+        emu.monitor("cont")
+        data, final = con.reply(60)
+        log += ["> stop"] + data + [final]
         end = truth.settle()
         data, status = send(con, "status", log)
         if not final.startswith("ok") or "state=idle" not in status or all(abs(w) < sys.float_info.min for w in mid["omega"]):
             raise ConsoleError(f"stop mid-run: {final}, {status}, {mid}")
-        checks.append(f"stop mid-run: `{final}`, wheels at rest "
-                      f"{(end['periods'] - mid['periods']) / 1000.0:.1f} s later, {status.split()[1]}")
-
-        # 64 KiB of random bytes into RX: the console must still answer, without a reset.
-        before = truth.read()
-        rng = random.Random(14)
-        burst = bytes(rng.getrandbits(8) for _ in range(64 * 1024))
-        sent = time.time()
-        got = con.send_burst(burst)
-        burst_s = time.time() - sent
-        con.send_raw(b"\x03\r\n")
-        got += con.quiet(3.0)
-        # On a loaded machine the emulator may still be answering the burst after those 3 s:
-        # wait for 2 s without a reply, so that a late answer is not taken for `status`'s.
-        for _ in range(60):
-            late = con.quiet(2.0)
-            if not late:
-                break
-            got += late
-        _, final = send(con, "status", log, timeout=30)
-        after = truth.read()
-        boots = [e for e in con.events if e.startswith("event boot")]
-        if not final.startswith("ok state=") or boots or after["periods"] <= before["periods"]:
-            raise ConsoleError(f"burst: `{final}`, boots {boots}, periods "
-                               f"{before['periods']} -> {after['periods']}")
-        errs = sum(1 for g in got if g.startswith("err "))
-        checks.append(f"64 KiB random burst ({burst_s:.1f} s wall to send): {errs} error replies, "
-                      "console answers `status`, "
-                      f"no reset (control periods {before['periods']} -> {after['periods']})")
+        checks.append(f"stop mid-run: `{final}` {mid['periods'] - start['periods']} periods into "
+                      f"the run, wheels at rest {(end['periods'] - mid['periods']) / 1000.0:.1f} s "
+                      f"later, {status.split()[1]}")
 
         # Motor identification on the floor: the control task only freezes its statistics in
         # the period that ends it; the console task fits them when it takes the report (between
@@ -291,6 +304,53 @@ def restarted_board(elf, workdir, apply, runs_before):
         checks.append(f"control at 10 kHz (`set control_hz 10000`): `line 0.2` moved "
                       f"{moved:.4f} m; {periods} control periods until the wheels were at rest "
                       "for good")
+        # 64 KiB of random bytes into RX: the console must still answer, without a reset. Last,
+        # so that nothing the burst leaves behind (a late reply, a dropped-lines notice) can be
+        # taken for a later command's reply.
+        before = truth.read()
+        rng = random.Random(14)
+        burst = bytes(rng.getrandbits(8) for _ in range(64 * 1024))
+        # `status` is the marker that the burst has been worked through: no line of the burst
+        # can be answered like it.
+        assert b"status" not in burst.lower()
+        sent = time.time()
+        got = con.send_burst(burst)
+        burst_s = time.time() - sent
+        # What follows the burst is sent as it is (from a second thread while this one reads):
+        # the emulator may still be taking the burst, and it stops taking bytes while its replies
+        # wait unread.
+        got += con.send_burst(b"\x03\r\n")
+        # Everything up to the marker's reply is the burst's. A marker that arrives while the
+        # input queue is full is dropped (and counted in a notice): after MARKER_RESEND s without
+        # a reply it is sent again; a second reply to it does no harm here.
+        final = None
+        deadline = time.time() + 300
+        while final is None and time.time() < deadline:
+            pending = con.send_burst(b"status\r\n")
+            while final is None:
+                if pending:
+                    line = pending.pop(0)
+                else:
+                    line = con.read_line(MARKER_RESEND)
+                    if line is None:
+                        break
+                    if con._sort(line) != "reply":
+                        continue
+                if line.startswith("ok state="):
+                    final = line
+                else:
+                    got.append(line)
+        log += ["> (64 KiB burst)", "> status", str(final)]
+        after = truth.read()
+        boots = [e for e in con.events if e.startswith("event boot")]
+        if final is None or boots or after["periods"] <= before["periods"]:
+            raise ConsoleError(f"burst: `{final}`, boots {boots}, periods "
+                               f"{before['periods']} -> {after['periods']}")
+        errs = sum(1 for g in got if g.startswith("err "))
+        checks.append(f"64 KiB random burst ({burst_s:.1f} s wall to send): {errs} error replies, "
+                      "console answers `status`, "
+                      f"no reset (control periods {before['periods']} -> {after['periods']})")
+
         final_periods = truth.read()["periods"]
         emu.monitor("stop")
         stopped_periods = truth.read()["periods"]
@@ -368,7 +428,21 @@ def main():
         else:
             print(f"host-sim agrees: {len(mine)} {name} identical")
     m = re.search(r"E_d=(\S+) E_b=(\S+)", apply)
-    if fail or not m:
+    if not m:
+        fail = 1
+        print(f"FAILED: no E_d/E_b in `{apply}`")
+    else:
+        e_d, e_b = float(m.group(1)), float(m.group(2))
+        for name, got, true in (("E_b", e_b, TRUE_E_B), ("E_d", e_d, TRUE_E_D)):
+            err = abs(got - true)
+            if not err <= FACTOR_TOLERANCE[name]:
+                fail = 1
+                print(f"FAILED: {name} {got:.9f} is {err:.2e} from the plant's true {true} "
+                      f"(tolerance {FACTOR_TOLERANCE[name]:.1e})")
+            else:
+                print(f"plant's truth: {name} {got:.9f} vs true {true}, error {err:.2e} "
+                      f"(tolerance {FACTOR_TOLERANCE[name]:.1e})")
+    if fail:
         print(f"closed loop FAILED (transcript: {args.workdir}/closed-loop.txt)")
         return 1
     print(f"closed loop: E_b {m.group(2)} E_d {m.group(1)} (true {TRUE_E_B:.3f} {TRUE_E_D:.3f}), "
