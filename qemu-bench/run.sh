@@ -86,14 +86,23 @@ done < <(arm-none-eabi-nm -S -C --defined-only "$ELF" | awk '
         if (name ~ /^compiler_builtins::float::/ || name ~ /^__aeabi_(d|f2d|l2d|ul2d|i2d|ui2d|l2f|ul2f|f2lz|f2ulz)/) print $1, $2, "softfloat"
         else if (name ~ /^libm::/) print $1, $2, "libm"
     }')
+# The counts are exact whatever the host's speed (instructions, and SysTick in virtual time from
+# -icount); QEMU_BENCH_TIMEOUT (wall seconds) only bounds a hung run, generously for a loaded
+# machine.
+QEMU_BENCH_TIMEOUT="${QEMU_BENCH_TIMEOUT:-1200}"
 qemu_status=0
-timeout 300 qemu-system-arm -M netduinoplus2 -nographic -icount shift=0 \
+timeout "$QEMU_BENCH_TIMEOUT" qemu-system-arm -M netduinoplus2 -nographic -icount shift=0 \
     -semihosting-config enable=on,target=native \
     -plugin "$OUT/libinsnwin.so,$PLUGIN_ARGS" \
     -kernel "$ELF" >"$OUT/qemu.out" 2>"$OUT/plugin.out" || qemu_status=$?
 
 fail=0
 fidelity=ok
+if [ "$qemu_status" -eq 124 ]; then
+    echo "qemu-bench: FAILED: the QEMU run did not finish within $QEMU_BENCH_TIMEOUT s (hung?)" >&2
+    cat "$OUT/qemu.out" "$OUT/plugin.out" >&2
+    exit 1
+fi
 if [ "$qemu_status" -ne 0 ] || ! grep -q '^info done' "$OUT/qemu.out"; then
     echo "qemu-bench: FAILED: the QEMU run did not finish (status $qemu_status)" >&2
     cat "$OUT/qemu.out" "$OUT/plugin.out" >&2
