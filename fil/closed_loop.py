@@ -70,6 +70,8 @@ QEMU_TIME = ["-icount", "shift=3,sleep=off", "-semihosting-config", "enable=on,t
 # the fitted factors by more than a few counts' worth fails, where host-sim's agreement alone
 # would not see it.
 FACTOR_TOLERANCE = {"E_b": 6e-6, "E_d": 1.5e-6}
+# Control periods after a lone `drive` by which its 500 ms deadman has stopped the motors.
+DEADMAN_PERIODS = 1000
 # Control periods of `run ccw` before it is stopped mid-run (0.5 s of robot time: at speed on the
 # first side).
 STOP_AFTER = 500
@@ -91,13 +93,14 @@ class Truth:
         f = [struct.unpack("<d", struct.pack("<Q", x))[0] for x in v[:5]]
         return {"x": f[0], "y": f[1], "theta": f[2], "omega": (f[3], f[4]), "periods": v[5]}
 
-    def moving(self, timeout=30.0):
-        """Waits until a wheel turns."""
+    def periods_after(self, start, periods, timeout=120.0):
+        """Waits until the plant has run `periods` control periods after the state `start`
+        (robot time, whatever the host's speed; `timeout` wall seconds bound a hang)."""
         deadline = time.time() + timeout
-        while not any(abs(w) >= sys.float_info.min for w in self.read()["omega"]):
+        while self.read()["periods"] - start["periods"] < periods:
             if time.time() > deadline:
-                raise ConsoleError("the wheels did not start")
-            time.sleep(0.02)
+                raise ConsoleError(f"the plant did not run {periods} periods")
+            time.sleep(0.002)
 
     def settle(self, timeout=120.0):
         """Waits until both wheels are at rest for good (speed below the smallest normal f64:
@@ -218,7 +221,8 @@ def restarted_board(elf, workdir, apply, runs_before):
         truth.settle()
         before = truth.read()
         send(con, "drive 0.2 0", log)
-        truth.moving()
+        # Past the 500 ms deadman (robot time), then at rest.
+        truth.periods_after(before, DEADMAN_PERIODS)
         end = truth.settle()
         moved = math.hypot(end["x"] - before["x"], end["y"] - before["y"])
         data, status = send(con, "status", log)
@@ -233,11 +237,7 @@ def restarted_board(elf, workdir, apply, runs_before):
         # within a few periods of that state, however fast the host runs the emulator.
         start = truth.settle()
         send(con, "run ccw", log)
-        deadline = time.time() + 120
-        while truth.read()["periods"] - start["periods"] < STOP_AFTER:
-            if time.time() > deadline:
-                raise ConsoleError(f"stop mid-run: the plant did not run {STOP_AFTER} periods")
-            time.sleep(0.01)
+        truth.periods_after(start, STOP_AFTER)
         emu.monitor("stop")
         mid = truth.read()
         con.send_raw(b"stop\r\n")
