@@ -86,7 +86,7 @@ SCRIPT = [
 ]
 
 # How long to wait for a reply (wall seconds): it bounds a hang, nothing waits for it to pass.
-REPLY_TIMEOUT = 5.0
+REPLY_TIMEOUT = 30.0
 # How long to collect late lines (events) before the events are compared (wall seconds).
 NO_REPLY_WAIT = 0.5
 # A command with a one-line reply and no effect, sent after a line that expects no reply: what
