@@ -1,21 +1,32 @@
-//! Store/load round trips, reboots, refusals, version mismatch and invalid records.
+//! Store/load round trips, reboots, refusals, version mismatch and invalid records; records
+//! of every older format version (fixed bytes those firmwares wrote) read and upgraded.
 
 mod storage_support;
 
+use odocal::motion::run::{MAX_RUNS, RunRecord};
+use odocal::motion::speed::SpeedTuning;
+use odocal::motion::wiring::Wiring;
 use odocal::storage::ram_flash::RamFlash;
+use odocal::storage::runs::{RUN_INDEX_KEY, decode_index, decode_run};
 use odocal::storage::{
     FormatError, LoadWarning, PARAMS_KEY, ParamRecord, ParamStore, RecordError, StoreError,
+    StoredRun,
 };
 use sequential_storage::cache::Cache;
 use sequential_storage::map::{MapConfig, MapStorage};
-use storage_support::{BOARD_RANGE, BoardFlash, calibrated};
+use storage_support::{BOARD_RANGE, BoardFlash, calibrated, fixtures};
 
 /// Writes raw bytes under the parameter key, bypassing `ParamStore`'s checks.
 fn store_raw(flash: &mut BoardFlash, bytes: &[u8]) {
+    store_raw_at(flash, PARAMS_KEY, bytes);
+}
+
+/// Writes raw bytes under `key`, bypassing `ParamStore`'s checks.
+fn store_raw_at(flash: &mut BoardFlash, key: u8, bytes: &[u8]) {
     let mut map =
         MapStorage::<u8, _, _>::new(flash, MapConfig::new(BOARD_RANGE), Cache::new_uncached());
-    let mut buf = [0u8; 256];
-    embassy_futures::block_on(map.store_item(&mut buf, &PARAMS_KEY, &bytes)).unwrap();
+    let mut buf = [0u8; 1024];
+    embassy_futures::block_on(map.store_item(&mut buf, &key, &bytes)).unwrap();
 }
 
 /// The version byte of the record stored under the parameter key, read raw.
@@ -157,67 +168,212 @@ fn other_format_versions_are_rejected_cleanly() {
     );
 }
 
-/// A board upgraded from a version-3 record (everything but the control rate): it loads
-/// through the real flash store with its calibration, wiring and tuning intact and the 1 kHz
-/// that firmware ran at; the next save writes a version-4 record that loads back unchanged.
-#[test]
-fn version_3_records_survive_the_upgrade_at_1_khz() {
-    let mut old = calibrated(9);
-    old.control_hz = 1_000;
-    let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
-    old.encode(&mut bytes).unwrap();
-    bytes[0] = 3;
-    let mut flash = Box::new(BoardFlash::default());
-    store_raw(&mut flash, &bytes[..ParamRecord::V3_LEN]);
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
-    let out = store.load_blocking();
-    assert_eq!(out.warning, None);
-    assert_eq!(out.record, old);
-    // The operator raises the rate and saves: version 4 on flash, read back exactly.
-    let mut faster = out.record;
-    faster.control_hz = 10_000;
-    store.save_blocking(&faster, true).unwrap();
-    let again = store.load_blocking();
-    assert_eq!(again.warning, None);
-    assert_eq!(again.record, faster);
-    assert_eq!(last_stored_version(&mut flash), Some(4));
+/// What today's firmware must read from the version-`version` fixture: the fixture's values,
+/// with the wiring, tuning and control rate of a version that did not store them as the
+/// firmwares of that version used them (standard wiring, default tuning, 1 kHz).
+fn migrated(version: u8) -> ParamRecord {
+    let mut want = fixtures::param_record();
+    if version < 2 {
+        want.wiring = Wiring::STANDARD;
+    }
+    if version < 3 {
+        want.tuning = SpeedTuning::DEFAULT;
+    }
+    if version < 4 {
+        want.control_hz = 1_000;
+    }
+    want
 }
 
-/// A board upgraded from an older record format: its stored version-1 record (no wiring byte,
-/// no tuning) or version-2 record (no tuning) loads with its calibration intact, the standard
-/// wiring (v1) or its own (v2), and the default speed-loop tuning and 1 kHz control rate those
-/// firmwares used; the next save writes the current version.
+/// The parameter-record fixtures with their version.
+const PARAM_FIXTURES: [(u8, &str); 4] = [
+    (1, fixtures::PARAM_RECORD_V1),
+    (2, fixtures::PARAM_RECORD_V2),
+    (3, fixtures::PARAM_RECORD_V3),
+    (4, fixtures::PARAM_RECORD_V4),
+];
+
+/// Asserts that each listed field of `got` equals that of `want`, naming the first that does
+/// not.
+macro_rules! assert_fields_eq {
+    ($version:expr, $got:expr, $want:expr; $($($field:ident).+),+ $(,)?) => {
+        $(
+            assert_eq!(
+                $got.$($field).+,
+                $want.$($field).+,
+                "version {}: `{}` misread",
+                $version,
+                stringify!($($field).+)
+            );
+        )+
+    };
+}
+
+/// Records written by each older firmware (fixed bytes, not today's encoder) decode to the
+/// values they were written from, field by field.
 #[test]
-fn version_1_and_2_records_survive_the_upgrade() {
-    let old = calibrated(5);
+fn stored_records_of_every_version_decode_to_their_values() {
+    for (version, hex) in PARAM_FIXTURES {
+        let bytes = fixtures::fixture_bytes(hex);
+        assert_eq!(bytes[0], version);
+        let got = ParamRecord::decode(&bytes).unwrap();
+        let want = migrated(version);
+        assert_fields_eq!(version, got, want;
+            nominal.diameter_right_m,
+            nominal.diameter_left_m,
+            nominal.wheelbase_m,
+            nominal.counts_per_rev,
+            calibration.e_d,
+            calibration.e_b,
+            calibration.e_s,
+            calibration.geometry.diameter_right_m,
+            calibration.geometry.diameter_left_m,
+            calibration.geometry.wheelbase_m,
+            calibration.geometry.counts_per_rev,
+            calibration.method,
+            calibration.runs,
+            calibration.predicted_e_max_m,
+            motion.max_speed_mps,
+            motion.max_accel_mps2,
+            motion.max_turn_rate_radps,
+            motion.max_turn_accel_radps2,
+            motion.square_side_m,
+            motion.runs_per_direction,
+            wiring.motor_right_reversed,
+            wiring.motor_left_reversed,
+            wiring.encoder_right_reversed,
+            wiring.encoder_left_reversed,
+            tuning.right.gain_forward_mps,
+            tuning.right.gain_backward_mps,
+            tuning.right.time_constant_s,
+            tuning.right.deadband,
+            tuning.left.gain_forward_mps,
+            tuning.left.gain_backward_mps,
+            tuning.left.time_constant_s,
+            tuning.left.deadband,
+            tuning.bandwidth_radps,
+            tuning.output_limit,
+            control_hz,
+        );
+        // Whole-record equality too, so a field added later cannot be left out of the list.
+        assert_eq!(got, want, "version {version}");
+        assert_eq!(got.validate(), Ok(()), "version {version}");
+    }
+}
+
+/// The current format has not moved: today's encoder writes the version-4 fixture byte for
+/// byte, as the firmware that introduced version 4 did.
+#[test]
+fn todays_encoder_writes_the_version_4_fixture_byte_for_byte() {
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
-    old.encode(&mut bytes).unwrap();
-    for (version, len) in [(1u8, ParamRecord::V1_LEN), (2, ParamRecord::V2_LEN)] {
-        bytes[0] = version;
+    assert_eq!(
+        fixtures::param_record().encode(&mut bytes),
+        Ok(ParamRecord::ENCODED_LEN)
+    );
+    assert_eq!(
+        bytes.as_slice(),
+        fixtures::fixture_bytes(fixtures::PARAM_RECORD_V4).as_slice()
+    );
+}
+
+/// A board upgraded from an older firmware: the record that firmware stored (fixed bytes of
+/// each version) loads through the real flash store with its calibration, geometry and motion
+/// settings intact, its wiring (v2 on) and tuning (v3 on), and for what a version did not
+/// store, the standard wiring, default speed-loop tuning and 1 kHz control rate that firmware
+/// used; the next save writes a version-4 record that loads back unchanged.
+#[test]
+fn records_of_every_older_version_survive_the_upgrade() {
+    for (version, hex) in PARAM_FIXTURES {
         let mut flash = Box::new(BoardFlash::default());
-        store_raw(&mut flash, &bytes[..len]);
+        store_raw(&mut flash, &fixtures::fixture_bytes(hex));
         let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
         let out = store.load_blocking();
-        assert_eq!(out.warning, None);
-        assert_eq!(out.record.calibration, old.calibration);
-        assert_eq!(out.record.nominal, old.nominal);
-        assert_eq!(out.record.motion, old.motion);
-        let wiring = if version == 1 {
-            odocal::motion::wiring::Wiring::STANDARD
-        } else {
-            old.wiring
-        };
-        assert_eq!(out.record.wiring, wiring);
-        assert_eq!(
-            out.record.tuning,
-            odocal::motion::speed::SpeedTuning::DEFAULT
-        );
-        assert_eq!(out.record.control_hz, 1_000);
-        store.save_blocking(&out.record, true).unwrap();
+        assert_eq!(out.warning, None, "version {version}");
+        assert_eq!(out.record, migrated(version), "version {version}");
+        // The operator raises the rate and saves: version 4 on flash, read back exactly.
+        let mut faster = out.record;
+        faster.control_hz = 10_000;
+        store.save_blocking(&faster, true).unwrap();
         let again = store.load_blocking();
         assert_eq!(again.warning, None);
-        assert_eq!(again.record, out.record);
+        assert_eq!(again.record, faster);
+        assert_eq!(last_stored_version(&mut flash), Some(4));
     }
+}
+
+/// Run items and the run index as the firmware that introduced them wrote them (fixed bytes)
+/// decode to the runs, serials, keys and measurements they were written from.
+#[test]
+fn stored_runs_and_index_decode_to_their_values() {
+    let runs = fixtures::run_records();
+    let items = [
+        fixtures::RUN_ITEM_KEY_16,
+        fixtures::RUN_ITEM_KEY_19,
+        fixtures::RUN_ITEM_KEY_17,
+    ];
+    for ((id, run), hex) in runs.iter().zip(items) {
+        let (serial, got) = decode_run(&fixtures::fixture_bytes(hex)).unwrap();
+        assert_eq!(serial, id.serial, "run at key {}", id.key);
+        assert_eq!(got.path, run.path, "run at key {}", id.key);
+        assert_eq!(got.geometry, run.geometry, "run at key {}", id.key);
+        assert_eq!(got.knots, run.knots, "run at key {}", id.key);
+        assert_eq!(got.odometry_end, run.odometry_end, "run at key {}", id.key);
+        // The item holds no measurement: it lives in the index.
+        assert_eq!(got.measured, None, "run at key {}", id.key);
+    }
+    let index = decode_index(&fixtures::fixture_bytes(fixtures::RUN_INDEX)).unwrap();
+    assert_eq!(index.len(), runs.len());
+    for (entry, (id, run)) in index.iter().zip(&runs) {
+        assert_eq!(entry.id, *id);
+        assert_eq!(entry.measured, run.measured, "run at key {}", id.key);
+    }
+}
+
+/// A board's flash as the firmware that introduced the run store left it (parameter record
+/// v3 of its time, three run items and the index, all fixed bytes): today's firmware restores
+/// the parameters and every run with its measurement.
+#[test]
+fn a_stored_session_of_older_firmware_is_restored() {
+    let runs = fixtures::run_records();
+    let mut flash = Box::new(BoardFlash::default());
+    store_raw(
+        &mut flash,
+        &fixtures::fixture_bytes(fixtures::PARAM_RECORD_V3),
+    );
+    let items = [
+        fixtures::RUN_ITEM_KEY_16,
+        fixtures::RUN_ITEM_KEY_19,
+        fixtures::RUN_ITEM_KEY_17,
+    ];
+    for ((id, _), hex) in runs.iter().zip(items) {
+        store_raw_at(&mut flash, id.key, &fixtures::fixture_bytes(hex));
+    }
+    store_raw_at(
+        &mut flash,
+        RUN_INDEX_KEY,
+        &fixtures::fixture_bytes(fixtures::RUN_INDEX),
+    );
+    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let params = store.load_blocking();
+    assert_eq!(params.warning, None);
+    assert_eq!(params.record, migrated(3));
+    let mut got = heapless::Vec::<RunRecord, MAX_RUNS>::new();
+    let mut ids = heapless::Vec::<Option<StoredRun>, MAX_RUNS>::new();
+    let loaded = store.load_runs_blocking(&mut got, &mut ids);
+    assert_eq!(
+        (
+            loaded.found,
+            loaded.restored,
+            loaded.measured,
+            loaded.skipped
+        ),
+        (true, 3, 2, 0)
+    );
+    assert_eq!(loaded.problem, None);
+    let want: Vec<RunRecord> = runs.iter().map(|(_, run)| run.clone()).collect();
+    let want_ids: Vec<Option<StoredRun>> = runs.iter().map(|(id, _)| Some(*id)).collect();
+    assert_eq!(got.as_slice(), want.as_slice());
+    assert_eq!(ids.as_slice(), want_ids.as_slice());
 }
 
 #[test]

@@ -769,46 +769,59 @@ mod tests {
         );
     }
 
-    /// A version-`v` record (1: no wiring byte, 2: no tuning, 3: no control rate) as that
-    /// firmware wrote it: the current layout cut to that version's length, with its version
-    /// byte. Versions 1..4 only ever appended fields, so this is byte for byte what those
-    /// firmwares stored.
-    fn old_bytes(rec: &ParamRecord, v: u8) -> std::vec::Vec<u8> {
-        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
-        rec.encode(&mut buf).unwrap();
-        let len = match v {
-            1 => ParamRecord::V1_LEN,
-            2 => ParamRecord::V2_LEN,
-            _ => ParamRecord::V3_LEN,
-        };
-        let mut old = buf[..len].to_vec();
-        old[0] = v;
-        old
+    /// Records as the firmware of each format version wrote them (fixed bytes, see the file).
+    #[allow(dead_code)]
+    mod fixtures {
+        use super::*;
+        use crate::kinematics::encoder::WheelTicks;
+        use crate::kinematics::reference::PoseF64;
+        use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
+        use crate::storage::StoredRun;
+
+        include!("../../tests/fixtures/storage_records.rs");
     }
 
-    /// The first two bytes of the version-2 record a version-2 firmware wrote for the paper's
-    /// robot (version, then the first byte of `D_R` = 0.15 as little-endian `f64`), as a check
-    /// that [`old_bytes`] is anchored to the real layout, not only to the current encoder.
+    /// The version-`v` record a firmware of that version stored: fixed bytes from
+    /// `tests/fixtures/storage_records.rs`, never made by today's encoder.
+    fn old_bytes(v: u8) -> std::vec::Vec<u8> {
+        fixtures::fixture_bytes(match v {
+            1 => fixtures::PARAM_RECORD_V1,
+            2 => fixtures::PARAM_RECORD_V2,
+            3 => fixtures::PARAM_RECORD_V3,
+            _ => fixtures::PARAM_RECORD_V4,
+        })
+    }
+
+    /// The stored records of every version have the length and version byte the decoder
+    /// expects, and begin with the nominal `D_R` as a little-endian `f64`.
     #[test]
     fn the_old_layouts_start_where_the_old_firmware_started() {
-        let old = old_bytes(&ParamRecord::DEFAULT, 2);
-        assert_eq!(old.len(), 126);
-        assert_eq!(old[0], 2);
-        assert_eq!(&old[1..9], &0.15f64.to_le_bytes());
-        assert_eq!(old_bytes(&ParamRecord::DEFAULT, 1).len(), 125);
-        // Version 3 ends with the bandwidth: 25 rad/s as the default tuning stores it.
-        let v3 = old_bytes(&ParamRecord::DEFAULT, 3);
-        assert_eq!(v3.len(), 162);
+        let lens = [
+            ParamRecord::V1_LEN,
+            ParamRecord::V2_LEN,
+            ParamRecord::V3_LEN,
+            ParamRecord::ENCODED_LEN,
+        ];
+        for (v, len) in (1u8..).zip(lens) {
+            let old = old_bytes(v);
+            assert_eq!(old.len(), len, "v{v}");
+            assert_eq!(old[0], v);
+            assert_eq!(&old[1..9], &0.1512f64.to_le_bytes());
+        }
         assert_eq!(
-            &v3[158..],
-            &SpeedTuning::DEFAULT.bandwidth_radps.to_le_bytes()
+            (
+                ParamRecord::V1_LEN,
+                ParamRecord::V2_LEN,
+                ParamRecord::V3_LEN
+            ),
+            (125, 126, 162)
         );
     }
 
     #[test]
     fn version_3_records_migrate_with_their_tuning_and_the_1_khz_rate() {
-        let rec = calibrated();
-        let migrated = ParamRecord::decode(&old_bytes(&rec, 3)).unwrap();
+        let rec = fixtures::param_record();
+        let migrated = ParamRecord::decode(&old_bytes(3)).unwrap();
         assert_eq!(
             migrated,
             ParamRecord {
@@ -822,13 +835,13 @@ mod tests {
         assert_eq!(buf[0], 4);
         assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
         // A version-3 record of the version-4 length is refused, and so is the reverse.
-        let mut long = buf;
+        let mut long = old_bytes(4);
         long[0] = 3;
         assert!(matches!(
             ParamRecord::decode(&long),
             Err(FormatError::Length { .. })
         ));
-        let mut short = old_bytes(&rec, 3);
+        let mut short = old_bytes(3);
         short[0] = 4;
         assert!(matches!(
             ParamRecord::decode(&short),
@@ -838,9 +851,9 @@ mod tests {
 
     #[test]
     fn version_1_and_2_records_migrate_with_their_calibration_and_the_default_tuning() {
-        let rec = calibrated();
+        let rec = fixtures::param_record();
         for v in [1u8, 2] {
-            let migrated = ParamRecord::decode(&old_bytes(&rec, v)).unwrap();
+            let migrated = ParamRecord::decode(&old_bytes(v)).unwrap();
             assert_eq!(migrated.calibration, rec.calibration, "v{v}");
             assert_eq!(migrated.nominal, rec.nominal);
             assert_eq!(migrated.motion, rec.motion);
@@ -855,22 +868,20 @@ mod tests {
             assert_eq!(buf[0], 4);
             assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
         }
-        let old = old_bytes(&rec, 1);
         // A version-1 record of the new length, or a version-2 record of the old, is refused.
-        let mut long = [0u8; ParamRecord::ENCODED_LEN];
-        rec.encode(&mut long).unwrap();
+        let mut long = old_bytes(4);
         long[0] = 1;
         assert!(matches!(
             ParamRecord::decode(&long),
             Err(FormatError::Length { .. })
         ));
-        let mut short = old;
+        let mut short = old_bytes(1);
         short[0] = 2;
         assert!(matches!(
             ParamRecord::decode(&short),
             Err(FormatError::Length { .. })
         ));
-        let mut v2 = old_bytes(&rec, 2);
+        let mut v2 = old_bytes(2);
         v2[0] = 4;
         assert!(matches!(
             ParamRecord::decode(&v2),

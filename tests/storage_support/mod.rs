@@ -114,3 +114,17 @@ pub fn measurement(n: u32) -> odocal::motion::run::Measurement {
         theta_rad: (n % 2 == 1).then_some(0.01 * k),
     }
 }
+
+/// Stored records as the firmware of their time wrote them, and the values they hold (see
+/// `tests/fixtures/storage_records.rs`).
+pub mod fixtures {
+    use odocal::kinematics::encoder::WheelTicks;
+    use odocal::kinematics::geometry::Geometry;
+    use odocal::kinematics::reference::PoseF64;
+    use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
+    use odocal::motion::speed::{MotorParams, SpeedTuning};
+    use odocal::motion::wiring::Wiring;
+    use odocal::storage::{Calibration, MethodName, MotionSettings, ParamRecord, StoredRun};
+
+    include!("../fixtures/storage_records.rs");
+}
