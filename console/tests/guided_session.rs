@@ -31,15 +31,27 @@ fn target_dir() -> PathBuf {
     exe.parent().unwrap().parent().unwrap().to_path_buf()
 }
 
-/// The simulated board's binary, built if needed (a no-op when it is up to date).
+/// The simulated board's binary, built if needed (a no-op when it is up to date). Its path is
+/// the one cargo reports for the build, so it is found wherever the build writes it: any
+/// `--target`, any target directory.
 fn host_sim() -> PathBuf {
-    let status = Command::new(env!("CARGO"))
+    let out = Command::new(env!("CARGO"))
         .args(["build", "-q", "-p", "host-sim", "--bin", "host-sim"])
+        .args(["--message-format", "json"])
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .status()
+        .stderr(Stdio::inherit())
+        .output()
         .expect("cargo runs");
-    assert!(status.success(), "building host-sim failed");
-    let path = target_dir().join("host-sim");
+    assert!(out.status.success(), "building host-sim failed");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let path = stdout
+        .lines()
+        .filter(|l| l.contains(r#""reason":"compiler-artifact""#))
+        .find_map(|l| {
+            let rest = &l[l.find(r#""executable":""#)? + r#""executable":""#.len()..];
+            Some(PathBuf::from(&rest[..rest.find('"')?]))
+        })
+        .unwrap_or_else(|| panic!("cargo reported no host-sim executable:\n{stdout}"));
     assert!(path.exists(), "{} missing", path.display());
     path
 }
