@@ -1108,18 +1108,28 @@ impl<C: Calibrator> Session<C> {
         if !self.runs.is_empty() {
             self.store_runs_again();
         }
-        // Idle was checked above, so the controller accepts both.
-        if let Err(e) = robot
-            .set_geometry(defaults.active)
-            .and_then(|()| robot.set_limits(&defaults.motion))
-            .and_then(|()| robot.set_tuning(&defaults.tuning))
-        {
+        // Idle was checked above, so the controller accepts every part.
+        if let Err(e) = push_settings(robot, &defaults) {
             return robot_err(out, e);
         }
         self.settings = defaults;
         self.dropped = None;
         write!(out, "ok parameters reset to defaults and stored\r\n")
     }
+}
+
+/// Hands every part of `settings` the controller runs with to `robot`: the active geometry, the
+/// motion limits, the wiring, the speed-loop tuning and the control rate (the same parts as
+/// [`Settings::controller_config`], which boots the controller).
+///
+/// # Errors
+/// The first part the robot refuses (all are accepted while it is idle).
+fn push_settings(robot: &mut dyn Robot, settings: &Settings) -> Result<(), RobotError> {
+    robot.set_geometry(settings.active)?;
+    robot.set_limits(&settings.motion)?;
+    robot.set_wiring(settings.wiring)?;
+    robot.set_tuning(&settings.tuning)?;
+    robot.set_rate(settings.control_hz)
 }
 
 /// The one validation rule of `apply` and `save`: the settings must make a parameter record

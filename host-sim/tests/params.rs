@@ -1,0 +1,136 @@
+//! Every parameter end to end on the simulated board: `set` → `params` → `save` → reboot →
+//! `params`, and the controller runs with what `params` shows; `reset-params` brings every
+//! value back to its default, in `params`, in the running controller (wiring and control rate
+//! included) and, after `save`, in flash.
+
+use host_sim::sim::board::Board;
+use host_sim::sim::flash::SimParamFlash;
+use host_sim::sim::robot::sim_config;
+use odocal::protocol::ParamName;
+use odocal::session::Settings;
+
+/// Boots at the flash's stored control rate, as a board does after a reset.
+fn boot(flash: &mut SimParamFlash) -> Board<'_> {
+    let mut out = String::new();
+    Board::boot_at_stored_rate(sim_config(1.0, 1.0, 0.0, 1, 1000), flash, &mut out).expect("boot")
+}
+
+/// A valid value other than the default for every parameter: a sign reversed, a whole number
+/// one up, a rate one step up, anything else 4 % up, or 4 % into its range from a default of 0
+/// (inside every range and every whole-set rule from the defaults: diameter ratio 1.04, the
+/// tuning's checks).
+fn other_value(name: ParamName) -> f64 {
+    let default = Settings::default().value(name);
+    if name.is_sign() {
+        -default
+    } else if name == ParamName::ControlHz {
+        2_000.0
+    } else if name.is_integer() {
+        default + 1.0
+    } else if default == 0.0 {
+        let (lo, hi) = name.range();
+        lo + 0.04 * (hi - lo)
+    } else {
+        default * 1.04
+    }
+}
+
+/// The `params` line of `name` (its value and unit, as printed).
+fn params_line(board: &mut Board, name: ParamName) -> String {
+    let reply = board.send("params");
+    assert!(reply.ends_with("ok\r\n"), "{reply}");
+    let prefix = format!("  {} ", name.as_str());
+    reply
+        .lines()
+        .find(|l| l.starts_with(&prefix))
+        .unwrap_or_else(|| panic!("no {} in params:\n{reply}", name.as_str()))
+        .to_string()
+}
+
+/// `save`, once the controller counts the motors as stopped (a still period after boot or a
+/// retiming): the reply.
+fn save(board: &mut Board) -> String {
+    let mut out = String::new();
+    for _ in 0..20_000 {
+        if board.controller.motors_stopped() {
+            break;
+        }
+        board.step(&mut out);
+    }
+    board.send("save")
+}
+
+/// What the controller runs with equals what the session's settings ask for.
+fn assert_controller_follows_settings(board: &Board, context: &str) {
+    let wanted = board.session.settings().controller_config();
+    let running = *board.controller.config();
+    assert_eq!(running.geometry, wanted.geometry, "{context}: geometry");
+    assert_eq!(running.limits, wanted.limits, "{context}: limits");
+    assert_eq!(running.wiring, wanted.wiring, "{context}: wiring");
+    assert_eq!(running.speed, wanted.speed, "{context}: tuning");
+    assert_eq!(running.rate_hz, wanted.rate_hz, "{context}: control rate");
+}
+
+#[test]
+fn every_parameter_survives_set_save_and_a_reboot() {
+    for name in ParamName::ALL {
+        let mut flash = SimParamFlash::erased();
+        let value = other_value(name);
+        let line = {
+            let mut board = boot(&mut flash);
+            let before = params_line(&mut board, name);
+            let reply = board.send(&format!("set {} {value}", name.as_str()));
+            assert!(reply.starts_with("ok "), "set {}: {reply}", name.as_str());
+            assert!(!reply.contains("(unchanged)"), "{reply}");
+            let line = params_line(&mut board, name);
+            assert_ne!(line, before, "{}", name.as_str());
+            assert_controller_follows_settings(&board, name.as_str());
+            let reply = save(&mut board);
+            assert!(
+                reply.starts_with("ok"),
+                "save after {}: {reply}",
+                name.as_str()
+            );
+            line
+        };
+        let mut board = boot(&mut flash);
+        assert_eq!(params_line(&mut board, name), line, "after reboot");
+        assert_controller_follows_settings(&board, &format!("{} after reboot", name.as_str()));
+    }
+}
+
+#[test]
+fn reset_params_brings_every_value_back_in_params_the_controller_and_flash() {
+    let mut flash = SimParamFlash::erased();
+    let defaults: Vec<String> = {
+        let mut board = boot(&mut flash);
+        ParamName::ALL
+            .iter()
+            .map(|&n| params_line(&mut board, n))
+            .collect()
+    };
+    {
+        let mut board = boot(&mut flash);
+        for name in ParamName::ALL {
+            let reply = board.send(&format!("set {} {}", name.as_str(), other_value(name)));
+            assert!(reply.starts_with("ok "), "{reply}");
+        }
+        assert_eq!(save(&mut board), "ok saved\r\n");
+        for (name, default) in ParamName::ALL.iter().zip(&defaults) {
+            assert_ne!(&params_line(&mut board, *name), default);
+        }
+        let reply = board.send("reset-params");
+        assert!(reply.starts_with("ok parameters reset"), "{reply}");
+        for (name, default) in ParamName::ALL.iter().zip(&defaults) {
+            assert_eq!(&params_line(&mut board, *name), default);
+        }
+        assert_eq!(board.session.settings(), &Settings::default());
+        assert_controller_follows_settings(&board, "after reset-params");
+        assert_eq!(save(&mut board), "ok saved\r\n");
+    }
+    let mut board = boot(&mut flash);
+    for (name, default) in ParamName::ALL.iter().zip(&defaults) {
+        assert_eq!(&params_line(&mut board, *name), default, "after reboot");
+    }
+    assert_controller_follows_settings(&board, "after reset-params, save and reboot");
+}
