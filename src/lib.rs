@@ -17,7 +17,8 @@
 //! | 3 | [`calibration`], [`storage`] | E_b, E_d, E_s from runs; the parameter record in flash (independent of each other) |
 //! | 4 | [`protocol`] | serial lines → commands, replies |
 //! | 5 | [`session`] | commands and button presses → controller, run store, calibration, storage |
-//! | 6 | `board` (target only) | the peripherals the RTIC app (`src/main.rs`) wires to the session and controller |
+//! | 6 | [`app`] | the app core: what each interrupt and task of the board does, as portable functions (host-sim calls them too) |
+//! | 7 | `board` (target only) | the peripherals the RTIC app (`src/main.rs`) binds to the app core |
 //!
 //! Data flow: encoders give wrap-safe tick totals (kinematics); odometry turns them into a pose;
 //! the controller (motion) steps the routine, profile and speed loops and records each run's tick
@@ -52,6 +53,8 @@ pub mod storage;
 pub mod protocol;
 
 pub mod session;
+
+pub mod app;
 
 #[cfg(target_os = "none")]
 pub mod board;

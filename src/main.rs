@@ -37,35 +37,6 @@ unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
 #[cfg(target_os = "none")]
 rtic_monotonics::systick_monotonic!(Mono, 1000);
 
-/// Received lines dropped because the console's input queue was full (reported as an error).
-#[cfg(target_os = "none")]
-static LINES_DROPPED: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
-
-/// The control rate the control task runs at, Hz (published for `pace_control`).
-#[cfg(target_os = "none")]
-static CONTROL_RATE_HZ: core::sync::atomic::AtomicU32 =
-    core::sync::atomic::AtomicU32::new(odocal::motion::controller::DEFAULT_RATE_HZ);
-
-/// Set by the USART2 interrupt on Ctrl-C or Esc; the control task aborts any motion in its next
-/// period, before the console task parses any queued line.
-#[cfg(target_os = "none")]
-static STOP_REQUEST: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
-
-/// Set by the console task while it executes a line: a line that starts meanwhile is echoed
-/// with its reply, not into it.
-#[cfg(target_os = "none")]
-static CONSOLE_BUSY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
-
-/// Whether the USART2 interrupt echoes received characters (the session's `echo on|off`,
-/// published by the console task).
-#[cfg(target_os = "none")]
-static ECHO: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
-
-/// Set by the USART2 interrupt while a line is being typed and echoed as it is typed: the
-/// console task holds the pose stream meanwhile, so its lines do not cut into the echo.
-#[cfg(target_os = "none")]
-static TYPING: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
-
 /// Most receive-register reads per USART2 interrupt (the rest re-enters the interrupt).
 #[cfg(target_os = "none")]
 const RX_READS_PER_IRQ: usize = 32;
@@ -79,36 +50,31 @@ const REPLY_ROOM: usize = 1_800;
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
-    use odocal::board::watchdog::{set_timeout, wait_for_update, write_timeout};
+    use odocal::app::Handoff;
+    use odocal::app::control::Pacing;
+    use odocal::board::adapters::{RelaxedWatchdog, read_console};
+    use odocal::board::watchdog::set_timeout;
     use odocal::board::{
         BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_FROM_MONOTONIC,
-        CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds,
-        WATCHDOG_MS,
+        CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders, Leds, WATCHDOG_MS,
     };
     use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
     use odocal::motion::controller::{Controller, ControllerConfig, DEFAULT_RATE_HZ};
-    use odocal::motion::run::{MAX_RUNS, RunRecord};
     use odocal::protocol::LineAssembler;
-    use odocal::protocol::reply::{ByteSink, ErrorCode, write_err};
-    use odocal::protocol::rx::{
-        self, INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender, RxRead,
-    };
+    use odocal::protocol::reply::ByteSink;
+    use odocal::protocol::rx::{INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender};
     use odocal::session::library::{LibraryCalibrator, Locked};
-    use odocal::session::{
-        ParamStorage, Session, Settings, StorageError, write_boot_event, write_fault_event,
-    };
-    use odocal::storage::{ParamStore, RunsLoaded, StoredRun};
+    use odocal::session::{Session, Settings, write_boot_event, write_fault_event};
+    use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
-    use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::serial::{TxISR, TxListen};
+    use rtic_sync::channel::{Channel, Receiver, Sender};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-    use super::{
-        CONSOLE_BUSY, CONTROL_RATE_HZ, ECHO, LINES_DROPPED, Mono, REPLY_ROOM, RX_READS_PER_IRQ,
-        STOP_REQUEST, TYPING,
-    };
-    use core::sync::atomic::Ordering;
+    use super::{Mono, REPLY_ROOM, RX_READS_PER_IRQ};
+
+    /// A wake-up for the console task: a line or a button press is waiting.
+    type Doorbell = Channel<(), 1>;
 
     #[shared]
     struct Shared {
@@ -119,8 +85,14 @@ mod app {
 
     #[local]
     struct Local {
+        // The one handoff, lent to each task that uses it (RTIC locals are per task).
+        control_handoff: &'static Handoff,
+        pace_handoff: &'static Handoff,
+        serial_handoff: &'static Handoff,
+        console_handoff: &'static Handoff,
         encoders: Encoders,
         tick: ControlTick,
+        pacing: Pacing,
         motors: BoardMotors,
         button_pin: ButtonInput,
         leds: Leds,
@@ -136,6 +108,9 @@ mod app {
         tx_out: Consumer<'static, u8>,
         press_in: Producer<'static, Press>,
         press_out: Consumer<'static, Press>,
+        ring_on_line: Sender<'static, (), 1>,
+        ring_on_press: Sender<'static, (), 1>,
+        doorbell: Receiver<'static, (), 1>,
     }
 
     /// Milliseconds since boot (wrapping), from the SysTick monotonic.
@@ -163,81 +138,17 @@ mod app {
         }
     }
 
-    /// Parameter storage with the watchdog relaxed while the flash is written: a sector erase
-    /// stalls every instruction fetch (the control task included) for up to 2 s, so the
-    /// timeout is lengthened for the operation and restored right after. Saves are refused
-    /// unless the motors are stopped, so nothing moves while the control task is stalled.
-    struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
-        store: &'a mut ParamStore<BoardFlash>,
-        watchdog: W,
-    }
-
-    impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
-        fn relaxed<R>(
-            &mut self,
-            motors_stopped: bool,
-            f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R,
-        ) -> R {
-            if !motors_stopped {
-                // The store refuses without touching the flash: nothing to relax.
-                return f(self.store);
-            }
-            // The waits for the low-power register domain stay outside the lock, so the
-            // control task is never held up by them. The reload comes after the update has
-            // crossed over: an earlier one would load the old 50 ms reload value, counted at the
-            // new divider (about 1.1-1.6 s, shorter than an erase).
-            wait_for_update();
-            self.watchdog.lock(|w| write_timeout(w, FLASH_WATCHDOG_MS));
-            wait_for_update();
-            self.watchdog.lock(|w| w.feed());
-            let result = f(self.store);
-            self.watchdog.lock(|w| write_timeout(w, WATCHDOG_MS));
-            wait_for_update();
-            self.watchdog.lock(|w| w.feed());
-            result
-        }
-    }
-
-    impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'_, W> {
-        fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
-            self.relaxed(motors_stopped, |s| {
-                ParamStorage::save(s, settings, motors_stopped)
-            })
-        }
-
-        fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
-            self.relaxed(motors_stopped, |s| ParamStorage::reset(s, motors_stopped))
-        }
-
-        fn save_runs(
-            &mut self,
-            runs: &[RunRecord],
-            ids: &mut [Option<StoredRun>],
-            motors_stopped: bool,
-        ) -> Result<(), StorageError> {
-            self.relaxed(motors_stopped, |s| {
-                ParamStorage::save_runs(s, runs, ids, motors_stopped)
-            })
-        }
-
-        fn load_runs(
-            &mut self,
-            runs: &mut heapless::Vec<RunRecord, MAX_RUNS>,
-            ids: &mut heapless::Vec<Option<StoredRun>, MAX_RUNS>,
-        ) -> RunsLoaded {
-            // Only at boot, motors stopped: a repair may erase a sector.
-            self.relaxed(true, |s| ParamStorage::load_runs(s, runs, ids))
-        }
-    }
-
     #[init(local = [
+        handoff: Handoff = Handoff::new(),
         lines: InputQueue<INPUT_QUEUE_BYTES> = InputQueue::new(),
         tx_bytes: Queue<u8, 2048> = Queue::new(),
         presses: Queue<Press, 4> = Queue::new(),
+        wakes: Doorbell = Channel::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let board = odocal::board::init(cx.device);
         Mono::start(cx.core.SYST, board.sysclk_hz);
+        let handoff: &'static Handoff = cx.local.handoff;
 
         // Parameters first: loading may repair an interrupted save (motors are off here).
         let mut params_store = board.params;
@@ -249,13 +160,15 @@ mod app {
         let rate_hz = controller.config().rate_hz;
         let mut tick = board.tick;
         tick.set_rate_hz(rate_hz);
-        CONTROL_RATE_HZ.store(rate_hz, Ordering::Relaxed);
+        let pacing = Pacing::new(handoff, rate_hz);
         let session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
 
         let (line_in, line_out) = cx.local.lines.split();
         let (mut tx_in, tx_out) = cx.local.tx_bytes.split();
+        let (ring_on_line, doorbell) = cx.local.wakes.split();
+        let ring_on_press = ring_on_line.clone();
         // The boot event is the first line on the console (sent once the USART2 task runs).
         let reset_cause = board.reset_cause;
         {
@@ -288,8 +201,13 @@ mod app {
                 button: Button::new(ButtonConfig::DEFAULT),
             },
             Local {
+                control_handoff: handoff,
+                pace_handoff: handoff,
+                serial_handoff: handoff,
+                console_handoff: handoff,
                 encoders: board.encoders,
                 tick,
+                pacing,
                 motors: board.motors,
                 button_pin: board.button,
                 leds: board.leds,
@@ -305,6 +223,9 @@ mod app {
                 tx_out,
                 press_in,
                 press_out,
+                ring_on_line,
+                ring_on_press,
+                doorbell,
             },
         )
     }
@@ -318,9 +239,10 @@ mod app {
         }
     }
 
-    /// Control period: encoders → odometry → routine → speed loops → motors; button actions.
+    /// Control period: encoders → odometry → routine → speed loops → motors; button presses
+    /// handed to the console task; retiming and LEDs.
     #[task(binds = TIM7, priority = 3,
-           local = [encoders, tick, motors, press_in, leds, heartbeat_periods: u32 = 0],
+           local = [control_handoff, encoders, tick, pacing, motors, press_in, ring_on_press, leds],
            shared = [controller, button, watchdog])]
     fn control(cx: control::Context) {
         cx.local.tick.clear();
@@ -331,37 +253,26 @@ mod app {
             let mut button = cx.shared.button;
             button.lock(|b| b.poll(now_ms()))
         };
+        let handoff = *cx.local.control_handoff;
+        let motors = cx.local.motors;
         let mut controller = cx.shared.controller;
         let (fault, rate_hz) = controller.lock(|c| {
-            if STOP_REQUEST.swap(false, Ordering::Relaxed) {
-                // Ctrl-C or Esc on the console: stop in this period.
-                c.abort();
-            }
-            let out = c.step(raw_right, raw_left);
-            out.command.apply(cx.local.motors);
-            if let Some(p) = press {
-                if p == Press::Long {
-                    // The abort takes effect now, not one period later.
-                    c.abort();
-                    c.step(raw_right, raw_left).command.apply(cx.local.motors);
-                }
-                // The session (console task) acts on the press: next planned run, clear, stop.
-                let _ = cx.local.press_in.enqueue(p);
-            }
+            let out = odocal::app::control::period(handoff, c, raw_right, raw_left, press, motors);
             (out.fault.is_some(), c.config().rate_hz)
         });
-        // `set control_hz` retimed the controller (only while idle): the period source follows
-        // from the next period on.
-        if rate_hz != cx.local.tick.rate_hz() {
-            cx.local.tick.set_rate_hz(rate_hz);
-            CONTROL_RATE_HZ.store(rate_hz, Ordering::Relaxed);
-            *cx.local.heartbeat_periods = 0;
+        if let Some(p) = press {
+            // The session (console task) acts on the press: next planned run, clear, stop.
+            if cx.local.press_in.enqueue(p).is_ok() {
+                let _ = cx.local.ring_on_press.try_send(());
+            }
+        }
+        let news = cx.local.pacing.after_period(handoff, rate_hz);
+        if let Some(hz) = news.retime_hz {
+            cx.local.tick.set_rate_hz(hz);
         }
         // The LEDs live here, at the control task's priority, so the heartbeat keeps blinking
         // while the console task runs a long calibration solve.
-        *cx.local.heartbeat_periods += 1;
-        if *cx.local.heartbeat_periods >= rate_hz / 2 {
-            *cx.local.heartbeat_periods = 0;
+        if news.toggle_heartbeat {
             cx.local.leds.toggle_heartbeat();
         }
         cx.local.leds.set_fault(fault);
@@ -371,14 +282,14 @@ mod app {
     /// from the monotonic: every period at 1 kHz, one period per 1 ms tick at higher rates
     /// (the emulator's plant counts periods, not wall time). On the F407, TIM7 raises it and
     /// this task ends at once.
-    #[task(priority = 3)]
-    async fn pace_control(_cx: pace_control::Context) {
+    #[task(priority = 3, local = [pace_handoff])]
+    async fn pace_control(cx: pace_control::Context) {
         if !CONTROL_FROM_MONOTONIC {
             return;
         }
         let mut next = Mono::now();
         loop {
-            let rate_hz = CONTROL_RATE_HZ.load(Ordering::Relaxed).max(1);
+            let rate_hz = cx.local.pace_handoff.control_rate_hz();
             next += (1_000 / rate_hz).max(1).millis();
             Mono::delay_until(next).await;
             rtic::pend(CONTROL_INTERRUPT);
@@ -409,69 +320,43 @@ mod app {
     }
 
     /// USART2: received bytes → line assembly → line queue (a stop key also tells the control
-    /// task at once), echo; echo and transmit queue → TX register.
+    /// task), echo; echo and transmit queue → TX register. Rings the console task when a line
+    /// waits.
     #[task(binds = USART2, priority = 2,
-           local = [usart_rx, usart_tx, assembler, echo_out, line_in, tx_out])]
+           local = [serial_handoff, usart_rx, usart_tx, assembler, echo_out, line_in, tx_out,
+                    ring_on_line])]
     fn usart2(cx: usart2::Context) {
         let rx_port = cx.local.usart_rx;
-        let line_in = cx.local.line_in;
         let echo_out = cx.local.echo_out;
-        let echo = ECHO.load(Ordering::Relaxed);
-        let usart_tx = cx.local.usart_tx;
         let tx_out = cx.local.tx_out;
         // A line is echoed as it is typed only while nothing else is on its way out or
         // waiting; otherwise the console echoes it right before its reply.
-        let idle = echo
-            && echo_out.is_empty()
-            && !tx_out.ready()
-            && line_in.is_empty()
-            && !CONSOLE_BUSY.load(Ordering::Relaxed);
-        // Each read checks SR and, on an overrun, framing, noise or parity error, reads DR,
-        // which clears the flag (an ORE with RXNE clear would otherwise re-enter this
-        // interrupt for ever); the error poisons the line being received.
-        rx::drain(
-            || match rx_port.read() {
-                Ok(byte) => RxRead::Byte(byte),
-                Err(stm32f4xx_hal::nb::Error::WouldBlock) => RxRead::Empty,
-                Err(stm32f4xx_hal::nb::Error::Other(_)) => RxRead::Error,
-            },
+        let output_pending = !echo_out.is_empty() || tx_out.ready();
+        odocal::app::serial::receive(
+            cx.local.serial_handoff,
             cx.local.assembler,
+            || read_console(rx_port),
             RX_READS_PER_IRQ,
-            idle,
-            |event, echoed| {
-                if rx::is_stop(&event) {
-                    STOP_REQUEST.store(true, Ordering::Relaxed);
-                }
-                // A full queue drops the line; the console reports how many were lost. A stop
-                // key has already reached the control task.
-                if !line_in.send(&event, echoed) {
-                    LINES_DROPPED.fetch_add(1, Ordering::Relaxed);
-                }
-            },
+            output_pending,
+            cx.local.line_in,
             |bytes| {
                 for &b in bytes {
                     let _ = echo_out.push_back(b);
                 }
             },
         );
-        TYPING.store(cx.local.assembler.typing(), Ordering::Relaxed);
-        while usart_tx.is_tx_empty() {
-            let Some(byte) = echo_out.pop_front().or_else(|| tx_out.dequeue()) else {
-                break;
-            };
-            let _ = usart_tx.write(byte);
+        if !cx.local.line_in.is_empty() {
+            let _ = cx.local.ring_on_line.try_send(());
         }
-        if !echo_out.is_empty() || tx_out.ready() {
-            usart_tx.listen();
-        } else {
-            usart_tx.unlisten();
-        }
+        odocal::app::serial::transmit(cx.local.usart_tx, echo_out, tx_out);
     }
 
     /// The serial console: executes received lines and button presses on the session, and
-    /// writes events and the pose stream. Locks the controller for one call at a time.
+    /// writes events and the pose stream. Awaits the doorbell (a line or a press waits) or its
+    /// next 1 ms poll, whichever comes first. Locks the controller for one call at a time.
     #[task(priority = 1, shared = [controller, watchdog],
-           local = [session, params_store, line_out, tx_in, press_out])]
+           local = [console_handoff, session, params_store, line_out, tx_in, press_out,
+                    doorbell])]
     async fn console(mut cx: console::Context) {
         {
             // First, before any command: the session's runs and measurements as they were
@@ -488,8 +373,19 @@ mod app {
                 &mut out,
             );
         }
+        let handoff = *cx.local.console_handoff;
+        let mut next_poll = Mono::now();
         loop {
-            Mono::delay(1.millis()).await;
+            // One line per pass, and only while the transmit queue has room for the longest
+            // reply, so a burst of commands never cuts a reply short.
+            let room = |tx: &Producer<'static, u8>| tx.capacity() - tx.len() >= REPLY_ROOM;
+            if cx.local.line_out.is_empty() || !room(cx.local.tx_in) {
+                let _ = Mono::timeout_at(next_poll, cx.local.doorbell.recv()).await;
+            }
+            let now = Mono::now();
+            if now >= next_poll {
+                next_poll = now + 1.millis();
+            }
             let session = &mut *cx.local.session;
             let store = &mut RelaxedWatchdog {
                 store: &mut *cx.local.params_store,
@@ -498,41 +394,25 @@ mod app {
             let tx_in = &mut *cx.local.tx_in;
             let mut robot = Locked(&mut cx.shared.controller);
             let mut dropped = 0;
-            // One line per pass, and only while the transmit queue has room for the longest
-            // reply, so a burst of commands never cuts a reply short.
-            if tx_in.capacity() - tx_in.len() >= REPLY_ROOM {
-                // Lines lost to a full queue are reported once the lines kept have been
-                // answered: one notice for a whole paste, after its last reply.
-                let lost = if cx.local.line_out.is_empty() {
-                    LINES_DROPPED.swap(0, Ordering::Relaxed)
-                } else {
-                    0
-                };
+            if room(tx_in) {
                 let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
-                if lost > 0 {
-                    let _ = write_err(
-                        &mut out,
-                        ErrorCode::Busy,
-                        &format_args!("{lost} line(s) dropped: input queue full"),
-                    );
-                } else if let Some(received) = cx.local.line_out.take() {
-                    CONSOLE_BUSY.store(true, Ordering::Relaxed);
-                    let _ = session.handle_input(&received, &mut robot, store, &mut out);
-                    ECHO.store(session.echo(), Ordering::Relaxed);
-                    CONSOLE_BUSY.store(false, Ordering::Relaxed);
-                }
+                let _ = odocal::app::console::take_line(
+                    handoff,
+                    session,
+                    cx.local.line_out,
+                    &mut robot,
+                    store,
+                    &mut out,
+                );
                 dropped += out.dropped;
             }
             let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
             while let Some(press) = cx.local.press_out.dequeue() {
-                let _ = match press {
-                    Press::Short => session.button_short(&mut robot, &mut out),
-                    Press::Long => session.button_long(&mut robot, &mut out),
-                };
+                let _ = odocal::app::console::press(session, press, &mut robot, &mut out);
             }
             let now_us = u64::from(Mono::now().ticks()) * 1_000;
-            session.set_typing(TYPING.load(Ordering::Relaxed));
-            let _ = session.poll(now_us, &mut robot, store, &mut out);
+            let _ =
+                odocal::app::console::poll(handoff, session, now_us, &mut robot, store, &mut out);
             dropped += out.dropped;
             if dropped > 0 {
                 defmt::warn!("serial transmit queue full: {} bytes dropped", dropped);

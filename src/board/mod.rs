@@ -27,6 +27,7 @@
 //! `emulator`, `emulator` (QEMU's `netduinoplus2` with a simulated robot, for the
 //! firmware-in-the-loop test) takes its place behind the same names; the app is the same.
 
+pub mod adapters;
 pub mod f407;
 
 #[cfg(feature = "emulator")]

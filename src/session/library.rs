@@ -2,7 +2,7 @@
 //!
 //! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`Locked`], which wraps
 //!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
-//!   RTIC `Mutex<T = Controller>` is one), so the serial task holds the controller's lock for one
+//!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
 //!   short operation at a time and never during a calibration solve;
 //! - [`ParamStorage`] for [`ParamStore`] (blocking; the motors must be stopped);
 //! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`];
@@ -181,13 +181,6 @@ fn set_error(e: SetError) -> RobotError {
 pub trait ControllerLock {
     /// Runs `f` with exclusive access to the controller.
     fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R;
-}
-
-#[cfg(target_os = "none")]
-impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
-    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
-        self.lock(f)
-    }
 }
 
 /// A [`Robot`] that locks the controller for each call separately.

@@ -14,12 +14,17 @@
 
 use std::collections::VecDeque;
 
+use odocal::app::console::LineSource;
+use odocal::app::serial::LineQueue;
+use odocal::app::{Handoff, console, control, serial};
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::bringup::CheckKind;
+use odocal::motion::button::Press;
 use odocal::motion::controller::{Controller, Status, StepOutput};
 use odocal::protocol::LineAssembler;
-use odocal::protocol::rx::{self, InputItem, Received, RxRead};
+use odocal::protocol::line::LineEvent;
+use odocal::protocol::rx::{InputItem, Received, RxRead};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Session, Settings, write_boot_event};
 use odocal::storage::ParamStore;
@@ -40,9 +45,11 @@ pub struct Board<'f> {
     pub session: Session<LibraryCalibrator>,
     /// Parameter storage on the simulated flash.
     pub store: ParamStore<&'f mut SimFlash>,
+    /// What the receive, the control period and the console tell each other, as on the board.
+    handoff: Handoff,
     assembler: LineAssembler,
     /// Received lines and stop keys not yet handled by the session.
-    input: VecDeque<Received>,
+    input: Input,
     now_us: u64,
     period_us: u64,
     /// True pose when the current (or last) run started.
@@ -106,8 +113,9 @@ impl<'f> Board<'f> {
             controller,
             session,
             store,
+            handoff: Handoff::new(),
             assembler: LineAssembler::new(),
-            input: VecDeque::new(),
+            input: Input::default(),
             now_us: 0,
             period_us,
             run_start: None,
@@ -132,47 +140,40 @@ impl<'f> Board<'f> {
 
     /// As [`Board::receive`], with receive errors (overrun, framing, noise) among the bytes.
     pub fn receive_reads(&mut self, reads: impl IntoIterator<Item = RxRead>, out: &mut String) {
-        let echo = self.session.echo();
-        let (input, controller) = (&mut self.input, &mut self.controller);
-        // The simulated board answers at once: only lines still waiting make it busy.
-        let idle = echo && input.is_empty();
         let mut reads = reads.into_iter();
-        rx::drain(
-            || reads.next().unwrap_or(RxRead::Empty),
+        // The simulated board answers at once: nothing is ever on its way out.
+        serial::receive(
+            &self.handoff,
             &mut self.assembler,
+            || reads.next().unwrap_or(RxRead::Empty),
             usize::MAX,
-            idle,
-            |event, echoed| {
-                let item = InputItem::from_event(event);
-                if item.is_stop() {
-                    // The board's control task does this within one period.
-                    controller.abort();
-                }
-                input.push_back(Received { item, echoed });
-            },
+            false,
+            &mut self.input,
             |bytes| out.push_str(&String::from_utf8_lossy(bytes)),
         );
     }
 
     /// Whether received input waits for the session.
     pub fn has_input(&self) -> bool {
-        !self.input.is_empty()
+        !self.input.0.is_empty()
     }
 
     /// Executes queued input on the session, replies appended to `out`. With `lines_at_rest`,
     /// a line waits until the robot is at rest (stop keys never wait), for scripts that send
     /// everything at once.
     pub fn process(&mut self, out: &mut String, lines_at_rest: bool) {
-        while let Some(received) = self.input.front() {
+        while let Some(received) = self.input.0.front() {
             if lines_at_rest && !received.item.is_stop() && !self.at_rest() {
                 break;
             }
-            let Some(received) = self.input.pop_front() else {
-                break;
-            };
-            let _ =
-                self.session
-                    .handle_input(&received, &mut self.controller, &mut self.store, out);
+            let _ = console::take_line(
+                &self.handoff,
+                &mut self.session,
+                &mut self.input,
+                &mut self.controller,
+                &mut self.store,
+                out,
+            );
             self.note_run_start();
         }
     }
@@ -195,11 +196,8 @@ impl<'f> Board<'f> {
 
     /// The button: a short press (next planned run, or clear a fault) or a long one (stop).
     pub fn press_button(&mut self, long: bool, out: &mut String) {
-        let _ = if long {
-            self.session.button_long(&mut self.controller, out)
-        } else {
-            self.session.button_short(&mut self.controller, out)
-        };
+        let press = if long { Press::Long } else { Press::Short };
+        let _ = console::press(&mut self.session, press, &mut self.controller, out);
         self.note_run_start();
     }
 
@@ -230,12 +228,19 @@ impl<'f> Board<'f> {
             self.sim.set_rate_hz(rate_hz);
             self.period_us = 1_000_000 / u64::from(rate_hz);
         }
-        let output = self.sim.step(&mut self.controller);
+        let (handoff, controller) = (&self.handoff, &mut self.controller);
+        let output = self
+            .sim
+            .step_with(|r, l, motors| control::period(handoff, controller, r, l, None, motors));
         self.now_us += self.period_us;
-        self.session.set_typing(self.assembler.typing());
-        let _ = self
-            .session
-            .poll(self.now_us, &mut self.controller, &mut self.store, out);
+        let _ = console::poll(
+            &self.handoff,
+            &mut self.session,
+            self.now_us,
+            &mut self.controller,
+            &mut self.store,
+            out,
+        );
         output
     }
 
@@ -318,4 +323,33 @@ pub fn measure_line(board: &Board) -> Option<String> {
             odocal::calibration::wrap_angle(p.theta_rad).to_degrees()
         )
     })
+}
+
+/// The simulated board's input queue: unbounded (the simulated board executes a line as soon as
+/// it is its turn; the board's queue holds [`odocal::protocol::rx::INPUT_QUEUE_BYTES`]).
+#[derive(Debug, Default)]
+struct Input(VecDeque<Received>);
+
+impl LineQueue for Input {
+    fn send(&mut self, event: &LineEvent<'_>, echoed: bool) -> bool {
+        self.0.push_back(Received {
+            item: InputItem::from_event(*event),
+            echoed,
+        });
+        true
+    }
+
+    fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+impl LineSource for Input {
+    fn take(&mut self) -> Option<Received> {
+        self.0.pop_front()
+    }
+
+    fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
 }

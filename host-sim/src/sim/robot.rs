@@ -20,7 +20,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{PoseF64, sinc};
 use odocal::motion::controller::Wheel;
 use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
-use odocal::motion::motor::StopMode;
+use odocal::motion::motor::{MotorDriver, StopMode};
 use odocal::motion::routine::SegmentKind;
 use odocal::motion::wiring::Wiring;
 
@@ -528,10 +528,23 @@ impl Sim {
     /// One closed-loop period: the controller reads the counters, its command is applied and
     /// the robot moves for one period. Returns the controller's output.
     pub fn step(&mut self, controller: &mut Controller) -> StepOutput {
+        self.step_with(|r, l, sim| {
+            let out = controller.step(r, l);
+            sim.apply(out.command);
+            out
+        })
+    }
+
+    /// One control period run by `control`: it gets the raw encoder counts read at the start
+    /// of the period and the robot as the motor driver; then the robot moves for the period
+    /// with the last command it was given.
+    pub fn step_with(
+        &mut self,
+        control: impl FnOnce(u32, u32, &mut Sim) -> StepOutput,
+    ) -> StepOutput {
         let (r, l) = self.raw();
         self.pose_at_read = self.pose;
-        let out = controller.step(r, l);
-        self.apply(out.command);
+        let out = control(r, l, self);
         self.advance();
         out
     }
@@ -702,6 +715,18 @@ impl WiringOption {
             WiringOption::LeftEncoderReversed => w.encoder_left_reversed = true,
         }
         w
+    }
+}
+
+/// The robot's motors as the board's motor driver: the command is held for the following
+/// periods, as PWM registers hold it.
+impl MotorDriver for Sim {
+    fn set_duty(&mut self, right: f32, left: f32) {
+        self.apply(MotorCommand::Duty { right, left });
+    }
+
+    fn stop(&mut self, mode: StopMode) {
+        self.apply(MotorCommand::Stop(mode));
     }
 }
 

@@ -1,0 +1,123 @@
+//! The board's peripherals and RTIC resources behind the portable traits the app core and the
+//! session use: the console USART as [`TxPort`] and a receive read, an RTIC lock on the
+//! controller as [`ControllerLock`], and the parameter store with the watchdog relaxed around
+//! flash writes as [`ParamStorage`].
+
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::serial::{TxISR, TxListen};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+use super::watchdog::{wait_for_update, write_timeout};
+use super::{BoardFlash, ConsoleRx, ConsoleTx, FLASH_WATCHDOG_MS, WATCHDOG_MS};
+use crate::app::serial::TxPort;
+use crate::motion::controller::Controller;
+use crate::motion::run::{MAX_RUNS, RunRecord};
+use crate::protocol::rx::RxRead;
+use crate::session::library::ControllerLock;
+use crate::session::{ParamStorage, Settings, StorageError};
+use crate::storage::{ParamStore, RunsLoaded, StoredRun};
+
+impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
+    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
+        self.lock(f)
+    }
+}
+
+/// One read of the console's receiver. Each read checks SR and, on an overrun, framing, noise
+/// or parity error, reads DR, which clears the flag (an ORE with RXNE clear would otherwise
+/// re-enter the interrupt for ever); the error poisons the line being received.
+pub fn read_console(rx: &mut ConsoleRx) -> RxRead {
+    match rx.read() {
+        Ok(byte) => RxRead::Byte(byte),
+        Err(stm32f4xx_hal::nb::Error::WouldBlock) => RxRead::Empty,
+        Err(stm32f4xx_hal::nb::Error::Other(_)) => RxRead::Error,
+    }
+}
+
+impl TxPort for ConsoleTx {
+    fn ready(&mut self) -> bool {
+        self.is_tx_empty()
+    }
+
+    fn write(&mut self, byte: u8) {
+        // Only called when the register is empty: the write cannot block.
+        let _ = stm32f4xx_hal::prelude::_embedded_hal_serial_nb_Write::write(self, byte);
+    }
+
+    fn interrupt_when_ready(&mut self, on: bool) {
+        if on {
+            self.listen();
+        } else {
+            self.unlisten();
+        }
+    }
+}
+
+/// Parameter storage with the watchdog relaxed while the flash is written: a sector erase
+/// stalls every instruction fetch (the control task included) for up to 2 s, so the timeout is
+/// lengthened for the operation and restored right after. Saves are refused unless the motors
+/// are stopped, so nothing moves while the control task is stalled.
+pub struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
+    /// The parameter and run store.
+    pub store: &'a mut ParamStore<BoardFlash>,
+    /// The watchdog, shared with the control task.
+    pub watchdog: W,
+}
+
+impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
+    fn relaxed<R>(
+        &mut self,
+        motors_stopped: bool,
+        f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R,
+    ) -> R {
+        if !motors_stopped {
+            // The store refuses without touching the flash: nothing to relax.
+            return f(self.store);
+        }
+        // The waits for the low-power register domain stay outside the lock, so the control
+        // task is never held up by them. The reload comes after the update has crossed over:
+        // an earlier one would load the old 50 ms reload value, counted at the new divider
+        // (about 1.1-1.6 s, shorter than an erase).
+        wait_for_update();
+        self.watchdog.lock(|w| write_timeout(w, FLASH_WATCHDOG_MS));
+        wait_for_update();
+        self.watchdog.lock(|w| w.feed());
+        let result = f(self.store);
+        self.watchdog.lock(|w| write_timeout(w, WATCHDOG_MS));
+        wait_for_update();
+        self.watchdog.lock(|w| w.feed());
+        result
+    }
+}
+
+impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'_, W> {
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+        self.relaxed(motors_stopped, |s| {
+            ParamStorage::save(s, settings, motors_stopped)
+        })
+    }
+
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+        self.relaxed(motors_stopped, |s| ParamStorage::reset(s, motors_stopped))
+    }
+
+    fn save_runs(
+        &mut self,
+        runs: &[RunRecord],
+        ids: &mut [Option<StoredRun>],
+        motors_stopped: bool,
+    ) -> Result<(), StorageError> {
+        self.relaxed(motors_stopped, |s| {
+            ParamStorage::save_runs(s, runs, ids, motors_stopped)
+        })
+    }
+
+    fn load_runs(
+        &mut self,
+        runs: &mut heapless::Vec<RunRecord, MAX_RUNS>,
+        ids: &mut heapless::Vec<Option<StoredRun>, MAX_RUNS>,
+    ) -> RunsLoaded {
+        // Only at boot, motors stopped: a repair may erase a sector.
+        self.relaxed(true, |s| ParamStorage::load_runs(s, runs, ids))
+    }
+}
