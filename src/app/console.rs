@@ -54,13 +54,20 @@ pub fn take_line<C: Calibrator>(
             );
         }
     }
-    let Some(received) = lines.take() else {
-        return Ok(());
+    // Busy from before the line leaves the queue: a line starting after the take but before
+    // the reply would otherwise see an empty queue and an idle console, and its live echo
+    // would land in front of this line's deferred echo. `SeqCst` keeps the flag's store ahead
+    // of the take (a `Relaxed` store may be moved past it).
+    handoff.console_busy.store(true, Ordering::SeqCst);
+    let result = match lines.take() {
+        Some(received) => {
+            let result = session.handle_input(&received, robot, storage, out);
+            handoff.echo.store(session.echo(), Ordering::Relaxed);
+            result
+        }
+        None => Ok(()),
     };
-    handoff.console_busy.store(true, Ordering::Relaxed);
-    let result = session.handle_input(&received, robot, storage, out);
-    handoff.echo.store(session.echo(), Ordering::Relaxed);
-    handoff.console_busy.store(false, Ordering::Relaxed);
+    handoff.console_busy.store(false, Ordering::SeqCst);
     result
 }
 

@@ -28,8 +28,10 @@ use crate::motion::controller::DEFAULT_RATE_HZ;
 /// Every field has one writer (or one writer that sets and one reader that clears it by swap),
 /// and each is a single word read or written whole, so no lock is needed: a reader sees either
 /// the old or the new value, and every use below is correct with either. Orderings are
-/// `Relaxed` because no field guards other memory: the lines themselves travel through the
-/// single-producer single-consumer input queue, which orders its own accesses.
+/// `Relaxed` because no field guards other memory (the lines themselves travel through the
+/// single-producer single-consumer input queue, which orders its own accesses), except
+/// `console_busy`, which must be set before the console takes a line from that queue
+/// (`SeqCst`, see [`console::take_line`]).
 #[derive(Debug)]
 pub struct Handoff {
     /// Set by the serial receive on Ctrl-C or Esc; the control period takes it (swap) and

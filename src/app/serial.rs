@@ -48,7 +48,7 @@ pub fn receive<Q: LineQueue, const N: usize>(
     let idle = handoff.echo()
         && !output_pending
         && lines.is_empty()
-        && !handoff.console_busy.load(Ordering::Relaxed);
+        && !handoff.console_busy.load(Ordering::SeqCst);
     rx::drain(
         read,
         assembler,
