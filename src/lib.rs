@@ -33,6 +33,8 @@
 //! - `E_d = D_R / D_L`, `E_b = b_actual / b_nominal`.
 #![cfg_attr(not(test), no_std)]
 #![warn(missing_docs)]
+// `unsafe` lives only in `board` (the hardware layer); every portable layer is safe Rust.
+#![deny(unsafe_code)]
 #![cfg_attr(
     not(test),
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
@@ -57,4 +59,5 @@ pub mod session;
 pub mod app;
 
 #[cfg(target_os = "none")]
+#[allow(unsafe_code)]
 pub mod board;

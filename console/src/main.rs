@@ -34,6 +34,7 @@ extern "C" fn on_sigint(_: libc::c_int) {
     INTERRUPTED.store(true, Ordering::Relaxed);
 }
 
+#[allow(unsafe_code)] // the one `libc::signal` call below
 fn catch_ctrl_c() {
     // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
     unsafe {

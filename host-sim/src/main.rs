@@ -59,6 +59,7 @@ enum Command {
 
 /// Runs the command; an error is printed as the message it is (not as a debug string) and the
 /// exit status is 1.
+#[allow(unsafe_code)] // the one `libc::signal` call below
 fn main() -> std::process::ExitCode {
     // Output into a closed pipe (`… | head`) ends the program quietly, as for any Unix tool,
     // instead of a panic in `println!`.

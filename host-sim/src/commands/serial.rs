@@ -75,6 +75,7 @@ pub struct SerialArgs {
 
 /// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The
 /// slave stays open in this process so the master never sees end-of-file between clients.
+#[allow(unsafe_code)] // openpty, termios and descriptor ownership (each block says why)
 fn open_pty() -> Result<(std::fs::File, String, std::fs::File), String> {
     use std::os::fd::FromRawFd;
     let (mut master, mut slave) = (0, 0);

@@ -4,6 +4,7 @@
 pub mod board;
 pub mod flash;
 pub mod optiodom;
+#[allow(unsafe_code)] // SSE2 intrinsics (each block says why)
 pub mod pair;
 pub mod plot;
 pub mod robot;
