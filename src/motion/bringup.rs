@@ -14,8 +14,8 @@
 //! The verdicts ([`WheelVerdict`], [`PushVerdict`]) are pure functions of the recorded counts,
 //! so the session can print them and propose the wiring settings.
 
-use crate::motion::controller::Wheel;
 use crate::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyReport};
+use crate::motion::wheel::Wheel;
 use crate::util::num::ceil_i64;
 
 /// Duty of a bring-up pulse: enough to overcome static friction of a free wheel, too little to

@@ -41,9 +41,9 @@
 //! limit), or a fit that does not describe the response (residual above 5 % of the top speed,
 //! `a` outside (0, 1), parameters outside [`MotorParams::validate`]'s ranges).
 
-use crate::motion::controller::Wheel;
 use crate::motion::motor::StopMode;
 use crate::motion::speed::MotorParams;
+use crate::motion::wheel::Wheel;
 use crate::util::num::{ceil_i64, fmax, round_u32};
 
 /// The duty steps of a pass, in order (magnitudes). The lowest must exceed the dead-band and

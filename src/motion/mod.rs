@@ -10,4 +10,5 @@ pub mod profile;
 pub mod routine;
 pub mod run;
 pub mod speed;
+pub mod wheel;
 pub mod wiring;

@@ -233,10 +233,10 @@ impl SpeedTuning {
     }
 
     /// The motor of `wheel`.
-    pub fn motor(&self, wheel: crate::motion::controller::Wheel) -> &MotorParams {
+    pub fn motor(&self, wheel: crate::motion::wheel::Wheel) -> &MotorParams {
         match wheel {
-            crate::motion::controller::Wheel::Right => &self.right,
-            crate::motion::controller::Wheel::Left => &self.left,
+            crate::motion::wheel::Wheel::Right => &self.right,
+            crate::motion::wheel::Wheel::Left => &self.left,
         }
     }
 

@@ -8,7 +8,7 @@
 //! check ([`crate::motion::bringup`]) and stores them with the other parameters; a wrong sign
 //! is otherwise caught by the following-error fault, never by a runaway.
 
-use crate::motion::controller::Wheel;
+use crate::motion::wheel::Wheel;
 
 /// Which motors and encoders are reversed against the standard wiring.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -20,7 +20,7 @@
 
 use core::fmt;
 
-use super::command::keyword_eq;
+use crate::util::text::keyword_eq;
 
 /// Largest number of significant digits accepted (all of them fit in a `u64`).
 pub const MAX_DIGITS: u32 = 19;

@@ -5,6 +5,7 @@
 //! outside them is rejected by the parser before anything else sees it.
 
 use crate::motion::speed::{MotorParams, SpeedTuning};
+use crate::util::text::keyword_eq;
 
 /// An `f32` range (the speed loop's) as the parser's `f64` bounds.
 fn f32_range((lo, hi): (f32, f32)) -> (f64, f64) {
@@ -130,7 +131,7 @@ impl ParamName {
         ParamName::ALL
             .iter()
             .copied()
-            .find(|p| super::command::keyword_eq(p.as_str(), name))
+            .find(|p| keyword_eq(p.as_str(), name))
     }
 
     /// Unit shown after the value.

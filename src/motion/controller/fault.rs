@@ -6,16 +6,7 @@ use super::mode::ActiveCheck;
 use super::{Controller, ControllerConfig};
 use crate::motion::bringup::CheckReport;
 use crate::motion::identify::{IdentifyFailure, IdentifyProblem};
-
-/// A wheel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum Wheel {
-    /// The right wheel.
-    Right,
-    /// The left wheel.
-    Left,
-}
+use crate::motion::wheel::Wheel;
 
 /// A latched fault; the motors are stopped until [`Controller::clear_fault`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -27,8 +27,8 @@ pub use config::{
     ConfigError, ControllerConfig, DEFAULT_RATE_HZ, FollowingConfig, RATE_RULE, RATES_HZ, SetError,
     StallConfig, periods_of_ms, rate_supported,
 };
+pub use fault::Fault;
 use fault::FollowingState;
-pub use fault::{Fault, Wheel};
 use mode::{ActiveCheck, ActiveRun, DriveState};
 pub use mode::{ButtonAction, DriveError, StartError};
 
@@ -40,6 +40,7 @@ use crate::motion::motor::{MotorDriver, StopMode};
 use crate::motion::routine::{SegmentKind, ticks_f32};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::{SpeedPi, SpeedPiState, WheelReference};
+pub use crate::motion::wheel::Wheel;
 
 /// What the motors should do for the next period.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -431,5 +432,23 @@ impl Controller {
     /// Tick totals since the first step.
     pub fn totals(&self) -> WheelTicks {
         self.totals
+    }
+}
+
+#[cfg(test)]
+mod size_probe {
+    use core::mem::size_of;
+
+    /// The controller's state stays within the size it was trimmed to so that the firmware's
+    /// static RAM stays within its 32 KiB goal (docs/performance.md, Firmware footprint, has the
+    /// margin; the routine's parts are bounded in [`crate::motion::routine`]). The bound is the
+    /// host's size (64-bit `usize`; the board's is no larger): a controller that grows fails
+    /// here, and raising its bound is a change to check against the footprint.
+    #[test]
+    fn sizes() {
+        let sizes = [("Controller", size_of::<super::Controller>(), 4760)];
+        for (name, size, max) in sizes {
+            assert!(size <= max, "{name} is {size} B, above its {max} B");
+        }
     }
 }
