@@ -1,0 +1,200 @@
+//! A sign-magnitude H-bridge pair (e.g. two Cytron MD10C channels) in embedded-hal 1.0 terms:
+//! a PWM channel and a direction pin per motor and one shared enable pin. Any board whose HAL
+//! implements [`SetDutyCycle`] and [`OutputPin`] drives its motors with it; the board only
+//! hands over the configured channels and pins.
+//!
+//! Duty `d ∈ [-1, 1]`: `|d|` sets the compare value, the sign the DIR pin. A motor mounted
+//! mirrored has its DIR level inverted ([`HBridge::new`]'s `invert_left`). `Brake` drives both
+//! PWM outputs low with the bridge enabled (low-side brake on sign-magnitude drivers); `Coast`
+//! disables the bridge (outputs high-impedance). An IN1/IN2 bridge such as the DRV8871 needs
+//! another driver (docs/hardware.md).
+//!
+//! Pin and PWM errors are ignored: the STM32 HAL's are `Infallible`, and a driver that could
+//! fail has no better action in a control period than to try again in the next one.
+
+use embedded_hal::digital::{OutputPin, PinState};
+use embedded_hal::pwm::SetDutyCycle;
+
+use super::motor::{MotorDriver, StopMode, clamp_duty};
+
+/// Two motors' PWM channels and direction pins and the shared enable pin.
+pub struct HBridge<PR, PL, DR, DL, EN> {
+    right: PR,
+    left: PL,
+    dir_right: DR,
+    dir_left: DL,
+    enable: EN,
+    invert_left: bool,
+}
+
+impl<PR, PL, DR, DL, EN> HBridge<PR, PL, DR, DL, EN>
+where
+    PR: SetDutyCycle,
+    PL: SetDutyCycle,
+    DR: OutputPin,
+    DL: OutputPin,
+    EN: OutputPin,
+{
+    /// Takes the enabled PWM channels (bound to their pins) and the output pins; starts with
+    /// both motors braked. `invert_left`: the left motor is mounted mirrored, so its DIR level
+    /// is inverted.
+    pub fn new(
+        right: PR,
+        left: PL,
+        dir_right: DR,
+        dir_left: DL,
+        enable: EN,
+        invert_left: bool,
+    ) -> Self {
+        let mut bridge = HBridge {
+            right,
+            left,
+            dir_right,
+            dir_left,
+            enable,
+            invert_left,
+        };
+        bridge.stop(StopMode::Brake);
+        bridge
+    }
+
+    /// The PWM compare value of `duty` (its magnitude) on a channel whose full scale is `max`.
+    fn compare(duty: f32, max: u16) -> u16 {
+        let magnitude = if duty < 0.0 { -duty } else { duty };
+        (magnitude * f32::from(max)) as u16
+    }
+}
+
+impl<PR, PL, DR, DL, EN> MotorDriver for HBridge<PR, PL, DR, DL, EN>
+where
+    PR: SetDutyCycle,
+    PL: SetDutyCycle,
+    DR: OutputPin,
+    DL: OutputPin,
+    EN: OutputPin,
+{
+    fn set_duty(&mut self, right: f32, left: f32) {
+        let (right, left) = (clamp_duty(right), clamp_duty(left));
+        let _ = self.dir_right.set_state(PinState::from(right >= 0.0));
+        let _ = self
+            .dir_left
+            .set_state(PinState::from((left >= 0.0) != self.invert_left));
+        let cr = Self::compare(right, self.right.max_duty_cycle());
+        let cl = Self::compare(left, self.left.max_duty_cycle());
+        let _ = self.right.set_duty_cycle(cr);
+        let _ = self.left.set_duty_cycle(cl);
+        let _ = self.enable.set_high();
+    }
+
+    fn stop(&mut self, mode: StopMode) {
+        let _ = self.right.set_duty_cycle(0);
+        let _ = self.left.set_duty_cycle(0);
+        let _ = match mode {
+            StopMode::Brake => self.enable.set_high(),
+            StopMode::Coast => self.enable.set_low(),
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use core::convert::Infallible;
+    use std::cell::RefCell;
+    use std::rc::Rc;
+
+    use super::*;
+
+    /// Every pin and channel write, in order.
+    type Log = Rc<RefCell<Vec<(&'static str, u16)>>>;
+
+    struct Pwm(&'static str, Log);
+    struct Pin(&'static str, Log);
+
+    impl embedded_hal::pwm::ErrorType for Pwm {
+        type Error = Infallible;
+    }
+    impl SetDutyCycle for Pwm {
+        fn max_duty_cycle(&self) -> u16 {
+            8_400
+        }
+        fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+            self.1.borrow_mut().push((self.0, duty));
+            Ok(())
+        }
+    }
+    impl embedded_hal::digital::ErrorType for Pin {
+        type Error = Infallible;
+    }
+    impl OutputPin for Pin {
+        fn set_low(&mut self) -> Result<(), Infallible> {
+            self.1.borrow_mut().push((self.0, 0));
+            Ok(())
+        }
+        fn set_high(&mut self) -> Result<(), Infallible> {
+            self.1.borrow_mut().push((self.0, 1));
+            Ok(())
+        }
+    }
+
+    fn bridge(log: &Log) -> HBridge<Pwm, Pwm, Pin, Pin, Pin> {
+        HBridge::new(
+            Pwm("pwm_r", log.clone()),
+            Pwm("pwm_l", log.clone()),
+            Pin("dir_r", log.clone()),
+            Pin("dir_l", log.clone()),
+            Pin("en", log.clone()),
+            true,
+        )
+    }
+
+    #[test]
+    fn it_starts_braked() {
+        let log = Log::default();
+        let _ = bridge(&log);
+        assert_eq!(*log.borrow(), [("pwm_r", 0), ("pwm_l", 0), ("en", 1)]);
+    }
+
+    #[test]
+    fn duty_sets_magnitude_and_direction_with_the_left_motor_mirrored() {
+        let log = Log::default();
+        let mut b = bridge(&log);
+        log.borrow_mut().clear();
+        b.set_duty(0.5, 0.25);
+        // Right forward: DIR high; left forward: DIR low (mirrored); 50 % and 25 % of 8,400.
+        assert_eq!(
+            *log.borrow(),
+            [
+                ("dir_r", 1),
+                ("dir_l", 0),
+                ("pwm_r", 4_200),
+                ("pwm_l", 2_100),
+                ("en", 1)
+            ]
+        );
+        log.borrow_mut().clear();
+        // Backward, beyond full scale (clamped) and NaN (zero).
+        b.set_duty(-2.0, f32::NAN);
+        assert_eq!(
+            *log.borrow(),
+            [
+                ("dir_r", 0),
+                ("dir_l", 0),
+                ("pwm_r", 8_400),
+                ("pwm_l", 0),
+                ("en", 1)
+            ]
+        );
+    }
+
+    #[test]
+    fn coast_disables_the_bridge_and_brake_keeps_it_enabled_at_zero_duty() {
+        let log = Log::default();
+        let mut b = bridge(&log);
+        log.borrow_mut().clear();
+        b.stop(StopMode::Coast);
+        assert_eq!(*log.borrow(), [("pwm_r", 0), ("pwm_l", 0), ("en", 0)]);
+        log.borrow_mut().clear();
+        b.stop(StopMode::Brake);
+        assert_eq!(*log.borrow(), [("pwm_r", 0), ("pwm_l", 0), ("en", 1)]);
+    }
+}
