@@ -1,0 +1,181 @@
+//! The exact fit from start to result: the plain fit, the reweighting rounds, the final `f64`
+//! solve, the degeneracy and range checks, the 1σ and the per-run report.
+
+use super::linalg::solve;
+use super::problem::Problem;
+use super::report::{ExactFit, RunFit};
+use super::robust::{Weight, weight};
+use super::solver::Jacobian;
+use super::{
+    ExactOptions, FREEZE_SCALES_AFTER, MAX_FACTOR_SIGMA, MAX_REWEIGHTS, MAX_RUN_FITS,
+    MAX_WEIGHTED_RUNS, ScaleFit,
+};
+use crate::calibration::quality::Quality;
+use crate::calibration::stats::SquareStats;
+use crate::calibration::{
+    Calibration, CalibrationError, FACTOR_RANGE, Method, RunObservation, factors_of,
+};
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::ArcModel;
+use crate::motion::run::PathKind;
+use crate::util::num::fmax;
+
+/// Fits the parameters; see the `exact` module docs.
+///
+/// # Errors
+/// `NoRuns` when no run has at least two knots, `Degenerate` when the parameters are not
+/// determined by the runs (a singular system, or a factor's 1σ above [`MAX_FACTOR_SIGMA`]),
+/// `NotConverged`, `OutOfRange`, `InvalidGeometry`.
+pub fn calibrate_exact(
+    runs: &[RunObservation<'_>],
+    nominal: &Geometry,
+    options: &ExactOptions,
+) -> Result<Calibration, CalibrationError> {
+    let first = runs
+        .iter()
+        .find(|r| Problem::usable(r))
+        .ok_or(CalibrationError::NoRuns)?;
+    let sees_scale = runs
+        .iter()
+        .any(|r| matches!(r.path, PathKind::Line { .. }) || Problem::is_path(r));
+    let fit_scale = match options.scale {
+        ScaleFit::Auto => sees_scale,
+        ScaleFit::Always => true,
+        ScaleFit::Never => false,
+    };
+    let (d0, b0, s0) = factors_of(&first.geometry, nominal);
+    let problem = Problem {
+        runs,
+        nominal: *nominal,
+        n: if fit_scale { 3 } else { 2 },
+        fixed_scale: s0,
+        options: *options,
+    };
+    let n = problem.n;
+    let p0 = [d0, b0, s0];
+    let (_, m) = problem
+        .cost(&p0, None)
+        .ok_or(CalibrationError::OutOfRange)?;
+    let rows: usize = runs
+        .iter()
+        .filter(|r| Problem::usable(r))
+        .map(|r| problem.row_count(r))
+        .sum();
+    if rows <= n {
+        return Err(CalibrationError::Degenerate);
+    }
+    // The plain least-squares fit: the result, or the robust fit's start.
+    let mut solved = problem.solve_lm(p0, None, Jacobian::F32)?;
+    let mut iterations = solved.iterations;
+    let reweighted = options.robust && runs.len() <= MAX_WEIGHTED_RUNS;
+    // Weights and scales indexed like `runs`, and the weights `solved` was fitted with.
+    let mut weights = [Weight::ONE; MAX_WEIGHTED_RUNS];
+    let mut scales = [None; MAX_WEIGHTED_RUNS];
+    let mut fitted_with = [Weight::ONE; MAX_WEIGHTED_RUNS];
+    let mut reweights = 0;
+    if reweighted {
+        let len = runs.len();
+        loop {
+            // The weights computed at the fitted parameters are those they were fitted with:
+            // the fixed point of IRLS.
+            let frozen = reweights >= FREEZE_SCALES_AFTER;
+            if problem.reweight(&solved.p, &mut weights, &mut scales, frozen) {
+                break;
+            }
+            if reweights >= MAX_REWEIGHTS {
+                return Err(CalibrationError::NotConverged);
+            }
+            reweights += 1;
+            fitted_with[..len].copy_from_slice(&weights[..len]);
+            solved = problem.solve_lm(solved.p, Some(&weights[..len]), Jacobian::F32)?;
+            iterations += solved.iterations;
+        }
+    }
+    let len = runs.len().min(MAX_WEIGHTED_RUNS);
+    // The `f32` Jacobian's fixed point is off the cost's minimum by about its columns' error
+    // times the residuals (see the `exact` module docs); the last solve ends at the minimum with
+    // the `f64` Jacobian, from a start that close it takes one or two iterations.
+    let fitted_with = (reweighted && reweights > 0).then_some(&fitted_with[..len]);
+    solved = problem.solve_lm(solved.p, fitted_with, Jacobian::F64)?;
+    iterations += solved.iterations;
+    let w = reweighted.then_some(&weights[..len]);
+    let p = solved.p;
+    let cost = solved.cost;
+    let geometry = problem.geometry(&p);
+    geometry
+        .validate()
+        .map_err(|_| CalibrationError::InvalidGeometry)?;
+    // An unfitted E_s is the driving scale the fit held, reported as it was held (the geometry's
+    // mean diameter would give it back only to rounding).
+    let (e_d, e_b, fitted_e_s) = factors_of(&geometry, nominal);
+    let e_s = if n == 3 {
+        fitted_e_s
+    } else {
+        problem.fixed_scale
+    };
+    if !(FACTOR_RANGE.contains(&e_d) && FACTOR_RANGE.contains(&e_b) && FACTOR_RANGE.contains(&e_s))
+    {
+        return Err(CalibrationError::OutOfRange);
+    }
+    // Uncertainty from the weighted residual scatter, the weights as relative precisions.
+    let (a, _) = problem.normal(&p, w, Jacobian::F64);
+    let sigma2 = if m > n {
+        cost / (m - n) as f64
+    } else {
+        f64::NAN
+    };
+    let mut sigma = [None; 3];
+    for (i, s) in sigma.iter_mut().enumerate().take(n).filter(|_| m > n) {
+        let mut e = [0.0; 3];
+        e[i] = 1.0;
+        if let Some(col) = solve(a, e, n) {
+            *s = Some(libm::sqrt(fmax(col[i], 0.0) * sigma2));
+        }
+    }
+    if sigma.iter().flatten().any(|s| *s > MAX_FACTOR_SIGMA) {
+        return Err(CalibrationError::Degenerate);
+    }
+    let sigma_out = sigma[0]
+        .zip(sigma[1])
+        .map(|(d, b)| [d, b, sigma[2].unwrap_or(0.0)]);
+    // Per-run report, and the weighted mean square of the residual components.
+    let model = ArcModel::from_geometry(&geometry);
+    let mut fit = ExactFit {
+        robust: options.robust,
+        reweighted,
+        reweights,
+        outliers: 0,
+        run_count: 0,
+        fits: [RunFit::EMPTY; MAX_RUN_FITS],
+    };
+    let mut weighted_components = 0.0;
+    for (i, run) in runs.iter().enumerate() {
+        if !Problem::usable(run) {
+            continue;
+        }
+        let wi = weight(w, i);
+        weighted_components += wi.run * problem.components(run) as f64;
+        let scale = if reweighted { scales[i] } else { None };
+        let rf = problem.run_fit(i, &model, wi, scale);
+        if rf.outlier {
+            fit.outliers += 1;
+        }
+        if fit.run_count < MAX_RUN_FITS {
+            fit.fits[fit.run_count] = rf;
+        }
+        fit.run_count += 1;
+    }
+    let stats = SquareStats::from_runs(runs, false).ok();
+    let rms = libm::sqrt(cost / weighted_components);
+    let quality = Quality::from_runs(runs, &geometry, stats.as_ref(), sigma_out, Some(rms));
+    Ok(Calibration {
+        method: Method::Exact,
+        e_d,
+        e_b,
+        e_s,
+        geometry,
+        quality,
+        iterations,
+        fit: Some(fit),
+    })
+}

@@ -1,0 +1,230 @@
+//! odocal's exact calibration: a robust Levenberg–Marquardt fit of the kinematic parameters to
+//! the recorded runs.
+//!
+//! Parameters `p = (E_d, E_b[, E_s])` are absolute, relative to the nominal geometry:
+//! `geometry(p) = nominal.with_factors(E_d, E_b, E_s)`. For every run the recorded tick knots
+//! are re-integrated with [`ArcModel`] for `geometry(p)` (exact arcs, no small-angle
+//! approximation), and the residual is `measured − predicted` in the start frame:
+//! - a run measured at its end (the operator's tape measure): the end pose's `x`, `y` in metres
+//!   and, when θ was measured, the wrapped heading residual multiplied by a length scale `ℓ` (by
+//!   default the run's characteristic length — the side of a square — so a heading error counts
+//!   like the lateral error it produces over one leg);
+//! - a run with ground truth along the whole path ([`RunObservation::truth_path`], e.g. a
+//!   motion-capture log): the position error at every knot, each divided by `√N` (`N` knots after
+//!   the start), so that the run adds the *mean* squared position error along its path to the
+//!   cost — one path weighs like one end pose, however finely it was sampled. Along a path a
+//!   heading error already shows as the position errors that follow it, and a free path has no
+//!   length that would weigh a separate heading term fairly against them (its characteristic
+//!   length, tens of metres, would let the end heading swamp the path), so the end heading is
+//!   added (times `ℓ`) only when [`ExactOptions::heading_length_m`] gives `ℓ`. An in-place turn
+//!   recorded as a path therefore adds nothing about `E_b` by itself.
+//!
+//! Any path works: squares, lines, circles, free loops; runs may have been driven with different
+//! geometries, because the fit starts from raw ticks. `E_s` (the mean diameter) is only fitted
+//! when a straight-line run or a run with ground truth along its path is present (or when asked
+//! to): end poses of squares and closed loops determine it poorly. Otherwise it stays at the first
+//! run's driving value.
+//!
+//! # Robust fit
+//!
+//! One run whose start slipped (the wheels spin in a jerk, odometry turns by tens of mrad more
+//! than the robot) is far from the others in heading, and a plain least-squares fit follows it.
+//! The default fit ([`ExactOptions::robust`]) is an M-estimate with Cauchy weights computed by
+//! iteratively reweighted least squares (IRLS), run by run:
+//!
+//! 1. the plain least-squares fit gives the start;
+//! 2. each run `i` has residual channels `c`: x and y (end pose; for a path run the mean squared
+//!    position error along it) and, when used, the heading (times `ℓ`), with squared residuals
+//!    `d_ic²`. Under the model `d_ic²/σ_c²` is χ² with `k_c` degrees of freedom (1 for x, y or
+//!    the heading alone, 2 for x and y pooled), so `z_ic = d_ic² / med(χ²_{k_c})` has median
+//!    `σ_c²`;
+//! 3. the scales come from the runs' own scatter: `σ_c² = median(z_jc) · M/(M − n)` over run
+//!    `i`'s *peers* `j` — the runs of the same kind of path (square, line, circle), measured the
+//!    same way (end pose or path), with characteristic lengths within a factor
+//!    [`PEER_LENGTH_RATIO`] (longer paths scatter more, so a 15 m path is never judged against
+//!    1.7 m squares); `M/(M − n)` corrects for the `n` fitted parameters (`M` residual components
+//!    in all). The median ignores up to half of the peers being outliers. A run with fewer than
+//!    [`MIN_PEERS`] peers (itself included) has no scale and keeps weight 1. No scale is taken
+//!    below the rounding error of the measurement, `resolution/√12`
+//!    ([`ExactOptions::resolution_m`], [`ExactOptions::resolution_rad`] times `ℓ`), so that runs
+//!    that fit to rounding are not sorted by rounding errors and a channel that happens to fit
+//!    perfectly cannot take unbounded weight (see *Channel weights*);
+//! 4. `u_i² = Σ_c d_ic²/σ_c² / k_i` (the run's mean squared residual component in units of the
+//!    scales, 1 on average under the model; `k_i` = 2 or 3 components) gives the Cauchy weight
+//!    `w_i = 1 / (1 + u_i²/c²)`,
+//!    `c =` [`CAUCHY_C`] `= 2.3849` (95 % efficiency at the normal model). The Cauchy loss
+//!    redescends: a run 10 σ off keeps about 5 % of its weight, so its pull on the factors is
+//!    about half that of a run at 1 σ, where a plain fit lets it pull ten times as hard. A run
+//!    whose weight ends below [`OUTLIER_WEIGHT`] = 0.5 (`u_i > c`) is flagged as an outlier: under
+//!    the model that happens to fewer than 0.4 % of runs;
+//! 5. the weighted fit is repeated from the current parameters with the new weights, and the
+//!    weights recomputed, until no weight changes by more than [`WEIGHT_TOLERANCE`] (1e-3: a
+//!    weight known to 0.1 % moves the factors by a small fraction of their 1σ) and no channel
+//!    weight (below) by more than [`CHANNEL_TOLERANCE`] (1 % of itself). On 5 + 5 noisy
+//!    squares this takes 2–3 rounds and 2–3 times the solver iterations of the plain fit, 5–6
+//!    rounds (5 times the iterations) when one run is an outlier. The scales are medians, which
+//!    jump when two residuals swap places, so on rare data the scales and weights can cycle
+//!    between two states instead of settling. After [`FREEZE_SCALES_AFTER`] rounds the scales and
+//!    channel weights are therefore held at their last values and only the run weights are
+//!    iterated: with fixed scales each round is a majorise–minimise step of one fixed Cauchy
+//!    objective, which never increases, so the run weights converge. Data that settle earlier
+//!    (every case measured: 2–6 rounds) never reach this point and are unaffected.
+//!
+//! Runs that fit the model all get weights close to 1, and where the runs fit exactly (ideal
+//! kinematics) the weights are 1 to rounding and the result is the plain fit's. The weight of
+//! every run is reported with its residual ([`ExactFit`]). [`ExactOptions::plain`] is the plain
+//! least-squares fit.
+//!
+//! ## Channel weights
+//!
+//! How much an end heading counts against an end position is not known beforehand: slip in the
+//! turns, a jerk at the start and the way the end pose is measured make the heading scatter by a
+//! different amount than `x` and `y`, and `x` and `y` themselves differ (along and across the last
+//! leg of a square or a line). Weighting the heading by `ℓ` alone fixes their ratio a priori; a
+//! session whose headings scatter twice as much as that ratio assumes lets them pull the factors
+//! four times as hard as their precision deserves. The robust fit therefore treats the noise
+//! level of each channel as unknown and estimates it from the same peers (variance components,
+//! alternating with the run weights in the same IRLS loop, [`ExactOptions::channel_weights`]):
+//! the rows of channel `c` are weighted by `σ_p²/σ_c²`, `σ_p²` the pooled position scale of the
+//! peers (so the fit stays in metres of position, and runs of different kinds keep the relative
+//! weight they had). This is the maximum-likelihood weighting of a diagonal noise model, with
+//! robust (median) variance estimates; with the scales a priori equal it is the fit above.
+//!
+//! - Only an end pose gets x, y apart; a path's knots share no axes, its position stays pooled.
+//! - Channel weights need at least [`MIN_CHANNEL_PEERS`] = 6 peers (one UMBmark session, 3 CW +
+//!   3 CCW): a variance ratio estimated from medians of `k` runs is known only to within a factor
+//!   of 21 (its 10–90 % range when both variances are equal) at `k` = 6, 41 at 5 and 106 at 3.
+//!   Below that the a-priori weighting (by `ℓ`) is kept: fewer runs would replace it by noise.
+//! - The resolution floors bound the weight of a channel that fits perfectly; with ideal
+//!   kinematics every residual is zero, and any positive weights give the same exact answer.
+//! - Not modelled: correlations between the channels (a full 3×3 covariance per peer group,
+//!   mirrored between CW and CCW, is 6 numbers from 6–10 runs: in simulation it widened the spread
+//!   of `E_b` by 22 % against the a-priori weighting, where the diagonal one costs 5 %), and a
+//!   per-run start-heading offset (a free rotation of every run about its start point absorbs the
+//!   end heading of every closed path, so in-place turns and circles lose the information that
+//!   calibrates `E_b` best; it is the occasional slipping start, which the run weights handle).
+//!
+//! # Jacobian in `f32`
+//!
+//! The residuals `r`, the cost, the normal equations, the solve and the convergence test are
+//! `f64`. The Jacobian `J = ∂predicted/∂p` is central differences of re-integrations, and those
+//! are most of the fit's work (two per fitted factor and run in every iteration). While the fit
+//! iterates they run in `f32` ([`ArcModelF32`] with [`crate::util::trig::sincos_f32`]: the
+//! Cortex-M4F's FPU instead of soft-float), with the step `h =` [`JACOBIAN_STEP_F32`] `= 1e-3` in
+//! each (dimensionless, ≈ 1) factor. An end pose in `f32` is good to about `ε ≈ 1e-7` m per metre
+//! travelled, so a column's error is the rounding `ε/h` plus the truncation `O(h²)`. Measured on
+//! a 1 m square (test `f32_jacobian_matches_f64`, largest error of a column against the `f64`
+//! one relative to the column's size, for `E_d`, `E_b`, `E_s`): 2–10e-3 at `h = 1e-5`, 2–7e-4
+//! at `1e-4` (rounding), 1.4–4.8e-5 at `1e-3`, 0.3–1.3e-4 at `3e-3`, 0.2–1.3e-3 at `1e-2`
+//! (truncation); the `f64` Jacobian's `h = 1e-6` would leave 2.5–12 %.
+//!
+//! An approximate Jacobian `J̃ = J + E` steers Levenberg–Marquardt as well as `J` does: a step is
+//! accepted only when the `f64` cost does not rise, and near the solution each Gauss–Newton step
+//! contracts the error by `O(|E|/|J|)` (besides the usual term of the residuals' curvature), about
+//! 5e-5, so it converges as fast. But it stops where `J̃ᵀWr = 0`, not where the cost is least
+//! (`JᵀWr = 0`): the two coincide where the runs fit exactly (`r = 0`, ideal kinematics), and with
+//! noisy runs they are `(JᵀWJ)⁻¹EᵀWr` apart. On the recorded OptiOdom sessions (read from their
+//! recorded starts) that moved `E_b` by 4e-8–1e-7 relative on squares, 3e-5 on the path fit of the
+//! line session and 2e-4 on the end poses of two free paths (3 factors from 6 numbers; on long
+//! paths the `f32` heading error grows with the distance driven). The fit therefore ends with one
+//! more solve, from the `f32` solution and with the weights it was fitted with, whose Jacobian is
+//! `f64` ([`ArcModel`], step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12, rounding 1e-10
+//! relative): it starts that close to the minimum that it takes two iterations, and it ends where
+//! an all-`f64` fit ends, to the convergence tolerances: plain fits of the recorded sessions agree
+//! to the nine printed digits (2–3e-8 on the free paths' flat minimum), the bench's robust fit of
+//! 10 squares to 2e-11; other robust fits differ by up to 7e-8 (6e-7, 1e-5 of its 1σ, for the line
+//! session's path fit), as their reweighting rounds start from the `f32` solutions and the weights
+//! settle within their tolerance at slightly different values. The 1σ comes from the `f64`
+//! Jacobian.
+//!
+//! Normal equations are accumulated run by run (3×3), so memory does not
+//! grow with the number of knots; the weights take one number per run (up to
+//! [`MAX_WEIGHTED_RUNS`] runs are reweighted; a larger set is fitted plainly and says so in
+//! [`ExactFit::reweighted`]). 1σ uncertainty: the weights act as the rows' relative precisions,
+//! `(JᵀWJ)⁻¹ s²` with `s² = Σ_i w_i Σ_c λ_ic d_ic² / (M − n)` (`λ_ic` the channel weights; the
+//! plain fit's `(JᵀJ)⁻¹ σ²` when every weight is 1).
+//!
+//! Parts: `options` (what the fit is asked for), `problem` (the model and its residuals),
+//! `solver` (the Jacobian and Levenberg–Marquardt), `linalg` (the 3×3 solve), `robust` (the run
+//! and channel weights), `report` (the per-run report) and `fit` (the fit from start to result:
+//! the reweighting rounds, the degeneracy and range checks, the 1σ).
+//!
+//! [`ArcModel`]: crate::kinematics::reference::ArcModel
+//! [`ArcModelF32`]: crate::kinematics::reference::ArcModelF32
+//! [`RunObservation::truth_path`]: crate::calibration::RunObservation::truth_path
+//! [`CalibrationError::Degenerate`]: crate::calibration::CalibrationError::Degenerate
+
+// Dense 3×3 linear algebra reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
+
+mod fit;
+mod linalg;
+mod options;
+mod problem;
+mod report;
+mod robust;
+mod solver;
+
+pub use fit::calibrate_exact;
+pub(crate) use linalg::solve;
+pub use options::{ExactOptions, ScaleFit};
+pub use report::{ExactFit, RunFit};
+
+/// Central-difference step for the `f64` Jacobian, in units of the (≈ 1) factors.
+pub const JACOBIAN_STEP: f64 = 1e-6;
+
+/// Central-difference step for the `f32` Jacobian, in units of the (≈ 1) factors (see the module
+/// docs, *Jacobian in `f32`*).
+pub const JACOBIAN_STEP_F32: f64 = 1e-3;
+
+/// Converged when no parameter moves by more than this in one step.
+pub const STEP_TOLERANCE: f64 = 1e-12;
+
+/// Converged when an accepted step lowers the cost by less than this fraction.
+pub const COST_TOLERANCE: f64 = 1e-13;
+
+/// Cauchy constant `c` of the robust weights (95 % efficiency at the normal model).
+pub const CAUCHY_C: f64 = 2.3849;
+
+/// Fewest peers (the run itself included) whose scatter gives a run's scale.
+pub const MIN_PEERS: usize = 3;
+
+/// Fewest peers (the run itself included) whose scatter weights a run's residual channels.
+pub const MIN_CHANNEL_PEERS: usize = 6;
+
+/// Runs are peers when their characteristic lengths differ by at most this factor.
+pub const PEER_LENGTH_RATIO: f64 = 1.2;
+
+/// Most runs the robust fit reweights.
+pub const MAX_WEIGHTED_RUNS: usize = 128;
+
+/// Most runs whose fit is reported in [`ExactFit`] (the board stores 12).
+pub const MAX_RUN_FITS: usize = 16;
+
+/// Most reweighting rounds of the robust fit.
+pub const MAX_REWEIGHTS: u32 = 100;
+
+/// Reweighting rounds after which the robust fit holds the scales and channel weights and
+/// iterates the run weights alone (see the module docs).
+pub const FREEZE_SCALES_AFTER: u32 = MAX_REWEIGHTS / 2;
+
+/// The robust fit has converged when no run's weight changes by more than this.
+pub const WEIGHT_TOLERANCE: f64 = 1e-3;
+
+/// The robust fit has converged when no channel weight changes by more than this fraction: a
+/// channel weight is an estimate known to a factor of a few at best (see the module docs), so
+/// iterating it closer than 1 % changes nothing a user can see.
+pub const CHANNEL_TOLERANCE: f64 = 1e-2;
+
+/// A run whose weight ends below this is flagged as an outlier (`u > c`).
+pub const OUTLIER_WEIGHT: f64 = 0.5;
+
+/// The largest 1σ a fitted factor may keep: a factor known no better than 10 % has not been
+/// determined by the runs (a real robot's factors are within a few per cent of 1, the OptiOdom
+/// robot's within 2 %), and the fit fails with [`CalibrationError::Degenerate`] instead of
+/// returning whatever value its minimum drifted to. Measured on the OptiOdom sessions: 1e-4–7e-3
+/// for squares, circles and lines; 0.02–0.03 for `E_b` and `E_s` of two free paths fitted
+/// along their paths (their ratio is known far better: the turns fix `E_s/E_b`); 6.5 for `E_b`
+/// of straight lines and in-place turns fitted along their paths, which a turn in place does not
+/// move.
+pub const MAX_FACTOR_SIGMA: f64 = 0.1;

@@ -1,0 +1,116 @@
+//! What the exact fit reports per run: residuals against the fitted model, the run's scales and
+//! weights, and whether it was flagged as an outlier.
+
+use super::problem::Problem;
+use super::robust::{Scales, Weight};
+use super::{MAX_RUN_FITS, OUTLIER_WEIGHT};
+use crate::calibration::wrap_angle;
+use crate::kinematics::reference::{ArcModel, PoseF64};
+
+/// How one run fits the result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct RunFit {
+    /// Index of the run in the input slice.
+    pub index: usize,
+    /// End-pose residual `measured − predicted` in x, metres, with the fitted geometry.
+    pub residual_x_m: f64,
+    /// End-pose residual in y, metres.
+    pub residual_y_m: f64,
+    /// End heading residual, radians (wrapped), when the heading was measured and used.
+    pub residual_theta_rad: Option<f64>,
+    /// RMS position error along the path, metres, for a run with ground truth along its path.
+    pub path_rms_m: Option<f64>,
+    /// Scale (robust σ) of one position component among the run's peers, metres; `None` when
+    /// the run was not judged (plain fit, or fewer than [`MIN_PEERS`] peers).
+    ///
+    /// [`MIN_PEERS`]: super::MIN_PEERS
+    pub scale_m: Option<f64>,
+    /// Scale of the heading residual among the run's peers, radians (heading used).
+    pub scale_heading_rad: Option<f64>,
+    /// The weight the run ended with, in (0, 1]; 1 in the plain fit.
+    pub weight: f64,
+    /// Relative weights of the run's x, y and heading rows against its position (see the
+    /// `exact` module docs, *Channel weights*); `[1, 1, 1]` is the a-priori weighting (heading by `ℓ`).
+    pub channel_weights: [f64; 3],
+    /// The weight ended below [`OUTLIER_WEIGHT`]: the run disagrees with its peers.
+    pub outlier: bool,
+}
+
+impl RunFit {
+    pub(super) const EMPTY: RunFit = RunFit {
+        index: 0,
+        residual_x_m: 0.0,
+        residual_y_m: 0.0,
+        residual_theta_rad: None,
+        path_rms_m: None,
+        scale_m: None,
+        scale_heading_rad: None,
+        weight: 1.0,
+        channel_weights: [1.0; 3],
+        outlier: false,
+    };
+}
+
+/// Per-run report of an exact fit: residual, weight and outlier flag of every run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ExactFit {
+    /// The robust fit was asked for.
+    pub robust: bool,
+    /// The runs were reweighted (robust, and at most [`MAX_WEIGHTED_RUNS`] runs).
+    ///
+    /// [`MAX_WEIGHTED_RUNS`]: super::MAX_WEIGHTED_RUNS
+    pub reweighted: bool,
+    /// Reweighting rounds (0 when the least-squares weights were already stable).
+    pub reweights: u32,
+    /// Runs flagged as outliers.
+    pub outliers: u32,
+    /// Runs in the fit (those with at least two knots).
+    pub run_count: usize,
+    pub(super) fits: [RunFit; MAX_RUN_FITS],
+}
+
+impl ExactFit {
+    /// The fits of the first [`MAX_RUN_FITS`] runs in the fit, in input order.
+    pub fn runs(&self) -> &[RunFit] {
+        &self.fits[..self.run_count.min(MAX_RUN_FITS)]
+    }
+}
+
+impl Problem<'_, '_> {
+    /// The report of run `index` for the fitted model.
+    pub(super) fn run_fit(
+        &self,
+        index: usize,
+        model: &ArcModel,
+        weight: Weight,
+        scales: Option<Scales>,
+    ) -> RunFit {
+        let run = &self.runs[index];
+        let end = model.integrate(PoseF64::default(), run.knots);
+        let path_rms_m = Self::is_path(run).then(|| {
+            let mut pose = PoseF64::default();
+            let mut ss = 0.0;
+            for j in 1..run.knots.len() {
+                pose = model.integrate(pose, &run.knots[j - 1..=j]);
+                let t = run.truth_path[j];
+                ss += (t.x_m - pose.x_m) * (t.x_m - pose.x_m)
+                    + (t.y_m - pose.y_m) * (t.y_m - pose.y_m);
+            }
+            libm::sqrt(ss / (run.knots.len() - 1) as f64)
+        });
+        RunFit {
+            index,
+            residual_x_m: run.measured.x_m - end.x_m,
+            residual_y_m: run.measured.y_m - end.y_m,
+            residual_theta_rad: self.heading(run).map(|t| wrap_angle(t - end.theta_rad)),
+            path_rms_m,
+            scale_m: scales.map(|s| s.position_m),
+            scale_heading_rad: scales.and_then(|s| s.heading_rad),
+            weight: weight.run,
+            channel_weights: weight.channel,
+            outlier: weight.run < OUTLIER_WEIGHT,
+        }
+    }
+}
