@@ -1,0 +1,64 @@
+//! The operator's inputs outside the command line: the button's short and long presses and the
+//! stop keys (Ctrl-C, Esc) that the board's receive interrupt passes on.
+//!
+//! Each writes its outcome as an `event …` line, since no command line asked for it; a short
+//! press clears a latched fault or starts the next planned run as `next` does.
+
+use core::fmt::{self, Write};
+
+use super::Session;
+use super::traits::{Activity, Calibrator, Robot};
+use crate::protocol::StopKey;
+
+impl<C: Calibrator> Session<C> {
+    /// The button's short press: clears a latched fault, otherwise starts the next planned run
+    /// (refused with the usual error while the robot moves). The outcome is written as an
+    /// `event button: …` line.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn button_short(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        self.collect_finished(robot, out)?;
+        write!(out, "event button: ")?;
+        if robot.status().fault.is_some() {
+            robot.clear_fault();
+            return write!(out, "ok fault cleared\r\n");
+        }
+        self.start_next(robot, out)
+    }
+
+    /// The button's long press: stops any motion.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn button_long(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        robot.abort();
+        self.collect_finished(robot, out)?;
+        write!(out, "event button: ok stopped\r\n")
+    }
+
+    /// Ctrl-C or Esc: stops any motion (the board's receive interrupt has already told the
+    /// control task; this is idempotent). Writes `event stopped (Ctrl-C)` always, `event stopped
+    /// (Esc)` only if something was still moving (arrow keys send Esc too), then the aborted
+    /// run's event if it was not announced yet.
+    ///
+    /// # Errors
+    /// Only if `out` refuses the text.
+    pub fn interrupt(
+        &mut self,
+        key: StopKey,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let moving = robot.status().activity != Activity::Idle || self.active.is_some();
+        robot.abort();
+        if moving || key == StopKey::CtrlC {
+            let name = match key {
+                StopKey::CtrlC => "Ctrl-C",
+                StopKey::Escape => "Esc",
+            };
+            write!(out, "event stopped ({name})\r\n")?;
+        }
+        self.collect_finished(robot, out)
+    }
+}

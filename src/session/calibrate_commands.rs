@@ -1,0 +1,203 @@
+//! The commands that turn measured runs into calibration factors: `calibrate [method]` (solve
+//! and compare the methods, change nothing) and `apply <method>` (make one method's factors the
+//! active geometry, not saved).
+//!
+//! Owns the rule that both need a measured square in each direction and [`write_calibration`],
+//! the `calibrate` reply, which the console's offline `recalibrate` prints from its kept runs
+//! too (re-exported as `session::write_calibration`).
+
+use core::fmt::{self, Write};
+
+use heapless::Vec;
+
+use super::settings::{self, AppliedCalibration};
+use super::traits::{Activity, Calibrator, Robot, RobotError, RunResidual};
+use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
+use crate::kinematics::geometry::Geometry;
+use crate::motion::run::RunRecord;
+use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::util::decimal::Decimal;
+use crate::util::text::keyword_eq;
+
+impl<C: Calibrator> Session<C> {
+    /// Why `calibrate`/`apply` cannot run yet, if so.
+    fn refuse_calibration(&self, out: &mut dyn Write) -> Option<fmt::Result> {
+        refuse_calibration(&self.progress(), out)
+    }
+
+    /// `calibrate [method]`: every method's result (or only `method`'s), refused while
+    /// anything moves.
+    pub(super) fn calibrate(
+        &mut self,
+        method: Option<&str>,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        // The exact solve takes seconds on the target; the console must stay responsive (`stop`)
+        // while anything moves.
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
+        if let Some(m) = method
+            && !self.calibrator.methods().iter().any(|k| keyword_eq(k, m))
+        {
+            return self.unknown_method(out);
+        }
+        let nominal = self.settings.nominal;
+        write_calibration(&mut self.calibrator, &self.runs, &nominal, method, out)
+    }
+
+    /// `err 7: unknown method; one of <m1>|<m2>|…`.
+    fn unknown_method(&self, out: &mut dyn Write) -> fmt::Result {
+        write!(
+            out,
+            "err {}: unknown method; one of ",
+            ErrorCode::BadKeyword.code()
+        )?;
+        for (i, m) in self.calibrator.methods().iter().enumerate() {
+            if i > 0 {
+                out.write_str("|")?;
+            }
+            out.write_str(m)?;
+        }
+        out.write_str(EOL)
+    }
+
+    /// `apply <method>`: solves with `method` and makes its geometry active (the rule of `save`:
+    /// what cannot be stored is not applied either).
+    pub(super) fn apply(
+        &mut self,
+        method: &str,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
+        let Some(name) = self
+            .calibrator
+            .methods()
+            .iter()
+            .copied()
+            .find(|k| keyword_eq(k, method))
+        else {
+            return self.unknown_method(out);
+        };
+        if let Some(refused) = self.refuse_calibration(out) {
+            return refused;
+        }
+        let nominal = self.settings.nominal;
+        let sol = match self.calibrator.solve(&self.runs, &nominal, name) {
+            Ok(s) => s,
+            Err(e) => return write_err(out, ErrorCode::CalibrationFailed, &e),
+        };
+        let p = self.progress();
+        // The longest whole-character prefix that fits (method names are short ASCII), copied
+        // as one `str`: pushing `char`s would link the UTF-8 encoder for this one use.
+        let mut end = name.len().min(settings::METHOD_NAME_LEN);
+        while !name.is_char_boundary(end) {
+            end -= 1;
+        }
+        let mut method_name = heapless::String::new();
+        let _ = method_name.push_str(name.get(..end).unwrap_or(""));
+        let mut candidate = self.settings.clone();
+        candidate.active = sol.geometry;
+        candidate.calibration = Some(AppliedCalibration {
+            method: method_name,
+            e_d: sol.e_d,
+            e_b: sol.e_b,
+            e_s: sol.e_s,
+            runs_used: (p.cw_measured + p.ccw_measured).min(usize::from(u16::MAX)) as u16,
+            e_max_m: sol.e_max_m.unwrap_or(0.0),
+        });
+        // The rule `save` applies: what cannot be stored is not applied either.
+        if let Err(e) = storable(&candidate) {
+            return storage_err(out, e);
+        }
+        if let Err(e) = robot.set_geometry(sol.geometry) {
+            return robot_err(out, e);
+        }
+        self.settings = candidate;
+        self.dropped = None;
+        write!(
+            out,
+            "ok applied {name}: E_d={} E_b={} E_s={} (not saved; save to keep)\r\n",
+            Decimal::fixed(sol.e_d, 9),
+            Decimal::fixed(sol.e_b, 9),
+            Decimal::fixed(sol.e_s, 9)
+        )
+    }
+}
+
+/// The `calibrate` reply for `runs` (the header, one row per method or only `method`, the first
+/// result's per-run residuals, the advice and the final line): what the board prints, and what a
+/// host prints when it recalibrates the runs it kept (the console's offline `recalibrate`).
+/// The caller has checked `method` against the calibrator's names.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_calibration<C: Calibrator>(
+    calibrator: &mut C,
+    runs: &[RunRecord],
+    nominal: &Geometry,
+    method: Option<&str>,
+    out: &mut dyn Write,
+) -> fmt::Result {
+    let p = progress_of(runs);
+    if let Some(refused) = refuse_calibration(&p, out) {
+        return refused;
+    }
+    report::write_solution_header(out)?;
+    let mut solved = 0usize;
+    // The first result with per-run residuals (the exact fit) is listed after the table.
+    let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
+    let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
+    for name in methods {
+        if method.is_some_and(|m| !keyword_eq(m, name)) {
+            continue;
+        }
+        let result = calibrator.solve(runs, nominal, name);
+        if let Ok(s) = &result {
+            solved += 1;
+            if residuals.is_none() && !s.residuals.is_empty() {
+                residuals = Some((name, s.residuals.clone()));
+            }
+        }
+        report::write_solution_row(out, name, &result)?;
+    }
+    if let Some((name, r)) = &residuals {
+        report::write_residuals(out, name, r)?;
+    }
+    if solved == 0 {
+        // Advice from a failed fit would be meaningless.
+        return write_err(
+            out,
+            ErrorCode::CalibrationFailed,
+            &"no method succeeded (check the measurements: runs)",
+        );
+    }
+    calibrator.advice(runs, nominal, method, out)?;
+    write!(
+        out,
+        "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one\r\n",
+        p.cw_measured + p.ccw_measured,
+        p.cw_measured,
+        p.ccw_measured,
+    )
+}
+
+/// The `err 13` reply when `calibrate`/`apply` cannot run yet (no measured square in a
+/// direction), if so.
+fn refuse_calibration(p: &Progress, out: &mut dyn Write) -> Option<fmt::Result> {
+    if p.cw_measured == 0 || p.ccw_measured == 0 {
+        return Some(write!(
+            out,
+            "err {}: need measured square runs in both directions \
+             (measured: cw {}, ccw {})\r\n",
+            ErrorCode::NotEnoughRuns.code(),
+            p.cw_measured,
+            p.ccw_measured,
+        ));
+    }
+    None
+}

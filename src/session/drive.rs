@@ -1,0 +1,61 @@
+//! Driving by hand and the odometry it moves: `drive <v> <w>` (a velocity command, limited to
+//! the motion limits), `pose` (the odometry pose) and `odom reset` (the pose back to the
+//! origin).
+//!
+//! Owns the reply that says when `drive` asked for more than the limits allow (the controller
+//! clamps to the same limits).
+
+use core::fmt::{self, Write};
+
+use super::traits::{Calibrator, Robot};
+use super::{Session, report, robot_err};
+use crate::protocol::reply::EOL;
+use crate::util::decimal::Decimal;
+use crate::util::num::clamp;
+
+impl<C: Calibrator> Session<C> {
+    /// `drive <v> <w>`: forward speed `v_mps` and turn rate `w_radps`.
+    pub(super) fn drive(
+        &mut self,
+        v_mps: f32,
+        w_radps: f32,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        match robot.drive(v_mps, w_radps) {
+            Ok(()) => {
+                // The controller clamps to the same limits; say so rather than silently.
+                let l = &self.settings.motion;
+                let v = clamp(v_mps, -l.max_speed_mps, l.max_speed_mps);
+                let w = clamp(w_radps, -l.max_turn_rate_radps, l.max_turn_rate_radps);
+                if v == v_mps && w == w_radps {
+                    write!(out, "ok\r\n")
+                } else {
+                    write!(
+                        out,
+                        "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate)\r\n",
+                        Decimal::signed(f64::from(v), 3),
+                        Decimal::signed(f64::from(w), 3)
+                    )
+                }
+            }
+            Err(e) => robot_err(out, e),
+        }
+    }
+
+    /// `pose`: `ok x=… y=… theta_deg=…`.
+    pub(super) fn pose(&self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        let p = robot.pose();
+        write!(out, "ok ")?;
+        report::write_pose(out, &p)?;
+        out.write_str(EOL)
+    }
+
+    /// `odom reset`: the odometry pose back to the origin.
+    pub(super) fn odom_reset(&self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        match robot.reset_odometry() {
+            Ok(()) => write!(out, "ok odometry reset\r\n"),
+            Err(e) => robot_err(out, e),
+        }
+    }
+}

@@ -1,0 +1,165 @@
+//! The `event …` lines the session writes without being asked: the board's boot line, a
+//! fault, the runs restored at boot, and each run that finished or was aborted.
+//!
+//! Owns [`write_boot_event`], [`write_fault_event`] and [`write_runs_restored`] (the board
+//! writes the first two before a session exists; re-exported as `session::write_…`) and the
+//! collection of finished runs from the robot into the run store, which every entry point of
+//! the session does first, so that its reply follows the events it refers to.
+
+use core::fmt::{self, Write};
+
+use super::Session;
+use super::report;
+use super::traits::{Activity, Calibrator, Robot};
+use crate::kinematics::reference::PoseF64;
+use crate::motion::controller::Fault;
+use crate::motion::run::PathKind;
+use crate::protocol::reply::EOL;
+use crate::storage::{LoadWarning, RunsLoaded};
+use crate::util::decimal::Decimal;
+
+/// The first line the board sends after a reset: `event boot: parameters loaded`, or
+/// `event boot: default parameters (<why>)` when the stored record was not used, followed by
+/// `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`, `pin`,
+/// `software`, `power-on`, …).
+///
+/// # Errors
+/// Only those of `out`.
+pub fn write_boot_event(
+    out: &mut dyn Write,
+    warning: Option<&LoadWarning>,
+    reset_cause: Option<&str>,
+) -> fmt::Result {
+    match warning {
+        None => write!(out, "event boot: parameters loaded")?,
+        Some(w) => write!(out, "event boot: default parameters ({w})")?,
+    }
+    if let Some(cause) = reset_cause {
+        write!(out, ", reset: {cause}")?;
+    }
+    out.write_str(EOL)
+}
+
+/// `event fault: <text>`: a fault found at boot that the board works around (e.g. a missing
+/// crystal), or a fault the controller latched, in full.
+///
+/// # Errors
+/// Only those of `out`.
+pub fn write_fault_event(out: &mut dyn Write, text: impl fmt::Display) -> fmt::Result {
+    write!(out, "event fault: {text}\r\n")
+}
+
+/// The line that tells the operator which runs survived a reset:
+/// `event runs restored: <n> runs, <m> measured`, followed by `; <k> skipped: <first problem>`
+/// when stored runs could not be restored. Nothing when no runs are stored (a new board, or
+/// after `drop all`).
+///
+/// # Errors
+/// Only those of `out`.
+pub fn write_runs_restored(out: &mut dyn Write, loaded: &RunsLoaded) -> fmt::Result {
+    if !loaded.found || (loaded.restored == 0 && loaded.problem.is_none()) {
+        return Ok(());
+    }
+    write!(
+        out,
+        "event runs restored: {} runs, {} measured",
+        loaded.restored, loaded.measured
+    )?;
+    match (&loaded.problem, loaded.skipped) {
+        (Some(p), 0) => write!(out, "; {p}")?,
+        (Some(p), k) => write!(out, "; {k} skipped: {p}")?,
+        (None, _) => {}
+    }
+    out.write_str(EOL)
+}
+
+/// `event run <n> finished: <path> odometry end x=… y=… theta_deg=…; measure it`.
+fn write_run_finished(
+    out: &mut dyn Write,
+    n: usize,
+    path: &PathKind,
+    end: &PoseF64,
+) -> fmt::Result {
+    write!(out, "event run {n} finished: ")?;
+    report::write_path(out, path)?;
+    write!(
+        out,
+        " odometry end x={} y={} theta_deg={}; measure it\r\n",
+        Decimal::signed(end.x_m, 6),
+        Decimal::signed(end.y_m, 6),
+        Decimal::signed(
+            crate::util::trig::fmod(end.theta_rad.to_degrees(), 360.0),
+            4
+        ),
+    )
+}
+
+/// `event run <n> aborted, not stored: <path>[ (fault: <name>)]`.
+fn write_run_aborted(
+    out: &mut dyn Write,
+    n: usize,
+    path: &PathKind,
+    fault: Option<&str>,
+) -> fmt::Result {
+    write!(out, "event run {n} aborted, not stored: ")?;
+    report::write_path(out, path)?;
+    if let Some(fault) = fault {
+        write!(out, " (fault: {fault})")?;
+    }
+    out.write_str(EOL)
+}
+
+impl<C: Calibrator> Session<C> {
+    /// Collects a finished run from the robot into the store and announces it; announces a run
+    /// that ended without finishing (stop, Ctrl-C, Esc, the button, a fault) as aborted.
+    pub(super) fn collect_finished(
+        &mut self,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        // Status first: a run that finishes between the two calls is then taken below, never
+        // mistaken for an aborted one.
+        let status = robot.status();
+        while let Some(run) = robot.take_finished_run() {
+            self.active = None;
+            self.last_aborted = None;
+            let end = run.odometry_end;
+            let path = run.path;
+            // Starting a run is refused while the store is full, so this only fails if runs
+            // were started behind the session's back; the oldest unmeasured data is then lost.
+            if self.runs.is_full() {
+                write!(out, "event run discarded: run store full\r\n")?;
+                continue;
+            }
+            let _ = self.runs.push(run);
+            let _ = self.run_ids.push(None);
+            self.runs_changed();
+            write_run_finished(out, self.runs.len(), &path, &end)?;
+        }
+        if let Some(a) = self.active
+            && !matches!(status.activity, Activity::Running(_))
+        {
+            self.active = None;
+            self.last_aborted = Some(a);
+            write_run_aborted(out, a.number, &a.path, status.fault)?;
+        }
+        self.announce_fault(status.fault_detail, out)
+    }
+
+    /// Announces a newly latched fault in full, once: `event fault: <what>` (which wheel, its
+    /// following error and peak duty, …), which the short name in `status` does not say. An
+    /// identification's failure has its own `event identify err …` line.
+    fn announce_fault(&mut self, fault: Option<Fault>, out: &mut dyn Write) -> fmt::Result {
+        match fault {
+            None => self.fault_announced = false,
+            Some(_) if self.fault_announced => {}
+            Some(f) => {
+                self.fault_announced = true;
+                if !matches!(f, Fault::Identify(_)) {
+                    write_fault_event(out, f)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}

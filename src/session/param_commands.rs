@@ -1,0 +1,152 @@
+//! The parameter commands: `set <name> <value>` (validated, handed to the controller at once,
+//! not saved), `save` (the settings into the flash record) and `reset-params` (the defaults,
+//! stored and handed to the controller).
+//!
+//! Owns the rule that a calibration is relative to the nominal geometry it was computed for:
+//! `set` of a geometry parameter drops it, and setting the old value back restores it.
+
+use core::fmt::{self, Write};
+
+use super::settings::Changed;
+use super::traits::{Activity, Calibrator, ParamStorage, Robot, RobotError};
+use super::{Dropped, Session, Settings, report, robot_err, storable, storage_err};
+use crate::protocol::ParamName;
+use crate::protocol::reply::{EOL, ErrorCode, write_err};
+
+/// Hands every part of `settings` the controller runs with to `robot`: the active geometry, the
+/// motion limits, the wiring, the speed-loop tuning and the control rate (the same parts as
+/// [`Settings::controller_config`], which boots the controller).
+///
+/// # Errors
+/// The first part the robot refuses (all are accepted while it is idle).
+fn push_settings(robot: &mut dyn Robot, settings: &Settings) -> Result<(), RobotError> {
+    robot.set_geometry(settings.active)?;
+    robot.set_limits(&settings.motion)?;
+    robot.set_wiring(settings.wiring)?;
+    robot.set_tuning(&settings.tuning)?;
+    robot.set_rate(settings.control_hz)
+}
+
+impl<C: Calibrator> Session<C> {
+    /// `set <name> <value>`: refused while anything moves; says whether a calibration was
+    /// dropped or restored with it.
+    pub(super) fn set(
+        &mut self,
+        name: ParamName,
+        value: f64,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
+        let (mut new, changed) = match self.settings.with_value(name, value) {
+            Ok(x) => x,
+            Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
+        };
+        if changed == Changed::Nothing {
+            write!(out, "ok {} = ", name.as_str())?;
+            report::write_param_value(out, &self.settings, name)?;
+            return write!(out, " (unchanged)\r\n");
+        }
+        // A calibration is relative to the nominal geometry it was computed for: it is dropped
+        // when that changes, and restored when the geometry is set back.
+        let mut restored = None;
+        if changed == Changed::Geometry
+            && let Some(d) = &self.dropped
+            && d.nominal == new.nominal
+        {
+            new.active = d.active;
+            new.calibration = Some(d.calibration.clone());
+            restored = Some(d.calibration.method.clone());
+        }
+        let pushed = match changed {
+            Changed::Geometry => robot.set_geometry(new.active),
+            Changed::Motion => robot.set_limits(&new.motion),
+            Changed::Plan | Changed::Nothing => Ok(()),
+            Changed::Wiring => robot.set_wiring(new.wiring),
+            Changed::Tuning => robot.set_tuning(&new.tuning),
+            Changed::Rate => robot.set_rate(new.control_hz),
+        };
+        if let Err(e) = pushed {
+            return robot_err(out, e);
+        }
+        let dropped = match (&self.settings.calibration, changed) {
+            (Some(c), Changed::Geometry) => {
+                self.dropped = Some(Dropped {
+                    nominal: self.settings.nominal,
+                    active: self.settings.active,
+                    calibration: c.clone(),
+                });
+                Some(c.method.clone())
+            }
+            _ => None,
+        };
+        if restored.is_some() && dropped.is_none() {
+            self.dropped = None;
+        }
+        self.settings = new;
+        write!(out, "ok {} = ", name.as_str())?;
+        report::write_param_value(out, &self.settings, name)?;
+        if let Some(m) = restored {
+            write!(out, " (calibration {m} restored)")?;
+        } else if let Some(m) = dropped {
+            write!(
+                out,
+                " (calibration {m} dropped: it is relative to the old geometry; set the old \
+                 value back to restore it; the stored one stays until save)"
+            )?;
+        }
+        out.write_str(EOL)
+    }
+
+    /// `save`: stores the settings, refused when they do not make a valid record.
+    pub(super) fn save(
+        &mut self,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if let Err(e) = storable(&self.settings) {
+            return storage_err(out, e);
+        }
+        match storage.save(&self.settings, robot.motors_stopped()) {
+            Ok(()) => {
+                // A save that had to wipe damaged flash took the runs with it.
+                if !self.runs.is_empty() {
+                    self.store_runs_again();
+                }
+                write!(out, "ok saved\r\n")
+            }
+            Err(e) => storage_err(out, e),
+        }
+    }
+
+    /// `reset-params`: stores the default settings and hands them to the controller, refused
+    /// while anything moves.
+    pub(super) fn reset_params(
+        &mut self,
+        robot: &mut dyn Robot,
+        storage: &mut dyn ParamStorage,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let defaults = Settings::default();
+        if robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
+        if let Err(e) = storage.reset(robot.motors_stopped()) {
+            return storage_err(out, e);
+        }
+        // A reset that had to wipe damaged flash took the runs with it.
+        if !self.runs.is_empty() {
+            self.store_runs_again();
+        }
+        // Idle was checked above, so the controller accepts every part.
+        if let Err(e) = push_settings(robot, &defaults) {
+            return robot_err(out, e);
+        }
+        self.settings = defaults;
+        self.dropped = None;
+        write!(out, "ok parameters reset to defaults and stored\r\n")
+    }
+}

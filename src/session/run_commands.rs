@@ -1,0 +1,248 @@
+//! The commands on runs: starting one (`run`, `next`, `line`, `circle`), stopping it (`stop`),
+//! measuring its true end pose (`measure`), reading its record (`record`) and dropping runs
+//! from the store (`drop <n>`, `drop all`).
+//!
+//! Owns which run the session announced as started and the rules of `measure` (which run a
+//! plain `measure` fills, when it is refused); the plausibility check and the measurement's
+//! text are [`super::measure`]'s.
+
+use core::fmt::{self, Write};
+
+use heapless::Vec;
+
+use super::traits::{Activity, Calibrator, Robot, RobotError};
+use super::{ActiveRun, Session, measure, report, robot_err};
+use crate::motion::run::{Measurement, PathKind};
+use crate::protocol::record;
+use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::util::decimal::Decimal;
+
+/// Removes and returns element `i` of `v`, keeping the order of the others (as `Vec::remove`),
+/// or `None` when there is no element `i`. The element walks to the end by swaps of disjoint
+/// neighbours, so no overlapping copy (`memmove`, 1.5 KiB of flash) is needed.
+fn remove_at<T, const N: usize>(v: &mut Vec<T, N>, i: usize) -> Option<T> {
+    for k in i + 1..v.len() {
+        let (front, back) = v.split_at_mut(k);
+        if let (Some(a), Some(b)) = (front.last_mut(), back.first_mut()) {
+            core::mem::swap(a, b);
+        }
+    }
+    if i < v.len() { v.pop() } else { None }
+}
+
+/// `err 14: no run <index> (<n> stored)`.
+fn no_such_run(out: &mut dyn Write, index: usize, stored: usize) -> fmt::Result {
+    write!(
+        out,
+        "err {}: no run {index} ({stored} stored)\r\n",
+        ErrorCode::NoSuchRun.code()
+    )
+}
+
+impl<C: Calibrator> Session<C> {
+    /// Starts a run along `path`, refused while the run store is full.
+    pub(super) fn start(
+        &mut self,
+        path: PathKind,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if self.runs.is_full() {
+            let msg = "run store full (drop <n> first)";
+            return write_err(out, ErrorCode::StoreFull, &msg);
+        }
+        match robot.start(path) {
+            Ok(()) => {
+                let number = self.runs.len() + 1;
+                self.active = Some(ActiveRun { number, path });
+                write!(out, "ok run {number} started: ")?;
+                report::write_path(out, &path)?;
+                out.write_str(EOL)
+            }
+            Err(e) => robot_err(out, e),
+        }
+    }
+
+    /// `next`: starts the next planned square, or says the plan is complete.
+    pub(super) fn start_next(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        match self.next_planned() {
+            Some(direction) => {
+                let path = PathKind::Square {
+                    direction,
+                    side_m: self.settings.square_side_f64(),
+                };
+                self.start(path, robot, out)
+            }
+            None => write_err(
+                out,
+                ErrorCode::PlanComplete,
+                &"all planned runs done (calibrate, or run cw|ccw for more)",
+            ),
+        }
+    }
+
+    /// `stop`: stops any motion and says whether that aborted the run in progress.
+    pub(super) fn stop(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        let before = self.active;
+        robot.abort();
+        self.collect_finished(robot, out)?;
+        match before {
+            Some(a) if self.last_aborted == Some(a) => {
+                write!(out, "ok stopped: run {} aborted, not stored\r\n", a.number)
+            }
+            _ => write!(out, "ok stopped\r\n"),
+        }
+    }
+
+    /// `record <n> [first knot]`: one page of run `index`'s record.
+    pub(super) fn record(
+        &self,
+        index: usize,
+        first_knot: usize,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let Some(run) = index.checked_sub(1).and_then(|i| self.runs.get(i)) else {
+            return no_such_run(out, index, self.runs.len());
+        };
+        if first_knot > 0 && first_knot >= run.knots.len() {
+            return write!(
+                out,
+                "err {}: run {index} has {} knots\r\n",
+                ErrorCode::OutOfRange.code(),
+                run.knots.len()
+            );
+        }
+        record::write_record_page(out, index, run, first_knot)
+    }
+
+    /// `drop <n>`: removes run `index` from the store; later runs move up one number.
+    pub(super) fn drop_run(&mut self, index: usize, out: &mut dyn Write) -> fmt::Result {
+        let removed = index
+            .checked_sub(1)
+            .and_then(|i| remove_at(&mut self.runs, i));
+        let Some(run) = removed else {
+            return no_such_run(out, index, self.runs.len());
+        };
+        let _ = remove_at(&mut self.run_ids, index - 1);
+        self.runs_changed();
+        write!(out, "ok dropped run {index}: ")?;
+        report::write_path(out, &run.path)?;
+        write!(out, "; {} runs left\r\n", self.runs.len())
+    }
+
+    /// `drop all`: empties the run store, refused while anything moves.
+    pub(super) fn drop_all(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+        if self.active.is_some() || robot.status().activity != Activity::Idle {
+            return robot_err(out, RobotError::Busy);
+        }
+        let n = self.runs.len();
+        self.runs.clear();
+        self.run_ids.clear();
+        self.runs_changed();
+        write!(out, "ok dropped all {n} runs\r\n")
+    }
+
+    /// `measure [#n] x y [θ]`: without `#n` it fills the last finished run if that is
+    /// unmeasured (never an earlier one, never after an aborted run); `#n` fills or replaces run
+    /// `n` and says what it replaced. Refused while anything moves, and when implausible.
+    pub(super) fn measure(
+        &mut self,
+        index: Option<usize>,
+        x_m: f64,
+        y_m: f64,
+        theta_deg: Option<f64>,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if robot.status().activity != Activity::Idle {
+            return write_err(
+                out,
+                ErrorCode::Busy,
+                &"a run is driving: measure after its `event run … finished` line",
+            );
+        }
+        let stored = self.runs.len();
+        let n = match index {
+            Some(n) if n > stored => return no_such_run(out, n, stored),
+            Some(n) => n,
+            None => {
+                if let Some(a) = self.last_aborted {
+                    return write!(
+                        out,
+                        "err {}: run {} was aborted and not stored: nothing to measure (drive \
+                         it again; measure #<n> x y fills an earlier run)\r\n",
+                        ErrorCode::NoRun.code(),
+                        a.number
+                    );
+                }
+                match self.runs.last() {
+                    None => {
+                        return write_err(
+                            out,
+                            ErrorCode::NoRun,
+                            &"no finished run to measure (run cw|ccw or next first)",
+                        );
+                    }
+                    Some(r) if r.measured.is_some() => {
+                        return write!(
+                            out,
+                            "err {}: run {stored} is already measured (measure #{stored} x y \
+                             [theta] replaces it)\r\n",
+                            ErrorCode::NoRun.code()
+                        );
+                    }
+                    Some(_) => stored,
+                }
+            }
+        };
+        let Some(run) = self.runs.get_mut(n - 1) else {
+            return write_err(out, ErrorCode::NoSuchRun, &"no such run");
+        };
+        if let Err(why) = measure::check(run, x_m, y_m, theta_deg) {
+            write!(out, "err {}: run {n} ", ErrorCode::Implausible.code())?;
+            report::write_path(out, &run.path)?;
+            return write!(out, ": {why}\r\n");
+        }
+        let replaced = run.measured.replace(Measurement {
+            x_m,
+            y_m,
+            theta_rad: theta_deg.map(f64::to_radians),
+        });
+        let odo = run.odometry_end;
+        let path = run.path;
+        self.runs_changed();
+        write!(out, "ok run {n} ")?;
+        report::write_path(out, &path)?;
+        out.write_str(" measured")?;
+        if let Some(old) = replaced {
+            out.write_str(" (replaced ")?;
+            measure::write_measurement(out, &old)?;
+            out.write_str(")")?;
+        }
+        write!(
+            out,
+            ": error vs odometry dx={} dy={} m\r\n",
+            Decimal::signed(x_m - odo.x_m, 6),
+            Decimal::signed(y_m - odo.y_m, 6),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::remove_at;
+    use heapless::Vec;
+
+    #[test]
+    fn remove_at_keeps_the_order_of_the_others() {
+        let mut v: Vec<u32, 5> = Vec::from_slice(&[10, 11, 12, 13, 14]).unwrap();
+        assert_eq!(remove_at(&mut v, 1), Some(11));
+        assert_eq!(v.as_slice(), &[10, 12, 13, 14]);
+        assert_eq!(remove_at(&mut v, 3), Some(14));
+        assert_eq!(v.as_slice(), &[10, 12, 13]);
+        assert_eq!(remove_at(&mut v, 0), Some(10));
+        assert_eq!(v.as_slice(), &[12, 13]);
+        assert_eq!(remove_at(&mut v, 2), None);
+        assert_eq!(v.as_slice(), &[12, 13]);
+    }
+}
