@@ -25,6 +25,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::RunRecord;
+use odocal::protocol::ParamName;
 use odocal::protocol::record::RecordReader;
 use serde_json::{Value, json};
 
@@ -155,10 +156,10 @@ pub fn calibration_of(lines: &[String]) -> String {
 /// The nominal geometry of a `params` reply's data lines.
 pub fn nominal_of(lines: &[String]) -> Option<Geometry> {
     Some(Geometry {
-        diameter_right_m: param(lines, "d_right")?,
-        diameter_left_m: param(lines, "d_left")?,
-        wheelbase_m: param(lines, "wheelbase")?,
-        counts_per_rev: param(lines, "counts_per_rev")? as u32,
+        diameter_right_m: param(lines, ParamName::DiameterRight.as_str())?,
+        diameter_left_m: param(lines, ParamName::DiameterLeft.as_str())?,
+        wheelbase_m: param(lines, ParamName::Wheelbase.as_str())?,
+        counts_per_rev: param(lines, ParamName::CountsPerRev.as_str())? as u32,
     })
 }
 

@@ -25,5 +25,5 @@ pub mod rx;
 
 pub use command::{Command, ParseError};
 pub use line::{Echo, LINE_MAX, LineAssembler, LineError, LineEvent, StopKey};
-pub use param::ParamName;
+pub use param::{PARAMS, ParamGroup, ParamName, ParamSpec, ValueKind};
 pub use reply::{EOL, ErrorCode, ReplyLine};

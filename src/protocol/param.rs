@@ -1,4 +1,6 @@
-//! Operator-settable parameters: names, units and accepted ranges of `set <name> <value>`.
+//! Operator-settable parameters: one table row per parameter ([`PARAMS`]) with its wire name,
+//! unit, accepted range, how its value is written and which part of the settings it belongs to;
+//! `set`, `params`, the parser's checks and the console tool read them from there.
 //!
 //! Geometry values are the *nominal* geometry (metres, counts per wheel revolution); motion limits
 //! are magnitudes (always positive). The ranges here are the protocol's hard bounds: a value
@@ -7,9 +9,10 @@
 use crate::motion::speed::{MotorParams, SpeedTuning};
 use crate::util::text::keyword_eq;
 
-/// An `f32` range (the speed loop's) as the parser's `f64` bounds.
-fn f32_range((lo, hi): (f32, f32)) -> (f64, f64) {
-    (f64::from(lo), f64::from(hi))
+/// An `f32` range (the speed loop's) as the parser's `f64` bounds (exact: every `f32` is an
+/// `f64`).
+const fn f32_range((lo, hi): (f32, f32)) -> (f64, f64) {
+    (lo as f64, hi as f64)
 }
 
 /// A parameter an operator may `set`.
@@ -96,34 +99,15 @@ impl ParamName {
         ParamName::ControlHz,
     ];
 
+    /// This parameter's row of [`PARAMS`].
+    pub fn spec(self) -> &'static ParamSpec {
+        // `PARAMS` lists the parameters in declaration order (checked by a test).
+        &PARAMS[self as usize]
+    }
+
     /// The name used on the wire.
     pub fn as_str(self) -> &'static str {
-        match self {
-            ParamName::DiameterRight => "d_right",
-            ParamName::DiameterLeft => "d_left",
-            ParamName::Wheelbase => "wheelbase",
-            ParamName::CountsPerRev => "counts_per_rev",
-            ParamName::MaxSpeed => "max_speed",
-            ParamName::MaxAccel => "max_accel",
-            ParamName::MaxTurnRate => "max_turn_rate",
-            ParamName::MaxTurnAccel => "max_turn_accel",
-            ParamName::SquareSide => "square_side",
-            ParamName::RunsPerDirection => "runs_per_direction",
-            ParamName::MotorRightSign => "motor_right_sign",
-            ParamName::MotorLeftSign => "motor_left_sign",
-            ParamName::EncoderRightSign => "encoder_right_sign",
-            ParamName::EncoderLeftSign => "encoder_left_sign",
-            ParamName::MotorRightGainFwd => "motor_right_gain_fwd",
-            ParamName::MotorRightGainBack => "motor_right_gain_back",
-            ParamName::MotorRightTau => "motor_right_tau",
-            ParamName::MotorRightDeadband => "motor_right_deadband",
-            ParamName::MotorLeftGainFwd => "motor_left_gain_fwd",
-            ParamName::MotorLeftGainBack => "motor_left_gain_back",
-            ParamName::MotorLeftTau => "motor_left_tau",
-            ParamName::MotorLeftDeadband => "motor_left_deadband",
-            ParamName::SpeedBandwidth => "speed_bandwidth",
-            ParamName::ControlHz => "control_hz",
-        }
+        self.spec().wire
     }
 
     /// Looks a wire name up (ASCII case-insensitive).
@@ -136,30 +120,7 @@ impl ParamName {
 
     /// Unit shown after the value.
     pub fn unit(self) -> &'static str {
-        match self {
-            ParamName::DiameterRight
-            | ParamName::DiameterLeft
-            | ParamName::Wheelbase
-            | ParamName::SquareSide => "m",
-            ParamName::CountsPerRev => "counts/rev",
-            ParamName::MaxSpeed => "m/s",
-            ParamName::MaxAccel => "m/s^2",
-            ParamName::MaxTurnRate => "rad/s",
-            ParamName::MaxTurnAccel => "rad/s^2",
-            ParamName::RunsPerDirection => "runs",
-            ParamName::MotorRightSign
-            | ParamName::MotorLeftSign
-            | ParamName::EncoderRightSign
-            | ParamName::EncoderLeftSign => "(1 standard, -1 reversed)",
-            ParamName::MotorRightGainFwd
-            | ParamName::MotorRightGainBack
-            | ParamName::MotorLeftGainFwd
-            | ParamName::MotorLeftGainBack => "m/s per duty",
-            ParamName::MotorRightTau | ParamName::MotorLeftTau => "s",
-            ParamName::MotorRightDeadband | ParamName::MotorLeftDeadband => "duty",
-            ParamName::SpeedBandwidth => "rad/s",
-            ParamName::ControlHz => "Hz",
-        }
+        self.spec().unit
     }
 
     /// Inclusive accepted range `(min, max)`.
@@ -167,65 +128,320 @@ impl ParamName {
     /// Geometry ranges are those of [`crate::kinematics::geometry::Geometry::validate`]; the run count is
     /// bounded by the run store ([`crate::motion::run::MAX_RUNS`] holds both directions).
     pub fn range(self) -> (f64, f64) {
-        match self {
-            ParamName::DiameterRight | ParamName::DiameterLeft => (0.001, 2.0),
-            ParamName::Wheelbase => (0.01, 5.0),
-            ParamName::CountsPerRev => (1.0, 100_000_000.0),
-            ParamName::MaxSpeed => (0.01, 2.0),
-            ParamName::MaxAccel => (0.01, 5.0),
-            ParamName::MaxTurnRate => (0.05, 10.0),
-            ParamName::MaxTurnAccel => (0.05, 20.0),
-            ParamName::SquareSide => (0.1, 10.0),
-            ParamName::RunsPerDirection => (1.0, (crate::motion::run::MAX_RUNS / 2) as f64),
-            ParamName::MotorRightSign
-            | ParamName::MotorLeftSign
-            | ParamName::EncoderRightSign
-            | ParamName::EncoderLeftSign => (-1.0, 1.0),
-            ParamName::MotorRightGainFwd
-            | ParamName::MotorRightGainBack
-            | ParamName::MotorLeftGainFwd
-            | ParamName::MotorLeftGainBack => f32_range(MotorParams::GAIN_RANGE),
-            ParamName::MotorRightTau | ParamName::MotorLeftTau => f32_range(MotorParams::TAU_RANGE),
-            ParamName::MotorRightDeadband | ParamName::MotorLeftDeadband => {
-                f32_range(MotorParams::DEADBAND_RANGE)
-            }
-            ParamName::SpeedBandwidth => f32_range(SpeedTuning::BANDWIDTH_RANGE),
-            ParamName::ControlHz => (1_000.0, 10_000.0),
-        }
+        self.spec().range
     }
 
     /// Whether this is part of the speed-loop tuning (a motor model or the bandwidth).
     pub fn is_tuning(self) -> bool {
-        matches!(
-            self,
-            ParamName::MotorRightGainFwd
-                | ParamName::MotorRightGainBack
-                | ParamName::MotorRightTau
-                | ParamName::MotorRightDeadband
-                | ParamName::MotorLeftGainFwd
-                | ParamName::MotorLeftGainBack
-                | ParamName::MotorLeftTau
-                | ParamName::MotorLeftDeadband
-                | ParamName::SpeedBandwidth
-        )
+        self.spec().group == ParamGroup::Tuning
     }
 
     /// Whether the value must be a whole number.
     pub fn is_integer(self) -> bool {
-        matches!(
-            self,
-            ParamName::CountsPerRev | ParamName::RunsPerDirection | ParamName::ControlHz
-        ) || self.is_sign()
+        !matches!(self.spec().value, ValueKind::Real { .. })
     }
 
     /// Whether this is a wiring sign (±1; 0 is refused).
     pub fn is_sign(self) -> bool {
-        matches!(
-            self,
-            ParamName::MotorRightSign
-                | ParamName::MotorLeftSign
-                | ParamName::EncoderRightSign
-                | ParamName::EncoderLeftSign
-        )
+        self.spec().value == ValueKind::Sign
+    }
+
+    /// Decimal places `params` and `set` print the value with.
+    pub fn places(self) -> u8 {
+        match self.spec().value {
+            ValueKind::Real { places } => places,
+            ValueKind::Whole | ValueKind::Sign => 0,
+        }
+    }
+}
+
+/// How a parameter's value is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValueKind {
+    /// A real number, printed with `places` decimals.
+    Real {
+        /// Decimal places.
+        places: u8,
+    },
+    /// A whole number.
+    Whole,
+    /// A wiring sign: 1 standard, −1 reversed.
+    Sign,
+}
+
+/// The part of the settings (and of the running controller) a parameter belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParamGroup {
+    /// The nominal geometry (a change drops the calibration computed against it).
+    Geometry,
+    /// The motion limits.
+    Motion,
+    /// The calibration plan.
+    Plan,
+    /// The motor and encoder wiring.
+    Wiring,
+    /// The speed-loop tuning.
+    Tuning,
+    /// The control rate.
+    Rate,
+}
+
+/// One parameter: everything the protocol knows of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    /// The parameter.
+    pub name: ParamName,
+    /// Its name on the wire.
+    pub wire: &'static str,
+    /// The unit shown after its value.
+    pub unit: &'static str,
+    /// Inclusive accepted range `(min, max)`.
+    pub range: (f64, f64),
+    /// How its value is written.
+    pub value: ValueKind,
+    /// The part of the settings it belongs to.
+    pub group: ParamGroup,
+}
+
+/// A table row.
+const fn row(
+    name: ParamName,
+    wire: &'static str,
+    unit: &'static str,
+    range: (f64, f64),
+    value: ValueKind,
+    group: ParamGroup,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        wire,
+        unit,
+        range,
+        value,
+        group,
+    }
+}
+
+const METRES_9: ValueKind = ValueKind::Real { places: 9 };
+const LIMIT_3: ValueKind = ValueKind::Real { places: 3 };
+const TUNING_4: ValueKind = ValueKind::Real { places: 4 };
+const SIGN_UNIT: &str = "(1 standard, -1 reversed)";
+const GAIN: (f64, f64) = f32_range(MotorParams::GAIN_RANGE);
+const TAU: (f64, f64) = f32_range(MotorParams::TAU_RANGE);
+const DEADBAND: (f64, f64) = f32_range(MotorParams::DEADBAND_RANGE);
+
+/// Every parameter, in [`ParamName`]'s order (the order `params` lists them).
+pub const PARAMS: [ParamSpec; 24] = {
+    use ParamGroup as G;
+    use ParamName as P;
+    use ValueKind::{Sign, Whole};
+    [
+        row(
+            P::DiameterRight,
+            "d_right",
+            "m",
+            (0.001, 2.0),
+            METRES_9,
+            G::Geometry,
+        ),
+        row(
+            P::DiameterLeft,
+            "d_left",
+            "m",
+            (0.001, 2.0),
+            METRES_9,
+            G::Geometry,
+        ),
+        row(
+            P::Wheelbase,
+            "wheelbase",
+            "m",
+            (0.01, 5.0),
+            METRES_9,
+            G::Geometry,
+        ),
+        row(
+            P::CountsPerRev,
+            "counts_per_rev",
+            "counts/rev",
+            (1.0, 100_000_000.0),
+            Whole,
+            G::Geometry,
+        ),
+        row(
+            P::MaxSpeed,
+            "max_speed",
+            "m/s",
+            (0.01, 2.0),
+            LIMIT_3,
+            G::Motion,
+        ),
+        row(
+            P::MaxAccel,
+            "max_accel",
+            "m/s^2",
+            (0.01, 5.0),
+            LIMIT_3,
+            G::Motion,
+        ),
+        row(
+            P::MaxTurnRate,
+            "max_turn_rate",
+            "rad/s",
+            (0.05, 10.0),
+            LIMIT_3,
+            G::Motion,
+        ),
+        row(
+            P::MaxTurnAccel,
+            "max_turn_accel",
+            "rad/s^2",
+            (0.05, 20.0),
+            LIMIT_3,
+            G::Motion,
+        ),
+        row(
+            P::SquareSide,
+            "square_side",
+            "m",
+            (0.1, 10.0),
+            LIMIT_3,
+            G::Plan,
+        ),
+        row(
+            P::RunsPerDirection,
+            "runs_per_direction",
+            "runs",
+            (1.0, (crate::motion::run::MAX_RUNS / 2) as f64),
+            Whole,
+            G::Plan,
+        ),
+        row(
+            P::MotorRightSign,
+            "motor_right_sign",
+            SIGN_UNIT,
+            (-1.0, 1.0),
+            Sign,
+            G::Wiring,
+        ),
+        row(
+            P::MotorLeftSign,
+            "motor_left_sign",
+            SIGN_UNIT,
+            (-1.0, 1.0),
+            Sign,
+            G::Wiring,
+        ),
+        row(
+            P::EncoderRightSign,
+            "encoder_right_sign",
+            SIGN_UNIT,
+            (-1.0, 1.0),
+            Sign,
+            G::Wiring,
+        ),
+        row(
+            P::EncoderLeftSign,
+            "encoder_left_sign",
+            SIGN_UNIT,
+            (-1.0, 1.0),
+            Sign,
+            G::Wiring,
+        ),
+        row(
+            P::MotorRightGainFwd,
+            "motor_right_gain_fwd",
+            "m/s per duty",
+            GAIN,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorRightGainBack,
+            "motor_right_gain_back",
+            "m/s per duty",
+            GAIN,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorRightTau,
+            "motor_right_tau",
+            "s",
+            TAU,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorRightDeadband,
+            "motor_right_deadband",
+            "duty",
+            DEADBAND,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorLeftGainFwd,
+            "motor_left_gain_fwd",
+            "m/s per duty",
+            GAIN,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorLeftGainBack,
+            "motor_left_gain_back",
+            "m/s per duty",
+            GAIN,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorLeftTau,
+            "motor_left_tau",
+            "s",
+            TAU,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::MotorLeftDeadband,
+            "motor_left_deadband",
+            "duty",
+            DEADBAND,
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::SpeedBandwidth,
+            "speed_bandwidth",
+            "rad/s",
+            f32_range(SpeedTuning::BANDWIDTH_RANGE),
+            TUNING_4,
+            G::Tuning,
+        ),
+        row(
+            P::ControlHz,
+            "control_hz",
+            "Hz",
+            (1_000.0, 10_000.0),
+            Whole,
+            G::Rate,
+        ),
+    ]
+};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table_lists_every_parameter_in_declaration_order() {
+        for (i, name) in ParamName::ALL.iter().enumerate() {
+            assert_eq!(*name as usize, i);
+            assert_eq!(PARAMS[i].name, *name);
+            let (lo, hi) = PARAMS[i].range;
+            assert!(lo < hi, "{}", PARAMS[i].wire);
+        }
     }
 }

@@ -180,14 +180,12 @@ pub(super) fn write_status<C: Calibrator>(
 }
 
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
-    let v = s.value(name);
-    let places = match name {
-        _ if name.is_integer() => 0,
-        ParamName::DiameterRight | ParamName::DiameterLeft | ParamName::Wheelbase => 9,
-        _ if name.is_tuning() => 4,
-        _ => 3,
-    };
-    write!(out, "{} {}", Decimal::fixed(v, places), name.unit())
+    write!(
+        out,
+        "{} {}",
+        Decimal::fixed(s.value(name), name.places()),
+        name.unit()
+    )
 }
 
 pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {

@@ -13,7 +13,7 @@ use crate::motion::controller::{ControllerConfig, DEFAULT_RATE_HZ, rate_supporte
 use crate::motion::profile::MotionLimits;
 use crate::motion::speed::{SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
-use crate::protocol::ParamName;
+use crate::protocol::{ParamGroup, ParamName};
 use crate::util::num::round_u32;
 
 /// Longest stored method name, bytes.
@@ -237,46 +237,36 @@ impl Settings {
         value: f64,
     ) -> Result<(Settings, Changed), SettingsError> {
         let mut s = self.clone();
-        let changed = match name {
+        match name {
             ParamName::DiameterRight => {
                 s.nominal.diameter_right_m = value;
-                Changed::Geometry
             }
             ParamName::DiameterLeft => {
                 s.nominal.diameter_left_m = value;
-                Changed::Geometry
             }
             ParamName::Wheelbase => {
                 s.nominal.wheelbase_m = value;
-                Changed::Geometry
             }
             ParamName::CountsPerRev => {
                 s.nominal.counts_per_rev = round_u32(value);
-                Changed::Geometry
             }
             ParamName::MaxSpeed => {
                 s.motion.max_speed_mps = value as f32;
-                Changed::Motion
             }
             ParamName::MaxAccel => {
                 s.motion.max_accel_mps2 = value as f32;
-                Changed::Motion
             }
             ParamName::MaxTurnRate => {
                 s.motion.max_turn_rate_radps = value as f32;
-                Changed::Motion
             }
             ParamName::MaxTurnAccel => {
                 s.motion.max_turn_accel_radps2 = value as f32;
-                Changed::Motion
             }
             ParamName::SquareSide => {
                 s.square_side_m = value as f32;
-                Changed::Plan
             }
             ParamName::RunsPerDirection => {
                 s.runs_per_direction = u8::try_from(round_u32(value)).unwrap_or(u8::MAX);
-                Changed::Plan
             }
             ParamName::MotorRightSign
             | ParamName::MotorLeftSign
@@ -294,7 +284,6 @@ impl Settings {
                     ParamName::EncoderRightSign => &mut w.encoder_right_reversed,
                     _ => &mut w.encoder_left_reversed,
                 } = reversed;
-                Changed::Wiring
             }
             ParamName::ControlHz => {
                 let hz = round_u32(value);
@@ -302,15 +291,21 @@ impl Settings {
                     return Err(SettingsError::Rate);
                 }
                 s.control_hz = hz;
-                Changed::Rate
             }
             _ => {
                 let Some(field) = tuning_field_mut(&mut s.tuning, name) else {
                     return Ok((s, Changed::Nothing));
                 };
                 *field = value as f32;
-                Changed::Tuning
             }
+        }
+        let changed = match name.spec().group {
+            ParamGroup::Geometry => Changed::Geometry,
+            ParamGroup::Motion => Changed::Motion,
+            ParamGroup::Plan => Changed::Plan,
+            ParamGroup::Wiring => Changed::Wiring,
+            ParamGroup::Tuning => Changed::Tuning,
+            ParamGroup::Rate => Changed::Rate,
         };
         // Only `name` differs so far: compare it alone, as [`Settings::value`] reads it (exact
         // for every field type), instead of the whole settings (0.4 KiB of field comparisons).

@@ -15,6 +15,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{PathKind, RunRecord};
+use odocal::protocol::ParamName;
 use serde_json::json;
 
 use crate::link::{Link, LinkError, Reply};
@@ -417,7 +418,7 @@ impl Guide {
         ));
         let calibration = calibration_of(&params.data);
         self.ui.say(&format!("calibration: {calibration}"));
-        if let Some(v) = param(&params.data, "square_side") {
+        if let Some(v) = param(&params.data, ParamName::SquareSide.as_str()) {
             self.side_m = v;
         }
         if let Some(v) = param(&params.data, "runs_per_direction") {
