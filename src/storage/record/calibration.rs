@@ -1,0 +1,128 @@
+//! The calibration result as the record stores it, and the short ASCII name of the method that
+//! produced it.
+
+use core::fmt;
+
+use super::RecordError;
+use crate::kinematics::geometry::Geometry;
+
+/// Longest calibration method name, bytes of ASCII.
+pub const METHOD_NAME_MAX: usize = 12;
+
+/// Name of the method that produced a calibration (`exact`, `lee-x`, `umbmark-x`, `none`, …).
+///
+/// Short printable ASCII (1 ..= [`METHOD_NAME_MAX`] bytes, no spaces) so the storage format does
+/// not depend on the calibration module's types. Unused bytes are always zero.
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MethodName {
+    pub(super) len: u8,
+    pub(super) bytes: [u8; METHOD_NAME_MAX],
+}
+
+impl MethodName {
+    /// The method name of an uncalibrated robot.
+    pub const NONE: MethodName = MethodName {
+        len: 4,
+        bytes: *b"none\0\0\0\0\0\0\0\0",
+    };
+
+    /// A method name from text.
+    ///
+    /// # Errors
+    /// [`RecordError::MethodName`] if `name` is empty, longer than [`METHOD_NAME_MAX`] bytes, or
+    /// contains anything but printable ASCII without spaces.
+    pub fn new(name: &str) -> Result<Self, RecordError> {
+        Self::from_bytes(name.as_bytes())
+    }
+
+    pub(super) fn from_bytes(name: &[u8]) -> Result<Self, RecordError> {
+        let printable = name.iter().all(|c| c.is_ascii_graphic());
+        if name.is_empty() || name.len() > METHOD_NAME_MAX || !printable {
+            return Err(RecordError::MethodName);
+        }
+        let mut bytes = [0u8; METHOD_NAME_MAX];
+        bytes[..name.len()].copy_from_slice(name);
+        Ok(MethodName {
+            len: name.len() as u8,
+            bytes,
+        })
+    }
+
+    /// The name as text.
+    pub fn as_str(&self) -> &str {
+        let len = usize::from(self.len).min(METHOD_NAME_MAX);
+        core::str::from_utf8(&self.bytes[..len]).unwrap_or("?")
+    }
+}
+
+impl fmt::Debug for MethodName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:?}", self.as_str())
+    }
+}
+
+impl fmt::Display for MethodName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+#[cfg(target_os = "none")]
+impl defmt::Format for MethodName {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "{=str}", self.as_str())
+    }
+}
+
+/// A calibration result as stored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Calibration {
+    /// Diameter ratio factor `E_d = D_R / D_L` (dimensionless).
+    pub e_d: f64,
+    /// Wheelbase factor `E_b = b_actual / b_nominal` (dimensionless).
+    pub e_b: f64,
+    /// Mean-diameter (distance) scale `E_s` (dimensionless).
+    pub e_s: f64,
+    /// The resulting absolute geometry that odometry and the routine use.
+    pub geometry: Geometry,
+    /// Which method produced it.
+    pub method: MethodName,
+    /// Number of square runs used (CW + CCW); 0 for no calibration.
+    pub runs: u16,
+    /// Predicted worst return-position error `E_max` after the correction, metres.
+    pub predicted_e_max_m: f64,
+}
+
+impl Calibration {
+    /// "No calibration" for a robot with the given nominal geometry: all factors 1.
+    pub const fn none(nominal: Geometry) -> Self {
+        Calibration {
+            e_d: 1.0,
+            e_b: 1.0,
+            e_s: 1.0,
+            geometry: nominal,
+            method: MethodName::NONE,
+            runs: 0,
+            predicted_e_max_m: 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_are_short_printable_ascii() {
+        assert_eq!(MethodName::new("lee-x").unwrap().as_str(), "lee-x");
+        assert_eq!(MethodName::new("exactly12chr").unwrap().as_str().len(), 12);
+        assert_eq!(MethodName::new(""), Err(RecordError::MethodName));
+        assert_eq!(
+            MethodName::new("thirteen-char"),
+            Err(RecordError::MethodName)
+        );
+        assert_eq!(MethodName::new("a b"), Err(RecordError::MethodName));
+        assert_eq!(MethodName::new("é"), Err(RecordError::MethodName));
+        assert_eq!(MethodName::new("none"), Ok(MethodName::NONE));
+    }
+}
