@@ -1,0 +1,180 @@
+//! Evaluation of a parameter set against ground truth: each run's ticks re-integrated with it
+//! (exact arcs, from the first ground-truth pose), `error = truth − odometry` at every row, and
+//! the means over runs per session and overall, with a square session's `E_max,syst`.
+
+use std::fmt::Write as _;
+
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::{ArcModel, PoseF64};
+use odocal::motion::run::Direction;
+
+use super::methods::ParamSet;
+use crate::sim::optiodom::{OptiRun, Session};
+
+/// Errors of one evaluated run against ground truth.
+#[derive(Clone, Debug)]
+pub struct RunEval {
+    /// Final position error, metres.
+    pub final_pos_err_m: f64,
+    /// |final heading error|, radians (wrapped).
+    pub final_heading_err_rad: f64,
+    /// RMS position error along the path, metres.
+    pub path_rms_m: f64,
+    /// Maximum position error along the path, metres.
+    pub path_max_m: f64,
+    /// The odometry path (x, y).
+    pub odometry: Vec<(f64, f64)>,
+    /// Position error against distance travelled (ground truth), metres.
+    pub growth: Vec<(f64, f64)>,
+}
+
+/// `E_max,syst` of a session's runs with `g`: the larger distance of the CW and CCW centres of
+/// gravity of the final position errors; `None` without a run in each direction.
+pub fn e_max_syst(session: &Session, g: &Geometry) -> Option<f64> {
+    let model = ArcModel::from_geometry(g);
+    let cg = |d: Direction| {
+        let errs: Vec<(f64, f64)> = session
+            .runs
+            .iter()
+            .filter(|r| r.direction == Some(d))
+            .map(|r| {
+                let o = model.integrate(PoseF64::default(), &r.knots);
+                (r.truth_end.x_m - o.x_m, r.truth_end.y_m - o.y_m)
+            })
+            .collect();
+        let n = errs.len() as f64;
+        (n > 0.0).then(|| {
+            let x = errs.iter().map(|e| e.0).sum::<f64>() / n;
+            let y = errs.iter().map(|e| e.1).sum::<f64>() / n;
+            x.hypot(y)
+        })
+    };
+    Some(cg(Direction::Cw)?.max(cg(Direction::Ccw)?))
+}
+
+/// Re-integrates `run` with `g` and compares it with ground truth at every knot.
+pub fn evaluate_run(run: &OptiRun, g: &Geometry) -> RunEval {
+    let model = ArcModel::from_geometry(g);
+    let mut pose = PoseF64::default();
+    let mut odometry = vec![(0.0, 0.0)];
+    let mut growth = vec![(0.0, 0.0)];
+    let (mut ss, mut max, mut dist) = (0.0, 0.0f64, 0.0);
+    for j in 1..run.knots.len() {
+        pose = model.integrate(pose, &run.knots[j - 1..=j]);
+        let t = run.truth[j];
+        dist += t.distance_to(&run.truth[j - 1]);
+        let e = t.distance_to(&pose);
+        ss += e * e;
+        max = max.max(e);
+        odometry.push((pose.x_m, pose.y_m));
+        growth.push((dist, e));
+    }
+    let n = (run.knots.len() - 1).max(1) as f64;
+    let end = run.truth_end;
+    RunEval {
+        final_pos_err_m: end.distance_to(&pose),
+        final_heading_err_rad: odocal::calibration::wrap_angle(end.theta_rad - pose.theta_rad)
+            .abs(),
+        path_rms_m: (ss / n).sqrt(),
+        path_max_m: max,
+        odometry,
+        growth,
+    }
+}
+
+/// Means of the four errors over some runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Means {
+    /// Runs.
+    pub n: usize,
+    /// Mean final position error, metres.
+    pub final_pos_err_m: f64,
+    /// Mean |final heading error|, radians.
+    pub final_heading_err_rad: f64,
+    /// Mean path RMS error, metres.
+    pub path_rms_m: f64,
+    /// Mean path maximum error, metres.
+    pub path_max_m: f64,
+    /// UMBmark's `E_max,syst` of square or circle runs: the larger distance of the CW and CCW
+    /// centres of gravity of the final position errors, metres (`None` for other kinds).
+    pub e_max_syst_m: Option<f64>,
+}
+
+impl Means {
+    fn push(&mut self, e: &RunEval) {
+        self.n += 1;
+        self.final_pos_err_m += e.final_pos_err_m;
+        self.final_heading_err_rad += e.final_heading_err_rad;
+        self.path_rms_m += e.path_rms_m;
+        self.path_max_m += e.path_max_m;
+    }
+
+    fn finish(mut self) -> Self {
+        let n = self.n.max(1) as f64;
+        self.final_pos_err_m /= n;
+        self.final_heading_err_rad /= n;
+        self.path_rms_m /= n;
+        self.path_max_m /= n;
+        self
+    }
+
+    pub(super) fn json(&self) -> String {
+        let mut s = format!(
+            "\"runs\":{},\"final_pos_err_m\":{:e},\"final_heading_err_rad\":{:e},\"path_rms_m\":{:e},\"path_max_m\":{:e}",
+            self.n,
+            self.final_pos_err_m,
+            self.final_heading_err_rad,
+            self.path_rms_m,
+            self.path_max_m
+        );
+        if let Some(e) = self.e_max_syst_m {
+            let _ = write!(s, ",\"E_max_syst_m\":{e:e}");
+        }
+        s
+    }
+}
+
+/// The evaluation of one parameter set on some sessions.
+#[derive(Clone, Debug)]
+pub struct SetEval {
+    /// Per evaluated run: session index, run index (0-based), errors.
+    pub runs: Vec<(usize, usize, RunEval)>,
+    /// Means per session (same order as the sessions).
+    pub sessions: Vec<Means>,
+    /// Means over all evaluated runs.
+    pub overall: Means,
+}
+
+/// The geometry `set` uses on `session`.
+pub fn geometry_on(set: &ParamSet, session: &Session) -> Geometry {
+    set.geometry.unwrap_or(session.nominal)
+}
+
+/// Evaluates `set` on every run of `sessions`.
+pub fn evaluate_set(set: &ParamSet, sessions: &[Session]) -> SetEval {
+    let mut runs = Vec::new();
+    let mut per = vec![Means::default(); sessions.len()];
+    let mut overall = Means::default();
+    for (si, s) in sessions.iter().enumerate() {
+        let g = geometry_on(set, s);
+        for (ri, r) in s.runs.iter().enumerate() {
+            let e = evaluate_run(r, &g);
+            per[si].push(&e);
+            overall.push(&e);
+            runs.push((si, ri, e));
+        }
+    }
+    let sessions_means = per
+        .into_iter()
+        .zip(sessions)
+        .map(|(m, s)| Means {
+            e_max_syst_m: e_max_syst(s, &geometry_on(set, s)),
+            ..m.finish()
+        })
+        .collect();
+    SetEval {
+        runs,
+        sessions: sessions_means,
+        overall: overall.finish(),
+    }
+}

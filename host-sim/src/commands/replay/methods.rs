@@ -1,0 +1,185 @@
+//! The parameter sets `replay` evaluates and how each is calibrated: the library's methods by
+//! name, `exact-ls` and `exact-path` (the exact fit by plain least squares, and to the ground
+//! truth along every run's whole path), `nominal`, and an absolute `--geometry`; the fit options
+//! the command line sets.
+
+use odocal::calibration::{Calibration, ExactOptions, Method, ScaleFit, calibrate_with};
+use odocal::kinematics::geometry::Geometry;
+
+use crate::sim::optiodom::{Kind, Session};
+
+/// A parameter set name beyond the library's methods.
+pub const EXACT_LS: &str = "exact-ls";
+/// The exact fit along the ground-truth path.
+pub const EXACT_PATH: &str = "exact-path";
+/// The uncalibrated row.
+pub const NOMINAL: &str = "nominal";
+/// The `--geometry` row.
+pub const GEOMETRY: &str = "geometry";
+
+/// Every calibrated parameter set, in display order.
+pub fn calibrated_methods() -> Vec<&'static str> {
+    let mut v: Vec<&'static str> = Method::ALL.iter().map(|m| m.as_str()).collect();
+    v.extend([EXACT_LS, EXACT_PATH]);
+    v
+}
+
+/// The name of the method a user gets by default.
+pub fn default_method() -> &'static str {
+    Method::Exact.as_str()
+}
+
+/// One parameter set to evaluate.
+#[derive(Clone, Debug)]
+pub struct ParamSet {
+    /// `nominal`, `geometry` or a method name.
+    pub method: String,
+    /// Ids of the sessions it was calibrated on.
+    pub calib_sessions: Vec<String>,
+    /// The absolute geometry; `None` = each evaluated session's own nominal.
+    pub geometry: Option<Geometry>,
+    /// The calibration result, for calibrated sets.
+    pub calibration: Option<Calibration>,
+}
+
+/// Options of the exact fits.
+#[derive(Clone, Copy, Debug)]
+pub struct FitOptions {
+    /// Use ground-truth headings.
+    pub heading: bool,
+    /// Always fit E_s.
+    pub fit_scale: bool,
+    /// Heading residual length scale.
+    pub heading_length_m: Option<f64>,
+    /// Calibrate against the ground truth as recorded (not turned by its heading offset).
+    pub recorded_truth: bool,
+    /// Calibrate from each run's first knot, not from its anchor.
+    pub from_start: bool,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            heading: true,
+            fit_scale: false,
+            heading_length_m: None,
+            recorded_truth: false,
+            from_start: false,
+        }
+    }
+}
+
+/// Calibrates `method` on `sessions` (relative to the first one's nominal geometry).
+///
+/// # Errors
+/// The library's reason, or an unknown method name.
+pub fn calibrate_method(
+    sessions: &[Session],
+    method: &str,
+    fit: &FitOptions,
+) -> Result<Calibration, String> {
+    let first = sessions.first().ok_or("no calibration session")?;
+    // A free path is fitted along its whole path by every exact fit: its end pose alone (a few
+    // numbers from a path of metres that need not close) does not determine the factors.
+    let along_path = |kind: Kind| method == EXACT_PATH || kind == Kind::Free;
+    let lib_method = match method {
+        EXACT_LS | EXACT_PATH => Method::Exact,
+        m => Method::parse(m).ok_or_else(|| format!("unknown method {m:?}"))?,
+    };
+    let obs: Vec<_> = sessions
+        .iter()
+        .flat_map(|s| {
+            s.runs.iter().map(move |r| {
+                let mut o = r.observation(
+                    s.kind,
+                    s.side_m,
+                    &s.nominal,
+                    along_path(s.kind),
+                    fit.recorded_truth,
+                    fit.from_start,
+                );
+                if !fit.heading {
+                    o.measured.theta_rad = None;
+                }
+                o
+            })
+        })
+        .collect();
+    let options = ExactOptions {
+        scale: if fit.fit_scale {
+            ScaleFit::Always
+        } else {
+            ScaleFit::Auto
+        },
+        use_heading: fit.heading,
+        heading_length_m: fit.heading_length_m,
+        robust: method != EXACT_LS,
+        ..ExactOptions::default()
+    };
+    calibrate_with(&obs, &first.nominal, lib_method, &options).map_err(|e| e.to_string())
+}
+
+/// Parses `D_R,D_L,b` (metres) into a geometry with `counts_per_rev` of `like`.
+///
+/// # Errors
+/// A message when the text is not three positive numbers or the geometry is invalid.
+pub fn parse_geometry(text: &str, like: &Geometry) -> Result<Geometry, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--geometry {text:?}: expected D_R,D_L,b in metres"))?;
+    let [dr, dl, b] = v[..] else {
+        return Err(format!(
+            "--geometry {text:?}: expected three numbers D_R,D_L,b in metres"
+        ));
+    };
+    let g = Geometry {
+        diameter_right_m: dr,
+        diameter_left_m: dl,
+        wheelbase_m: b,
+        counts_per_rev: like.counts_per_rev,
+    };
+    g.validate()
+        .map_err(|e| format!("--geometry {text:?}: {e}"))?;
+    Ok(g)
+}
+
+/// The calibrated parameter sets `names` on `calib` (errors on stderr, the set skipped).
+pub fn calibrated_sets(calib: &[Session], names: &[&str], fit: &FitOptions) -> Vec<ParamSet> {
+    let ids: Vec<String> = calib.iter().map(|s| s.id.clone()).collect();
+    let mut sets = Vec::new();
+    for name in names {
+        match calibrate_method(calib, name, fit) {
+            Ok(c) => sets.push(ParamSet {
+                method: (*name).to_string(),
+                calib_sessions: ids.clone(),
+                geometry: Some(c.geometry),
+                calibration: Some(c),
+            }),
+            Err(e) => eprintln!("{name}: not calibrated on {}: {e}", ids.join(", ")),
+        }
+    }
+    sets
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometry_text_is_checked() {
+        let like = Geometry::PAPER_NOMINAL;
+        let g = parse_geometry("0.084, 0.0841,0.2", &like).unwrap();
+        assert_eq!(g.diameter_left_m, 0.0841);
+        assert_eq!(g.counts_per_rev, like.counts_per_rev);
+        for bad in [
+            "0.084,0.084",
+            "a,b,c",
+            "0.084,-0.084,0.2",
+            "0.084,0.084,0.2,1",
+        ] {
+            assert!(parse_geometry(bad, &like).is_err(), "{bad}");
+        }
+    }
+}

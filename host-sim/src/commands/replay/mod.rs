@@ -1,0 +1,279 @@
+//! `host-sim replay`: calibrate on OptiOdom sessions of any kind and evaluate any parameter set
+//! against ground truth on any sessions.
+//!
+//! ```text
+//! cargo sim replay --calibrate <session dir>... --evaluate <session dir>...
+//!     [--method M] [--geometry D_R,D_L,b] [--format text|json] [--out DIR]
+//! cargo sim replay <calibration session> [<evaluation session>...]      # the older form
+//! ```
+//!
+//! **Parameter sets** (`method`): `nominal` (each evaluated session's own `Di`, `Li`), `geometry`
+//! (`--geometry`, absolute metres), and every method calibrated on the `--calibrate` sessions:
+//! the closed forms (`umbmark-x`, `umbmark-y`, `lee-x`, `lee-y`, `jung-chung`; they read the
+//! square runs only, all of one side and one driving geometry), `exact` — the library's default,
+//! the robust exact fit of the end poses of every run (squares give `E_b`, `E_d`; Ivanjko's lines
+//! add `E_s`), free paths fitted along their whole path (an end pose of a path that need not
+//! close says little) —, `exact-ls` (the same fit by plain least squares) and `exact-path` (the robust
+//! exact fit to the ground truth along every run's whole path, as a user with a motion-capture log
+//! can do). Without `--method` every one is evaluated; with it, that one and `nominal`.
+//!
+//! **Calibration** uses each session's nominal geometry as the belief the runs were driven with;
+//! the result is absolute, so sessions with different nominal values can be mixed. It reads the
+//! ground truth turned by the session's measured motion-capture heading offset into the robot's
+//! own start frame ([`crate::sim::optiodom::heading_offset`]; `--raw-truth`: as recorded),
+//! and every run that rolls at least 1 m from its anchor, 0.1 m of wheel travel after its start,
+//! so that a slipping start does not read as a wheelbase error
+//! ([`crate::sim::optiodom::anchor`]; `--from-start`: from the recorded start). `E_b`, `E_d`,
+//! `E_s` are reported relative to the first calibration session's nominal geometry (or the first
+//! evaluated one's when nothing is calibrated), for every row, `nominal` included.
+//!
+//! **Evaluation** re-integrates each evaluated run's ticks with the parameter set (exact arcs,
+//! from the first ground-truth pose) and compares with ground truth at every row, `error = truth
+//! − odometry`: final position error, |final heading error| (wrapped), RMS and maximum position
+//! error along the path; per session and overall the means over runs.
+//!
+//! `--format json` prints one object per line per (parameter set, evaluated run) with the keys
+//! `method, default, calib_sessions, session, kind, run, final_pos_err_m, final_heading_err_rad,
+//! path_rms_m, path_max_m, E_b, E_d, E_s, D_R_m, D_L_m, b_m`, then one summary object per
+//! parameter set with `"session": "all"`, `"kind": "all"`, `"run": "all"`, the means over the
+//! evaluated runs and, under `sessions`, the means per session. The `method` a user gets by
+//! default (`exact`) carries `"default": true`. The same lines go to `<out>/replay.jsonl`; next to
+//! it, each evaluated free-path run gets a plot of its paths (ground truth, nominal odometry,
+//! calibrated odometry) and of the position error along it.
+//!
+//! The command is split by concept: [`methods`] names the parameter sets and calibrates them,
+//! [`evaluation`] replays runs against the ground truth, and [`format`] writes the text table and
+//! the JSON lines.
+
+pub mod evaluation;
+pub mod format;
+pub mod methods;
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+
+use crate::commands::paper::Format;
+use crate::sim::optiodom::{Kind, Session, read_session};
+use crate::sim::plot::{Figure, Series, Style, write_svg};
+
+pub use self::evaluation::{
+    Means, RunEval, SetEval, e_max_syst, evaluate_run, evaluate_set, geometry_on,
+};
+pub use self::format::json_lines;
+use self::format::print_text;
+pub use self::methods::{
+    EXACT_LS, EXACT_PATH, FitOptions, GEOMETRY, NOMINAL, ParamSet, calibrate_method,
+    calibrated_methods, calibrated_sets, default_method, parse_geometry,
+};
+
+/// Arguments of `host-sim replay`.
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// Older form: the calibration session, then the evaluation sessions (default: itself).
+    pub sessions: Vec<PathBuf>,
+    /// Session folders to calibrate on (any kind; e.g. ../shared/data/optiodom/diff/square/231220200029).
+    #[arg(long, num_args = 1..)]
+    pub calibrate: Vec<PathBuf>,
+    /// Session folders to evaluate on (default: the calibration sessions, in-sample).
+    #[arg(long, num_args = 1..)]
+    pub evaluate: Vec<PathBuf>,
+    /// Evaluate only this parameter set (and `nominal`): nominal, umbmark-x, umbmark-y, lee-x,
+    /// lee-y, jung-chung, exact, exact-ls, exact-path.
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Also evaluate this absolute geometry: right and left wheel diameter and wheelbase, metres.
+    #[arg(long, value_name = "D_R,D_L,b")]
+    pub geometry: Option<String>,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Text)]
+    pub format: Format,
+    /// Folder for replay.jsonl and the free-path plots.
+    #[arg(long, default_value = "target/odocal-sim/replay")]
+    pub out: PathBuf,
+    /// Do not use the ground-truth heading in the exact fits (Jung & Chung then fails).
+    #[arg(long)]
+    pub no_heading: bool,
+    /// Always fit the mean diameter E_s in the exact fits (squares constrain it weakly).
+    #[arg(long)]
+    pub fit_scale: bool,
+    /// Length scale of heading residuals in the exact fits, metres (default: each run's length).
+    #[arg(long)]
+    pub heading_length: Option<f64>,
+    /// Calibrate against the ground truth as recorded, without turning it by the session's
+    /// measured motion-capture heading offset.
+    #[arg(long)]
+    pub raw_truth: bool,
+    /// Calibrate from each run's recorded start, its start transient included (default: from
+    /// 0.1 m of wheel travel on, for runs whose wheels roll at least 1 m).
+    #[arg(long)]
+    pub from_start: bool,
+}
+
+fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
+    dirs.iter().map(|d| read_session(d)).collect()
+}
+
+fn plot_free_runs(
+    out: &Path,
+    sessions: &[Session],
+    nominal: &ParamSet,
+    calibrated: Option<&ParamSet>,
+) -> Result<Vec<PathBuf>, Box<dyn std::error::Error>> {
+    let mut written = Vec::new();
+    for s in sessions.iter().filter(|s| s.kind == Kind::Free) {
+        for (i, r) in s.runs.iter().enumerate() {
+            let truth: Vec<(f64, f64)> = r.truth.iter().map(|p| (p.x_m, p.y_m)).collect();
+            let nom = evaluate_run(r, &geometry_on(nominal, s));
+            let mut paths = vec![
+                Series::new("ground truth", truth, Style::Line, 0),
+                Series::new(
+                    "odometry, nominal",
+                    nom.odometry.clone(),
+                    Style::ThinLine,
+                    1,
+                ),
+            ];
+            let mut errors = vec![Series::new("nominal", nom.growth.clone(), Style::Line, 1)];
+            if let Some(c) = calibrated {
+                let e = evaluate_run(r, &geometry_on(c, s));
+                let label = format!("odometry, {} ({})", c.method, c.calib_sessions.join("+"));
+                paths.push(Series::new(label, e.odometry, Style::Line, 2));
+                errors.push(Series::new(c.method.clone(), e.growth, Style::Line, 2));
+            }
+            let stem = format!("{}-run-{:02}", s.id, i + 1);
+            let path_svg = out.join(format!("{stem}-path.svg"));
+            write_svg(
+                &path_svg,
+                &Figure {
+                    title: format!("{} run {}: ground truth and odometry", s.id, i + 1),
+                    x_label: "x [m]".into(),
+                    y_label: "y [m]".into(),
+                    equal_aspect: true,
+                    series: paths,
+                    ..Figure::default()
+                },
+            )?;
+            let err_svg = out.join(format!("{stem}-error.svg"));
+            write_svg(
+                &err_svg,
+                &Figure {
+                    title: format!("{} run {}: position error along the path", s.id, i + 1),
+                    x_label: "distance travelled (ground truth) [m]".into(),
+                    y_label: "position error [m]".into(),
+                    series: errors,
+                    ..Figure::default()
+                },
+            )?;
+            written.extend([path_svg, err_svg]);
+        }
+    }
+    Ok(written)
+}
+
+/// Runs the subcommand.
+pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let (calib_dirs, eval_dirs): (Vec<PathBuf>, Vec<PathBuf>) = if args.calibrate.is_empty() {
+        match args.sessions.split_first() {
+            Some((c, rest)) => (vec![c.clone()], rest.to_vec()),
+            None if !args.evaluate.is_empty() => (Vec::new(), Vec::new()),
+            None => return Err(
+                "give --calibrate <session dir>... and/or --evaluate <session dir>... (see --help)"
+                    .into(),
+            ),
+        }
+    } else {
+        if !args.sessions.is_empty() {
+            return Err(
+                "give sessions either with --calibrate/--evaluate or positionally, not both".into(),
+            );
+        }
+        (args.calibrate.clone(), Vec::new())
+    };
+    let eval_dirs = if args.evaluate.is_empty() {
+        eval_dirs
+    } else {
+        args.evaluate.clone()
+    };
+    let calib = read_all(&calib_dirs)?;
+    let evals = if eval_dirs.is_empty() {
+        eprintln!("no --evaluate sessions: evaluating on the calibration sessions (in-sample)");
+        calib.clone()
+    } else {
+        read_all(&eval_dirs)?
+    };
+    let reference = calib
+        .first()
+        .or(evals.first())
+        .map(|s| s.nominal)
+        .ok_or("no session")?;
+    let fit = FitOptions {
+        heading: !args.no_heading,
+        fit_scale: args.fit_scale,
+        heading_length_m: args.heading_length,
+        recorded_truth: args.raw_truth,
+        from_start: args.from_start,
+    };
+    let all = calibrated_methods();
+    let names: Vec<&str> = match args.method.as_deref() {
+        None => all.clone(),
+        Some(NOMINAL) => Vec::new(),
+        Some(m) => {
+            let name = all
+                .iter()
+                .copied()
+                .find(|n| n.eq_ignore_ascii_case(m))
+                .ok_or_else(|| {
+                    format!("unknown method {m:?}: one of nominal, {}", all.join(", "))
+                })?;
+            vec![name]
+        }
+    };
+    let mut sets = vec![ParamSet {
+        method: NOMINAL.into(),
+        calib_sessions: Vec::new(),
+        geometry: None,
+        calibration: None,
+    }];
+    if let Some(text) = &args.geometry {
+        sets.push(ParamSet {
+            method: GEOMETRY.into(),
+            calib_sessions: Vec::new(),
+            geometry: Some(parse_geometry(text, &reference)?),
+            calibration: None,
+        });
+    }
+    if !calib.is_empty() {
+        sets.extend(calibrated_sets(&calib, &names, &fit));
+    }
+    let evals_of: Vec<SetEval> = sets.iter().map(|s| evaluate_set(s, &evals)).collect();
+    let mut lines = Vec::new();
+    for (set, ev) in sets.iter().zip(&evals_of) {
+        lines.extend(json_lines(set, ev, &evals, &reference));
+    }
+    fs::create_dir_all(&args.out)?;
+    let jsonl = args.out.join("replay.jsonl");
+    fs::write(&jsonl, lines.join("\n") + "\n")?;
+    let plotted = sets
+        .iter()
+        .find(|s| s.method == default_method())
+        .or_else(|| {
+            sets.iter()
+                .find(|s| s.calibration.is_some() || s.method == GEOMETRY)
+        });
+    let svgs = plot_free_runs(&args.out, &evals, &sets[0], plotted)?;
+    match args.format {
+        Format::Json => {
+            for l in &lines {
+                println!("{l}");
+            }
+        }
+        Format::Text => print_text(&sets, &evals_of, &calib, &evals, &reference, &fit),
+    }
+    eprintln!("wrote {}", jsonl.display());
+    for s in svgs {
+        eprintln!("wrote {}", s.display());
+    }
+    Ok(())
+}
