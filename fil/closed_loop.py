@@ -102,17 +102,26 @@ class Truth:
                 raise ConsoleError(f"the plant did not run {periods} periods")
             time.sleep(0.002)
 
-    def settle(self, timeout=120.0):
+    def settle(self, max_periods=300_000, stall=120.0):
         """Waits until both wheels are at rest for good (speed below the smallest normal f64:
         the braked lag decays into subnormals, where no count or pose coordinate changes any
-        more); returns the state."""
-        deadline = time.time() + timeout
+        more); returns the state. Bounded in robot time, whatever the host's speed: the decay
+        takes ln(4 rad/s / 2.2e-308) · 25 ms ≈ 18 s of robot time, 178,000 periods at 10 kHz,
+        so wheels still turning after `max_periods` periods are a failure; `stall` wall
+        seconds without a single plant period bound a hang."""
+        first = self.read()
+        seen, seen_at = first["periods"], time.time()
         while True:
             t = self.read()
             if all(abs(w) < sys.float_info.min for w in t["omega"]):
                 return t
-            if time.time() > deadline:
-                raise ConsoleError(f"the wheels did not come to rest: {t}")
+            if t["periods"] - first["periods"] > max_periods:
+                raise ConsoleError(
+                    f"the wheels did not come to rest in {max_periods} control periods: {t}")
+            if t["periods"] != seen:
+                seen, seen_at = t["periods"], time.time()
+            elif time.time() - seen_at > stall:
+                raise ConsoleError(f"the plant ran no control period for {stall} s: {t}")
             time.sleep(0.1)
 
 
