@@ -3,31 +3,11 @@
 
 use clap::Parser;
 use host_sim::commands::drive::{DriveArgs, execute};
-use host_sim::commands::motors::{CASES, identify, squares};
-use odocal::motion::speed::{MotorParams, SpeedTuning};
+use host_sim::commands::motors::{CASES, identify, squares, worst_relative_error};
+use odocal::motion::speed::SpeedTuning;
 
 /// Bound on every identified parameter's relative error (see the test below).
 const IDENTIFY_TOLERANCE: f64 = 0.01;
-
-/// The largest relative error of `est` against `truth` over gain (both directions), time
-/// constant and dead-band; NaN if any of them is NaN (never dropped), so `< bound` fails.
-fn worst_relative_error(est: &MotorParams, truth: &MotorParams) -> f64 {
-    let rel = |e: f32, t: f32| (f64::from(e) - f64::from(t)).abs() / f64::from(t);
-    [
-        rel(est.gain_forward_mps, truth.gain_forward_mps),
-        rel(est.gain_backward_mps, truth.gain_backward_mps),
-        rel(est.time_constant_s, truth.time_constant_s),
-        rel(est.deadband, truth.deadband),
-    ]
-    .into_iter()
-    .fold(0.0, |worst, e| {
-        if worst.is_nan() || e.is_nan() {
-            f64::NAN
-        } else {
-            worst.max(e)
-        }
-    })
-}
 
 /// Gain ×0.5 and ×2, time constant ×0.5 and ×3, each with a dead-band (the cases' table in
 /// `commands/motors.rs`): every identified parameter within 1 % of the simulated one.

@@ -92,7 +92,7 @@ impl MotorCase {
 }
 
 /// Largest relative error of `est` against `truth` over gain (both directions), time constant
-/// and dead-band.
+/// and dead-band; NaN if any of them is NaN (never dropped, so a `< bound` check fails).
 pub fn worst_relative_error(est: &MotorParams, truth: &MotorParams) -> f64 {
     let rel = |e: f32, t: f32| (f64::from(e) - f64::from(t)).abs() / f64::from(t);
     [
@@ -102,7 +102,13 @@ pub fn worst_relative_error(est: &MotorParams, truth: &MotorParams) -> f64 {
         rel(est.deadband, truth.deadband),
     ]
     .into_iter()
-    .fold(0.0, f64::max)
+    .fold(0.0, |worst, e| {
+        if worst.is_nan() || e.is_nan() {
+            f64::NAN
+        } else {
+            worst.max(e)
+        }
+    })
 }
 
 /// Runs `identify lifted` on a fresh simulated board with these motors; the tuning it applied.
