@@ -57,7 +57,7 @@ use crate::storage::StoredRun;
 use crate::util::text::keyword_eq;
 pub use calibrate_commands::write_calibration;
 pub use events::{write_boot_event, write_fault_event, write_runs_restored};
-pub use settings::{AppliedCalibration, Changed, Settings, SettingsError, check_nominal};
+pub use settings::{AppliedCalibration, Settings, SettingsError, check_nominal};
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
     Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, RunResidual, Solution,

@@ -7,9 +7,9 @@
 
 use core::fmt::{self, Write};
 
-use super::settings::Changed;
 use super::traits::{Activity, Calibrator, ParamStorage, Robot, RobotError};
 use super::{Dropped, Session, Settings, report, robot_err, storable, storage_err};
+use crate::protocol::ParamGroup;
 use crate::protocol::ParamName;
 use crate::protocol::reply::{EOL, ErrorCode, write_err};
 
@@ -44,15 +44,15 @@ impl<C: Calibrator> Session<C> {
             Ok(x) => x,
             Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
         };
-        if changed == Changed::Nothing {
+        let Some(changed) = changed else {
             write!(out, "ok {} = ", name.as_str())?;
             report::write_param_value(out, &self.settings, name)?;
             return write!(out, " (unchanged)\r\n");
-        }
+        };
         // A calibration is relative to the nominal geometry it was computed for: it is dropped
         // when that changes, and restored when the geometry is set back.
         let mut restored = None;
-        if changed == Changed::Geometry
+        if changed == ParamGroup::Geometry
             && let Some(d) = &self.dropped
             && d.nominal == new.nominal
         {
@@ -61,18 +61,18 @@ impl<C: Calibrator> Session<C> {
             restored = Some(d.calibration.method.clone());
         }
         let pushed = match changed {
-            Changed::Geometry => robot.set_geometry(new.active),
-            Changed::Motion => robot.set_limits(&new.motion),
-            Changed::Plan | Changed::Nothing => Ok(()),
-            Changed::Wiring => robot.set_wiring(new.wiring),
-            Changed::Tuning => robot.set_tuning(&new.tuning),
-            Changed::Rate => robot.set_rate(new.control_hz),
+            ParamGroup::Geometry => robot.set_geometry(new.active),
+            ParamGroup::Motion => robot.set_limits(&new.motion),
+            ParamGroup::Plan => Ok(()),
+            ParamGroup::Wiring => robot.set_wiring(new.wiring),
+            ParamGroup::Tuning => robot.set_tuning(&new.tuning),
+            ParamGroup::Rate => robot.set_rate(new.control_hz),
         };
         if let Err(e) = pushed {
             return robot_err(out, e);
         }
         let dropped = match (&self.settings.calibration, changed) {
-            (Some(c), Changed::Geometry) => {
+            (Some(c), ParamGroup::Geometry) => {
                 self.dropped = Some(Dropped {
                     nominal: self.settings.nominal,
                     active: self.settings.active,

@@ -162,25 +162,6 @@ pub fn check_nominal(g: &Geometry) -> Result<(), SettingsError> {
     Ok(())
 }
 
-/// What a successful [`Settings::with_value`] changed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Changed {
-    /// Nothing: the value equals the current one.
-    Nothing,
-    /// The nominal geometry (the calibration was cleared: `active = nominal`).
-    Geometry,
-    /// A motion limit.
-    Motion,
-    /// The calibration plan.
-    Plan,
-    /// A motor or encoder sign.
-    Wiring,
-    /// The speed-loop tuning.
-    Tuning,
-    /// The control rate.
-    Rate,
-}
-
 impl Settings {
     /// The planned side as the `f64` nearest to its decimal value (to the micrometre), so a
     /// planned run and `run cw <same value>` record exactly the same side.
@@ -224,7 +205,8 @@ impl Settings {
 
     /// A copy with one parameter changed. `value` must already be within `name.range()` (the
     /// parser guarantees it); integer parameters are rounded. A value equal to the current one
-    /// (as stored: `f32` limits compare as `f32`) changes nothing ([`Changed::Nothing`]).
+    /// (as stored: `f32` limits compare as `f32`) changes nothing (`None`); otherwise the part of
+    /// the settings that changed is returned (`name`'s [`ParamGroup`]).
     /// Changing the nominal geometry drops the calibration, because its factors were relative to
     /// the old nominal.
     ///
@@ -235,7 +217,7 @@ impl Settings {
         &self,
         name: ParamName,
         value: f64,
-    ) -> Result<(Settings, Changed), SettingsError> {
+    ) -> Result<(Settings, Option<ParamGroup>), SettingsError> {
         let mut s = self.clone();
         match name {
             ParamName::DiameterRight => {
@@ -294,33 +276,26 @@ impl Settings {
             }
             _ => {
                 let Some(field) = tuning_field_mut(&mut s.tuning, name) else {
-                    return Ok((s, Changed::Nothing));
+                    return Ok((s, None));
                 };
                 *field = value as f32;
             }
         }
-        let changed = match name.spec().group {
-            ParamGroup::Geometry => Changed::Geometry,
-            ParamGroup::Motion => Changed::Motion,
-            ParamGroup::Plan => Changed::Plan,
-            ParamGroup::Wiring => Changed::Wiring,
-            ParamGroup::Tuning => Changed::Tuning,
-            ParamGroup::Rate => Changed::Rate,
-        };
+        let changed = name.spec().group;
         // Only `name` differs so far: compare it alone, as [`Settings::value`] reads it (exact
         // for every field type), instead of the whole settings (0.4 KiB of field comparisons).
         if s.value(name) == self.value(name) {
-            return Ok((s, Changed::Nothing));
+            return Ok((s, None));
         }
-        if changed == Changed::Tuning {
+        if changed == ParamGroup::Tuning {
             s.tuning.validate().map_err(SettingsError::Tuning)?;
         }
-        if changed == Changed::Geometry {
+        if changed == ParamGroup::Geometry {
             check_nominal(&s.nominal)?;
             s.active = s.nominal;
             s.calibration = None;
         }
-        Ok((s, changed))
+        Ok((s, Some(changed)))
     }
 }
 
