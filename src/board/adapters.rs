@@ -3,7 +3,6 @@
 //! controller as [`ControllerLock`], and the parameter store with the watchdog relaxed around
 //! flash writes as [`ParamStorage`].
 
-use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::{TxISR, TxListen};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
@@ -23,15 +22,11 @@ impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
     }
 }
 
-/// One read of the console's receiver. Each read checks SR and, on an overrun, framing, noise
-/// or parity error, reads DR, which clears the flag (an ORE with RXNE clear would otherwise
-/// re-enter the interrupt for ever); the error poisons the line being received.
+/// One read of the console's receiver (see [`crate::app::io::read_console`]). Each read
+/// checks SR and, on an overrun, framing, noise or parity error, reads DR, which clears the flag
+/// (an ORE with RXNE clear would otherwise re-enter the interrupt for ever).
 pub fn read_console(rx: &mut ConsoleRx) -> RxRead {
-    match rx.read() {
-        Ok(byte) => RxRead::Byte(byte),
-        Err(stm32f4xx_hal::nb::Error::WouldBlock) => RxRead::Empty,
-        Err(stm32f4xx_hal::nb::Error::Other(_)) => RxRead::Error,
-    }
+    crate::app::io::read_console(rx)
 }
 
 impl TxPort for ConsoleTx {
@@ -40,8 +35,8 @@ impl TxPort for ConsoleTx {
     }
 
     fn write(&mut self, byte: u8) {
-        // Only called when the register is empty: the write cannot block.
-        let _ = stm32f4xx_hal::prelude::_embedded_hal_serial_nb_Write::write(self, byte);
+        // Only called when the register is empty: the byte goes out.
+        crate::app::io::write_console(self, byte);
     }
 
     fn interrupt_when_ready(&mut self, on: bool) {

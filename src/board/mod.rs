@@ -13,15 +13,19 @@
 //! | `Board::tick.clear()` | acknowledges the control-period interrupt (TIM7, [`CONTROL_INTERRUPT`]) |
 //! | `Board::tick.set_rate_hz()`, `rate_hz()` | the control rate: at boot from the stored `control_hz`, and when `set control_hz` changed it |
 //! | [`CONTROL_FROM_MONOTONIC`] | whether the app pends the control interrupt from the monotonic (a board without the timer) |
-//! | `Board::button.edge()` | acknowledges a button edge and reads the level |
-//! | `Board::leds` | heartbeat and fault LEDs |
-//! | `Board::console_rx` / `console_tx`, `CONSOLE_INTERRUPT` | the serial console's USART |
+//! | `Board::button.edge()` | acknowledges a button edge and reads the level (an embedded-hal `InputPin`, [`crate::app::io::button_pressed`]) |
+//! | `Board::leds` | heartbeat and fault LEDs ([`crate::app::io::Leds`] over two embedded-hal `OutputPin`s) |
+//! | `Board::console_rx` / `console_tx`, `CONSOLE_INTERRUPT` | the serial console's USART: an `embedded-hal-nb` reader and an `embedded-io` writer ([`crate::app::io::read_console`], [`crate::app::io::write_console`]) plus the board's transmit-interrupt switch |
 //! | `Board::watchdog`, `watchdog::set_timeout` | fed every control period, relaxed around flash writes |
 //! | `Board::params` | the parameter store, loaded by the app before anything moves |
 //! | `Board::reset_cause` | why the MCU last reset, reported at boot |
 //! | `Board::clock` | whether the crystal started (else the internal oscillator), reported at boot |
 //! | `safety` | motor pins safe from reset, emergency stop, panic and HardFault handlers |
 //! | `WATCHDOG_MS`, `FLASH_WATCHDOG_MS` | timeouts |
+//!
+//! The motors are the portable H-bridge [`crate::motion::hbridge::HBridge`] over embedded-hal's
+//! `SetDutyCycle` and `OutputPin`. A board other than the F407 is a new folder here: its pin map,
+//! its clocks and its interrupt acknowledgements.
 //!
 //! [`f407`] is the STM32F407 board (pin map in its module docs). With the cargo feature
 //! `emulator`, `emulator` (QEMU's `netduinoplus2` with a simulated robot, for the

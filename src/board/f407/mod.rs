@@ -191,32 +191,12 @@ impl ButtonInput {
     /// Acknowledges the edge interrupt and reads the level (true = pressed).
     pub fn edge(&mut self) -> bool {
         self.0.clear_interrupt_pending_bit();
-        self.0.is_high()
+        crate::app::io::button_pressed(&mut self.0, true)
     }
 }
 
-/// Heartbeat (green) and fault (red) LEDs.
-pub struct Leds {
-    heartbeat: PD12<Output>,
-    fault: PD14<Output>,
-}
-
-impl Leds {
-    /// The two LED outputs.
-    pub(crate) fn new(heartbeat: PD12<Output>, fault: PD14<Output>) -> Self {
-        Leds { heartbeat, fault }
-    }
-
-    /// Toggles the heartbeat LED.
-    pub fn toggle_heartbeat(&mut self) {
-        self.heartbeat.toggle();
-    }
-
-    /// Lights the fault LED while `on`.
-    pub fn set_fault(&mut self, on: bool) {
-        self.fault.set_state(on.into());
-    }
-}
+/// Heartbeat (green PD12) and fault (red PD14) LEDs.
+pub type Leds = crate::app::io::Leds<PD12<Output>, PD14<Output>>;
 
 /// The console port's receive half (USART2 RX interrupt).
 pub type ConsoleRx = Rx<USART2>;
