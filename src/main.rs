@@ -13,24 +13,33 @@ fn main() {
 #[cfg(target_os = "none")]
 use defmt_rtt as _;
 
-/// A panic stops the motors (H-bridge disabled, TIM1 main output off), logs where, and resets
-/// the MCU: nothing keeps driving the wheels, and nothing waits for the watchdog.
+/// A panic stops the motors (H-bridge disabled, TIM1 main output off), keeps where it happened
+/// for the next boot's `reset:` line, logs it, and resets the MCU: nothing keeps driving the
+/// wheels, and nothing waits for the watchdog. A panic inside the handler goes straight to the
+/// reset.
 #[cfg(target_os = "none")]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     odocal::board::safety::odocal_emergency_stop();
-    if let Some(loc) = info.location() {
-        defmt::error!("panic at {}:{}", loc.file(), loc.line());
+    if odocal::board::safety::first_fault() {
+        let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
+        odocal::board::safety::record_crash(&odocal::app::crash::CrashRecord::panic(file, line));
+        defmt::error!("panic at {}:{}", file, line);
     }
     cortex_m::peripheral::SCB::sys_reset()
 }
 
-/// A HardFault does the same as a panic.
+/// A HardFault does the same as a panic, keeping the faulting address.
 #[cfg(target_os = "none")]
 #[cortex_m_rt::exception]
 unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
     odocal::board::safety::odocal_emergency_stop();
-    defmt::error!("hard fault at pc {=u32:#x}", frame.pc());
+    if odocal::board::safety::first_fault() {
+        odocal::board::safety::record_crash(&odocal::app::crash::CrashRecord::hard_fault(
+            frame.pc(),
+        ));
+        defmt::error!("hard fault at pc {=u32:#x}", frame.pc());
+    }
     cortex_m::peripheral::SCB::sys_reset()
 }
 
@@ -49,6 +58,7 @@ const REPLY_ROOM: usize = 1_800;
 #[cfg(target_os = "none")]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
+    use core::fmt::Write as _;
     use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::app::Handoff;
     use odocal::app::control::Pacing;
@@ -172,12 +182,18 @@ mod app {
         // The boot event is the first line on the console (sent once the USART2 task runs).
         let reset_cause = board.reset_cause;
         {
+            // A fault handler's record names the reset better than RCC's `software`.
+            let mut cause = heapless::String::<{ 24 + odocal::app::crash::FILE_LEN }>::new();
+            match odocal::board::safety::take_crash() {
+                Some(crash) => {
+                    let _ = write!(cause, "{crash}");
+                }
+                None => {
+                    let _ = cause.push_str(reset_cause.as_str());
+                }
+            }
             let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
-            let _ = write_boot_event(
-                &mut sink,
-                loaded.warning.as_ref(),
-                Some(reset_cause.as_str()),
-            );
+            let _ = write_boot_event(&mut sink, loaded.warning.as_ref(), Some(cause.as_str()));
             if let Some(fault) = board.clock.fault() {
                 let _ = write_fault_event(&mut sink, fault);
             }

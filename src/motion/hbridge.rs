@@ -36,7 +36,9 @@ where
     EN: OutputPin,
 {
     /// Takes the enabled PWM channels (bound to their pins) and the output pins; starts with
-    /// both motors braked. `invert_left`: the left motor is mounted mirrored, so its DIR level
+    /// zero duty and the bridge disabled (coasting): the enable pin goes high only when the
+    /// controller first commands the motors (a brake or a duty), never during the boot.
+    /// `invert_left`: the left motor is mounted mirrored, so its DIR level
     /// is inverted.
     pub fn new(
         right: PR,
@@ -54,7 +56,7 @@ where
             enable,
             invert_left,
         };
-        bridge.stop(StopMode::Brake);
+        bridge.stop(StopMode::Coast);
         bridge
     }
 
@@ -148,10 +150,10 @@ mod tests {
     }
 
     #[test]
-    fn it_starts_braked() {
+    fn it_starts_with_the_bridge_disabled() {
         let log = Log::default();
         let _ = bridge(&log);
-        assert_eq!(*log.borrow(), [("pwm_r", 0), ("pwm_l", 0), ("en", 1)]);
+        assert_eq!(*log.borrow(), [("pwm_r", 0), ("pwm_l", 0), ("en", 0)]);
     }
 
     #[test]

@@ -211,7 +211,7 @@ pub struct Board {
     pub sysclk_hz: u32,
     /// Wheel encoders.
     pub encoders: Encoders,
-    /// Motor outputs (braked until the controller commands otherwise).
+    /// Motor outputs (zero duty, bridge disabled until the controller's first command).
     pub motors: BoardMotors,
     /// Control-period interrupt, already running.
     pub tick: ControlTick,
@@ -315,10 +315,12 @@ pub fn init(dp: pac::Peripherals) -> Board {
     }
     let params = flash::param_store(dp.FLASH);
 
+    // The HAL's split resets each port: port E's motor pins go back to the safe state at once.
+    let gpioe = dp.GPIOE.split(&mut rcc);
+    safety::motor_pins_safe_after_port_reset();
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
-    let gpioe = dp.GPIOE.split(&mut rcc);
 
     // Encoders: PA15/PB3/PB4 come out of reset as JTAG pins.
     let right = Qei::new(
@@ -328,7 +330,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
     );
     let left = Qei::new(dp.TIM3, (gpiob.pb4.into_input(), gpiob.pb5), &mut rcc);
 
-    // Motors: TIM1 CH1/CH2 PWM, braked until the controller commands otherwise.
+    // Motors: TIM1 CH1/CH2 PWM, zero duty, the bridge disabled until the controller's first
+    // command (PE13 stays low through the boot: fil/safe_boot_test.py).
     let (pwm, (ch1, ch2, ..)) = dp.TIM1.pwm_hz(PWM_HZ.Hz(), &mut rcc);
     let motors = BoardMotors::new(
         pwm,

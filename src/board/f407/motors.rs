@@ -26,7 +26,7 @@ pub struct BoardMotors {
 
 impl BoardMotors {
     /// Takes the configured PWM timer, channels (already bound to their pins) and GPIOs; starts
-    /// with both motors braked.
+    /// with zero duty and the bridge disabled until the controller's first command.
     pub fn new(
         timer: PwmHzManager<TIM1>,
         mut right: PwmChannel<TIM1, C1>,

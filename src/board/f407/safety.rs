@@ -17,9 +17,18 @@
 //!   debugger halts the core, so the PWM does not run on at the last duty. Which level the
 //!   frozen PWM pins then hold is not established for this board (docs/hardware.md): keep the
 //!   motor supply off while the core is halted.
+//!   The core's sleep and stop modes keep the debug port clocked (DBGMCU_CR.DBG_SLEEP,
+//!   DBG_STOP), so a probe can attach while the idle loop sleeps in WFI.
 //! - [`reset_cause`]: why the MCU last reset, from RCC_CSR (flags cleared after reading).
+//! - [`first_fault`], [`record_crash`], [`take_crash`]: the fault handlers' guard against a
+//!   fault inside a fault handler, and the [`CrashRecord`] kept across the reset in RAM that the
+//!   startup code leaves alone.
+
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use stm32f4xx_hal::pac;
+
+use crate::app::crash::{CrashRecord, WORDS};
 
 /// PE9 (TIM1_CH1, right PWM), PE11 (TIM1_CH2, left PWM), PE13 (bridge enable).
 const MOTOR_PINS: [u32; 3] = [9, 11, 13];
@@ -46,6 +55,23 @@ pub fn motors_off_at_reset(rcc: &pac::RCC, gpioe: &pac::GPIOE) {
     // Two peripheral-clock cycles must pass before GPIOE responds (RM0090 §6.3.10 errata note):
     // a read-back of the enable register provides them.
     let _ = rcc.ahb1enr().read().bits();
+    drive_motor_pins_safe(gpioe);
+}
+
+/// The motor pins back in the safe state right after the HAL's `GPIOE.split()`, which resets
+/// the whole port (RCC_AHB1RSTR.GPIOERST): the reset makes them floating inputs and clears the
+/// pull-downs. Called on the next instructions, so the pins float for a few core cycles (tens
+/// of nanoseconds at 168 MHz, with the PWM timer not yet started), not until the H-bridge
+/// driver configures them; the pull-downs stay on from here (the HAL's mode changes do not
+/// touch PUPDR). `fil/safe_boot_test.py` checks the order on the shipped image.
+pub fn motor_pins_safe_after_port_reset() {
+    // SAFETY: only the address of GPIOE's register block; `init` owns the port (its HAL parts
+    // were just created and not used yet), and nothing else runs.
+    let gpioe = unsafe { &*pac::GPIOE::ptr() };
+    drive_motor_pins_safe(gpioe);
+}
+
+fn drive_motor_pins_safe(gpioe: &pac::gpioi::RegisterBlock) {
     let (low, mask2, output, pull_down) = motor_pin_fields();
     // SAFETY: GPIOE is owned by `init` at this point (nothing else runs); BSRR resets only the
     // three motor pins, and the MODER/PUPDR read-modify-writes change only their bit pairs.
@@ -93,8 +119,12 @@ pub extern "C" fn odocal_emergency_stop() {
 }
 
 /// Stops TIM1 (always) and the independent watchdog (debug builds only) while the core is
-/// halted by a debugger.
+/// halted by a debugger, and keeps the debug port clocked in sleep and stop (the idle task's
+/// WFI would otherwise leave a probe unable to connect: probe-rs reports `SwdDpWait`).
 pub fn freeze_when_halted(dbgmcu: &pac::DBGMCU) {
+    dbgmcu
+        .cr()
+        .modify(|_, w| w.dbg_sleep().set_bit().dbg_stop().set_bit());
     dbgmcu.apb2_fz().modify(|_, w| w.dbg_tim1_stop().set_bit());
     if cfg!(debug_assertions) {
         dbgmcu.apb1_fz().modify(|_, w| w.dbg_iwdg_stop().set_bit());
@@ -162,4 +192,41 @@ pub fn reset_cause(rcc: &pac::RCC) -> ResetCause {
     };
     rcc.csr().modify(|_, w| w.rmvf().set_bit());
     cause
+}
+
+/// Set by the first fault handler that runs; see [`first_fault`].
+static IN_FAULT: AtomicBool = AtomicBool::new(false);
+
+/// Whether this is the first fault since reset: `false` inside a fault handler that faulted
+/// (a panic while formatting the panic's log line, a HardFault in the panic handler), which
+/// must go straight to the emergency stop and the reset without touching anything else.
+pub fn first_fault() -> bool {
+    !IN_FAULT.swap(true, Ordering::Relaxed)
+}
+
+/// The crash record's region: in `.uninit`, which the startup code neither zeroes nor loads,
+/// so it survives the software reset that follows a fault (not a power cycle).
+#[unsafe(link_section = ".uninit.odocal_crash")]
+static mut CRASH: [u32; WORDS] = [0; WORDS];
+
+/// Stores `record` for the next boot. Called only by the fault handlers, after
+/// [`first_fault`].
+pub fn record_crash(record: &CrashRecord) {
+    let words = record.encode();
+    // SAFETY: only the fault handler that won `first_fault` writes (nothing else runs after it,
+    // and it never returns), and only `take_crash`, in `init` before interrupts, reads; a
+    // volatile write of plain words to a static of the same size.
+    unsafe { core::ptr::addr_of_mut!(CRASH).write_volatile(words) }
+}
+
+/// The record the last fault left, if any, invalidating it (a later reset for another reason
+/// is not blamed on it).
+pub fn take_crash() -> Option<CrashRecord> {
+    // SAFETY: called once from `init`, before interrupts are enabled: no other access; the
+    // region holds arbitrary bits after a power-on, which `decode` rejects (magic and checksum).
+    let words = unsafe { core::ptr::addr_of!(CRASH).read_volatile() };
+    let record = CrashRecord::decode(&words);
+    // SAFETY: as above.
+    unsafe { core::ptr::addr_of_mut!(CRASH).write_volatile([0; WORDS]) }
+    record
 }
