@@ -19,7 +19,11 @@
    outputs (MODER), clear TIM1 BDTR.MOE (bit 15) and BDTR.AOE (bit 14, which would set MOE again
    at the next update), and reset the MCU (QEMU runs with -no-reboot, so the reset ends it; QMP's
    SHUTDOWN event must give the reason `guest-reset`, which a crash of QEMU does not).
-3. Panic path (disassembly): the panic handler's and the HardFault handler's first call is
+3. Crash record (emulator run, QEMU rebooting on reset): the first flash-size read HardFaults
+   as in step 2, the handler keeps the fault in the RAM the startup code leaves alone and
+   resets; the boot assist answers the reads of the second boot, whose boot line must name the
+   fault (`reset: hard fault at pc 0x…`), not RCC's `software`.
+4. Panic path (disassembly): the panic handler's and the HardFault handler's first call is
    `odocal_emergency_stop`, the function whose writes step 2 observed.
 """
 
@@ -33,6 +37,7 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import console  # noqa: E402
 import emulator  # noqa: E402
 
 WRITE = re.compile(r"^(\S[^:]*): unimplemented device write \(size \d+, offset (0x[0-9a-f]+), value (0x[0-9a-f]+)\)")
@@ -262,6 +267,37 @@ def check_fault_path(elf, workdir):
     return None
 
 
+def check_crash_record(elf, workdir):
+    e = emulator.Emulator(elf, workdir, name="safe-crash")
+    script, _ = emulator.boot_assist_script(elf, e.port)
+    # The first flash-size read is left unanswered (it HardFaults); the later ones are answered.
+    lines, in_size_block = [], False
+    for line in script.splitlines():
+        lines.append(line)
+        if line.startswith("target remote"):
+            lines.append("set $odocal_faulted = 0")
+        if line.startswith("# flash-size read"):
+            in_size_block = True
+        if in_size_block and line == "silent":
+            lines += ["if $odocal_faulted == 0", "  set $odocal_faulted = 1", "  continue", "end"]
+            in_size_block = False
+    path = os.path.join(workdir, "safe-crash.gdb")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    try:
+        c = console.Console.unix(e.u2)
+        e.gdb = subprocess.Popen(["gdb-multiarch", "-q", "-nx", "-batch", "-x", path, elf],
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.DEVNULL)
+        boot = c.wait_event("event boot", 60)
+    finally:
+        e.stop()
+    if not re.search(r"reset: hard fault at pc 0x[0-9a-f]{8}$", boot or ""):
+        return f"the boot after a HardFault does not name it: {boot!r}"
+    print(f"crash record: the boot after the HardFault says `{boot.split(', ')[-1]}`")
+    return None
+
+
 def check_handlers(elf):
     dis = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", elf], check=True,
                          capture_output=True, text=True).stdout
@@ -286,7 +322,8 @@ def main():
     args = ap.parse_args()
     os.makedirs(args.workdir, exist_ok=True)
     failures = [f for f in (check_handlers(args.elf), check_boot_order(args.elf, args.workdir),
-                            check_fault_path(args.elf, args.workdir)) if f]
+                            check_fault_path(args.elf, args.workdir),
+                            check_crash_record(args.elf, args.workdir)) if f]
     for f in failures:
         print("FAILED:", f)
     sys.exit(1 if failures else 0)
