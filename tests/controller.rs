@@ -587,8 +587,11 @@ fn identification_is_fitted_when_its_report_is_taken() {
     let mut c = controller();
     let mut plant = Plant::new(1000);
     let (closing, periods) = identify_until_finished(&mut c, &mut plant);
-    // Four passes of 3 × 400 + 500 + 300 ms at 1 kHz; the next period closes the last one.
-    assert_eq!(periods, 8_001);
+    // Four passes of 3 × 400 + 500 + 300 ms at 1 kHz, and a probe per wheel: stairs of 300 ms
+    // at 4, 6 and 8 % duty (this plant runs at 1 m/s per unit duty, so 8 % is the first stair
+    // past 25 % of the 0.3 m/s cap, 6 % the one before it, moving) and a 300 ms brake; the next
+    // period closes the last pass.
+    assert_eq!(periods, 4 * 2_000 + 2 * (3 * 300 + 300) + 1);
     // Stopped in the closing period (coasting, as a plausible identification always ended).
     assert_eq!(closing.command, MotorCommand::Stop(StopMode::Coast));
     assert_eq!(
@@ -651,8 +654,9 @@ fn identification_is_fitted_when_its_report_is_taken() {
 fn a_failure_the_fit_finds_is_latched_when_the_report_is_taken() {
     let mut c = controller();
     let mut plant = Plant::new(1000);
-    // The top duty step (50 %) gains little above the 37 % the supply allows.
-    plant.max_duty = 0.37;
+    // The steps aim at 25/50/75 % of the 0.3 m/s cap (7.5, 15, 22.5 % duty on this plant):
+    // the top one gains little above the 19 % the supply allows.
+    plant.max_duty = 0.19;
     let (closing, _) = identify_until_finished(&mut c, &mut plant);
     assert_eq!(closing.command, MotorCommand::Stop(StopMode::Coast));
     assert_eq!(c.fault(), None);

@@ -1175,7 +1175,7 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
     let mut b = Bench::new();
     assert_eq!(
         b.send("identify"),
-        "ok identify lifted: wheels must be off the ground; right then left, duty steps 20/35/50 % forward and backward, 8.0 s\r\n"
+        "ok identify lifted: wheels must be off the ground; right then left; a slow probe, then steps to 25/50/75 % of max_speed 0.30 m/s forward and backward, about 11 s\r\n"
     );
     assert_eq!(
         b.robot.check,
@@ -1229,7 +1229,7 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
 
     assert_eq!(
         b.send("identify floor"),
-        "ok identify floor: robot on the floor with about 1 m free ahead and behind; both wheels, duty steps 20/35/50 % forward and backward, 4.0 s\r\n"
+        "ok identify floor: robot on the floor with 1 m free ahead and behind (it stops beyond 1 m); both wheels; a slow probe, then steps to 25/50/75 % of max_speed 0.30 m/s forward and backward, about 7 s\r\n"
     );
     b.robot
         .check_reports

@@ -12,7 +12,9 @@ use core::fmt::{self, Write};
 
 use super::traits::{Calibrator, Robot};
 use super::{Session, storable};
-use crate::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyReport, LEVELS, MotorFit};
+use crate::motion::identify::{
+    IdentifyFailure, IdentifyMode, IdentifyReport, LEVEL_FRACTIONS, MAX_SPEED_MPS, MotorFit,
+};
 use crate::motion::speed::SpeedTuning;
 use crate::protocol::reply::ErrorCode;
 use crate::util::decimal::Decimal;
@@ -51,17 +53,20 @@ impl<C: Calibrator> Session<C> {
         let where_ = match mode {
             IdentifyMode::Lifted => "wheels must be off the ground; right then left",
             IdentifyMode::Floor => {
-                "robot on the floor with about 1 m free ahead and behind; both wheels"
+                "robot on the floor with 1 m free ahead and behind (it stops beyond 1 m); both wheels"
             }
         };
+        let cap = f64::from(self.settings.motion.max_speed_mps).min(MAX_SPEED_MPS);
         write!(
             out,
-            "ok identify {}: {where_}, duty steps {}/{}/{} % forward and backward, {} s\r\n",
+            "ok identify {}: {where_}; a slow probe, then steps to {}/{}/{} % of max_speed {} m/s \
+             forward and backward, about {} s\r\n",
             mode_name(mode),
-            (LEVELS[0] * 100.0) as u32,
-            (LEVELS[1] * 100.0) as u32,
-            (LEVELS[2] * 100.0) as u32,
-            Decimal::fixed(f64::from(mode.duration_ms()) / 1000.0, 1),
+            (LEVEL_FRACTIONS[0] * 100.0) as u32,
+            (LEVEL_FRACTIONS[1] * 100.0) as u32,
+            (LEVEL_FRACTIONS[2] * 100.0) as u32,
+            Decimal::fixed(cap, 2),
+            Decimal::fixed(f64::from(mode.duration_ms()) / 1000.0 + 3.0, 0),
         )
     }
 

@@ -287,7 +287,8 @@ impl<'f> Board<'f> {
         if !out.starts_with("ok") {
             return Err(out);
         }
-        let limit = 60 * u64::from(self.sim.config().rate_hz);
+        // 60 s at the controller's rate (the simulated robot follows it from the first period).
+        let limit = 60 * u64::from(self.controller.config().rate_hz);
         let mut n = 0;
         while matches!(
             self.controller.status(),

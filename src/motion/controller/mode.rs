@@ -457,6 +457,7 @@ impl Controller {
                 mode,
                 rate,
                 (g.meters_per_tick_right(), g.meters_per_tick_left()),
+                f64::from(self.config.limits.max_speed_mps),
             )),
             CheckKind::Push => ActiveCheck::Push(PushCheck::new(
                 rate,

@@ -5,7 +5,7 @@
 use super::plan::Identify;
 use super::report::{IdentifyFailure, IdentifyProblem, IdentifyReport, MotorFit};
 use super::stats::WheelLog;
-use super::{LEVELS, MAX_RELATIVE_RESIDUAL, MIN_TOP_SLOPE_RATIO};
+use super::{MAX_RELATIVE_RESIDUAL, MIN_TOP_SLOPE_RATIO};
 use crate::motion::speed::MotorParams;
 use crate::motion::wheel::Wheel;
 use crate::util::num::fmax;
@@ -31,26 +31,35 @@ impl Identify {
         let block_hz = f64::from(self.rate_hz) / f64::from(self.block_periods);
         Ok(IdentifyReport {
             mode: self.mode,
-            right: fit_wheel(&self.logs[0], self.m_per_tick.0 * block_hz, block_hz).map_err(
-                |problem| IdentifyFailure {
-                    wheel: Wheel::Right,
-                    problem,
-                },
-            )?,
-            left: fit_wheel(&self.logs[1], self.m_per_tick.1 * block_hz, block_hz).map_err(
-                |problem| IdentifyFailure {
-                    wheel: Wheel::Left,
-                    problem,
-                },
-            )?,
+            right: fit_wheel(
+                &self.logs[0],
+                &self.levels[0],
+                self.m_per_tick.0 * block_hz,
+                block_hz,
+            )
+            .map_err(|problem| IdentifyFailure {
+                wheel: Wheel::Right,
+                problem,
+            })?,
+            left: fit_wheel(
+                &self.logs[1],
+                &self.levels[1],
+                self.m_per_tick.1 * block_hz,
+                block_hz,
+            )
+            .map_err(|problem| IdentifyFailure {
+                wheel: Wheel::Left,
+                problem,
+            })?,
         })
     }
 }
 
-/// Fits one wheel's two directions; `mps_per_count` converts counts per block to m/s,
-/// `block_hz` is the block rate.
+/// Fits one wheel's two directions driven at the duty steps `levels`; `mps_per_count` converts
+/// counts per block to m/s, `block_hz` is the block rate.
 fn fit_wheel(
     log: &WheelLog,
+    levels: &[f32; 3],
     mps_per_count: f64,
     block_hz: f64,
 ) -> Result<MotorFit, IdentifyProblem> {
@@ -77,7 +86,7 @@ fn fit_wheel(
         let v = means.map(|(mx, my)| {
             libm::fabs((f64::from(my) - a * f64::from(mx)) / (1.0 - a)) * mps_per_count
         });
-        let u = LEVELS.map(f64::from);
+        let u = levels.map(f64::from);
         let slope_lo = (v[1] - v[0]) / (u[1] - u[0]);
         let slope_hi = (v[2] - v[1]) / (u[2] - u[1]);
         if slope_lo.is_nan() || slope_lo <= 0.0 {

@@ -17,10 +17,17 @@ pub enum IdentifyProblem {
     CrossWired,
     /// The top duty step gained too little speed: supply or current limit.
     Saturated,
-    /// The wheel turned faster than [`MAX_SPEED_MPS`].
+    /// The wheel turned faster than the speed cap (`max_speed`) plus its margin, or than
+    /// [`MAX_SPEED_MPS`] in one period.
     ///
     /// [`MAX_SPEED_MPS`]: super::MAX_SPEED_MPS
     TooFast,
+    /// On the floor, the robot went farther than [`TRAVEL_LIMIT_M`] from its start.
+    ///
+    /// [`TRAVEL_LIMIT_M`]: super::TRAVEL_LIMIT_M
+    TooFar,
+    /// A step's speed differed from the probe's prediction by more than half: the load changed.
+    Changed,
     /// The first-order model does not describe the response (noisy, slipping, out of range).
     Implausible,
     /// The stall check latched (no count at a commanded duty for its time).
@@ -45,7 +52,15 @@ impl IdentifyProblem {
             IdentifyProblem::Saturated => {
                 "speed saturates at the top duty step: check the motor supply and current limit"
             }
-            IdentifyProblem::TooFast => "wheel faster than 2 m/s: motor too strong for the steps",
+            IdentifyProblem::TooFast => {
+                "wheel faster than max_speed + 10 %: the response is not what the probe measured"
+            }
+            IdentifyProblem::TooFar => {
+                "the robot went more than 1 m from its start: stopped (give it room, or lift it)"
+            }
+            IdentifyProblem::Changed => {
+                "a step's speed is not what the probe measured: the load changed (a wheel touched or left the ground, or is blocked)"
+            }
             IdentifyProblem::Implausible => {
                 "response not a first-order motor (slipping, loose coupling, noisy encoder)"
             }
