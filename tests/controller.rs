@@ -12,7 +12,7 @@ use odocal::motion::controller::{
 };
 use odocal::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyProblem};
 use odocal::motion::motor::StopMode;
-use odocal::motion::profile::MotionLimits;
+use odocal::motion::profile::{LimitsError, MotionLimits};
 use odocal::motion::routine::RunPlan;
 use odocal::motion::run::{Direction, MAX_KNOTS, PathKind};
 use odocal::session::library::{ControllerLock, Locked};
@@ -293,6 +293,46 @@ fn glitch_limit_follows_a_new_geometry() {
     plant.pos[1] += 5_000.0;
     let out = plant.step(&mut c);
     assert_eq!(out.fault, None);
+}
+
+/// The glitch limit follows the motion limits above its 2 m/s floor, and limits the encoders
+/// cannot count are refused: a legal `max_speed` never latches `encoder-glitch` mid-run.
+#[test]
+fn glitch_limit_follows_the_motion_limits_and_refuses_what_the_encoders_cannot_count() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    // Up to 2 m/s the floor holds: 1,274 counts per period (2 m/s on 150 mm, +50 %).
+    let mut limits = MotionLimits::DEFAULT;
+    limits.max_speed_mps = 1.5;
+    c.set_limits(limits).unwrap();
+    assert_eq!(c.config().right_encoder.max_step, 1274);
+    // 2.3 m/s: 2.3 × 1.5 × 200,000 / (π × 0.150) / 1000 = 1,464.3 counts per period.
+    limits.max_speed_mps = 2.3;
+    c.set_limits(limits).unwrap();
+    assert_eq!(c.config().right_encoder.max_step, 1465);
+    assert_eq!(c.config().left_encoder.max_step, 1465);
+    // 1,400 counts in one period were a glitch under the 2 m/s bound (1,274) and are within
+    // the new one (1,465).
+    plant.pos[0] += 1_400.0;
+    plant.pos[1] += 1_400.0;
+    assert_eq!(plant.step(&mut c).fault, None);
+    // The encoders count 1,000,000 counts/s: 2.36 m/s on these wheels. 2.4 m/s is refused,
+    // and so is a turn rate whose pivot turns a wheel that fast (12.5 rad/s × 0.1925 m).
+    limits.max_speed_mps = 2.4;
+    assert_eq!(
+        c.set_limits(limits),
+        Err(SetError::Limits(LimitsError::BeyondEncoders))
+    );
+    limits.max_speed_mps = 0.3;
+    limits.max_turn_rate_radps = 12.5;
+    assert_eq!(
+        c.set_limits(limits),
+        Err(SetError::Limits(LimitsError::BeyondEncoders))
+    );
+    // The refused limits changed nothing.
+    assert_eq!(c.config().limits.max_speed_mps, 2.3);
+    assert_eq!(c.config().right_encoder.max_step, 1465);
 }
 
 #[test]

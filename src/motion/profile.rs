@@ -17,6 +17,7 @@
 //! routine maps it to ticks relative to the segment start and ends every segment on an exact
 //! integer target, so nothing of it accumulates.
 
+use crate::kinematics::geometry::Geometry;
 use crate::util::num::{fmax, fmin, within};
 use core::fmt;
 
@@ -47,7 +48,16 @@ pub enum LimitsError {
     TurnRate,
     /// The turn acceleration is not finite or outside 0.001 ..= 100 rad/s².
     TurnAccel,
+    /// The fastest wheel speed the limits allow is more than the encoders can count
+    /// ([`ENCODER_MAX_COUNT_RATE`] on the smaller wheel).
+    BeyondEncoders,
 }
+
+/// Fastest count rate the board's encoder inputs follow reliably, counts/s: edges 1 µs apart,
+/// 3.5 times the timers' input filter (286 ns, docs/hardware.md, Encoders), with room for the
+/// rise time of open-collector encoders on their pull-ups. On 150 mm wheels with 200,000
+/// counts per revolution that is 2.36 m/s.
+pub const ENCODER_MAX_COUNT_RATE: f64 = 1_000_000.0;
 
 impl fmt::Display for LimitsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -56,6 +66,10 @@ impl fmt::Display for LimitsError {
             LimitsError::Accel => "max acceleration must be within 0.001..20 m/s^2",
             LimitsError::TurnRate => "max turn rate must be within 0.001..20 rad/s",
             LimitsError::TurnAccel => "max turn acceleration must be within 0.001..100 rad/s^2",
+            LimitsError::BeyondEncoders => {
+                "the wheels would turn faster than the encoders can count (1,000,000 counts/s): \
+                 lower max_speed or max_turn_rate"
+            }
         })
     }
 }
@@ -86,6 +100,34 @@ impl MotionLimits {
         }
         if !ok(self.max_turn_accel_radps2, 100.0) {
             return Err(LimitsError::TurnAccel);
+        }
+        Ok(())
+    }
+}
+
+impl MotionLimits {
+    /// The fastest a wheel turns under these limits on `geometry`, m/s: the larger of the
+    /// speed limit (which bounds either wheel too) and the turn rate's speed at a wheel (`ω·b/2`,
+    /// a pivot).
+    pub fn wheel_speed_mps(&self, geometry: &Geometry) -> f64 {
+        fmax(
+            f64::from(self.max_speed_mps),
+            f64::from(self.max_turn_rate_radps) * 0.5 * geometry.wheelbase_m,
+        )
+    }
+
+    /// [`MotionLimits::validate`], and the fastest wheel speed within what the encoders of
+    /// `geometry` count ([`ENCODER_MAX_COUNT_RATE`] on the smaller wheel).
+    ///
+    /// # Errors
+    /// As [`MotionLimits::validate`], or [`LimitsError::BeyondEncoders`].
+    pub fn validate_for(&self, geometry: &Geometry) -> Result<(), LimitsError> {
+        self.validate()?;
+        let d = fmin(geometry.diameter_right_m, geometry.diameter_left_m);
+        let countable = ENCODER_MAX_COUNT_RATE * core::f64::consts::PI * d
+            / f64::from(geometry.counts_per_rev.max(1));
+        if self.wheel_speed_mps(geometry) > countable {
+            return Err(LimitsError::BeyondEncoders);
         }
         Ok(())
     }

@@ -14,7 +14,7 @@ use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::routine::SettleConfig;
 use crate::motion::speed::{SpeedTuning, TuningError};
 use crate::motion::wiring::Wiring;
-use crate::util::num::fmin;
+use crate::util::num::{fmax, fmin};
 
 /// Stall detection: a wheel commanded with at least `min_duty` that counts no tick for
 /// `time_ms` is stalled.
@@ -109,11 +109,23 @@ fn rescale(periods: u32, from_hz: u32, to_hz: u32) -> u32 {
     u32::try_from(p).unwrap_or(u32::MAX)
 }
 
-/// Encoder glitch limit for `geometry` at `rate_hz`: 2 m/s of the smaller wheel, +50 %.
-pub(super) fn glitch_limit(width: CounterWidth, geometry: &Geometry, rate_hz: u32) -> u32 {
+/// Slowest wheel speed the glitch limit is set for, m/s: a hand push (bring-up, moving the robot
+/// back to its mark) and the speed loop's overshoot stay below it whatever the limits.
+pub const GLITCH_FLOOR_MPS: f64 = 2.0;
+
+/// Encoder glitch limit for `geometry` and `limits` at `rate_hz`: the fastest wheel speed the
+/// limits allow ([`MotionLimits::wheel_speed_mps`], at least [`GLITCH_FLOOR_MPS`]) on the
+/// smaller wheel, +50 %.
+pub(super) fn glitch_limit(
+    width: CounterWidth,
+    geometry: &Geometry,
+    limits: &MotionLimits,
+    rate_hz: u32,
+) -> u32 {
     let period_s = 1.0 / f64::from(rate_hz.max(1));
     let d_min = fmin(geometry.diameter_right_m, geometry.diameter_left_m);
-    max_step_for(width, geometry.counts_per_rev, d_min, 2.0, period_s)
+    let speed = fmax(GLITCH_FLOOR_MPS, limits.wheel_speed_mps(geometry));
+    max_step_for(width, geometry.counts_per_rev, d_min, speed, period_s)
 }
 
 /// How long both wheels must stay within the settling tolerance to end a segment, ms.
@@ -133,11 +145,12 @@ impl ControllerConfig {
     }
 
     /// Defaults for the board: right encoder on a 32-bit timer, left on a 16-bit timer counting
-    /// backwards, glitch limit for 2 m/s; default limits and tuning; 500 ms deadman; brake.
+    /// backwards, glitch limit for the default limits (2 m/s: [`GLITCH_FLOOR_MPS`]); default
+    /// limits and tuning; 500 ms deadman; brake.
     /// Everything timed is set in seconds and converted with `rate_hz` (settling 50 ms, settle
     /// timeout 2 s, stall 300 ms, following error 100 ms, deadman 500 ms).
     pub fn new(geometry: Geometry, rate_hz: u32) -> Self {
-        let step = |w| glitch_limit(w, &geometry, rate_hz);
+        let step = |w| glitch_limit(w, &geometry, &MotionLimits::DEFAULT, rate_hz);
         ControllerConfig {
             geometry,
             limits: MotionLimits::DEFAULT,
@@ -286,8 +299,10 @@ impl Controller {
     /// at-rest travel and velocity mode's scales.
     fn rederive(&mut self) {
         let c = &mut self.config;
-        c.right_encoder.max_step = glitch_limit(c.right_encoder.width, &c.geometry, c.rate_hz);
-        c.left_encoder.max_step = glitch_limit(c.left_encoder.width, &c.geometry, c.rate_hz);
+        c.right_encoder.max_step =
+            glitch_limit(c.right_encoder.width, &c.geometry, &c.limits, c.rate_hz);
+        c.left_encoder.max_step =
+            glitch_limit(c.left_encoder.width, &c.geometry, &c.limits, c.rate_hz);
         if let Some((r, l)) = self.encoders.as_mut() {
             r.set_max_step(self.config.right_encoder.max_step);
             l.set_max_step(self.config.left_encoder.max_step);
@@ -300,16 +315,20 @@ impl Controller {
         self.wheel_scales = wheel_scales(&self.config.geometry);
     }
 
-    /// Applies new motion limits; only while idle.
+    /// Applies new motion limits; only while idle. The encoder glitch limit follows them.
     ///
     /// # Errors
-    /// [`SetError::Busy`] while moving, [`SetError::Limits`] for invalid limits.
+    /// [`SetError::Busy`] while moving, [`SetError::Limits`] for invalid limits or limits the
+    /// encoders cannot follow ([`MotionLimits::validate_for`]).
     pub fn set_limits(&mut self, limits: MotionLimits) -> Result<(), SetError> {
         if !self.is_idle() {
             return Err(SetError::Busy);
         }
-        limits.validate().map_err(SetError::Limits)?;
+        limits
+            .validate_for(&self.config.geometry)
+            .map_err(SetError::Limits)?;
         self.config.limits = limits;
+        self.rederive();
         Ok(())
     }
 
