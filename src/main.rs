@@ -61,7 +61,7 @@ mod app {
     use core::fmt::Write as _;
     use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::app::Handoff;
-    use odocal::app::control::Pacing;
+    use odocal::app::control::{MissedPeriods, Pacing};
     use odocal::board::adapters::{RelaxedWatchdog, read_console};
     use odocal::board::watchdog::set_timeout;
     use odocal::board::{
@@ -103,6 +103,8 @@ mod app {
         encoders: Encoders,
         tick: ControlTick,
         pacing: Pacing,
+        missed: MissedPeriods,
+        core_hz: u32,
         motors: BoardMotors,
         button_pin: ButtonInput,
         leds: Leds,
@@ -157,7 +159,11 @@ mod app {
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let board = odocal::board::init(cx.device);
-        Mono::start(cx.core.SYST, board.sysclk_hz);
+        let mut core = cx.core;
+        // The cycle counter the control task times its periods with (missed periods).
+        core.DCB.enable_trace();
+        core.DWT.enable_cycle_counter();
+        Mono::start(core.SYST, board.sysclk_hz);
         let handoff: &'static Handoff = cx.local.handoff;
 
         // Parameters first: loading may repair an interrupted save (motors are off here).
@@ -171,6 +177,7 @@ mod app {
         let mut tick = board.tick;
         tick.set_rate_hz(rate_hz);
         let pacing = Pacing::new(handoff, rate_hz);
+        let missed = MissedPeriods::new(board.sysclk_hz, rate_hz);
         let session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
@@ -224,6 +231,8 @@ mod app {
                 encoders: board.encoders,
                 tick,
                 pacing,
+                missed,
+                core_hz: board.sysclk_hz,
                 motors: board.motors,
                 button_pin: board.button,
                 leds: board.leds,
@@ -258,9 +267,14 @@ mod app {
     /// Control period: encoders → odometry → routine → speed loops → motors; button presses
     /// handed to the console task; retiming and LEDs.
     #[task(binds = TIM7, priority = 3,
-           local = [control_handoff, encoders, tick, pacing, motors, press_in, ring_on_press, leds],
+           local = [control_handoff, encoders, tick, pacing, missed, core_hz, motors, press_in,
+                    ring_on_press, leds],
            shared = [controller, button, watchdog])]
     fn control(cx: control::Context) {
+        let missed = cx
+            .local
+            .missed
+            .observe(cortex_m::peripheral::DWT::cycle_count());
         cx.local.tick.clear();
         let mut watchdog = cx.shared.watchdog;
         watchdog.lock(|w| w.feed());
@@ -273,6 +287,7 @@ mod app {
         let motors = cx.local.motors;
         let mut controller = cx.shared.controller;
         let (fault, rate_hz) = controller.lock(|c| {
+            c.note_missed_periods(missed);
             let out = odocal::app::control::period(handoff, c, raw_right, raw_left, press, motors);
             (out.fault.is_some(), c.config().rate_hz)
         });
@@ -285,6 +300,7 @@ mod app {
         let news = cx.local.pacing.after_period(handoff, rate_hz);
         if let Some(hz) = news.retime_hz {
             cx.local.tick.set_rate_hz(hz);
+            cx.local.missed.set_rate(*cx.local.core_hz, hz);
         }
         // The LEDs live here, at the control task's priority, so the heartbeat keeps blinking
         // while the console task runs a long calibration solve.

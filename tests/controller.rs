@@ -752,3 +752,27 @@ impl ControllerLock for Counting<'_> {
         f(self.controller)
     }
 }
+
+/// Missed control periods: counted and faulted only while the robot moves (an erase stall with
+/// the motors stopped is harmless), a gap of 5 ms latches `overrun` and stops the motors.
+#[test]
+fn missed_periods_while_moving_are_counted_and_a_long_gap_latches_overrun() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    c.note_missed_periods(3_000);
+    assert_eq!((c.missed_periods(), c.fault()), (0, None));
+    c.start_check(CheckKind::Identify(IdentifyMode::Lifted))
+        .unwrap();
+    plant.step(&mut c);
+    // 4 ms late at 1 kHz: counted, no fault.
+    c.note_missed_periods(4);
+    assert_eq!((c.missed_periods(), c.fault()), (4, None));
+    c.note_missed_periods(5);
+    assert_eq!(c.missed_periods(), 9);
+    assert_eq!(c.fault(), Some(Fault::Overrun { missed: 5 }));
+    assert_eq!(
+        plant.step(&mut c).command,
+        MotorCommand::Stop(StopMode::Brake)
+    );
+}

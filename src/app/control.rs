@@ -87,3 +87,82 @@ impl Pacing {
         }
     }
 }
+
+/// Counts the control periods the board missed, from a free-running cycle counter read at the
+/// start of each period (the Cortex-M's DWT.CYCCNT at the core clock). A period's interrupt that
+/// comes late by more than half a period means whole periods went by without a control step:
+/// a flash erase stalls every fetch, or something at a higher priority or in a critical section
+/// ran too long. The controller is told ([`Controller::note_missed_periods`]) and latches an
+/// `overrun` fault if it was moving.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MissedPeriods {
+    last: Option<u32>,
+    cycles_per_period: u32,
+}
+
+impl MissedPeriods {
+    /// A counter of `core_hz` cycles per second for periods at `rate_hz`.
+    pub fn new(core_hz: u32, rate_hz: u32) -> Self {
+        let mut m = MissedPeriods::default();
+        m.set_rate(core_hz, rate_hz);
+        m
+    }
+
+    /// The period changed (`set control_hz`): the next period starts the count afresh.
+    pub fn set_rate(&mut self, core_hz: u32, rate_hz: u32) {
+        self.cycles_per_period = core_hz / rate_hz.max(1);
+        self.last = None;
+    }
+
+    /// The period that starts at cycle `now`: how many periods were missed since the last one
+    /// (0 when on time). A counter that does not run (an emulator without the DWT) misses
+    /// nothing. The counter wraps (every 25.6 s at 168 MHz): a gap longer than that is counted
+    /// modulo it.
+    pub fn observe(&mut self, now: u32) -> u32 {
+        let Some(last) = self.last.replace(now) else {
+            return 0;
+        };
+        let period = u64::from(self.cycles_per_period);
+        let gap = u64::from(now.wrapping_sub(last));
+        if period == 0 || 2 * gap < 3 * period {
+            return 0;
+        }
+        u32::try_from((gap + period / 2) / period - 1).unwrap_or(u32::MAX)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MissedPeriods;
+
+    #[test]
+    fn periods_on_time_miss_nothing_and_a_stall_counts_the_whole_periods_it_took() {
+        // 168 MHz, 1 kHz: 168,000 cycles a period.
+        let mut m = MissedPeriods::new(168_000_000, 1_000);
+        let mut t = 4_000_000_000u32;
+        assert_eq!(m.observe(t), 0);
+        // Jitter of up to half a period either way is on time, across the counter's wrap.
+        for jitter in [0i64, 80_000, -80_000, 83_999] {
+            t = t.wrapping_add((168_000 + jitter) as u32);
+            assert_eq!(m.observe(t), 0, "jitter {jitter}");
+        }
+        // A 2 s erase stall: 1,999 periods never ran.
+        t = t.wrapping_add(2 * 168_000_000);
+        assert_eq!(m.observe(t), 1_999);
+        // 1.5 periods late: one missed.
+        t = t.wrapping_add(252_000);
+        assert_eq!(m.observe(t), 1);
+        // At 10 kHz (16,800 cycles) after a retime, the first period only starts the count.
+        m.set_rate(168_000_000, 10_000);
+        assert_eq!(m.observe(t.wrapping_add(999_999)), 0);
+        assert_eq!(m.observe(t.wrapping_add(999_999 + 3 * 16_800)), 2);
+    }
+
+    #[test]
+    fn a_counter_that_does_not_run_misses_nothing() {
+        let mut m = MissedPeriods::new(168_000_000, 1_000);
+        for _ in 0..3 {
+            assert_eq!(m.observe(0), 0);
+        }
+    }
+}

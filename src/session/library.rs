@@ -42,6 +42,7 @@ pub fn fault_name(f: &Fault) -> &'static str {
         Fault::Stall { .. } => "stall",
         Fault::FollowingError { .. } => "following-error",
         Fault::Identify(_) => "identify",
+        Fault::Overrun { .. } => "overrun",
     }
 }
 

@@ -37,6 +37,14 @@ pub enum Fault {
     },
     /// The motor identification met an abnormal response.
     Identify(IdentifyFailure),
+    /// Control periods were missed while the robot moved (more than [`OVERRUN_FAULT_MS`] of
+    /// them in one gap): the profile and the speed loops ran late.
+    ///
+    /// [`OVERRUN_FAULT_MS`]: super::OVERRUN_FAULT_MS
+    Overrun {
+        /// Periods missed in that gap.
+        missed: u32,
+    },
 }
 
 impl fmt::Display for Fault {
@@ -62,6 +70,10 @@ impl fmt::Display for Fault {
                 "{:?} motor identification: {}",
                 e.wheel,
                 e.problem.describe()
+            ),
+            Fault::Overrun { missed } => write!(
+                f,
+                "control overrun: {missed} control periods missed while moving"
             ),
         }
     }
@@ -128,7 +140,7 @@ impl Controller {
                     wheel,
                     problem: IdentifyProblem::EncoderGlitch,
                 }),
-                Fault::FollowingError { .. } => None,
+                Fault::FollowingError { .. } | Fault::Overrun { .. } => None,
             };
             self.check_report = failure.map(CheckReport::IdentifyFailed);
         }

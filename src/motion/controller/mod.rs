@@ -160,7 +160,12 @@ pub struct Controller {
     still_limit_ticks: (u64, u64),
     /// Velocity mode's conversion to wheel ticks (right, left), from the geometry.
     wheel_scales: (WheelScale, WheelScale),
+    /// Control periods the board missed while the robot moved, since boot (saturating).
+    missed_periods: u32,
 }
+
+/// A gap this long (in control periods' time) while moving latches [`Fault::Overrun`], ms.
+pub const OVERRUN_FAULT_MS: u32 = 5;
 
 /// A wheel's speed in ticks/s is `v·ticks_per_m + ω·ticks_per_rad` for the robot's centre
 /// speed `v` and turn rate `ω` (derived in `f64` when the geometry changes, used in `f32`).
@@ -249,6 +254,7 @@ impl Controller {
             still_anchor: WheelTicks::default(),
             still_limit_ticks: still_limits(&config.geometry),
             wheel_scales: wheel_scales(&config.geometry),
+            missed_periods: 0,
         })
     }
 
@@ -432,6 +438,25 @@ impl Controller {
     /// Tick totals since the first step.
     pub fn totals(&self) -> WheelTicks {
         self.totals
+    }
+
+    /// The board missed `missed` control periods before this one (the app core's
+    /// `MissedPeriods` counts them). While the robot moves they are counted, and a gap
+    /// of [`OVERRUN_FAULT_MS`] or more latches [`Fault::Overrun`] (motors stop at the next
+    /// step); while idle (a flash erase with the motors stopped) nothing depends on the period.
+    pub fn note_missed_periods(&mut self, missed: u32) {
+        if missed == 0 || self.is_idle() {
+            return;
+        }
+        self.missed_periods = self.missed_periods.saturating_add(missed);
+        if missed >= config::periods_of_ms(OVERRUN_FAULT_MS, self.config.rate_hz) {
+            self.latch(Fault::Overrun { missed });
+        }
+    }
+
+    /// Control periods missed while moving since boot.
+    pub fn missed_periods(&self) -> u32 {
+        self.missed_periods
     }
 }
 
