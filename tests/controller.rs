@@ -776,3 +776,37 @@ fn missed_periods_while_moving_are_counted_and_a_long_gap_latches_overrun() {
         MotorCommand::Stop(StopMode::Brake)
     );
 }
+
+/// A robot rolled back by hand while a flash erase stalls the control task (10 kHz, 0.3 s, no
+/// period runs): the counts of the whole stall arrive in one period. They are taken as motion,
+/// not a glitch (the limit is 127 counts per period at 10 kHz), and the pose includes them, as
+/// long as the left wheel's 16-bit counter cannot have wrapped; beyond half its range (judged on
+/// the right wheel's exact 32-bit count) the pose is reported as lost.
+#[test]
+fn counts_during_an_erase_stall_are_motion_and_the_pose_includes_them() {
+    let mut c = Controller::new(ControllerConfig::new(Geometry::PAPER_NOMINAL, 10_000)).unwrap();
+    let mut plant = Plant::new(10_000);
+    plant.step(&mut c);
+    let per_m = 1.0 / Geometry::PAPER_NOMINAL.meters_per_tick_right();
+    for (push_m, lost) in [(0.03, false), (-0.05, true)] {
+        let x0 = c.pose().to_f64().x_m;
+        c.note_missed_periods(3_000);
+        plant.pos[0] += push_m * per_m;
+        plant.pos[1] += push_m * per_m;
+        let out = plant.step(&mut c);
+        assert_eq!(out.fault, None, "push {push_m} m");
+        let moved = c.pose().to_f64().x_m - x0;
+        assert!(
+            (moved - push_m).abs() < 1e-4,
+            "push {push_m} m: pose moved {moved} m"
+        );
+        assert_eq!(c.pose_lost(), lost, "push {push_m} m");
+        // The next period is an ordinary one again: 200 counts are a glitch.
+        assert_eq!(plant.step(&mut c).fault, None);
+    }
+    plant.pos[0] += 200.0;
+    assert!(matches!(
+        plant.step(&mut c).fault,
+        Some(Fault::EncoderGlitch { .. })
+    ));
+}

@@ -32,7 +32,7 @@ use fault::FollowingState;
 use mode::{ActiveCheck, ActiveRun, DriveState};
 pub use mode::{ButtonAction, DriveError, StartError};
 
-use crate::kinematics::encoder::{Encoder, EncoderGlitch, WheelTicks};
+use crate::kinematics::encoder::{CounterWidth, Encoder, EncoderGlitch, WheelTicks};
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::odometry::{Odometry, OdometryState, Pose};
 use crate::motion::bringup::{CheckKind, CheckReport};
@@ -162,6 +162,13 @@ pub struct Controller {
     wheel_scales: (WheelScale, WheelScale),
     /// Control periods the board missed while the robot moved, since boot (saturating).
     missed_periods: u32,
+    /// Periods missed while idle just before the next step (a flash erase): that step's counts
+    /// span them all, and its glitch limit is widened to match.
+    catch_up: u32,
+    /// The pose may be wrong: after a stall the right wheel (32-bit counter, exact) moved so far
+    /// that the left one's 16-bit counter may have wrapped. Cleared when a run starts from a
+    /// new pose.
+    pose_lost: bool,
 }
 
 /// A gap this long (in control periods' time) while moving latches [`Fault::Overrun`], ms.
@@ -255,6 +262,8 @@ impl Controller {
             still_limit_ticks: still_limits(&config.geometry),
             wheel_scales: wheel_scales(&config.geometry),
             missed_periods: 0,
+            catch_up: 0,
+            pose_lost: false,
         })
     }
 
@@ -290,7 +299,32 @@ impl Controller {
             wheel: w,
             delta: e.delta,
         };
-        let (res_r, res_l) = (enc_r.update(raw_right), enc_l.update(raw_left));
+        let (res_r, res_l) = if self.catch_up > 0 {
+            // The counts of every missed period arrive at once: motion (a robot rolled back to
+            // its mark during an erase), not a glitch, as far as the counters can tell.
+            let periods = self.catch_up.saturating_add(1);
+            self.catch_up = 0;
+            let widened = |e: &mut Encoder, raw: u32| {
+                let c = *e.config();
+                let wide = c
+                    .max_step
+                    .saturating_mul(periods)
+                    .min(c.width.max_unambiguous_step());
+                e.set_max_step(wide);
+                let r = e.update(raw);
+                e.set_max_step(c.max_step);
+                r
+            };
+            let (r, l) = (widened(enc_r, raw_right), widened(enc_l, raw_left));
+            if let Ok(dr) = r
+                && dr.unsigned_abs() > u64::from(CounterWidth::Bits16.max_unambiguous_step() / 2)
+            {
+                self.pose_lost = true;
+            }
+            (r, l)
+        } else {
+            (enc_r.update(raw_right), enc_l.update(raw_left))
+        };
         self.totals = WheelTicks::new(enc_r.total(), enc_l.total());
         let (dr, dl) = match (res_r, res_l) {
             (Ok(r), Ok(l)) => (r, l),
@@ -445,7 +479,11 @@ impl Controller {
     /// of [`OVERRUN_FAULT_MS`] or more latches [`Fault::Overrun`] (motors stop at the next
     /// step); while idle (a flash erase with the motors stopped) nothing depends on the period.
     pub fn note_missed_periods(&mut self, missed: u32) {
-        if missed == 0 || self.is_idle() {
+        if missed == 0 {
+            return;
+        }
+        if self.is_idle() {
+            self.catch_up = self.catch_up.saturating_add(missed);
             return;
         }
         self.missed_periods = self.missed_periods.saturating_add(missed);
@@ -457,6 +495,15 @@ impl Controller {
     /// Control periods missed while moving since boot.
     pub fn missed_periods(&self) -> u32 {
         self.missed_periods
+    }
+
+    /// Whether the pose may be wrong: after periods missed while idle (a flash erase) the right
+    /// wheel had moved more than 16,383 counts (3.9 cm on 150 mm wheels at 200,000 counts/rev),
+    /// half of what the left wheel's 16-bit counter tells apart, so the left one may have
+    /// wrapped. Below that the counts that arrived during the stall are the motion. Cleared when
+    /// a run or drive starts (it measures from its own start).
+    pub fn pose_lost(&self) -> bool {
+        self.pose_lost
     }
 }
 

@@ -308,6 +308,8 @@ impl Controller {
     }
 
     pub(super) fn reset_loops(&mut self) {
+        // A new motion measures from where it starts.
+        self.pose_lost = false;
         self.pi_state = Default::default();
         self.stall_count = (0, 0);
         self.last_duty = (0.0, 0.0);
