@@ -112,6 +112,8 @@ pub struct Session<C> {
     runs_dirty: bool,
     /// Storing them failed; the next change tries again (not every poll).
     runs_store_failed: bool,
+    /// A short press was refused since [`Session::take_press_refused`] last looked.
+    press_refused: bool,
 }
 
 /// The `err` reply for an operation the robot refused: `err 11` for a fault, `err 10`
@@ -188,6 +190,7 @@ impl<C: Calibrator> Session<C> {
             run_ids: Vec::new(),
             runs_dirty: false,
             runs_store_failed: false,
+            press_refused: false,
         }
     }
 
