@@ -60,8 +60,8 @@ pub use events::{write_boot_event, write_fault_event, write_runs_restored};
 pub use settings::{AppliedCalibration, Settings, SettingsError, check_nominal};
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, RunResidual, Solution,
-    SolveError, StorageError,
+    Activity, Calibrator, ParamStorage, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    Solution, SolveError, StorageError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -153,8 +153,8 @@ fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
 fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
     let code = match e {
         StorageError::MotorsRunning => ErrorCode::MotorsRunning,
-        StorageError::Invalid(_) | StorageError::Record(_) => ErrorCode::InvalidParams,
-        StorageError::Flash(_) => ErrorCode::Storage,
+        StorageError::Record(_) => ErrorCode::InvalidParams,
+        StorageError::Store(_) | StorageError::Flash(_) => ErrorCode::Storage,
     };
     write_err(out, code, &e)
 }
