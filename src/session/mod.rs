@@ -50,7 +50,8 @@ use heapless::Vec;
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::record;
-use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
+use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
@@ -128,25 +129,14 @@ fn robot_err(out: &mut dyn Write, e: RobotError, robot: &mut dyn Robot) -> fmt::
 
 /// `err 10: <what> is in progress: wait for …`, for a command refused while the robot is busy.
 fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
-    write!(out, "err {}: ", ErrorCode::Busy.code())?;
-    match activity {
-        Activity::Running(path) => {
-            out.write_str("a run is in progress (")?;
-            report::write_path(out, &path)?;
-            out.write_str("): wait for it to finish")?;
-        }
-        Activity::Driving => {
-            out.write_str(
-                "drive is in progress: wait for the motors to stop (500 ms after the last drive)",
-            )?;
-        }
-        Activity::Checking(CheckKind::Identify(_)) => {
-            out.write_str("identify is in progress: wait for its result")?;
-        }
-        Activity::Checking(_) => out.write_str("bringup is in progress: wait for its result")?,
-        Activity::Idle => out.write_str("a run is ending: wait for its event line")?,
-    }
-    out.write_str(EOL)
+    let what = match activity {
+        Activity::Running(path) => InProgress::Run(path),
+        Activity::Driving => InProgress::Drive,
+        Activity::Checking(CheckKind::Identify(_)) => InProgress::Identify,
+        Activity::Checking(_) => InProgress::Bringup,
+        Activity::Idle => InProgress::Ending,
+    };
+    write_refusal(out, &Refusal::Busy(what))
 }
 
 /// The `err` reply for a failed parameter store, with the code of its cause.
