@@ -97,6 +97,9 @@ fn next_run_waits_for_measurement() {
     let mut out = String::new();
     b.press_button(false, &mut out);
     assert_eq!(out, format!("event button: {refusal}"));
+    // …and the board's fault LED blinks for it (the app core hands the refusal on).
+    assert!(b.session.take_press_refused());
+    assert!(!b.session.take_press_refused());
     assert!(b.at_rest());
     assert_eq!(b.session.runs().len(), 1);
     // Measured, the next run starts; dropped, too.
@@ -117,6 +120,7 @@ fn next_run_waits_for_measurement() {
         out.starts_with("event button: ok run 2 started: square "),
         "{out}"
     );
+    assert!(!b.session.take_press_refused());
 }
 
 #[test]
