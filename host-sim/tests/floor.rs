@@ -268,3 +268,24 @@ fn bringup_push_never_says_wiring_ok_with_a_reversed_motor() {
     assert_eq!(o.proposals, ["set motor_right_sign -1"]);
     assert_eq!(o.recheck, "event bringup done: wiring ok");
 }
+
+/// Limits or a geometry that would turn the wheels faster than the encoders count (1,000,000
+/// counts/s; 0.236 m/s with 2,000,000 counts per revolution on 150 mm wheels) are refused with
+/// the reason, and change nothing.
+#[test]
+fn limits_the_encoders_cannot_count_are_refused() {
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    let reply = b.send("set counts_per_rev 2000000");
+    assert!(
+        reply.starts_with("err 10: refused: limits not accepted: the wheels would turn faster than the encoders can count"),
+        "{reply}"
+    );
+    assert!(b.send("params").contains("counts_per_rev 200000 "));
+    assert!(b.send("set max_speed 0.2").starts_with("ok "));
+    assert!(b.send("set max_turn_rate 1").starts_with("ok "));
+    assert!(b.send("set counts_per_rev 2000000").starts_with("ok "));
+    let reply = b.send("set max_speed 0.3");
+    assert!(reply.contains("faster than the encoders can count"), "{reply}");
+    assert!(b.send("params").contains("max_speed 0.200 "));
+}

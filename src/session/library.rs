@@ -172,7 +172,7 @@ fn set_error(e: SetError) -> RobotError {
     match e {
         SetError::Busy => RobotError::Busy,
         SetError::Geometry(_) => RobotError::Rejected(Rejection::Geometry),
-        SetError::Limits(_) => RobotError::Rejected(Rejection::Limits),
+        SetError::Limits(e) => RobotError::Rejected(Rejection::Limits(e)),
         SetError::Tuning(_) => RobotError::Rejected(Rejection::Tuning),
         SetError::Rate => RobotError::Rejected(Rejection::Rate),
     }

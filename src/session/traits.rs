@@ -13,7 +13,7 @@ use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::Fault;
-use crate::motion::profile::MotionLimits;
+use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
@@ -70,8 +70,8 @@ pub enum Rejection {
     NotFinite,
     /// The geometry is invalid for the controller.
     Geometry,
-    /// The motion limits are invalid for the controller.
-    Limits,
+    /// The motion limits are invalid for the controller (why: the limits' own rule).
+    Limits(LimitsError),
     /// The speed-loop tuning is invalid for the controller.
     Tuning,
     /// The control rate is not one the controller runs at.
@@ -86,7 +86,7 @@ impl fmt::Display for Rejection {
             Rejection::Check => "check not accepted by the controller",
             Rejection::NotFinite => "speeds must be finite",
             Rejection::Geometry => "geometry not accepted by the controller",
-            Rejection::Limits => "limits not accepted by the controller",
+            Rejection::Limits(e) => return write!(f, "limits not accepted: {e}"),
             Rejection::Tuning => "tuning not accepted by the controller",
             Rejection::Rate => "control rate not accepted by the controller",
         })

@@ -277,13 +277,20 @@ impl Controller {
     /// it is; later ticks are converted with the new geometry.
     ///
     /// # Errors
-    /// [`SetError::Busy`] while moving, [`SetError::Geometry`] for an invalid geometry.
+    /// [`SetError::Busy`] while moving, [`SetError::Geometry`] for an invalid geometry,
+    /// [`SetError::Limits`] when the motion limits would turn its wheels faster than its
+    /// encoders count.
     pub fn set_geometry(&mut self, geometry: Geometry) -> Result<(), SetError> {
         if !self.is_idle() {
             return Err(SetError::Busy);
         }
         let odometry =
             Odometry::new(&geometry, self.config.integration).map_err(SetError::Geometry)?;
+        // The limits must stay countable on the new wheels (a finer encoder counts faster).
+        self.config
+            .limits
+            .validate_for(&geometry)
+            .map_err(SetError::Limits)?;
         self.stash_finished_run();
         let pose = self.odo_state.pose();
         self.odometry = odometry;
