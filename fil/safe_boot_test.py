@@ -72,6 +72,10 @@ def check_boot_order(elf, workdir):
         e.start()
         if not wait_for(e.log, "Flash Int", 60):
             return "no flash interface access within 60 s"
+        # The control timer (TIM7) is set up after every GPIO port: the whole pin set-up is in
+        # the log once it appears.
+        if not wait_for(e.log, "timer[7]", 60):
+            return "no control-timer (TIM7) access within 60 s"
     finally:
         e.stop()
     acc = accesses(e.log)
@@ -159,6 +163,8 @@ def check_every_gpioe_write(acc):
             return f"access {i}: PUPDR gives PE13 pull {field(val, PE13):02b}, not a pull-down"
     if owed:
         return f"the boot ended with the motor pins' safe state owed after a port reset: {sorted(owed)}"
+    if resets == 0:
+        return "no GPIOE port reset in the boot log (the HAL's split resets the port: the log is incomplete)"
     print(f"every GPIOE write: PE13 never high, never floating after the port reset "
           f"({resets} reset(s), each followed at once by the safe state)")
     return None
@@ -290,11 +296,19 @@ def check_crash_record(elf, workdir):
                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                  stderr=subprocess.DEVNULL)
         boot = c.wait_event("event boot", 60)
+        _, status = c.command("status", timeout=30)
+        _, cleared = c.command("clear", timeout=30)
+        _, after = c.command("status", timeout=30)
     finally:
         e.stop()
     if not re.search(r"reset: hard fault at pc 0x[0-9a-f]{8}$", boot or ""):
         return f"the boot after a HardFault does not name it: {boot!r}"
-    print(f"crash record: the boot after the HardFault says `{boot.split(', ')[-1]}`")
+    if not re.search(r' reset="hard fault at pc 0x[0-9a-f]{8}"$', status or ""):
+        return f"status after the HardFault does not name it: {status!r}"
+    if cleared != "ok reset cause cleared" or "reset=" in (after or ""):
+        return f"clear did not acknowledge the reset cause: {cleared!r}, then {after!r}"
+    print(f"crash record: the boot after the HardFault says `{boot.split(', ')[-1]}`, status "
+          f"shows it until clear")
     return None
 
 

@@ -23,7 +23,9 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     odocal::board::safety::odocal_emergency_stop();
     if odocal::board::safety::first_fault() {
         let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
-        odocal::board::safety::record_crash(&odocal::app::crash::CrashRecord::panic(file, line));
+        odocal::board::safety::record_crash(&odocal::session::crash::CrashRecord::panic(
+            file, line,
+        ));
         defmt::error!("panic at {}:{}", file, line);
     }
     cortex_m::peripheral::SCB::sys_reset()
@@ -35,7 +37,7 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
 unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
     odocal::board::safety::odocal_emergency_stop();
     if odocal::board::safety::first_fault() {
-        odocal::board::safety::record_crash(&odocal::app::crash::CrashRecord::hard_fault(
+        odocal::board::safety::record_crash(&odocal::session::crash::CrashRecord::hard_fault(
             frame.pc(),
         ));
         defmt::error!("hard fault at pc {=u32:#x}", frame.pc());
@@ -178,7 +180,7 @@ mod app {
         tick.set_rate_hz(rate_hz);
         let pacing = Pacing::new(handoff, rate_hz);
         let missed = MissedPeriods::new(board.sysclk_hz, rate_hz);
-        let session = Session::new(settings, LibraryCalibrator::default());
+        let mut session = Session::new(settings, LibraryCalibrator::default());
         let mut watchdog = board.watchdog;
         set_timeout(&mut watchdog, WATCHDOG_MS);
 
@@ -190,10 +192,11 @@ mod app {
         let reset_cause = board.reset_cause;
         {
             // A fault handler's record names the reset better than RCC's `software`.
-            let mut cause = heapless::String::<{ 24 + odocal::app::crash::FILE_LEN }>::new();
+            let mut cause = heapless::String::<{ 24 + odocal::session::crash::FILE_LEN }>::new();
             match odocal::board::safety::take_crash() {
                 Some(crash) => {
                     let _ = write!(cause, "{crash}");
+                    session.note_crash(crash);
                 }
                 None => {
                     let _ = cause.push_str(reset_cause.as_str());

@@ -286,6 +286,29 @@ fn limits_the_encoders_cannot_count_are_refused() {
     assert!(b.send("set max_turn_rate 1").starts_with("ok "));
     assert!(b.send("set counts_per_rev 2000000").starts_with("ok "));
     let reply = b.send("set max_speed 0.3");
-    assert!(reply.contains("faster than the encoders can count"), "{reply}");
+    assert!(
+        reply.contains("faster than the encoders can count"),
+        "{reply}"
+    );
     assert!(b.send("params").contains("max_speed 0.200 "));
+}
+
+/// The crash the last reset came from (the board's record in RAM the startup code leaves alone)
+/// stays on `status` until `clear`.
+#[test]
+fn status_names_the_last_crash_until_clear() {
+    use odocal::session::crash::CrashRecord;
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    assert!(!b.send("status").contains("reset="));
+    b.session
+        .note_crash(CrashRecord::panic("src/session/mod.rs", 321));
+    let status = b.send("status");
+    assert!(
+        status.ends_with(" reset=\"panic at src/session/mod.rs:321\"\r\n"),
+        "{status}"
+    );
+    assert_eq!(b.send("clear"), "ok reset cause cleared\r\n");
+    assert!(!b.send("status").contains("reset="));
+    assert_eq!(b.send("clear"), "ok no fault latched\r\n");
 }

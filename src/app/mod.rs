@@ -12,14 +12,13 @@
 //! | 2, serial transmit (USART2) | [`serial::transmit`] | the echo first, then the console's replies |
 //! | 1, console task | [`console::take_line`], [`console::press`], [`console::poll`] | lines and presses on the session; events and the pose stream |
 //!
-//! [`crash`] is the record of the last panic or HardFault that the next boot reports. [`io`] holds the board's LEDs, button and console port in embedded-hal terms.
+//! [`io`] holds the board's LEDs, button and console port in embedded-hal terms.
 //!
 //! The few facts the parts at different priorities tell each other live in one [`Handoff`],
 //! lock-free (see its fields for who writes and who reads each).
 
 pub mod console;
 pub mod control;
-pub mod crash;
 pub mod io;
 pub mod serial;
 

@@ -16,8 +16,8 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::settings::{AppliedCalibration, Settings};
 use super::traits::{
-    Activity, Calibrator, ParamStorage, Rejection, Robot, RobotError, RobotStatus, RunResidual,
-    Solution, SolveError, StorageError,
+    Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
+    RunResidual, Solution, SolveError, StorageError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
@@ -84,6 +84,13 @@ impl Robot for Controller {
 
     fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError> {
         Controller::set_limits(self, *limits).map_err(set_error)
+    }
+
+    fn health(&mut self) -> Health {
+        Health {
+            missed_periods: self.missed_periods(),
+            pose_lost: self.pose_lost(),
+        }
     }
 
     fn status(&mut self) -> RobotStatus {
@@ -218,6 +225,10 @@ impl<L: ControllerLock> Robot for Locked<L> {
     #[inline(never)]
     fn status(&mut self) -> RobotStatus {
         self.0.with_controller(Robot::status)
+    }
+    #[inline(never)]
+    fn health(&mut self) -> Health {
+        self.0.with_controller(Robot::health)
     }
     #[inline(never)]
     fn pose(&mut self) -> PoseF64 {

@@ -31,6 +31,7 @@
 mod bringup;
 mod button;
 mod calibrate_commands;
+pub mod crash;
 mod drive;
 mod events;
 mod identify;
@@ -61,8 +62,8 @@ pub use events::{write_boot_event, write_fault_event, write_runs_restored};
 pub use settings::{AppliedCalibration, Settings, SettingsError, check_nominal};
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, ParamStorage, Rejection, Robot, RobotError, RobotStatus, RunResidual,
-    Solution, SolveError, StorageError,
+    Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
+    RunResidual, Solution, SolveError, StorageError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -115,6 +116,8 @@ pub struct Session<C> {
     runs_store_failed: bool,
     /// A short press was refused since [`Session::take_press_refused`] last looked.
     press_refused: bool,
+    /// The panic or HardFault that caused the last reset, shown by `status` until `clear`.
+    last_crash: Option<crash::CrashRecord>,
 }
 
 /// The `err` reply for an operation the robot refused: `err 11` for a fault, `err 10`
@@ -181,6 +184,7 @@ impl<C: Calibrator> Session<C> {
             runs_dirty: false,
             runs_store_failed: false,
             press_refused: false,
+            last_crash: None,
         }
     }
 
@@ -238,6 +242,12 @@ impl<C: Calibrator> Session<C> {
                 write!(out, "event runs not stored: {e}\r\n")
             }
         }
+    }
+
+    /// The panic or HardFault the last reset came from (the board's record of it):
+    /// `status` shows it until `clear`.
+    pub fn note_crash(&mut self, crash: crash::CrashRecord) {
+        self.last_crash = Some(crash);
     }
 
     /// Whether every run change has been written to flash.
@@ -383,8 +393,9 @@ impl<C: Calibrator> Session<C> {
             Command::Help => report::write_help(out),
             Command::Status => {
                 let status = robot.status();
+                let health = robot.health();
                 let pose = robot.pose();
-                report::write_status(out, &status, &pose, self)
+                report::write_status(out, &status, &health, &pose, self)
             }
             Command::Params => report::write_params(out, &self.settings),
             Command::Set { name, value } => self.set(name, value, robot, out),
@@ -415,13 +426,18 @@ impl<C: Calibrator> Session<C> {
             Command::Bringup { kind } => self.bringup(kind, robot, out),
             Command::Identify { mode } => self.bringup(CheckKind::Identify(mode), robot, out),
             Command::Stop => self.stop(robot, out),
-            Command::Clear => match robot.status().fault {
-                Some(name) => {
-                    robot.clear_fault();
-                    write!(out, "ok fault cleared ({name})\r\n")
+            Command::Clear => {
+                // The last reset's crash is acknowledged with the fault.
+                let crash = self.last_crash.take();
+                match robot.status().fault {
+                    Some(name) => {
+                        robot.clear_fault();
+                        write!(out, "ok fault cleared ({name})\r\n")
+                    }
+                    None if crash.is_some() => write!(out, "ok reset cause cleared\r\n"),
+                    None => write!(out, "ok no fault latched\r\n"),
                 }
-                None => write!(out, "ok no fault latched\r\n"),
-            },
+            }
             Command::Measure {
                 run,
                 x_m,

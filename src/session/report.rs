@@ -7,7 +7,7 @@ use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
 use core::fmt::{self, Write};
 
-use super::traits::{Activity, RobotStatus, Solution, SolveError};
+use super::traits::{Activity, Health, RobotStatus, Solution, SolveError};
 use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::RunRecord;
@@ -119,6 +119,7 @@ pub(super) fn write_stream_line(
 pub(super) fn write_status<C: Calibrator>(
     out: &mut dyn Write,
     status: &RobotStatus,
+    health: &Health,
     pose: &PoseF64,
     session: &Session<C>,
 ) -> fmt::Result {
@@ -158,7 +159,7 @@ pub(super) fn write_status<C: Calibrator>(
     }
     write!(
         out,
-        " measured cw {} ccw {} runs {}/{} calibration={}\r\n",
+        " measured cw {} ccw {} runs {}/{} calibration={}",
         p.cw_measured,
         p.ccw_measured,
         session.runs.len(),
@@ -168,7 +169,19 @@ pub(super) fn write_status<C: Calibrator>(
             .calibration
             .as_ref()
             .map_or("none", |c| c.method.as_str()),
-    )
+    )?;
+    // Only when there is something to say: control periods missed while moving, a pose the
+    // counters cannot vouch for, the crash the last reset came from (until `clear`).
+    if health.missed_periods > 0 {
+        write!(out, " missed_periods={}", health.missed_periods)?;
+    }
+    if health.pose_lost {
+        out.write_str(" pose=lost")?;
+    }
+    if let Some(crash) = &session.last_crash {
+        write!(out, " reset=\"{crash}\"")?;
+    }
+    out.write_str("\r\n")
 }
 
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {

@@ -44,6 +44,15 @@ pub struct RobotStatus {
     pub fault_detail: Option<Fault>,
 }
 
+/// What the robot knows about the control loop's health (only what is worth telling).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Health {
+    /// Control periods missed while moving, since boot.
+    pub missed_periods: u32,
+    /// The pose may be wrong: counts during a stall may have wrapped a counter.
+    pub pose_lost: bool,
+}
+
 /// Why the robot refused a request.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
@@ -133,6 +142,10 @@ pub trait Robot {
     fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError>;
     /// Current state.
     fn status(&mut self) -> RobotStatus;
+    /// The control loop's health (a robot without the bookkeeping: all well).
+    fn health(&mut self) -> Health {
+        Health::default()
+    }
     /// Odometry pose.
     fn pose(&mut self) -> PoseF64;
     /// Cumulative wheel tick totals (for the stream's wheel speeds).

@@ -28,7 +28,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use stm32f4xx_hal::pac;
 
-use crate::app::crash::{CrashRecord, WORDS};
+use crate::session::crash::{CrashRecord, WORDS};
 
 /// PE9 (TIM1_CH1, right PWM), PE11 (TIM1_CH2, left PWM), PE13 (bridge enable).
 const MOTOR_PINS: [u32; 3] = [9, 11, 13];
