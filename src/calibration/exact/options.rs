@@ -22,6 +22,9 @@ pub struct ExactOptions {
     pub use_heading: bool,
     /// Length scale of heading residuals, metres; `None` = each run's characteristic length.
     pub heading_length_m: Option<f64>,
+    /// Multiplier of each run's characteristic length in the heading residual's length scale
+    /// (when [`ExactOptions::heading_length_m`] is `None`): 1 = the side `L` of a square.
+    pub heading_weight: f64,
     /// Iteration limit of each least-squares solve.
     pub max_iterations: u32,
     /// Robust fit (Cauchy weights per run, see the `exact` module docs); `false` = plain least
@@ -39,15 +42,19 @@ pub struct ExactOptions {
 }
 
 impl Default for ExactOptions {
-    /// The robust fit, headings used, `E_s` when a line or a path run is present.
+    /// The robust fit with run weights only (the heading weighted by the run's length a priori,
+    /// no channel weights: they transferred worse to the paths a calibration did not see, see
+    /// docs/calibration.md, *Transfer*), headings used, `E_s` when a line or a path run is
+    /// present.
     fn default() -> Self {
         ExactOptions {
             scale: ScaleFit::Auto,
             use_heading: true,
             heading_length_m: None,
+            heading_weight: 1.0,
             max_iterations: 100,
             robust: true,
-            channel_weights: true,
+            channel_weights: false,
             resolution_m: 1e-3,
             resolution_rad: 0.1 * core::f64::consts::PI / 180.0,
         }
