@@ -68,7 +68,7 @@ impl Default for FitOptions {
             heading: true,
             fit_scale: false,
             heading_length_m: None,
-            heading_weight: 1.0,
+            heading_weight: ExactOptions::default().heading_weight,
             recorded_truth: false,
             from_start: true,
             channel_weights: ExactOptions::default().channel_weights,

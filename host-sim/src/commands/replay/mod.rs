@@ -102,10 +102,11 @@ pub struct ReplayArgs {
     /// Length scale of heading residuals in the exact fits, metres (default: each run's length).
     #[arg(long)]
     pub heading_length: Option<f64>,
-    /// Multiplier of each run's length in the exact fits' heading residuals (default 1: the
-    /// side of a square, the radius of a circle, the wheel travel of a line or turn).
-    #[arg(long, default_value_t = 1.0)]
-    pub heading_weight: f64,
+    /// Multiplier of each run's length in the exact fits' heading residuals (the side of a
+    /// square, the radius of a circle, the wheel travel of a line or turn; default: the
+    /// library's, odocal::calibration::exact::HEADING_WEIGHT).
+    #[arg(long)]
+    pub heading_weight: Option<f64>,
     /// Calibrate against the ground truth as recorded, without turning it by the session's
     /// measured motion-capture heading offset.
     #[arg(long)]
@@ -222,7 +223,9 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         heading: !args.no_heading,
         fit_scale: args.fit_scale,
         heading_length_m: args.heading_length,
-        heading_weight: args.heading_weight,
+        heading_weight: args
+            .heading_weight
+            .unwrap_or(FitOptions::default().heading_weight),
         recorded_truth: args.raw_truth,
         from_start: !args.from_anchor,
         channel_weights: args.channel_weights,
