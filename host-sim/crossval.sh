@@ -6,7 +6,7 @@
 #   bash host-sim/crossval.sh --by-set [DATA_DIR [REPLAY FLAGS...]]   # the older table by set
 #
 # DATA_DIR (default ../shared/data) holds optiodom/. REPLAY FLAGS go to every calibration (not
-# to the nominal row), e.g. --from-start or --raw-truth. Needs jq.
+# to the nominal row), e.g. --from-anchor, --channel-weights, --heading-weight K or --raw-truth. Needs jq.
 #
 # Leave one session out: every shared session in turn is evaluated (final position error and
 # path RMS against the ground truth as recorded, from the recorded start), calibrated on
@@ -149,7 +149,7 @@ for e in "${EVAL[@]}"; do row+=" $(cell "$OUT/nominal.json" nominal "$e") |"; do
 echo "$row"
 row="| the evaluated session itself (in-sample floor) | exact-path |"
 for e in "${EVAL[@]}"; do
-  "$SIM" replay --calibrate "${DIR[$e]}" --evaluate "${DIR[$e]}" --method exact-path --raw-truth --from-start --format json --out "$OUT/f" > "$OUT/floor-$e.json" 2>/dev/null
+  "$SIM" replay --calibrate "${DIR[$e]}" --evaluate "${DIR[$e]}" --method exact-path --raw-truth --format json --out "$OUT/f" > "$OUT/floor-$e.json" 2>/dev/null
   row+=" $(cell "$OUT/floor-$e.json" exact-path "$e") |"
 done
 echo "$row"

@@ -7,8 +7,11 @@
 //! approximation), and the residual is `measured − predicted` in the start frame:
 //! - a run measured at its end (the operator's tape measure): the end pose's `x`, `y` in metres
 //!   and, when θ was measured, the wrapped heading residual multiplied by a length scale `ℓ` (by
-//!   default the run's characteristic length — the side of a square — so a heading error counts
-//!   like the lateral error it produces over one leg);
+//!   default [`HEADING_WEIGHT`] = 2 times the run's characteristic length — the side of a
+//!   square —, so a heading error counts like the lateral error it produces over two legs: the
+//!   end heading measures the robot's turning, which every path it drives later inherits, and it
+//!   transferred better to the shared sessions a calibration did not see than the end position,
+//!   see [`HEADING_WEIGHT`]);
 //! - a run with ground truth along the whole path ([`RunObservation::truth_path`], e.g. a
 //!   motion-capture log): the position error at every knot, each divided by `√N` (`N` knots after
 //!   the start), so that the run adds the *mean* squared position error along its path to the
@@ -77,7 +80,12 @@
 //!
 //! ## Channel weights
 //!
-//! How much an end heading counts against an end position is not known beforehand: slip in the
+//! An option ([`ExactOptions::channel_weights`], off by default: on the shared OptiOdom sessions
+//! the weights it estimates moved the factors towards the end positions, and the calibration
+//! transferred worse to the paths it did not see, docs/calibration.md, *Transfer*; in simulation,
+//! where the model is exact, it helps when the heading is measured worse than its a-priori
+//! weight assumes). How much an end heading counts against an end position is not known
+//! beforehand: slip in the
 //! turns, a jerk at the start and the way the end pose is measured make the heading scatter by a
 //! different amount than `x` and `y`, and `x` and `y` themselves differ (along and across the last
 //! leg of a square or a line). Weighting the heading by `ℓ` alone fixes their ratio a priori; a
