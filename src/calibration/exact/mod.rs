@@ -85,10 +85,9 @@
 //! transferred worse to the paths it did not see, docs/calibration.md, *Transfer*; in simulation,
 //! where the model is exact, it helps when the heading is measured worse than its a-priori
 //! weight assumes). How much an end heading counts against an end position is not known
-//! beforehand: slip in the
-//! turns, a jerk at the start and the way the end pose is measured make the heading scatter by a
-//! different amount than `x` and `y`, and `x` and `y` themselves differ (along and across the last
-//! leg of a square or a line). Weighting the heading by `ℓ` alone fixes their ratio a priori; a
+//! beforehand: slip in the turns, a jerk at the start and the way the end pose is measured make
+//! the heading scatter by a different amount than `x` and `y`, and `x` and `y` themselves differ
+//! (along and across the last leg of a square or a line). Weighting the heading by `ℓ` alone fixes their ratio a priori; a
 //! session whose headings scatter twice as much as that ratio assumes lets them pull the factors
 //! four times as hard as their precision deserves. The robust fit therefore treats the noise
 //! level of each channel as unknown and estimates it from the same peers (variance components,
