@@ -22,6 +22,11 @@ pub struct ExactOptions {
     pub use_heading: bool,
     /// Length scale of heading residuals, metres; `None` = each run's characteristic length.
     pub heading_length_m: Option<f64>,
+    /// Multiplier `k` of each run's characteristic length in the heading residual's length
+    /// scale `ℓ = k·L` (when [`ExactOptions::heading_length_m`] is `None`; `L` the side of a
+    /// square, the radius of a circle, the length of a line). Default
+    /// [`HEADING_WEIGHT`](super::HEADING_WEIGHT).
+    pub heading_weight: f64,
     /// Iteration limit of each least-squares solve.
     pub max_iterations: u32,
     /// Robust fit (Cauchy weights per run, see the `exact` module docs); `false` = plain least
@@ -39,15 +44,19 @@ pub struct ExactOptions {
 }
 
 impl Default for ExactOptions {
-    /// The robust fit, headings used, `E_s` when a line or a path run is present.
+    /// The robust fit with run weights only (the heading weighted a priori by
+    /// [`HEADING_WEIGHT`](super::HEADING_WEIGHT) times the run's length, no channel weights:
+    /// chosen by how the calibration transfers to the paths it did not see, docs/calibration.md,
+    /// *Transfer*), headings used, `E_s` when a line or a path run is present.
     fn default() -> Self {
         ExactOptions {
             scale: ScaleFit::Auto,
             use_heading: true,
             heading_length_m: None,
+            heading_weight: super::HEADING_WEIGHT,
             max_iterations: 100,
             robust: true,
-            channel_weights: true,
+            channel_weights: false,
             resolution_m: 1e-3,
             resolution_rad: 0.1 * core::f64::consts::PI / 180.0,
         }

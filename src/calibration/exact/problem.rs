@@ -51,7 +51,7 @@ impl Problem<'_, '_> {
     pub(super) fn heading_length(&self, run: &RunObservation<'_>) -> f64 {
         self.options
             .heading_length_m
-            .unwrap_or_else(|| run.characteristic_length_m())
+            .unwrap_or_else(|| self.options.heading_weight * run.characteristic_length_m())
     }
 
     /// Number of residual components of a run: 2 (x, y) or 3 (with the heading).

@@ -186,10 +186,12 @@ pub(super) fn print_text(
             .filter(|r| r.anchor > 0)
             .count();
         if fit.from_start {
-            println!("  every calibration run measured from its recorded start (--from-start)");
+            println!(
+                "  every calibration run measured from its recorded start (--from-anchor: from 0.1 m of wheel travel on)"
+            );
         } else {
             println!(
-                "  {anchored} of {runs} calibration runs measured from {START_TRAVEL_M} m of wheel travel on, leaving their start transient out (runs rolling under {ANCHOR_MIN_TRAVEL_M} m keep their start; --from-start: every run from its start)"
+                "  {anchored} of {runs} calibration runs measured from {START_TRAVEL_M} m of wheel travel on, leaving their start transient out (runs rolling under {ANCHOR_MIN_TRAVEL_M} m keep their start; --from-anchor)"
             );
         }
     }

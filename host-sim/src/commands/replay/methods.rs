@@ -51,10 +51,15 @@ pub struct FitOptions {
     pub fit_scale: bool,
     /// Heading residual length scale.
     pub heading_length_m: Option<f64>,
+    /// Multiplier of each end-pose run's length in its heading residual's length scale.
+    pub heading_weight: f64,
     /// Calibrate against the ground truth as recorded (not turned by its heading offset).
     pub recorded_truth: bool,
     /// Calibrate from each run's first knot, not from its anchor.
     pub from_start: bool,
+    /// Weight the residual channels of the robust fit by their own scatter (default: the
+    /// library's default, by the run's length a priori).
+    pub channel_weights: bool,
 }
 
 impl Default for FitOptions {
@@ -63,8 +68,10 @@ impl Default for FitOptions {
             heading: true,
             fit_scale: false,
             heading_length_m: None,
+            heading_weight: ExactOptions::default().heading_weight,
             recorded_truth: false,
-            from_start: false,
+            from_start: true,
+            channel_weights: ExactOptions::default().channel_weights,
         }
     }
 }
@@ -113,7 +120,9 @@ pub fn calibrate_method(
         },
         use_heading: fit.heading,
         heading_length_m: fit.heading_length_m,
+        heading_weight: fit.heading_weight,
         robust: method != EXACT_LS,
+        channel_weights: method != EXACT_LS && fit.channel_weights,
         ..ExactOptions::default()
     };
     calibrate_with(&obs, &first.nominal, lib_method, &options).map_err(|e| e.to_string())

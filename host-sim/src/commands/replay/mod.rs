@@ -21,9 +21,10 @@
 //! the result is absolute, so sessions with different nominal values can be mixed. It reads the
 //! ground truth turned by the session's measured motion-capture heading offset into the robot's
 //! own start frame ([`crate::sim::optiodom::heading_offset`]; `--raw-truth`: as recorded),
-//! and every run that rolls at least 1 m from its anchor, 0.1 m of wheel travel after its start,
-//! so that a slipping start does not read as a wheelbase error
-//! ([`crate::sim::optiodom::anchor`]; `--from-start`: from the recorded start). `E_b`, `E_d`,
+//! and every run from its recorded start, as every evaluated path is driven and measured
+//! (`--from-anchor`: every run that rolls at least 1 m from its anchor, 0.1 m of wheel travel
+//! after its start, its start transient left out, [`crate::sim::optiodom::anchor`]; the
+//! leave-one-session-out transfer in docs/calibration.md chose the start). `E_b`, `E_d`,
 //! `E_s` are reported relative to the first calibration session's nominal geometry (or the first
 //! evaluated one's when nothing is calibrated), for every row, `nominal` included.
 //!
@@ -101,14 +102,24 @@ pub struct ReplayArgs {
     /// Length scale of heading residuals in the exact fits, metres (default: each run's length).
     #[arg(long)]
     pub heading_length: Option<f64>,
+    /// Multiplier of each run's length in the exact fits' heading residuals (the side of a
+    /// square, the radius of a circle, the wheel travel of a line or turn; default: the
+    /// library's, odocal::calibration::exact::HEADING_WEIGHT).
+    #[arg(long)]
+    pub heading_weight: Option<f64>,
     /// Calibrate against the ground truth as recorded, without turning it by the session's
     /// measured motion-capture heading offset.
     #[arg(long)]
     pub raw_truth: bool,
-    /// Calibrate from each run's recorded start, its start transient included (default: from
-    /// 0.1 m of wheel travel on, for runs whose wheels roll at least 1 m).
+    /// Calibrate every run that rolls at least 1 m from its anchor, 0.1 m of wheel travel after
+    /// its start, leaving its start transient out (default: from the recorded start, as every
+    /// evaluated path is driven and measured).
     #[arg(long)]
-    pub from_start: bool,
+    pub from_anchor: bool,
+    /// Weight the robust fits' residual channels (x, y, heading) by their own scatter among a
+    /// run's peers (default: the heading by the run's length, a priori).
+    #[arg(long)]
+    pub channel_weights: bool,
 }
 
 fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
@@ -212,8 +223,12 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         heading: !args.no_heading,
         fit_scale: args.fit_scale,
         heading_length_m: args.heading_length,
+        heading_weight: args
+            .heading_weight
+            .unwrap_or(FitOptions::default().heading_weight),
         recorded_truth: args.raw_truth,
-        from_start: args.from_start,
+        from_start: !args.from_anchor,
+        channel_weights: args.channel_weights,
     };
     let all = calibrated_methods();
     let names: Vec<&str> = match args.method.as_deref() {

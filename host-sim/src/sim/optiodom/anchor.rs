@@ -19,8 +19,10 @@
 //! its first leg ends at the same place, with the same corners on the way. Runs whose wheels roll
 //! less than [`ANCHOR_MIN_TRAVEL_M`] (1 m; Ivanjko's in-place turns, 0.3 m of wheel arc) keep
 //! their start: cutting 0.1 m would cut a third of the turn they calibrate `E_b` with. The
-//! evaluation keeps the start (the published protocol), and `replay --from-start` calibrates from
-//! it too.
+//! evaluation keeps the start (the published protocol). `replay` calibrates from the start by
+//! default and from the anchors with `--from-anchor`: measured by how a calibration transfers to
+//! the sessions it did not see, the anchor made it worse (docs/calibration.md, *Transfer*): the
+//! paths a user drives start from rest too, and their start transients turn them the same way.
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
