@@ -11,8 +11,8 @@ use odocal::calibration::{CalibrationError, Method, RunObservation, calibrate};
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
 
-use crate::commands::montecarlo::{Acc, Rng};
-use crate::commands::square::drive_path;
+use crate::experiments::montecarlo::{Acc, Rng};
+use crate::experiments::square::drive_path;
 use crate::sim::robot::SimConfig;
 
 /// Arguments of `host-sim closedloop`.

@@ -12,8 +12,8 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, PathKind};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 
-use crate::commands::session::e_max_and_scatter;
-use crate::commands::square::drive_path_tuned;
+use crate::experiments::square::drive_path_tuned;
+use crate::experiments::square::e_max_and_scatter;
 use crate::sim::board::Board;
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::{MotorModel, SimConfig};
