@@ -1,8 +1,9 @@
 //! `host-sim montecarlo`: repeated paper-mode calibrations with measurement and slip noise
 //! ([`crate::experiments::montecarlo`]), as a text table or JSON lines.
 
+use crate::commands::{print_acc_header, print_acc_row};
 pub use crate::experiments::montecarlo::MonteCarloArgs;
-use crate::experiments::montecarlo::{Acc, simulate};
+use crate::experiments::montecarlo::simulate;
 use crate::experiments::paper::Format;
 
 /// Runs the subcommand.
@@ -35,13 +36,13 @@ pub fn run(args: &MonteCarloArgs) -> Result<(), Box<dyn std::error::Error>> {
             args.eb,
             args.ed
         );
-        Acc::print_header();
+        print_acc_header();
     }
     for (m, a) in &results {
         let (mb, sb) = a.mean_std(0);
         let (md, sd) = a.mean_std(1);
         match args.format {
-            Format::Text => a.print_row(m),
+            Format::Text => print_acc_row(a, m),
             Format::Json => println!(
                 "{{\"L\":{},\"method\":\"{}\",\"trials\":{},\"E_b_err_mean\":{mb:e},\"E_b_err_std\":{sb:e},\"E_d_err_mean\":{md:e},\"E_d_err_std\":{sd:e},\"failed\":{}}}",
                 args.side,

@@ -9,7 +9,9 @@
 //! - [`square`]: closed-loop paths of the library's controller on the simulated robot; `E_max`
 //!   and scatter of end errors.
 //! - [`rectangle`]: the rectangle test of a robot's odometry.
+//! - [`closedloop`]: calibrations from closed-loop squares with slip and measurement noise.
 
+pub mod closedloop;
 pub mod montecarlo;
 pub mod paper;
 pub mod rectangle;

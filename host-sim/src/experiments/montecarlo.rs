@@ -172,32 +172,6 @@ impl Acc {
         }
     }
 
-    /// Prints the header of the text table [`Acc::print_row`] fills.
-    pub fn print_header() {
-        println!(
-            "{:>11} {:>12} {:>12} {:>12} {:>12} {:>7}",
-            "method", "E_b_err mean", "E_b_err std", "E_d_err mean", "E_d_err std", "failed"
-        );
-    }
-
-    /// Prints one row of the text table: mean and std of the E_b and E_d errors, failures.
-    pub fn print_row(&self, method: &str) {
-        if self.n == 0 {
-            // Every trial failed: no statistic to show (zeros would read as a perfect result).
-            let none = "-";
-            println!(
-                "{method:>11} {none:>12} {none:>12} {none:>12} {none:>12} {:>7}",
-                self.failed
-            );
-            return;
-        }
-        let ((mb, sb), (md, sd)) = (self.mean_std(0), self.mean_std(1));
-        println!(
-            "{method:>11} {mb:>12.3e} {sb:>12.3e} {md:>12.3e} {sd:>12.3e} {:>7}",
-            self.failed
-        );
-    }
-
     /// Trials that gave a result.
     pub fn trials(&self) -> u32 {
         self.n
