@@ -9,10 +9,13 @@
 //! - [`square`]: closed-loop paths of the library's controller on the simulated robot; `E_max`
 //!   and scatter of end errors.
 //! - [`rectangle`]: the rectangle test of a robot's odometry.
+//! - [`motors`]: motor identification on robots with other motors, and the squares with the
+//!   identified tuning against the default one.
 //! - [`closedloop`]: calibrations from closed-loop squares with slip and measurement noise.
 
 pub mod closedloop;
 pub mod montecarlo;
+pub mod motors;
 pub mod paper;
 pub mod rectangle;
 pub mod square;
