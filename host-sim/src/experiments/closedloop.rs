@@ -96,6 +96,9 @@ fn drive_set(
     Ok(out)
 }
 
+/// One method's calibration of a trial, or why it failed.
+pub type MethodResult = (Method, Result<Calibration, CalibrationError>);
+
 /// One trial: `runs` CW and CCW squares driven closed-loop with `truth` (seeds from `args.seed`
 /// and `trial`), measured with noise from `rng`, calibrated with every method of [`METHODS`].
 ///
@@ -106,7 +109,7 @@ pub fn trial(
     truth: &Geometry,
     trial: u32,
     rng: &mut Rng,
-) -> Result<Vec<(Method, Result<Calibration, CalibrationError>)>, String> {
+) -> Result<Vec<MethodResult>, String> {
     let nominal = Geometry::PAPER_NOMINAL;
     let records = drive_set(args, truth, trial, rng)?;
     let obs: Vec<_> = records
