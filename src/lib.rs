@@ -15,6 +15,7 @@
 //! | 1 | [`kinematics`] | encoder ticks → pose: angle, encoder, geometry, odometry, `f64` reference |
 //! | 2 | [`motion`] | the control task's spine: motor, speed loops, profiles, routines, run records, button, controller |
 //! | 3 | [`calibration`], [`storage`] | E_b, E_d, E_s from runs; the parameter record in flash (independent of each other) |
+//! | 3 | `plant` (feature `plant`) | the simulated robot that host-sim, the emulator board and qemu-bench run (never in the shipped firmware) |
 //! | 4 | [`protocol`] | serial lines → commands, replies |
 //! | 5 | [`session`] | commands and button presses → controller, run store, calibration, storage |
 //! | 6 | [`app`] | the app core: what each interrupt and task of the board does, as portable functions (host-sim calls them too) |
@@ -51,6 +52,9 @@ pub mod motion;
 
 pub mod calibration;
 pub mod storage;
+
+#[cfg(feature = "plant")]
+pub mod plant;
 
 pub mod protocol;
 

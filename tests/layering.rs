@@ -19,6 +19,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("motion", 2),
     ("calibration", 3),
     ("storage", 3),
+    ("plant", 3),
     ("protocol", 4),
     ("session", 5),
     ("app", 6),

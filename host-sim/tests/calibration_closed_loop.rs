@@ -1,7 +1,7 @@
 //! Calibration from squares driven closed-loop by the library's controller through the
 //! simulated robot (motor dynamics, encoder quantisation, no noise).
 
-use host_sim::commands::square::drive_path;
+use host_sim::experiments::square::drive_path;
 use host_sim::sim::robot::SimConfig;
 use odocal::calibration::{Method, RunObservation, calibrate};
 use odocal::kinematics::geometry::Geometry;

@@ -1,7 +1,7 @@
 //! Closed-loop tests: the library's `Controller` drives the simulated robot.
 
 use host_sim::commands::drive::drive_script;
-use host_sim::commands::square::{PathResult, drive_path};
+use host_sim::experiments::square::{PathResult, drive_path};
 use host_sim::sim::robot::{Sim, SimConfig, default_controller};
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
@@ -132,7 +132,7 @@ fn calibrated_belief_closes_the_square() {
     let mut sim = Sim::new(SimConfig::new(truth, RATE));
     sim.step(&mut controller);
     controller.set_geometry(truth).unwrap();
-    let r = host_sim::commands::square::drive_path_with(
+    let r = host_sim::experiments::square::drive_path_with(
         &mut sim,
         &mut controller,
         square(Direction::Cw, 4.0),

@@ -3,7 +3,7 @@
 
 use clap::Parser;
 use host_sim::commands::drive::{DriveArgs, execute};
-use host_sim::commands::motors::{CASES, identify, squares, worst_relative_error};
+use host_sim::experiments::motors::{CASES, identify, squares, worst_relative_error};
 use odocal::motion::speed::SpeedTuning;
 
 /// Bound on every identified parameter's relative error (see the test below).

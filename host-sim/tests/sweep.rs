@@ -1,6 +1,6 @@
 //! `host-sim sweep` on a tiny grid: two sides, one noise level.
 
-use host_sim::commands::sweep::{SWEEP_METHODS, SweepArgs, csv, sweep, write_outputs};
+use host_sim::experiments::sweep::{SWEEP_METHODS, SweepArgs, csv, sweep, write_outputs};
 use indicatif::ProgressBar;
 use odocal::calibration::Method;
 

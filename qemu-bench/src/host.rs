@@ -98,26 +98,23 @@ pub fn solve(out: &mut String) -> Result<(), String> {
     Ok(())
 }
 
-/// The control task driving a square with the simulated plant: the result line.
+/// The control task driving a square with the simulated robot: the result line.
 pub fn control(out: &mut String) -> Result<(), String> {
-    use qemu_bench::plant;
+    use qemu_bench::control;
 
-    let mut c = plant::controller().map_err(|e| e.to_string())?;
-    let (periods, record) = plant::drive_square(&mut c, |c, r, l| c.step(r, l))?;
+    let mut c = control::controller().map_err(|e| e.to_string())?;
+    let (periods, record) = control::drive_square(&mut c, control::period)?;
     report::run_line(out, "control_square", periods, &record).map_err(|e| e.to_string())
 }
 
-/// A motor identification of the simulated plant's motors: the result line.
+/// A motor identification of the simulated robot's motors: the result line.
 pub fn identify(out: &mut String) -> Result<(), String> {
     use odocal::motion::controller::Controller;
-    use qemu_bench::plant;
+    use qemu_bench::control;
 
-    let mut c = plant::controller().map_err(|e| e.to_string())?;
-    let (periods, report) = plant::identify(
-        &mut c,
-        |c, r, l| c.step(r, l),
-        Controller::take_check_report,
-    )?;
+    let mut c = control::controller().map_err(|e| e.to_string())?;
+    let (periods, report) =
+        control::identify(&mut c, control::period, Controller::take_check_report)?;
     report::identify_line(out, "identify_lifted", periods, &report).map_err(|e| e.to_string())
 }
 
@@ -127,7 +124,7 @@ pub fn console(out: &mut String) -> Result<(), String> {
     use qemu_bench::squares::SquareRuns;
 
     let runs = SquareRuns::generate();
-    let mut robot = qemu_bench::plant::controller().map_err(|e| e.to_string())?;
+    let mut robot = qemu_bench::control::controller().map_err(|e| e.to_string())?;
     let mut session = console::session(&runs);
     let mut reply = console::ReplyHash::default();
     for line in console::COMMANDS {

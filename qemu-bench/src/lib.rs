@@ -8,7 +8,7 @@
 #![warn(missing_docs)]
 
 pub mod console;
-pub mod plant;
+pub mod control;
 pub mod report;
 pub mod squares;
 pub mod trace;

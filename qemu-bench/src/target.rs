@@ -23,6 +23,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use cortex_m_semihosting::hio;
+use odocal::app::Handoff;
 use odocal::calibration::{Calibration, CalibrationError, Method, RunObservation, calibrate};
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
@@ -31,7 +32,7 @@ use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::bringup::CheckReport;
 use odocal::motion::controller::{Controller, StepOutput};
 use qemu_bench::console;
-use qemu_bench::plant;
+use qemu_bench::control::{self, BenchRobot};
 use qemu_bench::report;
 use qemu_bench::squares::{self, SquareRuns};
 use qemu_bench::trace::Trace;
@@ -119,10 +120,17 @@ fn exact_solve(
     calibrate(runs, nominal, Method::Exact)
 }
 
-/// One period of the control task: encoders, odometry, routine, speed loops (`TIM7`'s work).
+/// One period of the control task as the app core runs it (`app::control::period`, `TIM7`'s
+/// work): stop request, encoders, odometry, routine, speed loops, the motor command.
 #[inline(never)]
-fn control_step(controller: &mut Controller, raw_right: u32, raw_left: u32) -> StepOutput {
-    controller.step(raw_right, raw_left)
+fn control_step(
+    handoff: &Handoff,
+    controller: &mut Controller,
+    raw_right: u32,
+    raw_left: u32,
+    robot: &mut BenchRobot,
+) -> StepOutput {
+    control::period(handoff, controller, raw_right, raw_left, robot)
 }
 
 /// The console task's collection of a finished check's report (`Session::poll`).
@@ -296,7 +304,7 @@ fn main() -> ! {
     // The console's `calibrate` and `apply exact` on the same runs, as the console task runs
     // them (the whole command: every method, the residual listing, the advice).
     {
-        let Ok(mut robot) = plant::controller() else {
+        let Ok(mut robot) = control::controller() else {
             fail("controller configuration rejected")
         };
         let mut session = console::session(&runs);
@@ -332,19 +340,19 @@ fn main() -> ! {
         ));
     }
 
-    // The control task: a 1 m square with the simulated plant, one window per period.
-    let Ok(mut controller) = plant::controller() else {
+    // The control task: a 1 m square with the simulated robot, one window per period.
+    let Ok(mut controller) = control::controller() else {
         fail("controller configuration rejected")
     };
     let caller = paint_stack();
     bench_select_control();
-    let driven = plant::drive_square(&mut controller, |c, r, l| {
-        // The plant's counter values are materialised before the window opens: otherwise the
-        // compiler may schedule the plant's arithmetic after `bench_start` and it would count
+    let driven = control::drive_square(&mut controller, |h, c, r, l, robot| {
+        // The robot's counter values are materialised before the window opens: otherwise the
+        // compiler may schedule the robot's arithmetic after `bench_start` and it would count
         // as the controller's.
         let (r, l) = (black_box(r), black_box(l));
         bench_start();
-        let out = control_step(black_box(c), r, l);
+        let out = control_step(black_box(h), black_box(c), r, l, robot);
         bench_end();
         out
     });
@@ -360,19 +368,19 @@ fn main() -> ! {
         "info stack control high_water={stack} at_call={caller}\n"
     ));
 
-    // The control task during a motor identification (wheels lifted, the plant's motors), one
+    // The control task during a motor identification (wheels lifted, the robot's motors), one
     // window per period, and the console task's poll of the report after each period.
-    let Ok(mut controller) = plant::controller() else {
+    let Ok(mut controller) = control::controller() else {
         fail("controller configuration rejected")
     };
     let caller = paint_stack();
-    let identified = plant::identify(
+    let identified = control::identify(
         &mut controller,
-        |c, r, l| {
+        |h, c, r, l, robot| {
             let (r, l) = (black_box(r), black_box(l));
             bench_select_identify();
             bench_start();
-            let out = control_step(black_box(c), r, l);
+            let out = control_step(black_box(h), black_box(c), r, l, robot);
             bench_end();
             out
         },

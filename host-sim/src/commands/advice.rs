@@ -9,7 +9,7 @@ use odocal::calibration::Method;
 use odocal::calibration::track::{CANDIDATE_SIDES_M, TrackAdviceInput, advise, evaluate};
 use odocal::kinematics::geometry::Geometry;
 
-use crate::commands::paper::{TruthModel, true_geometry};
+use crate::experiments::paper::{TruthModel, true_geometry};
 
 /// Arguments of `host-sim advice`.
 #[derive(Args, Debug)]

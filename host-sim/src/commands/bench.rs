@@ -18,8 +18,9 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use crate::commands::montecarlo::{self, MonteCarloArgs};
-use crate::commands::paper::Format;
+use crate::commands::montecarlo;
+use crate::experiments::montecarlo::MonteCarloArgs;
+use crate::experiments::paper::Format;
 use crate::sim::board::{Board, measure_line};
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::sim_config;

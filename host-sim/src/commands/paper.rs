@@ -1,36 +1,11 @@
-//! `host-sim paper`: the simulation of Lee, Jung & Chung 2011 §3 in an ideal kinematic mode.
-//!
-//! Legs and turns are commanded as wheel pulse counts computed from the robot's belief (the
-//! nominal geometry), the true end pose is the exact-arc integration of the same pulses with the
-//! true geometry, and there are no motor dynamics, slip or noise. For each side `L` it drives one
-//! CW and one CCW square, calibrates with every method, and re-drives the squares with the
-//! corrected geometry to report the remaining `E_max`.
+//! `host-sim paper`: the simulation of Lee, Jung & Chung 2011 §3 in an ideal kinematic mode
+//! ([`crate::experiments::paper`]), as a text table or JSON lines.
 
-use clap::{Args, ValueEnum};
-use odocal::calibration::synth::{end_poses, square_knots};
-use odocal::calibration::{Method, RunObservation, calibrate};
-use odocal::kinematics::encoder::WheelTicks;
+use clap::Args;
 use odocal::kinematics::geometry::Geometry;
-use odocal::kinematics::reference::PoseF64;
-use odocal::motion::run::{Direction, Measurement, PathKind};
 
-/// Output format.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Format {
-    /// Aligned text table.
-    Text,
-    /// One JSON object per line.
-    Json,
-}
-
-/// How the true wheel diameters follow from `E_d`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum TruthModel {
-    /// Mean diameter nominal: `D_R = 2D/(1 + 1/E_d)`, `D_L = 2D/(1 + E_d)` (odocal's default model).
-    Mean,
-    /// Left wheel nominal, `D_R = E_d·D` (the model of the paper's derivation, eq. 6 and 9).
-    Right,
-}
+pub use crate::experiments::paper::Format;
+use crate::experiments::paper::{TruthModel, rows, true_geometry};
 
 /// Arguments of `host-sim paper`.
 #[derive(Args, Debug)]
@@ -50,124 +25,6 @@ pub struct PaperArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Text)]
     pub format: Format,
-}
-
-/// The true geometry for `E_b`, `E_d` under `model`.
-pub fn true_geometry(nominal: &Geometry, eb: f64, ed: f64, model: TruthModel) -> Geometry {
-    match model {
-        TruthModel::Mean => nominal.with_factors(ed, eb, 1.0),
-        TruthModel::Right => Geometry {
-            diameter_right_m: nominal.diameter_right_m * ed,
-            wheelbase_m: nominal.wheelbase_m * eb,
-            ..*nominal
-        },
-    }
-}
-
-/// One ideal square: knots, odometry end pose (belief) and true end pose.
-pub struct IdealRun {
-    /// Path.
-    pub path: PathKind,
-    /// Geometry driven with.
-    pub belief: Geometry,
-    /// Knots.
-    pub knots: Vec<WheelTicks>,
-    /// Odometry end pose.
-    pub odometry_end: PoseF64,
-    /// True end pose.
-    pub measured: Measurement,
-}
-
-impl IdealRun {
-    /// Drives one square.
-    pub fn square(belief: &Geometry, truth: &Geometry, direction: Direction, side_m: f64) -> Self {
-        let knots = square_knots(belief, direction, side_m).to_vec();
-        let (odometry_end, measured) = end_poses(belief, truth, &knots);
-        IdealRun {
-            path: PathKind::Square { direction, side_m },
-            belief: *belief,
-            knots,
-            odometry_end,
-            measured,
-        }
-    }
-
-    /// Borrows it as a calibration input.
-    pub fn observation(&self) -> RunObservation<'_> {
-        RunObservation {
-            path: self.path,
-            geometry: self.belief,
-            knots: &self.knots,
-            odometry_end: self.odometry_end,
-            measured: self.measured,
-            truth_path: &[],
-        }
-    }
-
-    /// End error `true − odometry` (x, y).
-    pub fn error(&self) -> (f64, f64) {
-        (
-            self.measured.x_m - self.odometry_end.x_m,
-            self.measured.y_m - self.odometry_end.y_m,
-        )
-    }
-}
-
-/// `E_max` of one ideal CW and one ideal CCW square driven with `belief`.
-pub fn e_max(belief: &Geometry, truth: &Geometry, side_m: f64) -> f64 {
-    [Direction::Cw, Direction::Ccw]
-        .iter()
-        .map(|&d| {
-            let (x, y) = IdealRun::square(belief, truth, d, side_m).error();
-            x.hypot(y)
-        })
-        .fold(0.0, f64::max)
-}
-
-/// One output row.
-struct Row {
-    side: f64,
-    method: Method,
-    cg: [f64; 4],
-    result: Result<(f64, f64, f64), String>,
-    truth: (f64, f64),
-}
-
-impl Row {
-    fn json(&self) -> String {
-        let [xc, yc, xa, ya] = self.cg;
-        let num = |v: f64| {
-            if v.is_finite() {
-                format!("{v:e}")
-            } else {
-                "null".into()
-            }
-        };
-        let (eb, ed, emax, err) = match &self.result {
-            Ok((eb, ed, emax)) => (*eb, *ed, *emax, None),
-            Err(e) => (f64::NAN, f64::NAN, f64::NAN, Some(e.clone())),
-        };
-        let mut s = format!(
-            "{{\"L\":{},\"method\":\"{}\",\"x_cw\":{},\"y_cw\":{},\"x_ccw\":{},\"y_ccw\":{},\
-             \"E_b\":{},\"E_d\":{},\"E_b_err\":{},\"E_d_err\":{},\"E_max_after\":{}",
-            self.side,
-            self.method,
-            num(xc),
-            num(yc),
-            num(xa),
-            num(ya),
-            num(eb),
-            num(ed),
-            num(eb / self.truth.0 - 1.0),
-            num(ed / self.truth.1 - 1.0),
-            num(emax)
-        );
-        if let Some(e) = err {
-            s.push_str(&format!(",\"error\":\"{e}\""));
-        }
-        s.push('}');
-        s
-    }
 }
 
 /// Runs the subcommand.
@@ -201,35 +58,16 @@ pub fn run(args: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
             "E_max_after/mm"
         );
     }
-    for &side in &args.sides {
-        if !(side.is_finite() && side > 0.0) {
-            return Err(format!("invalid side {side}").into());
-        }
-        let runs = [
-            IdealRun::square(&nominal, &truth, Direction::Cw, side),
-            IdealRun::square(&nominal, &truth, Direction::Ccw, side),
-        ];
-        let obs: Vec<_> = runs.iter().map(IdealRun::observation).collect();
-        let (xc, yc) = runs[0].error();
-        let (xa, ya) = runs[1].error();
-        for method in Method::ALL {
-            let result = calibrate(&obs, &nominal, method)
-                .map(|c| (c.e_b, c.e_d, e_max(&c.geometry, &truth, side)))
-                .map_err(|e| e.to_string());
-            let row = Row {
-                side,
-                method,
-                cg: [xc, yc, xa, ya],
-                result,
-                truth: (t_eb, t_ed),
-            };
-            match args.format {
-                Format::Json => println!("{}", row.json()),
-                Format::Text => match &row.result {
+    for row in rows(&nominal, &truth, &args.sides)? {
+        match args.format {
+            Format::Json => println!("{}", row.json()),
+            Format::Text => {
+                let [xc, yc, xa, ya] = row.cg;
+                match &row.result {
                     Ok((eb, ed, emax)) => println!(
                         "{:>5} {:>11} {:>10.3} {:>10.3} {:>10.3} {:>10.3} {:>10.6} {:>10.6} {:>11.3e} {:>11.3e} {:>11.4}",
-                        side,
-                        method.as_str(),
+                        row.side,
+                        row.method.as_str(),
                         xc * 1e3,
                         yc * 1e3,
                         xa * 1e3,
@@ -240,65 +78,10 @@ pub fn run(args: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
                         ed / t_ed - 1.0,
                         emax * 1e3
                     ),
-                    Err(e) => println!("{:>5} {:>11} error: {e}", side, method.as_str()),
-                },
+                    Err(e) => println!("{:>5} {:>11} error: {e}", row.side, row.method.as_str()),
+                }
             }
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn json_has_exactly_the_issue_keys() {
-        let row = Row {
-            side: 2.0,
-            method: Method::LeeX,
-            cg: [0.1, 0.2, 0.3, 0.4],
-            result: Ok((1.01, 0.995, 0.001)),
-            truth: (1.01, 0.995),
-        };
-        let json = row.json();
-        let keys: Vec<&str> = json
-            .trim_matches(|c| c == '{' || c == '}')
-            .split(',')
-            .map(|kv| kv.split(':').next().unwrap().trim_matches('"'))
-            .collect();
-        assert_eq!(
-            keys,
-            [
-                "L",
-                "method",
-                "x_cw",
-                "y_cw",
-                "x_ccw",
-                "y_ccw",
-                "E_b",
-                "E_d",
-                "E_b_err",
-                "E_d_err",
-                "E_max_after"
-            ]
-        );
-        assert!(json.contains("\"method\":\"lee-x\""));
-    }
-
-    #[test]
-    fn exact_method_reruns_to_zero_error() {
-        // Re-driving with the exact fit leaves only tick rounding: one pulse is 2.4 µm, so after
-        // a 4 × 2 m square the end error stays far below 0.1 mm.
-        let nominal = Geometry::PAPER_NOMINAL;
-        let truth = true_geometry(&nominal, 1.010, 0.995, TruthModel::Mean);
-        let runs = [
-            IdealRun::square(&nominal, &truth, Direction::Cw, 2.0),
-            IdealRun::square(&nominal, &truth, Direction::Ccw, 2.0),
-        ];
-        let obs: Vec<_> = runs.iter().map(IdealRun::observation).collect();
-        let c = calibrate(&obs, &nominal, Method::Exact).unwrap();
-        assert!(e_max(&c.geometry, &truth, 2.0) < 1e-4);
-        assert!(e_max(&nominal, &truth, 2.0) > 0.1);
-    }
 }

@@ -1,7 +1,8 @@
 //! The simulated board: the simulated robot speaking the board's serial protocol.
 //!
 //! [`Board`] is the simulated board: the library's [`Controller`] stepping the simulated robot
-//! at the control rate, the library's [`Session`] executing protocol lines, and the library's
+//! at the control rate through the app core's control period (`app::control::period`, retimed
+//! by `app::control::Pacing` after `set control_hz`, as the firmware's control task), the library's [`Session`] executing protocol lines, and the library's
 //! [`ParamStore`] on the simulated parameter flash ([`SimParamFlash`], sectors 10–11), which
 //! outlives the board: dropping a `Board` and booting a new one over the same flash is a
 //! simulated reboot. Bytes go through the library's receive loop and [`LineAssembler`], exactly
@@ -15,6 +16,7 @@
 use std::collections::VecDeque;
 
 use odocal::app::console::LineSource;
+use odocal::app::control::Pacing;
 use odocal::app::serial::LineQueue;
 use odocal::app::{Handoff, console, control, serial};
 use odocal::kinematics::geometry::Geometry;
@@ -47,6 +49,8 @@ pub struct Board<'f> {
     pub store: ParamStore<&'f mut SimFlash>,
     /// What the receive, the control period and the console tell each other, as on the board.
     handoff: Handoff,
+    /// The control period's bookkeeping (retiming after `set control_hz`), as on the board.
+    pacing: Pacing,
     assembler: LineAssembler,
     /// Received lines and stop keys not yet handled by the session.
     input: Input,
@@ -108,12 +112,15 @@ impl<'f> Board<'f> {
             .restore_runs(&mut store, out)
             .map_err(|e| e.to_string())?;
         let period_us = 1_000_000 / u64::from(config.rate_hz);
+        let handoff = Handoff::new();
+        let pacing = Pacing::new(&handoff, config.rate_hz);
         let mut board = Board {
             sim: Sim::new(config),
             controller,
             session,
             store,
-            handoff: Handoff::new(),
+            handoff,
+            pacing,
             assembler: LineAssembler::new(),
             input: Input::default(),
             now_us: 0,
@@ -222,16 +229,23 @@ impl<'f> Board<'f> {
         // The simulated operator's hand: during `bringup push` it pushes the robot forward.
         let pushing = matches!(status, Status::Checking(CheckKind::Push));
         self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
-        // `set control_hz` retimed the controller: the board's period source follows.
-        let rate_hz = self.controller.config().rate_hz;
-        if rate_hz != self.sim.config().rate_hz {
-            self.sim.set_rate_hz(rate_hz);
-            self.period_us = 1_000_000 / u64::from(rate_hz);
+        let (handoff, controller, pacing) = (&self.handoff, &mut self.controller, &mut self.pacing);
+        let mut retime_hz = None;
+        let output = self.sim.step_with(|r, l, motors| {
+            let out = control::period(handoff, controller, r, l, None, motors);
+            // `set control_hz` retimed the controller: the period source follows from this
+            // period on, as the board's timer does after the period that saw the new rate.
+            retime_hz = pacing
+                .after_period(handoff, controller.config().rate_hz)
+                .retime_hz;
+            if let Some(hz) = retime_hz {
+                motors.set_rate_hz(hz);
+            }
+            out
+        });
+        if let Some(hz) = retime_hz {
+            self.period_us = 1_000_000 / u64::from(hz);
         }
-        let (handoff, controller) = (&self.handoff, &mut self.controller);
-        let output = self
-            .sim
-            .step_with(|r, l, motors| control::period(handoff, controller, r, l, None, motors));
         self.now_us += self.period_us;
         let _ = console::poll(
             &self.handoff,

@@ -3,8 +3,13 @@
 //!
 //! Every operation is the IEEE operation of each lane, so the results are bit-identical to the
 //! same arithmetic written with scalars, on every architecture.
+//!
+//! [`Host`] is the arithmetic host-sim runs the library's robot model with: these lanes and the
+//! platform's `exp` and `sin_cos`.
 
 use core::ops::{Add, Div, Mul, Sub};
+
+use odocal::plant::{Lanes, Numerics};
 
 #[cfg(target_arch = "x86_64")]
 mod lanes {
@@ -100,29 +105,43 @@ mod lanes {
 #[derive(Clone, Copy, Debug)]
 pub struct Pair(lanes::Lanes);
 
-impl Pair {
-    /// The pair `(a, b)`.
+impl Lanes for Pair {
     #[inline(always)]
-    pub fn new(a: f64, b: f64) -> Self {
+    fn new(a: f64, b: f64) -> Self {
         Pair(lanes::Lanes::new(a, b))
     }
 
-    /// `(v, v)`.
     #[inline(always)]
-    pub fn splat(v: f64) -> Self {
+    fn splat(v: f64) -> Self {
         Pair(lanes::Lanes::splat(v))
     }
 
-    /// The first lane.
     #[inline(always)]
-    pub fn a(self) -> f64 {
+    fn a(self) -> f64 {
         self.0.a()
     }
 
-    /// The second lane.
     #[inline(always)]
-    pub fn b(self) -> f64 {
+    fn b(self) -> f64 {
         self.0.b()
+    }
+}
+
+/// host-sim's arithmetic for the robot model: [`Pair`] lanes, the platform's `exp`/`sin_cos`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Host;
+
+impl Numerics for Host {
+    type Pair = Pair;
+
+    #[inline(always)]
+    fn exp(x: f64) -> f64 {
+        x.exp()
+    }
+
+    #[inline(always)]
+    fn sin_cos(x: f64) -> (f64, f64) {
+        x.sin_cos()
     }
 }
 

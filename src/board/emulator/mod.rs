@@ -9,7 +9,7 @@
 //! | item | on the F407 | here |
 //! |---|---|---|
 //! | clocks | HSE 8 MHz → PLL 168 MHz | HSI (QEMU has no RCC; its SysTick counts at 168 MHz whatever RCC says, so the monotonic is started at 168 MHz) |
-//! | `Encoders` | TIM2/TIM3 in encoder mode | the [`plant`]'s counters; each read first advances the plant by one control period with the last motor command |
+//! | `Encoders` | TIM2/TIM3 in encoder mode | the [`plant`]'s counters (the library's robot model, [`crate::plant`]); each read first advances the plant by one control period with the last motor command |
 //! | `BoardMotors` | TIM1 PWM + direction pins | stores the command for the plant |
 //! | `ControlTick` | TIM7 update at the control rate (1–10 kHz) | QEMU has no TIM6/TIM7: the control interrupt is pended from the SysTick monotonic (`CONTROL_FROM_MONOTONIC`, the app's `pace_control` task), one period per 1 ms tick whatever the rate; `set_rate_hz` retimes the plant instead |
 //! | `BoardFlash` | sectors 10–11 | a 256 KiB host file through semihosting ([`flash`]) |

@@ -18,7 +18,7 @@
 //!    procedure), and, for every method's parameters and the nominal ones, fresh squares driven
 //!    closed-loop (true end poses, no measurement noise) and the paper's rectangle test (4 CCW
 //!    laps of 3.6 m × 8.7 m).
-//! 7. **Parameter error against side** (paper Fig. 5): a [`crate::commands::sweep`] at this session's
+//! 7. **Parameter error against side** (paper Fig. 5): a [`crate::experiments::sweep`] at this session's
 //!    measurement noise, with the paper-mode slip scaled to the scatter observed in step 3.
 //!
 //! Errors are `true − odometry` in the run's start frame (x forward, y left), metres.
@@ -40,10 +40,10 @@ use rayon::prelude::*;
 
 use odocal::motion::speed::SpeedTuning;
 
-use crate::commands::montecarlo::Rng;
-use crate::commands::rectangle::{RectangleResult, RectangleSpec};
-use crate::commands::square::drive_path_tuned;
-use crate::commands::sweep::{SweepArgs, SweepResult, pilot_scatter, sweep};
+use crate::experiments::montecarlo::Rng;
+use crate::experiments::rectangle::{RectangleResult, RectangleSpec};
+use crate::experiments::square::{drive_path_tuned, e_max_and_scatter};
+use crate::experiments::sweep::{SweepArgs, SweepResult, pilot_scatter, sweep};
 use crate::sim::board::Board;
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::sim_config;
@@ -283,39 +283,6 @@ pub fn parse_calibration(reply: &str) -> Vec<CalibrationRow> {
     rows
 }
 
-/// `E_max,syst = max(|cg_cw|, |cg_ccw|)` of end errors, and their pooled scatter
-/// `sqrt(Σ|e − cg|² / (n − 2))` (0 with fewer than three runs).
-pub fn e_max_and_scatter(ends: &[(Direction, f64, f64)]) -> (f64, f64) {
-    let mut e_max: f64 = 0.0;
-    let mut ss = 0.0;
-    let mut n = 0usize;
-    for dir in [Direction::Cw, Direction::Ccw] {
-        let pts: Vec<(f64, f64)> = ends
-            .iter()
-            .filter(|e| e.0 == dir)
-            .map(|e| (e.1, e.2))
-            .collect();
-        if pts.is_empty() {
-            continue;
-        }
-        let k = pts.len() as f64;
-        let cx = pts.iter().map(|p| p.0).sum::<f64>() / k;
-        let cy = pts.iter().map(|p| p.1).sum::<f64>() / k;
-        e_max = e_max.max(cx.hypot(cy));
-        ss += pts
-            .iter()
-            .map(|p| (p.0 - cx).powi(2) + (p.1 - cy).powi(2))
-            .sum::<f64>();
-        n += pts.len();
-    }
-    let scatter = if n >= 3 {
-        (ss / (n - 2) as f64).sqrt()
-    } else {
-        0.0
-    };
-    (e_max, scatter)
-}
-
 /// Steps the board through the run just started, tracing true and odometry paths, then enters
 /// the noisy measurement of the true end pose.
 fn drive_and_measure(
@@ -422,7 +389,7 @@ fn verify(
         laps: args.laps,
         ..RectangleSpec::default()
     };
-    let rectangle = crate::commands::rectangle::run(&spec, &cfg.true_geometry, &belief)?;
+    let rectangle = crate::experiments::rectangle::run(&spec, &cfg.true_geometry, &belief)?;
     Ok(Verification {
         label: label.to_string(),
         belief,
@@ -606,7 +573,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     let ns = (scatter_m * scatter_m - 2.0 * sigma * sigma)
         .max(0.0)
         .sqrt();
-    let ns_at_pilot = ns * (crate::commands::sweep::PILOT_SIDE_M / side_m).powf(1.5);
+    let ns_at_pilot = ns * (crate::experiments::sweep::PILOT_SIDE_M / side_m).powf(1.5);
     let probe = 1e-3;
     let base = SweepArgs {
         sides: args.sweep_sides.clone(),
@@ -620,11 +587,11 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
         quiet: true,
         ..SweepArgs::default()
     };
-    let truth_mean = crate::commands::paper::true_geometry(
+    let truth_mean = crate::experiments::paper::true_geometry(
         &nominal,
         args.eb,
         args.ed,
-        crate::commands::paper::TruthModel::Mean,
+        crate::experiments::paper::TruthModel::Mean,
     );
     let probe_scatter = pilot_scatter(&base, &truth_mean, probe, args.seed).unwrap_or(0.0);
     let sweep_slip = if probe_scatter > 0.0 {
@@ -677,7 +644,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
 /// Session failures, file or drawing errors.
 pub fn run(args: &SessionArgs) -> Result<(), Box<dyn std::error::Error>> {
     let started = Instant::now();
-    let pb = crate::commands::sweep::progress_bar(args.quiet, "session");
+    let pb = crate::experiments::sweep::progress_bar(args.quiet, "session");
     let report = run_session(args, &pb)?;
     pb.set_message("plots");
     let written = plots::write_all(&report, &args.out)?;

@@ -213,14 +213,14 @@ pub fn write_all(
     svg("rectangle-growth.svg", &growth_figure(r))?;
     svg("rectangle-paths.svg", &rectangle_paths_figure(r))?;
     if let Some(sw) = &r.sweep {
-        let mut fig = crate::commands::sweep::figure(sw, r.args.meas_mm * 1e-3, r.sweep_slip);
+        let mut fig = crate::experiments::sweep::figure(sw, r.args.meas_mm * 1e-3, r.sweep_slip);
         fig.title = format!(
             "Parameter error vs square side ({} trials, σ_meas = {} mm, observed scatter)",
             r.args.sweep_trials, r.args.meas_mm
         );
         svg("param-error-vs-side.svg", &fig)?;
         let p = dir.join("sweep.csv");
-        std::fs::write(&p, crate::commands::sweep::csv(sw))?;
+        std::fs::write(&p, crate::experiments::sweep::csv(sw))?;
         written.push(p);
     }
     let p = dir.join("session.log");

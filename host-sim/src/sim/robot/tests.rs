@@ -1,116 +1,7 @@
-//! The simulated robot's tests: motors, encoders, slip and the closed loop against the
-//! library's controller.
+//! The simulated robot's tests: the slip layer (the model itself is tested in the library,
+//! `odocal::plant`), and the host arithmetic against the portable one.
 
 use super::*;
-
-#[test]
-fn floor_i64_is_floor() {
-    let cases = [
-        0.0,
-        -0.0,
-        0.5,
-        -0.5,
-        1.0,
-        -1.0,
-        -1.0 - f64::EPSILON,
-        2.0f64.powi(52) + 0.5,
-        -(2.0f64.powi(52) + 0.5),
-        2.0f64.powi(53) + 2.0,
-        -(2.0f64.powi(62)),
-        1e30,
-        -1e30,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NAN,
-        f64::MIN_POSITIVE,
-        -f64::MIN_POSITIVE,
-        123_456_789.999_999_99,
-        -123_456_789.000_000_01,
-    ];
-    for x in cases {
-        assert_eq!(floor_i64(x), x.floor() as i64, "{x:e}");
-    }
-}
-
-#[test]
-fn open_loop_motor_reaches_its_gain_and_counts_wrap() {
-    let g = Geometry::PAPER_NOMINAL;
-    let mut sim = Sim::new(SimConfig::new(g, 1000));
-    sim.apply(MotorCommand::Duty {
-        right: 0.3,
-        left: 0.3,
-    });
-    for _ in 0..1000 {
-        sim.advance();
-    }
-    let (vr, vl) = sim.wheel_speeds_mps();
-    // 20 time constants: the lag has settled to 1e-9 of the target.
-    assert!((vr - 0.3).abs() < 1e-6, "{vr}");
-    assert!((vl - 0.3 * 0.98).abs() < 1e-6, "{vl}");
-    let (cr, cl) = sim.counts();
-    let (raw_r, raw_l) = sim.raw();
-    // The right counter started 20,000 below its wrap and has wrapped.
-    assert_eq!(raw_r, (u32::MAX - 20_000).wrapping_add(cr as u32));
-    assert!(cr > 20_000);
-    assert_eq!(raw_l, u32::from(300u16.wrapping_sub(cl as u16)));
-}
-
-#[test]
-fn true_pose_of_a_constant_arc_is_exact() {
-    let g = Geometry::PAPER_NOMINAL;
-    let mut cfg = SimConfig::new(g, 1000);
-    // Instant speed: a single constant-curvature arc.
-    cfg.motor.time_constant_s = 0.0;
-    cfg.motor.time_constant_left_s = 0.0;
-    let mut sim = Sim::new(cfg);
-    sim.apply(MotorCommand::Duty {
-        right: 0.3,
-        left: 0.1,
-    });
-    for _ in 0..5000 {
-        sim.advance();
-    }
-    // The duties as the motors see them (f32 → f64).
-    let vr = f64::from(0.3f32) * cfg.motor.gain_right_radps * 0.075;
-    let vl = f64::from(0.1f32) * cfg.motor.gain_left_radps * 0.075;
-    let theta = (vr - vl) * 5.0 / g.wheelbase_m;
-    let r = 0.5 * (vr + vl) * 5.0 / theta;
-    let p = sim.true_pose();
-    // Exact arcs per sub-step: only f64 summation error remains.
-    assert!((p.x_m - r * theta.sin()).abs() < 1e-9, "{p:?}");
-    assert!((p.y_m - r * (1.0 - theta.cos())).abs() < 1e-9, "{p:?}");
-    // 50,000 sub-step increments summed: ~1e-16 relative each.
-    assert!((p.theta_rad - theta).abs() < 1e-11, "{p:?}");
-}
-
-#[test]
-fn true_pose_of_a_fast_turn_is_exact() {
-    // 100 Hz and the wheels at full and half duty in opposite directions: the heading
-    // changes by 0.039 rad per period and 3.9e-3 rad per sub-step, beyond both series, so
-    // every period takes the general pass (sin, cos, the library's sinc).
-    let g = Geometry::PAPER_NOMINAL;
-    let mut cfg = SimConfig::new(g, 100);
-    cfg.motor.time_constant_s = 0.0;
-    cfg.motor.time_constant_left_s = 0.0;
-    let mut sim = Sim::new(cfg);
-    sim.apply(MotorCommand::Duty {
-        right: 1.0,
-        left: -0.5,
-    });
-    for _ in 0..500 {
-        sim.advance();
-    }
-    let vr = cfg.motor.gain_right_radps * 0.075;
-    let vl = -0.5 * cfg.motor.gain_left_radps * 0.075;
-    let theta = (vr - vl) * 5.0 / g.wheelbase_m;
-    let r = 0.5 * (vr + vl) * 5.0 / theta;
-    let p = sim.true_pose();
-    // About 3 turns in 5,000 exact arcs: f64 summation error only.
-    assert!(theta > 19.0, "{theta}");
-    assert!((p.x_m - r * theta.sin()).abs() < 1e-9, "{p:?}");
-    assert!((p.y_m - r * (1.0 - theta.cos())).abs() < 1e-9, "{p:?}");
-    assert!((p.theta_rad - theta).abs() < 1e-11, "{p:?}");
-}
 
 #[test]
 fn slip_noise_is_reproducible() {
@@ -131,4 +22,40 @@ fn slip_noise_is_reproducible() {
     let mut other = cfg;
     other.seed = 2;
     assert_ne!(run(cfg), run(other));
+}
+
+#[test]
+fn host_arithmetic_follows_the_portable_model() {
+    // The same robot on SSE2 lanes with the platform's exp/sin_cos and on plain pairs with
+    // libm: a closed square with turns (the general pass included) ends within an ulp-level
+    // difference of the transcendental functions.
+    use odocal::plant::{Portable, Robot};
+    let mut cfg = SimConfig::new(Geometry::PAPER_NOMINAL.with_factors(0.995, 1.01, 1.0), 100);
+    cfg.robot.motor.time_constant_s = 0.03;
+    let mut host = Sim::new(cfg);
+    let mut portable: Robot<Portable> = Robot::new(cfg.robot);
+    for (i, duty) in [(0.5f32, 0.45f32), (1.0, -0.5), (-0.2, 0.3)]
+        .iter()
+        .enumerate()
+    {
+        let command = MotorCommand::Duty {
+            right: duty.0,
+            left: duty.1,
+        };
+        host.apply(command);
+        portable.apply(command);
+        for _ in 0..200 * (i + 1) {
+            host.advance();
+            portable.advance();
+        }
+    }
+    let (h, p) = (host.true_pose(), portable.true_pose());
+    assert!(h.theta_rad.abs() > 1.0, "{h:?}");
+    assert!(
+        (h.x_m - p.x_m).abs() < 1e-12 && (h.y_m - p.y_m).abs() < 1e-12,
+        "{h:?} {p:?}"
+    );
+    assert!((h.theta_rad - p.theta_rad).abs() < 1e-12, "{h:?} {p:?}");
+    assert_eq!(host.counts(), portable.counts());
+    assert_eq!(host.raw(), portable.raw());
 }
