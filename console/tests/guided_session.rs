@@ -847,3 +847,169 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     assert_ne!(logged[0].1, logged[1].1);
     println!("{text}");
 }
+
+/// The flat `key: value` entries of a `diff_drive_controller` parameter file (comments and the
+/// two header keys skipped; a `[a, b, …]` list kept as its text).
+fn yaml_entries(yaml: &str) -> Vec<(String, String)> {
+    yaml.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .filter_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            let v = v.trim();
+            (!v.is_empty()).then(|| (k.trim().to_string(), v.to_string()))
+        })
+        .collect()
+}
+
+fn yaml_number(entries: &[(String, String)], key: &str) -> f64 {
+    entries
+        .iter()
+        .find(|(k, _)| k == key)
+        .unwrap_or_else(|| panic!("no {key} in {entries:#?}"))
+        .1
+        .parse()
+        .unwrap_or_else(|e| panic!("{key}: {e}"))
+}
+
+/// `odocal-console export LOG --format F -o OUT`: the file written.
+fn export(log: &Path, format: &str, out: &Path) -> String {
+    let status = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+        .arg("export")
+        .arg(log)
+        .args(["--format", format, "-o"])
+        .arg(out)
+        .status()
+        .unwrap();
+    assert!(status.success(), "export {format} of {}", log.display());
+    std::fs::read_to_string(out).unwrap()
+}
+
+/// The ROS 2 export of a guided session's log: its `wheel_separation` and wheel radius
+/// multipliers give back the geometry the board applied (its `params` after `apply`) to 1e-9 m,
+/// read back from the YAML; the pose covariance is there, with the unobserved components large.
+/// A plain terminal capture that holds only the board's lines (its `params` reply) exports the
+/// same geometry.
+#[test]
+fn ros2_export() {
+    let sim = Sim::start(&host_sim());
+    let (mut tool, log) = tool_answering(&sim, "export", "0.5\n1\n");
+    let mut measured = 0;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
+    // The board's applied geometry: the `active` line of its last `params` reply.
+    let entries = json_lines(&log);
+    let rx: Vec<String> = entries
+        .iter()
+        .filter(|v| v["kind"] == "rx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    let active = rx
+        .iter()
+        .rev()
+        .find_map(|l| l.trim().strip_prefix("active "))
+        .unwrap_or_else(|| panic!("no params reply in the log"));
+    let value = |key: &str| -> f64 {
+        active
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (d_r, d_l, b) = (value("d_right"), value("d_left"), value("wheelbase"));
+    assert!((d_r / d_l - 0.995).abs() < 1e-5, "{active}");
+
+    let check = |yaml: &str| {
+        let e = yaml_entries(yaml);
+        let r = yaml_number(&e, "wheel_radius");
+        let (sep, ml, mr) = (
+            yaml_number(&e, "wheel_separation"),
+            yaml_number(&e, "left_wheel_radius_multiplier"),
+            yaml_number(&e, "right_wheel_radius_multiplier"),
+        );
+        assert!((sep - b).abs() <= 1e-9, "b {sep} vs {b}\n{yaml}");
+        assert!(
+            (2.0 * r * mr - d_r).abs() <= 1e-9,
+            "D_R {} vs {d_r}\n{yaml}",
+            2.0 * r * mr
+        );
+        assert!(
+            (2.0 * r * ml - d_l).abs() <= 1e-9,
+            "D_L {} vs {d_l}\n{yaml}",
+            2.0 * r * ml
+        );
+        assert_eq!(yaml_number(&e, "wheel_separation_multiplier"), 1.0);
+        e
+    };
+    let dir = log.parent().unwrap();
+    let yaml = export(&log, "ros2", &dir.join("diff_drive.yaml"));
+    let e = check(&yaml);
+    assert!(yaml.starts_with("# odocal calibration `exact`"), "{yaml}");
+    assert!(
+        yaml.contains("diff_drive_controller:\n  ros__parameters:\n"),
+        "{yaml}"
+    );
+    let cov = &e
+        .iter()
+        .find(|(k, _)| k == "pose_covariance_diagonal")
+        .unwrap()
+        .1;
+    let cov: Vec<f64> = cov
+        .trim_matches(['[', ']'])
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    assert_eq!(cov.len(), 6, "{yaml}");
+    assert!(cov[0] > 0.0 && cov[1] > 0.0 && cov[5] > 0.0, "{yaml}");
+    assert!(cov[2..5].iter().all(|&v| v >= 1e3), "{yaml}");
+
+    // The board's lines alone, as a terminal program captures them (CR LF, echo on).
+    let capture: String = std::iter::once("params".to_string())
+        .chain(rx.iter().cloned())
+        .map(|l| format!("{l}\r\n"))
+        .collect();
+    let capture_file = dir.join("terminal.log");
+    std::fs::write(&capture_file, capture).unwrap();
+    let yaml = export(&capture_file, "ros2", &dir.join("from-terminal.yaml"));
+    check(&yaml);
+
+    // The URDF's joints sit at ±b/2, its wheels have the applied radii.
+    let urdf = export(&log, "urdf", &dir.join("wheels.urdf"));
+    let attr = |name: &str| -> Vec<f64> {
+        urdf.match_indices(&format!("{name}=\""))
+            .map(|(i, m)| {
+                let rest = &urdf[i + m.len()..];
+                rest[..rest.find('"').unwrap()].to_string()
+            })
+            .map(|v| {
+                v.split_whitespace()
+                    .nth(if name == "xyz" { 1 } else { 0 })
+                    .unwrap_or("0")
+                    .parse()
+                    .unwrap()
+            })
+            .collect()
+    };
+    let radii = attr("radius");
+    assert!(
+        (radii[0] - d_l / 2.0).abs() <= 1e-9 && (radii[1] - d_r / 2.0).abs() <= 1e-9,
+        "{urdf}"
+    );
+    let y: Vec<f64> = attr("xyz").into_iter().filter(|v| *v != 0.0).collect();
+    assert!(
+        (y[0] - b / 2.0).abs() <= 1e-9 && (y[1] + b / 2.0).abs() <= 1e-9,
+        "{urdf}"
+    );
+    // The JSON: the runs and the 1σ.
+    let json: serde_json::Value =
+        serde_json::from_str(&export(&log, "json", &dir.join("calibration.json"))).unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), 2);
+    assert!(json["sd"]["e_b"].as_f64().unwrap() >= 0.0);
+    assert_eq!(json["method"], "exact");
+}
