@@ -188,6 +188,33 @@ impl Ui {
         }
     }
 
+    /// A yes/no question without a default: only a typed `y`/`yes` (or one in `--answers`) is a
+    /// yes; `--yes` does not answer it, and an empty answer asks again. For what changes the
+    /// board's parameters or flash on the operator's word (apply, save, a wiring correction).
+    ///
+    /// # Errors
+    /// [`AskError`].
+    pub fn confirm_explicit(&mut self, question: &str) -> Result<bool, AskError> {
+        let yes = self.yes;
+        self.yes = false;
+        let answer = loop {
+            let a = match self.ask(&format!("{question}? (y/n)"), None) {
+                Ok(a) => a,
+                Err(e) => {
+                    self.yes = yes;
+                    return Err(e);
+                }
+            };
+            match a.to_ascii_lowercase().as_str() {
+                "y" | "yes" => break true,
+                "n" | "no" => break false,
+                _ => self.say("  type y (yes) or n (no)"),
+            }
+        };
+        self.yes = yes;
+        Ok(answer)
+    }
+
     /// Starts a run's progress display.
     pub fn progress_start(&mut self) {
         self.quarter = None;

@@ -9,6 +9,7 @@
 
 mod results;
 mod runs;
+mod setup;
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -102,6 +103,8 @@ struct Guide {
     per_direction: u32,
     /// The method applied in this session (the plot's "after" cloud).
     applied: Option<String>,
+    /// What the board held when the session connected.
+    holds: setup::Holds,
 }
 
 fn log_default() -> PathBuf {
@@ -185,6 +188,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         side_m: 2.0,
         per_direction: 5,
         applied: None,
+        holds: setup::Holds::default(),
     };
     let result = g.session(resumed);
     // Ctrl-C: the robot first.
@@ -355,7 +359,10 @@ impl Guide {
         self.show_board()?;
         match resumed {
             Some(c) => self.resume(c)?,
-            None => self.plan()?,
+            None => {
+                self.setup(self.holds)?;
+                self.plan()?;
+            }
         }
         let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
         if !r.ok() {
@@ -418,6 +425,7 @@ impl Guide {
         ));
         let calibration = calibration_of(&params.data);
         self.ui.say(&format!("calibration: {calibration}"));
+        self.holds = setup::Holds::of(&params.data);
         if let Some(v) = param(&params.data, ParamName::SquareSide.as_str()) {
             self.side_m = v;
         }
