@@ -264,6 +264,7 @@ fn check_command(cmd: &Command<'_>) {
             x_m,
             y_m,
             theta_deg,
+            ..
         } => {
             let m = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
             run.is_none_or(|n| (1..=MAX_RUNS).contains(&n))

@@ -2,7 +2,9 @@
 //! every parse/line error reply.
 
 use odocal::motion::run::Direction;
+use odocal::protocol::command::MeasureUnits;
 use odocal::protocol::reply::{line_error_reply, parse_error_reply};
+use odocal::protocol::unit::{AngleUnit, LengthUnit};
 use odocal::protocol::{
     Command, LINE_MAX, LineAssembler, LineError, LineEvent, ParamName, ParseError, StopKey,
 };
@@ -87,6 +89,7 @@ fn commands_parse_to_the_documented_values() {
                 x_m: 0.0123,
                 y_m: -0.045,
                 theta_deg: None,
+                units: MeasureUnits::default(),
             },
         ),
         (
@@ -96,6 +99,7 @@ fn commands_parse_to_the_documented_values() {
                 x_m: -0.001,
                 y_m: 0.02,
                 theta_deg: Some(-1.5),
+                units: MeasureUnits::default(),
             },
         ),
         ("runs", Command::Runs),
@@ -107,7 +111,50 @@ fn commands_parse_to_the_documented_values() {
                 method: Some("exact"),
             },
         ),
-        ("apply lee-x", Command::Apply { method: "lee-x" }),
+        (
+            "apply lee-x",
+            Command::Apply {
+                method: "lee-x",
+                confirmed: false,
+            },
+        ),
+        (
+            "apply LEE-Y yes",
+            Command::Apply {
+                method: "LEE-Y",
+                confirmed: true,
+            },
+        ),
+        ("drop all", Command::DropAll { confirmed: false }),
+        ("drop ALL yes", Command::DropAll { confirmed: true }),
+        (
+            "measure -5.356mm -5.4cm 2.5deg",
+            Command::Measure {
+                run: None,
+                x_m: -5.356 * 0.001,
+                y_m: -5.4 * 0.01,
+                theta_deg: Some(2.5),
+                units: MeasureUnits {
+                    x: Some(LengthUnit::Millimetre),
+                    y: Some(LengthUnit::Centimetre),
+                    theta: Some(AngleUnit::Degree),
+                },
+            },
+        ),
+        (
+            "measure #2 0.05m 1e-3 0.5rad",
+            Command::Measure {
+                run: Some(2),
+                x_m: 0.05,
+                y_m: 0.001,
+                theta_deg: Some(0.5 * (180.0 / core::f64::consts::PI)),
+                units: MeasureUnits {
+                    x: Some(LengthUnit::Metre),
+                    y: None,
+                    theta: Some(AngleUnit::Radian),
+                },
+            },
+        ),
         ("save", Command::Save),
         ("reset-params", Command::ResetParams),
         ("pose", Command::Pose),
@@ -135,6 +182,7 @@ fn commands_parse_to_the_documented_values() {
                 x_m: 0.01,
                 y_m: -0.02,
                 theta_deg: None,
+                units: MeasureUnits::default(),
             },
         ),
         (
@@ -144,6 +192,7 @@ fn commands_parse_to_the_documented_values() {
                 x_m: 1.0,
                 y_m: 2.0,
                 theta_deg: Some(-3.0),
+                units: MeasureUnits::default(),
             },
         ),
         ("echo on", Command::Echo { on: true }),
@@ -166,13 +215,31 @@ fn error_replies_are_exact() {
             "measure 0,1 0.2",
             "err 4: <x_m> is not a number (use a decimal point)\r\n",
         ),
+        // A measured value may carry its unit, but only one of its kind.
         (
             "measure 0.1 0.2deg",
-            "err 4: <y_m> is not a number (type the number alone, without a unit)\r\n",
+            "err 4: <y_m> has an unknown unit (m, cm or mm after the number)\r\n",
         ),
         (
-            "measure 41.8mm 39.5mm -0.04",
-            "err 4: <x_m> is not a number (type the number alone, without a unit)\r\n",
+            "measure 41.8in 39.5mm -0.04",
+            "err 4: <x_m> has an unknown unit (m, cm or mm after the number)\r\n",
+        ),
+        (
+            "measure 0.1 0.2 3mm",
+            "err 4: <theta_deg> has an unknown unit (deg or rad after the number)\r\n",
+        ),
+        (
+            "measure 101m 0",
+            "err 6: <x_m> must be within -100..100\r\n",
+        ),
+        (
+            "measure 0 0 7rad",
+            "err 6: <theta_deg> must be within -360..360\r\n",
+        ),
+        // Elsewhere a unit is still named as such.
+        (
+            "run cw 2m",
+            "err 4: <side_m> is not a number (type the number alone, without a unit)\r\n",
         ),
         ("run cw abc", "err 4: <side_m> is not a number\r\n"),
         ("drop 1.5", "err 4: <n> is not a whole number\r\n"),
@@ -252,6 +319,19 @@ fn error_replies_are_exact() {
         (
             "set color red",
             "err 7: <name> must be one of the parameters listed by params\r\n",
+        ),
+        (
+            "set squareside 1",
+            "err 7: <name> must be one of the parameters listed by params; did you mean \
+             square_side?\r\n",
+        ),
+        (
+            "drop all now",
+            "err 7: <confirmation> must be one of yes\r\n",
+        ),
+        (
+            "apply exact please",
+            "err 7: <confirmation> must be one of yes\r\n",
         ),
         (
             "apply ex@ct",

@@ -394,14 +394,14 @@ fn help_lists_every_command_then_ok() {
          \x20 circle cw|ccw [r]         drive a full circle of radius r m\r\n\
          \x20 stop                      stop now (Ctrl-C or Esc also stop at once)\r\n\
          \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
-         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m, m, deg)\r\n\
+         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m m deg; or 5mm 1cm 2deg)\r\n\
          \x20 runs                      list stored runs\r\n\
          \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
-         \x20 drop <n>|all              delete run n, or every run\r\n\
+         \x20 drop <n>|all yes          delete run n, or every run\r\n\
          \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
-         \x20 apply <method>            use a method's result (then save)\r\n\
+         \x20 apply <method> [yes]      use a method's result (then save; yes: with a flagged run)\r\n\
          \x20 save                      store parameters in flash (motors stopped)\r\n\
-         \x20 reset-params              restore and store defaults\r\n\
+         \x20 reset-params              restore the defaults (then save)\r\n\
          \x20 pose                      odometry pose\r\n\
          \x20 odom reset                set the odometry pose to the origin\r\n\
          \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\
@@ -417,20 +417,23 @@ fn help_lists_every_command_then_ok() {
 #[test]
 fn set_golden_and_pushes_to_the_robot() {
     let mut b = Bench::new();
-    assert_eq!(b.send("set max_speed 0.5"), "ok max_speed = 0.500 m/s\r\n");
+    assert_eq!(
+        b.send("set max_speed 0.5"),
+        "ok max_speed = 0.500 m/s (not saved; save to keep)\r\n"
+    );
     assert_eq!(b.robot.limits.unwrap().max_speed_mps, 0.5);
     assert_eq!(
         b.send("set wheelbase 0.4"),
-        "ok wheelbase = 0.400000000 m\r\n"
+        "ok wheelbase = 0.400000000 m (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.geometry.unwrap().wheelbase_m, 0.4);
     assert_eq!(
         b.send("set runs_per_direction 3"),
-        "ok runs_per_direction = 3 runs\r\n"
+        "ok runs_per_direction = 3 runs (not saved; save to keep)\r\n"
     );
     assert_eq!(
         b.send("set square_side 1.5"),
-        "ok square_side = 1.500 m\r\n"
+        "ok square_side = 1.500 m (not saved; save to keep)\r\n"
     );
     // The geometry is checked as a whole.
     assert_eq!(
@@ -457,7 +460,7 @@ fn set_golden_and_pushes_to_the_robot() {
     b.send("run cw");
     assert_eq!(
         b.send("set max_speed 0.2"),
-        "err 10: robot is busy (stop first)\r\n"
+        "err 10: a run is in progress (square cw L=1.500 m): wait for it to finish\r\n"
     );
     assert_eq!(b.session.settings().motion.max_speed_mps, 0.5);
 }
@@ -468,7 +471,7 @@ fn control_rate_is_set_validated_pushed_and_saved() {
     assert_eq!(b.session.settings().control_hz, 1000);
     assert_eq!(
         b.send("set control_hz 10000"),
-        "ok control_hz = 10000 Hz\r\n"
+        "ok control_hz = 10000 Hz (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.rate_hz, Some(10_000));
     // Within 1..10 kHz but not a rate the timers divide to: refused, nothing changes.
@@ -494,7 +497,7 @@ fn control_rate_is_set_validated_pushed_and_saved() {
     b.send("run cw");
     assert_eq!(
         b.send("set control_hz 2000"),
-        "err 10: robot is busy (stop first)\r\n"
+        "err 10: a run is in progress (square cw L=2.000 m): wait for it to finish\r\n"
     );
     assert_eq!(b.robot.rate_hz, Some(10_000));
 }
@@ -510,7 +513,10 @@ fn run_lifecycle_golden() {
         b.send("run cw"),
         "ok run 1 started: square cw L=2.000 m\r\n"
     );
-    assert_eq!(b.send("run ccw"), "err 10: robot is busy (stop first)\r\n");
+    assert_eq!(
+        b.send("run ccw"),
+        "err 10: a run is in progress (square cw L=2.000 m): wait for it to finish\r\n"
+    );
     assert_eq!(
         b.send("status"),
         "ok state=running square cw L=2.000 m fault=none x=+0.000000 y=+0.000000 \
@@ -534,7 +540,8 @@ fn run_lifecycle_golden() {
     assert_eq!(
         b.send("measure #1 0.0233 -0.0145"),
         "ok run 1 square cw L=2.000 m measured (replaced x=+0.022300 y=-0.014500 \
-         theta_deg=+0.5000): error vs odometry dx=+0.011000 dy=-0.010000 m\r\n"
+         theta_deg=+0.5000): error vs odometry dx=+0.011000 dy=-0.010000 m (heading kept: \
+         theta_deg=+0.5000)\r\n"
     );
     assert_eq!(b.send("measure #2 0 0"), "err 14: no run 2 (1 stored)\r\n");
     assert_eq!(b.send("line 1"), "ok run 2 started: line d=1.000 m\r\n");
@@ -545,20 +552,42 @@ fn run_lifecycle_golden() {
         "event run 2 finished: line d=1.000 m odometry end x=+1.000000 y=+0.000000 \
          theta_deg=+0.0000; measure it\r\n\
          \x20 run 1 square cw L=2.000 m odometry x=+0.012300 y=-0.004500 measured x=+0.023300 \
-         y=-0.014500\r\n\
+         y=-0.014500 theta_deg=+0.5000\r\n\
          \x20 run 2 line d=1.000 m odometry x=+1.000000 y=+0.000000 not measured\r\n\
          ok 2 runs, 1 measured\r\n"
     );
     assert_eq!(b.send("drop 3"), "err 14: no run 3 (2 stored)\r\n");
+    // A run is measured or dropped before the next one starts (by command or button).
+    for start in ["run cw", "next", "line", "circle cw 0.5"] {
+        assert_eq!(
+            b.send(start),
+            "err 24: run 2 (line d=1.000 m) is not measured yet: measure it or drop it first \
+             (measure x y [theta], or drop 2)\r\n",
+            "{start}"
+        );
+    }
+    let mut out = String::new();
+    b.session.button_short(&mut b.robot, &mut out).unwrap();
+    assert_eq!(
+        out,
+        "event button: err 24: run 2 (line d=1.000 m) is not measured yet: measure it or drop \
+         it first (measure x y [theta], or drop 2)\r\n"
+    );
+    assert_eq!(b.robot.running, None);
+    assert_eq!(
+        b.send("measure 1.001 0.002"),
+        "ok run 2 line d=1.000 m measured: error vs odometry dx=+0.001000 dy=+0.002000 m\r\n"
+    );
     // Squares beyond the plan are counted apart.
     b.send("set runs_per_direction 1");
     for _ in 0..2 {
         b.send("run cw");
         b.robot.finish(0.0, 0.0);
+        b.send("measure 0.001 0.001");
     }
     let status = b.send("status");
     assert!(
-        status.contains(" plan cw 1/1 ccw 0/1 (+2 extra) measured cw 1 ccw 0 runs 4/12 "),
+        status.contains(" plan cw 1/1 ccw 0/1 (+2 extra) measured cw 3 ccw 0 runs 4/12 "),
         "{status}"
     );
     b.send("drop 4");
@@ -566,7 +595,7 @@ fn run_lifecycle_golden() {
     b.send("set runs_per_direction 5");
     assert_eq!(
         b.send("drop 2"),
-        "ok dropped run 2: line d=1.000 m; 1 runs left\r\n"
+        "ok dropped run 2: line d=1.000 m; 1 run left\r\n"
     );
     assert_eq!(
         b.send("circle ccw"),
@@ -670,27 +699,38 @@ fn implausible_measurements_are_refused_with_a_unit_hint() {
     b.send("run cw");
     b.robot.finish(0.0123, -0.0045);
     b.poll(0);
-    // 41.841 mm typed as metres: 57.6 m from the odometry end of an 8 m path.
+    // 41.841 mm typed as metres: 57.6 m from the odometry end of an 8 m path. Read as
+    // millimetres or as centimetres it would fit: the reply names both and converts nothing.
     assert_eq!(
         b.send("measure 41.841 39.523"),
         "err 22: run 1 square cw L=2.000 m: measured end 57.551 m from the odometry end, more \
-         than 2.000 m (25 % of the path); looks like millimetres: the unit is metres\r\n"
+         than 2.000 m (25 % of the path): write the unit (41.841mm or 41.841cm)\r\n"
     );
     assert_eq!(
         b.send("measure 4.1841 3.9523"),
         "err 22: run 1 square cw L=2.000 m: measured end 5.750 m from the odometry end, more \
-         than 2.000 m (25 % of the path); looks like centimetres: the unit is metres\r\n"
+         than 2.000 m (25 % of the path): write the unit (4.1841mm or 4.1841cm)\r\n"
+    );
+    // A value with its unit is read exactly; an implausible one is not converted further.
+    assert_eq!(
+        b.send("measure 41.841m 39.523m"),
+        "err 22: run 1 square cw L=2.000 m: measured end 57.551 m from the odometry end, more \
+         than 2.000 m (25 % of the path); x forward, y left, in metres\r\n"
     );
     assert_eq!(
         b.send("measure 0.041841 0.039523 60"),
         "err 22: run 1 square cw L=2.000 m: measured heading +60.0 deg from the odometry \
-         heading, more than 45 (degrees, CCW positive)\r\n"
+         heading, more than 45 (a bare heading is degrees, CCW positive; radians need the unit \
+         written: 0.04rad)\r\n"
     );
     assert_eq!(b.session.runs()[0].measured, None);
-    assert!(
-        b.send("measure 0.041841 0.039523 -1.5")
-            .starts_with("ok run 1 square cw L=2.000 m measured: ")
+    assert_eq!(
+        b.send("measure 41.841mm 3.9523cm -0.02618rad"),
+        "ok run 1 square cw L=2.000 m measured: error vs odometry dx=+0.029541 dy=+0.044023 m\r\n"
     );
+    let m = b.session.runs()[0].measured.unwrap();
+    assert_eq!((m.x_m, m.y_m), (41.841 * 0.001, 3.9523 * 0.01));
+    assert!((m.theta_rad.unwrap() + 0.02618).abs() < 1e-15);
 }
 
 #[test]
@@ -809,7 +849,7 @@ fn calibrate_apply_save_golden() {
     for busy in ["calibrate", "apply alpha", "set square_side 1"] {
         assert_eq!(
             b.send(busy),
-            "err 10: robot is busy (stop first)\r\n",
+            "err 10: drive is in progress: wait for the motors to stop (500 ms after the last drive)\r\n",
             "{busy}"
         );
     }
@@ -828,22 +868,27 @@ fn calibrate_apply_save_golden() {
     assert_eq!(
         b.send("set d_left 0.151"),
         "ok d_left = 0.151000000 m (calibration alpha dropped: it is relative to the old \
-         geometry; set the old value back to restore it; the stored one stays until save)\r\n"
+         geometry; set the old value back to restore it) (not saved; save to keep)\r\n"
     );
     assert_eq!(b.session.settings().calibration, None);
     assert_eq!(
         b.send("set d_left 0.15"),
-        "ok d_left = 0.150000000 m (calibration alpha restored)\r\n"
+        "ok d_left = 0.150000000 m (calibration alpha restored) (not saved; save to keep)\r\n"
     );
     assert_eq!(b.session.settings(), &applied);
     assert_eq!(b.robot.geometry, Some(applied.active));
     b.send("set d_left 0.151");
+    let saved = b.store.saved.clone();
     assert_eq!(
         b.send("reset-params"),
-        "ok parameters reset to defaults and stored\r\n"
+        "ok parameters reset to defaults (not saved; save to keep)\r\n"
     );
     assert_eq!(b.session.settings(), &Settings::default());
-    assert_eq!(b.store.resets, 1);
+    // RAM only: the flash keeps what was saved until `save`.
+    assert_eq!(b.store.resets, 0);
+    assert_eq!(b.store.saved, saved);
+    assert_eq!(b.send("save"), "ok saved\r\n");
+    assert_eq!(b.store.saved.as_ref(), Some(&Settings::default()));
 }
 
 #[test]
@@ -851,21 +896,28 @@ fn next_alternates_and_completes_the_plan() {
     let mut b = Bench::new();
     b.send("set runs_per_direction 2");
     let mut dirs = Vec::new();
-    for _ in 0..4 {
+    for k in 1..=4 {
         let reply = b.send("next");
         dirs.push(reply.clone());
         b.robot.finish(0.0, 0.0);
+        let dir = if k % 2 == 1 { "cw" } else { "ccw" };
+        assert_eq!(
+            b.send("measure 0.001 0"),
+            format!(
+                "event run {k} finished: square {dir} L=2.000 m odometry end x=+0.000000 \
+                 y=+0.000000 theta_deg=+0.0000; measure it\r\n\
+                 ok run {k} square {dir} L=2.000 m measured: error vs odometry dx=+0.001000 \
+                 dy=+0.000000 m\r\n"
+            )
+        );
     }
     assert_eq!(
         dirs,
         [
             "ok run 1 started: square cw L=2.000 m\r\n",
-            "event run 1 finished: square cw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
-             theta_deg=+0.0000; measure it\r\nok run 2 started: square ccw L=2.000 m\r\n",
-            "event run 2 finished: square ccw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
-             theta_deg=+0.0000; measure it\r\nok run 3 started: square cw L=2.000 m\r\n",
-            "event run 3 finished: square cw L=2.000 m odometry end x=+0.000000 y=+0.000000 \
-             theta_deg=+0.0000; measure it\r\nok run 4 started: square ccw L=2.000 m\r\n",
+            "ok run 2 started: square ccw L=2.000 m\r\n",
+            "ok run 3 started: square cw L=2.000 m\r\n",
+            "ok run 4 started: square ccw L=2.000 m\r\n",
         ]
     );
     let done = b.send("next");
@@ -892,7 +944,10 @@ fn button_starts_next_clears_faults_and_stops() {
     );
     out.clear();
     b.session.button_short(&mut b.robot, &mut out).unwrap();
-    assert_eq!(out, "event button: err 10: robot is busy (stop first)\r\n");
+    assert_eq!(
+        out,
+        "event button: err 10: a run is in progress (square cw L=2.000 m): wait for it to finish\r\n"
+    );
     out.clear();
     b.session.button_long(&mut b.robot, &mut out).unwrap();
     assert_eq!(
@@ -913,6 +968,7 @@ fn store_full_refuses_new_runs() {
     for _ in 0..MAX_RUNS {
         b.send("line 0.5");
         b.robot.finish(0.5, 0.0);
+        assert!(b.send("measure 0.5 0").contains("\r\nok run "));
     }
     let reply = b.send("line 0.5");
     assert!(
@@ -936,13 +992,13 @@ fn pose_odom_drive_golden() {
     assert_eq!(b.robot.drives, vec![(0.3, -0.25)]);
     assert_eq!(
         b.send("odom reset"),
-        "err 10: robot is busy (stop first)\r\n"
+        "err 10: drive is in progress: wait for the motors to stop (500 ms after the last drive)\r\n"
     );
     b.send("stop");
     b.send("run cw");
     assert_eq!(
         b.send("drive 0.1 0"),
-        "err 10: robot is busy (stop first)\r\n"
+        "err 10: a run is in progress (square cw L=2.000 m): wait for it to finish\r\n"
     );
     b.robot.fault = Some("stall");
     b.robot.running = None;
@@ -1079,7 +1135,7 @@ fn bringup_replies_and_proposals_are_exact() {
         b.poll(0),
         "event bringup motors: right forward +30000 back -29000 (other wheel +12/-3): ok\r\n\
          event bringup motors: left forward -30000 back +29000 (other wheel +0/+0): counts run against the duty: motor or encoder reversed; run `bringup push` to tell which\r\n\
-         event bringup done: 1 finding(s); apply the proposals with set, then save and check again\r\n"
+         event bringup done: 1 finding, no setting fixes it: see above, then check again\r\n"
     );
     assert_eq!(
         b.send("bringup push"),
@@ -1094,7 +1150,7 @@ fn bringup_replies_and_proposals_are_exact() {
         "event bringup push: right encoder +21000 counts, counts forward: ok\r\n\
          event bringup push: left encoder -20900 counts, counts backward: encoder reversed\r\n\
          event bringup propose: set encoder_left_sign -1\r\n\
-         event bringup done: 1 finding(s); apply the proposals with set, then save and check again\r\n"
+         event bringup done: 1 finding; apply the proposal with set, then save and check again\r\n"
     );
     b.send("bringup");
     b.robot.check_reports.push(CheckReport::Pulses(PulseReport {
@@ -1108,7 +1164,7 @@ fn bringup_replies_and_proposals_are_exact() {
     );
     assert_eq!(
         b.send("set encoder_left_sign -1"),
-        "ok encoder_left_sign = -1 (1 standard, -1 reversed)\r\n"
+        "ok encoder_left_sign = -1 (1 standard, -1 reversed) (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.wiring.map(|w| w.encoder_left_reversed), Some(true));
     assert!(b.send("set encoder_left_sign 0").starts_with("err "));
@@ -1157,10 +1213,17 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     );
     let mut out = String::new();
     resumed.restore_runs(&mut b.store, &mut out).unwrap();
-    assert_eq!(out, "event runs restored: 1 runs, 1 measured\r\n");
+    assert_eq!(out, "event runs restored: 1 run, 1 measured\r\n");
     b.session = resumed;
     assert_eq!(b.send("runs"), listing);
-    assert_eq!(b.send("drop all"), "ok dropped all 1 runs\r\n");
+    // `drop all` asks first.
+    assert_eq!(
+        b.send("drop all"),
+        "err 25: drop all forgets 1 run and their measurements, in flash too: type drop all \
+         yes to do it\r\n"
+    );
+    assert_eq!(b.session.runs().len(), 1);
+    assert_eq!(b.send("drop all yes"), "ok dropped all 1 run\r\n");
     assert!(b.store.runs.is_empty());
 }
 
@@ -1258,7 +1321,7 @@ fn tuning_parameters_are_validated_like_the_geometry() {
     let mut b = Bench::new();
     assert_eq!(
         b.send("set motor_left_gain_fwd 0.6"),
-        "ok motor_left_gain_fwd = 0.6000 m/s per duty\r\n"
+        "ok motor_left_gain_fwd = 0.6000 m/s per duty (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.tuning.map(|t| t.left.gain_forward_mps), Some(0.6));
     assert_eq!(
@@ -1273,7 +1336,7 @@ fn tuning_parameters_are_validated_like_the_geometry() {
     assert!(b.send("set speed_bandwidth 0").starts_with("err 6: "));
     assert_eq!(
         b.send("set speed_bandwidth 20"),
-        "ok speed_bandwidth = 20.0000 rad/s\r\n"
+        "ok speed_bandwidth = 20.0000 rad/s (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.tuning.map(|t| t.bandwidth_radps), Some(20.0));
 }

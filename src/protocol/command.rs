@@ -10,6 +10,7 @@ use core::fmt;
 
 use super::number::{MAX_DIGITS, NumberError, parse_f64};
 use super::param::ParamName;
+use super::unit::{AngleUnit, LengthUnit, UnitError, parse_angle, parse_length};
 use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
@@ -83,6 +84,8 @@ pub enum Command<'a> {
         y_m: f64,
         /// True heading, degrees, if measured.
         theta_deg: Option<f64>,
+        /// The units written with the values (`None`: bare, metres and degrees).
+        units: MeasureUnits,
     },
     /// `runs`: list the stored runs.
     Runs,
@@ -102,8 +105,12 @@ pub enum Command<'a> {
         /// 1-based run number.
         index: usize,
     },
-    /// `drop all`: delete every stored run (a fresh session; also forgotten in flash).
-    DropAll,
+    /// `drop all [yes]`: delete every stored run (a fresh session; also forgotten in flash),
+    /// only with `yes`.
+    DropAll {
+        /// `yes` was typed after it.
+        confirmed: bool,
+    },
     /// `calibrate [method]`: compute every method (or one) from the measured runs.
     Calibrate {
         /// Method name as typed (the session checks it), `None` = all.
@@ -113,10 +120,12 @@ pub enum Command<'a> {
     Apply {
         /// Method name as typed (the session checks it).
         method: &'a str,
+        /// `yes` was typed after it: apply even with a flagged run.
+        confirmed: bool,
     },
     /// `save`: write the parameters to flash (motors must be stopped).
     Save,
-    /// `reset-params`: restore and store the defaults.
+    /// `reset-params`: restore the defaults in RAM (not saved).
     ResetParams,
     /// `pose`: the odometry pose.
     Pose,
@@ -151,6 +160,17 @@ pub enum Command<'a> {
         /// Turn rate, rad/s, CCW positive.
         w_radps: f32,
     },
+}
+
+/// The units written with the values of a `measure` (`None`: a bare value, metres or degrees).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MeasureUnits {
+    /// Unit of x.
+    pub x: Option<LengthUnit>,
+    /// Unit of y.
+    pub y: Option<LengthUnit>,
+    /// Unit of θ.
+    pub theta: Option<AngleUnit>,
 }
 
 /// Why a line did not parse. Each variant maps to one error code (see `docs/protocol.md`).
@@ -198,6 +218,11 @@ pub enum ParseError {
         /// The accepted words, `|`-separated.
         expected: &'static str,
     },
+    /// `set` of a name that is not a parameter.
+    UnknownParam {
+        /// The parameter nearest the typed name (edit distance), if one is near.
+        suggestion: Option<ParamName>,
+    },
 }
 
 impl fmt::Display for ParseError {
@@ -214,6 +239,8 @@ impl fmt::Display for ParseError {
                     NumberHint::Unit => "is not a number (type the number alone, without a unit)",
                     NumberHint::Comma => "is not a number (use a decimal point)",
                     NumberHint::Fraction => "is not a whole number",
+                    NumberHint::LengthUnit => "has an unknown unit (m, cm or mm after the number)",
+                    NumberHint::AngleUnit => "has an unknown unit (deg or rad after the number)",
                     NumberHint::Digits => {
                         return write!(f, "has too many digits (at most {MAX_DIGITS} significant)");
                     }
@@ -239,6 +266,13 @@ impl fmt::Display for ParseError {
             }
             ParseError::BadKeyword { what, expected } => {
                 write!(f, "<{what}> must be one of {expected}")
+            }
+            ParseError::UnknownParam { suggestion } => {
+                f.write_str("<name> must be one of the parameters listed by params")?;
+                match suggestion {
+                    Some(p) => write!(f, "; did you mean {}?", p.as_str()),
+                    None => Ok(()),
+                }
             }
         }
     }
@@ -282,6 +316,10 @@ pub enum NumberHint {
     Fraction,
     /// More significant digits than the parser keeps ([`super::number::MAX_DIGITS`]).
     Digits,
+    /// A number followed by something that is not a length unit (where one may be written).
+    LengthUnit,
+    /// A number followed by something that is not an angle unit (where one may be written).
+    AngleUnit,
 }
 
 /// The error for `word`, which is not a number for `what`.
@@ -371,6 +409,78 @@ fn sign(word: &str) -> Result<f64, ParseError> {
     }
 }
 
+/// Checks a value read with its unit against `[min, max]` (in the base unit).
+fn in_range(value: f64, what: &'static str, min: f64, max: f64) -> Result<f64, ParseError> {
+    if !value.is_finite() {
+        return Err(ParseError::NotFinite { what });
+    }
+    if !(min..=max).contains(&value) {
+        return Err(ParseError::OutOfRange {
+            what,
+            min,
+            max,
+            unit: "",
+        });
+    }
+    Ok(value)
+}
+
+/// The error for a word that [`super::unit`] refused.
+fn unit_error(e: UnitError, word: &str, what: &'static str, hint: NumberHint) -> ParseError {
+    match e {
+        UnitError::Number(NumberError::TooManyDigits) => ParseError::BadNumber {
+            what,
+            hint: NumberHint::Digits,
+        },
+        UnitError::Number(NumberError::Malformed) => match bad_number(word, what) {
+            // A unit after a malformed number is not the problem.
+            ParseError::BadNumber {
+                hint: NumberHint::Unit,
+                ..
+            } => ParseError::BadNumber {
+                what,
+                hint: NumberHint::None,
+            },
+            e => e,
+        },
+        UnitError::UnknownUnit => ParseError::BadNumber { what, hint },
+    }
+}
+
+/// A measured length: a bare number (metres) or one with `m`, `cm`, `mm` written after it,
+/// within `±limit_m` once converted.
+fn measured_length(
+    word: &str,
+    what: &'static str,
+    limit_m: f64,
+) -> Result<(f64, Option<LengthUnit>), ParseError> {
+    let l = parse_length(word).map_err(|e| unit_error(e, word, what, NumberHint::LengthUnit))?;
+    Ok((in_range(l.m, what, -limit_m, limit_m)?, l.unit))
+}
+
+/// A measured heading: a bare number (degrees) or one with `deg`, `rad` written after it,
+/// within `±limit_deg` once converted.
+fn measured_angle(
+    word: &str,
+    what: &'static str,
+    limit_deg: f64,
+) -> Result<(f64, Option<AngleUnit>), ParseError> {
+    let a = parse_angle(word).map_err(|e| unit_error(e, word, what, NumberHint::AngleUnit))?;
+    Ok((in_range(a.deg, what, -limit_deg, limit_deg)?, a.unit))
+}
+
+/// `yes` as an optional last word (a confirmation); any other word is refused.
+fn confirmation(words: &mut Words<'_>) -> Result<bool, ParseError> {
+    match words.next() {
+        None => Ok(false),
+        Some(w) if keyword_eq(w, "yes") => Ok(true),
+        Some(_) => Err(ParseError::BadKeyword {
+            what: "confirmation",
+            expected: "yes",
+        }),
+    }
+}
+
 fn optional_number(
     words: &mut Words<'_>,
     what: &'static str,
@@ -429,9 +539,8 @@ impl<'a> Command<'a> {
             Command::Params
         } else if is("set") {
             let name_word = words.required("name")?;
-            let name = ParamName::from_name(name_word).ok_or(ParseError::BadKeyword {
-                what: "name",
-                expected: "the parameters listed by params",
+            let name = ParamName::from_name(name_word).ok_or(ParseError::UnknownParam {
+                suggestion: ParamName::nearest(name_word),
             })?;
             let value_word = words.required("value")?;
             let (min, max) = name.range();
@@ -487,18 +596,22 @@ impl<'a> Command<'a> {
                 }
                 None => None,
             };
-            let x_m = number(first, "x_m", lim.0, lim.1)?;
-            let y_m = number(words.required("y_m")?, "y_m", lim.0, lim.1)?;
-            let theta_deg = optional_number(
-                &mut words,
-                "theta_deg",
-                (-MEASURE_LIMIT_DEG, MEASURE_LIMIT_DEG),
-            )?;
+            let (x_m, x_unit) = measured_length(first, "x_m", lim.1)?;
+            let (y_m, y_unit) = measured_length(words.required("y_m")?, "y_m", lim.1)?;
+            let theta = words
+                .next()
+                .map(|w| measured_angle(w, "theta_deg", MEASURE_LIMIT_DEG))
+                .transpose()?;
             Command::Measure {
                 run,
                 x_m,
                 y_m,
-                theta_deg,
+                theta_deg: theta.map(|t| t.0),
+                units: MeasureUnits {
+                    x: x_unit,
+                    y: y_unit,
+                    theta: theta.and_then(|t| t.1),
+                },
             }
         } else if is("runs") {
             Command::Runs
@@ -517,7 +630,9 @@ impl<'a> Command<'a> {
         } else if is("drop") {
             let which = words.required("n")?;
             if keyword_eq(which, "all") {
-                Command::DropAll
+                Command::DropAll {
+                    confirmed: confirmation(&mut words)?,
+                }
             } else {
                 let max = crate::motion::run::MAX_RUNS as u32;
                 let index = whole(which, "n", 1, max)? as usize;
@@ -527,8 +642,10 @@ impl<'a> Command<'a> {
             let method = words.next().map(method_name).transpose()?;
             Command::Calibrate { method }
         } else if is("apply") {
+            let method = method_name(words.required("method")?)?;
             Command::Apply {
-                method: method_name(words.required("method")?)?,
+                method,
+                confirmed: confirmation(&mut words)?,
             }
         } else if is("save") {
             Command::Save

@@ -8,6 +8,8 @@
 //!   hit by a receive error as a whole; [`rx`] is the receive loop the USART interrupt runs;
 //! - [`Command::parse`] turns a line into a validated [`Command`] (units: metres, m/s, rad/s,
 //!   degrees for measured headings, Hz);
+//! - [`unit`] reads a measured length or heading with its unit (`41.8mm`, `2deg`), for the
+//!   parser and the PC console alike;
 //! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`;
 //! - [`record`] writes a run's full record (`record`) losslessly and reads it back on a host, and
 //!   the `version` reply.
@@ -22,6 +24,7 @@ pub mod param;
 pub mod record;
 pub mod reply;
 pub mod rx;
+pub mod unit;
 
 pub use command::{Command, ParseError};
 pub use line::{Echo, LINE_MAX, LineAssembler, LineError, LineEvent, StopKey};

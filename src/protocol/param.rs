@@ -118,6 +118,21 @@ impl ParamName {
             .find(|p| keyword_eq(p.as_str(), name))
     }
 
+    /// The parameter whose name is nearest `name` (edit distance, ASCII case-insensitive), if
+    /// one is near enough to be what was meant: at most 2 edits, and fewer than a third of the
+    /// name's length (`squareside` → `square_side`).
+    pub fn nearest(name: &str) -> Option<ParamName> {
+        let mut best: Option<(usize, ParamName)> = None;
+        for p in ParamName::ALL {
+            let d = edit_distance(name.as_bytes(), p.as_str().as_bytes());
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, p));
+            }
+        }
+        best.filter(|&(d, p)| d <= 2 && 3 * d < p.as_str().len())
+            .map(|(_, p)| p)
+    }
+
     /// Unit shown after the value.
     pub fn unit(self) -> &'static str {
         self.spec().unit
@@ -153,6 +168,32 @@ impl ParamName {
             ValueKind::Whole | ValueKind::Sign => 0,
         }
     }
+}
+
+/// Levenshtein distance of two ASCII words, case-insensitive; words longer than 32 bytes count
+/// only their first 32.
+fn edit_distance(a: &[u8], b: &[u8]) -> usize {
+    const N: usize = 32;
+    let (a, b) = (a.get(..N).unwrap_or(a), b.get(..N).unwrap_or(b));
+    let mut row = [0usize; N + 1];
+    for (j, slot) in row.iter_mut().enumerate() {
+        *slot = j;
+    }
+    for (i, &ca) in a.iter().enumerate() {
+        let mut diagonal = i;
+        let mut left = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let up = row.get(j + 1).copied().unwrap_or(N);
+            let cost = usize::from(!ca.eq_ignore_ascii_case(&cb));
+            let d = (diagonal + cost).min(up + 1).min(left + 1);
+            diagonal = up;
+            if let Some(slot) = row.get_mut(j + 1) {
+                *slot = d;
+            }
+            left = d;
+        }
+    }
+    row.get(b.len()).copied().unwrap_or(N)
 }
 
 /// How a parameter's value is written.
@@ -433,6 +474,21 @@ pub const PARAMS: [ParamSpec; 24] = {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_near_name_is_suggested_and_a_far_one_is_not() {
+        use super::{ParamName, edit_distance};
+        assert_eq!(edit_distance(b"squareside", b"square_side"), 1);
+        assert_eq!(edit_distance(b"", b"abc"), 3);
+        assert_eq!(edit_distance(b"kitten", b"sitting"), 3);
+        assert_eq!(
+            ParamName::nearest("squareside"),
+            Some(ParamName::SquareSide)
+        );
+        assert_eq!(ParamName::nearest("MAX_SPED"), Some(ParamName::MaxSpeed));
+        assert_eq!(ParamName::nearest("speed"), None);
+        assert_eq!(ParamName::nearest("xyz"), None);
+    }
+
     use super::*;
 
     #[test]

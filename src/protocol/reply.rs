@@ -78,6 +78,12 @@ pub enum ErrorCode {
     /// 23: the motor identification refused its result: the response was implausible (no
     /// motion, reversed, saturated, …); the tuning is unchanged and a fault is latched.
     IdentifyRefused = 23,
+    /// 24: a run (`run`, `next`, `line`, `circle`, the button) while the last finished run is
+    /// not measured: measure it or drop it first.
+    Unmeasured = 24,
+    /// 25: the command needs a confirmation (`apply <method> yes` with a flagged run,
+    /// `drop all yes`).
+    NotConfirmed = 25,
 }
 
 impl ErrorCode {
@@ -97,7 +103,9 @@ impl From<&ParseError> for ErrorCode {
             ParseError::BadNumber { .. } => ErrorCode::BadNumber,
             ParseError::NotFinite { .. } => ErrorCode::NotFinite,
             ParseError::OutOfRange { .. } => ErrorCode::OutOfRange,
-            ParseError::BadKeyword { .. } => ErrorCode::BadKeyword,
+            ParseError::BadKeyword { .. } | ParseError::UnknownParam { .. } => {
+                ErrorCode::BadKeyword
+            }
         }
     }
 }

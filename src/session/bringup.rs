@@ -43,7 +43,7 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         if let Err(e) = robot.start_check(kind) {
-            return robot_err(out, e);
+            return robot_err(out, e, robot);
         }
         match kind {
             CheckKind::Identify(mode) => self.write_identify_started(mode, out),
@@ -105,7 +105,7 @@ impl<C: Calibrator> Session<C> {
     }
 
     fn report_push(&self, p: &PushReport, out: &mut dyn Write) -> fmt::Result {
-        let mut changes = 0;
+        let mut found = Findings::default();
         for (wheel, counts) in [(Wheel::Right, p.right), (Wheel::Left, p.left)] {
             let verdict = p.verdict(wheel, self.min_counts(wheel));
             let text = match verdict {
@@ -118,16 +118,20 @@ impl<C: Calibrator> Session<C> {
                 "event bringup push: {} encoder {counts:+} counts, {text}\r\n",
                 wheel_name(wheel)
             )?;
-            if verdict == PushVerdict::Reversed {
-                self.propose(wheel, false, out)?;
-                changes += 1;
+            match verdict {
+                PushVerdict::Ok => {}
+                PushVerdict::Reversed => {
+                    self.propose(wheel, false, out)?;
+                    found.proposed += 1;
+                }
+                PushVerdict::NoMotion => found.unfixed += 1,
             }
         }
-        write_done(changes, out)
+        found.write_done(CheckKind::Push, out)
     }
 
     fn report_pulses(&self, p: &PulseReport, out: &mut dyn Write) -> fmt::Result {
-        let mut changes = 0;
+        let mut found = Findings::default();
         for wheel in [Wheel::Right, Wheel::Left] {
             let min = self.min_counts(wheel);
             let pulses = p.wheel(wheel);
@@ -158,11 +162,11 @@ impl<C: Calibrator> Session<C> {
                             }
                             if enc {
                                 self.propose(wheel, false, out)?;
-                                changes += 1;
+                                found.proposed += 1;
                             }
                             if motor {
                                 self.propose(wheel, true, out)?;
-                                changes += 1;
+                                found.proposed += 1;
                             }
                         }
                         None if counts_reversed => {
@@ -170,7 +174,7 @@ impl<C: Calibrator> Session<C> {
                                 out,
                                 "counts run against the duty: motor or encoder reversed; run `bringup push` to tell which\r\n"
                             )?;
-                            changes += 1;
+                            found.unfixed += 1;
                         }
                         None => write!(out, "ok\r\n")?,
                     }
@@ -192,20 +196,59 @@ impl<C: Calibrator> Session<C> {
                 verdict,
                 WheelVerdict::NoMotion | WheelVerdict::CrossWired | WheelVerdict::Inconsistent
             ) {
-                changes += 1;
+                found.unfixed += 1;
             }
         }
-        write_done(changes, out)
+        found.write_done(CheckKind::Pulses, out)
     }
 }
 
-fn write_done(changes: u32, out: &mut dyn Write) -> fmt::Result {
-    if changes == 0 {
-        write!(out, "event bringup done: wiring ok\r\n")
-    } else {
-        write!(
-            out,
-            "event bringup done: {changes} finding(s); apply the proposals with set, then save and check again\r\n"
-        )
+/// What a check found: findings with a proposed `set` each, and findings no setting fixes.
+#[derive(Clone, Copy, Debug, Default)]
+struct Findings {
+    proposed: u32,
+    unfixed: u32,
+}
+
+impl Findings {
+    /// `event bringup done: …`: says `wiring ok` only when the check covered the wiring (the
+    /// push checks the encoders alone), and announces proposals only when some were made.
+    fn write_done(self, kind: CheckKind, out: &mut dyn Write) -> fmt::Result {
+        let (p, u) = (self.proposed, self.unfixed);
+        out.write_str("event bringup done: ")?;
+        if p + u == 0 {
+            return match kind {
+                CheckKind::Push => write!(
+                    out,
+                    "encoders count forward (the push checks the encoders only; bringup motors \
+                     checks the motors)\r\n"
+                ),
+                _ => write!(out, "wiring ok\r\n"),
+            };
+        }
+        let finding = |n: u32| if n == 1 { "finding" } else { "findings" };
+        let proposal = |n: u32| if n == 1 { "proposal" } else { "proposals" };
+        match (p, u) {
+            (0, u) => write!(
+                out,
+                "{u} {}, no setting fixes {}: see above, then check again\r\n",
+                finding(u),
+                if u == 1 { "it" } else { "them" }
+            ),
+            (p, 0) => write!(
+                out,
+                "{p} {}; apply the {} with set, then save and check again\r\n",
+                finding(p),
+                proposal(p)
+            ),
+            (p, u) => write!(
+                out,
+                "{} findings; apply the {} with set, see above for the other {}, then save and \
+                 check again\r\n",
+                p + u,
+                proposal(p),
+                u
+            ),
+        }
     }
 }

@@ -36,7 +36,7 @@ impl<C: Calibrator> Session<C> {
         // The exact solve takes seconds on the target; the console must stay responsive (`stop`)
         // while anything moves.
         if robot.status().activity != Activity::Idle {
-            return robot_err(out, RobotError::Busy);
+            return robot_err(out, RobotError::Busy, robot);
         }
         if let Some(m) = method
             && !self.calibrator.methods().iter().any(|k| keyword_eq(k, m))
@@ -68,11 +68,12 @@ impl<C: Calibrator> Session<C> {
     pub(super) fn apply(
         &mut self,
         method: &str,
+        confirmed: bool,
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
         if robot.status().activity != Activity::Idle {
-            return robot_err(out, RobotError::Busy);
+            return robot_err(out, RobotError::Busy, robot);
         }
         let Some(name) = self
             .calibrator
@@ -87,6 +88,19 @@ impl<C: Calibrator> Session<C> {
             return refused;
         }
         let nominal = self.settings.nominal;
+        // A flagged run (one the robust fit finds disagreeing with the others) skews every
+        // result computed with it: applying one then takes an explicit `yes`.
+        let flagged = flagged_runs(&mut self.calibrator, &self.runs, &nominal);
+        if !flagged.is_empty() && !confirmed {
+            write!(out, "err {}: ", ErrorCode::NotConfirmed.code())?;
+            write_run_list(out, &flagged)?;
+            write!(
+                out,
+                " flagged (disagrees with the others, see calibrate): measure #<n> x y again or \
+                 drop <n>, or type apply {name} yes to apply anyway\r\n"
+            )?;
+            return Ok(());
+        }
         let sol = match self.calibrator.solve(&self.runs, &nominal, name) {
             Ok(s) => s,
             Err(e) => return write_err(out, ErrorCode::CalibrationFailed, &e),
@@ -115,7 +129,7 @@ impl<C: Calibrator> Session<C> {
             return storage_err(out, e);
         }
         if let Err(e) = robot.set_geometry(sol.geometry) {
-            return robot_err(out, e);
+            return robot_err(out, e, robot);
         }
         self.settings = candidate;
         self.dropped = None;
@@ -147,6 +161,7 @@ pub fn write_calibration<C: Calibrator>(
     if let Some(refused) = refuse_calibration(&p, out) {
         return refused;
     }
+    let flagged = flagged_runs(calibrator, runs, nominal);
     report::write_solution_header(out)?;
     let mut solved = 0usize;
     // The first result with per-run residuals (the exact fit) is listed after the table.
@@ -163,7 +178,7 @@ pub fn write_calibration<C: Calibrator>(
                 residuals = Some((name, s.residuals.clone()));
             }
         }
-        report::write_solution_row(out, name, &result)?;
+        report::write_solution_row(out, name, &result, &flagged)?;
     }
     if let Some((name, r)) = &residuals {
         report::write_residuals(out, name, r)?;
@@ -184,6 +199,38 @@ pub fn write_calibration<C: Calibrator>(
         p.cw_measured,
         p.ccw_measured,
     )
+}
+
+/// The runs the robust fit flags as disagreeing with the others (the first result that reports
+/// per-run residuals, as the `calibrate` table lists them), by run number.
+pub fn flagged_runs<C: Calibrator>(
+    calibrator: &mut C,
+    runs: &[RunRecord],
+    nominal: &Geometry,
+) -> Vec<usize, MAX_RUNS> {
+    let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
+    for name in methods {
+        if let Ok(s) = calibrator.solve(runs, nominal, name)
+            && !s.residuals.is_empty()
+        {
+            return s
+                .residuals
+                .iter()
+                .filter(|r| r.outlier)
+                .map(|r| r.run)
+                .collect();
+        }
+    }
+    Vec::new()
+}
+
+/// `run 2 is` / `runs 2 5 are`.
+pub(super) fn write_run_list(out: &mut dyn Write, runs: &[usize]) -> fmt::Result {
+    out.write_str(if runs.len() == 1 { "run" } else { "runs" })?;
+    for n in runs {
+        write!(out, " {n}")?;
+    }
+    out.write_str(if runs.len() == 1 { " is" } else { " are" })
 }
 
 /// The `err 13` reply when `calibrate`/`apply` cannot run yet (no measured square in a

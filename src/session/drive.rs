@@ -39,7 +39,7 @@ impl<C: Calibrator> Session<C> {
                     )
                 }
             }
-            Err(e) => robot_err(out, e),
+            Err(e) => robot_err(out, e, robot),
         }
     }
 
@@ -55,7 +55,7 @@ impl<C: Calibrator> Session<C> {
     pub(super) fn odom_reset(&self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         match robot.reset_odometry() {
             Ok(()) => write!(out, "ok odometry reset\r\n"),
-            Err(e) => robot_err(out, e),
+            Err(e) => robot_err(out, e, robot),
         }
     }
 }

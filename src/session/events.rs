@@ -62,8 +62,9 @@ pub fn write_runs_restored(out: &mut dyn Write, loaded: &RunsLoaded) -> fmt::Res
     }
     write!(
         out,
-        "event runs restored: {} runs, {} measured",
-        loaded.restored, loaded.measured
+        "event runs restored: {}, {} measured",
+        super::report::Count(loaded.restored, "run"),
+        loaded.measured
     )?;
     match (&loaded.problem, loaded.skipped) {
         (Some(p), 0) => write!(out, "; {p}")?,

@@ -50,7 +50,7 @@ use heapless::Vec;
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::record;
-use crate::protocol::reply::{ErrorCode, write_err};
+use crate::protocol::reply::{EOL, ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
@@ -114,13 +114,37 @@ pub struct Session<C> {
     runs_store_failed: bool,
 }
 
-/// The `err` reply for an operation the robot refused: `err 11` for a fault, `err 10` otherwise.
-fn robot_err(out: &mut dyn Write, e: RobotError) -> fmt::Result {
-    let code = match e {
-        RobotError::Fault(_) => ErrorCode::Fault,
-        RobotError::Busy | RobotError::Rejected(_) => ErrorCode::Busy,
-    };
-    write_err(out, code, &e)
+/// The `err` reply for an operation the robot refused: `err 11` for a fault, `err 10`
+/// otherwise; busy says what is in progress and to wait for it.
+fn robot_err(out: &mut dyn Write, e: RobotError, robot: &mut dyn Robot) -> fmt::Result {
+    match e {
+        RobotError::Fault(_) => write_err(out, ErrorCode::Fault, &e),
+        RobotError::Busy => busy_err(out, robot.status().activity),
+        RobotError::Rejected(_) => write_err(out, ErrorCode::Busy, &e),
+    }
+}
+
+/// `err 10: <what> is in progress: wait for …`, for a command refused while the robot is busy.
+fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
+    write!(out, "err {}: ", ErrorCode::Busy.code())?;
+    match activity {
+        Activity::Running(path) => {
+            out.write_str("a run is in progress (")?;
+            report::write_path(out, &path)?;
+            out.write_str("): wait for it to finish")?;
+        }
+        Activity::Driving => {
+            out.write_str(
+                "drive is in progress: wait for the motors to stop (500 ms after the last drive)",
+            )?;
+        }
+        Activity::Checking(CheckKind::Identify(_)) => {
+            out.write_str("identify is in progress: wait for its result")?;
+        }
+        Activity::Checking(_) => out.write_str("bringup is in progress: wait for its result")?,
+        Activity::Idle => out.write_str("a run is ending: wait for its event line")?,
+    }
+    out.write_str(EOL)
 }
 
 /// The `err` reply for a failed parameter store, with the code of its cause.
@@ -410,16 +434,20 @@ impl<C: Calibrator> Session<C> {
                 x_m,
                 y_m,
                 theta_deg,
-            } => self.measure(run, x_m, y_m, theta_deg, robot, out),
+                units,
+            } => {
+                let typed = measure::Typed::new(x_m, y_m, theta_deg, units);
+                self.measure(run, typed, robot, out)
+            }
             Command::Runs => report::write_runs(out, &self.runs),
             Command::Record { index, first_knot } => self.record(index, first_knot, out),
             Command::Version => record::write_version(out),
             Command::Drop { index } => self.drop_run(index, out),
-            Command::DropAll => self.drop_all(robot, out),
+            Command::DropAll { confirmed } => self.drop_all(confirmed, robot, out),
             Command::Calibrate { method } => self.calibrate(method, robot, out),
-            Command::Apply { method } => self.apply(method, robot, out),
+            Command::Apply { method, confirmed } => self.apply(method, confirmed, robot, out),
             Command::Save => self.save(robot, storage, out),
-            Command::ResetParams => self.reset_params(robot, storage, out),
+            Command::ResetParams => self.reset_params(robot, out),
             Command::Pose => self.pose(robot, out),
             Command::OdomReset => self.odom_reset(robot, out),
             Command::Stream { on } => self.set_stream(on, out),

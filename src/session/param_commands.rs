@@ -1,6 +1,6 @@
 //! The parameter commands: `set <name> <value>` (validated, handed to the controller at once,
 //! not saved), `save` (the settings into the flash record) and `reset-params` (the defaults,
-//! stored and handed to the controller).
+//! handed to the controller, not saved).
 //!
 //! Owns the rule that a calibration is relative to the nominal geometry it was computed for:
 //! `set` of a geometry parameter drops it, and setting the old value back restores it.
@@ -11,7 +11,7 @@ use super::traits::{Activity, Calibrator, ParamStorage, Robot, RobotError};
 use super::{Dropped, Session, Settings, report, robot_err, storable, storage_err};
 use crate::protocol::ParamGroup;
 use crate::protocol::ParamName;
-use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::reply::{ErrorCode, write_err};
 
 /// Hands every part of `settings` the controller runs with to `robot`: the active geometry, the
 /// motion limits, the wiring, the speed-loop tuning and the control rate (the same parts as
@@ -38,7 +38,7 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         if robot.status().activity != Activity::Idle {
-            return robot_err(out, RobotError::Busy);
+            return robot_err(out, RobotError::Busy, robot);
         }
         let (mut new, changed) = match self.settings.with_value(name, value) {
             Ok(x) => x,
@@ -69,7 +69,7 @@ impl<C: Calibrator> Session<C> {
             ParamGroup::Rate => robot.set_rate(new.control_hz),
         };
         if let Err(e) = pushed {
-            return robot_err(out, e);
+            return robot_err(out, e, robot);
         }
         let dropped = match (&self.settings.calibration, changed) {
             (Some(c), ParamGroup::Geometry) => {
@@ -94,10 +94,10 @@ impl<C: Calibrator> Session<C> {
             write!(
                 out,
                 " (calibration {m} dropped: it is relative to the old geometry; set the old \
-                 value back to restore it; the stored one stays until save)"
+                 value back to restore it)"
             )?;
         }
-        out.write_str(EOL)
+        write!(out, " (not saved; save to keep)\r\n")
     }
 
     /// `save`: stores the settings, refused when they do not make a valid record.
@@ -122,31 +122,27 @@ impl<C: Calibrator> Session<C> {
         }
     }
 
-    /// `reset-params`: stores the default settings and hands them to the controller, refused
-    /// while anything moves.
+    /// `reset-params`: hands the default settings to the controller (every part: geometry,
+    /// limits, wiring, tuning, rate), in RAM only like `set` (`save` stores them); refused while
+    /// anything moves.
     pub(super) fn reset_params(
         &mut self,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
         out: &mut dyn Write,
     ) -> fmt::Result {
         let defaults = Settings::default();
         if robot.status().activity != Activity::Idle {
-            return robot_err(out, RobotError::Busy);
-        }
-        if let Err(e) = storage.reset(robot.motors_stopped()) {
-            return storage_err(out, e);
-        }
-        // A reset that had to wipe damaged flash took the runs with it.
-        if !self.runs.is_empty() {
-            self.store_runs_again();
+            return robot_err(out, RobotError::Busy, robot);
         }
         // Idle was checked above, so the controller accepts every part.
         if let Err(e) = push_settings(robot, &defaults) {
-            return robot_err(out, e);
+            return robot_err(out, e, robot);
         }
         self.settings = defaults;
         self.dropped = None;
-        write!(out, "ok parameters reset to defaults and stored\r\n")
+        write!(
+            out,
+            "ok parameters reset to defaults (not saved; save to keep)\r\n"
+        )
     }
 }

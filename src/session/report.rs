@@ -14,6 +14,20 @@ use crate::motion::run::{PathKind, RunRecord};
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
 
+/// `<n> <noun>` with the noun in the plural unless `n` is 1 (`1 run`, `2 runs`).
+pub(crate) struct Count(pub usize, pub &'static str);
+
+impl fmt::Display for Count {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let Count(n, noun) = *self;
+        write!(f, "{n} {noun}")?;
+        if n != 1 {
+            f.write_str("s")?;
+        }
+        Ok(())
+    }
+}
+
 /// `help` text: one data line per command, the command and its description separated by a tab
 /// (printed as a command column of [`HELP_COLUMN`] characters: no padding is stored).
 const HELP: &[&str] = &[
@@ -27,14 +41,14 @@ const HELP: &[&str] = &[
     "circle cw|ccw [r]\tdrive a full circle of radius r m",
     "stop\tstop now (Ctrl-C or Esc also stop at once)",
     "clear\tclear a latched fault (stall, glitch, following)",
-    "measure [#n] <x> <y> [th]\ttrue end pose of the last run, or of run n (m, m, deg)",
+    "measure [#n] <x> <y> [th]\ttrue end pose of the last run, or of run n (m m deg; or 5mm 1cm 2deg)",
     "runs\tlist stored runs",
     "record <n> [first]\trun n's full record with its tick knots (host tools)",
-    "drop <n>|all\tdelete run n, or every run",
+    "drop <n>|all yes\tdelete run n, or every run",
     "calibrate [method]\tcompute all methods (or one) from measured runs",
-    "apply <method>\tuse a method's result (then save)",
+    "apply <method> [yes]\tuse a method's result (then save; yes: with a flagged run)",
     "save\tstore parameters in flash (motors stopped)",
-    "reset-params\trestore and store defaults",
+    "reset-params\trestore the defaults (then save)",
     "pose\todometry pose",
     "odom reset\tset the odometry pose to the origin",
     "bringup [motors|push]\twiring check: motor pulses (wheels up) or a hand push",
@@ -263,7 +277,11 @@ pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result
         }
         out.write_str(EOL)?;
     }
-    write!(out, "ok {} runs, {measured} measured\r\n", runs.len())
+    write!(
+        out,
+        "ok {}, {measured} measured\r\n",
+        Count(runs.len(), "run")
+    )
 }
 
 /// The per-run residual list of one result, then a line naming the runs that disagree with the
@@ -334,10 +352,13 @@ fn write_opt(out: &mut dyn Write, v: Option<f64>, pad: bool) -> fmt::Result {
     }
 }
 
+/// One method's row of the `calibrate` table; a result computed with flagged runs (`flagged`,
+/// non-empty) ends with `  [with flagged run <n>…]`.
 pub(super) fn write_solution_row(
     out: &mut dyn Write,
     name: &str,
     result: &Result<Solution, SolveError>,
+    flagged: &[usize],
 ) -> fmt::Result {
     write!(out, "  {name:<12}")?;
     match result {
@@ -360,6 +381,16 @@ pub(super) fn write_solution_row(
             }
             write_opt(out, s.sd_e_d, true)?;
             write_opt(out, s.sd_e_b, false)?;
+            if !flagged.is_empty() {
+                out.write_str("  [with flagged run")?;
+                if flagged.len() > 1 {
+                    out.write_str("s")?;
+                }
+                for n in flagged {
+                    write!(out, " {n}")?;
+                }
+                out.write_str("]")?;
+            }
         }
     }
     out.write_str(EOL)

@@ -47,6 +47,9 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        if let Some(refused) = self.refuse_unmeasured(out) {
+            return refused;
+        }
         if self.runs.is_full() {
             let msg = "run store full (drop <n> first)";
             return write_err(out, ErrorCode::StoreFull, &msg);
@@ -59,8 +62,25 @@ impl<C: Calibrator> Session<C> {
                 report::write_path(out, &path)?;
                 out.write_str(EOL)
             }
-            Err(e) => robot_err(out, e),
+            Err(e) => robot_err(out, e, robot),
         }
+    }
+
+    /// `err 24` when the last finished run is not measured: a run is measured or dropped
+    /// before the next one starts, so its end pose is not lost and a plain `measure` cannot
+    /// fill the wrong run.
+    fn refuse_unmeasured(&self, out: &mut dyn Write) -> Option<fmt::Result> {
+        let n = self.runs.len();
+        let run = self.runs.last().filter(|r| r.measured.is_none())?;
+        Some((|| {
+            write!(out, "err {}: run {n} (", ErrorCode::Unmeasured.code())?;
+            report::write_path(out, &run.path)?;
+            write!(
+                out,
+                ") is not measured yet: measure it or drop it first (measure x y [theta], or \
+                 drop {n})\r\n"
+            )
+        })())
     }
 
     /// `next`: starts the next planned square, or says the plan is complete.
@@ -127,33 +147,49 @@ impl<C: Calibrator> Session<C> {
         self.runs_changed();
         write!(out, "ok dropped run {index}: ")?;
         report::write_path(out, &run.path)?;
-        write!(out, "; {} runs left\r\n", self.runs.len())
+        write!(out, "; {} left\r\n", report::Count(self.runs.len(), "run"))
     }
 
-    /// `drop all`: empties the run store, refused while anything moves.
-    pub(super) fn drop_all(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
+    /// `drop all [yes]`: empties the run store, only when confirmed with `yes`; refused while
+    /// anything moves.
+    pub(super) fn drop_all(
+        &mut self,
+        confirmed: bool,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
         if self.active.is_some() || robot.status().activity != Activity::Idle {
-            return robot_err(out, RobotError::Busy);
+            return robot_err(out, RobotError::Busy, robot);
         }
         let n = self.runs.len();
+        if !confirmed {
+            return write!(
+                out,
+                "err {}: drop all forgets {} and their measurements, in flash too: type \
+                 drop all yes to do it\r\n",
+                ErrorCode::NotConfirmed.code(),
+                report::Count(n, "run"),
+            );
+        }
         self.runs.clear();
         self.run_ids.clear();
         self.runs_changed();
-        write!(out, "ok dropped all {n} runs\r\n")
+        write!(out, "ok dropped all {}\r\n", report::Count(n, "run"))
     }
 
     /// `measure [#n] x y [θ]`: without `#n` it fills the last finished run if that is
     /// unmeasured (never an earlier one, never after an aborted run); `#n` fills or replaces run
-    /// `n` and says what it replaced. Refused while anything moves, and when implausible.
+    /// `n` and says what it replaced, keeping run n's measured heading when no new one is given.
+    /// Refused while anything moves, and when implausible (a bare value is never converted: the
+    /// reply asks for the unit written out).
     pub(super) fn measure(
         &mut self,
         index: Option<usize>,
-        x_m: f64,
-        y_m: f64,
-        theta_deg: Option<f64>,
+        typed: measure::Typed,
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        let (x_m, y_m) = (typed.x.m, typed.y.m);
         if robot.status().activity != Activity::Idle {
             return write_err(
                 out,
@@ -198,15 +234,21 @@ impl<C: Calibrator> Session<C> {
         let Some(run) = self.runs.get_mut(n - 1) else {
             return write_err(out, ErrorCode::NoSuchRun, &"no such run");
         };
-        if let Err(why) = measure::check(run, x_m, y_m, theta_deg) {
+        if let Err(why) = measure::check_typed(run, typed.x, typed.y, typed.theta) {
             write!(out, "err {}: run {n} ", ErrorCode::Implausible.code())?;
             report::write_path(out, &run.path)?;
             return write!(out, ": {why}\r\n");
         }
+        // `measure #n x y` without θ keeps the heading measured before.
+        let kept = match typed.theta {
+            None => run.measured.and_then(|m| m.theta_rad),
+            Some(_) => None,
+        };
+        let theta_rad = typed.theta.map(|t| t.deg.to_radians()).or(kept);
         let replaced = run.measured.replace(Measurement {
             x_m,
             y_m,
-            theta_rad: theta_deg.map(f64::to_radians),
+            theta_rad,
         });
         let odo = run.odometry_end;
         let path = run.path;
@@ -221,10 +263,18 @@ impl<C: Calibrator> Session<C> {
         }
         write!(
             out,
-            ": error vs odometry dx={} dy={} m\r\n",
+            ": error vs odometry dx={} dy={} m",
             Decimal::signed(x_m - odo.x_m, 6),
             Decimal::signed(y_m - odo.y_m, 6),
-        )
+        )?;
+        if let Some(t) = kept {
+            write!(
+                out,
+                " (heading kept: theta_deg={})",
+                Decimal::signed(t.to_degrees(), 4)
+            )?;
+        }
+        out.write_str(EOL)
     }
 }
 

@@ -27,8 +27,8 @@ pub(super) struct Stream {
 impl<C: Calibrator> Session<C> {
     /// Periodic work: collects finished runs (announcing them with `event` lines), stores
     /// changed runs in flash once the motors are stopped, and writes a `stream` line when one
-    /// is due at `now_us` (a monotonic time, microseconds) and no line is being typed
-    /// ([`Session::set_typing`]).
+    /// is due at `now_us` (a monotonic time, microseconds). All of it holds while a line is
+    /// being typed ([`Session::set_typing`]), so no unsolicited line cuts into the echo.
     ///
     /// # Errors
     /// Only if `out` refuses the text.
@@ -39,10 +39,16 @@ impl<C: Calibrator> Session<C> {
         storage: &mut dyn ParamStorage,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        // Unsolicited lines hold while a line is typed with live echo, as the stream does: they
+        // would land between the typed characters. The next poll after Enter (or the command's
+        // own collection) writes them.
+        if self.typing {
+            return Ok(());
+        }
         self.collect_finished(robot, out)?;
         self.collect_check(robot, out)?;
         self.store_runs(robot, storage, out)?;
-        if !self.typing && self.stream_due(now_us) {
+        if self.stream_due(now_us) {
             let pose = robot.pose();
             let totals = robot.totals();
             let (vr, vl) = self.wheel_speeds(now_us, totals);

@@ -59,7 +59,9 @@ pub enum RobotError {
 impl fmt::Display for RobotError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            RobotError::Busy => f.write_str("robot is busy (stop first)"),
+            RobotError::Busy => {
+                f.write_str("robot is busy: wait for what is in progress to finish")
+            }
             RobotError::Fault(name) => write!(f, "fault latched: {name}"),
             RobotError::Rejected(why) => write!(f, "refused: {why}"),
         }
