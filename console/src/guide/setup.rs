@@ -25,6 +25,14 @@ pub(super) const HOW_TO_MEASURE: &str = "\
     from the data sheets; it must be exact.
   A bare number is metres; a unit may be typed with it (150mm, 15cm, 0.15m).";
 
+/// A length in metres as sent to the board: to the picometre, without the binary noise of a
+/// unit conversion (`150mm` is `0.15`, not `0.15000000000000002`).
+pub(super) fn metres_text(v: f64) -> String {
+    let s = format!("{v:.12}");
+    let s = s.trim_end_matches('0');
+    s.strip_suffix('.').unwrap_or(s).to_string()
+}
+
 /// What the board holds, from its `params` reply.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Holds {
@@ -122,7 +130,7 @@ impl Guide {
 
     /// Asks `question` with `choices` (`key: meaning`); `help` and `?` show `help`, an empty
     /// answer takes `default`. Returns the key chosen.
-    fn choose(
+    pub(super) fn choose(
         &mut self,
         question: &str,
         choices: &[(&str, &str)],
@@ -188,9 +196,9 @@ impl Guide {
             }
         };
         for (name, value) in [
-            ("d_right", d_right.to_string()),
-            ("d_left", d_left.to_string()),
-            ("wheelbase", b.to_string()),
+            ("d_right", metres_text(d_right)),
+            ("d_left", metres_text(d_left)),
+            ("wheelbase", metres_text(b)),
             ("counts_per_rev", counts.to_string()),
         ] {
             let r = self.cmd(&format!("set {name} {value}"))?;
@@ -223,7 +231,7 @@ impl Guide {
                 self.ui.say(HOW_TO_MEASURE);
                 continue;
             }
-            match super::quantity(&a, false) {
+            match super::length(&a) {
                 Ok(v) if v > 0.0 && v <= 5.0 => return Ok(v),
                 Ok(v) => self.ui.say(&format!(
                     "  {v} m is not a plausible {what}: a bare number is metres (150mm, 0.15)"
@@ -413,6 +421,13 @@ mod tests {
 
     fn params(lines: &[&str]) -> Vec<String> {
         lines.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn a_length_is_sent_without_conversion_noise() {
+        assert_eq!(super::metres_text(150.0 * 0.001), "0.15");
+        assert_eq!(super::metres_text(38.5 * 0.01), "0.385");
+        assert_eq!(super::metres_text(2.0), "2");
     }
 
     #[test]
