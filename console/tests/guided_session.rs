@@ -1077,7 +1077,7 @@ fn factory_default_board_full_procedure() {
                 } else {
                     measured += 1;
                     // The exact value in millimetres, the heading in degrees.
-                    format!("{}mm {}mm {}deg", w[0] * 1e3, w[1] * 1e3, w[2])
+                    format!("{:.3}mm {:.3}mm {}deg", w[0] * 1e3, w[1] * 1e3, w[2])
                 }
             }
         } else if q.starts_with("Square side L") {

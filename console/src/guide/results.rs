@@ -130,7 +130,7 @@ impl Guide {
                         {
                             // The same slot again: a log reader keeps the newer record.
                             self.log_run(slot, n, &lines);
-                            self.slots[slot].record = Some(record);
+                            self.slots[slot].record = Some(*record);
                         }
                         break;
                     }

@@ -12,7 +12,7 @@ use super::{Guide, RUN_TIMEOUT, Slot, Stop, field, path_text};
 /// What became of a measurement question.
 pub(super) enum Measured {
     /// The board took it: the run's record as it now holds it, and its lines.
-    Taken(RunRecord, Vec<String>),
+    Taken(Box<RunRecord>, Vec<String>),
     /// The run was dropped, to be driven again.
     Dropped,
     /// The run was dropped, and no more runs are driven.
@@ -283,7 +283,7 @@ impl Guide {
         path: Vec<(f64, f64)>,
     ) -> Result<(), Stop> {
         match self.send_measurement(n, record, true)? {
-            Measured::Taken(record, lines) => self.adopt(n, record, lines, path),
+            Measured::Taken(record, lines) => self.adopt(n, *record, lines, path),
             Measured::Dropped => {}
             Measured::Skip => self.stop_runs = true,
         }
@@ -385,7 +385,7 @@ impl Guide {
                 continue;
             }
             let (record, lines) = self.fetch_record(n)?;
-            return Ok(Measured::Taken(record, lines));
+            return Ok(Measured::Taken(Box::new(record), lines));
         }
     }
 
