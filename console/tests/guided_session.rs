@@ -1169,4 +1169,50 @@ fn factory_default_board_full_procedure() {
     let apply = sent.iter().position(|l| l.starts_with("apply ")).unwrap();
     let save = sent.iter().position(|l| l == "save").unwrap();
     assert!(apply < save, "{sent:#?}");
+
+    // The same board again: it holds the setup and the calibration, so the setup steps default
+    // to skipping; the operator keeps the calibration and only checks it (the board's runs from
+    // before dropped, the default).
+    let dir = out_dir("factory-again");
+    let answers = dir.join("answers.txt");
+    std::fs::write(&answers, "k\n\n\nc\n").unwrap();
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+        "--yes",
+    ]);
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    println!("{text}");
+    assert!(ok, "the second session failed:\n{text}");
+    for expected in [
+        "the board holds: geometry factory default, wiring corrected, motor tuning identified or \
+         entered, calibration applied",
+        // (An empty answer from the file takes the default.)
+        "? Bring-up check (r: run it, s: skip it) [s]: \n",
+        "? Motor identification (f: floor, l: lifted, s: skip) [s]: \n",
+        "? The board holds a calibration (n: new runs, c: check it only) [n]: c",
+        "the board holds 4 run(s) from before this session",
+        "  ok dropped all 4 runs",
+        "check square cw: end error ",
+        "  calibration: exact E_d=",
+    ] {
+        assert!(text.contains(expected), "no `{expected}` in:\n{text}");
+    }
+    assert!(!text.contains("? Square side L"), "{text}");
+    assert_eq!(measured, 6, "{text}");
+    let sent: Vec<String> = json_lines(&log)
+        .iter()
+        .filter(|v| v["kind"] == "tx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    assert!(
+        !sent.iter().any(|l| l.starts_with("apply") || l == "save"),
+        "{sent:#?}"
+    );
 }

@@ -40,20 +40,23 @@ impl Guide {
     /// shows its end error against theirs, then drops it from the board's runs (it was driven
     /// with the new geometry and is no calibration run).
     pub(super) fn check_square(&mut self) -> Result<(), Stop> {
-        let before = [Direction::Cw, Direction::Ccw]
+        let worst = [Direction::Cw, Direction::Ccw]
             .into_iter()
             .filter_map(|d| Some((d, self.mean_error(d)?)))
             .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((direction, before)) = before else {
-            return Ok(());
+        let (direction, before) = match worst {
+            Some((d, e)) => (d, Some(e)),
+            None => (Direction::Cw, None),
         };
+        let dir = direction.as_str();
         self.ui.say(&format!(
-            "step: check square: one {} square of L = {:.3} m with the calibration; its end \
-             error should be a few mm instead of the {:.1} mm the {} runs ended with",
-            direction.as_str(),
+            "step: check square: one {dir} square of L = {:.3} m with the calibration; its end \
+             error should be a few mm{}",
             self.side_m,
-            before * 1e3,
-            direction.as_str()
+            before.map_or(String::new(), |b| format!(
+                " instead of the {:.1} mm the {dir} runs ended with",
+                b * 1e3
+            ))
         ));
         if self.board.len() >= STORE || !self.board_has_all() {
             self.ui.say(
@@ -93,20 +96,54 @@ impl Guide {
         if let Some(after) = after {
             self.link.log.entry(
                 "check",
-                json!({ "slot": slot, "direction": direction.as_str(), "after_m": after,
-                        "before_m": before }),
+                json!({ "slot": slot, "direction": dir, "after_m": after, "before_m": before }),
                 true,
             );
             self.ui.say(&format!(
-                "check square {}: end error {:.1} mm with the calibration, {:.1} mm before (mean \
-                 of the {} runs)",
-                direction.as_str(),
+                "check square {dir}: end error {:.1} mm with the calibration{}",
                 after * 1e3,
-                before * 1e3,
-                direction.as_str()
+                before.map_or(String::new(), |b| format!(
+                    ", {:.1} mm before (mean of the {dir} runs)",
+                    b * 1e3
+                ))
             ));
             self.check = Some((after, before));
         }
+        Ok(())
+    }
+
+    /// On a board that holds a calibration: whether the operator keeps it and only checks it
+    /// (`c`), instead of new runs (`n`, the default).
+    pub(super) fn keep_calibration(&mut self) -> Result<bool, Stop> {
+        if !self.holds.calibration {
+            return Ok(false);
+        }
+        let choice = self.choose(
+            "The board holds a calibration",
+            &[("n", "new runs"), ("c", "check it only")],
+            "n",
+            "  n plans and drives new squares and calibrates again (from the calibrated \
+             geometry: it refines the one held); c keeps it and drives one check square with \
+             it.",
+        )?;
+        Ok(choice == "c")
+    }
+
+    /// The check square alone with the board's calibration, then the summary.
+    pub(super) fn check_only(&mut self) -> Result<(), Stop> {
+        // Runs on the board from before: dropped or used, so the check square's number is
+        // known.
+        let runs = self.cmd("runs")?;
+        if !runs.data.is_empty() {
+            self.runs_from_before(runs.data.len())?;
+        }
+        let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+        if !r.ok() {
+            return Err(Stop::Failed(format!("stream on: {}", r.last)));
+        }
+        self.check_square()?;
+        self.summary()?;
+        let _ = self.cmd("stream off")?;
         Ok(())
     }
 
@@ -120,11 +157,15 @@ impl Guide {
             "  nominal geometry: D_R={} m D_L={} m b={} m, {} counts/rev",
             n.diameter_right_m, n.diameter_left_m, n.wheelbase_m, n.counts_per_rev
         ));
-        self.ui.say(&format!(
-            "  runs: {} measured (cw {cw}, ccw {ccw}), L = {:.3} m",
-            cw + ccw,
-            self.side_m
-        ));
+        if cw + ccw > 0 {
+            self.ui.say(&format!(
+                "  runs: {} measured (cw {cw}, ccw {ccw}), L = {:.3} m",
+                cw + ccw,
+                self.side_m
+            ));
+        } else {
+            self.ui.say("  runs: none in this session");
+        }
         self.ui.say(&format!(
             "  calibration: {} ({})",
             calibration_of(&params.data),
@@ -136,9 +177,9 @@ impl Guide {
         ));
         if let Some((after, before)) = self.check {
             self.ui.say(&format!(
-                "  check square: end error {:.1} mm (before: {:.1} mm)",
+                "  check square: end error {:.1} mm{}",
                 after * 1e3,
-                before * 1e3
+                before.map_or(String::new(), |b| format!(" (before: {:.1} mm)", b * 1e3))
             ));
         }
         if self.applied.is_some() {

@@ -113,8 +113,8 @@ struct Guide {
     less: [u32; 2],
     /// Whether the applied calibration was saved.
     saved: bool,
-    /// The check square's end error and the runs' mean end error before, metres.
-    check: Option<(f64, f64)>,
+    /// The check square's end error and the runs' mean end error before (if any), metres.
+    check: Option<(f64, Option<f64>)>,
 }
 
 fn log_default() -> PathBuf {
@@ -376,6 +376,9 @@ impl Guide {
             Some(c) => self.resume(c)?,
             None => {
                 self.setup(self.holds)?;
+                if self.keep_calibration()? {
+                    return self.check_only();
+                }
                 self.plan()?;
             }
         }
@@ -530,25 +533,7 @@ impl Guide {
         let runs = self.cmd("runs")?;
         let stored = runs.data.len();
         if stored > 0 {
-            self.ui.say(&format!(
-                "the board holds {stored} run(s) from before this session"
-            ));
-            if self
-                .ui
-                .confirm("Drop them to start a clean session", true)?
-            {
-                // The board asks for `drop all yes`: the operator said yes just now.
-                let r = self.cmd("drop all yes")?;
-                if !r.ok() {
-                    return Err(Stop::Failed(format!("drop all: {}", r.last)));
-                }
-            } else {
-                return Err(Stop::Failed(format!(
-                    "the board's {stored} run(s) are kept; a new session starts from an empty \
-                     run store: calibrate them first (`calibrate` on a terminal, or \
-                     `cargo console --resume <log>` if this console drove them), or drop them"
-                )));
-            }
+            self.runs_from_before(stored)?;
         }
         Ok(())
     }

@@ -170,6 +170,13 @@ impl Guide {
                 return Err(Stop::Failed(
                     "the board's run store is full: calibrate or drop runs".into(),
                 ));
+            } else if r.err_code() == Some(24) {
+                // A run on the board that this session does not know is unmeasured.
+                return Err(Stop::Failed(format!(
+                    "the board holds an unmeasured run this session did not drive: measure or \
+                     drop it on a terminal ({})",
+                    r.last
+                )));
             }
         };
         // Live progress from the pose stream.
@@ -393,6 +400,57 @@ impl Guide {
     pub(super) fn both_directions_measured(&self) -> bool {
         let (cw, ccw) = self.counts();
         cw > 0 && ccw > 0
+    }
+
+    /// Runs the board holds from before this session: dropped (`drop all yes`, the default) or
+    /// used as the session's first runs (measured ones as they are; an unmeasured one is
+    /// measured now).
+    pub(super) fn runs_from_before(&mut self, stored: usize) -> Result<(), Stop> {
+        self.ui.say(&format!(
+            "the board holds {stored} run(s) from before this session"
+        ));
+        let choice = self.choose(
+            "Runs from before",
+            &[("d", "drop them"), ("u", "use them")],
+            "d",
+            "  d drops them for a clean session (`drop all yes`); u makes them this session's \
+             first runs (e.g. squares driven from a terminal): their measurements as entered, an \
+             unmeasured one is measured now",
+        )?;
+        if choice == "d" {
+            // The board asks for `drop all yes`: the operator chose to drop them just now.
+            let r = self.cmd("drop all yes")?;
+            self.ui.say(&format!("  {}", r.last));
+            if !r.ok() {
+                return Err(Stop::Failed(format!("drop all: {}", r.last)));
+            }
+            return Ok(());
+        }
+        let (mut n, mut left) = (1, stored);
+        while n <= left {
+            let (record, lines) = self.fetch_record(n)?;
+            self.ui.say(&format!(
+                "  board run {n}: {}{}",
+                path_text(&record.path),
+                if record.measured.is_some() {
+                    ", measured"
+                } else {
+                    ", not measured"
+                }
+            ));
+            if record.measured.is_some() {
+                self.adopt(n, record, lines, Vec::new());
+            } else {
+                self.measure(n, &record, Vec::new())?;
+            }
+            if self.board.len() < n {
+                // Dropped: the later runs moved up one number.
+                left -= 1;
+            } else {
+                n += 1;
+            }
+        }
+        Ok(())
     }
 
     /// Drops the session's last run (on the board too, when it holds it): it is driven again.
