@@ -1,15 +1,17 @@
 //! `cargo console`: the guided calibration console for an odocal board.
 //!
 //! Plug in the board's USB-UART (or start `cargo sim serial --pty`), run `cargo console`, and
-//! follow the prompts: the tool checks the board, plans the 5 + 5 squares, starts each run,
-//! shows its progress from the pose stream, asks for the measured end pose (unit-checked by the
-//! library before `measure`), shows `calibrate`'s table, applies and saves the chosen method and
-//! reads `params` back. Everything goes to a JSON-lines session log (`--log`), which
-//! `--resume LOG` continues after a crash, a disconnect or a board reset, and which
+//! follow the prompts: the tool checks the board and says whether it holds the factory
+//! defaults, takes the nominal geometry, runs the bring-up check and the motor identification
+//! (each skippable, and skipped by default when the board holds them), plans the squares,
+//! starts each run, shows its progress from the pose stream, forwards the measured end pose as
+//! typed (units included) to the board's `measure`, shows `calibrate`'s table, applies and
+//! saves the chosen method only on a typed yes, reads `params` back, drives a check square and
+//! sums up. Everything goes to a JSON-lines session log (`--log`), which `--resume LOG`
+//! continues after a crash, a disconnect or a board reset, which
 //! `cargo console recalibrate LOG [--method M]` recalibrates on the PC with the same library, and
-//! `cargo console export LOG --format ros2|urdf|json [-o FILE]` writes the applied calibration
-//! for a robot stack.
-//! An SVG of the runs is written next to the log.
+//! which `cargo console export LOG --format ros2|urdf|json [-o FILE]` turns into files a robot
+//! stack loads. An SVG of the runs is written next to the log.
 
 mod export;
 mod guide;

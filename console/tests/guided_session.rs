@@ -14,6 +14,10 @@
 //!    before `--resume`: the session continues on the board with nothing lost (3 + 7 = 10
 //!    measured runs in the board's calibration, applied, saved, verified) and the log
 //!    recalibrates offline to the board's table.
+//!
+//! `factory_default_board_full_procedure` types the whole procedure on a factory-default board
+//! (setup, bring-up, identification, runs, apply, save, check square), and `ros2_export` exports
+//! a guided session's log for ROS 2 and checks it against the board's applied geometry.
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};

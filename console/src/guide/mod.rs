@@ -1,5 +1,7 @@
-//! The guided session: connect, check, plan, drive and measure every run, calibrate, apply,
-//! save, verify — with every line in the session log, so it can be resumed or recalibrated.
+//! The guided session: connect, show what the board holds, the robot's setup (geometry,
+//! bring-up, identification), plan, drive and measure every run, calibrate, apply, save,
+//! verify, check square, summary — with every line in the session log, so it can be resumed,
+//! recalibrated or exported.
 //!
 //! Runs are kept by *slot* (their place in the session). The board numbers its stored runs
 //! 1..k; `board` maps them to slots. After a board reset that lost the runs (firmware without
@@ -41,7 +43,8 @@ pub struct Options {
     /// Answers to the questions, one a line, in order (then --yes, then stdin).
     #[arg(long)]
     pub answers: Option<PathBuf>,
-    /// Take the default answer of every question that has one.
+    /// Take the default answer of every question that has one (apply, save and a bring-up
+    /// proposal have none: they need a typed y, from --answers or stdin).
     #[arg(long, short = 'y')]
     pub yes: bool,
     /// Pose stream rate during runs, Hz.
