@@ -116,7 +116,9 @@ PASTE = [f"set square_side {1 + i / 100:.2f}" for i in range(30)] + ["runs"]
 # Whether any are lost depends on how fast QEMU hands the bytes to the USART relative to the
 # console task's one line per millisecond of (host-clocked) virtual time: on a slow host none are.
 OVERFLOW = [f"set square_side {1 + i / 100:.2f}" for i in range(95)]
-OVERFLOW_REPLY = re.compile(r"ok square_side = (\d+\.\d{3}) m( \(unchanged\))?")
+OVERFLOW_REPLY = re.compile(
+    r"ok square_side = (\d+\.\d{3}) m( \(unchanged\)| \(not saved; save to keep\))"
+)
 OVERFLOW_NOTICE = re.compile(r"err 10: (\d+) line\(s\) dropped: input queue full")
 # The longest the console may stay silent while it works through a paste (wall seconds): it
 # bounds a hang, nothing waits for it to pass.

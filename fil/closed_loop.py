@@ -215,10 +215,15 @@ def restarted_board(elf, workdir, apply, runs_before):
         checks.append(f"params after restart: {cal[0].strip()}")
 
         # The pose stream at 100 Hz while the robot drives a line.
+        start = truth.settle()
         send(con, "stream on 100", log)
         send(con, "line 0.3", log)
         con.wait_event("event run", 120)
         send(con, "stream off", log)
+        # A finished run is measured before the next one starts.
+        _, final = send(con, measure_line(start, truth.settle()), log)
+        if not final.startswith("ok run"):
+            raise ConsoleError(f"measure of the line: {final}")
         stamps = [float(s.split()[1]) for s in con.streams]
         steps = sorted(round(b - a, 6) for a, b in zip(stamps, stamps[1:]))
         if len(stamps) < 50 or steps[len(steps) // 2] != 0.01 or steps[0] < 0.01 - 1e-9:
@@ -296,7 +301,7 @@ def restarted_board(elf, workdir, apply, runs_before):
         # (at least 1.63 s of robot time: 0.2 m at 0.3 m/s^2 and 0.3 m/s) and ends 0.2 m on.
         truth.settle()
         _, final = send(con, "set control_hz 10000", log)
-        if final != "ok control_hz = 10000 Hz":
+        if final != "ok control_hz = 10000 Hz (not saved; save to keep)":
             raise ConsoleError(f"set control_hz: {final}")
         start = truth.settle()
         # Events of the earlier runs (the stopped one) are not this line's.

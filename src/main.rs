@@ -275,7 +275,7 @@ mod app {
         if news.toggle_heartbeat {
             cx.local.leds.toggle_heartbeat();
         }
-        cx.local.leds.set_fault(fault);
+        cx.local.leds.set_fault(fault || news.refusal_lit);
     }
 
     /// On a board without a control-period timer (the emulator), pends the control interrupt

@@ -234,10 +234,8 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
     );
     // Through the session's storage interface: the `err` text of `save`.
     let e = ParamStorage::save(&mut store, &Settings::default(), true).unwrap_err();
-    assert_eq!(
-        e,
-        StorageError::Flash("no storage: this part's flash is smaller than the storage map")
-    );
+    // The typed store error reaches the reply that names it.
+    assert_eq!(e, StorageError::Store(StoreError::FlashTooSmall(too_small)));
     assert_eq!(
         e.to_string(),
         "flash error: no storage: this part's flash is smaller than the storage map"

@@ -118,9 +118,9 @@ fn a_pasted_script_reads_command_reply_command_reply() {
         lines[..5],
         [
             "set square_side 1.2",
-            "ok square_side = 1.200 m",
+            "ok square_side = 1.200 m (not saved; save to keep)",
             "set runs_per_direction 3",
-            "ok runs_per_direction = 3 runs",
+            "ok runs_per_direction = 3 runs (not saved; save to keep)",
             "status",
         ]
     );
@@ -131,7 +131,7 @@ fn a_pasted_script_reads_command_reply_command_reply() {
     b.receive(b"set square_side 1.3\rstatus\r", &mut out);
     b.process(&mut out, false);
     assert!(
-        out.starts_with("ok square_side = 1.300 m\r\nok state=idle"),
+        out.starts_with("ok square_side = 1.300 m (not saved; save to keep)\r\nok state=idle"),
         "{out}"
     );
 }
@@ -173,11 +173,15 @@ fn the_pose_stream_never_cuts_into_a_line_being_typed() {
 }
 
 /// Drives the planned 5 + 5 squares and measures each at its true end pose, except run
-/// `swapped`, whose x and y are entered the wrong way round.
-fn session_with_swapped_run(swapped: usize) -> String {
+/// `swapped`, whose x and y are entered the wrong way round; then `calibrate` and the lines
+/// `then`: their replies, in order.
+fn session_with_swapped_run(swapped: usize, then: &[&str]) -> Vec<String> {
     let mut flash = SimParamFlash::erased();
     let mut b = boot(&mut flash);
-    assert_eq!(b.send("set square_side 1"), "ok square_side = 1.000 m\r\n");
+    assert_eq!(
+        b.send("set square_side 1"),
+        "ok square_side = 1.000 m (not saved; save to keep)\r\n"
+    );
     let mut log = String::new();
     for run in 1..=10 {
         assert!(b.send("next").starts_with(&format!("ok run {run} started")));
@@ -193,14 +197,17 @@ fn session_with_swapped_run(swapped: usize) -> String {
             "{line}: {reply}"
         );
     }
-    b.send("calibrate")
+    let mut replies = vec![b.send("calibrate")];
+    replies.extend(then.iter().map(|line| b.send(line)));
+    replies
 }
 
 #[test]
 fn calibrate_names_a_swapped_run() {
     // Run 4 (CCW) with x and y swapped: it passes the plausibility check (both coordinates are
     // centimetres from the odometry end of a closed square), so only the fit can catch it.
-    let table = session_with_swapped_run(4);
+    let replies = session_with_swapped_run(4, &[]);
+    let table = &replies[0];
     println!("{table}");
     assert!(
         table.contains(
@@ -212,10 +219,64 @@ fn calibrate_names_a_swapped_run() {
     let flagged: Vec<&str> = table.lines().filter(|l| l.ends_with("DISAGREES")).collect();
     assert_eq!(flagged.len(), 1, "{table}");
     assert!(flagged[0].starts_with("  run 4 "), "{table}");
-    // Without the swap no run is named.
-    let clean = session_with_swapped_run(0);
-    assert!(!clean.contains("check run"), "{clean}");
-    assert!(!clean.contains("DISAGREES"), "{clean}");
+    // Every figure computed with the flagged run is marked in the table.
+    let rows: Vec<&str> = table
+        .lines()
+        .filter(|l| {
+            [
+                "umbmark-x",
+                "umbmark-y",
+                "lee-x",
+                "lee-y",
+                "jung-chung",
+                "exact",
+            ]
+            .contains(&l.split_whitespace().next().unwrap_or(""))
+        })
+        .collect();
+    assert_eq!(rows.len(), 6, "{table}");
+    for row in rows {
+        assert!(
+            row.contains(" failed: ") || row.ends_with("  [with flagged run 4]"),
+            "{row}"
+        );
+    }
+    // Without the swap no run is named and nothing is marked.
+    let clean = session_with_swapped_run(0, &["apply lee-y"]);
+    assert!(!clean[0].contains("check run"), "{}", clean[0]);
+    assert!(!clean[0].contains("DISAGREES"), "{}", clean[0]);
+    assert!(!clean[0].contains("flagged"), "{}", clean[0]);
+    assert!(clean[1].starts_with("ok applied lee-y: "), "{}", clean[1]);
+}
+
+#[test]
+fn apply_with_a_flagged_run_asks_for_yes() {
+    let replies = session_with_swapped_run(
+        4,
+        &["apply lee-y", "params", "apply exact", "apply lee-y yes"],
+    );
+    assert_eq!(
+        replies[1],
+        "err 25: run 4 is flagged (disagrees with the others, see calibrate): measure #<n> x y \
+         again or drop <n>, or type apply lee-y yes to apply anyway\r\n"
+    );
+    // Nothing was applied.
+    assert!(
+        replies[2].contains("  calibration none\r\n"),
+        "{}",
+        replies[2]
+    );
+    // Every method, the robust one too.
+    assert!(
+        replies[3].starts_with("err 25: run 4 is flagged"),
+        "{}",
+        replies[3]
+    );
+    assert!(
+        replies[4].starts_with("ok applied lee-y: "),
+        "{}",
+        replies[4]
+    );
 }
 
 /// `host-sim <args>` with `input` piped to its stdin (as a terminal would type it): what it

@@ -234,14 +234,32 @@ fn picocom_with_default_settings_drives_a_session() {
         .skip(1)
         .map(|v| v.parse().unwrap())
         .collect();
-    // Millimetres typed for metres.
+    // Millimetres typed for metres: the reply asks for the unit and names every unit that fits;
+    // nothing is converted or stored.
     t.line(&format!("measure {:.3} {:.3}", w[0] * 1e3, w[1] * 1e3));
-    t.wait_for("looks like millimetres: the unit is metres", 1);
-    t.line(&measure);
+    let screen = t.wait_for("write the unit (", 1);
+    let refusal = screen
+        .lines()
+        .find(|l| l.contains("write the unit ("))
+        .unwrap_or_default();
+    assert!(refusal.starts_with("err 22: "), "{screen}");
+    assert!(refusal.contains("mm"), "{refusal}");
+    // The same numbers with their unit written are read exactly.
+    t.line(&format!("measure {:.3}mm {:.3}mm", w[0] * 1e3, w[1] * 1e3));
     t.wait_for(
         "ok run 1 square cw L=0.500 m measured: error vs odometry",
         1,
     );
+    // A finished run is measured or dropped before the next one starts.
+    t.line("run cw 0.5");
+    t.wait_for("event run 2 finished: square cw L=0.500 m", 1);
+    t.line("run cw 0.5");
+    t.wait_for(
+        "err 24: run 2 (square cw L=0.500 m) is not measured yet: measure it or drop it first",
+        1,
+    );
+    t.line("set max_speed 0.5");
+    t.wait_for("ok max_speed = 0.500 m/s (not saved; save to keep)", 1);
     t.line("params");
     let screen = t.wait_for("calibration none", 1);
     let finals: Vec<&str> = screen
@@ -249,9 +267,11 @@ fn picocom_with_default_settings_drives_a_session() {
         .filter(|l| l.starts_with("ok") || l.starts_with("err"))
         .collect();
     assert_eq!(finals.last(), Some(&"ok"), "{screen}");
-    // The only error of the whole session is the refused millimetre measurement.
+    // The only errors of the whole session: the measurement without its unit, and the run
+    // started before the last one was measured.
     let errors: Vec<&&str> = finals.iter().filter(|l| l.starts_with("err")).collect();
-    assert_eq!(errors.len(), 1, "{screen}");
+    assert_eq!(errors.len(), 2, "{screen}");
     assert!(errors[0].starts_with("err 22: "), "{screen}");
+    assert!(errors[1].starts_with("err 24: "), "{screen}");
     println!("{screen}");
 }

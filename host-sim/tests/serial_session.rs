@@ -148,7 +148,13 @@ fn scripted_session_calibrate_save_reboot() {
     assert!(table9.contains("from 9 measured runs"), "{table9}");
     assert_eq!(b2.session.calibrator().exact_solves(), 2);
     // `drop all` forgets them in flash too: the next boot restores nothing.
-    assert_eq!(b2.send("drop all"), "ok dropped all 9 runs\r\n");
+    assert_eq!(
+        b2.send("drop all"),
+        "err 25: drop all forgets 9 runs and their measurements, in flash too: type drop all \
+         yes to do it\r\n"
+    );
+    assert_eq!(b2.session.runs().len(), 9);
+    assert_eq!(b2.send("drop all yes"), "ok dropped all 9 runs\r\n");
     // Flash is written once the wheels have been still for 0.1 s (the board just booted).
     let mut out = String::new();
     for _ in 0..200 {
@@ -207,16 +213,20 @@ fn drive_deadman_stops_within_500_ms_plus_one_period() {
 fn control_rate_set_saved_and_booted_at_10_khz() {
     let mut flash = SimParamFlash::erased();
     let mut log = String::new();
+    // Each line is measured before the next one starts.
     let line_periods = |b: &mut Board, log: &mut String| {
         assert!(b.send("line 0.5").starts_with("ok run"));
-        b.run_until_rest(20 * 10_000, log)
+        let periods = b.run_until_rest(20 * 10_000, log);
+        let measure = measure_line(b).expect("a run was driven");
+        assert!(b.send(&measure).contains("ok run"), "{measure}");
+        periods
     };
     let (periods_1k, periods_10k) = {
         let (mut b, _) = boot(&mut flash);
         let at_1k = line_periods(&mut b, &mut log);
         assert_eq!(
             b.send("set control_hz 10000"),
-            "ok control_hz = 10000 Hz\r\n"
+            "ok control_hz = 10000 Hz (not saved; save to keep)\r\n"
         );
         assert_eq!(b.controller.config().rate_hz, 10_000);
         let at_10k = line_periods(&mut b, &mut log);
@@ -240,7 +250,7 @@ fn control_rate_set_saved_and_booted_at_10_khz() {
     .expect("reboot");
     assert_eq!(
         out,
-        "event boot: parameters loaded\r\nevent runs restored: 2 runs, 0 measured\r\n"
+        "event boot: parameters loaded\r\nevent runs restored: 2 runs, 2 measured\r\n"
     );
     assert_eq!(b.controller.config().rate_hz, 10_000);
     assert_eq!(b.sim.config().rate_hz, 10_000);

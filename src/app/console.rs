@@ -89,7 +89,8 @@ pub fn press<C: Calibrator>(
 }
 
 /// The session's periodic work at `now_us` (finished runs, events, the pose stream, which holds
-/// while a line is being typed with live echo).
+/// while a line is being typed with live echo); a button press the session refused since the
+/// last poll is handed to the control period, which blinks the fault LED for it.
 ///
 /// # Errors
 /// Only if `out` refuses the text.
@@ -102,5 +103,8 @@ pub fn poll<C: Calibrator>(
     out: &mut dyn Write,
 ) -> fmt::Result {
     session.set_typing(handoff.typing.load(Ordering::Relaxed));
+    if session.take_press_refused() {
+        handoff.press_refused.store(true, Ordering::Relaxed);
+    }
     session.poll(now_us, robot, storage, out)
 }

@@ -36,11 +36,14 @@ pub fn period<M: MotorDriver>(
 
 /// What the board does after a period besides the control itself: it follows the controller's
 /// rate (`set control_hz` retimes the controller while idle; the board's period source follows
-/// from the next period on) and blinks the heartbeat at 1 Hz at any rate.
+/// from the next period on), blinks the heartbeat at 1 Hz at any rate, and blinks the fault LED
+/// at 4 Hz for 1 s when the session refused a button press (the console says why).
 #[derive(Clone, Copy, Debug)]
 pub struct Pacing {
     rate_hz: u32,
     heartbeat_periods: u32,
+    /// Periods since a refused press, while its blink lasts.
+    refusal_periods: Option<u32>,
 }
 
 /// What [`Pacing::after_period`] asks of the board.
@@ -50,6 +53,9 @@ pub struct PacingNews {
     pub retime_hz: Option<u32>,
     /// Toggle the heartbeat LED now.
     pub toggle_heartbeat: bool,
+    /// The fault LED is lit for a refused button press now (blinking at 4 Hz for 1 s); the
+    /// board lights it for this or a latched fault.
+    pub refusal_lit: bool,
 }
 
 impl Pacing {
@@ -59,6 +65,7 @@ impl Pacing {
         Pacing {
             rate_hz,
             heartbeat_periods: 0,
+            refusal_periods: None,
         }
     }
 
@@ -81,9 +88,46 @@ impl Pacing {
         if toggle_heartbeat {
             self.heartbeat_periods = 0;
         }
+        if handoff.press_refused.swap(false, Ordering::Relaxed) {
+            self.refusal_periods = Some(0);
+        }
+        // Lit in every other eighth of a second: 4 Hz, for one second of periods.
+        let refusal_lit = match self.refusal_periods {
+            Some(n) if n < self.rate_hz => {
+                self.refusal_periods = Some(n + 1);
+                (u64::from(n) * 8 / u64::from(self.rate_hz.max(1))) % 2 == 0
+            }
+            _ => {
+                self.refusal_periods = None;
+                false
+            }
+        };
         PacingNews {
             retime_hz,
             toggle_heartbeat,
+            refusal_lit,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_refused_press_blinks_the_fault_led_at_4_hz_for_one_second() {
+        let handoff = Handoff::new();
+        let mut pacing = Pacing::new(&handoff, 1000);
+        assert!(!pacing.after_period(&handoff, 1000).refusal_lit);
+        handoff.press_refused.store(true, Ordering::Relaxed);
+        let lit: std::vec::Vec<bool> = (0..1200)
+            .map(|_| pacing.after_period(&handoff, 1000).refusal_lit)
+            .collect();
+        // 125 ms on, 125 ms off, four times; then dark.
+        for (i, on) in lit.iter().enumerate() {
+            assert_eq!(*on, i < 1000 && (i / 125) % 2 == 0, "period {i}");
+        }
+        // The flag was taken: no second blink.
+        assert!(!handoff.press_refused.load(Ordering::Relaxed));
     }
 }

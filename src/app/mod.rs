@@ -7,7 +7,7 @@
 //!
 //! | priority on the board | part | what it does |
 //! |---|---|---|
-//! | 3, control period (TIM7) | [`control::period`] | stop requests, one controller step, the motors, a long press's abort |
+//! | 3, control period (TIM7) | [`control::period`], [`control::Pacing`] | stop requests, one controller step, the motors, a long press's abort; retiming, the heartbeat and the refused-press blink |
 //! | 2, serial receive (USART2) | [`serial::receive`] | bytes → lines (echo, stop keys, lines lost to a full queue) |
 //! | 2, serial transmit (USART2) | [`serial::transmit`] | the echo first, then the console's replies |
 //! | 1, console task | [`console::take_line`], [`console::press`], [`console::poll`] | lines and presses on the session; events and the pose stream |
@@ -52,6 +52,10 @@ pub struct Handoff {
     /// The rate the control period runs at, Hz, published by the control period for a board
     /// that paces it from a timer of its own.
     control_rate_hz: AtomicU32,
+    /// Set by the console task when the session refused a button press (a finished run not
+    /// measured, the plan complete, …); the control period takes it (swap) and blinks the
+    /// fault LED ([`control::Pacing::after_period`]).
+    press_refused: AtomicBool,
 }
 
 impl Handoff {
@@ -65,6 +69,7 @@ impl Handoff {
             typing: AtomicBool::new(false),
             lines_dropped: AtomicU32::new(0),
             control_rate_hz: AtomicU32::new(DEFAULT_RATE_HZ),
+            press_refused: AtomicBool::new(false),
         }
     }
 

@@ -10,6 +10,8 @@
 //!   degrees for measured headings, Hz);
 //! - [`unit`] reads a measured length or heading with its unit (`41.8mm`, `2deg`), for the
 //!   parser and the PC console alike;
+//! - [`refusal`] words the session's refusals (typed [`refusal::Refusal`] values, one error code
+//!   each);
 //! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`;
 //! - [`record`] writes a run's full record (`record`) losslessly and reads it back on a host, and
 //!   the `version` reply.
@@ -22,6 +24,7 @@ pub mod line;
 pub mod number;
 pub mod param;
 pub mod record;
+pub mod refusal;
 pub mod reply;
 pub mod rx;
 pub mod unit;

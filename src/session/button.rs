@@ -24,7 +24,15 @@ impl<C: Calibrator> Session<C> {
             robot.clear_fault();
             return write!(out, "ok fault cleared\r\n");
         }
-        self.start_next(robot, out)
+        self.start_next(robot, out)?;
+        // A run that started is the active one; anything else was refused (the reply says why).
+        self.press_refused |= self.active.is_none();
+        Ok(())
+    }
+
+    /// Whether a short press was refused since the last call (for the board's LEDs).
+    pub fn take_press_refused(&mut self) -> bool {
+        core::mem::take(&mut self.press_refused)
     }
 
     /// The button's long press: stops any motion.

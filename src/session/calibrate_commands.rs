@@ -15,7 +15,8 @@ use super::traits::{Activity, Calibrator, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::run::RunRecord;
-use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::refusal::{Refusal, write_refusal};
+use crate::protocol::reply::{ErrorCode, write_err};
 use crate::util::decimal::Decimal;
 use crate::util::text::keyword_eq;
 
@@ -49,18 +50,8 @@ impl<C: Calibrator> Session<C> {
 
     /// `err 7: unknown method; one of <m1>|<m2>|…`.
     fn unknown_method(&self, out: &mut dyn Write) -> fmt::Result {
-        write!(
-            out,
-            "err {}: unknown method; one of ",
-            ErrorCode::BadKeyword.code()
-        )?;
-        for (i, m) in self.calibrator.methods().iter().enumerate() {
-            if i > 0 {
-                out.write_str("|")?;
-            }
-            out.write_str(m)?;
-        }
-        out.write_str(EOL)
+        let methods = self.calibrator.methods();
+        write_refusal(out, &Refusal::UnknownMethod { methods })
     }
 
     /// `apply <method>`: solves with `method` and makes its geometry active (the rule of `save`:
@@ -92,14 +83,11 @@ impl<C: Calibrator> Session<C> {
         // result computed with it: applying one then takes an explicit `yes`.
         let flagged = flagged_runs(&mut self.calibrator, &self.runs, &nominal);
         if !flagged.is_empty() && !confirmed {
-            write!(out, "err {}: ", ErrorCode::NotConfirmed.code())?;
-            write_run_list(out, &flagged)?;
-            write!(
-                out,
-                " flagged (disagrees with the others, see calibrate): measure #<n> x y again or \
-                 drop <n>, or type apply {name} yes to apply anyway\r\n"
-            )?;
-            return Ok(());
+            let refusal = Refusal::Flagged {
+                runs: &flagged,
+                method: name,
+            };
+            return write_refusal(out, &refusal);
         }
         let sol = match self.calibrator.solve(&self.runs, &nominal, name) {
             Ok(s) => s,
@@ -224,27 +212,15 @@ pub fn flagged_runs<C: Calibrator>(
     Vec::new()
 }
 
-/// `run 2 is` / `runs 2 5 are`.
-pub(super) fn write_run_list(out: &mut dyn Write, runs: &[usize]) -> fmt::Result {
-    out.write_str(if runs.len() == 1 { "run" } else { "runs" })?;
-    for n in runs {
-        write!(out, " {n}")?;
-    }
-    out.write_str(if runs.len() == 1 { " is" } else { " are" })
-}
-
 /// The `err 13` reply when `calibrate`/`apply` cannot run yet (no measured square in a
 /// direction), if so.
 fn refuse_calibration(p: &Progress, out: &mut dyn Write) -> Option<fmt::Result> {
     if p.cw_measured == 0 || p.ccw_measured == 0 {
-        return Some(write!(
-            out,
-            "err {}: need measured square runs in both directions \
-             (measured: cw {}, ccw {})\r\n",
-            ErrorCode::NotEnoughRuns.code(),
-            p.cw_measured,
-            p.ccw_measured,
-        ));
+        let refusal = Refusal::NotEnoughRuns {
+            cw: p.cw_measured,
+            ccw: p.ccw_measured,
+        };
+        return Some(write_refusal(out, &refusal));
     }
     None
 }

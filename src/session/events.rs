@@ -21,7 +21,7 @@ use crate::util::decimal::Decimal;
 /// The first line the board sends after a reset: `event boot: parameters loaded`, or
 /// `event boot: default parameters (<why>)` when the stored record was not used, followed by
 /// `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`, `pin`,
-/// `software`, `power-on`, …).
+/// `software`, `power-on`, …), and on the emulated board by what QEMU lacks.
 ///
 /// # Errors
 /// Only those of `out`.
@@ -37,8 +37,20 @@ pub fn write_boot_event(
     if let Some(cause) = reset_cause {
         write!(out, ", reset: {cause}")?;
     }
+    if let Some(note) = BOARD_NOTE {
+        write!(out, "; {note}")?;
+    }
     out.write_str(EOL)
 }
+
+/// What the board the firmware is built for lacks, at the end of the boot line: the emulated
+/// board (cargo feature `emulator`) says what QEMU does not model, so nobody takes its numbers
+/// for a robot's.
+const BOARD_NOTE: Option<&str> = if cfg!(feature = "emulator") {
+    Some("emulated: QEMU has no motors, encoders, PWM or TIM7 (a simulated robot drives)")
+} else {
+    None
+};
 
 /// `event fault: <text>`: a fault found at boot that the board works around (e.g. a missing
 /// crystal), or a fault the controller latched, in full.

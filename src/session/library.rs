@@ -16,8 +16,8 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::settings::{AppliedCalibration, Settings};
 use super::traits::{
-    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, RunResidual, Solution,
-    SolveError, StorageError,
+    Activity, Calibrator, ParamStorage, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    Solution, SolveError, StorageError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
@@ -55,8 +55,8 @@ impl Robot for Controller {
         Controller::start(self, path).map_err(|e| match e {
             StartError::Busy => RobotError::Busy,
             StartError::Faulted => fault_error(self),
-            StartError::NotReady => RobotError::Rejected("encoders not read yet"),
-            StartError::Path(_) => RobotError::Rejected("path size not accepted by the routine"),
+            StartError::NotReady => RobotError::Rejected(Rejection::NotReady),
+            StartError::Path(_) => RobotError::Rejected(Rejection::Path),
         })
     }
 
@@ -68,8 +68,8 @@ impl Robot for Controller {
         Controller::drive(self, v_mps, w_radps).map_err(|e| match e {
             DriveError::Busy => RobotError::Busy,
             DriveError::Faulted => fault_error(self),
-            DriveError::NotReady => RobotError::Rejected("encoders not read yet"),
-            DriveError::NotFinite => RobotError::Rejected("speeds must be finite"),
+            DriveError::NotReady => RobotError::Rejected(Rejection::NotReady),
+            DriveError::NotFinite => RobotError::Rejected(Rejection::NotFinite),
         })
     }
 
@@ -149,8 +149,8 @@ impl Robot for Controller {
         Controller::start_check(self, kind).map_err(|e| match e {
             StartError::Busy => RobotError::Busy,
             StartError::Faulted => fault_error(self),
-            StartError::NotReady => RobotError::Rejected("encoders not read yet"),
-            StartError::Path(_) => RobotError::Rejected("check not accepted by the controller"),
+            StartError::NotReady => RobotError::Rejected(Rejection::NotReady),
+            StartError::Path(_) => RobotError::Rejected(Rejection::Check),
         })
     }
 
@@ -170,10 +170,10 @@ impl Robot for Controller {
 fn set_error(e: SetError) -> RobotError {
     match e {
         SetError::Busy => RobotError::Busy,
-        SetError::Geometry(_) => RobotError::Rejected("geometry not accepted by the controller"),
-        SetError::Limits(_) => RobotError::Rejected("limits not accepted by the controller"),
-        SetError::Tuning(_) => RobotError::Rejected("tuning not accepted by the controller"),
-        SetError::Rate => RobotError::Rejected("control rate not accepted by the controller"),
+        SetError::Geometry(_) => RobotError::Rejected(Rejection::Geometry),
+        SetError::Limits(_) => RobotError::Rejected(Rejection::Limits),
+        SetError::Tuning(_) => RobotError::Rejected(Rejection::Tuning),
+        SetError::Rate => RobotError::Rejected(Rejection::Rate),
     }
 }
 
@@ -338,19 +338,14 @@ impl Settings {
     }
 }
 
+/// A store error as the session's [`StorageError`]: refusals keep their own kinds, every flash
+/// failure stays the typed [`crate::storage::StoreError`] up to the reply that names it.
 fn store_error(e: crate::storage::StoreError) -> StorageError {
     use crate::storage::StoreError as E;
     match e {
         E::MotorsRunning => StorageError::MotorsRunning,
         E::InvalidRecord(e) => StorageError::Record(e),
-        E::BadRange => StorageError::Flash("bad parameter flash range"),
-        E::Flash(_) => StorageError::Flash("flash driver error"),
-        E::Corrupted => StorageError::Flash("parameter flash corrupted"),
-        E::Full => StorageError::Flash("parameter flash full"),
-        E::FlashTooSmall(_) => {
-            StorageError::Flash("no storage: this part's flash is smaller than the storage map")
-        }
-        _ => StorageError::Flash("storage error"),
+        e => StorageError::Store(e),
     }
 }
 

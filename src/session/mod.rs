@@ -50,7 +50,8 @@ use heapless::Vec;
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::record;
-use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
+use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
@@ -60,8 +61,8 @@ pub use events::{write_boot_event, write_fault_event, write_runs_restored};
 pub use settings::{AppliedCalibration, Settings, SettingsError, check_nominal};
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, ParamStorage, Robot, RobotError, RobotStatus, RunResidual, Solution,
-    SolveError, StorageError,
+    Activity, Calibrator, ParamStorage, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    Solution, SolveError, StorageError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -112,6 +113,8 @@ pub struct Session<C> {
     runs_dirty: bool,
     /// Storing them failed; the next change tries again (not every poll).
     runs_store_failed: bool,
+    /// A short press was refused since [`Session::take_press_refused`] last looked.
+    press_refused: bool,
 }
 
 /// The `err` reply for an operation the robot refused: `err 11` for a fault, `err 10`
@@ -126,33 +129,22 @@ fn robot_err(out: &mut dyn Write, e: RobotError, robot: &mut dyn Robot) -> fmt::
 
 /// `err 10: <what> is in progress: wait for …`, for a command refused while the robot is busy.
 fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
-    write!(out, "err {}: ", ErrorCode::Busy.code())?;
-    match activity {
-        Activity::Running(path) => {
-            out.write_str("a run is in progress (")?;
-            report::write_path(out, &path)?;
-            out.write_str("): wait for it to finish")?;
-        }
-        Activity::Driving => {
-            out.write_str(
-                "drive is in progress: wait for the motors to stop (500 ms after the last drive)",
-            )?;
-        }
-        Activity::Checking(CheckKind::Identify(_)) => {
-            out.write_str("identify is in progress: wait for its result")?;
-        }
-        Activity::Checking(_) => out.write_str("bringup is in progress: wait for its result")?,
-        Activity::Idle => out.write_str("a run is ending: wait for its event line")?,
-    }
-    out.write_str(EOL)
+    let what = match activity {
+        Activity::Running(path) => InProgress::Run(path),
+        Activity::Driving => InProgress::Drive,
+        Activity::Checking(CheckKind::Identify(_)) => InProgress::Identify,
+        Activity::Checking(_) => InProgress::Bringup,
+        Activity::Idle => InProgress::Ending,
+    };
+    write_refusal(out, &Refusal::Busy(what))
 }
 
 /// The `err` reply for a failed parameter store, with the code of its cause.
 fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
     let code = match e {
         StorageError::MotorsRunning => ErrorCode::MotorsRunning,
-        StorageError::Invalid(_) | StorageError::Record(_) => ErrorCode::InvalidParams,
-        StorageError::Flash(_) => ErrorCode::Storage,
+        StorageError::Record(_) => ErrorCode::InvalidParams,
+        StorageError::Store(_) | StorageError::Flash(_) => ErrorCode::Storage,
     };
     write_err(out, code, &e)
 }
@@ -188,6 +180,7 @@ impl<C: Calibrator> Session<C> {
             run_ids: Vec::new(),
             runs_dirty: false,
             runs_store_failed: false,
+            press_refused: false,
         }
     }
 

@@ -10,7 +10,8 @@ use core::fmt::{self, Write};
 use super::traits::{Activity, RobotStatus, Solution, SolveError};
 use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
-use crate::motion::run::{PathKind, RunRecord};
+use crate::motion::run::RunRecord;
+pub(super) use crate::protocol::refusal::write_path;
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
 
@@ -70,29 +71,6 @@ pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
         write!(out, "  {command:<HELP_COLUMN$}{description}\r\n")?;
     }
     write!(out, "ok {} commands\r\n", HELP.len())
-}
-
-pub(super) fn write_path(out: &mut dyn Write, path: &PathKind) -> fmt::Result {
-    match path {
-        PathKind::Square { direction, side_m } => {
-            write!(
-                out,
-                "square {} L={} m",
-                direction.as_str(),
-                Decimal::fixed(*side_m, 3)
-            )
-        }
-        PathKind::Line { length_m } => write!(out, "line d={} m", Decimal::fixed(*length_m, 3)),
-        PathKind::Circle {
-            direction,
-            radius_m,
-        } => write!(
-            out,
-            "circle {} r={} m",
-            direction.as_str(),
-            Decimal::fixed(*radius_m, 3)
-        ),
-    }
 }
 
 /// Heading in degrees wrapped into (-180, 180].
@@ -194,12 +172,13 @@ pub(super) fn write_status<C: Calibrator>(
 }
 
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
-    write!(
-        out,
-        "{} {}",
-        Decimal::fixed(s.value(name), name.places()),
-        name.unit()
-    )
+    let value = s.value(name);
+    // A count unit in the singular for one (`1 run`).
+    let unit = match name.unit() {
+        "runs" if value == 1.0 => "run",
+        unit => unit,
+    };
+    write!(out, "{} {unit}", Decimal::fixed(value, name.places()))
 }
 
 pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {

@@ -14,7 +14,8 @@ use super::traits::{Activity, Calibrator, Robot, RobotError};
 use super::{ActiveRun, Session, measure, report, robot_err};
 use crate::motion::run::{Measurement, PathKind};
 use crate::protocol::record;
-use crate::protocol::reply::{EOL, ErrorCode, write_err};
+use crate::protocol::refusal::{Refusal, write_refusal};
+use crate::protocol::reply::EOL;
 use crate::util::decimal::Decimal;
 
 /// Removes and returns element `i` of `v`, keeping the order of the others (as `Vec::remove`),
@@ -32,11 +33,7 @@ fn remove_at<T, const N: usize>(v: &mut Vec<T, N>, i: usize) -> Option<T> {
 
 /// `err 14: no run <index> (<n> stored)`.
 fn no_such_run(out: &mut dyn Write, index: usize, stored: usize) -> fmt::Result {
-    write!(
-        out,
-        "err {}: no run {index} ({stored} stored)\r\n",
-        ErrorCode::NoSuchRun.code()
-    )
+    write_refusal(out, &Refusal::NoSuchRun { run: index, stored })
 }
 
 impl<C: Calibrator> Session<C> {
@@ -51,8 +48,7 @@ impl<C: Calibrator> Session<C> {
             return refused;
         }
         if self.runs.is_full() {
-            let msg = "run store full (drop <n> first)";
-            return write_err(out, ErrorCode::StoreFull, &msg);
+            return write_refusal(out, &Refusal::StoreFull);
         }
         match robot.start(path) {
             Ok(()) => {
@@ -70,17 +66,12 @@ impl<C: Calibrator> Session<C> {
     /// before the next one starts, so its end pose is not lost and a plain `measure` cannot
     /// fill the wrong run.
     fn refuse_unmeasured(&self, out: &mut dyn Write) -> Option<fmt::Result> {
-        let n = self.runs.len();
         let run = self.runs.last().filter(|r| r.measured.is_none())?;
-        Some((|| {
-            write!(out, "err {}: run {n} (", ErrorCode::Unmeasured.code())?;
-            report::write_path(out, &run.path)?;
-            write!(
-                out,
-                ") is not measured yet: measure it or drop it first (measure x y [theta], or \
-                 drop {n})\r\n"
-            )
-        })())
+        let refusal = Refusal::Unmeasured {
+            run: self.runs.len(),
+            path: run.path,
+        };
+        Some(write_refusal(out, &refusal))
     }
 
     /// `next`: starts the next planned square, or says the plan is complete.
@@ -93,11 +84,7 @@ impl<C: Calibrator> Session<C> {
                 };
                 self.start(path, robot, out)
             }
-            None => write_err(
-                out,
-                ErrorCode::PlanComplete,
-                &"all planned runs done (calibrate, or run cw|ccw for more)",
-            ),
+            None => write_refusal(out, &Refusal::PlanComplete),
         }
     }
 
@@ -125,12 +112,8 @@ impl<C: Calibrator> Session<C> {
             return no_such_run(out, index, self.runs.len());
         };
         if first_knot > 0 && first_knot >= run.knots.len() {
-            return write!(
-                out,
-                "err {}: run {index} has {} knots\r\n",
-                ErrorCode::OutOfRange.code(),
-                run.knots.len()
-            );
+            let knots = run.knots.len();
+            return write_refusal(out, &Refusal::NoSuchKnot { run: index, knots });
         }
         record::write_record_page(out, index, run, first_knot)
     }
@@ -163,13 +146,7 @@ impl<C: Calibrator> Session<C> {
         }
         let n = self.runs.len();
         if !confirmed {
-            return write!(
-                out,
-                "err {}: drop all forgets {} and their measurements, in flash too: type \
-                 drop all yes to do it\r\n",
-                ErrorCode::NotConfirmed.code(),
-                report::Count(n, "run"),
-            );
+            return write_refusal(out, &Refusal::DropAllUnconfirmed { runs: n });
         }
         self.runs.clear();
         self.run_ids.clear();
@@ -191,11 +168,7 @@ impl<C: Calibrator> Session<C> {
     ) -> fmt::Result {
         let (x_m, y_m) = (typed.x.m, typed.y.m);
         if robot.status().activity != Activity::Idle {
-            return write_err(
-                out,
-                ErrorCode::Busy,
-                &"a run is driving: measure after its `event run … finished` line",
-            );
+            return write_refusal(out, &Refusal::MeasureWhileDriving);
         }
         let stored = self.runs.len();
         let n = match index {
@@ -203,41 +176,27 @@ impl<C: Calibrator> Session<C> {
             Some(n) => n,
             None => {
                 if let Some(a) = self.last_aborted {
-                    return write!(
-                        out,
-                        "err {}: run {} was aborted and not stored: nothing to measure (drive \
-                         it again; measure #<n> x y fills an earlier run)\r\n",
-                        ErrorCode::NoRun.code(),
-                        a.number
-                    );
+                    return write_refusal(out, &Refusal::Aborted { run: a.number });
                 }
                 match self.runs.last() {
-                    None => {
-                        return write_err(
-                            out,
-                            ErrorCode::NoRun,
-                            &"no finished run to measure (run cw|ccw or next first)",
-                        );
-                    }
+                    None => return write_refusal(out, &Refusal::NothingToMeasure),
                     Some(r) if r.measured.is_some() => {
-                        return write!(
-                            out,
-                            "err {}: run {stored} is already measured (measure #{stored} x y \
-                             [theta] replaces it)\r\n",
-                            ErrorCode::NoRun.code()
-                        );
+                        return write_refusal(out, &Refusal::AlreadyMeasured { run: stored });
                     }
                     Some(_) => stored,
                 }
             }
         };
         let Some(run) = self.runs.get_mut(n - 1) else {
-            return write_err(out, ErrorCode::NoSuchRun, &"no such run");
+            return no_such_run(out, n, stored);
         };
         if let Err(why) = measure::check_typed(run, typed.x, typed.y, typed.theta) {
-            write!(out, "err {}: run {n} ", ErrorCode::Implausible.code())?;
-            report::write_path(out, &run.path)?;
-            return write!(out, ": {why}\r\n");
+            let refusal = Refusal::Implausible {
+                run: n,
+                path: run.path,
+                why: &why,
+            };
+            return write_refusal(out, &refusal);
         }
         // `measure #n x y` without θ keeps the heading measured before.
         let kept = match typed.theta {

@@ -18,7 +18,7 @@ use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::storage::record::RecordError;
-use crate::storage::{RunsLoaded, StoredRun};
+use crate::storage::{RunsLoaded, StoreError, StoredRun};
 
 /// What the robot is doing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,7 +53,44 @@ pub enum RobotError {
     /// A fault is latched (name as in [`RobotStatus::fault`]).
     Fault(&'static str),
     /// The request itself is invalid for the controller (e.g. a limit it cannot honour).
-    Rejected(&'static str),
+    Rejected(Rejection),
+}
+
+/// Why the controller refused a request it could not carry out (not busy, not faulted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Rejection {
+    /// The encoders have not been read yet (the first control period has not run).
+    NotReady,
+    /// The routine does not accept the path's size.
+    Path,
+    /// The controller does not accept the check.
+    Check,
+    /// A `drive` speed is not finite.
+    NotFinite,
+    /// The geometry is invalid for the controller.
+    Geometry,
+    /// The motion limits are invalid for the controller.
+    Limits,
+    /// The speed-loop tuning is invalid for the controller.
+    Tuning,
+    /// The control rate is not one the controller runs at.
+    Rate,
+}
+
+impl fmt::Display for Rejection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Rejection::NotReady => "encoders not read yet",
+            Rejection::Path => "path size not accepted by the routine",
+            Rejection::Check => "check not accepted by the controller",
+            Rejection::NotFinite => "speeds must be finite",
+            Rejection::Geometry => "geometry not accepted by the controller",
+            Rejection::Limits => "limits not accepted by the controller",
+            Rejection::Tuning => "tuning not accepted by the controller",
+            Rejection::Rate => "control rate not accepted by the controller",
+        })
+    }
 }
 
 impl fmt::Display for RobotError {
@@ -141,21 +178,35 @@ pub trait Robot {
 pub enum StorageError {
     /// The motors are running; flash erases stall the CPU, so nothing was written.
     MotorsRunning,
-    /// The flash layer failed (the message says how).
+    /// The library's parameter store failed: the typed error, named in the reply.
+    Store(StoreError),
+    /// Another store's flash layer failed (the message says how).
     Flash(&'static str),
-    /// The settings cannot be stored (they fail the record's validation).
-    Invalid(&'static str),
     /// The settings fail the parameter record's validation (the one rule `apply` and `save`
     /// share).
     Record(RecordError),
+}
+
+/// What the reply says of a failed store operation (after `flash error: `).
+fn store_error_text(e: &StoreError) -> &'static str {
+    match e {
+        StoreError::BadRange => "bad parameter flash range",
+        StoreError::Flash(_) => "flash driver error",
+        StoreError::Corrupted => "parameter flash corrupted",
+        StoreError::Full => "parameter flash full",
+        StoreError::FlashTooSmall(_) => {
+            "no storage: this part's flash is smaller than the storage map"
+        }
+        _ => "storage error",
+    }
 }
 
 impl fmt::Display for StorageError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             StorageError::MotorsRunning => f.write_str("motors running, flash not written"),
+            StorageError::Store(e) => write!(f, "flash error: {}", store_error_text(e)),
             StorageError::Flash(why) => write!(f, "flash error: {why}"),
-            StorageError::Invalid(why) => write!(f, "parameters not storable: {why}"),
             StorageError::Record(e) => write!(f, "parameters not storable: {e}"),
         }
     }

