@@ -338,7 +338,9 @@ impl Guide {
         let mut waited = false;
         loop {
             let r = self.link.command(line, timeout)?;
-            if r.err_code() == Some(10) && r.last.contains("busy") {
+            // `err 10` is something in progress (wait for it), or lines the board's input queue
+            // dropped (not a reply to wait out).
+            if r.err_code() == Some(10) && !r.last.contains("input queue full") {
                 if !waited {
                     self.ui.say(&format!(
                         "  the board is busy ({}): waiting for the robot to stop",
