@@ -1220,3 +1220,65 @@ fn factory_default_board_full_procedure() {
         "{sent:#?}"
     );
 }
+
+/// A flagged run that the operator keeps: the board refuses `apply` while the run is flagged
+/// (`err 25`), the tool shows that and applies only on a second typed yes (`apply exact yes`);
+/// a no there would apply nothing.
+#[test]
+fn a_kept_flagged_run_is_applied_only_on_a_second_yes() {
+    let sim = Sim::start(&host_sim());
+    let (mut tool, log) = tool_with_answers(&sim, "kept-flagged", "150cm\n5\n", false);
+    let (mut measured, mut confirmations) = (0, Vec::new());
+    while let Some(l) = tool.next() {
+        let waiting = l.starts_with("? ") && l.trim_end().ends_with(':');
+        if !waiting {
+            continue;
+        }
+        if l.starts_with("? Measured end pose of run") {
+            let pose = sim.true_end(measured);
+            measured += 1;
+            let answer = if measured == 3 {
+                // y typed with the wrong sign.
+                let mut w: Vec<String> = pose.split_whitespace().map(str::to_string).collect();
+                w[1] = match w[1].strip_prefix('-') {
+                    Some(v) => v.to_string(),
+                    None => format!("-{}", w[1]),
+                };
+                w.join(" ")
+            } else {
+                pose
+            };
+            tool.answer(&answer);
+        } else if l.starts_with("? Run 3 disagrees with the others") {
+            tool.answer("k");
+        } else if l.trim_end().ends_with("(y/n):") {
+            confirmations.push(l.clone());
+            tool.answer("y");
+        } else {
+            tool.answer("");
+        }
+    }
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert!(text.contains("[with flagged run 3]"), "{text}");
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("  err 25: run 3 is flagged")),
+        "{text}"
+    );
+    assert_eq!(confirmations.len(), 3, "{confirmations:#?}");
+    assert!(confirmations[0].starts_with("? Apply exact (E_d="));
+    assert!(confirmations[1].starts_with("? Apply exact anyway, with the flagged run in it?"));
+    assert!(confirmations[2].starts_with("? Save it"));
+    let sent: Vec<String> = json_lines(&log)
+        .iter()
+        .filter(|v| v["kind"] == "tx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    let apply: Vec<&String> = sent.iter().filter(|l| l.starts_with("apply ")).collect();
+    assert_eq!(apply, ["apply exact", "apply exact yes"], "{sent:#?}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
+}
