@@ -116,6 +116,8 @@ struct Guide {
     less: [u32; 2],
     /// Whether the applied calibration was saved.
     saved: bool,
+    /// The runs (board numbers) the last `calibrate` flagged.
+    flagged: Vec<usize>,
     /// The check square's end error and the runs' mean end error before (if any), metres.
     check: Option<(f64, Option<f64>)>,
 }
@@ -205,6 +207,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         stop_runs: false,
         less: [0, 0],
         saved: false,
+        flagged: Vec::new(),
         check: None,
     };
     let result = g.session(resumed);

@@ -98,6 +98,8 @@ impl Guide {
                     .collect()
             })
             .unwrap_or_default();
+        // What stays flagged when nothing changes (the runs kept), for the plot's title.
+        self.flagged.clone_from(&flagged);
         let mut changed = false;
         // Highest first, so the board's numbers of the others stay valid.
         'runs: for &n in flagged.iter().rev() {
@@ -344,9 +346,25 @@ impl Guide {
             &runs,
             calibrated.as_ref(),
             &format!(
-                "odocal session {}: {} runs",
+                "odocal session {}: {} runs; {}{}",
                 self.link.log.path.display(),
-                runs.len()
+                runs.len(),
+                match &self.applied {
+                    Some(m) => format!("applied {m}"),
+                    None => "nothing applied (after: exact)".into(),
+                },
+                if self.flagged.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; flagged and kept: run {}",
+                        self.flagged
+                            .iter()
+                            .map(usize::to_string)
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                }
             ),
         );
         let path = self.link.log.path.with_extension("svg");
