@@ -11,7 +11,7 @@
 //! cause; a value typed with its unit is read exactly.
 
 use core::f64::consts::PI;
-use core::fmt::{self, Write};
+use core::fmt;
 
 use crate::motion::run::{PathKind, RunRecord};
 use crate::protocol::command::MeasureUnits;
@@ -263,21 +263,4 @@ impl fmt::Display for Implausible {
             ),
         }
     }
-}
-
-/// Writes ` x=… y=…[ theta_deg=…]` of a stored measurement.
-pub(super) fn write_measurement(
-    out: &mut dyn Write,
-    m: &crate::motion::run::Measurement,
-) -> fmt::Result {
-    write!(
-        out,
-        "x={} y={}",
-        Decimal::signed(m.x_m, 6),
-        Decimal::signed(m.y_m, 6)
-    )?;
-    if let Some(t) = m.theta_rad {
-        write!(out, " theta_deg={}", Decimal::signed(t.to_degrees(), 4))?;
-    }
-    Ok(())
 }
