@@ -1,9 +1,11 @@
-//! What a run command did, as values: the session executes `run`/`next`/`line`/`circle`,
-//! `stop`, `measure`, `drop` and returns an [`Outcome`]; its `ok` line is written here
-//! ([`write_outcome`]), next to the refusals' `err` lines ([`super::refusal`]).
+//! What a command did, as values: the session executes `run`/`next`/`line`/`circle`, `stop`,
+//! `measure`, `drop` and returns an [`Outcome`], and `set`, `reset-params`, `save`, `apply` a
+//! [`ParamOutcome`]; their `ok` lines are written here ([`write_outcome`],
+//! [`write_param_outcome`]), next to the refusals' `err` lines ([`super::refusal`]).
 
 use core::fmt::{self, Write};
 
+use super::param::ParamName;
 use super::refusal::write_path;
 use super::reply::EOL;
 use crate::motion::run::{Measurement, PathKind};
@@ -129,6 +131,106 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
         Outcome::DroppedAll { runs } => {
             out.write_str("ok dropped all ")?;
             write_count(out, runs, "run")?;
+        }
+    }
+    out.write_str(EOL)
+}
+
+/// What `set` changed besides the parameter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SetChange<'a> {
+    /// The value was the current one: nothing changed.
+    Unchanged,
+    /// The parameter changed.
+    Changed,
+    /// The nominal geometry changed and dropped the applied calibration of this method.
+    CalibrationDropped(&'a str),
+    /// The nominal geometry was set back and restored the calibration of this method.
+    CalibrationRestored(&'a str),
+}
+
+/// A parameter command that succeeded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum ParamOutcome<'a> {
+    /// `set`: `name` is `value` now.
+    Set {
+        /// The parameter.
+        name: ParamName,
+        /// Its value now.
+        value: f64,
+        /// What else changed.
+        change: SetChange<'a>,
+    },
+    /// `reset-params`: every parameter at its default, in RAM.
+    Reset,
+    /// `save`: the parameters are in flash.
+    Saved,
+    /// `apply`: the method's result is the active geometry, in RAM.
+    Applied {
+        /// The method.
+        method: &'a str,
+        /// Its factors `E_d`, `E_b`, `E_s`.
+        factors: (f64, f64, f64),
+    },
+}
+
+/// `<value> <unit>` of a parameter as `params` and `set` show it (a count unit in the singular
+/// for one: `1 run`).
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_param_value(out: &mut dyn Write, name: ParamName, value: f64) -> fmt::Result {
+    let unit = match name.unit() {
+        "runs" if value == 1.0 => "run",
+        unit => unit,
+    };
+    write!(out, "{} {unit}", Decimal::fixed(value, name.places()))
+}
+
+/// Writes the `ok …` line of a parameter command.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> fmt::Result {
+    const NOT_SAVED: &str = " (not saved; save to keep)";
+    match *outcome {
+        ParamOutcome::Set {
+            name,
+            value,
+            change,
+        } => {
+            write!(out, "ok {} = ", name.as_str())?;
+            write_param_value(out, name, value)?;
+            match change {
+                SetChange::Unchanged => return write!(out, " (unchanged)\r\n"),
+                SetChange::Changed => {}
+                SetChange::CalibrationRestored(m) => write!(out, " (calibration {m} restored)")?,
+                SetChange::CalibrationDropped(m) => write!(
+                    out,
+                    " (calibration {m} dropped: it is relative to the old geometry; set the old \
+                     value back to restore it)"
+                )?,
+            }
+            out.write_str(NOT_SAVED)?;
+        }
+        ParamOutcome::Reset => {
+            out.write_str("ok parameters reset to defaults")?;
+            out.write_str(NOT_SAVED)?;
+        }
+        ParamOutcome::Saved => out.write_str("ok saved")?,
+        ParamOutcome::Applied {
+            method,
+            factors: (e_d, e_b, e_s),
+        } => {
+            write!(
+                out,
+                "ok applied {method}: E_d={} E_b={} E_s={}",
+                Decimal::fixed(e_d, 9),
+                Decimal::fixed(e_b, 9),
+                Decimal::fixed(e_s, 9)
+            )?;
+            out.write_str(NOT_SAVED)?;
         }
     }
     out.write_str(EOL)
