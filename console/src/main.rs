@@ -1,14 +1,19 @@
 //! `cargo console`: the guided calibration console for an odocal board.
 //!
 //! Plug in the board's USB-UART (or start `cargo sim serial --pty`), run `cargo console`, and
-//! follow the prompts: the tool checks the board, plans the 5 + 5 squares, starts each run,
-//! shows its progress from the pose stream, asks for the measured end pose (unit-checked by the
-//! library before `measure`), shows `calibrate`'s table, applies and saves the chosen method and
-//! reads `params` back. Everything goes to a JSON-lines session log (`--log`), which
-//! `--resume LOG` continues after a crash, a disconnect or a board reset, and which
-//! `cargo console recalibrate LOG [--method M]` recalibrates on the PC with the same library.
-//! An SVG of the runs is written next to the log.
+//! follow the prompts: the tool checks the board and says whether it holds the factory
+//! defaults, takes the nominal geometry, runs the bring-up check and the motor identification
+//! (each skippable, and skipped by default when the board holds them), plans the squares,
+//! starts each run, shows its progress from the pose stream, forwards the measured end pose as
+//! typed (units included) to the board's `measure`, shows `calibrate`'s table, applies and
+//! saves the chosen method only on a typed yes, reads `params` back, drives a check square and
+//! sums up. Everything goes to a JSON-lines session log (`--log`), which `--resume LOG`
+//! continues after a crash, a disconnect or a board reset, which
+//! `cargo console recalibrate LOG [--method M]` recalibrates on the PC with the same library, and
+//! which `cargo console export LOG --format ros2|urdf|json [-o FILE]` turns into files a robot
+//! stack loads. An SVG of the runs is written next to the log.
 
+mod export;
 mod guide;
 mod link;
 mod log;
@@ -67,6 +72,19 @@ enum Cmd {
         #[arg(long)]
         method: Option<String>,
     },
+    /// Export the board's calibration from a session log (or a terminal capture with the
+    /// board's `params` reply) for a robot stack.
+    Export {
+        /// The session log (JSON lines), or a plain capture of a terminal session.
+        log: PathBuf,
+        /// ros2: a diff_drive_controller parameter file; urdf: the wheel joints' geometry;
+        /// json: the calibration, its uncertainty and the runs.
+        #[arg(long, value_enum, default_value = "ros2")]
+        format: export::Format,
+        /// Write to this file instead of stdout.
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
     /// List candidate serial ports.
     Ports,
 }
@@ -116,6 +134,11 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Some(Cmd::Recalibrate { log, method }) => recalibrate(log, method.as_deref()),
+        Some(Cmd::Export {
+            log,
+            format,
+            output,
+        }) => export::run(log, *format, output.as_deref()),
         Some(Cmd::Ports) => {
             let ports = link::candidate_ports();
             if ports.is_empty() {

@@ -13,6 +13,9 @@ use std::io::{BufRead, BufReader, IsTerminal, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::Duration;
 
+/// How often a question that needs a typed yes is asked before no answer counts as no.
+const EXPLICIT_TRIES: usize = 3;
+
 /// Where answers come from and how output looks.
 pub struct Ui {
     tty: bool,
@@ -188,6 +191,42 @@ impl Ui {
         }
     }
 
+    /// A yes/no question without a default: only a typed `y`/`yes` (or one in `--answers`) is a
+    /// yes; `--yes` does not answer it, an empty answer asks again, and after
+    /// [`EXPLICIT_TRIES`] answers that are neither it is a no. For what changes the
+    /// board's parameters or flash on the operator's word (apply, save, a wiring correction).
+    ///
+    /// # Errors
+    /// [`AskError`].
+    pub fn confirm_explicit(&mut self, question: &str) -> Result<bool, AskError> {
+        let yes = self.yes;
+        self.yes = false;
+        let mut answer = None;
+        for _ in 0..EXPLICIT_TRIES {
+            let a = match self.ask(&format!("{question}? (y/n)"), None) {
+                Ok(a) => a,
+                Err(e) => {
+                    self.yes = yes;
+                    return Err(e);
+                }
+            };
+            match a.to_ascii_lowercase().as_str() {
+                "y" | "yes" => answer = Some(true),
+                "n" | "no" => answer = Some(false),
+                _ => self.say("  type y (yes) or n (no)"),
+            }
+            if answer.is_some() {
+                break;
+            }
+        }
+        self.yes = yes;
+        // A script that answers everything with Enter does not loop here: no yes is a no.
+        Ok(answer.unwrap_or_else(|| {
+            self.say("  no y given: taken as no");
+            false
+        }))
+    }
+
     /// Starts a run's progress display.
     pub fn progress_start(&mut self) {
         self.quarter = None;
@@ -268,6 +307,17 @@ mod tests {
             Err(AskError::NoAnswer(q)) => assert_eq!(q, "Enter starts the run"),
             other => panic!("a typed-ahead line was taken as the answer: {other:?}"),
         }
+    }
+
+    #[test]
+    fn only_a_typed_yes_is_a_yes() {
+        let mut ui = ui_with_stdin(&["", "yes"], false);
+        ui.yes = true;
+        assert!(ui.confirm_explicit("Apply exact").unwrap());
+        // Enter three times: a no, not a question asked for ever.
+        let mut ui = ui_with_stdin(&["", "", "", "y"], false);
+        assert!(!ui.confirm_explicit("Save it").unwrap());
+        assert_eq!(ui.ask("next", None).unwrap(), "y");
     }
 
     #[test]

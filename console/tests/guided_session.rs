@@ -14,6 +14,10 @@
 //!    before `--resume`: the session continues on the board with nothing lost (3 + 7 = 10
 //!    measured runs in the board's calibration, applied, saved, verified) and the log
 //!    recalibrates offline to the board's table.
+//!
+//! `factory_default_board_full_procedure` types the whole procedure on a factory-default board
+//! (setup, bring-up, identification, runs, apply, save, check square), and `ros2_export` exports
+//! a guided session's log for ROS 2 and checks it against the board's applied geometry.
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -264,6 +268,10 @@ impl Tool {
                 *measured += 1;
                 self.answer(&pose);
             }
+            // Apply and save need a typed yes (`--yes` does not give it).
+            if l.starts_with("? ") && l.trim_end().ends_with("(y/n):") {
+                self.answer("y");
+            }
         }
         true
     }
@@ -356,13 +364,17 @@ fn tool_answering(sim: &Sim, name: &str, answers: &str) -> (Tool, PathBuf) {
     tool_with_answers(sim, name, answers, true)
 }
 
-/// The tool with its first answers from a file; then, with `yes`, every default (`--yes`),
-/// without it, whatever the test types on its stdin.
+/// The answers that skip the robot's setup (keep the geometry, skip the bring-up check and the
+/// motor identification): the sessions below are about the runs.
+const SKIP_SETUP: &str = "k\ns\ns\n";
+
+/// The tool with its first answers from a file (after [`SKIP_SETUP`]); then, with `yes`, every
+/// default (`--yes`), without it, whatever the test types on its stdin.
 fn tool_with_answers(sim: &Sim, name: &str, answers: &str, yes: bool) -> (Tool, PathBuf) {
     let dir = out_dir(name);
     let log = dir.join("session.jsonl");
     let file = dir.join("answers.txt");
-    std::fs::write(&file, answers).unwrap();
+    std::fs::write(&file, format!("{SKIP_SETUP}{answers}")).unwrap();
     let mut args = vec![
         "--port",
         &sim.pty,
@@ -382,8 +394,7 @@ fn tool_with_answers(sim: &Sim, name: &str, answers: &str, yes: bool) -> (Tool, 
 /// board that does not keep them). Returns the board, the log and the poses measured.
 fn killed_after_three_runs(bin: &Path, name: &str, wipe: bool) -> (Sim, PathBuf, usize) {
     let mut sim = Sim::start(bin);
-    let log = out_dir(name).join("session.jsonl");
-    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let (mut tool, log) = tool_answering(&sim, name, "");
     let mut measured = 0;
     assert!(!tool.converse(&sim, &mut measured, Some("run 4/10:")));
     assert_eq!(measured, 3);
@@ -391,7 +402,7 @@ fn killed_after_three_runs(bin: &Path, name: &str, wipe: bool) -> (Sim, PathBuf,
     let _ = tool.finish();
     sim.reboot();
     if wipe {
-        let dropped = sim.type_line("drop all", "ok dropped all");
+        let dropped = sim.type_line("drop all yes", "ok dropped all");
         assert!(dropped.starts_with("ok dropped all"), "{dropped}");
     }
     (sim, log, measured)
@@ -425,7 +436,8 @@ fn guided_session() {
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
     assert!(ok, "the session failed:\n{text}");
-    assert_eq!(measured, 10, "{text}");
+    // Ten runs and the check square after the calibration.
+    assert_eq!(measured, 11, "{text}");
     assert!(text.contains("board: odocal "), "{text}");
     assert!(
         text.contains("plan: 5 CW + 5 CCW squares of L = 1.500 m"),
@@ -442,7 +454,9 @@ fn guided_session() {
 
     let entries = json_lines(&log);
     let runs: Vec<_> = entries.iter().filter(|v| v["kind"] == "run").collect();
-    assert_eq!(runs.len(), 10);
+    // The check square is logged, then dropped: it is no calibration run.
+    assert_eq!(runs.len(), 11);
+    assert_eq!(entries.iter().filter(|v| v["kind"] == "drop").count(), 1);
     for r in &runs {
         let record = r["record"].as_array().unwrap();
         assert!(
@@ -461,7 +475,7 @@ fn guided_session() {
         .filter(|v| v["kind"] == "tx" && line_of(v).starts_with("run "))
         .map(line_of)
         .collect();
-    assert_eq!(runs_sent.len(), 9, "{runs_sent:?}");
+    assert_eq!(runs_sent.len(), 10, "{runs_sent:?}");
     assert_eq!(runs_sent[0], "run ccw 1.5");
     // The session leaves the board echoing, as a boot does.
     let last_tx = entries
@@ -504,8 +518,8 @@ fn guided_session() {
     let (sim, log, mut measured) = killed_after_three_runs(&bin, "resumed", false);
     let text = resume(&sim, &log, &mut measured);
     // Every run measured once: a fourth run the killed tool had started (kept in the board's
-    // flash across the reset) is measured by the resumed tool.
-    assert_eq!(measured, 10, "{text}");
+    // flash across the reset) is measured by the resumed tool; then the check square.
+    assert_eq!(measured, 11, "{text}");
     assert!(
         text.contains("resuming: 3 measured run(s) in the log"),
         "{text}"
@@ -521,7 +535,7 @@ fn guided_session() {
     );
     let entries = json_lines(&log);
     let runs = entries.iter().filter(|v| v["kind"] == "run").count();
-    assert_eq!(runs, 10);
+    assert_eq!(runs, 11);
     let logged = tables(&entries);
     let (source, resumed) = logged.last().unwrap();
     assert_eq!(source, "board");
@@ -571,9 +585,7 @@ fn guided_session() {
 #[test]
 fn ctrl_c_stops_the_robot() {
     let sim = Sim::start_with(&host_sim(), &[]);
-    let dir = out_dir("ctrl-c");
-    let log = dir.join("session.jsonl");
-    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let (mut tool, log) = tool_answering(&sim, "ctrl-c", "");
     while let Some(l) = tool.next() {
         if l.starts_with("  progress") {
             break;
@@ -638,7 +650,7 @@ fn reset_during_a_run_drives_it_again() {
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
     assert!(ok, "the session failed:\n{text}");
-    assert_eq!(measured, 2, "{text}");
+    assert_eq!(measured, 3, "{text}");
     assert!(
         text.contains("the board was reset during the run (event boot: "),
         "{text}"
@@ -679,7 +691,7 @@ fn reset_while_waiting_for_the_button_asks_again() {
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
     assert!(ok, "the session failed:\n{text}");
-    assert_eq!(measured, 2, "{text}");
+    assert_eq!(measured, 3, "{text}");
     assert!(
         text.contains("the board was reset while waiting for the button (event boot: "),
         "{text}"
@@ -725,9 +737,7 @@ fn a_fault_is_shown_with_the_wheel_and_the_likely_cause() {
 #[test]
 fn disconnect_is_reported_and_the_log_keeps_the_runs() {
     let mut sim = Sim::start(&host_sim());
-    let dir = out_dir("disconnect");
-    let log = dir.join("session.jsonl");
-    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap(), "--yes"]);
+    let (mut tool, log) = tool_answering(&sim, "disconnect", "");
     let mut measured = 0;
     assert!(!tool.converse(&sim, &mut measured, Some("run 2/10:")));
     let _ = sim.child.kill();
@@ -795,6 +805,9 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
             asked += 1;
             tool.answer("m");
             again = true;
+        } else if l.trim_end().ends_with("(y/n):") {
+            // Apply and save: a typed yes.
+            tool.answer("y");
         } else if l.starts_with("? Enter starts the run") && !stray {
             // A measurement typed once more where the start is asked: it must not move the
             // robot; the question comes again.
@@ -809,7 +822,8 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     let (ok, text) = tool.finish();
     assert!(ok, "the session failed:\n{text}");
     assert_eq!(asked, 1, "{text}");
-    assert_eq!(measured, 10, "{text}");
+    // Ten runs and the check square.
+    assert_eq!(measured, 11, "{text}");
     assert!(text.contains("measured (replaced x="), "{text}");
     assert!(
         text.contains(
@@ -820,7 +834,7 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     );
     assert_eq!(
         text.matches("? Enter starts the run").count(),
-        11,
+        12,
         "the stray answer asks again: {text}"
     );
     assert!(
@@ -832,13 +846,18 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
         .iter()
         .filter(|v| v["kind"] == "tx" && v["line"].as_str().unwrap_or("").starts_with("run "))
         .count();
-    assert_eq!(runs_sent, 10);
+    assert_eq!(runs_sent, 11);
     let slot_2: Vec<&serde_json::Value> = entries
         .iter()
         .filter(|v| v["kind"] == "run" && v["slot"] == 2)
         .collect();
     assert_eq!(slot_2.len(), 2, "both records of the run's slot are logged");
-    assert!(entries.iter().all(|v| v["kind"] != "drop"));
+    // The only run dropped is the check square (slot 10).
+    assert!(
+        entries
+            .iter()
+            .all(|v| v["kind"] != "drop" || v["slot"] == 10)
+    );
     // Offline from the log (the newer record of slot 2): the board's second table, line for
     // line.
     let logged = tables(&entries);
@@ -846,4 +865,420 @@ fn a_flagged_run_is_measured_again_instead_of_driven_again() {
     assert_eq!(&recalibrate(&log, None), &logged[1].1);
     assert_ne!(logged[0].1, logged[1].1);
     println!("{text}");
+}
+
+/// The flat `key: value` entries of a `diff_drive_controller` parameter file (comments and the
+/// two header keys skipped; a `[a, b, …]` list kept as its text).
+fn yaml_entries(yaml: &str) -> Vec<(String, String)> {
+    yaml.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .filter_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            let v = v.trim();
+            (!v.is_empty()).then(|| (k.trim().to_string(), v.to_string()))
+        })
+        .collect()
+}
+
+fn yaml_number(entries: &[(String, String)], key: &str) -> f64 {
+    entries
+        .iter()
+        .find(|(k, _)| k == key)
+        .unwrap_or_else(|| panic!("no {key} in {entries:#?}"))
+        .1
+        .parse()
+        .unwrap_or_else(|e| panic!("{key}: {e}"))
+}
+
+/// `odocal-console export LOG --format F -o OUT`: the file written.
+fn export(log: &Path, format: &str, out: &Path) -> String {
+    let status = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+        .arg("export")
+        .arg(log)
+        .args(["--format", format, "-o"])
+        .arg(out)
+        .status()
+        .unwrap();
+    assert!(status.success(), "export {format} of {}", log.display());
+    std::fs::read_to_string(out).unwrap()
+}
+
+/// The ROS 2 export of a guided session's log: its `wheel_separation` and wheel radius
+/// multipliers give back the geometry the board applied (its `params` after `apply`) to 1e-9 m,
+/// read back from the YAML; the pose covariance is there, with the unobserved components large.
+/// A plain terminal capture that holds only the board's lines (its `params` reply) exports the
+/// same geometry.
+#[test]
+fn ros2_export() {
+    let sim = Sim::start(&host_sim());
+    let (mut tool, log) = tool_answering(&sim, "export", "0.5\n1\n");
+    let mut measured = 0;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
+    // The board's applied geometry: the `active` line of its last `params` reply.
+    let entries = json_lines(&log);
+    let rx: Vec<String> = entries
+        .iter()
+        .filter(|v| v["kind"] == "rx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    let active = rx
+        .iter()
+        .rev()
+        .find_map(|l| l.trim().strip_prefix("active "))
+        .unwrap_or_else(|| panic!("no params reply in the log"));
+    let value = |key: &str| -> f64 {
+        active
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (d_r, d_l, b) = (value("d_right"), value("d_left"), value("wheelbase"));
+    assert!((d_r / d_l - 0.995).abs() < 1e-5, "{active}");
+
+    let check = |yaml: &str| {
+        let e = yaml_entries(yaml);
+        let r = yaml_number(&e, "wheel_radius");
+        let (sep, ml, mr) = (
+            yaml_number(&e, "wheel_separation"),
+            yaml_number(&e, "left_wheel_radius_multiplier"),
+            yaml_number(&e, "right_wheel_radius_multiplier"),
+        );
+        assert!((sep - b).abs() <= 1e-9, "b {sep} vs {b}\n{yaml}");
+        assert!(
+            (2.0 * r * mr - d_r).abs() <= 1e-9,
+            "D_R {} vs {d_r}\n{yaml}",
+            2.0 * r * mr
+        );
+        assert!(
+            (2.0 * r * ml - d_l).abs() <= 1e-9,
+            "D_L {} vs {d_l}\n{yaml}",
+            2.0 * r * ml
+        );
+        assert_eq!(yaml_number(&e, "wheel_separation_multiplier"), 1.0);
+        e
+    };
+    let dir = log.parent().unwrap();
+    let yaml = export(&log, "ros2", &dir.join("diff_drive.yaml"));
+    let e = check(&yaml);
+    assert!(yaml.starts_with("# odocal calibration `exact`"), "{yaml}");
+    assert!(
+        yaml.contains("diff_drive_controller:\n  ros__parameters:\n"),
+        "{yaml}"
+    );
+    let cov = &e
+        .iter()
+        .find(|(k, _)| k == "pose_covariance_diagonal")
+        .unwrap()
+        .1;
+    let cov: Vec<f64> = cov
+        .trim_matches(['[', ']'])
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    assert_eq!(cov.len(), 6, "{yaml}");
+    assert!(cov[0] > 0.0 && cov[1] > 0.0 && cov[5] > 0.0, "{yaml}");
+    assert!(cov[2..5].iter().all(|&v| v >= 1e3), "{yaml}");
+
+    // The board's lines alone, as a terminal program captures them (CR LF, echo on).
+    let capture: String = std::iter::once("params".to_string())
+        .chain(rx.iter().cloned())
+        .map(|l| format!("{l}\r\n"))
+        .collect();
+    let capture_file = dir.join("terminal.log");
+    std::fs::write(&capture_file, capture).unwrap();
+    let yaml = export(&capture_file, "ros2", &dir.join("from-terminal.yaml"));
+    check(&yaml);
+
+    // The URDF's joints sit at ±b/2, its wheels have the applied radii.
+    let urdf = export(&log, "urdf", &dir.join("wheels.urdf"));
+    let attr = |name: &str| -> Vec<f64> {
+        urdf.match_indices(&format!("{name}=\""))
+            .map(|(i, m)| {
+                let rest = &urdf[i + m.len()..];
+                rest[..rest.find('"').unwrap()].to_string()
+            })
+            .map(|v| {
+                v.split_whitespace()
+                    .nth(if name == "xyz" { 1 } else { 0 })
+                    .unwrap_or("0")
+                    .parse()
+                    .unwrap()
+            })
+            .collect()
+    };
+    let radii = attr("radius");
+    assert!(
+        (radii[0] - d_l / 2.0).abs() <= 1e-9 && (radii[1] - d_r / 2.0).abs() <= 1e-9,
+        "{urdf}"
+    );
+    let y: Vec<f64> = attr("xyz").into_iter().filter(|v| *v != 0.0).collect();
+    assert!(
+        (y[0] - b / 2.0).abs() <= 1e-9 && (y[1] + b / 2.0).abs() <= 1e-9,
+        "{urdf}"
+    );
+    // The JSON: the runs and the 1σ.
+    let json: serde_json::Value =
+        serde_json::from_str(&export(&log, "json", &dir.join("calibration.json"))).unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), 2);
+    assert!(json["sd"]["e_b"].as_f64().unwrap() >= 0.0);
+    assert_eq!(json["method"], "exact");
+}
+
+/// The whole procedure on a factory-default board whose right motor is wired the other way
+/// round, typed by the operator on stdin: the tool says the board holds the factory defaults,
+/// takes the nominal geometry in the operator's units, runs the bring-up check (push, then
+/// wheels up) and applies its proposal on a yes, checks again (`wiring ok`), identifies the
+/// motors on the floor, drives 2 + 2 squares whose measurements are typed in millimetres (a
+/// bare millimetre value is refused by the board, which asks for the unit; `help` and an empty
+/// answer explain), applies and saves only on a typed yes, drives the check square and ends
+/// with the summary.
+#[test]
+fn factory_default_board_full_procedure() {
+    let sim = Sim::start_with(&host_sim(), &["--fast", "--wiring", "right-motor-reversed"]);
+    let dir = out_dir("factory");
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap()]);
+    let (mut measured, mut helped, mut bare, mut empty_apply) = (0, false, false, false);
+    let mut questions = 0;
+    while let Some(l) = tool.next() {
+        let waiting = l.starts_with("? ") && l.trim_end().ends_with(':');
+        if !waiting {
+            continue;
+        }
+        // A question that keeps coming back would never end the session.
+        questions += 1;
+        assert!(questions < 200, "{}", tool.transcript.join("\n"));
+        let q = &l[2..];
+        let answer: String = if q.starts_with("Nominal geometry") {
+            "e".into()
+        } else if q.starts_with("Right wheel diameter") {
+            "150mm".into()
+        } else if q.starts_with("Wheelbase b") {
+            "38.5 cm".into()
+        } else if q.starts_with("Measured end pose of run") {
+            if !helped {
+                helped = true;
+                "help".into()
+            } else {
+                let pose = sim.true_end(measured);
+                let w: Vec<f64> = pose
+                    .split_whitespace()
+                    .map(|v| v.parse().unwrap())
+                    .collect();
+                if !bare && measured == 1 {
+                    // Millimetres typed without their unit: the board asks for it.
+                    bare = true;
+                    format!("{:.1} {:.1}", w[0] * 1e3, w[1] * 1e3)
+                } else {
+                    measured += 1;
+                    // The exact value in millimetres, the heading in degrees.
+                    format!("{:.3}mm {:.3}mm {}deg", w[0] * 1e3, w[1] * 1e3, w[2])
+                }
+            }
+        } else if q.starts_with("Square side L") {
+            "1".into()
+        } else if q.starts_with("Runs per direction") {
+            "2".into()
+        } else if q.starts_with("Apply exact") && !empty_apply {
+            // An empty answer is no yes: asked again.
+            empty_apply = true;
+            String::new()
+        } else if q.trim_end().ends_with("(y/n):") {
+            "y".into()
+        } else {
+            // Every other question: its default (the setup steps on a factory board, Enter to
+            // start, the recommended method, the check square).
+            String::new()
+        };
+        tool.answer(&answer);
+    }
+    let (ok, text) = tool.finish();
+    println!("{text}");
+    assert!(ok, "the session failed:\n{text}");
+    for expected in [
+        "the board holds the factory defaults",
+        "step: nominal geometry (factory default on the board",
+        "  ok d_right = 0.150000000 m",
+        "  ok wheelbase = 0.385000000 m",
+        "  event bringup push: right encoder",
+        "  event bringup propose: set motor_right_sign -1",
+        "? Apply the proposed correction (set motor_right_sign -1)? (y/n):",
+        "  ok motor_right_sign = -1",
+        "  wiring ok",
+        "  event identify done (floor): speed-loop tuning applied",
+        "plan: 2 CW + 2 CCW squares of L = 1.000 m",
+        "  Measure where the axle midpoint stopped",
+        "verified: params shows calibration exact",
+        "summary:",
+        "  calibration: exact E_d=",
+    ] {
+        assert!(text.contains(expected), "no `{expected}` in:\n{text}");
+    }
+    // The bare millimetres: the board's reply asks for the unit, naming mm and cm.
+    let refused = text
+        .lines()
+        .find(|l| l.starts_with("  err ") && l.contains("mm") && l.contains("cm"))
+        .unwrap_or_else(|| panic!("no unit question:\n{text}"));
+    assert!(refused.contains("unit"), "{refused}");
+    // Apply asked twice (the empty answer is no yes), save once.
+    assert_eq!(text.matches("? Apply exact").count(), 2, "{text}");
+    assert!(text.contains("  ok saved"), "{text}");
+    // The check square ends far closer than the runs did before.
+    let check = text
+        .lines()
+        .find(|l| l.starts_with("check square ") && l.contains(": end error "))
+        .unwrap_or_else(|| panic!("no check square:\n{text}"));
+    let mm: Vec<f64> = check
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert!(mm[0] * 5.0 < mm[1], "{check}");
+    assert_eq!(measured, 5, "{text}");
+    let entries = json_lines(&log);
+    let sent: Vec<String> = entries
+        .iter()
+        .filter(|v| v["kind"] == "tx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    for line in [
+        "set d_right 0.15",
+        "set wheelbase 0.385",
+        "bringup push",
+        "bringup",
+        "set motor_right_sign -1",
+        "identify floor",
+        "save",
+    ] {
+        assert!(
+            sent.iter().any(|l| l == line),
+            "`{line}` not sent: {sent:#?}"
+        );
+    }
+    // The measurements went to the board as typed, units included.
+    assert!(
+        sent.iter()
+            .any(|l| l.starts_with("measure #") && l.contains("mm ") && l.ends_with("deg")),
+        "{sent:#?}"
+    );
+    // Applied and saved only after the typed yes.
+    let apply = sent.iter().position(|l| l.starts_with("apply ")).unwrap();
+    let save = sent.iter().position(|l| l == "save").unwrap();
+    assert!(apply < save, "{sent:#?}");
+
+    // The same board again: it holds the setup and the calibration, so the setup steps default
+    // to skipping; the operator keeps the calibration and only checks it (the board's runs from
+    // before dropped, the default).
+    let dir = out_dir("factory-again");
+    let answers = dir.join("answers.txt");
+    std::fs::write(&answers, "k\n\n\nc\n").unwrap();
+    let log = dir.join("session.jsonl");
+    let mut tool = Tool::start(&[
+        "--port",
+        &sim.pty,
+        "--log",
+        log.to_str().unwrap(),
+        "--answers",
+        answers.to_str().unwrap(),
+        "--yes",
+    ]);
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    println!("{text}");
+    assert!(ok, "the second session failed:\n{text}");
+    for expected in [
+        "the board holds: geometry factory default, wiring corrected, motor tuning identified or \
+         entered, calibration applied",
+        // (An empty answer from the file takes the default.)
+        "? Bring-up check (r: run it, s: skip it) [s]: \n",
+        "? Motor identification (f: floor, l: lifted, s: skip) [s]: \n",
+        "? The board holds a calibration (n: new runs, c: check it only) [n]: c",
+        "the board holds 4 run(s) from before this session",
+        "  ok dropped all 4 runs",
+        "check square cw: end error ",
+        "  calibration: exact E_d=",
+    ] {
+        assert!(text.contains(expected), "no `{expected}` in:\n{text}");
+    }
+    assert!(!text.contains("? Square side L"), "{text}");
+    assert_eq!(measured, 6, "{text}");
+    let sent: Vec<String> = json_lines(&log)
+        .iter()
+        .filter(|v| v["kind"] == "tx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    assert!(
+        !sent.iter().any(|l| l.starts_with("apply") || l == "save"),
+        "{sent:#?}"
+    );
+}
+
+/// A flagged run that the operator keeps: the board refuses `apply` while the run is flagged
+/// (`err 25`), the tool shows that and applies only on a second typed yes (`apply exact yes`);
+/// a no there would apply nothing.
+#[test]
+fn a_kept_flagged_run_is_applied_only_on_a_second_yes() {
+    let sim = Sim::start(&host_sim());
+    let (mut tool, log) = tool_with_answers(&sim, "kept-flagged", "150cm\n5\n", false);
+    let (mut measured, mut confirmations) = (0, Vec::new());
+    while let Some(l) = tool.next() {
+        let waiting = l.starts_with("? ") && l.trim_end().ends_with(':');
+        if !waiting {
+            continue;
+        }
+        if l.starts_with("? Measured end pose of run") {
+            let pose = sim.true_end(measured);
+            measured += 1;
+            let answer = if measured == 3 {
+                // y typed with the wrong sign.
+                let mut w: Vec<String> = pose.split_whitespace().map(str::to_string).collect();
+                w[1] = match w[1].strip_prefix('-') {
+                    Some(v) => v.to_string(),
+                    None => format!("-{}", w[1]),
+                };
+                w.join(" ")
+            } else {
+                pose
+            };
+            tool.answer(&answer);
+        } else if l.starts_with("? Run 3 disagrees with the others") {
+            tool.answer("k");
+        } else if l.trim_end().ends_with("(y/n):") {
+            confirmations.push(l.clone());
+            tool.answer("y");
+        } else {
+            tool.answer("");
+        }
+    }
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert!(text.contains("[with flagged run 3]"), "{text}");
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("  err 25: run 3 is flagged")),
+        "{text}"
+    );
+    assert_eq!(confirmations.len(), 3, "{confirmations:#?}");
+    assert!(confirmations[0].starts_with("? Apply exact (E_d="));
+    assert!(confirmations[1].starts_with("? Apply exact anyway, with the flagged run in it?"));
+    assert!(confirmations[2].starts_with("? Save it"));
+    let sent: Vec<String> = json_lines(&log)
+        .iter()
+        .filter(|v| v["kind"] == "tx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    let apply: Vec<&String> = sent.iter().filter(|l| l.starts_with("apply ")).collect();
+    assert_eq!(apply, ["apply exact", "apply exact yes"], "{sent:#?}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
 }

@@ -10,6 +10,7 @@
 //!   degrees for measured headings, Hz);
 //! - [`unit`] reads a measured length or heading with its unit (`41.8mm`, `2deg`), for the
 //!   parser and the PC console alike;
+//! - [`outcome`] words what a run command did (typed [`outcome::Outcome`] values);
 //! - [`refusal`] words the session's refusals (typed [`refusal::Refusal`] values, one error code
 //!   each);
 //! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`;
@@ -22,6 +23,7 @@
 pub mod command;
 pub mod line;
 pub mod number;
+pub mod outcome;
 pub mod param;
 pub mod record;
 pub mod refusal;

@@ -24,9 +24,9 @@ impl<C: Calibrator> Session<C> {
             robot.clear_fault();
             return write!(out, "ok fault cleared\r\n");
         }
-        self.start_next(robot, out)?;
-        // A run that started is the active one; anything else was refused (the reply says why).
-        self.press_refused |= self.active.is_none();
+        // A refusal is said on the console and shown on the LEDs.
+        let started = self.start_next(robot, out)?;
+        self.press_refused |= !started;
         Ok(())
     }
 

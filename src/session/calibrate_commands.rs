@@ -15,9 +15,9 @@ use super::traits::{Activity, Calibrator, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::run::RunRecord;
+use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
-use crate::util::decimal::Decimal;
 use crate::util::text::keyword_eq;
 
 impl<C: Calibrator> Session<C> {
@@ -121,13 +121,11 @@ impl<C: Calibrator> Session<C> {
         }
         self.settings = candidate;
         self.dropped = None;
-        write!(
-            out,
-            "ok applied {name}: E_d={} E_b={} E_s={} (not saved; save to keep)\r\n",
-            Decimal::fixed(sol.e_d, 9),
-            Decimal::fixed(sol.e_b, 9),
-            Decimal::fixed(sol.e_s, 9)
-        )
+        let outcome = ParamOutcome::Applied {
+            method: name,
+            factors: (sol.e_d, sol.e_b, sol.e_s),
+        };
+        write_param_outcome(out, &outcome)
     }
 }
 

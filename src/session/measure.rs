@@ -11,7 +11,7 @@
 //! cause; a value typed with its unit is read exactly.
 
 use core::f64::consts::PI;
-use core::fmt::{self, Write};
+use core::fmt;
 
 use crate::motion::run::{PathKind, RunRecord};
 use crate::protocol::command::MeasureUnits;
@@ -265,19 +265,69 @@ impl fmt::Display for Implausible {
     }
 }
 
-/// Writes ` x=… y=…[ theta_deg=…]` of a stored measurement.
-pub(super) fn write_measurement(
-    out: &mut dyn Write,
-    m: &crate::motion::run::Measurement,
-) -> fmt::Result {
-    write!(
-        out,
-        "x={} y={}",
-        Decimal::signed(m.x_m, 6),
-        Decimal::signed(m.y_m, 6)
-    )?;
-    if let Some(t) = m.theta_rad {
-        write!(out, " theta_deg={}", Decimal::signed(t.to_degrees(), 4))?;
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::encoder::WheelTicks;
+    use crate::kinematics::geometry::Geometry;
+    use crate::kinematics::reference::PoseF64;
+    use crate::protocol::unit::AngleUnit;
+    use std::string::ToString;
+
+    fn line_run(length_m: f64) -> RunRecord {
+        let mut knots = heapless::Vec::new();
+        knots.push(WheelTicks::new(0, 0)).unwrap();
+        RunRecord {
+            path: PathKind::Line { length_m },
+            geometry: Geometry::PAPER_NOMINAL,
+            knots,
+            odometry_end: PoseF64::new(length_m, 0.0, 0.0),
+            measured: None,
+        }
     }
-    Ok(())
+
+    fn bare(m: f64) -> Length {
+        Length { m, unit: None }
+    }
+
+    #[test]
+    fn only_the_units_that_fit_are_named() {
+        // A 0.3 m line (bound 0.075 m): 300 fits as millimetres, not as centimetres.
+        let run = line_run(0.3);
+        let e = check_typed(&run, bare(300.0), bare(0.0), None).unwrap_err();
+        assert!(e.to_string().ends_with(": write the unit (300mm)"), "{e}");
+        // Nothing fits: no unit is suggested.
+        let e = check_typed(&run, bare(90.0), bare(90.0), None).unwrap_err();
+        assert!(
+            e.to_string().ends_with("; x forward, y left, in metres"),
+            "{e}"
+        );
+        // A value written with its unit is never rescaled: only the bare one is.
+        let mm = |m| Length {
+            m,
+            unit: Some(LengthUnit::Millimetre),
+        };
+        assert_eq!(check_typed(&run, mm(0.3), bare(0.0), None), Ok(()));
+        let e = check_typed(&run, bare(300.0), mm(0.0003), None).unwrap_err();
+        assert!(e.to_string().ends_with(": write the unit (300mm)"), "{e}");
+    }
+
+    #[test]
+    fn a_bare_heading_is_degrees_and_never_converted() {
+        let run = line_run(1.0);
+        let deg = |deg, unit| Some(Angle { deg, unit });
+        assert_eq!(
+            check_typed(&run, bare(1.0), bare(0.0), deg(0.8, None)),
+            Ok(())
+        );
+        // 50 would fit as radians only by accident; it is refused as degrees.
+        let e = check_typed(&run, bare(1.0), bare(0.0), deg(50.0, None)).unwrap_err();
+        assert!(matches!(e, Implausible::Heading { .. }), "{e}");
+        assert!(
+            e.to_string().contains("radians need the unit written"),
+            "{e}"
+        );
+        let rad = deg(0.04f64.to_degrees(), Some(AngleUnit::Radian));
+        assert_eq!(check_typed(&run, bare(1.0), bare(0.0), rad), Ok(()));
+    }
 }

@@ -406,7 +406,7 @@ impl<C: Calibrator> Session<C> {
                 };
                 self.start(path, robot, out)
             }
-            Command::Next => self.start_next(robot, out),
+            Command::Next => self.start_next(robot, out).map(|_| ()),
             Command::Line { length_m } => {
                 let path = PathKind::Line {
                     length_m: length_m.unwrap_or(side),
@@ -451,7 +451,7 @@ impl<C: Calibrator> Session<C> {
             Command::Runs => report::write_runs(out, &self.runs),
             Command::Record { index, first_knot } => self.record(index, first_knot, out),
             Command::Version => record::write_version(out),
-            Command::Drop { index } => self.drop_run(index, out),
+            Command::Drop { index } => self.drop_run(index, robot, out),
             Command::DropAll { confirmed } => self.drop_all(confirmed, robot, out),
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method, confirmed } => self.apply(method, confirmed, robot, out),

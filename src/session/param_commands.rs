@@ -8,9 +8,10 @@
 use core::fmt::{self, Write};
 
 use super::traits::{Activity, Calibrator, ParamStorage, Robot, RobotError};
-use super::{Dropped, Session, Settings, report, robot_err, storable, storage_err};
+use super::{Dropped, Session, Settings, robot_err, storable, storage_err};
 use crate::protocol::ParamGroup;
 use crate::protocol::ParamName;
+use crate::protocol::outcome::{ParamOutcome, SetChange, write_param_outcome};
 use crate::protocol::reply::{ErrorCode, write_err};
 
 /// Hands every part of `settings` the controller runs with to `robot`: the active geometry, the
@@ -45,9 +46,12 @@ impl<C: Calibrator> Session<C> {
             Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
         };
         let Some(changed) = changed else {
-            write!(out, "ok {} = ", name.as_str())?;
-            report::write_param_value(out, &self.settings, name)?;
-            return write!(out, " (unchanged)\r\n");
+            let outcome = ParamOutcome::Set {
+                name,
+                value: self.settings.value(name),
+                change: SetChange::Unchanged,
+            };
+            return write_param_outcome(out, &outcome);
         };
         // A calibration is relative to the nominal geometry it was computed for: it is dropped
         // when that changes, and restored when the geometry is set back.
@@ -86,18 +90,17 @@ impl<C: Calibrator> Session<C> {
             self.dropped = None;
         }
         self.settings = new;
-        write!(out, "ok {} = ", name.as_str())?;
-        report::write_param_value(out, &self.settings, name)?;
-        if let Some(m) = restored {
-            write!(out, " (calibration {m} restored)")?;
-        } else if let Some(m) = dropped {
-            write!(
-                out,
-                " (calibration {m} dropped: it is relative to the old geometry; set the old \
-                 value back to restore it)"
-            )?;
-        }
-        write!(out, " (not saved; save to keep)\r\n")
+        let change = match (&restored, &dropped) {
+            (Some(m), _) => SetChange::CalibrationRestored(m),
+            (None, Some(m)) => SetChange::CalibrationDropped(m),
+            (None, None) => SetChange::Changed,
+        };
+        let outcome = ParamOutcome::Set {
+            name,
+            value: self.settings.value(name),
+            change,
+        };
+        write_param_outcome(out, &outcome)
     }
 
     /// `save`: stores the settings, refused when they do not make a valid record.
@@ -116,7 +119,7 @@ impl<C: Calibrator> Session<C> {
                 if !self.runs.is_empty() {
                     self.store_runs_again();
                 }
-                write!(out, "ok saved\r\n")
+                write_param_outcome(out, &ParamOutcome::Saved)
             }
             Err(e) => storage_err(out, e),
         }
@@ -140,9 +143,6 @@ impl<C: Calibrator> Session<C> {
         }
         self.settings = defaults;
         self.dropped = None;
-        write!(
-            out,
-            "ok parameters reset to defaults (not saved; save to keep)\r\n"
-        )
+        write_param_outcome(out, &ParamOutcome::Reset)
     }
 }

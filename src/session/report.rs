@@ -185,13 +185,7 @@ pub(super) fn write_status<C: Calibrator>(
 }
 
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
-    let value = s.value(name);
-    // A count unit in the singular for one (`1 run`).
-    let unit = match name.unit() {
-        "runs" if value == 1.0 => "run",
-        unit => unit,
-    };
-    write!(out, "{} {unit}", Decimal::fixed(value, name.places()))
+    crate::protocol::outcome::write_param_value(out, name, s.value(name))
 }
 
 pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {

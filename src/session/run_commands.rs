@@ -3,20 +3,20 @@
 //! from the store (`drop <n>`, `drop all`).
 //!
 //! Owns which run the session announced as started and the rules of `measure` (which run a
-//! plain `measure` fills, when it is refused); the plausibility check and the measurement's
-//! text are [`super::measure`]'s.
+//! plain `measure` fills, when it is refused); the plausibility check is [`super::measure`]'s.
+//! Each command returns a typed [`Outcome`] or [`RunError`]; the reply text is the protocol's
+//! ([`crate::protocol::outcome`], [`crate::protocol::refusal`]).
 
 use core::fmt::{self, Write};
 
 use heapless::Vec;
 
 use super::traits::{Activity, Calibrator, Robot, RobotError};
-use super::{ActiveRun, Session, measure, report, robot_err};
+use super::{ActiveRun, Session, measure, robot_err};
 use crate::motion::run::{Measurement, PathKind};
+use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::record;
 use crate::protocol::refusal::{Refusal, write_refusal};
-use crate::protocol::reply::EOL;
-use crate::util::decimal::Decimal;
 
 /// Removes and returns element `i` of `v`, keeping the order of the others (as `Vec::remove`),
 /// or `None` when there is no element `i`. The element walks to the end by swaps of disjoint
@@ -31,74 +31,112 @@ fn remove_at<T, const N: usize>(v: &mut Vec<T, N>, i: usize) -> Option<T> {
     if i < v.len() { v.pop() } else { None }
 }
 
-/// `err 14: no run <index> (<n> stored)`.
-fn no_such_run(out: &mut dyn Write, index: usize, stored: usize) -> fmt::Result {
-    write_refusal(out, &Refusal::NoSuchRun { run: index, stored })
+/// Why a run command was refused.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum RunError {
+    /// The session's own rule (the runs, the plan, a confirmation).
+    Refused(Refusal<'static>),
+    /// The robot refused (busy, a fault, the controller).
+    Robot(RobotError),
+    /// The measurement of run `run` is implausible.
+    Implausible {
+        run: usize,
+        path: PathKind,
+        why: measure::Implausible,
+    },
+}
+
+impl From<Refusal<'static>> for RunError {
+    fn from(r: Refusal<'static>) -> Self {
+        RunError::Refused(r)
+    }
+}
+
+/// Writes the reply of a run command: its `ok` line, or its `err` line.
+fn write_reply(
+    out: &mut dyn Write,
+    result: Result<Outcome, RunError>,
+    robot: &mut dyn Robot,
+) -> fmt::Result {
+    match result {
+        Ok(outcome) => write_outcome(out, &outcome),
+        Err(RunError::Refused(r)) => write_refusal(out, &r),
+        Err(RunError::Robot(e)) => robot_err(out, e, robot),
+        Err(RunError::Implausible { run, path, why }) => write_refusal(
+            out,
+            &Refusal::Implausible {
+                run,
+                path,
+                why: &why,
+            },
+        ),
+    }
 }
 
 impl<C: Calibrator> Session<C> {
-    /// Starts a run along `path`, refused while the run store is full.
+    /// Starts a run along `path` and writes the reply.
     pub(super) fn start(
         &mut self,
         path: PathKind,
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        if let Some(refused) = self.refuse_unmeasured(out) {
-            return refused;
+        let result = self.try_start(path, robot);
+        write_reply(out, result, robot)
+    }
+
+    /// Starts a run along `path`; refused while the last finished run is unmeasured (a run is
+    /// measured or dropped before the next one starts, so its end pose is not lost and a plain
+    /// `measure` cannot fill the wrong run) and while the run store is full.
+    fn try_start(&mut self, path: PathKind, robot: &mut dyn Robot) -> Result<Outcome, RunError> {
+        if let Some(last) = self.runs.last().filter(|r| r.measured.is_none()) {
+            return Err(Refusal::Unmeasured {
+                run: self.runs.len(),
+                path: last.path,
+            }
+            .into());
         }
         if self.runs.is_full() {
-            return write_refusal(out, &Refusal::StoreFull);
+            return Err(Refusal::StoreFull.into());
         }
-        match robot.start(path) {
-            Ok(()) => {
-                let number = self.runs.len() + 1;
-                self.active = Some(ActiveRun { number, path });
-                write!(out, "ok run {number} started: ")?;
-                report::write_path(out, &path)?;
-                out.write_str(EOL)
-            }
-            Err(e) => robot_err(out, e, robot),
-        }
+        robot.start(path).map_err(RunError::Robot)?;
+        let run = self.runs.len() + 1;
+        self.active = Some(ActiveRun { number: run, path });
+        Ok(Outcome::Started { run, path })
     }
 
-    /// `err 24` when the last finished run is not measured: a run is measured or dropped
-    /// before the next one starts, so its end pose is not lost and a plain `measure` cannot
-    /// fill the wrong run.
-    fn refuse_unmeasured(&self, out: &mut dyn Write) -> Option<fmt::Result> {
-        let run = self.runs.last().filter(|r| r.measured.is_none())?;
-        let refusal = Refusal::Unmeasured {
-            run: self.runs.len(),
-            path: run.path,
-        };
-        Some(write_refusal(out, &refusal))
-    }
-
-    /// `next`: starts the next planned square, or says the plan is complete.
-    pub(super) fn start_next(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
-        match self.next_planned() {
+    /// `next`: starts the next planned square (or says the plan is complete) and writes the
+    /// reply; returns whether it started.
+    pub(super) fn start_next(
+        &mut self,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> Result<bool, fmt::Error> {
+        let result = match self.next_planned() {
             Some(direction) => {
                 let path = PathKind::Square {
                     direction,
                     side_m: self.settings.square_side_f64(),
                 };
-                self.start(path, robot, out)
+                self.try_start(path, robot)
             }
-            None => write_refusal(out, &Refusal::PlanComplete),
-        }
+            None => Err(Refusal::PlanComplete.into()),
+        };
+        let started = result.is_ok();
+        write_reply(out, result, robot)?;
+        Ok(started)
     }
 
-    /// `stop`: stops any motion and says whether that aborted the run in progress.
+    /// `stop`: stops any motion and says whether that aborted the run in progress (the
+    /// aborted run's event is written first).
     pub(super) fn stop(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         let before = self.active;
         robot.abort();
         self.collect_finished(robot, out)?;
-        match before {
-            Some(a) if self.last_aborted == Some(a) => {
-                write!(out, "ok stopped: run {} aborted, not stored\r\n", a.number)
-            }
-            _ => write!(out, "ok stopped\r\n"),
-        }
+        let aborted = before
+            .filter(|a| self.last_aborted == Some(*a))
+            .map(|a| a.number);
+        write_outcome(out, &Outcome::Stopped { aborted })
     }
 
     /// `record <n> [first knot]`: one page of run `index`'s record.
@@ -108,8 +146,9 @@ impl<C: Calibrator> Session<C> {
         first_knot: usize,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        let stored = self.runs.len();
         let Some(run) = index.checked_sub(1).and_then(|i| self.runs.get(i)) else {
-            return no_such_run(out, index, self.runs.len());
+            return write_refusal(out, &Refusal::NoSuchRun { run: index, stored });
         };
         if first_knot > 0 && first_knot >= run.knots.len() {
             let knots = run.knots.len();
@@ -119,18 +158,31 @@ impl<C: Calibrator> Session<C> {
     }
 
     /// `drop <n>`: removes run `index` from the store; later runs move up one number.
-    pub(super) fn drop_run(&mut self, index: usize, out: &mut dyn Write) -> fmt::Result {
+    pub(super) fn drop_run(
+        &mut self,
+        index: usize,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let result = self.try_drop_run(index);
+        write_reply(out, result, robot)
+    }
+
+    fn try_drop_run(&mut self, index: usize) -> Result<Outcome, RunError> {
+        let stored = self.runs.len();
         let removed = index
             .checked_sub(1)
             .and_then(|i| remove_at(&mut self.runs, i));
         let Some(run) = removed else {
-            return no_such_run(out, index, self.runs.len());
+            return Err(Refusal::NoSuchRun { run: index, stored }.into());
         };
         let _ = remove_at(&mut self.run_ids, index - 1);
         self.runs_changed();
-        write!(out, "ok dropped run {index}: ")?;
-        report::write_path(out, &run.path)?;
-        write!(out, "; {} left\r\n", report::Count(self.runs.len(), "run"))
+        Ok(Outcome::Dropped {
+            run: index,
+            path: run.path,
+            left: self.runs.len(),
+        })
     }
 
     /// `drop all [yes]`: empties the run store, only when confirmed with `yes`; refused while
@@ -141,24 +193,29 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        let result = self.try_drop_all(confirmed, robot);
+        write_reply(out, result, robot)
+    }
+
+    fn try_drop_all(
+        &mut self,
+        confirmed: bool,
+        robot: &mut dyn Robot,
+    ) -> Result<Outcome, RunError> {
         if self.active.is_some() || robot.status().activity != Activity::Idle {
-            return robot_err(out, RobotError::Busy, robot);
+            return Err(RunError::Robot(RobotError::Busy));
         }
-        let n = self.runs.len();
+        let runs = self.runs.len();
         if !confirmed {
-            return write_refusal(out, &Refusal::DropAllUnconfirmed { runs: n });
+            return Err(Refusal::DropAllUnconfirmed { runs }.into());
         }
         self.runs.clear();
         self.run_ids.clear();
         self.runs_changed();
-        write!(out, "ok dropped all {}\r\n", report::Count(n, "run"))
+        Ok(Outcome::DroppedAll { runs })
     }
 
-    /// `measure [#n] x y [θ]`: without `#n` it fills the last finished run if that is
-    /// unmeasured (never an earlier one, never after an aborted run); `#n` fills or replaces run
-    /// `n` and says what it replaced, keeping run n's measured heading when no new one is given.
-    /// Refused while anything moves, and when implausible (a bare value is never converted: the
-    /// reply asks for the unit written out).
+    /// `measure [#n] x y [θ]` and its reply.
     pub(super) fn measure(
         &mut self,
         index: Option<usize>,
@@ -166,74 +223,72 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        let (x_m, y_m) = (typed.x.m, typed.y.m);
+        let result = self.try_measure(index, typed, robot);
+        write_reply(out, result, robot)
+    }
+
+    /// `measure [#n] x y [θ]`: without `#n` it fills the last finished run if that is
+    /// unmeasured (never an earlier one, never after an aborted run); `#n` fills or replaces run
+    /// `n` and says what it replaced, keeping run n's measured heading when no new one is given.
+    /// Refused while anything moves, and when implausible (a bare value is never converted: the
+    /// reply asks for the unit written out).
+    fn try_measure(
+        &mut self,
+        index: Option<usize>,
+        typed: measure::Typed,
+        robot: &mut dyn Robot,
+    ) -> Result<Outcome, RunError> {
         if robot.status().activity != Activity::Idle {
-            return write_refusal(out, &Refusal::MeasureWhileDriving);
+            return Err(Refusal::MeasureWhileDriving.into());
         }
         let stored = self.runs.len();
         let n = match index {
-            Some(n) if n > stored => return no_such_run(out, n, stored),
+            Some(n) if n > stored => return Err(Refusal::NoSuchRun { run: n, stored }.into()),
             Some(n) => n,
             None => {
                 if let Some(a) = self.last_aborted {
-                    return write_refusal(out, &Refusal::Aborted { run: a.number });
+                    return Err(Refusal::Aborted { run: a.number }.into());
                 }
                 match self.runs.last() {
-                    None => return write_refusal(out, &Refusal::NothingToMeasure),
+                    None => return Err(Refusal::NothingToMeasure.into()),
                     Some(r) if r.measured.is_some() => {
-                        return write_refusal(out, &Refusal::AlreadyMeasured { run: stored });
+                        return Err(Refusal::AlreadyMeasured { run: stored }.into());
                     }
                     Some(_) => stored,
                 }
             }
         };
         let Some(run) = self.runs.get_mut(n - 1) else {
-            return no_such_run(out, n, stored);
+            return Err(Refusal::NoSuchRun { run: n, stored }.into());
         };
         if let Err(why) = measure::check_typed(run, typed.x, typed.y, typed.theta) {
-            let refusal = Refusal::Implausible {
+            return Err(RunError::Implausible {
                 run: n,
                 path: run.path,
-                why: &why,
-            };
-            return write_refusal(out, &refusal);
+                why,
+            });
         }
         // `measure #n x y` without θ keeps the heading measured before.
-        let kept = match typed.theta {
+        let heading_kept = match typed.theta {
             None => run.measured.and_then(|m| m.theta_rad),
             Some(_) => None,
         };
-        let theta_rad = typed.theta.map(|t| t.deg.to_radians()).or(kept);
+        let (x_m, y_m) = (typed.x.m, typed.y.m);
         let replaced = run.measured.replace(Measurement {
             x_m,
             y_m,
-            theta_rad,
+            theta_rad: typed.theta.map(|t| t.deg.to_radians()).or(heading_kept),
         });
         let odo = run.odometry_end;
         let path = run.path;
         self.runs_changed();
-        write!(out, "ok run {n} ")?;
-        report::write_path(out, &path)?;
-        out.write_str(" measured")?;
-        if let Some(old) = replaced {
-            out.write_str(" (replaced ")?;
-            measure::write_measurement(out, &old)?;
-            out.write_str(")")?;
-        }
-        write!(
-            out,
-            ": error vs odometry dx={} dy={} m",
-            Decimal::signed(x_m - odo.x_m, 6),
-            Decimal::signed(y_m - odo.y_m, 6),
-        )?;
-        if let Some(t) = kept {
-            write!(
-                out,
-                " (heading kept: theta_deg={})",
-                Decimal::signed(t.to_degrees(), 4)
-            )?;
-        }
-        out.write_str(EOL)
+        Ok(Outcome::Measured {
+            run: n,
+            path,
+            replaced,
+            error_m: (x_m - odo.x_m, y_m - odo.y_m),
+            heading_kept,
+        })
     }
 }
 

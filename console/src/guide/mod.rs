@@ -1,5 +1,7 @@
-//! The guided session: connect, check, plan, drive and measure every run, calibrate, apply,
-//! save, verify — with every line in the session log, so it can be resumed or recalibrated.
+//! The guided session: connect, show what the board holds, the robot's setup (geometry,
+//! bring-up, identification), plan, drive and measure every run, calibrate, apply, save,
+//! verify, check square, summary — with every line in the session log, so it can be resumed,
+//! recalibrated or exported.
 //!
 //! Runs are kept by *slot* (their place in the session). The board numbers its stored runs
 //! 1..k; `board` maps them to slots. After a board reset that lost the runs (firmware without
@@ -7,8 +9,10 @@
 //! calibration of all of them is computed on the PC with the library (`calibrate` on the board
 //! would see only the runs it holds).
 
+mod check;
 mod results;
 mod runs;
+mod setup;
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -16,6 +20,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{PathKind, RunRecord};
 use odocal::protocol::ParamName;
+use odocal::protocol::unit::{AngleUnit, LengthUnit, parse_length};
 use serde_json::json;
 
 use crate::link::{Link, LinkError, Reply};
@@ -38,7 +43,8 @@ pub struct Options {
     /// Answers to the questions, one a line, in order (then --yes, then stdin).
     #[arg(long)]
     pub answers: Option<PathBuf>,
-    /// Take the default answer of every question that has one.
+    /// Take the default answer of every question that has one (apply, save and a bring-up
+    /// proposal have none: they need a typed y, from --answers or stdin).
     #[arg(long, short = 'y')]
     pub yes: bool,
     /// Pose stream rate during runs, Hz.
@@ -102,6 +108,18 @@ struct Guide {
     per_direction: u32,
     /// The method applied in this session (the plot's "after" cloud).
     applied: Option<String>,
+    /// What the board held when the session connected.
+    holds: setup::Holds,
+    /// The operator chose to drive no more runs (`skip`).
+    stop_runs: bool,
+    /// Runs per direction (CW, CCW) dropped without being driven again.
+    less: [u32; 2],
+    /// Whether the applied calibration was saved.
+    saved: bool,
+    /// The runs (board numbers) the last `calibrate` flagged.
+    flagged: Vec<usize>,
+    /// The check square's end error and the runs' mean end error before (if any), metres.
+    check: Option<(f64, Option<f64>)>,
 }
 
 fn log_default() -> PathBuf {
@@ -185,6 +203,12 @@ pub fn run(opts: &Options) -> Result<(), String> {
         side_m: 2.0,
         per_direction: 5,
         applied: None,
+        holds: setup::Holds::default(),
+        stop_runs: false,
+        less: [0, 0],
+        saved: false,
+        flagged: Vec::new(),
+        check: None,
     };
     let result = g.session(resumed);
     // Ctrl-C: the robot first.
@@ -246,47 +270,48 @@ fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
         .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
 }
 
-/// Length units a measurement may carry, with their factor to metres (longest suffix first).
-const LENGTH_UNITS: [(&str, f64); 3] = [("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)];
-/// Angle units a measurement may carry, with their factor to degrees.
-const ANGLE_UNITS: [(&str, f64); 2] = [("deg", 1.0), ("°", 1.0)];
-
-/// A number with an optional unit suffix ([`LENGTH_UNITS`]; [`ANGLE_UNITS`] for angles) in base
-/// units.
-fn quantity(word: &str, angle: bool) -> Result<f64, String> {
-    let units: &[(&str, f64)] = if angle { &ANGLE_UNITS } else { &LENGTH_UNITS };
-    let (num, k) = units
-        .iter()
-        .find_map(|(u, k)| word.strip_suffix(u).map(|n| (n, *k)))
-        .unwrap_or((word, 1.0));
-    let v: f64 = num.parse().map_err(|_| {
-        let hint = if num.contains(',') {
-            " (use a decimal point)"
-        } else {
-            ""
-        };
-        format!("`{word}` is not a number{hint}")
-    })?;
-    if !v.is_finite() {
-        return Err(format!("`{word}` is not finite"));
-    }
-    Ok(v * k)
+/// The unit symbols the board reads after a number (`protocol::unit`), for joining a unit
+/// typed apart from its number.
+fn unit_symbols() -> impl Iterator<Item = &'static str> {
+    LengthUnit::ALL
+        .into_iter()
+        .map(LengthUnit::symbol)
+        .chain([AngleUnit::Degree, AngleUnit::Radian].map(AngleUnit::symbol))
 }
 
-/// The words of a typed measurement: a unit typed apart (`41.8 mm`) joins its number, and a
-/// comma or semicolon that separates the values (`41.8mm, -39.5mm`) is dropped (a comma inside
-/// a number stays, for [`quantity`] to name it).
+/// A length typed by the operator, in metres, read by the library's reader the board uses
+/// (`protocol::unit::parse_length`: a bare number is metres, `150mm`, `15cm`, `0.15m`).
+fn length(typed: &str) -> Result<f64, String> {
+    // A unit typed apart from its number (`38.5 cm`) joins it.
+    let word: String = typed.split_whitespace().collect();
+    let word = word.as_str();
+    if word.contains(',') && !word.contains('.') {
+        return Err(format!("`{word}` is not a number (use a decimal point)"));
+    }
+    match parse_length(word) {
+        Ok(l) if l.m.is_finite() => Ok(l.m),
+        Ok(_) => Err(format!("`{word}` is not finite")),
+        Err(e) => Err(format!(
+            "`{word}`: {e} (a number, with mm, cm or m after it if not metres)"
+        )),
+    }
+}
+
+/// The words of a typed measurement as the board reads them: a unit typed apart (`41.8 mm`)
+/// joins its number, a comma or semicolon that separates the values (`41.8mm, -39.5mm`) is
+/// dropped (a comma inside a number stays, for the board to name), and `°` is written `deg`.
 fn measurement_words(text: &str) -> Vec<String> {
     let mut words: Vec<String> = Vec::new();
     for w in text.split_whitespace() {
         let w = w.trim_end_matches([',', ';']);
-        let unit = LENGTH_UNITS
-            .iter()
-            .chain(&ANGLE_UNITS)
-            .any(|(u, _)| *u == w);
+        let w = match w.strip_suffix('°') {
+            Some(n) => format!("{n}deg"),
+            None => w.to_string(),
+        };
+        let unit = unit_symbols().any(|u| u.eq_ignore_ascii_case(&w));
         match words.last_mut() {
-            Some(last) if unit && last.parse::<f64>().is_ok() => last.push_str(w),
-            _ if !w.is_empty() => words.push(w.to_string()),
+            Some(last) if unit && last.parse::<f64>().is_ok() => last.push_str(&w),
+            _ if !w.is_empty() => words.push(w),
             _ => {}
         }
     }
@@ -316,7 +341,9 @@ impl Guide {
         let mut waited = false;
         loop {
             let r = self.link.command(line, timeout)?;
-            if r.err_code() == Some(10) && r.last.contains("busy") {
+            // `err 10` is something in progress (wait for it), or lines the board's input queue
+            // dropped (not a reply to wait out).
+            if r.err_code() == Some(10) && !r.last.contains("input queue full") {
                 if !waited {
                     self.ui.say(&format!(
                         "  the board is busy ({}): waiting for the robot to stop",
@@ -355,7 +382,13 @@ impl Guide {
         self.show_board()?;
         match resumed {
             Some(c) => self.resume(c)?,
-            None => self.plan()?,
+            None => {
+                self.setup(self.holds)?;
+                if self.keep_calibration()? {
+                    return self.check_only();
+                }
+                self.plan()?;
+            }
         }
         let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
         if !r.ok() {
@@ -369,6 +402,10 @@ impl Guide {
                 break;
             }
         }
+        if self.applied.is_some() {
+            self.check_square()?;
+        }
+        self.summary()?;
         let _ = self.cmd("stream off")?;
         Ok(())
     }
@@ -418,6 +455,7 @@ impl Guide {
         ));
         let calibration = calibration_of(&params.data);
         self.ui.say(&format!("calibration: {calibration}"));
+        self.holds = setup::Holds::of(&params.data);
         if let Some(v) = param(&params.data, ParamName::SquareSide.as_str()) {
             self.side_m = v;
         }
@@ -465,7 +503,16 @@ impl Guide {
                 "Square side L in metres",
                 Some(&format!("{:.3}", self.side_m)),
             )?;
-            match quantity(&a, false) {
+            if a.eq_ignore_ascii_case("help") || a == "?" {
+                self.ui.say(
+                    "  L is the side of the squares, 0.1..10 m: the room needs L plus about 0.5 m \
+                     around it. Bigger squares make the systematic error larger against your \
+                     tape measure's error (2 m is a good start; 1 m in a small room); the \
+                     advice after `calibrate` gives the best L for this robot.",
+                );
+                continue;
+            }
+            match length(&a) {
                 Ok(v) if (0.1..=10.0).contains(&v) => {
                     self.side_m = v;
                     break;
@@ -483,7 +530,10 @@ impl Guide {
                     self.per_direction = n;
                     break;
                 }
-                _ => self.ui.say("  a whole number within 1..6"),
+                _ => self.ui.say(
+                    "  a whole number within 1..6: squares per direction (UMBmark: 5 + 5; more \
+                     runs narrow the 1-sigma)",
+                ),
             }
         }
         self.send_plan()?;
@@ -491,31 +541,14 @@ impl Guide {
         let runs = self.cmd("runs")?;
         let stored = runs.data.len();
         if stored > 0 {
-            self.ui.say(&format!(
-                "the board holds {stored} run(s) from before this session"
-            ));
-            if self
-                .ui
-                .confirm("Drop them to start a clean session", true)?
-            {
-                let r = self.cmd("drop all")?;
-                if !r.ok() {
-                    return Err(Stop::Failed(format!("drop all: {}", r.last)));
-                }
-            } else {
-                return Err(Stop::Failed(format!(
-                    "the board's {stored} run(s) are kept; a new session starts from an empty \
-                     run store: calibrate them first (`calibrate` on a terminal, or \
-                     `cargo console --resume <log>` if this console drove them), or drop them"
-                )));
-            }
+            self.runs_from_before(stored)?;
         }
         Ok(())
     }
 
     fn send_plan(&mut self) -> Result<(), Stop> {
         for line in [
-            format!("set square_side {}", self.side_m),
+            format!("set square_side {}", setup::metres_text(self.side_m)),
             format!("set runs_per_direction {}", self.per_direction),
         ] {
             let r = self.cmd(&line)?;
@@ -637,31 +670,36 @@ impl Guide {
 
 #[cfg(test)]
 mod tests {
-    use super::{measurement_words, new_log_path, quantity};
+    use super::{length, measurement_words, new_log_path};
 
     #[test]
-    fn a_measurement_is_read_as_a_person_types_it() {
-        for typed in [
-            "0.0418 -0.0395 0.3",
-            "41.8mm -39.5mm 0.3",
-            "41.8 mm -39.5 mm 0.3 deg",
-            "41.8mm, -39.5mm, 0.3",
-            "4.18cm; -3.95 cm",
+    fn a_measurement_is_passed_on_as_the_board_reads_it() {
+        for (typed, words) in [
+            ("0.0418 -0.0395 0.3", ["0.0418", "-0.0395", "0.3"]),
+            ("41.8mm -39.5mm 0.3", ["41.8mm", "-39.5mm", "0.3"]),
+            ("41.8 mm -39.5 MM 0.3 deg", ["41.8mm", "-39.5MM", "0.3deg"]),
+            ("41.8mm, -39.5mm, 0.3°", ["41.8mm", "-39.5mm", "0.3deg"]),
+            (
+                "4.18cm; -3.95 cm 0.01 rad",
+                ["4.18cm", "-3.95cm", "0.01rad"],
+            ),
         ] {
-            let words = measurement_words(typed);
-            let x = quantity(&words[0], false).unwrap();
-            let y = quantity(&words[1], false).unwrap();
-            assert!((x - 0.0418).abs() < 1e-12, "{typed}: {words:?}");
-            assert!((y + 0.0395).abs() < 1e-12, "{typed}: {words:?}");
-            if let Some(t) = words.get(2) {
-                assert_eq!(quantity(t, true).unwrap(), 0.3, "{typed}");
-            }
+            assert_eq!(measurement_words(typed), words, "{typed}");
         }
+        assert_eq!(measurement_words("-0,009 -0,009"), ["-0,009", "-0,009"]);
+    }
+
+    #[test]
+    fn a_length_is_read_with_the_boards_unit_reader() {
+        assert_eq!(length("150mm").unwrap(), 150.0 * 0.001);
+        assert_eq!(length("0.385").unwrap(), 0.385);
+        assert_eq!(length("38.5cm").unwrap(), 38.5 * 0.01);
+        assert_eq!(length(" 38.5 cm ").unwrap(), 38.5 * 0.01);
         assert_eq!(
-            quantity(&measurement_words("-0,009 -0,009")[0], false).unwrap_err(),
-            "`-0,009` is not a number (use a decimal point)"
+            length("0,15").unwrap_err(),
+            "`0,15` is not a number (use a decimal point)"
         );
-        assert_eq!(quantity("4x", false).unwrap_err(), "`4x` is not a number");
+        assert!(length("15in").unwrap_err().starts_with("`15in`: "));
     }
 
     #[test]

@@ -3,11 +3,12 @@
 
 use std::path::PathBuf;
 
-use odocal::motion::run::RunRecord;
+use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, write_calibration};
 use serde_json::json;
 
+use super::runs::Measured;
 use super::{CALIBRATE, Guide, Stop, field};
 use crate::log::calibration_of;
 use crate::plot::{self, PlotRun};
@@ -66,8 +67,9 @@ impl Guide {
                     self.ui
                         .say(&format!("  {method:<12}  {}", w[1..].join(" ")));
                 } else if w.len() >= 10 {
+                    let flagged = l.find("  [with flagged").map_or("", |i| &l[i..]);
                     self.ui.say(&format!(
-                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {}",
+                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {}{flagged}",
                         w[1], w[2], w[7], w[8], w[9]
                     ));
                 }
@@ -96,6 +98,8 @@ impl Guide {
                     .collect()
             })
             .unwrap_or_default();
+        // What stays flagged when nothing changes (the runs kept), for the plot's title.
+        self.flagged.clone_from(&flagged);
         let mut changed = false;
         // Highest first, so the board's numbers of the others stay valid.
         'runs: for &n in flagged.iter().rev() {
@@ -108,29 +112,38 @@ impl Guide {
             // Measuring again needs the run on the board (`measure #n`).
             let on_board = self.board_has_all();
             let question = format!(
-                "Run {n} disagrees with the others: {}[d]rop it and drive it again, or [k]eep it",
+                "Run {n} disagrees with the others: {}[d]rop it, [r]e-drive it (drop it and \
+                 drive a new one), or [k]eep it",
                 if on_board {
-                    "[m]easure it again (a typing mistake), "
+                    "[m]easure it again (a typing mistake: x/y swapped, a sign), "
                 } else {
                     ""
                 }
             );
             loop {
-                let a = self.ui.ask(&question, Some("d"))?.to_ascii_lowercase();
+                let a = self.ui.ask(&question, Some("r"))?.to_ascii_lowercase();
                 match a.as_str() {
                     "m" | "measure" if on_board => {
                         let Some(old) = self.slots[slot].record.clone() else {
                             continue 'runs;
                         };
-                        let (record, lines) = self.send_measurement(n, &old)?;
-                        // The same slot again: a log reader keeps the newer record.
-                        self.log_run(slot, n, &lines);
-                        self.slots[slot].record = Some(record);
+                        if let Measured::Taken(record, lines) =
+                            self.send_measurement(n, &old, false)?
+                        {
+                            // The same slot again: a log reader keeps the newer record.
+                            self.log_run(slot, n, &lines);
+                            self.slots[slot].record = Some(*record);
+                        }
                         break;
                     }
-                    "d" | "drop" => {
+                    "d" | "drop" | "r" | "re-drive" | "redrive" => {
+                        let direction = match self.slots[slot].record.as_ref().map(|r| r.path) {
+                            Some(PathKind::Square { direction, .. }) => Some(direction),
+                            _ => None,
+                        };
                         if on_board {
                             let r = self.cmd(&format!("drop {n}"))?;
+                            self.ui.say(&format!("  {}", r.last));
                             if !r.ok() {
                                 return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
                             }
@@ -138,12 +151,29 @@ impl Guide {
                         }
                         self.slots[slot].record = None;
                         self.link.log.entry("drop", json!({ "slot": slot }), true);
+                        if a.starts_with('d') {
+                            // Not driven again: one run less in its direction.
+                            match direction {
+                                Some(Direction::Cw) => self.less[0] += 1,
+                                Some(Direction::Ccw) => self.less[1] += 1,
+                                None => {}
+                            }
+                        }
                         break;
                     }
                     "k" | "keep" => continue 'runs,
-                    _ => self
-                        .ui
-                        .say(if on_board { "  m, d or k" } else { "  d or k" }),
+                    "help" | "?" | "" => self.ui.say(
+                        "  a run that disagrees is usually a typing mistake (x and y swapped, a \
+                         sign: y is positive to the left) or a bumped robot. m types its \
+                         measurement again; d drops it; r drops it and drives a new square in \
+                         its place; k keeps it (the exact fit gives it a small weight; the \
+                         closed forms do not)",
+                    ),
+                    _ => self.ui.say(if on_board {
+                        "  m, d, r or k (help explains)"
+                    } else {
+                        "  d, r or k (help explains)"
+                    }),
                 }
             }
             changed = true;
@@ -203,7 +233,36 @@ impl Guide {
                 return Ok(());
             }
         }
-        let applied = self.cmd(&format!("apply {method}"))?;
+        let row = table
+            .iter()
+            .find(|l| l.split_whitespace().next() == Some(method.as_str()))
+            .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>())
+            .filter(|w| w.len() == 3)
+            .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
+            .unwrap_or_default();
+        if !self
+            .ui
+            .confirm_explicit(&format!("Apply {method}{row} to the board"))?
+        {
+            self.ui
+                .say("nothing applied; the board keeps its parameters");
+            return Ok(());
+        }
+        let mut applied = self.cmd(&format!("apply {method}"))?;
+        if applied.err_code() == Some(25) {
+            // A run is flagged (the board's own check): applied only on a second yes.
+            self.ui.say(&format!("  {}", applied.last));
+            if !self.ui.confirm_explicit(&format!(
+                "Apply {method} anyway, with the flagged run in it"
+            ))? {
+                self.ui.say(
+                    "nothing applied: re-measure or drop the flagged run (a terminal: `measure \
+                     #n …`, `drop n`), or resume this session to drive it again",
+                );
+                return Ok(());
+            }
+            applied = self.cmd(&format!("apply {method} yes"))?;
+        }
         self.link.log.entry(
             "apply",
             json!({ "method": method, "reply": applied.last }),
@@ -214,16 +273,27 @@ impl Guide {
         }
         self.ui.say(&format!("  {}", applied.last));
         self.applied = Some(method.clone());
-        let saved = self.cmd("save")?;
-        self.link.log.entry(
-            "save",
-            json!({ "ok": saved.ok(), "reply": saved.last }),
-            true,
-        );
-        if !saved.ok() {
-            return Err(Stop::Failed(format!("save: {}", saved.last)));
+        if self.ui.confirm_explicit(
+            "Save it to the board's flash (kept at every boot, with the geometry, wiring and \
+             motor tuning)",
+        )? {
+            let saved = self.cmd("save")?;
+            self.link.log.entry(
+                "save",
+                json!({ "ok": saved.ok(), "reply": saved.last }),
+                true,
+            );
+            if !saved.ok() {
+                return Err(Stop::Failed(format!("save: {}", saved.last)));
+            }
+            self.ui.say(&format!("  {}", saved.last));
+            self.saved = true;
+        } else {
+            self.ui.say(
+                "  not saved: the board uses the calibration until it is reset (type `save` on \
+                 a terminal to keep it)",
+            );
         }
-        self.ui.say(&format!("  {}", saved.last));
         let params = self.cmd("params")?;
         let line = calibration_of(&params.data);
         let want = (field(applied.text(), "E_d"), field(applied.text(), "E_b"));
@@ -240,8 +310,12 @@ impl Guide {
             )));
         }
         self.ui.say(&format!(
-            "verified: params shows calibration {line}; stored in flash, used from the next run \
-             and at every boot"
+            "verified: params shows calibration {line}; {}",
+            if self.saved {
+                "stored in flash, used from the next run and at every boot"
+            } else {
+                "used from the next run, until a reset (not saved)"
+            }
         ));
         Ok(())
     }
@@ -272,9 +346,25 @@ impl Guide {
             &runs,
             calibrated.as_ref(),
             &format!(
-                "odocal session {}: {} runs",
+                "odocal session {}: {} runs; {}{}",
                 self.link.log.path.display(),
-                runs.len()
+                runs.len(),
+                match &self.applied {
+                    Some(m) => format!("applied {m}"),
+                    None => "nothing applied (after: exact)".into(),
+                },
+                if self.flagged.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; flagged and kept: run {}",
+                        self.flagged
+                            .iter()
+                            .map(usize::to_string)
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                }
             ),
         );
         let path = self.link.log.path.with_extension("svg");

@@ -5,10 +5,19 @@
 use std::time::Duration;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
-use odocal::session::measure::{self, Implausible};
 use serde_json::json;
 
-use super::{Guide, RUN_TIMEOUT, Slot, Stop, field, path_text, quantity};
+use super::{Guide, RUN_TIMEOUT, Slot, Stop, field, path_text};
+
+/// What became of a measurement question.
+pub(super) enum Measured {
+    /// The board took it: the run's record as it now holds it, and its lines.
+    Taken(Box<RunRecord>, Vec<String>),
+    /// The run was dropped, to be driven again.
+    Dropped,
+    /// The run was dropped, and no more runs are driven.
+    Skip,
+}
 
 impl Guide {
     pub(super) fn counts(&self) -> (u32, u32) {
@@ -26,35 +35,38 @@ impl Guide {
 
     pub(super) fn drive_missing_runs(&mut self) -> Result<(), Stop> {
         loop {
+            if self.stop_runs {
+                return Ok(());
+            }
             let (cw, ccw) = self.counts();
             let n = self.per_direction;
-            let direction = if cw < n && cw <= ccw {
+            let (n_cw, n_ccw) = (
+                n.saturating_sub(self.less[0]),
+                n.saturating_sub(self.less[1]),
+            );
+            let direction = if cw < n_cw && (cw <= ccw || ccw >= n_ccw) {
                 Direction::Cw
-            } else if ccw < n {
+            } else if ccw < n_ccw {
                 Direction::Ccw
             } else {
                 return Ok(());
             };
-            self.drive_one(direction, cw + ccw + 1, 2 * n)?;
+            let title = format!("run {}/{}", cw + ccw + 1, n_cw + n_ccw);
+            self.drive_one(direction, &title)?;
         }
     }
 
     /// Drives one square and measures it; a run that is aborted is offered again.
-    pub(super) fn drive_one(
-        &mut self,
-        direction: Direction,
-        k: u32,
-        total: u32,
-    ) -> Result<(), Stop> {
+    pub(super) fn drive_one(&mut self, direction: Direction, title: &str) -> Result<(), Stop> {
         let dir = direction.as_str();
         self.ui.say(&format!(
-            "run {k}/{total}: square {dir} L={:.3} m. Put the robot on the start marks (axle \
+            "{title}: square {dir} L={:.3} m. Put the robot on the start marks (axle \
              midpoint on the origin mark, heading along the +x mark).",
             self.side_m
         ));
         let start = loop {
             let a = self.ui.ask(
-                "Enter starts the run (b: wait for the board's button)",
+                "Enter starts the run (b: wait for the board's button; help, drop, skip)",
                 Some("go"),
             )?;
             // Only Enter (or `go`) moves the robot: anything else typed here (a measurement
@@ -62,6 +74,31 @@ impl Guide {
             let button = match a.to_ascii_lowercase().as_str() {
                 "go" => false,
                 "b" => true,
+                "help" | "?" => {
+                    self.ui.say(
+                        "  Enter (or go) starts the square now; b waits for a short press of the \
+                         board's button (start it from the robot's side). drop forgets the \
+                         previous run (bumped, mis-measured) and drives it again; skip drives \
+                         no more runs and calibrates with those measured (one per direction at \
+                         least). Ctrl-C stops the robot at any time.",
+                    );
+                    continue;
+                }
+                "drop" => {
+                    self.drop_last_run()?;
+                    return Ok(());
+                }
+                "skip" => {
+                    if self.both_directions_measured() {
+                        self.stop_runs = true;
+                        return Ok(());
+                    }
+                    self.ui.say(
+                        "  skip needs a measured run in each direction (CW and CCW) to \
+                         calibrate: drive this one",
+                    );
+                    continue;
+                }
                 _ => {
                     self.ui.say(&format!(
                         "  `{a}` starts nothing: press Enter (or type go) to start the run, or b \
@@ -105,9 +142,10 @@ impl Guide {
             }
             // Not retried when busy: a run started meanwhile (the button) is followed instead
             // of starting another after it.
-            let r = self
-                .link
-                .command(&format!("run {dir} {}", self.side_m), super::REPLY)?;
+            let r = self.link.command(
+                &format!("run {dir} {}", super::setup::metres_text(self.side_m)),
+                super::REPLY,
+            )?;
             if r.ok() {
                 break start;
             }
@@ -132,6 +170,13 @@ impl Guide {
                 return Err(Stop::Failed(
                     "the board's run store is full: calibrate or drop runs".into(),
                 ));
+            } else if r.err_code() == Some(24) {
+                // A run on the board that this session does not know is unmeasured.
+                return Err(Stop::Failed(format!(
+                    "the board holds an unmeasured run this session did not drive: measure or \
+                     drop it on a terminal ({})",
+                    r.last
+                )));
             }
         };
         // Live progress from the pose stream.
@@ -227,7 +272,7 @@ impl Guide {
         let n = runs.data.len();
         let (record, _) = self.fetch_record(n)?;
         self.ui.say(&format!(
-            "run {k} finished: {} odometry end x={:+.6} y={:+.6} theta={:+.4} deg",
+            "{title} finished: {} odometry end x={:+.6} y={:+.6} theta={:+.4} deg",
             path_text(&record.path),
             record.odometry_end.x_m,
             record.odometry_end.y_m,
@@ -236,81 +281,200 @@ impl Guide {
         self.measure(n, &record, path)
     }
 
-    /// Asks for the measured end pose, checks it with the library's plausibility rule, sends
-    /// `measure`, then logs the run's record with the measurement.
+    /// Asks for the measured end pose and sends it (or drops the run), then logs the run's
+    /// record with the measurement.
     pub(super) fn measure(
         &mut self,
         n: usize,
         record: &RunRecord,
         path: Vec<(f64, f64)>,
     ) -> Result<(), Stop> {
-        let (record, lines) = self.send_measurement(n, record)?;
-        self.adopt(n, record, lines, path);
+        match self.send_measurement(n, record, true)? {
+            Measured::Taken(record, lines) => self.adopt(n, *record, lines, path),
+            Measured::Dropped => {}
+            Measured::Skip => self.stop_runs = true,
+        }
         Ok(())
     }
 
-    /// Asks for board run `n`'s measured end pose until the board takes it (`measure #n …`,
-    /// which also replaces an earlier measurement); the run's record as the board now holds it.
+    /// What to type at the measurement question, and what the board will do with it.
+    fn measure_help(&mut self, n: usize, record: &RunRecord, may_drop: bool) {
+        let o = &record.odometry_end;
+        self.ui.say(&format!(
+            "  Measure where the axle midpoint stopped, in the run's start frame: x along the \
+             start heading (forward positive), y to the left (positive left), and if you can \
+             the heading change theta (CCW positive), e.g. `0.0418 -0.0395 -2.3`.\n  A bare \
+             number is metres (theta: degrees); type the unit when you measured in another \
+             one: `41.8mm -39.5mm`, `4.18cm`, `-2.3deg`, `-0.04rad`. The board checks it \
+             against the odometry end (x={:+.4} y={:+.4} m) and asks for the unit when a bare \
+             value is implausible as metres.{}",
+            o.x_m,
+            o.y_m,
+            if may_drop {
+                format!(
+                    "\n  drop: forget run {n} (bumped, not measurable) and drive it again; \
+                     skip: forget it and drive no more runs (calibrate with those measured)."
+                )
+            } else {
+                String::new()
+            }
+        ));
+    }
+
+    /// Asks for board run `n`'s measured end pose until the board takes it (`measure #n …`
+    /// with the words as typed, units included: the board reads them; it also replaces an
+    /// earlier measurement). With `may_drop`, `drop` and `skip` drop the run instead.
     pub(super) fn send_measurement(
         &mut self,
         n: usize,
         record: &RunRecord,
-    ) -> Result<(RunRecord, Vec<String>), Stop> {
-        let line = loop {
+        may_drop: bool,
+    ) -> Result<Measured, Stop> {
+        loop {
             let a = self.ui.ask(
                 &format!(
-                    "Measured end pose of run {n}: x y [theta] (m, deg; y to the left; or 41.8mm)"
+                    "Measured end pose of run {n}: x y [theta] (m, deg; y to the left; or \
+                     41.8mm; help{})",
+                    if may_drop { ", drop, skip" } else { "" }
                 ),
                 None,
             )?;
-            let words = super::measurement_words(&a);
-            if !(2..=3).contains(&words.len()) {
-                self.ui.say("  two or three numbers: x y [theta]");
-                continue;
-            }
-            let parsed = (|| -> Result<(f64, f64, Option<f64>), String> {
-                Ok((
-                    quantity(&words[0], false)?,
-                    quantity(&words[1], false)?,
-                    words.get(2).map(|w| quantity(w, true)).transpose()?,
-                ))
-            })();
-            let (x, y, t) = match parsed {
-                Ok(v) => v,
-                Err(e) => {
-                    self.ui.say(&format!("  {e}"));
+            let word = a.trim().to_ascii_lowercase();
+            match word.as_str() {
+                "" | "help" | "?" => {
+                    self.measure_help(n, record, may_drop);
                     continue;
                 }
-            };
-            if let Err(why) = measure::check(record, x, y, t) {
-                self.ui.say(&format!("  not plausible for this run: {why}"));
-                if let Implausible::Position {
-                    unit_hint: Some(_), ..
-                } = why
-                {
-                    self.ui
-                        .say("  (type the unit: e.g. `41.8mm -39.5mm`, or metres: 0.0418)");
+                "drop" | "skip" if may_drop => {
+                    if word == "skip" && !self.both_directions_measured() {
+                        self.ui.say(
+                            "  skip needs a measured run in each direction (CW and CCW) to \
+                             calibrate: measure this one, or drop it and drive it again",
+                        );
+                        continue;
+                    }
+                    let r = self.cmd(&format!("drop {n}"))?;
+                    self.ui.say(&format!("  {}", r.last));
+                    if !r.ok() {
+                        return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+                    }
+                    return Ok(if word == "drop" {
+                        self.ui.say("  the run is driven again");
+                        Measured::Dropped
+                    } else {
+                        Measured::Skip
+                    });
+                }
+                _ => {}
+            }
+            let words = super::measurement_words(&a);
+            if !(2..=3).contains(&words.len()) {
+                self.ui.say(&format!(
+                    "  `{a}`: x y [theta], two or three values (e.g. `0.0418 -0.0395` or \
+                     `41.8mm -39.5mm -2.3deg`); help explains"
+                ));
+                continue;
+            }
+            let line = format!("measure #{n} {}", words.join(" "));
+            let r = self.cmd(&line)?;
+            self.link.log.entry(
+                "measure",
+                json!({ "board": n, "line": line, "reply": r.last }),
+                true,
+            );
+            self.ui.say(&format!("  {}", r.last));
+            if !r.ok() {
+                if r.err_code() == Some(22) {
+                    self.ui.say(
+                        "  (nothing stored; type it again, with its unit if it was not metres)",
+                    );
                 }
                 continue;
             }
-            let mut line = format!("measure #{n} {x} {y}");
-            if let Some(t) = t {
-                line.push_str(&format!(" {t}"));
-            }
-            break line;
-        };
-        let r = self.cmd(&line)?;
-        self.link.log.entry(
-            "measure",
-            json!({ "board": n, "line": line, "reply": r.last }),
-            true,
-        );
-        if !r.ok() {
-            self.ui.warn(&format!("the board refused it: {}", r.last));
-            return self.send_measurement(n, record);
+            let (record, lines) = self.fetch_record(n)?;
+            return Ok(Measured::Taken(Box::new(record), lines));
         }
-        self.ui.say(&format!("  {}", r.last));
-        self.fetch_record(n)
+    }
+
+    /// Whether the session has a measured square in each direction.
+    pub(super) fn both_directions_measured(&self) -> bool {
+        let (cw, ccw) = self.counts();
+        cw > 0 && ccw > 0
+    }
+
+    /// Runs the board holds from before this session: dropped (`drop all yes`, the default) or
+    /// used as the session's first runs (measured ones as they are; an unmeasured one is
+    /// measured now).
+    pub(super) fn runs_from_before(&mut self, stored: usize) -> Result<(), Stop> {
+        self.ui.say(&format!(
+            "the board holds {stored} run(s) from before this session"
+        ));
+        let choice = self.choose(
+            "Runs from before",
+            &[("d", "drop them"), ("u", "use them")],
+            "d",
+            "  d drops them for a clean session (`drop all yes`); u makes them this session's \
+             first runs (e.g. squares driven from a terminal): their measurements as entered, an \
+             unmeasured one is measured now",
+        )?;
+        if choice == "d" {
+            // The board asks for `drop all yes`: the operator chose to drop them just now.
+            let r = self.cmd("drop all yes")?;
+            self.ui.say(&format!("  {}", r.last));
+            if !r.ok() {
+                return Err(Stop::Failed(format!("drop all: {}", r.last)));
+            }
+            return Ok(());
+        }
+        let (mut n, mut left) = (1, stored);
+        while n <= left {
+            let (record, lines) = self.fetch_record(n)?;
+            self.ui.say(&format!(
+                "  board run {n}: {}{}",
+                path_text(&record.path),
+                if record.measured.is_some() {
+                    ", measured"
+                } else {
+                    ", not measured"
+                }
+            ));
+            if record.measured.is_some() {
+                self.adopt(n, record, lines, Vec::new());
+            } else {
+                self.measure(n, &record, Vec::new())?;
+            }
+            if self.board.len() < n {
+                // Dropped: the later runs moved up one number.
+                left -= 1;
+            } else {
+                n += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Drops the session's last run (on the board too, when it holds it): it is driven again.
+    pub(super) fn drop_last_run(&mut self) -> Result<(), Stop> {
+        let Some(slot) = (0..self.slots.len())
+            .rev()
+            .find(|&i| self.slots[i].record.is_some())
+        else {
+            self.ui.say("  there is no run to drop yet");
+            return Ok(());
+        };
+        if let Some(pos) = self.board.iter().position(|&s| s == slot) {
+            let r = self.cmd(&format!("drop {}", pos + 1))?;
+            self.ui.say(&format!("  {}", r.last));
+            if !r.ok() {
+                return Err(Stop::Failed(format!("drop {}: {}", pos + 1, r.last)));
+            }
+            self.board.remove(pos);
+        }
+        self.slots[slot].record = None;
+        self.link.log.entry("drop", json!({ "slot": slot }), true);
+        self.ui
+            .say("  the previous run is dropped: it is driven again");
+        Ok(())
     }
 
     /// Logs board run `n`'s record as the session's next slot.

@@ -1,0 +1,620 @@
+//! `cargo console export LOG --format ros2|urdf|json [-o FILE]`: the calibration a session left
+//! on the board, in a form a robot stack loads.
+//!
+//! LOG is the console's session log (JSON lines) or a plain capture of a terminal session with
+//! the board (picocom's `--logfile`, `screen -L`, a copy of the terminal): what counts is the
+//! board's own reply to `params` (the last one in the log), whose `active …` line is the
+//! geometry the board drives with and whose `calibration …` line names the method applied. When
+//! the log also holds the session's runs (a session log), the same method is solved again on the
+//! PC with the board's library from those runs: if that agrees with the board's printed `active`
+//! geometry to its 9 decimals, the full-precision values are written, otherwise the board's.
+//!
+//! The 1σ of E_d and E_b comes from that solution, or else from the method's row of the last
+//! `calibrate` table in the log. The pose covariance is derived from it (see
+//! [`pose_covariance`]).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use odocal::calibration::{synth, wrap_angle};
+use odocal::kinematics::geometry::Geometry;
+use odocal::kinematics::reference::{ArcModel, PoseF64};
+use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::session::Calibrator;
+use odocal::session::library::LibraryCalibrator;
+use serde_json::{Value, json};
+
+use crate::log::{LogContents, calibration_of, nominal_of, param};
+
+/// Variance written for the pose components a planar robot's odometry does not observe (z, roll,
+/// pitch), as ROS configurations of `diff_drive_controller` commonly do.
+const UNOBSERVED_VARIANCE: f64 = 1.0e6;
+
+/// The output formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// ROS 2 `diff_drive_controller` parameter file (YAML).
+    Ros2,
+    /// URDF snippet: the wheel links and joints.
+    Urdf,
+    /// The calibration, its uncertainty and the runs (JSON).
+    Json,
+}
+
+/// What a log says about the board's calibration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Export {
+    /// The nominal geometry (`params`).
+    pub nominal: Geometry,
+    /// The geometry the board drives with.
+    pub applied: Geometry,
+    /// The applied method, `None` for an uncalibrated board.
+    pub method: Option<String>,
+    /// `(E_d, E_b, E_s)` of the applied geometry.
+    pub factors: (f64, f64, f64),
+    /// 1σ of E_d and E_b, when the log says.
+    pub sd: Option<(f64, f64)>,
+    /// Where the applied geometry's digits come from.
+    pub source: String,
+    /// The square side the pose covariance refers to (the board's `square_side`).
+    pub side_m: f64,
+    /// The runs of a session log.
+    pub runs: Vec<RunRecord>,
+    /// The last `calibrate` table in the log (its lines).
+    pub table: Vec<String>,
+}
+
+/// The board's replies found in a sequence of received lines: the last `params` data lines and
+/// the last `calibrate` table (its lines, the final one included).
+#[derive(Debug, Default)]
+struct Replies {
+    params: Option<Vec<String>>,
+    table: Option<Vec<String>>,
+}
+
+#[derive(PartialEq)]
+enum Block {
+    Params,
+    Table,
+    Other,
+}
+
+/// Scans the board's output: data lines (two leading spaces) up to a final `ok`/`err` line form
+/// a reply; `event`/`stream` lines between them are skipped, anything else (an echoed command,
+/// a prompt) ends the reply being read.
+fn scan<'a>(lines: impl Iterator<Item = &'a str>) -> Replies {
+    let mut found = Replies::default();
+    let mut current: Option<(Block, Vec<String>)> = None;
+    for raw in lines {
+        let l = raw.trim_end_matches(['\r', '\n']);
+        if let Some(data) = l.strip_prefix("  ") {
+            let data = data.trim_start().to_string();
+            let (_, lines) = current.get_or_insert_with(|| {
+                let kind = if data.starts_with("d_right ") {
+                    Block::Params
+                } else if data.starts_with("method ") {
+                    Block::Table
+                } else {
+                    Block::Other
+                };
+                (kind, Vec::new())
+            });
+            lines.push(data);
+        } else if l == "ok" || l.starts_with("ok ") || l.starts_with("err ") {
+            match current.take() {
+                Some((Block::Params, lines)) if l == "ok" => found.params = Some(lines),
+                Some((Block::Table, mut lines)) => {
+                    lines.push(l.to_string());
+                    found.table = Some(lines);
+                }
+                _ => {}
+            }
+        } else if !(l.starts_with("event ") || l.starts_with("stream ")) {
+            current = None;
+        }
+    }
+    found
+}
+
+/// `key=value` of a text, as a number.
+fn number_after(text: &str, key: &str) -> Option<f64> {
+    text.split_whitespace()
+        .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+        .and_then(|v| v.parse().ok())
+}
+
+/// The `active d_right=… d_left=… wheelbase=… m` line of a `params` reply.
+fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geometry> {
+    let line = params.iter().find_map(|l| l.strip_prefix("active "))?;
+    Some(Geometry {
+        diameter_right_m: number_after(line, "d_right")?,
+        diameter_left_m: number_after(line, "d_left")?,
+        wheelbase_m: number_after(line, "wheelbase")?,
+        counts_per_rev,
+    })
+}
+
+/// `(sd_E_d, sd_E_b)` of `method`'s row in a `calibrate` table (its last two columns).
+fn sd_of(table: &[String], method: &str) -> Option<(f64, f64)> {
+    let row = table
+        .iter()
+        .find(|l| l.split_whitespace().next() == Some(method))?;
+    let w: Vec<&str> = row.split_whitespace().collect();
+    if w.len() < 10 {
+        return None;
+    }
+    Some((w[8].parse().ok()?, w[9].parse().ok()?))
+}
+
+/// `v` as a YAML float that YAML 1.1 readers (PyYAML) take as a number too: the shortest
+/// digits that read back to the same `f64`, with a decimal point in the mantissa and a signed
+/// exponent (`1.0e-5`, not `1e-5`).
+pub fn yaml_float(v: f64) -> String {
+    let s = format!("{v:?}");
+    match s.split_once('e') {
+        Some((mantissa, exp)) => {
+            let mantissa = if mantissa.contains('.') {
+                mantissa.to_string()
+            } else {
+                format!("{mantissa}.0")
+            };
+            let exp = if exp.starts_with('-') {
+                exp.to_string()
+            } else {
+                format!("+{exp}")
+            };
+            format!("{mantissa}e{exp}")
+        }
+        None => s,
+    }
+}
+
+/// The printed resolution of the `active` line (9 decimals) plus the error of its parse.
+const PRINTED: f64 = 0.5e-9 + 1e-15;
+
+fn within_print(a: &Geometry, b: &Geometry) -> bool {
+    (a.diameter_right_m - b.diameter_right_m).abs() <= PRINTED
+        && (a.diameter_left_m - b.diameter_left_m).abs() <= PRINTED
+        && (a.wheelbase_m - b.wheelbase_m).abs() <= PRINTED
+}
+
+impl Export {
+    /// Reads a session log (JSON lines) or a plain terminal capture.
+    ///
+    /// # Errors
+    /// No `params` reply of the board in it, or an unreadable file, as text.
+    pub fn read(path: &Path) -> Result<Export, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let session_log = text
+            .lines()
+            .find(|l| !l.trim().is_empty())
+            .is_some_and(|l| serde_json::from_str::<Value>(l).is_ok_and(|v| v["kind"].is_string()));
+        let (replies, runs, tables) = if session_log {
+            let c = LogContents::read(path)?;
+            let rx: Vec<String> = text
+                .lines()
+                .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+                .filter(|v| v["kind"] == "rx")
+                .filter_map(|v| v["line"].as_str().map(str::to_string))
+                .collect();
+            let mut replies = scan(rx.iter().map(String::as_str));
+            // The console logs its data lines too (without the board's two spaces).
+            if replies.params.is_none() {
+                replies.params = last_logged_params(&text);
+            }
+            (replies, c.live_runs(), c.tables)
+        } else {
+            (scan(text.lines()), Vec::new(), Vec::new())
+        };
+        let params = replies.params.ok_or_else(|| {
+            format!(
+                "{}: no reply of the board to `params` in it (type `params` on the board's \
+                 console while the log is being written)",
+                path.display()
+            )
+        })?;
+        let nominal = nominal_of(&params)
+            .ok_or_else(|| format!("{}: its `params` reply has no geometry", path.display()))?;
+        let active = active_of(&params, nominal.counts_per_rev).ok_or_else(|| {
+            format!(
+                "{}: its `params` reply has no `active` line (a firmware too old to say)",
+                path.display()
+            )
+        })?;
+        let calibration = calibration_of(&params);
+        let method = calibration
+            .split_whitespace()
+            .next()
+            .filter(|m| *m != "none")
+            .map(str::to_string);
+        let table = tables
+            .last()
+            .map(|(_, t)| t.clone())
+            .or(replies.table)
+            .unwrap_or_default();
+        let side_m = param(&params, "square_side").unwrap_or(2.0);
+        let mut export = Export {
+            nominal,
+            applied: active,
+            method: method.clone(),
+            factors: (
+                number_after(&calibration, "E_d").unwrap_or(active.diameter_ratio()),
+                number_after(&calibration, "E_b")
+                    .unwrap_or(active.wheelbase_m / nominal.wheelbase_m),
+                number_after(&calibration, "E_s").unwrap_or(1.0),
+            ),
+            sd: None,
+            source: "the board's `params` (active geometry, 9 decimals)".into(),
+            side_m,
+            runs,
+            table,
+        };
+        let Some(method) = method else {
+            export.source =
+                "the board's `params`: no calibration applied (nominal geometry)".into();
+            return Ok(export);
+        };
+        export.sd = sd_of(&export.table, &method);
+        if !export.runs.is_empty()
+            && let Ok(sol) =
+                LibraryCalibrator::default().solve(&export.runs, &export.nominal, &method)
+            && within_print(&sol.geometry, &active)
+        {
+            export.applied = sol.geometry;
+            export.factors = (sol.e_d, sol.e_b, sol.e_s);
+            export.sd = match (sol.sd_e_d, sol.sd_e_b) {
+                (Some(d), Some(b)) => Some((d, b)),
+                _ => export.sd,
+            };
+            export.source = format!(
+                "`{method}` solved again from the log's {} runs with the board's library (equal \
+                 to the board's `params` to its 9 decimals)",
+                export.runs.len()
+            );
+        }
+        Ok(export)
+    }
+
+    /// The nominal wheel radius the multipliers refer to: half the nominal mean diameter.
+    pub fn wheel_radius(&self) -> f64 {
+        0.25 * (self.nominal.diameter_right_m + self.nominal.diameter_left_m)
+    }
+
+    /// Writes the export in `format`.
+    pub fn write(&self, format: Format, log: &Path) -> String {
+        match format {
+            Format::Ros2 => self.ros2(log),
+            Format::Urdf => self.urdf(log),
+            Format::Json => self.json(log).to_string() + "\n",
+        }
+    }
+
+    fn origin(&self, log: &Path) -> String {
+        match &self.method {
+            Some(m) => format!(
+                "odocal calibration `{m}` (E_d={} E_b={} E_s={}) from {}",
+                self.factors.0,
+                self.factors.1,
+                self.factors.2,
+                log.display()
+            ),
+            None => format!(
+                "odocal nominal geometry (no calibration) from {}",
+                log.display()
+            ),
+        }
+    }
+
+    fn ros2(&self, log: &Path) -> String {
+        let g = &self.applied;
+        let r = self.wheel_radius();
+        let mut s = String::new();
+        let _ = writeln!(s, "# {}", self.origin(log));
+        let _ = writeln!(s, "# Digits: {}.", self.source);
+        let _ = writeln!(
+            s,
+            "# D_R = 2 * wheel_radius * right_wheel_radius_multiplier = {} m,\n\
+             # D_L = 2 * wheel_radius * left_wheel_radius_multiplier = {} m, b = wheel_separation.",
+            g.diameter_right_m, g.diameter_left_m
+        );
+        let _ = writeln!(
+            s,
+            "# Rename the top key to your controller's name and add left_wheel_names and \
+             right_wheel_names."
+        );
+        s.push_str("diff_drive_controller:\n  ros__parameters:\n");
+        let _ = writeln!(s, "    wheel_separation: {}", yaml_float(g.wheelbase_m));
+        let _ = writeln!(s, "    wheel_radius: {}", yaml_float(r));
+        let _ = writeln!(s, "    wheel_separation_multiplier: 1.0");
+        let _ = writeln!(
+            s,
+            "    left_wheel_radius_multiplier: {}",
+            yaml_float(g.diameter_left_m / (2.0 * r))
+        );
+        let _ = writeln!(
+            s,
+            "    right_wheel_radius_multiplier: {}",
+            yaml_float(g.diameter_right_m / (2.0 * r))
+        );
+        match self.pose_covariance() {
+            Some(c) => {
+                let _ = writeln!(
+                    s,
+                    "    # Variances of x, y (m^2), z, roll, pitch (unobserved) and yaw (rad^2): \
+                     the end pose's spread after one {side} m square from the calibration's \
+                     1-sigma (sd_E_d={:.3e}, sd_E_b={:.3e}); see docs/operator.md.",
+                    self.sd.map_or(0.0, |v| v.0),
+                    self.sd.map_or(0.0, |v| v.1),
+                    side = self.side_m
+                );
+                let _ = writeln!(
+                    s,
+                    "    pose_covariance_diagonal: [{}]",
+                    c.iter()
+                        .map(|v| yaml_float(*v))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "    # pose_covariance_diagonal: not written: the log has no 1-sigma of the \
+                     calibration (no `calibrate` table, no runs)."
+                );
+            }
+        }
+        s
+    }
+
+    fn urdf(&self, log: &Path) -> String {
+        let g = &self.applied;
+        let mut s = String::new();
+        let _ = writeln!(s, "<?xml version=\"1.0\"?>");
+        let _ = writeln!(s, "<!-- {} -->", self.origin(log));
+        let _ = writeln!(
+            s,
+            "<!-- base_link: the wheel axle's midpoint (the pose odocal calibrates), x forward, y \
+             to the left. Wheel joints at y = +-b/2, b = {:?} m; the cylinders carry the wheel \
+             radii (their length is not calibrated). -->",
+            g.wheelbase_m
+        );
+        s.push_str("<robot name=\"odocal_wheels\">\n  <link name=\"base_link\"/>\n");
+        for (side, y, d) in [
+            ("left", 0.5 * g.wheelbase_m, g.diameter_left_m),
+            ("right", -0.5 * g.wheelbase_m, g.diameter_right_m),
+        ] {
+            let _ = write!(
+                s,
+                "  <link name=\"{side}_wheel\">\n    <collision>\n      <geometry><cylinder \
+                 radius=\"{r:?}\" length=\"0.02\"/></geometry>\n    </collision>\n  </link>\n  \
+                 <joint name=\"{side}_wheel_joint\" type=\"continuous\">\n    <parent \
+                 link=\"base_link\"/>\n    <child link=\"{side}_wheel\"/>\n    <origin xyz=\"0 \
+                 {y:?} 0\" rpy=\"-1.5707963267948966 0 0\"/>\n    <axis xyz=\"0 0 1\"/>\n  \
+                 </joint>\n",
+                r = 0.5 * d
+            );
+        }
+        s.push_str("</robot>\n");
+        s
+    }
+
+    fn json(&self, log: &Path) -> Value {
+        let g = &self.applied;
+        let n = &self.nominal;
+        let runs: Vec<Value> = self
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let (kind, size) = match r.path {
+                    PathKind::Square { direction, side_m } => {
+                        (format!("square {}", direction.as_str()), side_m)
+                    }
+                    PathKind::Line { length_m } => ("line".into(), length_m),
+                    PathKind::Circle {
+                        direction,
+                        radius_m,
+                    } => (format!("circle {}", direction.as_str()), radius_m),
+                };
+                json!({
+                    "run": i + 1,
+                    "path": kind,
+                    "size_m": size,
+                    "odometry_end": { "x_m": r.odometry_end.x_m, "y_m": r.odometry_end.y_m,
+                        "theta_rad": r.odometry_end.theta_rad },
+                    "measured": r.measured.map(|m| json!({ "x_m": m.x_m, "y_m": m.y_m,
+                        "theta_rad": m.theta_rad })),
+                })
+            })
+            .collect();
+        json!({
+            "log": log.display().to_string(),
+            "source": self.source,
+            "method": self.method,
+            "nominal": { "d_right_m": n.diameter_right_m, "d_left_m": n.diameter_left_m,
+                "wheelbase_m": n.wheelbase_m, "counts_per_rev": n.counts_per_rev },
+            "applied": { "d_right_m": g.diameter_right_m, "d_left_m": g.diameter_left_m,
+                "wheelbase_m": g.wheelbase_m, "counts_per_rev": g.counts_per_rev },
+            "factors": { "e_d": self.factors.0, "e_b": self.factors.1, "e_s": self.factors.2 },
+            "sd": self.sd.map(|(d, b)| json!({ "e_d": d, "e_b": b })),
+            "pose_covariance_diagonal": self.pose_covariance(),
+            "covariance_square_side_m": self.side_m,
+            "table": self.table,
+            "runs": runs,
+        })
+    }
+
+    /// The diagonal of the pose covariance `[x, y, z, roll, pitch, yaw]` a robot stack may
+    /// publish with this calibration: the variance of the end pose of one square of the plan's
+    /// side L (CW and CCW, the larger of the two), when E_d and E_b are off by their 1σ. Each
+    /// factor is moved by ±1σ alone; the square's ticks, commanded with the applied geometry,
+    /// are integrated with the moved geometry by the library's exact-arc model; half the
+    /// difference of the two end poses is that factor's 1σ effect, and the two are added as
+    /// independent variances. z, roll and pitch are unobserved ([`UNOBSERVED_VARIANCE`]).
+    /// `None` without a 1σ.
+    pub fn pose_covariance(&self) -> Option<[f64; 6]> {
+        let (sd_d, sd_b) = self.sd?;
+        let g = &self.applied;
+        let (e_d, e_b) = (g.diameter_ratio(), g.wheelbase_m / self.nominal.wheelbase_m);
+        let end = |knots: &[odocal::kinematics::encoder::WheelTicks], d: f64, b: f64| -> PoseF64 {
+            let moved = g.corrected(1.0 + d / e_d, 1.0 + b / e_b, 1.0);
+            ArcModel::from_geometry(&moved).integrate(PoseF64::default(), knots)
+        };
+        let mut var = [0.0f64; 3];
+        for direction in [Direction::Cw, Direction::Ccw] {
+            let knots = synth::square_knots(g, direction, self.side_m);
+            let mut v = [0.0f64; 3];
+            for (d, b) in [(sd_d, 0.0), (0.0, sd_b)] {
+                let (p, m) = (end(&knots, d, b), end(&knots, -d, -b));
+                let half = [
+                    0.5 * (p.x_m - m.x_m),
+                    0.5 * (p.y_m - m.y_m),
+                    0.5 * wrap_angle(p.theta_rad - m.theta_rad),
+                ];
+                for k in 0..3 {
+                    v[k] += half[k] * half[k];
+                }
+            }
+            for k in 0..3 {
+                var[k] = var[k].max(v[k]);
+            }
+        }
+        Some([
+            var[0],
+            var[1],
+            UNOBSERVED_VARIANCE,
+            UNOBSERVED_VARIANCE,
+            UNOBSERVED_VARIANCE,
+            var[2],
+        ])
+    }
+}
+
+/// The data lines of the last `nominal` or `verify` entry of a session log (the console logs
+/// the board's `params` there).
+fn last_logged_params(text: &str) -> Option<Vec<String>> {
+    text.lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .filter(|v| v["kind"] == "nominal" || v["kind"] == "verify")
+        .filter_map(|v| {
+            v["params"].as_array().map(|a| {
+                a.iter()
+                    .filter_map(|s| s.as_str().map(str::to_string))
+                    .collect::<Vec<String>>()
+            })
+        })
+        .next_back()
+}
+
+/// `export`: reads `log`, writes `format` to `out` (stdout when `None`).
+///
+/// # Errors
+/// As text.
+pub fn run(log: &Path, format: Format, out: Option<&Path>) -> Result<(), String> {
+    let export = Export::read(log)?;
+    let text = export.write(format, log);
+    match out {
+        Some(p) => {
+            std::fs::write(p, text).map_err(|e| format!("{}: {e}", p.display()))?;
+            eprintln!(
+                "{}: {} ({})",
+                p.display(),
+                export.origin(log),
+                export.source
+            );
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A terminal capture: echo, events and the board's replies, CR LF line ends.
+    const CAPTURE: &str = "event boot: parameters loaded, reset: pin\r\n\
+        params\r\n\
+        \x20 d_right 0.150000000 m\r\n\
+        \x20 d_left 0.150000000 m\r\n\
+        \x20 wheelbase 0.385000000 m\r\n\
+        \x20 counts_per_rev 200000 counts/rev\r\n\
+        \x20 square_side 1.000 m\r\n\
+        \x20 active d_right=0.149625438 d_left=0.150375438 wheelbase=0.388850000 m\r\n\
+        \x20 calibration lee-y E_d=0.995012500 E_b=1.010000000 E_s=1.000000000 runs=10 E_max=3.6 mm\r\n\
+        ok\r\n";
+
+    #[test]
+    fn a_terminal_capture_with_the_params_reply_exports() {
+        let dir = std::env::temp_dir().join(format!("odocal-export-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let log = dir.join("picocom.log");
+        std::fs::write(&log, CAPTURE).unwrap();
+        let e = Export::read(&log).unwrap();
+        assert_eq!(e.method.as_deref(), Some("lee-y"));
+        assert_eq!(e.applied.diameter_right_m, 0.149625438);
+        assert_eq!(e.applied.wheelbase_m, 0.38885);
+        assert_eq!(e.side_m, 1.0);
+        // No calibrate table in the capture: no 1σ, no covariance.
+        assert_eq!(e.sd, None);
+        let yaml = e.write(Format::Ros2, &log);
+        assert!(yaml.contains("    wheel_separation: 0.38885\n"), "{yaml}");
+        assert!(yaml.contains("    wheel_radius: 0.075\n"), "{yaml}");
+        assert!(
+            yaml.contains("# pose_covariance_diagonal: not written"),
+            "{yaml}"
+        );
+        let urdf = e.write(Format::Urdf, &log);
+        assert!(urdf.contains("<origin xyz=\"0 0.194425 0\""), "{urdf}");
+        assert!(urdf.contains("radius=\"0.074812719\""), "{urdf}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn yaml_floats_read_back_exactly_and_as_numbers() {
+        for v in [0.38885001234913696, 1e-5, 2.5e-13, 1e20, 0.075, 1.0, 1e6] {
+            let s = yaml_float(v);
+            assert_eq!(s.parse::<f64>().unwrap(), v, "{s}");
+            assert!(s.contains('.'), "{s}");
+            if let Some((_, exp)) = s.split_once('e') {
+                assert!(exp.starts_with(['+', '-']), "{s}");
+            }
+        }
+        assert_eq!(yaml_float(1e-5), "1.0e-5");
+        assert_eq!(yaml_float(1e20), "1.0e+20");
+    }
+
+    #[test]
+    fn the_covariance_grows_with_the_uncertainty() {
+        let nominal = Geometry::PAPER_NOMINAL;
+        let mut e = Export {
+            nominal,
+            applied: nominal.with_factors(0.995, 1.01, 1.0),
+            method: Some("exact".into()),
+            factors: (0.995, 1.01, 1.0),
+            sd: Some((1e-4, 2e-4)),
+            source: String::new(),
+            side_m: 2.0,
+            runs: Vec::new(),
+            table: Vec::new(),
+        };
+        let small = e.pose_covariance().unwrap();
+        e.sd = Some((2e-4, 4e-4));
+        let large = e.pose_covariance().unwrap();
+        for k in [0, 1, 5] {
+            assert!(small[k] > 0.0, "{small:?}");
+            // First order: twice the 1σ, four times the variance.
+            assert!(
+                (large[k] / small[k] - 4.0).abs() < 0.01,
+                "{small:?} {large:?}"
+            );
+        }
+        assert_eq!(small[2], UNOBSERVED_VARIANCE);
+        // E_b alone: the four 90° turns' heading is off by 2π·sd_E_b/E_b.
+        e.sd = Some((0.0, 2e-4));
+        let turns = e.pose_covariance().unwrap();
+        let expected = 2.0 * std::f64::consts::PI * 2e-4 / 1.01;
+        assert!((turns[5].sqrt() / expected - 1.0).abs() < 0.01, "{turns:?}");
+    }
+}

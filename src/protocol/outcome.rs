@@ -1,0 +1,237 @@
+//! What a command did, as values: the session executes `run`/`next`/`line`/`circle`, `stop`,
+//! `measure`, `drop` and returns an [`Outcome`], and `set`, `reset-params`, `save`, `apply` a
+//! [`ParamOutcome`]; their `ok` lines are written here ([`write_outcome`],
+//! [`write_param_outcome`]), next to the refusals' `err` lines ([`super::refusal`]).
+
+use core::fmt::{self, Write};
+
+use super::param::ParamName;
+use super::refusal::write_path;
+use super::reply::EOL;
+use crate::motion::run::{Measurement, PathKind};
+use crate::util::decimal::Decimal;
+
+/// A run command that succeeded, with what its reply names.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Outcome {
+    /// A run started.
+    Started {
+        /// Its number (its place in the store once it finishes).
+        run: usize,
+        /// Its path.
+        path: PathKind,
+    },
+    /// `stop`: the motors stop; the run in progress, if any, was aborted and not stored.
+    Stopped {
+        /// The aborted run's number.
+        aborted: Option<usize>,
+    },
+    /// A measurement was stored for run `run`.
+    Measured {
+        /// The run.
+        run: usize,
+        /// Its path.
+        path: PathKind,
+        /// The measurement it replaced, if any.
+        replaced: Option<Measurement>,
+        /// Measured − odometry end, x and y, metres.
+        error_m: (f64, f64),
+        /// The heading kept from the replaced measurement (no new one was given), radians.
+        heading_kept: Option<f64>,
+    },
+    /// Run `run` was dropped; `left` runs remain.
+    Dropped {
+        /// Its number before the drop.
+        run: usize,
+        /// Its path.
+        path: PathKind,
+        /// Runs left.
+        left: usize,
+    },
+    /// Every run was dropped.
+    DroppedAll {
+        /// How many.
+        runs: usize,
+    },
+}
+
+/// `<n> run` / `<n> runs`.
+fn write_count(out: &mut dyn Write, n: usize, noun: &str) -> fmt::Result {
+    write!(out, "{n} {noun}{}", if n == 1 { "" } else { "s" })
+}
+
+/// Writes ` x=… y=…[ theta_deg=…]` of a measurement (metres with 6 decimals, degrees with 4).
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_measurement(out: &mut dyn Write, m: &Measurement) -> fmt::Result {
+    write!(
+        out,
+        "x={} y={}",
+        Decimal::signed(m.x_m, 6),
+        Decimal::signed(m.y_m, 6)
+    )?;
+    if let Some(t) = m.theta_rad {
+        write!(out, " theta_deg={}", Decimal::signed(t.to_degrees(), 4))?;
+    }
+    Ok(())
+}
+
+/// Writes the `ok …` line of `outcome`.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
+    match *outcome {
+        Outcome::Started { run, path } => {
+            write!(out, "ok run {run} started: ")?;
+            write_path(out, &path)?;
+        }
+        Outcome::Stopped { aborted: None } => out.write_str("ok stopped")?,
+        Outcome::Stopped { aborted: Some(n) } => {
+            write!(out, "ok stopped: run {n} aborted, not stored")?
+        }
+        Outcome::Measured {
+            run,
+            path,
+            replaced,
+            error_m: (dx, dy),
+            heading_kept,
+        } => {
+            write!(out, "ok run {run} ")?;
+            write_path(out, &path)?;
+            out.write_str(" measured")?;
+            if let Some(old) = replaced {
+                out.write_str(" (replaced ")?;
+                write_measurement(out, &old)?;
+                out.write_str(")")?;
+            }
+            write!(
+                out,
+                ": error vs odometry dx={} dy={} m",
+                Decimal::signed(dx, 6),
+                Decimal::signed(dy, 6),
+            )?;
+            if let Some(t) = heading_kept {
+                write!(
+                    out,
+                    " (heading kept: theta_deg={})",
+                    Decimal::signed(t.to_degrees(), 4)
+                )?;
+            }
+        }
+        Outcome::Dropped { run, path, left } => {
+            write!(out, "ok dropped run {run}: ")?;
+            write_path(out, &path)?;
+            out.write_str("; ")?;
+            write_count(out, left, "run")?;
+            out.write_str(" left")?;
+        }
+        Outcome::DroppedAll { runs } => {
+            out.write_str("ok dropped all ")?;
+            write_count(out, runs, "run")?;
+        }
+    }
+    out.write_str(EOL)
+}
+
+/// What `set` changed besides the parameter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SetChange<'a> {
+    /// The value was the current one: nothing changed.
+    Unchanged,
+    /// The parameter changed.
+    Changed,
+    /// The nominal geometry changed and dropped the applied calibration of this method.
+    CalibrationDropped(&'a str),
+    /// The nominal geometry was set back and restored the calibration of this method.
+    CalibrationRestored(&'a str),
+}
+
+/// A parameter command that succeeded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum ParamOutcome<'a> {
+    /// `set`: `name` is `value` now.
+    Set {
+        /// The parameter.
+        name: ParamName,
+        /// Its value now.
+        value: f64,
+        /// What else changed.
+        change: SetChange<'a>,
+    },
+    /// `reset-params`: every parameter at its default, in RAM.
+    Reset,
+    /// `save`: the parameters are in flash.
+    Saved,
+    /// `apply`: the method's result is the active geometry, in RAM.
+    Applied {
+        /// The method.
+        method: &'a str,
+        /// Its factors `E_d`, `E_b`, `E_s`.
+        factors: (f64, f64, f64),
+    },
+}
+
+/// `<value> <unit>` of a parameter as `params` and `set` show it (a count unit in the singular
+/// for one: `1 run`).
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_param_value(out: &mut dyn Write, name: ParamName, value: f64) -> fmt::Result {
+    let unit = match name.unit() {
+        "runs" if value == 1.0 => "run",
+        unit => unit,
+    };
+    write!(out, "{} {unit}", Decimal::fixed(value, name.places()))
+}
+
+/// Writes the `ok …` line of a parameter command.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> fmt::Result {
+    const NOT_SAVED: &str = " (not saved; save to keep)";
+    match *outcome {
+        ParamOutcome::Set {
+            name,
+            value,
+            change,
+        } => {
+            write!(out, "ok {} = ", name.as_str())?;
+            write_param_value(out, name, value)?;
+            match change {
+                SetChange::Unchanged => return write!(out, " (unchanged)\r\n"),
+                SetChange::Changed => {}
+                SetChange::CalibrationRestored(m) => write!(out, " (calibration {m} restored)")?,
+                SetChange::CalibrationDropped(m) => write!(
+                    out,
+                    " (calibration {m} dropped: it is relative to the old geometry; set the old \
+                     value back to restore it)"
+                )?,
+            }
+            out.write_str(NOT_SAVED)?;
+        }
+        ParamOutcome::Reset => {
+            out.write_str("ok parameters reset to defaults")?;
+            out.write_str(NOT_SAVED)?;
+        }
+        ParamOutcome::Saved => out.write_str("ok saved")?,
+        ParamOutcome::Applied {
+            method,
+            factors: (e_d, e_b, e_s),
+        } => {
+            write!(
+                out,
+                "ok applied {method}: E_d={} E_b={} E_s={}",
+                Decimal::fixed(e_d, 9),
+                Decimal::fixed(e_b, 9),
+                Decimal::fixed(e_s, 9)
+            )?;
+            out.write_str(NOT_SAVED)?;
+        }
+    }
+    out.write_str(EOL)
+}
