@@ -130,6 +130,17 @@ def main():
                 end = truth.settle()
                 answer = measure_line(start, end).removeprefix("measure ")
                 measured += 1
+            elif line.rstrip().endswith("(y/n):"):
+                # Apply and save need a typed yes.
+                answer = "y"
+            elif line.startswith("? Nominal geometry"):
+                answer = "k"
+            elif line.startswith("? Bring-up check") or line.startswith("? Motor identification"):
+                # The emulated robot is wired right and its motors are the plant's: skip both.
+                answer = "s"
+            elif line.startswith("? Check square"):
+                # Skipped, so exactly the plan's runs are measured.
+                answer = "s"
             elif line.startswith("? "):
                 answer = ""
             if answer is not None:

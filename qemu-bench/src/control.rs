@@ -155,8 +155,10 @@ mod tests {
     fn the_identification_finds_the_robot() {
         let mut c = controller().unwrap();
         let (periods, report) = identify(&mut c, period, Controller::take_check_report).unwrap();
-        // Four passes of 3 × 400 + 500 + 300 ms at 1 kHz, and the period that closes it.
-        assert_eq!(periods, 8_001);
+        // Four passes of 3 × 400 + 500 + 300 ms at 1 kHz, a probe per wheel (stairs of 300 ms
+        // at 4, 6 and 8 % duty: 8 % is the first past 25 % of the 0.3 m/s cap on this robot, 1 m/s
+        // per unit duty; then a 300 ms brake), and the period that closes it.
+        assert_eq!(periods, 4 * 2_000 + 2 * (3 * 300 + 300) + 1);
         let CheckReport::Identify(r) = report else {
             panic!("{report:?}");
         };

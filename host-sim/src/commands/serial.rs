@@ -23,7 +23,7 @@ use odocal::motion::controller::Status;
 
 use crate::sim::board::{Board, measure_line};
 use crate::sim::flash::{SimFlash, SimParamFlash};
-use crate::sim::robot::{SimConfig, WiringOption, sim_config};
+use crate::sim::robot::{MotorArgs, SimConfig, WiringOption, sim_config};
 
 /// Command-line arguments of the `serial` subcommand.
 #[derive(clap::Args, Debug, Clone)]
@@ -71,6 +71,10 @@ pub struct SerialArgs {
     /// check (`bringup push`, `bringup`) and the following-error fault on the console.
     #[arg(long, value_enum, default_value_t = WiringOption::Standard)]
     pub wiring: WiringOption,
+    /// The simulated motors (`--motor-gain R,L`, `--motor-tau R,L`, `--motor-deadband R,L`, as
+    /// for `drive` and `session`): rehearse `identify` with weak or strong motors.
+    #[command(flatten)]
+    pub motors: MotorArgs,
 }
 
 /// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The
@@ -148,6 +152,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
             .unwrap_or(odocal::motion::controller::DEFAULT_RATE_HZ),
     );
     config.wiring = args.wiring.wiring();
+    args.motors.apply(&mut config)?;
 
     let mut out = String::new();
     let mut flash = match &args.image {
