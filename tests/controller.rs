@@ -282,9 +282,17 @@ fn glitch_limit_follows_a_new_geometry() {
     // 2 m/s of a 150 mm wheel with 200,000 counts/rev at 1 kHz, +50 %: 1,274 counts per period.
     let before = c.config().right_encoder.max_step;
     assert_eq!(before, 1274);
-    // Ten times the resolution: ten times the counts for the same speed.
+    // Ten times the resolution: ten times the counts for the same speed. The encoders count
+    // 1,000,000 counts/s, 0.236 m/s on these wheels: the limits come down first.
     let mut fine = Geometry::PAPER_NOMINAL;
     fine.counts_per_rev = 2_000_000;
+    assert_eq!(
+        c.set_geometry(fine),
+        Err(SetError::Limits(LimitsError::BeyondEncoders))
+    );
+    let mut slow = MotionLimits::DEFAULT;
+    slow.max_speed_mps = 0.2;
+    c.set_limits(slow).unwrap();
     c.set_geometry(fine).unwrap();
     assert_eq!(c.config().right_encoder.max_step, 12_733);
     assert_eq!(c.config().left_encoder.max_step, 12_733);
