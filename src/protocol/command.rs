@@ -351,18 +351,7 @@ fn number(word: &str, what: &'static str, min: f64, max: f64) -> Result<f64, Par
         },
         NumberError::Malformed => bad_number(word, what),
     })?;
-    if !value.is_finite() {
-        return Err(ParseError::NotFinite { what });
-    }
-    if !(min..=max).contains(&value) {
-        return Err(ParseError::OutOfRange {
-            what,
-            min,
-            max,
-            unit: "",
-        });
-    }
-    Ok(value)
+    in_range(value, what, min, max)
 }
 
 /// Reads a whole number within `[min, max]`: digits, or any number whose value is whole
