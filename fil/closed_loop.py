@@ -374,10 +374,11 @@ def restarted_board(elf, workdir, apply, runs_before):
     # period after the first (which only reads the counters): QEMU's log must hold the one feed
     # that starts the watchdog, then one per control period = plant periods + 1, plus two for
     # each flash access with the watchdog relaxed (10 s and back to 50 ms, one reload-key write
-    # after each change has crossed over): restoring the runs at boot and storing the two `line`
-    # runs. The control task feeds before it reads the counters (which advances the plant), so a
-    # stop that lands between the two leaves one feed more than plant periods.
-    feeds = watchdog_feeds(emu.log) - 2 * 3
+    # after each change has crossed over): restoring the runs at boot, storing the two `line`
+    # runs, and storing the first line's measurement (a run is measured before the next one
+    # starts). The control task feeds before it reads the counters (which advances the plant),
+    # so a stop that lands between the two leaves one feed more than plant periods.
+    feeds = watchdog_feeds(emu.log) - 2 * 4
     if not final_periods <= feeds - 2 <= stopped_periods + 1:
         raise ConsoleError(f"watchdog feeds {feeds} vs control periods {final_periods}.."
                            f"{stopped_periods}")
