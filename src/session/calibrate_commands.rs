@@ -187,15 +187,18 @@ pub fn write_calibration<C: Calibrator>(
     )
 }
 
-/// The runs the robust fit flags as disagreeing with the others (the first result that reports
-/// per-run residuals, as the `calibrate` table lists them), by run number.
+/// The runs the robust fit flags as disagreeing with the others, by run number: from the last
+/// method that reports per-run residuals (the board's only one is `exact`, whose residuals the
+/// `calibrate` table lists).
 pub fn flagged_runs<C: Calibrator>(
     calibrator: &mut C,
     runs: &[RunRecord],
     nominal: &Geometry,
 ) -> Vec<usize, MAX_RUNS> {
+    // The fit with residuals is the last method (exact, whose solution the calibrator keeps);
+    // asking it first spares solving every closed form again on each `apply`.
     let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
-    for name in methods {
+    for name in methods.into_iter().rev() {
         if let Ok(s) = calibrator.solve(runs, nominal, name)
             && !s.residuals.is_empty()
         {
