@@ -54,7 +54,7 @@ pub fn calibrate_exact(
     let n = problem.n;
     let p0 = [d0, b0, s0];
     let (_, m) = problem
-        .cost(&p0, None)
+        .cost(&p0, None, None)
         .ok_or(CalibrationError::OutOfRange)?;
     let rows: usize = runs
         .iter()
@@ -118,7 +118,7 @@ pub fn calibrate_exact(
         return Err(CalibrationError::OutOfRange);
     }
     // Uncertainty from the weighted residual scatter, the weights as relative precisions.
-    let (a, _) = problem.normal(&p, w, Jacobian::F64);
+    let (a, _) = problem.normal(&p, w, Jacobian::F64, None);
     let sigma2 = if m > n {
         cost / (m - n) as f64
     } else {

@@ -2,7 +2,7 @@
 //! (in `f32` while iterating, `f64` at the end) and Levenberg–Marquardt with fixed run weights.
 
 use super::linalg::{Mat, solve};
-use super::problem::{MODELS, Problem};
+use super::problem::{CHANNELS, MODELS, Problem, RESIDUAL_CACHE, Residuals};
 use super::robust::{Weight, weight};
 use super::{COST_TOLERANCE, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE};
 use crate::calibration::CalibrationError;
@@ -30,11 +30,16 @@ impl Problem<'_, '_> {
     /// `JᵀWJ` and `JᵀWr` at `p`, with `J ≈ ∂predicted/∂p` by central differences of
     /// re-integrations in the precision `jacobian` and `r` the `f64` residuals (see the module
     /// docs, *Jacobian in `f32`*).
+    ///
+    /// `at_p` are the residual rows at `p` as [`Problem::cost`] kept them: an end-pose run among
+    /// them is only re-integrated for the differences (its rows at `p` are those numbers, bit
+    /// for bit).
     pub(super) fn normal(
         &self,
         p: &[f64; 3],
         weights: Option<&[Weight]>,
         jacobian: Jacobian,
+        at_p: Option<&Residuals>,
     ) -> (Mat, [f64; 3]) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
@@ -66,15 +71,22 @@ impl Problem<'_, '_> {
                 continue;
             }
             let w = weight(weights, k);
+            // The rows at p from the cache (`off` = 0) or from `models[0]` (`off` = 1).
+            let kept = at_p.and_then(|r| r.get(k)).filter(|_| !Self::is_path(run));
+            let (off, models) = match kept {
+                Some(_) => (0, &models[1..]),
+                None => (1, models),
+            };
             self.rows(run, models, models32, |v, c| {
+                let r = kept.map_or(v[0], |kept| kept[c]);
                 let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
                     // residual = measured − predicted, so ∂predicted = −∂residual.
-                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h);
+                    j[i] = -(v[off + 2 * i] - v[off + 1 + 2 * i]) / (2.0 * h);
                 }
                 for c in 0..n {
-                    g[c] += w * j[c] * v[0];
+                    g[c] += w * j[c] * r;
                     for d in 0..n {
                         a[c][d] += w * j[c] * j[d];
                     }
@@ -93,13 +105,18 @@ impl Problem<'_, '_> {
         jacobian: Jacobian,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
-        let (mut cost, _) = self.cost(&p, weights).ok_or(CalibrationError::OutOfRange)?;
+        // The residual rows at `p` and at the trial parameters.
+        let mut at_p: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
+        let mut at_q: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
+        let (mut cost, _) = self
+            .cost(&p, weights, Some(&mut at_p))
+            .ok_or(CalibrationError::OutOfRange)?;
         let mut lambda = 1e-3;
         let mut iterations = 0;
         let mut converged = false;
         while iterations < self.options.max_iterations && !converged {
             iterations += 1;
-            let (a, g) = self.normal(&p, weights, jacobian);
+            let (a, g) = self.normal(&p, weights, jacobian, Some(&at_p));
             loop {
                 let mut aug = a;
                 for (i, row) in aug.iter_mut().enumerate().take(n) {
@@ -111,8 +128,9 @@ impl Problem<'_, '_> {
                 for i in 0..n {
                     q[i] += delta[i];
                 }
-                match self.cost(&q, weights) {
+                match self.cost(&q, weights, Some(&mut at_q)) {
                     Some((c, _)) if c <= cost => {
+                        at_p = at_q;
                         // Also converged when the cost no longer changes in its 13th digit
                         // (noisy data: the minimum is flat, and LM's last steps only shuffle
                         // rounding).
