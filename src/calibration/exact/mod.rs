@@ -163,6 +163,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod fit;
+mod jacobian;
 mod linalg;
 mod options;
 mod problem;

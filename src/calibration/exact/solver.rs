@@ -1,8 +1,9 @@
 //! The Jacobian and the solver: normal equations from central differences of re-integrations
 //! (in `f32` while iterating, `f64` at the end) and Levenberg–Marquardt with fixed run weights.
 
+use super::jacobian::end_pose_derivatives;
 use super::linalg::{Mat, solve};
-use super::problem::{CHANNELS, MODELS, Problem, RESIDUAL_CACHE, Residuals};
+use super::problem::{CHANNELS, HEADING, MODELS, Problem, RESIDUAL_CACHE, Residuals, X, Y};
 use super::robust::{Weight, weight};
 use super::{COST_TOLERANCE, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE};
 use crate::calibration::CalibrationError;
@@ -62,6 +63,18 @@ impl Problem<'_, '_> {
         for (m32, m) in models32.iter_mut().zip(&models[1..]) {
             *m32 = ArcModelF32::from_model(m);
         }
+        // ∂(right, left, wheelbase)/∂p_i of the model, by central differences of the geometry
+        // (no integration), for the analytic end-pose Jacobian.
+        let mut numbers = [[0.0; 3]; 3];
+        for i in 0..n {
+            let (plus, minus) = (&models[1 + 2 * i], &models[2 + 2 * i]);
+            numbers[i] = [
+                (plus.right_m_per_tick - minus.right_m_per_tick) / (2.0 * h),
+                (plus.left_m_per_tick - minus.left_m_per_tick) / (2.0 * h),
+                (plus.wheelbase_m - minus.wheelbase_m) / (2.0 * h),
+            ];
+        }
+        let at = models[0];
         let (models, models32) = match jacobian {
             Jacobian::F32 => (&models[..1], &models32[..2 * n]),
             Jacobian::F64 => (&models[..1 + 2 * n], &models32[..0]),
@@ -73,6 +86,33 @@ impl Problem<'_, '_> {
             let w = weight(weights, k);
             // The rows at p from the cache (`off` = 0) or from `models[0]` (`off` = 1).
             let kept = at_p.and_then(|r| r.get(k)).filter(|_| !Self::is_path(run));
+            if let Some(r) = kept {
+                // An end pose with its residuals at hand: the analytic Jacobian, one pass.
+                let (_, d) = match jacobian {
+                    Jacobian::F32 => end_pose_derivatives::<f32>(&at, run.knots),
+                    Jacobian::F64 => end_pose_derivatives::<f64>(&at, run.knots),
+                };
+                let heading = self.heading(run).map(|_| self.heading_length(run));
+                for c in [X, Y, HEADING] {
+                    let scale = match (c, heading) {
+                        (HEADING, None) => continue,
+                        (HEADING, Some(l)) => l,
+                        _ => 1.0,
+                    };
+                    let w = w.row(c);
+                    let mut j = [0.0; 3];
+                    for i in 0..n {
+                        j[i] = scale * (0..3).map(|q| d[q][c] * numbers[i][q]).sum::<f64>();
+                    }
+                    for e in 0..n {
+                        g[e] += w * j[e] * r[c];
+                        for f in 0..n {
+                            a[e][f] += w * j[e] * j[f];
+                        }
+                    }
+                }
+                continue;
+            }
             let (off, models) = match kept {
                 Some(_) => (0, &models[1..]),
                 None => (1, models),
