@@ -25,6 +25,8 @@ pub(super) struct Solved {
     pub(super) p: [f64; 3],
     pub(super) cost: f64,
     pub(super) iterations: u32,
+    /// The residual rows at `p` (of the first [`RESIDUAL_CACHE`] runs).
+    pub(super) residuals: Residuals,
 }
 
 impl Problem<'_, '_> {
@@ -85,7 +87,7 @@ impl Problem<'_, '_> {
             }
             let w = weight(weights, k);
             // The rows at p from the cache (`off` = 0) or from `models[0]` (`off` = 1).
-            let kept = at_p.and_then(|r| r.get(k)).filter(|_| !Self::is_path(run));
+            let kept = Self::kept(k, run, at_p);
             if let Some(r) = kept {
                 // An end pose with its residuals at hand: the analytic Jacobian, one pass.
                 let (_, d) = match jacobian {
@@ -137,20 +139,27 @@ impl Problem<'_, '_> {
     }
 
     /// Levenberg–Marquardt from `p` with fixed run weights, steered by a Jacobian in the
-    /// precision `jacobian`.
+    /// precision `jacobian`; `known` are residual rows already computed at `p`.
     pub(super) fn solve_lm(
         &self,
         mut p: [f64; 3],
         weights: Option<&[Weight]>,
         jacobian: Jacobian,
+        known: Option<&Residuals>,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
-        // The residual rows at `p` and at the trial parameters.
+        // The residual rows at `p` (`known` ones, when given, are those at `p`) and at the
+        // trial parameters.
         let mut at_p: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
         let mut at_q: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
-        let (mut cost, _) = self
-            .cost(&p, weights, Some(&mut at_p))
-            .ok_or(CalibrationError::OutOfRange)?;
+        let start = match known {
+            Some(known) => {
+                at_p = *known;
+                self.cost(&p, weights, Some(known), None)
+            }
+            None => self.cost(&p, weights, None, Some(&mut at_p)),
+        };
+        let (mut cost, _) = start.ok_or(CalibrationError::OutOfRange)?;
         let mut lambda = 1e-3;
         let mut iterations = 0;
         let mut converged = false;
@@ -168,7 +177,7 @@ impl Problem<'_, '_> {
                 for i in 0..n {
                     q[i] += delta[i];
                 }
-                match self.cost(&q, weights, Some(&mut at_q)) {
+                match self.cost(&q, weights, None, Some(&mut at_q)) {
                     Some((c, _)) if c <= cost => {
                         at_p = at_q;
                         // Also converged when the cost no longer changes in its 13th digit
@@ -201,6 +210,7 @@ impl Problem<'_, '_> {
             p,
             cost,
             iterations,
+            residuals: at_p,
         })
     }
 }
