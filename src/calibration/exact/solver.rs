@@ -1,5 +1,6 @@
-//! The Jacobian and the solver: normal equations from central differences of re-integrations
-//! (in `f32` while iterating, `f64` at the end) and Levenberg–Marquardt with fixed run weights.
+//! The Jacobian and the solver: normal equations from the analytic end-pose Jacobian or central
+//! differences of re-integrations (in `f32` while iterating, `f64` at the end) and
+//! Levenberg–Marquardt with fixed run weights.
 
 use super::jacobian::end_pose_derivatives;
 use super::linalg::{Mat, solve};
@@ -30,13 +31,12 @@ pub(super) struct Solved {
 }
 
 impl Problem<'_, '_> {
-    /// `JᵀWJ` and `JᵀWr` at `p`, with `J ≈ ∂predicted/∂p` by central differences of
-    /// re-integrations in the precision `jacobian` and `r` the `f64` residuals (see the module
-    /// docs, *Jacobian in `f32`*).
+    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p` in the precision `jacobian` and `r`
+    /// the `f64` residuals (see the module docs, *Jacobian in `f32`*).
     ///
     /// `at_p` are the residual rows at `p` as [`Problem::cost`] kept them: an end-pose run among
-    /// them is only re-integrated for the differences (its rows at `p` are those numbers, bit
-    /// for bit).
+    /// them gets the analytic Jacobian (one pass over its knots); other runs are re-integrated
+    /// at `p` and for the central differences.
     pub(super) fn normal(
         &self,
         p: &[f64; 3],
