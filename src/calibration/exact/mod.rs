@@ -120,8 +120,8 @@
 //! run's residual rows that the cost evaluation at the same parameters kept, and the same kept
 //! rows give each solve's start cost and the robust rounds' residuals, so an accepted step costs
 //! one `f64` re-integration (the cost) and one pass per run. While the fit iterates the pass is
-//! `f32` (agreeing with `f64` central differences to about 1e-6 of a column), at the end `f64`
-//! (to about 1e-10). A run with ground truth along its path (residuals at every knot) keeps the
+//! `f32`, at the end `f64` (test `derivatives_match_central_differences`: within 1e-4 and 1e-7
+//! of a column of the `f64` central differences, whose own error is about 1e-7). A run with ground truth along its path (residuals at every knot) keeps the
 //! central differences of re-integrations described next, two per fitted factor and run in every
 //! iteration. While the fit iterates those run in `f32` ([`ArcModelF32`] with [`crate::util::trig::sincos_f32`]: the
 //! Cortex-M4F's FPU instead of soft-float), with the step `h =` [`JACOBIAN_STEP_F32`] `= 1e-3` in
