@@ -54,7 +54,7 @@ pub fn calibrate_exact(
     let n = problem.n;
     let p0 = [d0, b0, s0];
     let (_, m) = problem
-        .cost(&p0, None)
+        .cost(&p0, None, None, None)
         .ok_or(CalibrationError::OutOfRange)?;
     let rows: usize = runs
         .iter()
@@ -65,7 +65,7 @@ pub fn calibrate_exact(
         return Err(CalibrationError::Degenerate);
     }
     // The plain least-squares fit: the result, or the robust fit's start.
-    let mut solved = problem.solve_lm(p0, None, Jacobian::F32)?;
+    let mut solved = problem.solve_lm(p0, None, Jacobian::F32, None)?;
     let mut iterations = solved.iterations;
     let reweighted = options.robust && runs.len() <= MAX_WEIGHTED_RUNS;
     // Weights and scales indexed like `runs`, and the weights `solved` was fitted with.
@@ -79,7 +79,8 @@ pub fn calibrate_exact(
             // The weights computed at the fitted parameters are those they were fitted with:
             // the fixed point of IRLS.
             let frozen = reweights >= FREEZE_SCALES_AFTER;
-            if problem.reweight(&solved.p, &mut weights, &mut scales, frozen) {
+            let known = Some(&solved.residuals);
+            if problem.reweight(&solved.p, known, &mut weights, &mut scales, frozen) {
                 break;
             }
             if reweights >= MAX_REWEIGHTS {
@@ -87,7 +88,7 @@ pub fn calibrate_exact(
             }
             reweights += 1;
             fitted_with[..len].copy_from_slice(&weights[..len]);
-            solved = problem.solve_lm(solved.p, Some(&weights[..len]), Jacobian::F32)?;
+            solved = problem.solve_lm(solved.p, Some(&weights[..len]), Jacobian::F32, known)?;
             iterations += solved.iterations;
         }
     }
@@ -96,7 +97,12 @@ pub fn calibrate_exact(
     // times the residuals (see the `exact` module docs); the last solve ends at the minimum with
     // the `f64` Jacobian, from a start that close it takes one or two iterations.
     let fitted_with = (reweighted && reweights > 0).then_some(&fitted_with[..len]);
-    solved = problem.solve_lm(solved.p, fitted_with, Jacobian::F64)?;
+    solved = problem.solve_lm(
+        solved.p,
+        fitted_with,
+        Jacobian::F64,
+        Some(&solved.residuals),
+    )?;
     iterations += solved.iterations;
     let w = reweighted.then_some(&weights[..len]);
     let p = solved.p;
@@ -118,7 +124,7 @@ pub fn calibrate_exact(
         return Err(CalibrationError::OutOfRange);
     }
     // Uncertainty from the weighted residual scatter, the weights as relative precisions.
-    let (a, _) = problem.normal(&p, w, Jacobian::F64);
+    let (a, _) = problem.normal(&p, w, Jacobian::F64, Some(&solved.residuals));
     let sigma2 = if m > n {
         cost / (m - n) as f64
     } else {

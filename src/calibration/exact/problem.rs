@@ -16,6 +16,23 @@ pub(super) const X: usize = 0;
 pub(super) const Y: usize = 1;
 pub(super) const HEADING: usize = 2;
 
+/// How many runs' residual rows [`Problem::cost`] keeps for [`Problem::normal`] (runs beyond
+/// are re-integrated there).
+pub(super) const RESIDUAL_CACHE: usize = 32;
+
+/// The residual rows by channel of the first [`RESIDUAL_CACHE`] runs at one set of parameters.
+pub(super) type Residuals = [[f64; CHANNELS]; RESIDUAL_CACHE];
+
+/// `d²` by channel of an end-pose run's residual rows: their squares, as [`Problem::rows`]
+/// accumulates them (from zero, so bit for bit).
+pub(super) fn squares(r: &[f64; CHANNELS]) -> [f64; CHANNELS] {
+    let mut d2 = [0.0; CHANNELS];
+    for c in 0..CHANNELS {
+        d2[c] += r[c] * r[c];
+    }
+    d2
+}
+
 /// The problem: runs, nominal geometry, which parameters are free, options.
 pub(super) struct Problem<'r, 'a> {
     pub(super) runs: &'r [RunObservation<'a>],
@@ -134,11 +151,33 @@ impl Problem<'_, '_> {
 
     /// Squared length `d²` of a run's residual for `model`, by channel (x, y, heading).
     pub(super) fn distance2(&self, run: &RunObservation<'_>, model: &ArcModel) -> [f64; CHANNELS] {
+        self.residual(run, model).1
+    }
+
+    /// The residual rows of run `i` in `known`, when it is an end-pose run kept there (one row
+    /// per channel, so its `d²` are their squares).
+    pub(super) fn kept<'k>(
+        i: usize,
+        run: &RunObservation<'_>,
+        known: Option<&'k Residuals>,
+    ) -> Option<&'k [f64; CHANNELS]> {
+        known.and_then(|r| r.get(i)).filter(|_| !Self::is_path(run))
+    }
+
+    /// A run's residual rows for `model` by channel (meaningful for an end-pose run, whose rows
+    /// are one per channel; zero for a missing heading) and their squared length `d²` by channel.
+    fn residual(
+        &self,
+        run: &RunObservation<'_>,
+        model: &ArcModel,
+    ) -> ([f64; CHANNELS], [f64; CHANNELS]) {
+        let mut r = [0.0; CHANNELS];
         let mut d2 = [0.0; CHANNELS];
         self.rows(run, core::slice::from_ref(model), &[], |v, c| {
-            d2[c] += v[0] * v[0]
+            r[c] = v[0];
+            d2[c] += v[0] * v[0];
         });
-        d2
+        (r, d2)
     }
 
     /// Number of residual rows of a run (2 per knot of a path run).
@@ -152,8 +191,18 @@ impl Problem<'_, '_> {
     }
 
     /// Weighted sum of squared residuals and number of residual components; `None` for an
-    /// invalid geometry.
-    pub(super) fn cost(&self, p: &[f64; 3], weights: Option<&[Weight]>) -> Option<(f64, usize)> {
+    /// invalid geometry. The residual rows of the first [`RESIDUAL_CACHE`] runs are kept in
+    /// `residuals` when given (read by [`Problem::normal`] for the end-pose runs, which then
+    /// need no `f64` re-integration at the same parameters).
+    /// `known` are residual rows already computed at `p` (an end-pose run among them is not
+    /// re-integrated; the cost is the same bit for bit).
+    pub(super) fn cost(
+        &self,
+        p: &[f64; 3],
+        weights: Option<&[Weight]>,
+        known: Option<&Residuals>,
+        mut residuals: Option<&mut Residuals>,
+    ) -> Option<(f64, usize)> {
         if !(0..self.n).all(|i| FACTOR_RANGE.contains(&p[i])) {
             return None;
         }
@@ -162,7 +211,13 @@ impl Problem<'_, '_> {
         let mut m = 0;
         for (i, run) in self.runs.iter().enumerate() {
             if Self::usable(run) {
-                let d2 = self.distance2(run, &model);
+                let (r, d2) = match Self::kept(i, run, known) {
+                    Some(r) => (*r, squares(r)),
+                    None => self.residual(run, &model),
+                };
+                if let Some(slot) = residuals.as_deref_mut().and_then(|c| c.get_mut(i)) {
+                    *slot = r;
+                }
                 let w = weight(weights, i);
                 ss += (0..CHANNELS).map(|c| w.row(c) * d2[c]).sum::<f64>();
                 m += self.components(run);

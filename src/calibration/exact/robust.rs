@@ -1,7 +1,7 @@
 //! The robust weighting: per-run Cauchy weights and per-channel weights from the scatter of each
 //! run's peers (see the module docs of [`super`], *Robust fit*).
 
-use super::problem::{CHANNELS, HEADING, Problem, X, Y};
+use super::problem::{CHANNELS, HEADING, Problem, Residuals, X, Y, squares};
 use super::{
     CAUCHY_C, CHANNEL_TOLERANCE, MAX_WEIGHTED_RUNS, MIN_CHANNEL_PEERS, MIN_PEERS,
     PEER_LENGTH_RATIO, WEIGHT_TOLERANCE,
@@ -87,10 +87,11 @@ impl Problem<'_, '_> {
     /// every weight stayed within its tolerance of the weight it replaced ([`WEIGHT_TOLERANCE`]
     /// for run weights, [`CHANNEL_TOLERANCE`] relative for channel weights).
     /// With `frozen`, the scales and channel weights are kept and only the run weights are
-    /// recomputed.
+    /// recomputed. `known` are residual rows already computed at `p`.
     pub(super) fn reweight(
         &self,
         p: &[f64; 3],
+        known: Option<&Residuals>,
         weights: &mut [Weight; MAX_WEIGHTED_RUNS],
         scales: &mut [Option<Scales>; MAX_WEIGHTED_RUNS],
         frozen: bool,
@@ -103,7 +104,10 @@ impl Problem<'_, '_> {
         let mut m = 0;
         for (i, run) in runs.iter().enumerate() {
             if Self::usable(run) {
-                d2[i] = self.distance2(run, &model);
+                d2[i] = match Self::kept(i, run, known) {
+                    Some(r) => squares(r),
+                    None => self.distance2(run, &model),
+                };
                 m += self.components(run);
             }
         }

@@ -1,8 +1,10 @@
-//! The Jacobian and the solver: normal equations from central differences of re-integrations
-//! (in `f32` while iterating, `f64` at the end) and Levenberg–Marquardt with fixed run weights.
+//! The Jacobian and the solver: normal equations from the analytic end-pose Jacobian or central
+//! differences of re-integrations (in `f32` while iterating, `f64` at the end) and
+//! Levenberg–Marquardt with fixed run weights.
 
+use super::jacobian::end_pose_derivatives;
 use super::linalg::{Mat, solve};
-use super::problem::{MODELS, Problem};
+use super::problem::{CHANNELS, HEADING, MODELS, Problem, RESIDUAL_CACHE, Residuals, X, Y};
 use super::robust::{Weight, weight};
 use super::{COST_TOLERANCE, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE};
 use crate::calibration::CalibrationError;
@@ -24,17 +26,23 @@ pub(super) struct Solved {
     pub(super) p: [f64; 3],
     pub(super) cost: f64,
     pub(super) iterations: u32,
+    /// The residual rows at `p` (of the first [`RESIDUAL_CACHE`] runs).
+    pub(super) residuals: Residuals,
 }
 
 impl Problem<'_, '_> {
-    /// `JᵀWJ` and `JᵀWr` at `p`, with `J ≈ ∂predicted/∂p` by central differences of
-    /// re-integrations in the precision `jacobian` and `r` the `f64` residuals (see the module
-    /// docs, *Jacobian in `f32`*).
+    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p` in the precision `jacobian` and `r`
+    /// the `f64` residuals (see the module docs, *Jacobian in `f32`*).
+    ///
+    /// `at_p` are the residual rows at `p` as [`Problem::cost`] kept them: an end-pose run among
+    /// them gets the analytic Jacobian (one pass over its knots); other runs are re-integrated
+    /// at `p` and for the central differences.
     pub(super) fn normal(
         &self,
         p: &[f64; 3],
         weights: Option<&[Weight]>,
         jacobian: Jacobian,
+        at_p: Option<&Residuals>,
     ) -> (Mat, [f64; 3]) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
@@ -57,6 +65,18 @@ impl Problem<'_, '_> {
         for (m32, m) in models32.iter_mut().zip(&models[1..]) {
             *m32 = ArcModelF32::from_model(m);
         }
+        // ∂(right, left, wheelbase)/∂p_i of the model, by central differences of the geometry
+        // (no integration), for the analytic end-pose Jacobian.
+        let mut numbers = [[0.0; 3]; 3];
+        for i in 0..n {
+            let (plus, minus) = (&models[1 + 2 * i], &models[2 + 2 * i]);
+            numbers[i] = [
+                (plus.right_m_per_tick - minus.right_m_per_tick) / (2.0 * h),
+                (plus.left_m_per_tick - minus.left_m_per_tick) / (2.0 * h),
+                (plus.wheelbase_m - minus.wheelbase_m) / (2.0 * h),
+            ];
+        }
+        let at = models[0];
         let (models, models32) = match jacobian {
             Jacobian::F32 => (&models[..1], &models32[..2 * n]),
             Jacobian::F64 => (&models[..1 + 2 * n], &models32[..0]),
@@ -66,15 +86,49 @@ impl Problem<'_, '_> {
                 continue;
             }
             let w = weight(weights, k);
+            // The rows at p from the cache (`off` = 0) or from `models[0]` (`off` = 1).
+            let kept = Self::kept(k, run, at_p);
+            if let Some(r) = kept {
+                // An end pose with its residuals at hand: the analytic Jacobian, one pass.
+                let (_, d) = match jacobian {
+                    Jacobian::F32 => end_pose_derivatives::<f32>(&at, run.knots),
+                    Jacobian::F64 => end_pose_derivatives::<f64>(&at, run.knots),
+                };
+                let heading = self.heading(run).map(|_| self.heading_length(run));
+                for c in [X, Y, HEADING] {
+                    let scale = match (c, heading) {
+                        (HEADING, None) => continue,
+                        (HEADING, Some(l)) => l,
+                        _ => 1.0,
+                    };
+                    let w = w.row(c);
+                    let mut j = [0.0; 3];
+                    for i in 0..n {
+                        j[i] = scale * (0..3).map(|q| d[q][c] * numbers[i][q]).sum::<f64>();
+                    }
+                    for e in 0..n {
+                        g[e] += w * j[e] * r[c];
+                        for f in 0..n {
+                            a[e][f] += w * j[e] * j[f];
+                        }
+                    }
+                }
+                continue;
+            }
+            let (off, models) = match kept {
+                Some(_) => (0, &models[1..]),
+                None => (1, models),
+            };
             self.rows(run, models, models32, |v, c| {
+                let r = kept.map_or(v[0], |kept| kept[c]);
                 let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
                     // residual = measured − predicted, so ∂predicted = −∂residual.
-                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h);
+                    j[i] = -(v[off + 2 * i] - v[off + 1 + 2 * i]) / (2.0 * h);
                 }
                 for c in 0..n {
-                    g[c] += w * j[c] * v[0];
+                    g[c] += w * j[c] * r;
                     for d in 0..n {
                         a[c][d] += w * j[c] * j[d];
                     }
@@ -85,21 +139,33 @@ impl Problem<'_, '_> {
     }
 
     /// Levenberg–Marquardt from `p` with fixed run weights, steered by a Jacobian in the
-    /// precision `jacobian`.
+    /// precision `jacobian`; `known` are residual rows already computed at `p`.
     pub(super) fn solve_lm(
         &self,
         mut p: [f64; 3],
         weights: Option<&[Weight]>,
         jacobian: Jacobian,
+        known: Option<&Residuals>,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
-        let (mut cost, _) = self.cost(&p, weights).ok_or(CalibrationError::OutOfRange)?;
+        // The residual rows at `p` (`known` ones, when given, are those at `p`) and at the
+        // trial parameters.
+        let mut at_p: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
+        let mut at_q: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
+        let start = match known {
+            Some(known) => {
+                at_p = *known;
+                self.cost(&p, weights, Some(known), None)
+            }
+            None => self.cost(&p, weights, None, Some(&mut at_p)),
+        };
+        let (mut cost, _) = start.ok_or(CalibrationError::OutOfRange)?;
         let mut lambda = 1e-3;
         let mut iterations = 0;
         let mut converged = false;
         while iterations < self.options.max_iterations && !converged {
             iterations += 1;
-            let (a, g) = self.normal(&p, weights, jacobian);
+            let (a, g) = self.normal(&p, weights, jacobian, Some(&at_p));
             loop {
                 let mut aug = a;
                 for (i, row) in aug.iter_mut().enumerate().take(n) {
@@ -111,8 +177,9 @@ impl Problem<'_, '_> {
                 for i in 0..n {
                     q[i] += delta[i];
                 }
-                match self.cost(&q, weights) {
+                match self.cost(&q, weights, None, Some(&mut at_q)) {
                     Some((c, _)) if c <= cost => {
+                        at_p = at_q;
                         // Also converged when the cost no longer changes in its 13th digit
                         // (noisy data: the minimum is flat, and LM's last steps only shuffle
                         // rounding).
@@ -143,6 +210,7 @@ impl Problem<'_, '_> {
             p,
             cost,
             iterations,
+            residuals: at_p,
         })
     }
 }
