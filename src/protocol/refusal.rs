@@ -10,6 +10,7 @@ use core::fmt::{self, Write};
 
 use super::reply::{EOL, ErrorCode};
 use crate::motion::run::PathKind;
+use crate::storage::StoreError;
 use crate::util::decimal::Decimal;
 
 /// What is in progress when a command is refused as busy.
@@ -96,6 +97,40 @@ pub enum Refusal<'a> {
         /// The calibrator's methods.
         methods: &'a [&'static str],
     },
+    /// `err 16`: the calibration method failed, for the reason `why`.
+    MethodFailed {
+        /// Why (the calibrator's error).
+        why: &'a dyn fmt::Display,
+    },
+    /// `err 16`: every method of the `calibrate` table failed.
+    NoMethodSucceeded,
+    /// `err 11`: a fault is latched.
+    Fault {
+        /// Its short name (`stall`, `following-error`, …).
+        name: &'a str,
+    },
+    /// `err 10`: the controller refused the request, for the reason `why`.
+    ControllerRefused {
+        /// Why.
+        why: &'a dyn fmt::Display,
+    },
+    /// `err 17`: parameters refused (an inconsistent geometry, a record `save` would refuse).
+    InvalidParams {
+        /// Why.
+        why: &'a dyn fmt::Display,
+    },
+    /// `err 18`: the motors run: flash is not written.
+    MotorsRunning,
+    /// `err 19`: the flash failed, as `why` says.
+    FlashFailed {
+        /// What failed.
+        why: &'a dyn fmt::Display,
+    },
+    /// `err 17`: the settings are not storable (the parameter record's reason `why`).
+    NotStorable {
+        /// The record's reason.
+        why: &'a dyn fmt::Display,
+    },
     /// `err 22`: an implausible measurement of run `run`, for the reason `why`.
     Implausible {
         /// The run.
@@ -124,7 +159,16 @@ impl Refusal<'_> {
     /// The error code on the wire.
     pub fn code(&self) -> ErrorCode {
         match self {
-            Refusal::Busy(_) | Refusal::MeasureWhileDriving => ErrorCode::Busy,
+            Refusal::Busy(_) | Refusal::MeasureWhileDriving | Refusal::ControllerRefused { .. } => {
+                ErrorCode::Busy
+            }
+            Refusal::MethodFailed { .. } | Refusal::NoMethodSucceeded => {
+                ErrorCode::CalibrationFailed
+            }
+            Refusal::Fault { .. } => ErrorCode::Fault,
+            Refusal::InvalidParams { .. } | Refusal::NotStorable { .. } => ErrorCode::InvalidParams,
+            Refusal::MotorsRunning => ErrorCode::MotorsRunning,
+            Refusal::FlashFailed { .. } => ErrorCode::Storage,
             Refusal::NothingToMeasure
             | Refusal::AlreadyMeasured { .. }
             | Refusal::Aborted { .. } => ErrorCode::NoRun,
@@ -138,6 +182,25 @@ impl Refusal<'_> {
             Refusal::UnknownMethod { .. } => ErrorCode::BadKeyword,
             Refusal::Implausible { .. } => ErrorCode::Implausible,
         }
+    }
+}
+
+/// What a reply says of a failed store operation (after `flash error: `).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StoreErrorText(pub StoreError);
+
+impl fmt::Display for StoreErrorText {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self.0 {
+            StoreError::BadRange => "bad parameter flash range",
+            StoreError::Flash(_) => "flash driver error",
+            StoreError::Corrupted => "parameter flash corrupted",
+            StoreError::Full => "parameter flash full",
+            StoreError::FlashTooSmall(_) => {
+                "no storage: this part's flash is smaller than the storage map"
+            }
+            _ => "storage error",
+        })
     }
 }
 
@@ -260,6 +323,15 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
                 out.write_str(m)?;
             }
         }
+        Refusal::MethodFailed { why } | Refusal::InvalidParams { why } => write!(out, "{why}")?,
+        Refusal::MotorsRunning => out.write_str("motors running, flash not written")?,
+        Refusal::FlashFailed { why } => write!(out, "flash error: {why}")?,
+        Refusal::NotStorable { why } => write!(out, "parameters not storable: {why}")?,
+        Refusal::NoMethodSucceeded => {
+            out.write_str("no method succeeded (check the measurements: runs)")?
+        }
+        Refusal::Fault { name } => write!(out, "fault latched: {name}")?,
+        Refusal::ControllerRefused { why } => write!(out, "refused: {why}")?,
         Refusal::Implausible { run, path, why } => {
             write!(out, "run {run} ")?;
             write_path(out, &path)?;
@@ -313,6 +385,17 @@ mod tests {
                 methods: &["a", "b"]
             }),
             "err 7: unknown method; one of a|b\r\n"
+        );
+        // A store's typed error keeps its kind up to the reply that names it.
+        assert_eq!(
+            text(&Refusal::FlashFailed {
+                why: &StoreErrorText(StoreError::Full)
+            }),
+            "err 19: flash error: parameter flash full\r\n"
+        );
+        assert_eq!(
+            text(&Refusal::MotorsRunning),
+            "err 18: motors running, flash not written\r\n"
         );
     }
 }

@@ -17,7 +17,6 @@ use crate::kinematics::geometry::Geometry;
 use crate::motion::run::RunRecord;
 use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
-use crate::protocol::reply::{ErrorCode, write_err};
 use crate::util::text::keyword_eq;
 
 impl<C: Calibrator> Session<C> {
@@ -91,7 +90,7 @@ impl<C: Calibrator> Session<C> {
         }
         let sol = match self.calibrator.solve(&self.runs, &nominal, name) {
             Ok(s) => s,
-            Err(e) => return write_err(out, ErrorCode::CalibrationFailed, &e),
+            Err(e) => return write_refusal(out, &Refusal::MethodFailed { why: &e }),
         };
         let p = self.progress();
         // The longest whole-character prefix that fits (method names are short ASCII), copied
@@ -171,11 +170,7 @@ pub fn write_calibration<C: Calibrator>(
     }
     if solved == 0 {
         // Advice from a failed fit would be meaningless.
-        return write_err(
-            out,
-            ErrorCode::CalibrationFailed,
-            &"no method succeeded (check the measurements: runs)",
-        );
+        return write_refusal(out, &Refusal::NoMethodSucceeded);
     }
     calibrator.advice(runs, nominal, method, out)?;
     write!(

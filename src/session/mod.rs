@@ -51,7 +51,7 @@ use heapless::Vec;
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::record;
-use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
+use crate::protocol::refusal::{InProgress, Refusal, StoreErrorText, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError};
@@ -124,9 +124,9 @@ pub struct Session<C> {
 /// otherwise; busy says what is in progress and to wait for it.
 fn robot_err(out: &mut dyn Write, e: RobotError, robot: &mut dyn Robot) -> fmt::Result {
     match e {
-        RobotError::Fault(_) => write_err(out, ErrorCode::Fault, &e),
+        RobotError::Fault(name) => write_refusal(out, &Refusal::Fault { name }),
         RobotError::Busy => busy_err(out, robot.status().activity),
-        RobotError::Rejected(_) => write_err(out, ErrorCode::Busy, &e),
+        RobotError::Rejected(why) => write_refusal(out, &Refusal::ControllerRefused { why: &why }),
     }
 }
 
@@ -144,12 +144,17 @@ fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
 
 /// The `err` reply for a failed parameter store, with the code of its cause.
 fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
-    let code = match e {
-        StorageError::MotorsRunning => ErrorCode::MotorsRunning,
-        StorageError::Record(_) => ErrorCode::InvalidParams,
-        StorageError::Store(_) | StorageError::Flash(_) => ErrorCode::Storage,
+    let store_text;
+    let refusal = match &e {
+        StorageError::MotorsRunning => Refusal::MotorsRunning,
+        StorageError::Record(why) => Refusal::NotStorable { why },
+        StorageError::Store(store) => {
+            store_text = StoreErrorText(*store);
+            Refusal::FlashFailed { why: &store_text }
+        }
+        StorageError::Flash(why) => Refusal::FlashFailed { why },
     };
-    write_err(out, code, &e)
+    write_refusal(out, &refusal)
 }
 
 /// Counts of square runs per direction: `(stored, measured)` for CW and CCW.

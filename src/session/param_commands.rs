@@ -12,7 +12,7 @@ use super::{Dropped, Session, Settings, robot_err, storable, storage_err};
 use crate::protocol::ParamGroup;
 use crate::protocol::ParamName;
 use crate::protocol::outcome::{ParamOutcome, SetChange, write_param_outcome};
-use crate::protocol::reply::{ErrorCode, write_err};
+use crate::protocol::refusal::{Refusal, write_refusal};
 
 /// Hands every part of `settings` the controller runs with to `robot`: the active geometry, the
 /// motion limits, the wiring, the speed-loop tuning and the control rate (the same parts as
@@ -43,7 +43,7 @@ impl<C: Calibrator> Session<C> {
         }
         let (mut new, changed) = match self.settings.with_value(name, value) {
             Ok(x) => x,
-            Err(e) => return write_err(out, ErrorCode::InvalidParams, &e),
+            Err(e) => return write_refusal(out, &Refusal::InvalidParams { why: &e }),
         };
         let Some(changed) = changed else {
             let outcome = ParamOutcome::Set {

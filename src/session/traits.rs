@@ -17,6 +17,7 @@ use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
+use crate::protocol::refusal::StoreErrorText;
 use crate::storage::record::RecordError;
 use crate::storage::{RunsLoaded, StoreError, StoredRun};
 
@@ -200,25 +201,11 @@ pub enum StorageError {
     Record(RecordError),
 }
 
-/// What the reply says of a failed store operation (after `flash error: `).
-fn store_error_text(e: &StoreError) -> &'static str {
-    match e {
-        StoreError::BadRange => "bad parameter flash range",
-        StoreError::Flash(_) => "flash driver error",
-        StoreError::Corrupted => "parameter flash corrupted",
-        StoreError::Full => "parameter flash full",
-        StoreError::FlashTooSmall(_) => {
-            "no storage: this part's flash is smaller than the storage map"
-        }
-        _ => "storage error",
-    }
-}
-
 impl fmt::Display for StorageError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             StorageError::MotorsRunning => f.write_str("motors running, flash not written"),
-            StorageError::Store(e) => write!(f, "flash error: {}", store_error_text(e)),
+            StorageError::Store(e) => write!(f, "flash error: {}", StoreErrorText(*e)),
             StorageError::Flash(why) => write!(f, "flash error: {why}"),
             StorageError::Record(e) => write!(f, "parameters not storable: {e}"),
         }
