@@ -106,7 +106,6 @@ mod app {
         tick: ControlTick,
         pacing: Pacing,
         missed: MissedPeriods,
-        core_hz: u32,
         motors: BoardMotors,
         button_pin: ButtonInput,
         leds: Leds,
@@ -235,7 +234,6 @@ mod app {
                 tick,
                 pacing,
                 missed,
-                core_hz: board.sysclk_hz,
                 motors: board.motors,
                 button_pin: board.button,
                 leds: board.leds,
@@ -270,7 +268,7 @@ mod app {
     /// Control period: encoders → odometry → routine → speed loops → motors; button presses
     /// handed to the console task; retiming and LEDs.
     #[task(binds = TIM7, priority = 3,
-           local = [control_handoff, encoders, tick, pacing, missed, core_hz, motors, press_in,
+           local = [control_handoff, encoders, tick, pacing, missed, motors, press_in,
                     ring_on_press, leds],
            shared = [controller, button, watchdog])]
     fn control(cx: control::Context) {
@@ -303,7 +301,7 @@ mod app {
         let news = cx.local.pacing.after_period(handoff, rate_hz);
         if let Some(hz) = news.retime_hz {
             cx.local.tick.set_rate_hz(hz);
-            cx.local.missed.set_rate(*cx.local.core_hz, hz);
+            cx.local.missed.set_rate(hz);
         }
         // The LEDs live here, at the control task's priority, so the heartbeat keeps blinking
         // while the console task runs a long calibration solve.

@@ -119,20 +119,24 @@ impl Pacing {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MissedPeriods {
     last: Option<u32>,
+    core_hz: u32,
     cycles_per_period: u32,
 }
 
 impl MissedPeriods {
     /// A counter of `core_hz` cycles per second for periods at `rate_hz`.
     pub fn new(core_hz: u32, rate_hz: u32) -> Self {
-        let mut m = MissedPeriods::default();
-        m.set_rate(core_hz, rate_hz);
+        let mut m = MissedPeriods {
+            core_hz,
+            ..MissedPeriods::default()
+        };
+        m.set_rate(rate_hz);
         m
     }
 
     /// The period changed (`set control_hz`): the next period starts the count afresh.
-    pub fn set_rate(&mut self, core_hz: u32, rate_hz: u32) {
-        self.cycles_per_period = core_hz / rate_hz.max(1);
+    pub fn set_rate(&mut self, rate_hz: u32) {
+        self.cycles_per_period = self.core_hz / rate_hz.max(1);
         self.last = None;
     }
 
@@ -175,7 +179,7 @@ mod tests {
         t = t.wrapping_add(252_000);
         assert_eq!(m.observe(t), 1);
         // At 10 kHz (16,800 cycles) after a retime, the first period only starts the count.
-        m.set_rate(168_000_000, 10_000);
+        m.set_rate(10_000);
         assert_eq!(m.observe(t.wrapping_add(999_999)), 0);
         assert_eq!(m.observe(t.wrapping_add(999_999 + 3 * 16_800)), 2);
     }
