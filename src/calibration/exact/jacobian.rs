@@ -156,33 +156,40 @@ pub(super) fn end_pose_derivatives<F: Real>(
     (pose, out)
 }
 
+/// A 1 m square of `model`'s robot, 4 × (20 + 5) knots; `wobble` adds a count of jitter to the
+/// left wheel along the sides (the tests of this module and of the solver).
+#[cfg(test)]
+pub(super) fn square_knots(model: &ArcModel, wobble: bool) -> std::vec::Vec<WheelTicks> {
+    let side = (1.0 / model.right_m_per_tick).round() as i64;
+    let turn =
+        (0.25 * core::f64::consts::PI * model.wheelbase_m / model.right_m_per_tick).round() as i64;
+    let mut knots = std::vec![WheelTicks::new(0, 0)];
+    let (mut r, mut l) = (0, 0);
+    for _ in 0..4 {
+        for i in 1..=20 {
+            let jitter = if wobble { i % 3 } else { 0 };
+            knots.push(WheelTicks::new(
+                r + side * i / 20,
+                l + side * i / 20 + jitter,
+            ));
+        }
+        (r, l) = (r + side, l + side);
+        for i in 1..=5 {
+            knots.push(WheelTicks::new(r + turn * i / 5, l - turn * i / 5));
+        }
+        (r, l) = (r + turn, l - turn);
+    }
+    knots
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::kinematics::geometry::Geometry;
     use crate::kinematics::reference::PoseF64;
 
-    /// A 1 m square of the paper's robot, 4 × (20 + 5) knots.
     fn square(model: &ArcModel) -> Vec<WheelTicks> {
-        let side = (1.0 / model.right_m_per_tick).round() as i64;
-        let turn = (0.25 * core::f64::consts::PI * model.wheelbase_m / model.right_m_per_tick)
-            .round() as i64;
-        let mut knots = vec![WheelTicks::new(0, 0)];
-        let (mut r, mut l) = (0, 0);
-        for _ in 0..4 {
-            for i in 1..=20 {
-                knots.push(WheelTicks::new(
-                    r + side * i / 20,
-                    l + side * i / 20 + i % 3,
-                ));
-            }
-            (r, l) = (r + side, l + side);
-            for i in 1..=5 {
-                knots.push(WheelTicks::new(r + turn * i / 5, l - turn * i / 5));
-            }
-            (r, l) = (r + turn, l - turn);
-        }
-        knots
+        square_knots(model, true)
     }
 
     /// The series of `sinc` and its slope agree with the closed forms where both are accurate.

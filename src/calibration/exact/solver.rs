@@ -227,24 +227,9 @@ mod tests {
     /// for `h = 1e-3`).
     #[test]
     fn f32_jacobian_matches_f64() {
-        use crate::kinematics::encoder::WheelTicks;
         let nominal = Geometry::PAPER_NOMINAL;
         let model = ArcModel::from_geometry(&nominal);
-        let side = (1.0 / model.right_m_per_tick).round() as i64;
-        let turn = (0.25 * core::f64::consts::PI * model.wheelbase_m / model.right_m_per_tick)
-            .round() as i64;
-        let mut knots = vec![WheelTicks::new(0, 0)];
-        let (mut r, mut l) = (0, 0);
-        for _ in 0..4 {
-            for i in 1..=20 {
-                knots.push(WheelTicks::new(r + side * i / 20, l + side * i / 20));
-            }
-            (r, l) = (r + side, l + side);
-            for i in 1..=5 {
-                knots.push(WheelTicks::new(r + turn * i / 5, l - turn * i / 5));
-            }
-            (r, l) = (r + turn, l - turn);
-        }
+        let knots = super::super::jacobian::square_knots(&model, false);
         let p = [1.01, 0.99, 1.0];
         let end = |q: [f64; 3]| {
             let m = ArcModel::from_geometry(&nominal.with_factors(q[0], q[1], q[2]));
