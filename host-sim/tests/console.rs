@@ -223,14 +223,10 @@ fn calibrate_names_a_swapped_run() {
     let rows: Vec<&str> = table
         .lines()
         .filter(|l| {
-            [
-                "umbmark-x",
-                "umbmark-y",
-                "lee-x",
-                "lee-y",
-                "jung-chung",
-                "exact",
-            ]
+            // The board's methods, as its calibrator lists them.
+            odocal::session::Calibrator::methods(
+                &odocal::session::library::LibraryCalibrator::default(),
+            )
             .contains(&l.split_whitespace().next().unwrap_or(""))
         })
         .collect();
