@@ -209,6 +209,22 @@ impl Encoder {
     pub fn set_max_step(&mut self, max_step: u32) {
         self.config.max_step = max_step;
     }
+
+    /// [`Encoder::update`] for a reading that spans `periods` control periods (the ones a stall
+    /// held back arrive at once): the glitch limit is `periods` times the per-period one, up to
+    /// what the counter's width tells apart, for this reading only.
+    ///
+    /// # Errors
+    /// As [`Encoder::update`], against the widened limit.
+    pub fn update_over(&mut self, raw: u32, periods: u32) -> Result<i64, EncoderGlitch> {
+        let per_period = self.config.max_step;
+        self.config.max_step = per_period
+            .saturating_mul(periods.max(1))
+            .min(self.config.width.max_unambiguous_step());
+        let result = self.update(raw);
+        self.config.max_step = per_period;
+        result
+    }
 }
 
 #[cfg(test)]
@@ -221,6 +237,20 @@ mod tests {
             polarity: Polarity::Normal,
             max_step,
         }
+    }
+
+    #[test]
+    fn a_reading_over_several_periods_widens_the_glitch_limit_for_that_reading_only() {
+        let mut e = Encoder::new(cfg(CounterWidth::Bits16, 100), 0);
+        // Three periods' worth: 300 counts pass, and the limit is back to 100 after.
+        assert_eq!(e.update_over(250, 3), Ok(250));
+        assert_eq!(e.config().max_step, 100);
+        assert!(e.update(400).is_err());
+        // However many periods, never beyond what 16 bits tell apart.
+        let mut e = Encoder::new(cfg(CounterWidth::Bits16, 100), 0);
+        assert_eq!(e.update_over(32_767, 1_000), Ok(32_767));
+        let mut e = Encoder::new(cfg(CounterWidth::Bits16, 100), 0);
+        assert!(e.update_over(32_768, 1_000).is_err());
     }
 
     /// Drives a simulated counter of the given width across `boundary` in both directions and

@@ -32,7 +32,7 @@ use fault::FollowingState;
 use mode::{ActiveCheck, ActiveRun, DriveState};
 pub use mode::{ButtonAction, DriveError, StartError};
 
-use crate::kinematics::encoder::{CounterWidth, Encoder, EncoderGlitch, WheelTicks};
+use crate::kinematics::encoder::{Encoder, EncoderGlitch, WheelTicks};
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::odometry::{Odometry, OdometryState, Pose};
 use crate::motion::bringup::{CheckKind, CheckReport};
@@ -304,20 +304,14 @@ impl Controller {
             // its mark during an erase), not a glitch, as far as the counters can tell.
             let periods = self.catch_up.saturating_add(1);
             self.catch_up = 0;
-            let widened = |e: &mut Encoder, raw: u32| {
-                let c = *e.config();
-                let wide = c
-                    .max_step
-                    .saturating_mul(periods)
-                    .min(c.width.max_unambiguous_step());
-                e.set_max_step(wide);
-                let r = e.update(raw);
-                e.set_max_step(c.max_step);
-                r
-            };
-            let (r, l) = (widened(enc_r, raw_right), widened(enc_l, raw_left));
+            let (r, l) = (
+                enc_r.update_over(raw_right, periods),
+                enc_l.update_over(raw_left, periods),
+            );
+            // Half of what the left counter tells apart, judged on the right wheel's exact count.
+            let left_range = enc_l.config().width.max_unambiguous_step() / 2;
             if let Ok(dr) = r
-                && dr.unsigned_abs() > u64::from(CounterWidth::Bits16.max_unambiguous_step() / 2)
+                && dr.unsigned_abs() > u64::from(left_range)
             {
                 self.pose_lost = true;
             }
