@@ -170,8 +170,11 @@ mod app {
         // Parameters first: loading may repair an interrupted save (motors are off here).
         let mut params_store = board.params;
         let loaded = params_store.load_blocking();
-        let params = loaded.record;
-        let settings = Settings::from(&params);
+        let settings = loaded.record;
+        let calibrated_with = settings
+            .calibration
+            .as_ref()
+            .map_or_else(Default::default, |c| c.method.clone());
         let controller = make_controller(&settings);
         // The control period from the stored rate on (the board started it at the default).
         let rate_hz = controller.config().rate_hz;
@@ -216,7 +219,7 @@ mod app {
         defmt::info!(
             "odocal up: control at {} Hz, calibration '{}'",
             rate_hz,
-            params.calibration.method.as_str()
+            calibrated_with.as_str()
         );
 
         (

@@ -74,8 +74,8 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
             // Reboot.
             let mut store = ParamStore::new(&mut flash, range.clone()).unwrap();
             let out = store.load_blocking();
-            let is_old = match old {
-                Some(o) => out.record == o && out.warning.is_none(),
+            let is_old = match &old {
+                Some(o) => out.record == *o && out.warning.is_none(),
                 None => {
                     out.record == ParamRecord::DEFAULT && out.warning == Some(LoadWarning::Missing)
                 }
@@ -151,7 +151,7 @@ fn a_second_cut_at_every_byte_of_the_boot_repair_still_leaves_old_or_new() {
     let mut old: Option<ParamRecord> = None;
     for p in 0..16u32 {
         let new = calibrated(2000 + p);
-        saves.push((p, base.clone(), old, new));
+        saves.push((p, base.clone(), old.clone(), new.clone()));
         ParamStore::new(&mut base, range.clone())
             .unwrap()
             .save_blocking(&new, true)
@@ -168,7 +168,7 @@ fn a_second_cut_at_every_byte_of_the_boot_repair_still_leaves_old_or_new() {
                 s.spawn(|| {
                     let mut tally = DoubleCut::default();
                     while let Some((p, base, old, new)) = saves.get(next.fetch_add(1, Relaxed)) {
-                        double_cut(*p, base, *old, *new, &mut tally);
+                        double_cut(*p, base, old.clone(), new.clone(), &mut tally);
                     }
                     tally
                 })
@@ -272,8 +272,8 @@ fn double_cut(
             let out = ParamStore::new(&mut flash, range.clone())
                 .unwrap()
                 .load_blocking();
-            let ok_old = match old {
-                Some(o) => out.record == o && out.warning.is_none(),
+            let ok_old = match &old {
+                Some(o) => out.record == *o && out.warning.is_none(),
                 None => out.warning == Some(LoadWarning::Missing),
             };
             let ok_new = out.record == new && out.warning.is_none();
@@ -436,7 +436,7 @@ fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters
             let len = store.flash().bytes_touched() - before;
             let params_new = match update {
                 Update::SaveParams(n) => Some(calibrated(n)),
-                _ => params_old,
+                _ => params_old.clone(),
             };
             let with_erase = probe.erase_counts().iter().sum::<u32>() > erases_before;
             (old_runs, runs, params_new, len, with_erase)

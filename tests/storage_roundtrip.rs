@@ -110,7 +110,7 @@ fn refuses_to_save_an_invalid_record() {
     let mut flash = Box::new(BoardFlash::default());
     let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
     let mut bad = calibrated(1);
-    bad.calibration.e_b = f64::NAN;
+    bad.calibration.as_mut().unwrap().e_b = f64::NAN;
     assert_eq!(
         store.save_blocking(&bad, true),
         Err(StoreError::InvalidRecord(RecordError::Factor))
@@ -122,7 +122,7 @@ fn refuses_to_save_an_invalid_record() {
 fn stored_nan_record_is_rejected_at_load() {
     let mut flash = Box::new(BoardFlash::default());
     let mut bad = calibrated(7);
-    bad.calibration.geometry.diameter_left_m = f64::NAN;
+    bad.active.diameter_left_m = f64::NAN;
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     bad.encode(&mut bytes).unwrap();
     store_raw(&mut flash, &bytes);
@@ -223,22 +223,16 @@ fn stored_records_of_every_version_decode_to_their_values() {
             nominal.diameter_left_m,
             nominal.wheelbase_m,
             nominal.counts_per_rev,
-            calibration.e_d,
-            calibration.e_b,
-            calibration.e_s,
-            calibration.geometry.diameter_right_m,
-            calibration.geometry.diameter_left_m,
-            calibration.geometry.wheelbase_m,
-            calibration.geometry.counts_per_rev,
-            calibration.method,
-            calibration.runs,
-            calibration.predicted_e_max_m,
+            active.diameter_right_m,
+            active.diameter_left_m,
+            active.wheelbase_m,
+            active.counts_per_rev,
             motion.max_speed_mps,
             motion.max_accel_mps2,
             motion.max_turn_rate_radps,
             motion.max_turn_accel_radps2,
-            motion.square_side_m,
-            motion.runs_per_direction,
+            square_side_m,
+            runs_per_direction,
             wiring.motor_right_reversed,
             wiring.motor_left_reversed,
             wiring.encoder_right_reversed,
@@ -254,6 +248,16 @@ fn stored_records_of_every_version_decode_to_their_values() {
             tuning.bandwidth_radps,
             tuning.output_limit,
             control_hz,
+        );
+        let (got_c, want_c) = (got.calibration.clone(), want.calibration.clone());
+        let (got_c, want_c) = (got_c.unwrap(), want_c.unwrap());
+        assert_fields_eq!(version, got_c, want_c;
+            e_d,
+            e_b,
+            e_s,
+            method,
+            runs_used,
+            e_max_m,
         );
         // Whole-record equality too, so a field added later cannot be left out of the list.
         assert_eq!(got, want, "version {version}");

@@ -7,6 +7,7 @@
 //! outside them is rejected by the parser before anything else sees it.
 
 use crate::motion::speed::{MotorParams, SpeedTuning};
+use crate::storage::record::ParamRecord;
 use crate::util::text::keyword_eq;
 
 /// An `f32` range (the speed loop's) as the parser's `f64` bounds (exact: every `f32` is an
@@ -227,8 +228,9 @@ pub enum ParamGroup {
     Rate,
 }
 
-/// One parameter: everything the protocol knows of it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One parameter: everything the protocol knows of it, and where it lives in the settings
+/// record ([`ParamRecord`]): the one place a parameter is defined.
+#[derive(Clone, Copy, Debug)]
 pub struct ParamSpec {
     /// The parameter.
     pub name: ParamName,
@@ -242,6 +244,12 @@ pub struct ParamSpec {
     pub value: ValueKind,
     /// The part of the settings it belongs to.
     pub group: ParamGroup,
+    /// Its value in a record, as the `f64` the protocol shows (exact for every field type).
+    pub get: fn(&ParamRecord) -> f64,
+    /// Writes a value into a record: already within `range`, whole for [`ValueKind::Whole`],
+    /// ±1 for [`ValueKind::Sign`] (the caller checks; see `session::settings`). Limits and
+    /// tuning are stored as `f32`.
+    pub set: fn(&mut ParamRecord, f64),
 }
 
 /// A table row.
@@ -252,6 +260,7 @@ const fn row(
     range: (f64, f64),
     value: ValueKind,
     group: ParamGroup,
+    (get, set): Access,
 ) -> ParamSpec {
     ParamSpec {
         name,
@@ -260,7 +269,17 @@ const fn row(
         range,
         value,
         group,
+        get,
+        set,
     }
+}
+
+/// How a row reads and writes its field of the record.
+type Access = (fn(&ParamRecord) -> f64, fn(&mut ParamRecord, f64));
+
+/// A wiring flag as the protocol's sign: 1 standard, −1 reversed.
+const fn sign(reversed: bool) -> f64 {
+    if reversed { -1.0 } else { 1.0 }
 }
 
 const METRES_9: ValueKind = ValueKind::Real { places: 9 };
@@ -284,6 +303,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.001, 2.0),
             METRES_9,
             G::Geometry,
+            (
+                |r| r.nominal.diameter_right_m,
+                |r, v| r.nominal.diameter_right_m = v,
+            ),
         ),
         row(
             P::DiameterLeft,
@@ -292,6 +315,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.001, 2.0),
             METRES_9,
             G::Geometry,
+            (
+                |r| r.nominal.diameter_left_m,
+                |r, v| r.nominal.diameter_left_m = v,
+            ),
         ),
         row(
             P::Wheelbase,
@@ -300,6 +327,7 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.01, 5.0),
             METRES_9,
             G::Geometry,
+            (|r| r.nominal.wheelbase_m, |r, v| r.nominal.wheelbase_m = v),
         ),
         row(
             P::CountsPerRev,
@@ -308,6 +336,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (1.0, 100_000_000.0),
             Whole,
             G::Geometry,
+            (
+                |r| f64::from(r.nominal.counts_per_rev),
+                |r, v| r.nominal.counts_per_rev = v as u32,
+            ),
         ),
         row(
             P::MaxSpeed,
@@ -316,6 +348,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.01, 2.0),
             LIMIT_3,
             G::Motion,
+            (
+                |r| f64::from(r.motion.max_speed_mps),
+                |r, v| r.motion.max_speed_mps = v as f32,
+            ),
         ),
         row(
             P::MaxAccel,
@@ -324,6 +360,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.01, 5.0),
             LIMIT_3,
             G::Motion,
+            (
+                |r| f64::from(r.motion.max_accel_mps2),
+                |r, v| r.motion.max_accel_mps2 = v as f32,
+            ),
         ),
         row(
             P::MaxTurnRate,
@@ -332,6 +372,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.05, 10.0),
             LIMIT_3,
             G::Motion,
+            (
+                |r| f64::from(r.motion.max_turn_rate_radps),
+                |r, v| r.motion.max_turn_rate_radps = v as f32,
+            ),
         ),
         row(
             P::MaxTurnAccel,
@@ -340,6 +384,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.05, 20.0),
             LIMIT_3,
             G::Motion,
+            (
+                |r| f64::from(r.motion.max_turn_accel_radps2),
+                |r, v| r.motion.max_turn_accel_radps2 = v as f32,
+            ),
         ),
         row(
             P::SquareSide,
@@ -348,6 +396,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (0.1, 10.0),
             LIMIT_3,
             G::Plan,
+            (
+                |r| f64::from(r.square_side_m),
+                |r, v| r.square_side_m = v as f32,
+            ),
         ),
         row(
             P::RunsPerDirection,
@@ -356,6 +408,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (1.0, (crate::motion::run::MAX_RUNS / 2) as f64),
             Whole,
             G::Plan,
+            (
+                |r| f64::from(r.runs_per_direction),
+                |r, v| r.runs_per_direction = v as u8,
+            ),
         ),
         row(
             P::MotorRightSign,
@@ -364,6 +420,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (-1.0, 1.0),
             Sign,
             G::Wiring,
+            (
+                |r| sign(r.wiring.motor_right_reversed),
+                |r, v| r.wiring.motor_right_reversed = v < 0.0,
+            ),
         ),
         row(
             P::MotorLeftSign,
@@ -372,6 +432,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (-1.0, 1.0),
             Sign,
             G::Wiring,
+            (
+                |r| sign(r.wiring.motor_left_reversed),
+                |r, v| r.wiring.motor_left_reversed = v < 0.0,
+            ),
         ),
         row(
             P::EncoderRightSign,
@@ -380,6 +444,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (-1.0, 1.0),
             Sign,
             G::Wiring,
+            (
+                |r| sign(r.wiring.encoder_right_reversed),
+                |r, v| r.wiring.encoder_right_reversed = v < 0.0,
+            ),
         ),
         row(
             P::EncoderLeftSign,
@@ -388,6 +456,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             (-1.0, 1.0),
             Sign,
             G::Wiring,
+            (
+                |r| sign(r.wiring.encoder_left_reversed),
+                |r, v| r.wiring.encoder_left_reversed = v < 0.0,
+            ),
         ),
         row(
             P::MotorRightGainFwd,
@@ -396,6 +468,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             GAIN,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.right.gain_forward_mps),
+                |r, v| r.tuning.right.gain_forward_mps = v as f32,
+            ),
         ),
         row(
             P::MotorRightGainBack,
@@ -404,6 +480,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             GAIN,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.right.gain_backward_mps),
+                |r, v| r.tuning.right.gain_backward_mps = v as f32,
+            ),
         ),
         row(
             P::MotorRightTau,
@@ -412,6 +492,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             TAU,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.right.time_constant_s),
+                |r, v| r.tuning.right.time_constant_s = v as f32,
+            ),
         ),
         row(
             P::MotorRightDeadband,
@@ -420,6 +504,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             DEADBAND,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.right.deadband),
+                |r, v| r.tuning.right.deadband = v as f32,
+            ),
         ),
         row(
             P::MotorLeftGainFwd,
@@ -428,6 +516,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             GAIN,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.left.gain_forward_mps),
+                |r, v| r.tuning.left.gain_forward_mps = v as f32,
+            ),
         ),
         row(
             P::MotorLeftGainBack,
@@ -436,6 +528,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             GAIN,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.left.gain_backward_mps),
+                |r, v| r.tuning.left.gain_backward_mps = v as f32,
+            ),
         ),
         row(
             P::MotorLeftTau,
@@ -444,6 +540,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             TAU,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.left.time_constant_s),
+                |r, v| r.tuning.left.time_constant_s = v as f32,
+            ),
         ),
         row(
             P::MotorLeftDeadband,
@@ -452,6 +552,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             DEADBAND,
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.left.deadband),
+                |r, v| r.tuning.left.deadband = v as f32,
+            ),
         ),
         row(
             P::SpeedBandwidth,
@@ -460,6 +564,10 @@ pub const PARAMS: [ParamSpec; 24] = {
             f32_range(SpeedTuning::BANDWIDTH_RANGE),
             TUNING_4,
             G::Tuning,
+            (
+                |r| f64::from(r.tuning.bandwidth_radps),
+                |r, v| r.tuning.bandwidth_radps = v as f32,
+            ),
         ),
         row(
             P::ControlHz,
@@ -468,6 +576,7 @@ pub const PARAMS: [ParamSpec; 24] = {
             (1_000.0, 10_000.0),
             Whole,
             G::Rate,
+            (|r| f64::from(r.control_hz), |r, v| r.control_hz = v as u32),
         ),
     ]
 };

@@ -10,13 +10,14 @@ use core::fmt::{self, Write};
 
 use heapless::Vec;
 
-use super::settings::{self, AppliedCalibration};
+use super::AppliedCalibration;
 use super::traits::{Activity, Calibrator, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::run::RunRecord;
 use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
+use crate::storage::record::METHOD_NAME_MAX;
 use crate::util::text::keyword_eq;
 
 impl<C: Calibrator> Session<C> {
@@ -95,7 +96,7 @@ impl<C: Calibrator> Session<C> {
         let p = self.progress();
         // The longest whole-character prefix that fits (method names are short ASCII), copied
         // as one `str`: pushing `char`s would link the UTF-8 encoder for this one use.
-        let mut end = name.len().min(settings::METHOD_NAME_LEN);
+        let mut end = name.len().min(METHOD_NAME_MAX);
         while !name.is_char_boundary(end) {
             end -= 1;
         }

@@ -5,8 +5,7 @@
 //!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
 //!   short operation at a time and never during a calibration solve;
 //! - [`ParamStorage`] for [`ParamStore`] (blocking; the motors must be stopped);
-//! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`];
-//! - conversions between [`Settings`] and the stored [`ParamRecord`] (lossless both ways).
+//! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`].
 
 use core::fmt::{self, Write};
 
@@ -14,7 +13,7 @@ use embedded_storage_async::nor_flash::MultiwriteNorFlash;
 use heapless::Vec;
 
 use super::MAX_RUNS;
-use super::settings::{AppliedCalibration, Settings};
+use super::Settings;
 use super::traits::{
     Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
     RunResidual, Solution, SolveError, StorageError,
@@ -31,7 +30,7 @@ use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
-use crate::storage::record::{self, MethodName, ParamRecord};
+
 use crate::storage::{ParamStore, RunsLoaded, StoredRun};
 use crate::util::decimal::Decimal;
 
@@ -288,68 +287,6 @@ impl<L: ControllerLock> Robot for Locked<L> {
     }
 }
 
-impl From<&ParamRecord> for Settings {
-    fn from(r: &ParamRecord) -> Self {
-        let c = &r.calibration;
-        let calibration = (c.method != MethodName::NONE).then(|| {
-            let mut method = heapless::String::new();
-            let _ = method.push_str(c.method.as_str());
-            AppliedCalibration {
-                method,
-                e_d: c.e_d,
-                e_b: c.e_b,
-                e_s: c.e_s,
-                runs_used: c.runs,
-                e_max_m: c.predicted_e_max_m,
-            }
-        });
-        Settings {
-            nominal: r.nominal,
-            active: r.active_geometry(),
-            calibration,
-            motion: r.motion.limits(),
-            square_side_m: r.motion.square_side_m,
-            runs_per_direction: r.motion.runs_per_direction,
-            wiring: r.wiring,
-            tuning: r.tuning,
-            control_hz: r.control_hz,
-        }
-    }
-}
-
-impl Settings {
-    /// The stored form of these settings.
-    ///
-    /// # Errors
-    /// If the method name is not storable (empty, too long, not printable ASCII).
-    pub fn to_record(&self) -> Result<ParamRecord, record::RecordError> {
-        let calibration = match &self.calibration {
-            None => record::Calibration::none(self.nominal),
-            Some(c) => record::Calibration {
-                e_d: c.e_d,
-                e_b: c.e_b,
-                e_s: c.e_s,
-                geometry: self.active,
-                method: MethodName::new(&c.method)?,
-                runs: c.runs_used,
-                predicted_e_max_m: c.e_max_m,
-            },
-        };
-        Ok(ParamRecord {
-            nominal: self.nominal,
-            calibration,
-            motion: record::MotionSettings::from_limits(
-                &self.motion,
-                self.square_side_m,
-                self.runs_per_direction,
-            ),
-            wiring: self.wiring,
-            tuning: self.tuning,
-            control_hz: self.control_hz,
-        })
-    }
-}
-
 /// A store error as the session's [`StorageError`]: refusals keep their own kinds, every flash
 /// failure stays the typed [`crate::storage::StoreError`] up to the reply that names it.
 fn store_error(e: crate::storage::StoreError) -> StorageError {
@@ -363,8 +300,7 @@ fn store_error(e: crate::storage::StoreError) -> StorageError {
 
 impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
     fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
-        let record = settings.to_record().map_err(StorageError::Record)?;
-        self.save_blocking(&record, motors_stopped)
+        self.save_blocking(settings, motors_stopped)
             .map_err(store_error)
     }
 
@@ -644,6 +580,7 @@ mod tests {
 
     #[test]
     fn settings_round_trip_through_the_record() {
+        use crate::storage::record::{AppliedCalibration, ParamRecord};
         let mut s = Settings::default();
         s.motion.max_speed_mps = 0.45;
         s.square_side_m = 1.7;
@@ -660,11 +597,10 @@ mod tests {
             runs_used: 10,
             e_max_m: 0.0012,
         });
-        let r = s.to_record().unwrap();
-        assert_eq!(r.validate(), Ok(()));
-        assert_eq!(Settings::from(&r), s);
-        let d = Settings::default().to_record().unwrap();
-        assert_eq!(d, ParamRecord::DEFAULT);
-        assert_eq!(Settings::from(&ParamRecord::DEFAULT), Settings::default());
+        assert_eq!(s.validate(), Ok(()));
+        let mut buf = [0u8; ParamRecord::ENCODED_LEN];
+        s.encode(&mut buf).unwrap();
+        assert_eq!(ParamRecord::decode(&buf).unwrap(), s);
+        assert_eq!(Settings::default(), ParamRecord::DEFAULT);
     }
 }

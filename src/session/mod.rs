@@ -56,10 +56,15 @@ use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
+pub use crate::storage::record::AppliedCalibration;
 use crate::util::text::keyword_eq;
 pub use calibrate_commands::write_calibration;
 pub use events::{write_boot_event, write_fault_event, write_runs_restored};
-pub use settings::{AppliedCalibration, Settings, SettingsError, check_nominal};
+pub use settings::{SettingsError, check_nominal};
+
+/// The session's settings: the stored parameter record itself, so a parameter lives in one
+/// struct (its row of [`crate::protocol::PARAMS`] names the field).
+pub type Settings = crate::storage::record::ParamRecord;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
     Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
@@ -480,11 +485,7 @@ impl<C: Calibrator> Session<C> {
 /// # Errors
 /// [`StorageError::Record`] with the record's reason.
 pub fn storable(settings: &Settings) -> Result<(), StorageError> {
-    settings
-        .to_record()
-        .and_then(|r| r.validate().map(|()| r))
-        .map(|_| ())
-        .map_err(StorageError::Record)
+    settings.validate().map_err(StorageError::Record)
 }
 
 /// Square runs per direction, stored and measured, of `runs`.

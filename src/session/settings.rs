@@ -1,91 +1,19 @@
-//! The operator-editable parameters the session keeps and stores.
+//! The rules for changing the session's settings, which are the stored record itself
+//! ([`ParamRecord`]: everything `params` shows and `save` persists).
 //!
-//! [`Settings`] is everything `params` shows and `save` persists: the nominal geometry, the
-//! applied calibration (factors relative to nominal and the resulting absolute geometry), the
-//! motion limits, the calibration plan, the wiring, the speed-loop tuning and the control rate.
-//! Units: metres, seconds, radians. Motion limits and the
-//! planned side are `f32` like the controller's limits and the stored record; geometry is `f64`.
+//! Each parameter's field is named by its row of [`crate::protocol::PARAMS`] (how it is read
+//! and written); this module adds what holds across parameters: integer rounding, the sign and
+//! rate rules, the nominal geometry's consistency and the calibration a geometry change
+//! invalidates. Units: metres, seconds, radians.
 
 use core::fmt;
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
-use crate::motion::controller::{ControllerConfig, DEFAULT_RATE_HZ, rate_supported};
-use crate::motion::profile::MotionLimits;
-use crate::motion::speed::{SpeedTuning, TuningError};
-use crate::motion::wiring::Wiring;
-use crate::protocol::{ParamGroup, ParamName};
+use crate::motion::controller::{ControllerConfig, rate_supported};
+use crate::motion::speed::TuningError;
+use crate::protocol::{ParamGroup, ParamName, ValueKind};
+use crate::storage::record::ParamRecord;
 use crate::util::num::round_u32;
-
-/// Longest stored method name, bytes.
-pub const METHOD_NAME_LEN: usize = 12;
-
-/// A calibration result in use.
-#[derive(Clone, Debug, PartialEq)]
-pub struct AppliedCalibration {
-    /// Method name (e.g. `exact`).
-    pub method: heapless::String<METHOD_NAME_LEN>,
-    /// `E_d = D_R / D_L`.
-    pub e_d: f64,
-    /// `E_b = b / b_nominal`.
-    pub e_b: f64,
-    /// `E_s = D_a / D_a,nominal`.
-    pub e_s: f64,
-    /// Number of measured runs it was computed from.
-    pub runs_used: u16,
-    /// Predicted worst square end error with it, metres (NaN-free; 0 when unknown).
-    pub e_max_m: f64,
-}
-
-/// Everything the session persists.
-#[derive(Debug, PartialEq)]
-pub struct Settings {
-    /// Nominal geometry (as built / as specified).
-    pub nominal: Geometry,
-    /// Geometry in use: the calibrated one, or `nominal` when there is no calibration.
-    pub active: Geometry,
-    /// The calibration that produced `active`.
-    pub calibration: Option<AppliedCalibration>,
-    /// Motion limits.
-    pub motion: MotionLimits,
-    /// Planned square side `L`, metres.
-    pub square_side_m: f32,
-    /// Planned square runs per direction.
-    pub runs_per_direction: u8,
-    /// Motors and encoders reversed against the standard wiring.
-    pub wiring: Wiring,
-    /// Speed-loop tuning: both motors' models and the bandwidth (the PI gains and feed-forward
-    /// are derived from it).
-    pub tuning: SpeedTuning,
-    /// Control (and odometry) rate, Hz: one of [`crate::motion::controller::RATES_HZ`].
-    pub control_hz: u32,
-}
-
-impl Clone for Settings {
-    // Out of line: `set`, `apply` and the parameter resets each inlined their own copy.
-    #[inline(never)]
-    fn clone(&self) -> Self {
-        Settings {
-            calibration: self.calibration.clone(),
-            ..*self
-        }
-    }
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            nominal: Geometry::PAPER_NOMINAL,
-            active: Geometry::PAPER_NOMINAL,
-            calibration: None,
-            motion: MotionLimits::DEFAULT,
-            square_side_m: 2.0,
-            runs_per_direction: 5,
-            wiring: Wiring::STANDARD,
-            tuning: SpeedTuning::DEFAULT,
-            control_hz: DEFAULT_RATE_HZ,
-        }
-    }
-}
 
 /// Why a parameter change was refused.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,7 +90,7 @@ pub fn check_nominal(g: &Geometry) -> Result<(), SettingsError> {
     Ok(())
 }
 
-impl Settings {
+impl ParamRecord {
     /// The planned side as the `f64` nearest to its decimal value (to the micrometre), so a
     /// planned run and `run cw <same value>` record exactly the same side.
     pub fn square_side_f64(&self) -> f64 {
@@ -181,26 +109,9 @@ impl Settings {
         c
     }
 
-    /// Current value of a parameter.
+    /// Current value of a parameter (its row's reading of the record).
     pub fn value(&self, name: ParamName) -> f64 {
-        match name {
-            ParamName::DiameterRight => self.nominal.diameter_right_m,
-            ParamName::DiameterLeft => self.nominal.diameter_left_m,
-            ParamName::Wheelbase => self.nominal.wheelbase_m,
-            ParamName::CountsPerRev => f64::from(self.nominal.counts_per_rev),
-            ParamName::MaxSpeed => f64::from(self.motion.max_speed_mps),
-            ParamName::MaxAccel => f64::from(self.motion.max_accel_mps2),
-            ParamName::MaxTurnRate => f64::from(self.motion.max_turn_rate_radps),
-            ParamName::MaxTurnAccel => f64::from(self.motion.max_turn_accel_radps2),
-            ParamName::SquareSide => f64::from(self.square_side_m),
-            ParamName::RunsPerDirection => f64::from(self.runs_per_direction),
-            ParamName::MotorRightSign => sign(self.wiring.motor_right_reversed),
-            ParamName::MotorLeftSign => sign(self.wiring.motor_left_reversed),
-            ParamName::EncoderRightSign => sign(self.wiring.encoder_right_reversed),
-            ParamName::EncoderLeftSign => sign(self.wiring.encoder_left_reversed),
-            ParamName::ControlHz => f64::from(self.control_hz),
-            _ => tuning_field(&self.tuning, name).map_or(0.0, f64::from),
-        }
+        (name.spec().get)(self)
     }
 
     /// A copy with one parameter changed. `value` must already be within `name.range()` (the
@@ -211,117 +122,39 @@ impl Settings {
     /// the old nominal.
     ///
     /// # Errors
-    /// A [`SettingsError`] if the nominal geometry would be invalid or inconsistent
+    /// A [`SettingsError`] if a sign is not ±1, the rate is not one the controller runs at, the
+    /// tuning would be invalid, or the nominal geometry would be invalid or inconsistent
     /// ([`check_nominal`]).
     pub fn with_value(
         &self,
         name: ParamName,
         value: f64,
-    ) -> Result<(Settings, Option<ParamGroup>), SettingsError> {
-        let mut s = self.clone();
-        match name {
-            ParamName::DiameterRight => {
-                s.nominal.diameter_right_m = value;
-            }
-            ParamName::DiameterLeft => {
-                s.nominal.diameter_left_m = value;
-            }
-            ParamName::Wheelbase => {
-                s.nominal.wheelbase_m = value;
-            }
-            ParamName::CountsPerRev => {
-                s.nominal.counts_per_rev = round_u32(value);
-            }
-            ParamName::MaxSpeed => {
-                s.motion.max_speed_mps = value as f32;
-            }
-            ParamName::MaxAccel => {
-                s.motion.max_accel_mps2 = value as f32;
-            }
-            ParamName::MaxTurnRate => {
-                s.motion.max_turn_rate_radps = value as f32;
-            }
-            ParamName::MaxTurnAccel => {
-                s.motion.max_turn_accel_radps2 = value as f32;
-            }
-            ParamName::SquareSide => {
-                s.square_side_m = value as f32;
-            }
-            ParamName::RunsPerDirection => {
-                s.runs_per_direction = u8::try_from(round_u32(value)).unwrap_or(u8::MAX);
-            }
-            ParamName::MotorRightSign
-            | ParamName::MotorLeftSign
-            | ParamName::EncoderRightSign
-            | ParamName::EncoderLeftSign => {
-                let reversed = match value {
-                    1.0 => false,
-                    -1.0 => true,
-                    _ => return Err(SettingsError::Sign),
-                };
-                let w = &mut s.wiring;
-                *match name {
-                    ParamName::MotorRightSign => &mut w.motor_right_reversed,
-                    ParamName::MotorLeftSign => &mut w.motor_left_reversed,
-                    ParamName::EncoderRightSign => &mut w.encoder_right_reversed,
-                    _ => &mut w.encoder_left_reversed,
-                } = reversed;
-            }
-            ParamName::ControlHz => {
-                let hz = round_u32(value);
-                if !rate_supported(hz) {
-                    return Err(SettingsError::Rate);
-                }
-                s.control_hz = hz;
-            }
-            _ => {
-                let Some(field) = tuning_field_mut(&mut s.tuning, name) else {
-                    return Ok((s, None));
-                };
-                *field = value as f32;
-            }
+    ) -> Result<(ParamRecord, Option<ParamGroup>), SettingsError> {
+        let spec = name.spec();
+        let value = match spec.value {
+            ValueKind::Real { .. } => value,
+            ValueKind::Whole => f64::from(round_u32(value)),
+            ValueKind::Sign if value == 1.0 || value == -1.0 => value,
+            ValueKind::Sign => return Err(SettingsError::Sign),
+        };
+        if spec.group == ParamGroup::Rate && !rate_supported(round_u32(value)) {
+            return Err(SettingsError::Rate);
         }
-        let changed = name.spec().group;
-        // Only `name` differs so far: compare it alone, as [`Settings::value`] reads it (exact
-        // for every field type), instead of the whole settings (0.4 KiB of field comparisons).
+        let mut s = self.clone();
+        (spec.set)(&mut s, value);
+        // Only `name` differs so far: compare it alone, as [`ParamRecord::value`] reads it
+        // (exact for every field type), instead of the whole record.
         if s.value(name) == self.value(name) {
             return Ok((s, None));
         }
-        if changed == ParamGroup::Tuning {
+        if spec.group == ParamGroup::Tuning {
             s.tuning.validate().map_err(SettingsError::Tuning)?;
         }
-        if changed == ParamGroup::Geometry {
+        if spec.group == ParamGroup::Geometry {
             check_nominal(&s.nominal)?;
             s.active = s.nominal;
             s.calibration = None;
         }
-        Ok((s, Some(changed)))
+        Ok((s, Some(spec.group)))
     }
-}
-
-/// The tuning field a parameter names (`None` for the other parameters).
-fn tuning_field(t: &SpeedTuning, name: ParamName) -> Option<f32> {
-    let mut t = *t;
-    tuning_field_mut(&mut t, name).map(|v| *v)
-}
-
-/// See [`tuning_field`].
-fn tuning_field_mut(t: &mut SpeedTuning, name: ParamName) -> Option<&mut f32> {
-    Some(match name {
-        ParamName::MotorRightGainFwd => &mut t.right.gain_forward_mps,
-        ParamName::MotorRightGainBack => &mut t.right.gain_backward_mps,
-        ParamName::MotorRightTau => &mut t.right.time_constant_s,
-        ParamName::MotorRightDeadband => &mut t.right.deadband,
-        ParamName::MotorLeftGainFwd => &mut t.left.gain_forward_mps,
-        ParamName::MotorLeftGainBack => &mut t.left.gain_backward_mps,
-        ParamName::MotorLeftTau => &mut t.left.time_constant_s,
-        ParamName::MotorLeftDeadband => &mut t.left.deadband,
-        ParamName::SpeedBandwidth => &mut t.bandwidth_radps,
-        _ => return None,
-    })
-}
-
-/// A wiring flag as the protocol's sign: 1 standard, −1 reversed.
-fn sign(reversed: bool) -> f64 {
-    if reversed { -1.0 } else { 1.0 }
 }

@@ -7,7 +7,7 @@
 
 use core::fmt;
 
-use super::settings::Settings;
+use super::Settings;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;

@@ -32,7 +32,7 @@ pub use sequential_storage::map::MapConfig;
 use sequential_storage::map::MapStorage;
 
 pub use self::record::{
-    Calibration, FormatError, METHOD_NAME_MAX, MethodName, MotionSettings, ParamRecord, RecordError,
+    AppliedCalibration, FormatError, METHOD_NAME_MAX, MethodName, ParamRecord, RecordError,
 };
 pub use self::runs::{RunFormatError, RunLoadProblem, RunsLoaded, StoredRun};
 
@@ -224,7 +224,7 @@ impl fmt::Display for LoadWarning {
 impl core::error::Error for LoadWarning {}
 
 /// What boot gets: the record to use, and why it is the default one if it is.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LoadOutcome {
     /// The stored record, or [`ParamRecord::DEFAULT`] if `warning` is set.
     pub record: ParamRecord,

@@ -2,8 +2,9 @@
 #![allow(dead_code)]
 
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::profile::MotionLimits;
 use odocal::storage::ram_flash::RamFlash;
-use odocal::storage::{Calibration, MethodName, MotionSettings, ParamRecord};
+use odocal::storage::{AppliedCalibration, ParamRecord};
 
 /// Sector size of the STM32F407's sectors 10 and 11, bytes.
 pub const SECTOR: usize = 128 * 1024;
@@ -24,20 +25,21 @@ pub fn calibrated(n: u32) -> ParamRecord {
     let methods = ["exact", "lee-x", "umbmark-x"];
     ParamRecord {
         nominal,
-        calibration: Calibration {
+        active: nominal.with_factors(e_d, e_b, e_s),
+        calibration: Some(AppliedCalibration {
+            method: methods[(n % 3) as usize].try_into().unwrap(),
             e_d,
             e_b,
             e_s,
-            geometry: nominal.with_factors(e_d, e_b, e_s),
-            method: MethodName::new(methods[(n % 3) as usize]).unwrap(),
-            runs: 10 + (n % 7) as u16,
-            predicted_e_max_m: 1e-4 * (1.0 + k),
-        },
-        motion: MotionSettings {
+            runs_used: 10 + (n % 7) as u16,
+            e_max_m: 1e-4 * (1.0 + k),
+        }),
+        motion: MotionLimits {
             max_speed_mps: 0.2 + 0.0001 * (n % 1000) as f32,
-            runs_per_direction: 1 + (n % 9) as u8,
-            ..MotionSettings::DEFAULT
+            ..MotionLimits::DEFAULT
         },
+        square_side_m: 2.0,
+        runs_per_direction: 1 + (n % 9) as u8,
         wiring: odocal::motion::wiring::Wiring::from_bits((n % 16) as u8)
             .unwrap_or(odocal::motion::wiring::Wiring::STANDARD),
         tuning: {
@@ -121,10 +123,11 @@ pub mod fixtures {
     use odocal::kinematics::encoder::WheelTicks;
     use odocal::kinematics::geometry::Geometry;
     use odocal::kinematics::reference::PoseF64;
+    use odocal::motion::profile::MotionLimits;
     use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
     use odocal::motion::speed::{MotorParams, SpeedTuning};
     use odocal::motion::wiring::Wiring;
-    use odocal::storage::{Calibration, MethodName, MotionSettings, ParamRecord, StoredRun};
+    use odocal::storage::{AppliedCalibration, ParamRecord, StoredRun};
 
     include!("../fixtures/storage_records.rs");
 }

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 use odocal::kinematics::geometry::Geometry;
-use odocal::storage::{Calibration, LoadOutcome, MethodName, MotionSettings, ParamRecord};
+use odocal::storage::{AppliedCalibration, LoadOutcome, MethodName, ParamRecord};
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
 
@@ -75,15 +75,16 @@ pub fn run(args: FlashArgs) -> Result<(), Box<dyn std::error::Error>> {
         } => {
             let mut sim = SimParamFlash::open(&image)?;
             let mut record = sim.boot().record;
-            record.calibration = Calibration {
+            MethodName::new(&method).map_err(|e| format!("method: {e}"))?;
+            record.active = record.nominal.with_factors(e_d, e_b, e_s);
+            record.calibration = Some(AppliedCalibration {
+                method: method.as_str().try_into().map_err(|_| "method: too long")?,
                 e_d,
                 e_b,
                 e_s,
-                geometry: record.nominal.with_factors(e_d, e_b, e_s),
-                method: MethodName::new(&method).map_err(|e| format!("method: {e}"))?,
-                runs: 0,
-                predicted_e_max_m: 0.0,
-            };
+                runs_used: 0,
+                e_max_m: 0.0,
+            });
             sim.store().save_blocking(&record, true)?;
             sim.write_image(&image)?;
             print_boot("saved; next boot", &sim.boot());
@@ -105,20 +106,16 @@ fn demo_record(n: u32) -> ParamRecord {
     let e_d = 0.995 + 1e-6 * f64::from(n % 1000);
     let e_b = 1.008;
     ParamRecord {
-        nominal,
-        calibration: Calibration {
+        active: nominal.with_factors(e_d, e_b, 1.0),
+        calibration: Some(AppliedCalibration {
+            method: "exact".try_into().unwrap_or_default(),
             e_d,
             e_b,
             e_s: 1.0,
-            geometry: nominal.with_factors(e_d, e_b, 1.0),
-            method: MethodName::new("exact").unwrap_or(MethodName::NONE),
-            runs: 10,
-            predicted_e_max_m: 0.002,
-        },
-        motion: MotionSettings::DEFAULT,
-        wiring: odocal::motion::wiring::Wiring::STANDARD,
-        tuning: odocal::motion::speed::SpeedTuning::DEFAULT,
-        control_hz: odocal::motion::controller::DEFAULT_RATE_HZ,
+            runs_used: 10,
+            e_max_m: 0.002,
+        }),
+        ..ParamRecord::DEFAULT
     }
 }
 
@@ -167,8 +164,16 @@ fn demo(saves: u32) -> Result<(), Box<dyn std::error::Error>> {
 }
 
 fn print_boot(label: &str, out: &LoadOutcome) {
-    let g = out.record.active_geometry();
-    let c = &out.record.calibration;
+    let g = out.record.active;
+    let none = AppliedCalibration {
+        method: "none".try_into().unwrap_or_default(),
+        e_d: 1.0,
+        e_b: 1.0,
+        e_s: 1.0,
+        runs_used: 0,
+        e_max_m: 0.0,
+    };
+    let c = out.record.calibration.as_ref().unwrap_or(&none);
     match &out.warning {
         Some(w) => println!("{label}: WARNING {w}; using defaults"),
         None => println!("{label}: stored parameters loaded"),

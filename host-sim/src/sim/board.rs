@@ -28,7 +28,7 @@ use odocal::protocol::LineAssembler;
 use odocal::protocol::line::LineEvent;
 use odocal::protocol::rx::{InputItem, Received, RxRead};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Session, Settings, write_boot_event};
+use odocal::session::{Session, write_boot_event};
 use odocal::storage::ParamStore;
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
@@ -102,7 +102,7 @@ impl<'f> Board<'f> {
     ) -> Result<Board<'f>, String> {
         let mut store = flash.store();
         let loaded = store.load_blocking();
-        let settings = Settings::from(&loaded.record);
+        let settings = loaded.record;
         let controller = Controller::new(settings.controller_config())
             .map_err(|e| format!("stored parameters: {e}"))?;
         config.rate_hz = settings.control_hz;

@@ -1,10 +1,9 @@
-//! The calibration result as the record stores it, and the short ASCII name of the method that
-//! produced it.
+//! The calibration result the record holds, and the short ASCII name its method is stored
+//! under.
 
 use core::fmt;
 
 use super::RecordError;
-use crate::kinematics::geometry::Geometry;
 
 /// Longest calibration method name, bytes of ASCII.
 pub const METHOD_NAME_MAX: usize = 12;
@@ -74,38 +73,23 @@ impl defmt::Format for MethodName {
     }
 }
 
-/// A calibration result as stored.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Calibration {
+/// A calibration result in use: the factors relative to the nominal geometry (the geometry they
+/// give is the record's `active` one), the method and what it was computed from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AppliedCalibration {
+    /// Method name (e.g. `exact`): stored as a [`MethodName`], so 1..=[`METHOD_NAME_MAX`]
+    /// printable ASCII bytes ([`super::ParamRecord::validate`] checks it).
+    pub method: heapless::String<METHOD_NAME_MAX>,
     /// Diameter ratio factor `E_d = D_R / D_L` (dimensionless).
     pub e_d: f64,
     /// Wheelbase factor `E_b = b_actual / b_nominal` (dimensionless).
     pub e_b: f64,
-    /// Mean-diameter (distance) scale `E_s` (dimensionless).
+    /// Mean-diameter (distance) scale `E_s = D_a / D_a,nominal` (dimensionless).
     pub e_s: f64,
-    /// The resulting absolute geometry that odometry and the routine use.
-    pub geometry: Geometry,
-    /// Which method produced it.
-    pub method: MethodName,
-    /// Number of square runs used (CW + CCW); 0 for no calibration.
-    pub runs: u16,
-    /// Predicted worst return-position error `E_max` after the correction, metres.
-    pub predicted_e_max_m: f64,
-}
-
-impl Calibration {
-    /// "No calibration" for a robot with the given nominal geometry: all factors 1.
-    pub const fn none(nominal: Geometry) -> Self {
-        Calibration {
-            e_d: 1.0,
-            e_b: 1.0,
-            e_s: 1.0,
-            geometry: nominal,
-            method: MethodName::NONE,
-            runs: 0,
-            predicted_e_max_m: 0.0,
-        }
-    }
+    /// Number of square runs it was computed from (CW + CCW).
+    pub runs_used: u16,
+    /// Predicted worst square end error `E_max` with it, metres (0 when unknown).
+    pub e_max_m: f64,
 }
 
 #[cfg(test)]

@@ -3,8 +3,9 @@
 //! for the table).
 
 use super::codec::{Reader, Writer};
-use super::{Calibration, FormatError, METHOD_NAME_MAX, MethodName, MotionSettings, ParamRecord};
+use super::{AppliedCalibration, FormatError, METHOD_NAME_MAX, MethodName, ParamRecord};
 use crate::motion::controller::DEFAULT_RATE_HZ;
+use crate::motion::profile::MotionLimits;
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 
@@ -43,25 +44,26 @@ impl ParamRecord {
         let Some(buf) = buf.get_mut(..Self::ENCODED_LEN) else {
             return Err(FormatError::BufferTooSmall);
         };
+        let method = self.stored_method().map_err(|_| FormatError::MethodName)?;
         let mut w = Writer { buf, pos: 0 };
         w.bytes(&[Self::FORMAT_VERSION]);
         w.geometry(&self.nominal);
-        let c = &self.calibration;
+        let c = self.stored_calibration();
         w.f64(c.e_d);
         w.f64(c.e_b);
         w.f64(c.e_s);
         w.geometry(&c.geometry);
-        w.bytes(&[c.method.len]);
-        w.bytes(&c.method.bytes);
+        w.bytes(&[method.len]);
+        w.bytes(&method.bytes);
         w.bytes(&c.runs.to_le_bytes());
-        w.f64(c.predicted_e_max_m);
+        w.f64(c.e_max_m);
         let m = &self.motion;
         w.f32(m.max_speed_mps);
         w.f32(m.max_accel_mps2);
         w.f32(m.max_turn_rate_radps);
         w.f32(m.max_turn_accel_radps2);
-        w.f32(m.square_side_m);
-        w.bytes(&[m.runs_per_direction]);
+        w.f32(self.square_side_m);
+        w.bytes(&[self.runs_per_direction]);
         w.bytes(&[self.wiring.to_bits()]);
         let t = &self.tuning;
         w.motor(&t.right);
@@ -117,14 +119,14 @@ impl ParamRecord {
         let method = MethodName::from_bytes(used).map_err(|_| FormatError::MethodName)?;
         let runs = u16::from_le_bytes(r.array());
         let predicted_e_max_m = r.f64();
-        let motion = MotionSettings {
+        let motion = MotionLimits {
             max_speed_mps: r.f32(),
             max_accel_mps2: r.f32(),
             max_turn_rate_radps: r.f32(),
             max_turn_accel_radps2: r.f32(),
-            square_side_m: r.f32(),
-            runs_per_direction: r.array::<1>()[0],
         };
+        let square_side_m = r.f32();
+        let runs_per_direction = r.array::<1>()[0];
         let wiring = if version == 1 {
             Wiring::STANDARD
         } else {
@@ -145,18 +147,31 @@ impl ParamRecord {
         } else {
             u32::from_le_bytes(r.array())
         };
-        Ok(ParamRecord {
-            nominal,
-            calibration: Calibration {
+        // `none` is an uncalibrated robot: its stored factors are those of no calibration and
+        // are not kept.
+        let calibration = if method == MethodName::NONE {
+            None
+        } else {
+            let mut name = heapless::String::new();
+            // Cannot fail: a method name is at most METHOD_NAME_MAX bytes, the string's capacity.
+            let _ = name.push_str(method.as_str());
+            let applied = AppliedCalibration {
+                method: name,
                 e_d,
                 e_b,
                 e_s,
-                geometry,
-                method,
-                runs,
-                predicted_e_max_m,
-            },
+                runs_used: runs,
+                e_max_m: predicted_e_max_m,
+            };
+            Some(applied)
+        };
+        Ok(ParamRecord {
+            nominal,
+            active: geometry,
+            calibration,
             motion,
+            square_side_m,
+            runs_per_direction,
             wiring,
             tuning,
             control_hz,

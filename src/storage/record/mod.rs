@@ -1,7 +1,8 @@
 //! The one record the board persists: geometry, calibration result, motion settings, wiring, the
 //! speed-loop tuning and the control rate.
 //!
-//! [`ParamRecord`] is what `save` writes and what boot loads. Its stored form is a hand-written,
+//! [`ParamRecord`] is what `save` writes and what boot loads, and it is the session's settings
+//! (what `params` shows and `set` changes): one struct per parameter set. Its stored form is a hand-written,
 //! fixed-length little-endian layout ([`ParamRecord::ENCODED_LEN`] bytes, byte 0 = format
 //! version, see `docs/storage.md` for the table). Lengths are metres, speeds m/s, accelerations
 //! m/s², turn rates rad/s, turn accelerations rad/s²; calibration factors are dimensionless
@@ -11,8 +12,8 @@
 //! [`ParamRecord::validate`] checks every value (finite, plausible range). A stored record is used
 //! only when both pass.
 //!
-//! Parts: `calibration` (the stored calibration result and its method name), `motion` (the
-//! operator's motion settings), `error` (why a record is rejected or cannot be decoded),
+//! Parts: `calibration` (the applied calibration and the stored form of its method name),
+//! `motion` (the plausible ranges of the motion settings), `error` (why a record is rejected or cannot be decoded),
 //! `codec` (the little-endian writer and reader, shared with the run records) and `format`
 //! (the stored layout of every version: encoding, and decoding with the migration of older
 //! versions).
@@ -27,41 +28,65 @@ mod tests;
 
 use sequential_storage::map::{SerializationError, Value};
 
-pub use self::calibration::{Calibration, METHOD_NAME_MAX, MethodName};
+pub use self::calibration::{AppliedCalibration, METHOD_NAME_MAX, MethodName};
 pub(super) use self::codec::{Reader, Writer};
 pub use self::error::{FormatError, RecordError};
-pub use self::motion::MotionSettings;
 
 use crate::kinematics::geometry::Geometry;
 use crate::motion::controller::{DEFAULT_RATE_HZ, rate_supported};
+use crate::motion::profile::MotionLimits;
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 
-/// Everything the board persists, as one stored record.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Everything the board persists, as one stored record: also the session's settings (what
+/// `params` shows and `set` changes), so a parameter lives in one struct. Each operator
+/// parameter's field is named by its row of `protocol::PARAMS`.
+#[derive(Debug, PartialEq)]
 pub struct ParamRecord {
-    /// Nominal geometry (design values: D_R = D_L = D, b, counts per revolution).
+    /// Nominal geometry (as built / as specified: D_R, D_L, b, counts per revolution).
     pub nominal: Geometry,
-    /// Calibration result; [`Calibration::none`] of the nominal geometry when uncalibrated.
-    pub calibration: Calibration,
-    /// Operator motion settings.
-    pub motion: MotionSettings,
+    /// Geometry in use: the calibrated one, or `nominal` when there is no calibration.
+    pub active: Geometry,
+    /// The calibration that produced `active` (`None`: uncalibrated, stored as method `none`).
+    pub calibration: Option<AppliedCalibration>,
+    /// Motion limits (magnitudes: speeds m/s, accelerations m/s², turn rates rad/s, turn
+    /// accelerations rad/s²).
+    pub motion: MotionLimits,
+    /// Planned square side `L`, metres.
+    pub square_side_m: f32,
+    /// Planned square runs per direction.
+    pub runs_per_direction: u8,
     /// Motors and encoders reversed against the standard wiring.
     pub wiring: Wiring,
     /// Speed-loop tuning: both motors' models and the bandwidth (the output limit is not
     /// stored: always full duty).
     pub tuning: SpeedTuning,
-    /// Control rate, Hz (one of [`crate::motion::controller::RATES_HZ`]).
+    /// Control (and odometry) rate, Hz (one of [`crate::motion::controller::RATES_HZ`]).
     pub control_hz: u32,
+}
+
+impl Clone for ParamRecord {
+    // Out of line: `set`, `apply` and the parameter resets each inlined their own copy.
+    #[inline(never)]
+    fn clone(&self) -> Self {
+        ParamRecord {
+            calibration: self.calibration.clone(),
+            ..*self
+        }
+    }
 }
 
 impl ParamRecord {
     /// The paper's nominal robot (D = 150 mm, b = 385 mm, 200,000 counts/rev), uncalibrated,
-    /// factory motion settings.
+    /// factory motion settings (0.3 m/s, 0.3 m/s², 1 rad/s, 2 rad/s², 2 m squares, 5 runs per
+    /// direction), standard wiring, default tuning and rate.
     pub const DEFAULT: ParamRecord = ParamRecord {
         nominal: Geometry::PAPER_NOMINAL,
-        calibration: Calibration::none(Geometry::PAPER_NOMINAL),
-        motion: MotionSettings::DEFAULT,
+        active: Geometry::PAPER_NOMINAL,
+        calibration: None,
+        motion: MotionLimits::DEFAULT,
+        square_side_m: 2.0,
+        runs_per_direction: 5,
         wiring: Wiring::STANDARD,
         tuning: SpeedTuning::DEFAULT,
         control_hz: DEFAULT_RATE_HZ,
@@ -69,11 +94,45 @@ impl ParamRecord {
 
     /// The geometry odometry and the routine use: the calibrated one.
     pub fn active_geometry(&self) -> Geometry {
-        self.calibration.geometry
+        self.active
+    }
+
+    /// The calibration's numbers as stored: the factors, the geometry, the runs and `E_max`
+    /// (1, the nominal geometry, 0 and 0 when uncalibrated).
+    pub(super) fn stored_calibration(&self) -> StoredCalibration {
+        match &self.calibration {
+            None => StoredCalibration {
+                e_d: 1.0,
+                e_b: 1.0,
+                e_s: 1.0,
+                geometry: self.nominal,
+                runs: 0,
+                e_max_m: 0.0,
+            },
+            Some(c) => StoredCalibration {
+                e_d: c.e_d,
+                e_b: c.e_b,
+                e_s: c.e_s,
+                geometry: self.active,
+                runs: c.runs_used,
+                e_max_m: c.e_max_m,
+            },
+        }
+    }
+
+    /// The calibration's method as stored (`none` when uncalibrated).
+    ///
+    /// # Errors
+    /// [`RecordError::MethodName`] if the name is not storable.
+    pub(super) fn stored_method(&self) -> Result<MethodName, RecordError> {
+        match &self.calibration {
+            None => Ok(MethodName::NONE),
+            Some(c) => MethodName::new(&c.method),
+        }
     }
 
     /// Checks every field: finite, plausible ranges, calibrated geometry consistent with the
-    /// nominal one.
+    /// nominal one, a storable method name.
     ///
     /// # Errors
     /// The first offending field, as a [`RecordError`].
@@ -81,7 +140,7 @@ impl ParamRecord {
         self.nominal
             .validate()
             .map_err(RecordError::NominalGeometry)?;
-        let c = &self.calibration;
+        let c = self.stored_calibration();
         c.geometry
             .validate()
             .map_err(RecordError::CalibratedGeometry)?;
@@ -97,20 +156,31 @@ impl ParamRecord {
         {
             return Err(RecordError::CalibrationMismatch);
         }
-        MethodName::from_bytes(c.method.as_str().as_bytes())?;
+        self.stored_method()?;
         if c.runs > 1000 {
             return Err(RecordError::Runs);
         }
-        if !(c.predicted_e_max_m.is_finite() && (0.0..=10.0).contains(&c.predicted_e_max_m)) {
+        if !(c.e_max_m.is_finite() && (0.0..=10.0).contains(&c.e_max_m)) {
             return Err(RecordError::PredictedError);
         }
-        self.motion.validate()?;
+        self.validate_motion()?;
         self.tuning.validate().map_err(RecordError::Tuning)?;
         if !rate_supported(self.control_hz) {
             return Err(RecordError::ControlRate);
         }
         Ok(())
     }
+}
+
+/// The calibration's numbers as the stored layout holds them (the method apart).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct StoredCalibration {
+    pub(super) e_d: f64,
+    pub(super) e_b: f64,
+    pub(super) e_s: f64,
+    pub(super) geometry: Geometry,
+    pub(super) runs: u16,
+    pub(super) e_max_m: f64,
 }
 
 impl Default for ParamRecord {

@@ -8,20 +8,18 @@ fn calibrated() -> ParamRecord {
     let nominal = Geometry::PAPER_NOMINAL;
     ParamRecord {
         nominal,
-        calibration: Calibration {
+        active: nominal.with_factors(0.998_765_432_1, 1.012_345_678_9, 1.000_5),
+        calibration: Some(AppliedCalibration {
+            method: "umbmark-x".try_into().unwrap(),
             e_d: 0.998_765_432_1,
             e_b: 1.012_345_678_9,
             e_s: 1.000_5,
-            geometry: nominal.with_factors(0.998_765_432_1, 1.012_345_678_9, 1.000_5),
-            method: MethodName::new("umbmark-x").unwrap(),
-            runs: 10,
-            predicted_e_max_m: 0.004_2,
-        },
-        motion: MotionSettings {
-            square_side_m: 4.0,
-            runs_per_direction: 7,
-            ..MotionSettings::DEFAULT
-        },
+            runs_used: 10,
+            e_max_m: 0.004_2,
+        }),
+        motion: MotionLimits::DEFAULT,
+        square_side_m: 4.0,
+        runs_per_direction: 7,
         wiring: Wiring {
             motor_left_reversed: true,
             encoder_right_reversed: true,
@@ -64,9 +62,10 @@ fn default_is_the_uncalibrated_paper_robot() {
     let d = ParamRecord::default();
     assert_eq!(d.nominal, Geometry::PAPER_NOMINAL);
     assert_eq!(d.active_geometry(), Geometry::PAPER_NOMINAL);
-    assert_eq!(d.calibration.method.as_str(), "none");
+    assert_eq!(d.calibration, None);
+    assert_eq!(d.stored_method(), Ok(MethodName::NONE));
     assert_eq!(d.motion.max_speed_mps, 0.3);
-    assert_eq!(d.motion.runs_per_direction, 5);
+    assert_eq!(d.runs_per_direction, 5);
     assert_eq!(d.validate(), Ok(()));
 }
 
@@ -182,6 +181,7 @@ fn version_1_and_2_records_migrate_with_their_calibration_and_the_default_tuning
     for v in [1u8, 2] {
         let migrated = ParamRecord::decode(&old_bytes(v)).unwrap();
         assert_eq!(migrated.calibration, rec.calibration, "v{v}");
+        assert_eq!(migrated.active, rec.active, "v{v}");
         assert_eq!(migrated.nominal, rec.nominal);
         assert_eq!(migrated.motion, rec.motion);
         let wiring = if v == 1 { Wiring::STANDARD } else { rec.wiring };
@@ -224,11 +224,16 @@ fn unknown_wiring_bits_are_a_format_error() {
     assert_eq!(ParamRecord::decode(&buf), Err(FormatError::Wiring));
 }
 
+/// The calibration of a calibrated record.
+fn calibration(r: &mut ParamRecord) -> &mut AppliedCalibration {
+    r.calibration.as_mut().unwrap()
+}
+
 #[test]
 fn validation_rejects_every_bad_field() {
     let good = calibrated();
     type Spoil = fn(&mut ParamRecord);
-    let cases: [(Spoil, RecordError); 13] = [
+    let cases: [(Spoil, RecordError); 14] = [
         (|r| r.control_hz = 3_000, RecordError::ControlRate),
         (|r| r.control_hz = 0, RecordError::ControlRate),
         (
@@ -239,9 +244,9 @@ fn validation_rejects_every_bad_field() {
             |r| r.tuning.bandwidth_radps = 0.0,
             RecordError::Tuning(TuningError::Bandwidth),
         ),
-        (|r| r.calibration.e_d = f64::NAN, RecordError::Factor),
+        (|r| calibration(r).e_d = f64::NAN, RecordError::Factor),
         (
-            |r| r.calibration.geometry.wheelbase_m = f64::INFINITY,
+            |r| r.active.wheelbase_m = f64::INFINITY,
             RecordError::CalibratedGeometry(GeometryError::Wheelbase),
         ),
         (
@@ -249,23 +254,24 @@ fn validation_rejects_every_bad_field() {
             RecordError::NominalGeometry(GeometryError::Diameter),
         ),
         (
-            |r| r.calibration.geometry.wheelbase_m *= 1.5,
+            |r| r.active.wheelbase_m *= 1.5,
             RecordError::CalibrationMismatch,
         ),
         (
-            |r| r.calibration.predicted_e_max_m = -1.0,
+            |r| calibration(r).e_max_m = -1.0,
             RecordError::PredictedError,
         ),
-        (|r| r.calibration.runs = 5000, RecordError::Runs),
-        (|r| r.motion.max_speed_mps = f32::NAN, RecordError::MaxSpeed),
-        (|r| r.motion.square_side_m = 0.0, RecordError::SquareSide),
+        (|r| calibration(r).runs_used = 5000, RecordError::Runs),
         (
-            |r| r.motion.runs_per_direction = 0,
-            RecordError::RunsPerDirection,
+            |r| calibration(r).method = "a b".try_into().unwrap(),
+            RecordError::MethodName,
         ),
+        (|r| r.motion.max_speed_mps = f32::NAN, RecordError::MaxSpeed),
+        (|r| r.square_side_m = 0.0, RecordError::SquareSide),
+        (|r| r.runs_per_direction = 0, RecordError::RunsPerDirection),
     ];
     for (spoil, expected) in cases {
-        let mut r = good;
+        let mut r = good.clone();
         spoil(&mut r);
         assert_eq!(r.validate(), Err(expected));
     }
