@@ -3,7 +3,7 @@
 //! a two-side sweep, plots.
 
 use host_sim::commands::session::report::parameter_errors;
-use host_sim::commands::session::{SessionArgs, field, parse_calibration, run_session};
+use host_sim::experiments::session::{SessionArgs, field, parse_calibration, run_session};
 use host_sim::experiments::square::e_max_and_scatter;
 use indicatif::ProgressBar;
 use odocal::motion::run::Direction;

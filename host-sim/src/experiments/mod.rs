@@ -12,11 +12,14 @@
 //! - [`motors`]: motor identification on robots with other motors, and the squares with the
 //!   identified tuning against the default one.
 //! - [`closedloop`]: calibrations from closed-loop squares with slip and measurement noise.
+//! - [`session`]: the full simulated calibration session through the board's serial path
+//!   (the default `cargo sim`).
 
 pub mod closedloop;
 pub mod montecarlo;
 pub mod motors;
 pub mod paper;
 pub mod rectangle;
+pub mod session;
 pub mod square;
 pub mod sweep;
