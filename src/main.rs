@@ -67,8 +67,9 @@ mod app {
     use odocal::board::adapters::{RelaxedWatchdog, read_console};
     use odocal::board::watchdog::set_timeout;
     use odocal::board::{
-        BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONTROL_FROM_MONOTONIC,
-        CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders, Leds, WATCHDOG_MS,
+        BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONSOLE_RX_POLLED,
+        CONTROL_FROM_MONOTONIC, CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders,
+        Leds, WATCHDOG_MS,
     };
     use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
@@ -171,10 +172,10 @@ mod app {
         let mut params_store = board.params;
         let loaded = params_store.load_blocking();
         let settings = loaded.record;
-        let calibrated_with = settings
-            .calibration
-            .as_ref()
-            .map_or_else(Default::default, |c| c.method.clone());
+        let calibrated_with = settings.calibration.as_ref().map_or_else(
+            || "none".try_into().unwrap_or_default(),
+            |c| c.method.clone(),
+        );
         let controller = make_controller(&settings);
         // The control period from the stored rate on (the board started it at the default).
         let rate_hz = controller.config().rate_hz;
@@ -216,6 +217,7 @@ mod app {
         report::spawn().ok();
         console::spawn().ok();
         pace_control::spawn().ok();
+        poll_console_rx::spawn().ok();
         defmt::info!(
             "odocal up: control at {} Hz, calibration '{}'",
             rate_hz,
@@ -329,6 +331,20 @@ mod app {
             next += (1_000 / rate_hz).max(1).millis();
             Mono::delay_until(next).await;
             rtic::pend(CONTROL_INTERRUPT);
+        }
+    }
+
+    /// On a board whose console receives by DMA into a ring (the F407), pends the console
+    /// interrupt every millisecond so the serial receive drains the ring (and, after a flash
+    /// erase's stall, what arrived during it); on a board with an RX interrupt it ends at once.
+    #[task(priority = 3)]
+    async fn poll_console_rx(_: poll_console_rx::Context) {
+        if !CONSOLE_RX_POLLED {
+            return;
+        }
+        loop {
+            Mono::delay(1.millis()).await;
+            rtic::pend(CONSOLE_INTERRUPT);
         }
     }
 

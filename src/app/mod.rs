@@ -12,7 +12,8 @@
 //! | 2, serial transmit (USART2) | [`serial::transmit`] | the echo first, then the console's replies |
 //! | 1, console task | [`console::take_line`], [`console::press`], [`console::poll`] | lines and presses on the session; events and the pose stream |
 //!
-//! [`io`] holds the board's LEDs, button and console port in embedded-hal terms.
+//! [`io`] holds the board's LEDs, button and console port in embedded-hal terms; [`rx_ring`] the
+//! reading side of a console receive ring that a DMA stream fills (the F407's console).
 //!
 //! The few facts the parts at different priorities tell each other live in one [`Handoff`],
 //! lock-free (see its fields for who writes and who reads each).
@@ -20,6 +21,7 @@
 pub mod console;
 pub mod control;
 pub mod io;
+pub mod rx_ring;
 pub mod serial;
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};

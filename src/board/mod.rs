@@ -16,6 +16,7 @@
 //! | `Board::button.edge()` | acknowledges a button edge and reads the level (an embedded-hal `InputPin`, [`crate::app::io::button_pressed`]) |
 //! | `Board::leds` | heartbeat and fault LEDs ([`crate::app::io::Leds`] over two embedded-hal `OutputPin`s) |
 //! | `Board::console_rx` / `console_tx`, `CONSOLE_INTERRUPT` | the serial console's USART: an `embedded-hal-nb` reader and an `embedded-io` writer ([`crate::app::io::read_console`], [`crate::app::io::write_console`]) plus the board's transmit-interrupt switch |
+//! | `CONSOLE_RX_POLLED` | whether the console's receive half is read from a DMA ring the app drains every millisecond (the F407: bytes arrive during a flash erase's stall) rather than by its RX interrupt (the emulator) |
 //! | `Board::watchdog`, `watchdog::set_timeout` | fed every control period, relaxed around flash writes |
 //! | `Board::params` | the parameter store, loaded by the app before anything moves |
 //! | `Board::reset_cause` | why the MCU last reset, reported at boot |
@@ -39,15 +40,15 @@ pub mod emulator;
 
 #[cfg(not(feature = "emulator"))]
 pub use f407::{
-    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, ConsoleRx, ConsoleTx,
-    ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, ResetCause, WATCHDOG_MS, init, safety,
-    watchdog,
+    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONSOLE_RX_POLLED, ConsoleRx,
+    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, ResetCause, WATCHDOG_MS, init,
+    safety, watchdog,
 };
 
 #[cfg(feature = "emulator")]
 pub use emulator::{
-    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, ConsoleRx, ConsoleTx,
-    ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
+    Board, BoardFlash, BoardMotors, ButtonInput, CONSOLE_INTERRUPT, CONSOLE_RX_POLLED, ConsoleRx,
+    ConsoleTx, ControlTick, Encoders, FLASH_WATCHDOG_MS, Leds, WATCHDOG_MS, init, watchdog,
 };
 // The safe-state code and the reset cause are the MCU's, the same on both boards.
 pub use f407::ClockSource;

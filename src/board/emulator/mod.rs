@@ -131,8 +131,14 @@ impl ControlTick {
 }
 
 // The button (QEMU drives no GPIO input), the LEDs (register writes only in QEMU) and the
-// console USART are the F407 board's own.
-pub use crate::board::f407::{ButtonInput, CONSOLE_INTERRUPT, ConsoleRx, ConsoleTx, Leds};
+// console USART are the F407 board's own; the console receives by interrupt (QEMU's STM32F405
+// models no DMA controller).
+pub use crate::board::f407::{ButtonInput, CONSOLE_INTERRUPT, ConsoleTx, Leds};
+
+/// The console port's receive half (USART2 RX interrupt).
+pub type ConsoleRx = stm32f4xx_hal::serial::Rx<stm32f4xx_hal::pac::USART2>;
+/// The RX interrupt serves the console's receive half: nothing to poll.
+pub const CONSOLE_RX_POLLED: bool = false;
 
 /// Everything the board gives the application (see [`crate::board`]).
 pub struct Board {

@@ -18,6 +18,7 @@
 //!
 //! Everything `unsafe` in the firmware lives here and carries a `// SAFETY:` note.
 
+pub mod console_rx;
 pub mod flash;
 pub mod motors;
 pub mod safety;
@@ -28,7 +29,7 @@ use stm32f4xx_hal::pac::{self, TIM2, TIM3, TIM7, USART2};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
 use stm32f4xx_hal::rcc::Config;
-use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
+use stm32f4xx_hal::serial::{self, Serial, Tx};
 use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
@@ -198,8 +199,10 @@ impl ButtonInput {
 /// Heartbeat (green PD12) and fault (red PD14) LEDs.
 pub type Leds = crate::app::io::Leds<PD12<Output>, PD14<Output>>;
 
-/// The console port's receive half (USART2 RX interrupt).
-pub type ConsoleRx = Rx<USART2>;
+pub use console_rx::ConsoleRx;
+/// The console's receive half is read from its DMA ring: the app pends the console interrupt
+/// every millisecond to drain it (no RX interrupt).
+pub const CONSOLE_RX_POLLED: bool = true;
 /// The console port's transmit half (USART2 TXE interrupt).
 pub type ConsoleTx = Tx<USART2>;
 /// The interrupt that serves the console port; the console task pends it to start sending.
@@ -362,18 +365,18 @@ pub fn init(dp: pac::Peripherals) -> Board {
     // an interrupted save, which erases a sector for seconds).
     let watchdog = IndependentWatchdog::new(dp.IWDG);
 
-    // Serial console: USART2 on PA2/PA3, RX interrupt, TX from a queue.
+    // Serial console: USART2 on PA2/PA3, RX by DMA into a ring, TX from a queue.
     let usart = Serial::new(
         dp.USART2,
         (gpioa.pa2, gpioa.pa3),
         serial::Config::default().baudrate(115_200.bps()),
         &mut rcc,
     );
-    let (console_tx, mut console_rx) = match usart {
+    let (console_tx, console_rx) = match usart {
         Ok(s) => s.split(),
         Err(_) => defmt::panic!("USART2 configuration rejected"),
     };
-    console_rx.listen();
+    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc);
     condition_inputs();
 
     Board {

@@ -1,0 +1,193 @@
+//! The console's receive ring: a buffer a DMA stream fills in circular mode while the CPU may
+//! be stalled (a flash erase stops instruction fetch for up to a second on a single-bank part,
+//! the DMA keeps running), read by the serial receive when it next runs.
+//!
+//! [`RingCursor`] is the reading side's arithmetic, portable and tested here; the board gives it
+//! the DMA's write position (buffer length − the stream's remaining-transfer count) and the
+//! stream's half-transfer and transfer-complete flags, read and cleared at every call. From
+//! those it tells a byte to read, an empty ring, or an overrun: more bytes arrived since the
+//! last read than the ring holds, so some were overwritten. The write position alone cannot
+//! tell `k` laps apart; the flags can, whenever the path from the last seen write position to
+//! this one does not cross the boundary a set flag reports (a lap crosses both).
+
+/// What the next read of the ring gives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RingRead {
+    /// The byte at this index of the buffer is the next one received.
+    Byte(usize),
+    /// Nothing new.
+    Empty,
+    /// Bytes were overwritten before they were read; the cursor has skipped to the write
+    /// position (the line being received is lost, as after a USART overrun).
+    Overrun,
+}
+
+/// The reading side of a receive ring of `N` bytes (`N` even, at least 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RingCursor<const N: usize> {
+    /// Index of the next byte to read.
+    read: usize,
+    /// The write position seen at the last call.
+    seen_write: usize,
+}
+
+impl<const N: usize> Default for RingCursor<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> RingCursor<N> {
+    /// A cursor for a ring the DMA starts filling at index 0.
+    pub const fn new() -> Self {
+        const {
+            assert!(
+                N >= 2 && N.is_multiple_of(2),
+                "a receive ring has an even length"
+            )
+        };
+        RingCursor {
+            read: 0,
+            seen_write: 0,
+        }
+    }
+
+    /// Bytes received and not read yet (as far as the last call saw).
+    pub fn pending(&self) -> usize {
+        (self.seen_write + N - self.read) % N
+    }
+
+    /// One read. `write` is the DMA's next write index (`N` − remaining count; `N` means 0);
+    /// `half` and `full` whether the stream reported crossing the middle and the end of the
+    /// buffer since the previous call (the caller clears both flags as it reads them).
+    pub fn next(&mut self, write: usize, half: bool, full: bool) -> RingRead {
+        let write = write % N;
+        let new = (write + N - self.seen_write) % N;
+        // The boundaries the path seen_write → write crosses (unwrapped: positions
+        // seen_write + 1 ..= seen_write + new).
+        let end = self.seen_write + new;
+        let crosses = |at: usize| self.seen_write < at && at <= end;
+        let crosses_half = crosses(N / 2) || crosses(N + N / 2);
+        let crosses_full = crosses(N);
+        let lapped = (half && !crosses_half) || (full && !crosses_full);
+        let overrun = lapped || self.pending() + new >= N;
+        self.seen_write = write;
+        if overrun {
+            self.read = write;
+            return RingRead::Overrun;
+        }
+        if self.read == write {
+            return RingRead::Empty;
+        }
+        let at = self.read;
+        self.read = (self.read + 1) % N;
+        RingRead::Byte(at)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A DMA stream writing into a ring of 8, with its half/complete flags.
+    #[derive(Default)]
+    struct Dma {
+        buf: [u8; 8],
+        write: usize,
+        half: bool,
+        full: bool,
+    }
+
+    impl Dma {
+        fn receive(&mut self, bytes: &[u8]) {
+            for &b in bytes {
+                self.buf[self.write] = b;
+                self.write = (self.write + 1) % 8;
+                self.half |= self.write == 4;
+                self.full |= self.write == 0;
+            }
+        }
+
+        /// Reads everything the cursor gives, as the serial receive does.
+        fn drain(&mut self, cursor: &mut RingCursor<8>) -> (Vec<u8>, bool) {
+            let mut got = Vec::new();
+            let mut overrun = false;
+            loop {
+                let (half, full) = (self.half, self.full);
+                self.half = false;
+                self.full = false;
+                match cursor.next(self.write, half, full) {
+                    RingRead::Byte(i) => got.push(self.buf[i]),
+                    RingRead::Empty => return (got, overrun),
+                    RingRead::Overrun => overrun = true,
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bytes_come_out_in_order_across_the_wrap() {
+        let mut dma = Dma::default();
+        let mut c = RingCursor::<8>::new();
+        assert_eq!(dma.drain(&mut c), (vec![], false));
+        for chunk in [&b"abc"[..], b"defgh", b"i", b"jklmnop", b"q"] {
+            dma.receive(chunk);
+            assert_eq!(dma.drain(&mut c), (chunk.to_vec(), false), "{chunk:?}");
+        }
+        assert_eq!(c.pending(), 0);
+    }
+
+    #[test]
+    fn a_ring_filled_to_one_less_than_its_length_loses_nothing() {
+        let mut dma = Dma::default();
+        let mut c = RingCursor::<8>::new();
+        dma.receive(b"xyz");
+        assert_eq!(dma.drain(&mut c).0, b"xyz");
+        // 7 bytes while the reader is stalled (a flash erase): all kept, across the wrap.
+        dma.receive(b"1234567");
+        assert_eq!(dma.drain(&mut c), (b"1234567".to_vec(), false));
+    }
+
+    #[test]
+    fn a_full_ring_or_a_lap_is_an_overrun_and_reading_resumes_after_it() {
+        // Exactly the ring's length: the write position is back at the read position.
+        let mut dma = Dma::default();
+        let mut c = RingCursor::<8>::new();
+        dma.receive(b"12345678");
+        assert_eq!(dma.drain(&mut c), (vec![], true));
+        dma.receive(b"ok");
+        assert_eq!(dma.drain(&mut c), (b"ok".to_vec(), false));
+
+        // More than a lap, ending at a position the write position alone would read as 3
+        // new bytes: the flags give it away.
+        for unread in 0..3 {
+            let mut dma = Dma::default();
+            let mut c = RingCursor::<8>::new();
+            dma.receive(&b"abc"[..unread]);
+            dma.receive(b"0123456789a");
+            let (got, overrun) = dma.drain(&mut c);
+            assert!(overrun, "{unread} unread, then 11 bytes: {got:?}");
+            dma.receive(b"z");
+            assert_eq!(dma.drain(&mut c), (b"z".to_vec(), false));
+        }
+    }
+
+    #[test]
+    fn bytes_read_one_call_at_a_time_with_arrivals_in_between() {
+        // The serial receive reads a bounded number of bytes per pass; bytes keep arriving.
+        let mut dma = Dma::default();
+        let mut c = RingCursor::<8>::new();
+        let mut got = Vec::new();
+        for b in b"the quick brown fox".iter() {
+            dma.receive(&[*b]);
+            let (half, full) = (dma.half, dma.full);
+            dma.half = false;
+            dma.full = false;
+            if let RingRead::Byte(i) = c.next(dma.write, half, full) {
+                got.push(dma.buf[i]);
+            }
+        }
+        // Behind by nothing: every arrival was followed by one read.
+        assert_eq!(got, b"the quick brown fox");
+    }
+}
