@@ -48,7 +48,9 @@ unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
 #[cfg(target_os = "none")]
 rtic_monotonics::systick_monotonic!(Mono, 1000);
 
-/// Most receive-register reads per USART2 interrupt (the rest re-enters the interrupt).
+/// Most receive reads per USART2 interrupt: by RXNE the rest re-enters the interrupt; from the
+/// F407's DMA ring the next millisecond's pend reads it (32 bytes a millisecond, about three
+/// times the line rate, so a backlog after an erase's stall drains).
 #[cfg(target_os = "none")]
 const RX_READS_PER_IRQ: usize = 32;
 
