@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use host_sim::commands::replay::{
-    EXACT_LS, EXACT_PATH, FitOptions, ParamSet, calibrate_method, calibrated_methods, e_max_syst,
-    evaluate_set,
+    EXACT_LS, EXACT_PATH, FitOptions, ParamSet, Pool, ScaleRuns, calibrate_method,
+    calibrated_methods, calibrated_sets, e_max_syst, evaluate_set,
 };
 use host_sim::sim::optiodom::{Kind, Session, read_session};
 use serde_json::Value;
@@ -416,4 +416,68 @@ fn replay_restricted_to_end_poses_gives_the_boards_factors() {
         anchored.e_b,
         board.e_b
     );
+}
+
+#[test]
+fn free_paths_among_squares_leave_e_s_at_the_driving_scale() {
+    let (Some(sq), Some(circle), Some(free), Some(iv)) = (
+        session("square", "231220200040"),
+        session("circular", "231220200134"),
+        session("free", "030120210001"),
+        session("ivanjko", "231220200057"),
+    ) else {
+        return;
+    };
+    let fit = FitOptions::default();
+    // Squares, a circle and free paths: E_s is not fitted (free paths among end poses leave it
+    // tied to E_b); with `--scale-from paths` it is, and its 1σ says how poorly.
+    let held = calibrate_method(&[sq.clone(), circle.clone(), free.clone()], "exact", &fit);
+    let held = held.unwrap();
+    assert_eq!(held.e_s, 1.0);
+    let paths = FitOptions {
+        scale_from: ScaleRuns::Paths,
+        ..fit
+    };
+    let fitted = calibrate_method(&[sq.clone(), circle, free.clone()], "exact", &paths).unwrap();
+    assert!(
+        fitted.e_s != 1.0 && fitted.quality.sigma_e_s.unwrap() > 5e-3,
+        "{fitted:?}"
+    );
+    // A line session fits it, as before.
+    let lines = calibrate_method(&[sq, free, iv], "exact", &fit).unwrap();
+    assert!(
+        lines.e_s != 1.0 && lines.quality.sigma_e_s.unwrap() < 5e-3,
+        "{lines:?}"
+    );
+}
+
+#[test]
+fn pooling_over_sessions_of_one_session_is_its_own_fit() {
+    let (Some(a), Some(b)) = (
+        session("square", "231220200029"),
+        session("square", "231220200040"),
+    ) else {
+        return;
+    };
+    let fit = FitOptions {
+        pool: Pool::Sessions,
+        ..FitOptions::default()
+    };
+    let one = calibrated_sets(std::slice::from_ref(&a), &["exact"], &fit);
+    let alone = calibrate_method(std::slice::from_ref(&a), "exact", &fit).unwrap();
+    assert_eq!(one[0].geometry, Some(alone.geometry));
+    // Two sessions: the turning lies between the two sessions' own.
+    let two = calibrated_sets(&[a.clone(), b.clone()], &["exact"], &fit);
+    let g = two[0].geometry.unwrap();
+    let b_alone = calibrate_method(std::slice::from_ref(&b), "exact", &fit).unwrap();
+    let (lo, hi) = {
+        let (x, y) = (alone.geometry.wheelbase_m, b_alone.geometry.wheelbase_m);
+        (x.min(y), x.max(y))
+    };
+    assert!(
+        g.wheelbase_m > lo && g.wheelbase_m < hi,
+        "{lo} {} {hi}",
+        g.wheelbase_m
+    );
+    assert!(two[0].calibration.is_none());
 }

@@ -7,7 +7,7 @@ use odocal::calibration::{Calibration, factors_of};
 use odocal::kinematics::geometry::Geometry;
 
 use super::evaluation::{SetEval, geometry_on};
-use super::methods::{FitOptions, ParamSet, default_method};
+use super::methods::{FitOptions, ParamSet, Pool, default_method};
 use crate::sim::optiodom::{ANCHOR_MIN_TRAVEL_M, START_TRAVEL_M, Session, TruthGaps};
 
 fn json_str(s: &str) -> String {
@@ -192,6 +192,11 @@ pub(super) fn print_text(
         } else {
             println!(
                 "  {anchored} of {runs} calibration runs measured from {START_TRAVEL_M} m of wheel travel on, leaving their start transient out (runs rolling under {ANCHOR_MIN_TRAVEL_M} m keep their start; --from-anchor)"
+            );
+        }
+        if fit.pool == Pool::Sessions && calib.len() > 1 {
+            println!(
+                "  exact fits: every session fitted alone, the factors combined by a random-effects mean over sessions (--pool sessions; no per-run listing)"
             );
         }
     }

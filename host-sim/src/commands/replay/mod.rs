@@ -49,6 +49,7 @@
 pub mod evaluation;
 pub mod format;
 pub mod methods;
+pub mod pooled;
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -65,8 +66,8 @@ pub use self::evaluation::{
 pub use self::format::json_lines;
 use self::format::print_text;
 pub use self::methods::{
-    EXACT_LS, EXACT_PATH, FitOptions, GEOMETRY, NOMINAL, ParamSet, calibrate_method,
-    calibrated_methods, calibrated_sets, default_method, parse_geometry,
+    EXACT_LS, EXACT_PATH, FitOptions, GEOMETRY, NOMINAL, ParamSet, Pool, ScaleRuns,
+    calibrate_method, calibrated_methods, calibrated_sets, default_method, parse_geometry,
 };
 
 /// Arguments of `host-sim replay`.
@@ -99,6 +100,15 @@ pub struct ReplayArgs {
     /// Always fit the mean diameter E_s in the exact fits (squares constrain it weakly).
     #[arg(long)]
     pub fit_scale: bool,
+    /// Which runs let the exact fits fit E_s: straight lines, or paths when every run is read
+    /// along its path (default: free paths among squares and circles do not); lines and any
+    /// path (paths); none (never).
+    #[arg(long, value_enum, default_value_t = ScaleRuns::default())]
+    pub scale_from: ScaleRuns,
+    /// How the exact fits combine several calibration sessions: one fit of all their runs, or
+    /// every session alone and a random-effects mean over sessions.
+    #[arg(long, value_enum, default_value_t = Pool::default())]
+    pub pool: Pool,
     /// Length scale of heading residuals in the exact fits, metres (default: each run's length).
     #[arg(long)]
     pub heading_length: Option<f64>,
@@ -222,6 +232,8 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
     let fit = FitOptions {
         heading: !args.no_heading,
         fit_scale: args.fit_scale,
+        scale_from: args.scale_from,
+        pool: args.pool,
         heading_length_m: args.heading_length,
         heading_weight: args
             .heading_weight
