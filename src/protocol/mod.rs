@@ -8,7 +8,7 @@
 //!   hit by a receive error as a whole; [`rx`] is the receive loop the USART interrupt runs;
 //! - [`Command::parse`] turns a line into a validated [`Command`] (units: metres, m/s, rad/s,
 //!   degrees for measured headings, Hz);
-//! - [`unit`] reads a measured length or heading with its unit (`41.8mm`, `2deg`), for the
+//! - [`unit`](mod@unit) reads a measured length or heading with its unit (`41.8mm`, `2deg`), for the
 //!   parser and the PC console alike;
 //! - [`outcome`] words what a run command did (typed [`outcome::Outcome`] values);
 //! - [`refusal`] words the session's refusals (typed [`refusal::Refusal`] values, one error code

@@ -145,7 +145,7 @@ impl ControllerConfig {
     }
 
     /// Defaults for the board: right encoder on a 32-bit timer, left on a 16-bit timer counting
-    /// backwards, glitch limit for the default limits (2 m/s: [`GLITCH_FLOOR_MPS`]); default
+    /// backwards, glitch limit for the default limits (2 m/s: `GLITCH_FLOOR_MPS`); default
     /// limits and tuning; 500 ms deadman; brake.
     /// Everything timed is set in seconds and converted with `rate_hz` (settling 50 ms, settle
     /// timeout 2 s, stall 300 ms, following error 100 ms, deadman 500 ms).
