@@ -455,7 +455,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     /// Restores the stored runs into `runs` (with their measurements) and where each is stored
     /// into `ids`, both emptied first. Never fails: an unreadable or foreign run is skipped and
     /// reported in [`RunsLoaded::problem`] (also logged); an unreadable list restores nothing.
-    /// Like [`ParamStore::load`], may repair the flash after an interrupted write.
+    /// May repair the run region after an interrupted write (never the parameter region).
     pub async fn load_runs(
         &mut self,
         runs: &mut Vec<RunRecord, MAX_RUNS>,
