@@ -18,9 +18,10 @@ What the emulator needs from outside the image, and why (QEMU 7.2 as shipped by 
   back to the internal oscillator without it. The boot assist returns true from that function
   (a crystal that starts at once); with `crystal=False` it leaves it alone, RCC reads 0, and the
   image boots as on a board whose crystal never starts.
-- The parameter sectors of a freshly flashed board are erased (0xFF); QEMU's flash is ROM filled
-  with zeros where the ELF has nothing. A 256 KiB 0xFF image is loaded at 0x080C0000 by QEMU's
-  generic loader (or a given flash image).
+- The storage sectors of a freshly flashed board are erased (0xFF); QEMU's flash is ROM filled
+  with zeros where the ELF has nothing. QEMU's generic loader puts 0xFF (or a given storage
+  image) into the parameter sectors 1-2 (32 KiB at 0x08004000, between the vector table and
+  `.text`) and the run sectors 10-11 (256 KiB at 0x080C0000).
 
 Everything else runs as built: the vector table, RTIC's dispatchers, SysTick, USART2's RX/TX
 interrupts (USART2 is the second `-serial`).
@@ -34,8 +35,14 @@ import struct
 import subprocess
 import time
 
-PARAMS_ADDR = 0x080C0000
-PARAMS_LEN = 256 * 1024
+# The storage regions (src/board/f407/flash.rs, memory.x).
+PARAM_REGION_ADDR = 0x08004000
+PARAM_REGION_LEN = 32 * 1024
+RUN_REGION_ADDR = 0x080C0000
+RUN_REGION_LEN = 256 * 1024
+# A storage image (the emulator board's host file, `flash_image`): the parameter region, then
+# the run region.
+PARAMS_LEN = PARAM_REGION_LEN + RUN_REGION_LEN
 RAM_ADDR = 0x20000000
 RAM_LEN = 128 * 1024
 RCC_BASE = 0x40023800
@@ -177,7 +184,8 @@ class Emulator:
     """One QEMU run of `elf` with USART2 on a unix socket and the HMP monitor on another.
 
     `assist`: attach the boot assist (gdb) — needed by the shipped image. `flash_image`: a
-    256 KiB file loaded into the parameter sectors (default: erased). `extra`: more QEMU
+    storage image (PARAMS_LEN bytes: parameter region, then run region) loaded into the storage
+    sectors (default: erased; False: none). `extra`: more QEMU
     arguments (e.g. `-icount`, `-semihosting-config`).
     """
 
@@ -199,9 +207,21 @@ class Emulator:
         elf = os.path.abspath(elf)
         self.elf = elf
         if flash_image is None:
-            flash_image = os.path.join(workdir, "erased-params.bin")
+            flash_image = os.path.join(workdir, "erased-storage.bin")
             with open(flash_image, "wb") as f:
                 f.write(b"\xff" * PARAMS_LEN)
+        regions = []
+        if flash_image:
+            with open(flash_image, "rb") as f:
+                image = f.read()
+            if len(image) != PARAMS_LEN:
+                raise SystemExit(f"{flash_image}: a storage image is {PARAMS_LEN} bytes")
+            for part, addr, data in (("params", PARAM_REGION_ADDR, image[:PARAM_REGION_LEN]),
+                                     ("runs", RUN_REGION_ADDR, image[PARAM_REGION_LEN:])):
+                path = os.path.join(workdir, f"{name}-{part}.bin")
+                with open(path, "wb") as f:
+                    f.write(data)
+                regions.append((path, addr))
         self.gdb = None
         self.port = free_port() if assist else None
         cmd = ["qemu-system-arm", "-M", "netduinoplus2", "-display", "none",
@@ -211,8 +231,8 @@ class Emulator:
                "-monitor", f"unix:{self.mon},server=on,wait=off",
                "-d", "unimp,guest_errors", "-D", self.log,
                "-kernel", elf]
-        if flash_image:
-            cmd += ["-device", f"loader,file={flash_image},addr=0x{PARAMS_ADDR:08x},force-raw=on"]
+        for path, addr in regions:
+            cmd += ["-device", f"loader,file={path},addr=0x{addr:08x},force-raw=on"]
         if assist:
             cmd += ["-gdb", f"tcp:127.0.0.1:{self.port}"]
         # Halted until `start`, so a client can connect to USART2 before the boot line.

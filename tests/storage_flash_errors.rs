@@ -1,7 +1,7 @@
 //! Flash driver errors during a save. The STM32F4's flash controller latches its error flags
 //! (FLASH_SR) until software clears them, and the HAL never does: after one failed write every
 //! later erase and write fails too. The board's driver clears them before each operation; the
-//! store never wipes the parameter sectors on a driver error (only on proven corruption), so a
+//! store never wipes anything on a driver error (and never the parameter region at all), so a
 //! failing flash keeps the last good record.
 
 mod storage_support;
@@ -9,9 +9,9 @@ mod storage_support;
 use embedded_storage_async::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
+use odocal::storage::StoreError;
 use odocal::storage::ram_flash::RamFlashError;
-use odocal::storage::{ParamStore, StoreError};
-use storage_support::{BOARD_RANGE, BoardFlash, calibrated};
+use storage_support::{BoardFlash, board_store, calibrated};
 
 /// A flash with the STM32's sticky error flags: `fail_write` makes the next write fail and
 /// latches the flag; while latched, every erase and write fails. `clears_flags` models a driver
@@ -107,25 +107,21 @@ impl MultiwriteNorFlash for StickyFlash {}
 fn a_driver_error_keeps_the_last_record_and_erases_nothing() {
     let mut flash = StickyFlash::new();
     {
-        let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+        let mut store = board_store(&mut *flash);
         store.save_blocking(&calibrated(1), true).unwrap();
     }
     let erases_before = flash.erases;
     flash.fail_write = true;
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let err = store.save_blocking(&calibrated(2), true).unwrap_err();
     assert!(matches!(err, StoreError::Flash(_)), "{err:?}");
-    assert_eq!(
-        store.wipes(),
-        0,
-        "a driver error must not wipe the parameter flash"
-    );
+    assert_eq!(store.wipes(), 0, "a driver error must not wipe anything");
     let out = store.load_blocking();
     assert_eq!(out.warning, None);
     assert_eq!(out.record, calibrated(1), "the last good record is kept");
     assert_eq!(flash.erases, erases_before, "nothing was erased");
     // With the flags latched and nobody clearing them, every later save fails as well.
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     assert!(store.save_blocking(&calibrated(3), true).is_err());
     assert_eq!(store.load_blocking().record, calibrated(1));
 }
@@ -135,11 +131,11 @@ fn a_driver_that_clears_the_flags_saves_again_after_an_error() {
     let mut flash = StickyFlash::new();
     flash.clears_flags = true;
     {
-        let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+        let mut store = board_store(&mut *flash);
         store.save_blocking(&calibrated(1), true).unwrap();
     }
     flash.fail_write = true;
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     assert!(store.save_blocking(&calibrated(2), true).is_err());
     assert_eq!(store.load_blocking().record, calibrated(1));
     store.save_blocking(&calibrated(3), true).unwrap();

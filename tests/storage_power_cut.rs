@@ -1,21 +1,44 @@
-//! Power cut at every byte of a save: the next boot must load exactly the old or the new record.
+//! Power cut at every byte of every write: the next boot must load exactly the old or the new
+//! contents, in the parameter region and in the run region.
 //!
-//! The sweep uses 1 KiB pages instead of the board's 128 KiB sectors so that one test run crosses
-//! page boundaries several times (page close, migration of the live record, erase of the old
-//! page) while staying fast: the logic of `sequential-storage` does not depend on the page size,
-//! only the number of cut points inside an erase does (1 KiB here, 128 Ki on the board).
+//! The sweeps use 1 KiB pages instead of the board's 16 KiB parameter and 128 KiB run sectors so
+//! that one test run crosses page boundaries several times (a parameter sector filling and the
+//! other one erased; a run page closed, its live items moved, the old page erased) while staying
+//! fast: the logic does not depend on the page size, only the number of cut points inside an
+//! erase does (1 Ki here, 16 Ki and 128 Ki on the board).
 
 mod storage_support;
 
 use odocal::storage::ram_flash::RamFlash;
 use odocal::storage::{
-    FlashFault, LoadOutcome, LoadWarning, ParamRecord, ParamStore, RunsLoaded, StoreError,
+    FlashFault, LoadOutcome, LoadWarning, PARAMS_KEY, ParamRecord, ParamSectors, ParamStore,
+    RunsLoaded, StoreError,
 };
 use std::sync::atomic::AtomicUsize;
 use std::sync::atomic::Ordering::Relaxed;
-use storage_support::calibrated;
+use storage_support::{calibrated, fetch_raw_in, store_raw_in};
 
 const PAGE: usize = 1024;
+
+/// The parameter sweeps' flash: two parameter sectors (pages 0 and 1), then a run region of
+/// two pages.
+type ParamFlash<const W: usize> = RamFlash<4, PAGE, W>;
+const SWEEP_PARAMS: ParamSectors = ParamSectors::new(0..PAGE as u32, PAGE as u32..2 * PAGE as u32);
+const SWEEP_RUNS: core::ops::Range<u32> = 2 * PAGE as u32..4 * PAGE as u32;
+
+/// The store the parameter sweeps boot.
+fn param_store<const W: usize>(flash: &mut ParamFlash<W>) -> ParamStore<&mut ParamFlash<W>> {
+    ParamStore::new(flash, SWEEP_PARAMS, SWEEP_RUNS).unwrap()
+}
+
+/// The warning of a boot before any record was stored: `Missing` on an erased region, or
+/// `Unreadable(Corrupted)` when the first save was cut (a torn slot is there, no record).
+fn nothing_stored(warning: &Option<LoadWarning>) -> bool {
+    matches!(
+        warning,
+        Some(LoadWarning::Missing | LoadWarning::Unreadable(StoreError::Corrupted))
+    )
+}
 
 #[derive(Debug, Default)]
 struct Tally {
@@ -37,10 +60,8 @@ struct Tally {
 }
 
 fn sweep<const WORD: usize>(prefills: u32) -> Tally {
-    type F<const W: usize> = RamFlash<2, PAGE, W>;
-    let range = 0..(2 * PAGE) as u32;
     let mut tally = Tally::default();
-    let mut base = F::<WORD>::default();
+    let mut base = ParamFlash::<WORD>::default();
     let mut old: Option<ParamRecord> = None;
     for p in 0..prefills {
         let new = calibrated(1000 + p);
@@ -48,19 +69,14 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
         let mut probe = base.clone();
         let before = probe.bytes_touched();
         let erases_before: u32 = probe.erase_counts().iter().sum();
-        ParamStore::new(&mut probe, range.clone())
-            .unwrap()
-            .save_blocking(&new, true)
-            .unwrap();
+        param_store(&mut probe).save_blocking(&new, true).unwrap();
         let len = probe.bytes_touched() - before;
         let with_erase = probe.erase_counts().iter().sum::<u32>() > erases_before;
 
         for cut in 0..len {
             let mut flash = base.clone();
             flash.cut_power_after(Some(cut as u32));
-            let res = ParamStore::new(&mut flash, range.clone())
-                .unwrap()
-                .save_blocking(&new, true);
+            let res = param_store(&mut flash).save_blocking(&new, true);
             if res.is_ok() || flash.is_powered() {
                 eprintln!("p={p} cut={cut}/{len}: save returned {res:?}");
                 tally.other_failures += 1;
@@ -71,14 +87,17 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
                 tally.cuts_in_saves_with_erase += 1;
             }
 
-            // Reboot.
-            let mut store = ParamStore::new(&mut flash, range.clone()).unwrap();
+            // Reboot: loading never writes.
+            let mut store = param_store(&mut flash);
+            let touched = store.flash().bytes_touched();
             let out = store.load_blocking();
+            if store.flash().bytes_touched() != touched {
+                eprintln!("p={p} cut={cut}/{len}: the boot wrote");
+                tally.other_failures += 1;
+            }
             let is_old = match &old {
                 Some(o) => out.record == *o && out.warning.is_none(),
-                None => {
-                    out.record == ParamRecord::DEFAULT && out.warning == Some(LoadWarning::Missing)
-                }
+                None => out.record == ParamRecord::DEFAULT && nothing_stored(&out.warning),
             };
             if out.record == new && out.warning.is_none() {
                 tally.new += 1;
@@ -103,27 +122,32 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
         }
 
         // Advance the base state by one completed save.
-        ParamStore::new(&mut base, range.clone())
-            .unwrap()
-            .save_blocking(&new, true)
-            .unwrap();
+        param_store(&mut base).save_blocking(&new, true).unwrap();
         old = Some(new);
     }
+    // The run region was never touched.
+    assert!(base.erase_counts()[2..].iter().all(|&e| e == 0));
+    assert!(
+        (SWEEP_RUNS.start as usize..ParamFlash::<WORD>::CAPACITY)
+            .all(|i| base.byte(i) == Some(0xFF))
+    );
     tally
 }
 
 fn check(tally: &Tally, word: usize) {
-    println!("power-cut sweep, {word}-byte words, 2 x {PAGE} B pages: {tally:?}");
+    println!(
+        "parameter-region power-cut sweep, {word}-byte words, 2 x {PAGE} B sectors: {tally:?}"
+    );
     // Exact requirement: no cut may lose the old record or produce anything but old or new.
     assert_eq!(tally.lost, 0, "{tally:?}");
     assert_eq!(tally.garbage, 0, "{tally:?}");
     assert_eq!(tally.other_failures, 0, "{tally:?}");
     assert_eq!(tally.old + tally.new, tally.cuts);
-    // The sweep must really have covered saves that close a page and erase the old one.
+    // The sweep must really have covered saves that change sectors and erase the other one.
     assert!(tally.cuts_in_saves_with_erase >= PAGE as u64, "{tally:?}");
 }
 
-/// 24 consecutive saves (each ~134-byte item, ~7 per page) cross page boundaries three times.
+/// 24 consecutive saves (each a 178-byte slot, 5 per 1 KiB sector) change sectors four times.
 #[test]
 fn every_cut_during_a_save_leaves_old_or_new_byte_words() {
     let tally = sweep::<1>(24);
@@ -136,26 +160,24 @@ fn every_cut_during_a_save_leaves_old_or_new_word_words() {
     check(&tally, 4);
 }
 
-/// A second cut while the next boot repairs the flash: after an interrupted save,
-/// `sequential-storage` may write or erase during the first load. Cut that repair too, at every
-/// byte of it, after every first cut of 16 consecutive saves (about 2 × 10^6 boots); the boot
-/// after it must still load old or new. The saves are swept on all cores: about 60 s of CPU in
-/// the test profile, half that in wall time on two idle cores.
+/// A second cut during the save after an interrupted one: a cut save leaves a torn slot (and,
+/// if it was changing sectors, a torn erase); the boot after it writes nothing, and the next save
+/// appends after the torn slot or erases the sector without the newest record. Cut that next
+/// save too, at every byte, after every first cut of 8 consecutive saves (the 5th and 6th fill
+/// the first sector and change to the second, so the next saves after their cuts erase); the
+/// boot after it must load the record the first boot loaded or the newer one. Swept on all
+/// cores (about 1.9 × 10^6 boots).
 #[test]
-fn a_second_cut_at_every_byte_of_the_boot_repair_still_leaves_old_or_new() {
-    type F = RamFlash<2, PAGE, 1>;
-    let range = 0..(2 * PAGE) as u32;
+fn a_second_cut_at_every_byte_of_the_next_save_still_leaves_old_or_new() {
+    type F = ParamFlash<1>;
     // The flash before each of the saves, with the record it holds and the one being saved.
     let mut saves: Vec<(u32, F, Option<ParamRecord>, ParamRecord)> = Vec::new();
     let mut base = F::default();
     let mut old: Option<ParamRecord> = None;
-    for p in 0..16u32 {
+    for p in 0..8u32 {
         let new = calibrated(2000 + p);
         saves.push((p, base.clone(), old.clone(), new.clone()));
-        ParamStore::new(&mut base, range.clone())
-            .unwrap()
-            .save_blocking(&new, true)
-            .unwrap();
+        param_store(&mut base).save_blocking(&new, true).unwrap();
         old = Some(new);
     }
     let next = AtomicUsize::new(0);
@@ -181,15 +203,16 @@ fn a_second_cut_at_every_byte_of_the_boot_repair_still_leaves_old_or_new() {
     });
     println!("double cut: {tally:?}");
     assert_eq!(tally.unreported_cuts, 0, "{tally:?}");
+    assert_eq!(tally.boot_writes, 0, "{tally:?}");
     assert_eq!(tally.bad, 0, "{tally:?}");
     // Every save was cut at each of its bytes (a save writes at least its record), and the
-    // repairs really wrote or erased.
+    // next saves really erased a sector after a torn one.
     assert!(
-        tally.first_cuts >= 16 * ParamRecord::ENCODED_LEN as u64,
+        tally.first_cuts >= 8 * ParamRecord::ENCODED_LEN as u64,
         "{tally:?}"
     );
     assert!(
-        tally.repairs > 0 && tally.second_cuts > tally.first_cuts,
+        tally.second_cuts_in_erasing_saves >= PAGE as u64 && tally.second_cuts > tally.first_cuts,
         "{tally:?}"
     );
 }
@@ -201,11 +224,13 @@ struct DoubleCut {
     first_cuts: u64,
     /// Cut saves that did not report the cut as the flash driver's error.
     unreported_cuts: u64,
-    /// Boots after a first cut that wrote or erased (repaired the flash).
-    repairs: u64,
-    /// Repairing boots cut (one per byte each repair writes or erases).
+    /// Boots after a cut that wrote or erased anything (must be none).
+    boot_writes: u64,
+    /// Next saves cut (one per byte each writes or erases).
     second_cuts: u64,
-    /// Boots after a second cut that loaded neither the old nor the new record.
+    /// Of those, cuts in next saves that erase a sector.
+    second_cuts_in_erasing_saves: u64,
+    /// Boots that loaded neither the record before the second cut nor the newer one.
     bad: u64,
 }
 
@@ -214,78 +239,169 @@ impl DoubleCut {
         DoubleCut {
             first_cuts: self.first_cuts + o.first_cuts,
             unreported_cuts: self.unreported_cuts + o.unreported_cuts,
-            repairs: self.repairs + o.repairs,
+            boot_writes: self.boot_writes + o.boot_writes,
             second_cuts: self.second_cuts + o.second_cuts,
+            second_cuts_in_erasing_saves: self.second_cuts_in_erasing_saves
+                + o.second_cuts_in_erasing_saves,
             bad: self.bad + o.bad,
         }
     }
 }
 
-/// Cuts the save of `new` over `base` (holding `old`) at every byte, and each boot repair after
-/// it at every byte.
+/// Cuts the save of `new` over `base` (holding `old`) at every byte, and the next save after
+/// each such cut at every byte.
 fn double_cut(
     p: u32,
-    base: &RamFlash<2, PAGE, 1>,
+    base: &ParamFlash<1>,
     old: Option<ParamRecord>,
     new: ParamRecord,
     tally: &mut DoubleCut,
 ) {
-    let range = 0..(2 * PAGE) as u32;
+    let newer = calibrated(3000 + p);
     let mut probe = base.clone();
     let before = probe.bytes_touched();
-    ParamStore::new(&mut probe, range.clone())
-        .unwrap()
-        .save_blocking(&new, true)
-        .unwrap();
+    param_store(&mut probe).save_blocking(&new, true).unwrap();
     let len = probe.bytes_touched() - before;
     for cut in 0..len {
         tally.first_cuts += 1;
         let mut cut_once = base.clone();
         cut_once.cut_power_after(Some(cut as u32));
-        let res = ParamStore::new(&mut cut_once, range.clone())
-            .unwrap()
-            .save_blocking(&new, true);
+        let res = param_store(&mut cut_once).save_blocking(&new, true);
         // The cut falls inside the save: the save fails with the driver's power-cut error.
         if res != Err(StoreError::Flash(FlashFault::Other)) || cut_once.is_powered() {
             eprintln!("p={p} cut={cut}/{len}: save returned {res:?}");
             tally.unreported_cuts += 1;
         }
         cut_once.restore_power();
-        // How many bytes does the repairing boot write or erase?
-        let mut probe = cut_once.clone();
-        let before = probe.bytes_touched();
-        ParamStore::new(&mut probe, range.clone())
-            .unwrap()
-            .load_blocking();
-        let repair_len = probe.bytes_touched() - before;
-        if repair_len > 0 {
-            tally.repairs += 1;
+        // The boot writes nothing; it loads old or new (the single-cut sweep checks which).
+        let before = cut_once.bytes_touched();
+        let first = param_store(&mut cut_once).load_blocking();
+        if cut_once.bytes_touched() != before {
+            tally.boot_writes += 1;
         }
-        for cut2 in 0..repair_len {
+        // The next save, cut at every byte.
+        let mut probe = cut_once.clone();
+        let (before, erases) = (probe.bytes_touched(), probe.erase_counts());
+        param_store(&mut probe).save_blocking(&newer, true).unwrap();
+        let len2 = probe.bytes_touched() - before;
+        let erasing = probe.erase_counts() != erases;
+        for cut2 in 0..len2 {
             tally.second_cuts += 1;
+            if erasing {
+                tally.second_cuts_in_erasing_saves += 1;
+            }
             let mut flash = cut_once.clone();
             flash.cut_power_after(Some(cut2 as u32));
-            ParamStore::new(&mut flash, range.clone())
-                .unwrap()
-                .load_blocking();
+            let _ = param_store(&mut flash).save_blocking(&newer, true);
             flash.restore_power();
-            let out = ParamStore::new(&mut flash, range.clone())
-                .unwrap()
-                .load_blocking();
-            let ok_old = match &old {
-                Some(o) => out.record == *o && out.warning.is_none(),
-                None => out.warning == Some(LoadWarning::Missing),
-            };
-            let ok_new = out.record == new && out.warning.is_none();
-            if !(ok_old || ok_new) {
-                eprintln!(
-                    "p={p} cut={cut} cut2={cut2}/{repair_len}: {:?}",
-                    out.warning
-                );
+            let out = param_store(&mut flash).load_blocking();
+            let ok_first = out == first
+                && (first.warning.is_none() || (old.is_none() && nothing_stored(&first.warning)));
+            let ok_newer = out.record == newer && out.warning.is_none();
+            if !(ok_first || ok_newer) {
+                eprintln!("p={p} cut={cut} cut2={cut2}/{len2}: {:?}", out.warning);
                 tally.bad += 1;
             }
         }
     }
+}
+
+/// The upgrade from the shared map, cut at every byte: a board whose record (and runs) are in
+/// the map older firmware shared, with the parameter region erased or holding old program code
+/// (sectors 1–2 were program before the upgrade; flashing the new image does not erase them).
+/// The first boot copies the record, reads it back and removes it from the run region; a cut at
+/// any byte of that boot leaves the record readable at the next boot, the runs untouched, and
+/// after one clean boot the record is in the parameter region alone.
+#[test]
+fn every_cut_while_moving_an_old_record_keeps_it_and_the_runs() {
+    let fixture =
+        storage_support::fixtures::fixture_bytes(storage_support::fixtures::PARAM_RECORD_V3);
+    let want = param_record_v3();
+    let mut stats = Vec::new();
+    for stale_code in [false, true] {
+        let mut base = RunFlash::default();
+        if stale_code {
+            let mut rng = storage_support::Rng(11);
+            for i in 0..2 * RUN_PAGE {
+                base.corrupt_byte(i, rng.next_u64() as u8);
+            }
+        }
+        store_raw_in(&mut base, RUN_RANGE, PARAMS_KEY, &fixture);
+        // A stored session next to it: three runs, one measured.
+        let (mut runs, mut ids) = (Runs::new(), Ids::new());
+        {
+            let mut store = ParamStore::new(&mut base, RUN_PARAMS, RUN_RANGE).unwrap();
+            for u in [
+                Update::Finish(1),
+                Update::Finish(2),
+                Update::Measure(0, 3),
+                Update::Finish(4),
+            ] {
+                apply(u, &mut runs, &mut ids);
+            }
+            store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+        }
+        // The key-1 item must still be the old record (a run update does not touch it).
+        assert_eq!(
+            fetch_raw_in(&mut base, RUN_RANGE, PARAMS_KEY),
+            Some(fixture.clone())
+        );
+        let mut probe = base.clone();
+        let before = probe.bytes_touched();
+        let (_, params, ..) = boot(&mut probe);
+        assert_eq!((params.warning, params.record), (None, want.clone()));
+        let len = probe.bytes_touched() - before;
+        let (mut cuts, mut bad) = (0u64, 0u64);
+        for cut in 0..len {
+            cuts += 1;
+            let mut flash = base.clone();
+            flash.cut_power_after(Some(cut as u32));
+            let _ = boot(&mut flash);
+            flash.restore_power();
+            let (_, params, restored, _, loaded) = boot(&mut flash);
+            let ok = params.warning.is_none()
+                && params.record == want
+                && restored == runs
+                && loaded.skipped == 0;
+            // After that clean boot: moved, and gone from the run region.
+            let moved = fetch_raw_in(&mut flash, RUN_RANGE, PARAMS_KEY).is_none()
+                && storage_support::newest_param_bytes(&mut flash, &RUN_PARAMS).as_deref()
+                    == Some(fixture.as_slice());
+            if !(ok && moved) {
+                eprintln!(
+                    "stale code {stale_code} cut={cut}/{len}: {:?} {} runs, moved {moved}",
+                    params.warning,
+                    restored.len()
+                );
+                bad += 1;
+            }
+        }
+        stats.push((stale_code, len, cuts, bad));
+    }
+    for (stale_code, len, cuts, bad) in &stats {
+        println!(
+            "moving an old record (parameter region {}): {len} bytes written or erased, {cuts} \
+             cuts, {bad} lost",
+            if *stale_code {
+                "holding old code"
+            } else {
+                "erased"
+            }
+        );
+    }
+    assert!(
+        stats.iter().all(|&(_, _, cuts, bad)| bad == 0 && cuts > 0),
+        "{stats:?}"
+    );
+    // With old code in the parameter region, the move erases a sector first.
+    assert!(stats[1].1 > PAGE as u64, "{stats:?}");
+}
+
+/// The version-3 fixture as today's firmware reads it (1 kHz: v3 stored no rate).
+fn param_record_v3() -> ParamRecord {
+    let mut want = storage_support::fixtures::param_record();
+    want.control_hz = 1000;
+    want
 }
 
 // ---- The run store: power cut at every byte of every run-store update ----
@@ -294,12 +410,15 @@ use odocal::motion::run::{MAX_RUNS, RunRecord};
 use odocal::storage::StoredRun;
 use storage_support::{measurement, run_record};
 
-/// Pages of the run-store sweep: 4 × 1 KiB, so a sequence of ~40 updates closes pages, migrates
-/// live runs and erases pages several times while staying fast (the logic of
-/// `sequential-storage` does not depend on the page size, only the number of cut points inside
-/// an erase does).
+/// Pages of the run-store sweep: two 1 KiB parameter sectors, then a run region of 4 × 1 KiB,
+/// so a sequence of ~40 updates closes pages, migrates live runs and erases pages several times
+/// while staying fast (the logic of `sequential-storage` does not depend on the page size, only
+/// the number of cut points inside an erase does).
 const RUN_PAGE: usize = 1024;
-type RunFlash = RamFlash<4, RUN_PAGE, 1>;
+type RunFlash = RamFlash<6, RUN_PAGE, 1>;
+const RUN_PARAMS: ParamSectors =
+    ParamSectors::new(0..RUN_PAGE as u32, RUN_PAGE as u32..2 * RUN_PAGE as u32);
+const RUN_RANGE: core::ops::Range<u32> = 2 * RUN_PAGE as u32..6 * RUN_PAGE as u32;
 /// Knots per test run: small items (132 B), so that many updates fit the small pages.
 const KNOTS: usize = 4;
 
@@ -350,7 +469,7 @@ fn boot(
     Ids,
     RunsLoaded,
 ) {
-    let mut store = ParamStore::new(flash, 0..(4 * RUN_PAGE) as u32).unwrap();
+    let mut store = ParamStore::new(flash, RUN_PARAMS, RUN_RANGE).unwrap();
     let params = store.load_blocking();
     let (mut runs, mut ids) = (Runs::new(), Ids::new());
     let loaded = store.load_runs_blocking(&mut runs, &mut ids);
@@ -441,6 +560,15 @@ fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters
             let with_erase = probe.erase_counts().iter().sum::<u32>() > erases_before;
             (old_runs, runs, params_new, len, with_erase)
         };
+        // A run update never writes or erases the parameter region.
+        let param_bytes = |f: &RunFlash| (0..2 * RUN_PAGE).map(|i| f.byte(i)).collect::<Vec<_>>();
+        if !matches!(update, Update::SaveParams(_))
+            && (param_bytes(&probe) != param_bytes(&base)
+                || probe.erase_counts()[..2] != base.erase_counts()[..2])
+        {
+            eprintln!("step {step} {update:?}: the parameter region changed");
+            tally.other_failures += 1;
+        }
         for cut in 0..len {
             let mut flash = base.clone();
             {
@@ -469,9 +597,9 @@ fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters
                 }
                 (None, Some(n)) => {
                     (params.warning.is_none() && params.record == *n)
-                        || params.warning == Some(LoadWarning::Missing)
+                        || nothing_stored(&params.warning)
                 }
-                (_, None) => params.warning == Some(LoadWarning::Missing),
+                (_, None) => nothing_stored(&params.warning),
             };
             if !params_ok {
                 eprintln!(
@@ -507,7 +635,7 @@ fn every_cut_during_a_run_store_update_leaves_old_or_new_runs_and_the_parameters
         base = probe;
         params_old = params_new;
     }
-    println!("run-store power-cut sweep, 4 x {RUN_PAGE} B pages, 1-byte words: {tally:?}");
+    println!("run-region power-cut sweep, 4 x {RUN_PAGE} B pages, 1-byte words: {tally:?}");
     assert_eq!(tally.mixed, 0, "{tally:?}");
     assert_eq!(tally.params_lost, 0, "{tally:?}");
     assert_eq!(tally.other_failures, 0, "{tally:?}");

@@ -9,40 +9,34 @@ use odocal::motion::wiring::Wiring;
 use odocal::storage::ram_flash::RamFlash;
 use odocal::storage::runs::{RUN_INDEX_KEY, decode_index, decode_run};
 use odocal::storage::{
-    FormatError, LoadWarning, PARAMS_KEY, ParamRecord, ParamStore, RecordError, StoreError,
-    StoredRun,
+    FormatError, LoadWarning, PARAMS_KEY, ParamRecord, ParamSectors, ParamStore, RecordError,
+    StoreError, StoredRun,
 };
-use sequential_storage::cache::Cache;
-use sequential_storage::map::{MapConfig, MapStorage};
-use storage_support::{BOARD_RANGE, BoardFlash, calibrated, fixtures};
+use storage_support::{
+    BOARD_PARAMS, BOARD_RUNS, BoardFlash, board_store, calibrated, fetch_raw_in, fixtures,
+    newest_param_bytes, store_raw_in,
+};
 
-/// Writes raw bytes under the parameter key, bypassing `ParamStore`'s checks.
+/// Writes raw bytes under the parameter key where older firmware kept the record (the map
+/// that is now the run region), bypassing `ParamStore`'s checks.
 fn store_raw(flash: &mut BoardFlash, bytes: &[u8]) {
     store_raw_at(flash, PARAMS_KEY, bytes);
 }
 
-/// Writes raw bytes under `key`, bypassing `ParamStore`'s checks.
+/// Writes raw bytes under `key` in the run region's map, bypassing `ParamStore`'s checks.
 fn store_raw_at(flash: &mut BoardFlash, key: u8, bytes: &[u8]) {
-    let mut map =
-        MapStorage::<u8, _, _>::new(flash, MapConfig::new(BOARD_RANGE), Cache::new_uncached());
-    let mut buf = [0u8; 1024];
-    embassy_futures::block_on(map.store_item(&mut buf, &key, &bytes)).unwrap();
+    store_raw_in(flash, BOARD_RUNS, key, bytes);
 }
 
-/// The version byte of the record stored under the parameter key, read raw.
+/// The version byte of the newest record in the parameter region, read raw.
 fn last_stored_version(flash: &mut BoardFlash) -> Option<u8> {
-    let mut map =
-        MapStorage::<u8, _, _>::new(flash, MapConfig::new(BOARD_RANGE), Cache::new_uncached());
-    let mut buf = [0u8; 256];
-    let item: Option<&[u8]> =
-        embassy_futures::block_on(map.fetch_item(&mut buf, &PARAMS_KEY)).unwrap();
-    item.and_then(|b| b.first().copied())
+    newest_param_bytes(flash, &BOARD_PARAMS).and_then(|b| b.first().copied())
 }
 
 #[test]
 fn empty_flash_gives_defaults_with_a_warning() {
     let mut flash = Box::new(BoardFlash::default());
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let out = store.load_blocking();
     assert_eq!(out.record, ParamRecord::DEFAULT);
     assert_eq!(out.warning, Some(LoadWarning::Missing));
@@ -53,11 +47,11 @@ fn saved_record_survives_a_reboot_bit_exactly() {
     let mut flash = Box::new(BoardFlash::default());
     let rec = calibrated(42);
     {
-        let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+        let mut store = board_store(&mut *flash);
         store.save_blocking(&rec, true).unwrap();
     }
     // Reboot: a fresh store (no cached state) over the same flash contents.
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let out = store.load_blocking();
     // Exact equality: the format stores IEEE bits, so E_d etc. must come back unchanged.
     assert_eq!(out.warning, None);
@@ -78,21 +72,25 @@ fn saved_record_survives_a_reboot_bit_exactly() {
 
 #[test]
 fn works_with_four_byte_words_and_small_pages() {
-    let mut flash = RamFlash::<4, 1024, 4>::default();
-    let mut store = ParamStore::new(&mut flash, 1024..4096).unwrap();
+    let mut flash = RamFlash::<6, 1024, 4>::default();
+    let sectors = ParamSectors::new(1024..2048, 2048..3072);
+    let mut store = ParamStore::new(&mut flash, sectors, 3072..6144).unwrap();
     for n in 0..40 {
         store.save_blocking(&calibrated(n), true).unwrap();
         assert_eq!(store.load_blocking().record, calibrated(n));
     }
-    // Page 0 lies outside the range and must never have been touched.
+    // 40 saves of 180-byte slots change sectors several times.
+    assert!(store.flash().erase_counts()[1..3].iter().all(|&e| e >= 3));
+    // Page 0 lies outside the layout and the run region was not needed: never touched.
     assert_eq!(store.flash().erase_counts()[0], 0);
     assert!((0..1024).all(|i| store.flash().byte(i) == Some(0xFF)));
+    assert!((3072..6144).all(|i| store.flash().byte(i) == Some(0xFF)));
 }
 
 #[test]
 fn refuses_to_write_while_the_motors_run() {
     let mut flash = Box::new(BoardFlash::default());
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     assert_eq!(
         store.save_blocking(&calibrated(1), false),
         Err(StoreError::MotorsRunning)
@@ -108,7 +106,7 @@ fn refuses_to_write_while_the_motors_run() {
 #[test]
 fn refuses_to_save_an_invalid_record() {
     let mut flash = Box::new(BoardFlash::default());
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let mut bad = calibrated(1);
     bad.calibration.as_mut().unwrap().e_b = f64::NAN;
     assert_eq!(
@@ -126,7 +124,7 @@ fn stored_nan_record_is_rejected_at_load() {
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     bad.encode(&mut bytes).unwrap();
     store_raw(&mut flash, &bytes);
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let out = store.load_blocking();
     assert_eq!(out.record, ParamRecord::DEFAULT);
     assert!(matches!(
@@ -146,7 +144,7 @@ fn other_format_versions_are_rejected_cleanly() {
         let mut flash = Box::new(BoardFlash::default());
         bytes[0] = version;
         store_raw(&mut flash, &bytes);
-        let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+        let mut store = board_store(&mut *flash);
         let out = store.load_blocking();
         assert_eq!(out.record, ParamRecord::DEFAULT);
         assert_eq!(
@@ -158,7 +156,7 @@ fn other_format_versions_are_rejected_cleanly() {
     let mut flash = Box::new(BoardFlash::default());
     bytes[0] = ParamRecord::FORMAT_VERSION;
     store_raw(&mut flash, &bytes[..100]);
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     assert_eq!(
         store.load_blocking().warning,
         Some(LoadWarning::Malformed(FormatError::Length {
@@ -290,7 +288,7 @@ fn records_of_every_older_version_survive_the_upgrade() {
     for (version, hex) in PARAM_FIXTURES {
         let mut flash = Box::new(BoardFlash::default());
         store_raw(&mut flash, &fixtures::fixture_bytes(hex));
-        let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+        let mut store = board_store(&mut *flash);
         let out = store.load_blocking();
         assert_eq!(out.warning, None, "version {version}");
         assert_eq!(out.record, migrated(version), "version {version}");
@@ -301,8 +299,55 @@ fn records_of_every_older_version_survive_the_upgrade() {
         let again = store.load_blocking();
         assert_eq!(again.warning, None);
         assert_eq!(again.record, faster);
+        assert_eq!(store.moved(), 1, "version {version}");
         assert_eq!(last_stored_version(&mut flash), Some(4));
     }
+}
+
+/// The upgrade to separate regions: a record of every version, in the map older firmware
+/// shared with the runs, is copied to the parameter region byte for byte at the first boot and
+/// removed from the run region; later boots read it from the parameter region alone.
+#[test]
+fn records_in_the_old_shared_map_move_to_the_parameter_region() {
+    for (version, hex) in PARAM_FIXTURES {
+        let bytes = fixtures::fixture_bytes(hex);
+        let mut flash = Box::new(BoardFlash::default());
+        store_raw(&mut flash, &bytes);
+        assert_eq!(newest_param_bytes(&mut *flash, &BOARD_PARAMS), None);
+        {
+            let mut store = board_store(&mut *flash);
+            assert_eq!(store.load_blocking().record, migrated(version));
+            assert_eq!(store.moved(), 1);
+        }
+        assert_eq!(
+            newest_param_bytes(&mut *flash, &BOARD_PARAMS).as_deref(),
+            Some(bytes.as_slice()),
+            "version {version}"
+        );
+        assert_eq!(fetch_raw_in(&mut *flash, BOARD_RUNS, PARAMS_KEY), None);
+        let mut store = board_store(&mut *flash);
+        let out = store.load_blocking();
+        assert_eq!((out.warning, out.record), (None, migrated(version)));
+        assert_eq!(store.moved(), 0, "version {version}: moved once only");
+    }
+}
+
+/// A parameter region already in use wins over a record left in the run region (a power cut
+/// after the copy, before the removal), and that leftover is removed at boot.
+#[test]
+fn a_leftover_old_record_is_removed_and_never_wins() {
+    let mut flash = Box::new(BoardFlash::default());
+    board_store(&mut *flash)
+        .save_blocking(&calibrated(5), true)
+        .unwrap();
+    let mut old = [0u8; ParamRecord::ENCODED_LEN];
+    calibrated(4).encode(&mut old).unwrap();
+    store_raw(&mut flash, &old);
+    let mut store = board_store(&mut *flash);
+    let out = store.load_blocking();
+    assert_eq!((out.warning, out.record), (None, calibrated(5)));
+    assert_eq!(store.moved(), 0);
+    assert_eq!(fetch_raw_in(&mut *flash, BOARD_RUNS, PARAMS_KEY), None);
 }
 
 /// Run items and the run index as the firmware that introduced them wrote them (fixed bytes)
@@ -357,10 +402,12 @@ fn a_stored_session_of_older_firmware_is_restored() {
         RUN_INDEX_KEY,
         &fixtures::fixture_bytes(fixtures::RUN_INDEX),
     );
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let params = store.load_blocking();
     assert_eq!(params.warning, None);
     assert_eq!(params.record, migrated(3));
+    // The record moved to the parameter region; the runs stay where they were.
+    assert_eq!(store.moved(), 1);
     let mut got = heapless::Vec::<RunRecord, MAX_RUNS>::new();
     let mut ids = heapless::Vec::<Option<StoredRun>, MAX_RUNS>::new();
     let loaded = store.load_runs_blocking(&mut got, &mut ids);
@@ -381,16 +428,42 @@ fn a_stored_session_of_older_firmware_is_restored() {
 }
 
 #[test]
-fn bad_ranges_are_refused() {
+fn bad_layouts_are_refused() {
     let mut flash = Box::new(BoardFlash::default());
-    // One sector only: sequential-storage needs two.
-    assert!(matches!(
-        ParamStore::new(&mut *flash, 0..131_072),
-        Err(StoreError::BadRange)
+    let bad = |flash: &mut BoardFlash, params: ParamSectors, runs: core::ops::Range<u32>| {
+        matches!(
+            ParamStore::new(flash, params, runs),
+            Err(StoreError::BadRange)
+        )
+    };
+    // The board's layout is accepted.
+    assert!(ParamStore::new(&mut *flash, BOARD_PARAMS, BOARD_RUNS).is_ok());
+    // A run region of one page only: sequential-storage needs two.
+    assert!(bad(
+        &mut flash,
+        BOARD_PARAMS,
+        BOARD_RUNS.start..BOARD_RUNS.start + 16_384
     ));
-    // Not sector aligned.
-    assert!(matches!(
-        ParamStore::new(&mut *flash, 4096..262_144),
-        Err(StoreError::BadRange)
+    // A run region not page aligned.
+    assert!(bad(
+        &mut flash,
+        BOARD_PARAMS,
+        BOARD_RUNS.start + 4096..BOARD_RUNS.end
+    ));
+    // Parameter sectors overlapping the run region, each other, or too small for a slot.
+    assert!(bad(
+        &mut flash,
+        ParamSectors::new(0..16_384, BOARD_RUNS.start..BOARD_RUNS.start + 16_384),
+        BOARD_RUNS
+    ));
+    assert!(bad(
+        &mut flash,
+        ParamSectors::new(0..16_384, 8192..24_576),
+        BOARD_RUNS
+    ));
+    assert!(bad(
+        &mut flash,
+        ParamSectors::new(0..256, 256..512),
+        BOARD_RUNS
     ));
 }

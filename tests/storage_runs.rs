@@ -1,6 +1,7 @@
-//! The session's runs in flash next to the parameter record: a full store round-trips bit for
-//! bit, and a corrupted, foreign or absurd run record is reported and skipped at boot without
-//! touching the parameters. (Power cuts: `storage_power_cut.rs`.)
+//! The session's runs in the run region, apart from the parameter record: a full store
+//! round-trips bit for bit, a corrupted, foreign or absurd run record is reported and skipped at
+//! boot without touching the parameters, and a run region damaged beyond repair is erased and
+//! written again, the parameter region untouched. (Power cuts: `storage_power_cut.rs`.)
 
 mod storage_support;
 
@@ -8,7 +9,10 @@ use odocal::motion::run::{MAX_KNOTS, MAX_RUNS, RunRecord};
 use odocal::session::write_runs_restored;
 use odocal::storage::runs::{RunFormatError, decode_run};
 use odocal::storage::{ParamStore, RunLoadProblem, StoredRun};
-use storage_support::{BOARD_RANGE, BoardFlash, calibrated, measurement, run_record};
+use storage_support::{
+    BOARD_PARAMS, BOARD_RUNS, BoardFlash, Rng, SECTOR, board_store, calibrated, measurement,
+    run_record,
+};
 
 type Runs = heapless::Vec<RunRecord, MAX_RUNS>;
 type Ids = heapless::Vec<Option<StoredRun>, MAX_RUNS>;
@@ -27,7 +31,7 @@ fn full_store() -> Runs {
 }
 
 fn boot(flash: &mut BoardFlash) -> (Runs, Ids, odocal::storage::RunsLoaded) {
-    let mut store = ParamStore::new(flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(flash);
     let (mut runs, mut ids) = (Runs::new(), Ids::new());
     let loaded = store.load_runs_blocking(&mut runs, &mut ids);
     (runs, ids, loaded)
@@ -42,7 +46,7 @@ fn event(loaded: &odocal::storage::RunsLoaded) -> String {
 /// Saves the parameters and `runs` on a fresh board flash; returns the flash and the ids.
 fn stored(runs: &Runs) -> (Box<BoardFlash>, Ids) {
     let mut flash = Box::new(BoardFlash::default());
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     store.save_blocking(&calibrated(7), true).unwrap();
     let mut ids: Ids = runs.iter().map(|_| None).collect();
     store.save_runs_blocking(runs, &mut ids, true).unwrap();
@@ -53,7 +57,7 @@ fn stored(runs: &Runs) -> (Box<BoardFlash>, Ids) {
 fn a_full_run_store_survives_a_reset_bit_for_bit() {
     let runs = full_store();
     let mut flash = Box::new(BoardFlash::default());
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     store.save_blocking(&calibrated(7), true).unwrap();
     let mut ids: Ids = runs.iter().map(|_| None).collect();
     let before = store.flash().bytes_touched();
@@ -71,7 +75,7 @@ fn a_full_run_store_survives_a_reset_bit_for_bit() {
     );
     assert!(index_only < 400, "{index_only}");
 
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let params = store.load_blocking();
     assert_eq!(params.record, calibrated(7));
     assert_eq!(params.warning, None);
@@ -107,7 +111,7 @@ fn a_corrupted_run_record_is_reported_and_skipped_and_the_parameters_stay() {
     let at = find(&flash, &knot.right.to_le_bytes());
     assert!(flash.corrupt_byte(at, !flash.byte(at).unwrap()));
 
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     let params = store.load_blocking();
     assert_eq!((params.record, params.warning), (calibrated(7), None));
     let (restored, mut ids, loaded) = boot(&mut flash);
@@ -122,7 +126,7 @@ fn a_corrupted_run_record_is_reported_and_skipped_and_the_parameters_stay() {
         "{text}"
     );
     // The store keeps working: the next update stores the 11 runs, and they come back.
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     store.load_runs_blocking(&mut Runs::new(), &mut Ids::new());
     store.save_runs_blocking(&restored, &mut ids, true).unwrap();
     let (again, _, loaded) = boot(&mut flash);
@@ -136,7 +140,7 @@ fn a_foreign_run_record_is_reported_and_skipped() {
     let (mut flash, mut ids) = stored(&runs);
     // The index names run 5's key with another serial number: the item there is not the run
     // the index means (as after a mix-up of keys), so it must not be restored.
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     ids[4].as_mut().unwrap().serial += 1000;
     store.save_runs_blocking(&runs, &mut ids, true).unwrap();
     let (restored, _, loaded) = boot(&mut flash);
@@ -154,7 +158,7 @@ fn an_absurd_stored_measurement_restores_nothing_and_keeps_the_parameters() {
     let mut runs = full_store();
     runs[0].measured.as_mut().unwrap().x_m = f64::NAN;
     let (mut flash, _) = stored(&runs);
-    let mut store = ParamStore::new(&mut *flash, BOARD_RANGE).unwrap();
+    let mut store = board_store(&mut *flash);
     assert_eq!(store.load_blocking().record, calibrated(7));
     let (restored, _, loaded) = boot(&mut flash);
     assert!(restored.is_empty());
@@ -215,7 +219,8 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
     };
     let mut store = ParamStore::without_flash(
         &mut *flash,
-        MapConfig::try_new(BOARD_RANGE).unwrap(),
+        BOARD_PARAMS,
+        MapConfig::try_new(BOARD_RUNS).unwrap(),
         too_small,
     );
     let loaded = store.load_blocking();
@@ -248,4 +253,50 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
     assert!(r.is_empty());
     // The flash was never written or erased.
     assert_eq!(store.flash().bytes_touched(), 0);
+}
+
+/// The parameter region's bytes and erase counts.
+fn param_region(flash: &BoardFlash) -> (Vec<u8>, Vec<u32>) {
+    let mut image = vec![0u8; BoardFlash::CAPACITY];
+    flash.copy_image(&mut image);
+    image.truncate(2 * SECTOR);
+    (image, flash.erase_counts()[..2].to_vec())
+}
+
+/// The run region overwritten with noise (a stray program, a glitching erase): the parameters
+/// still load, the runs are reported lost, and the next run update repairs or erases the run
+/// region alone and writes every run again; the parameter region is not written or erased.
+#[test]
+fn a_damaged_run_region_is_rebuilt_alone() {
+    let mut rng = Rng(7);
+    // Noise, and every byte programmed to zero (every page looks closed: no free page at all).
+    rebuilt_alone(|_| rng.next_u64() as u8, 0);
+    rebuilt_alone(|_| 0, 1);
+}
+
+fn rebuilt_alone(mut damage: impl FnMut(usize) -> u8, wipes: u32) {
+    let runs = full_store();
+    let (mut flash, _) = stored(&runs);
+    let before = param_region(&flash);
+    for i in BOARD_RUNS.start as usize..BOARD_RUNS.end as usize {
+        flash.corrupt_byte(i, damage(i));
+    }
+    let mut store = board_store(&mut *flash);
+    let params = store.load_blocking();
+    assert_eq!((params.record, params.warning), (calibrated(7), None));
+    let (mut restored, mut ids) = (Runs::new(), Ids::new());
+    let loaded = store.load_runs_blocking(&mut restored, &mut ids);
+    println!("{}", event(&loaded));
+    assert!(restored.is_empty());
+    // The session still holds its runs in RAM and stores them again.
+    let mut ids: Ids = runs.iter().map(|_| None).collect();
+    store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+    // sequential-storage's own repair or, failing that, a wipe of the run region.
+    assert_eq!(store.wipes(), wipes);
+    assert_eq!(param_region(store.flash()), before);
+    let (again, _, loaded) = boot(&mut flash);
+    assert_eq!(again, runs);
+    assert_eq!(loaded.skipped, 0);
+    let mut store = board_store(&mut *flash);
+    assert_eq!(store.load_blocking().record, calibrated(7));
 }

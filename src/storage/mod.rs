@@ -1,24 +1,30 @@
-//! Persistent parameters: one [`ParamRecord`] in NOR flash, kept by `sequential-storage`.
+//! Persistent parameters and the session's runs in NOR flash, in two regions apart.
 //!
 //! Owns the stored parameter record and its flash map; may use [`crate::motion`]
 //! (motion limits), [`crate::kinematics`] (geometry) and [`crate::util`].
 //!
-//! [`ParamStore`] wraps a `sequential-storage` map over any
-//! [`MultiwriteNorFlash`] range of at least two erase pages. Every save appends a new copy of the
-//! record (key [`PARAMS_KEY`]); when a page fills, the live record moves to the next page and the
-//! old page is erased, so wear spreads over all pages. Each stored item carries a CRC, and a save
-//! interrupted at any byte leaves either the old or the new record readable (see
-//! `tests/storage_power_cut.rs`, `docs/storage.md`).
+//! [`ParamStore`] keeps the [`ParamRecord`] in the **parameter region**, two erase sectors used
+//! A/B ([`params`]: each save appends a copy; the sector holding the newest valid copy is never
+//! erased), and the session's runs in the **run region**, a `sequential-storage` map over any
+//! [`MultiwriteNorFlash`] range of at least two erase pages ([`runs`]). Nothing done to the run
+//! region (a page change, a repair, a wipe after damage) touches the parameter region. Every
+//! stored item carries a CRC, and a write interrupted at any byte leaves the old or the new
+//! contents readable (see `tests/storage_power_cut.rs`, `docs/storage.md`).
+//!
+//! Older firmware kept the record in the run region's map (key [`PARAMS_KEY`]); loading moves
+//! it to the parameter region ([`ParamStore::load`]).
 //!
 //! Loading never fails: a missing, unreadable, corrupt, unknown-version or invalid record gives
-//! [`ParamRecord::DEFAULT`] plus a [`LoadWarning`] (also logged with `warn!`). Saving refuses
-//! while the motors run, because a flash erase stalls the CPU for up to seconds.
+//! [`ParamRecord::DEFAULT`] plus a [`LoadWarning`] (also logged with `warn!`). Writing refuses
+//! while the motors run, because a flash erase stalls the CPU.
 //!
 //! `sequential-storage` is async-only; the `*_blocking` methods run the same futures to
 //! completion with `embassy_futures::block_on`, for the firmware's `init` and for `host-sim`.
-//! Note that `load` may itself write or erase: after an interrupted save, `sequential-storage`
-//! repairs the flash on first access. Boot is the place for that (motors stopped).
+//! Loading the parameters writes only to move an older firmware's record; loading the runs may
+//! repair the run region after an interrupted write. Boot is the place for both (motors
+//! stopped).
 
+pub mod params;
 pub mod ram_flash;
 pub mod record;
 pub mod runs;
@@ -31,13 +37,21 @@ use sequential_storage::cache::{Cache, Uncached};
 pub use sequential_storage::map::MapConfig;
 use sequential_storage::map::MapStorage;
 
+pub use self::params::ParamSectors;
 pub use self::record::{
     AppliedCalibration, FormatError, METHOD_NAME_MAX, MethodName, ParamRecord, RecordError,
 };
 pub use self::runs::{RunFormatError, RunLoadProblem, RunsLoaded, StoredRun};
 
-/// Map key under which the parameter record is stored.
+/// Map key under which older firmware stored the parameter record in the (then shared) map
+/// that is now the run region.
 pub const PARAMS_KEY: u8 = 1;
+
+/// Longest parameter record the parameter region takes, bytes (today's is
+/// [`ParamRecord::ENCODED_LEN`]; the margin is for later versions).
+pub const PARAM_DATA_MAX: usize = 512;
+
+const _: () = assert!(ParamRecord::ENCODED_LEN <= PARAM_DATA_MAX);
 
 /// Largest flash word `sequential-storage` supports, bytes (its `MAX_WORD_SIZE`).
 const MAX_WORD: usize = 32;
@@ -55,10 +69,20 @@ const ITEM_MAX: usize = {
 };
 
 /// Working buffer: key + the longest item, rounded up to any supported word size (1.7 KiB: a
-/// run is written straight from the session's record into it, never copied whole elsewhere).
-const BUF_LEN: usize = (1 + ITEM_MAX).next_multiple_of(MAX_WORD);
+/// run is written straight from the session's record into it, never copied whole elsewhere),
+/// and room for a parameter slot.
+const BUF_LEN: usize = {
+    // A map item may also be fetched from `KEY_AT` on (see `move_old_record`).
+    let map = KEY_AT + (1 + ITEM_MAX).next_multiple_of(MAX_WORD);
+    let slot = params::slot_len(PARAM_DATA_MAX, MAX_WORD);
+    if map > slot { map } else { slot }
+};
 
-/// The map type used for the parameters.
+/// Where an older firmware's record is fetched to in the working buffer: its key byte just
+/// before a parameter slot's data, so the value lands where a slot wants it.
+const KEY_AT: usize = params::HEADER - 1;
+
+/// The map type used for the runs.
 type Map<F> = MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>;
 
 /// Word-aligned working buffer (some flash drivers need aligned source data).
@@ -105,7 +129,8 @@ impl core::error::Error for FlashFault {}
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum StoreError {
-    /// The flash range is not page aligned or shorter than two erase pages.
+    /// The run range is not page aligned or shorter than two erase pages, or the parameter
+    /// sectors are misaligned, too small or overlap each other or the run range.
     BadRange,
     /// Refused: the motors are running (a flash erase would stall the control loop).
     MotorsRunning,
@@ -115,7 +140,7 @@ pub enum StoreError {
     Flash(FlashFault),
     /// The stored data is corrupted beyond `sequential-storage`'s repair.
     Corrupted,
-    /// The flash range is full (cannot happen with one key unless the flash is damaged).
+    /// The run range is full (cannot happen with the session's runs unless it is damaged).
     Full,
     /// The record could not be serialised.
     Encoding,
@@ -150,13 +175,13 @@ impl fmt::Display for StoreError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             StoreError::BadRange => {
-                f.write_str("parameter flash range must be page aligned, at least 2 pages")
+                f.write_str("storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)")
             }
             StoreError::MotorsRunning => f.write_str("stop the motors before writing flash"),
             StoreError::InvalidRecord(e) => write!(f, "invalid parameters: {e}"),
             StoreError::Flash(e) => write!(f, "flash: {e}"),
-            StoreError::Corrupted => f.write_str("parameter flash corrupted"),
-            StoreError::Full => f.write_str("parameter flash full"),
+            StoreError::Corrupted => f.write_str("flash contents corrupted"),
+            StoreError::Full => f.write_str("run region full"),
             StoreError::Encoding => f.write_str("parameter record could not be encoded"),
             StoreError::Internal => f.write_str("storage internal error"),
             StoreError::FlashTooSmall(t) => write!(f, "{t}"),
@@ -232,9 +257,11 @@ pub struct LoadOutcome {
     pub warning: Option<LoadWarning>,
 }
 
-/// The parameter store over a NOR flash range.
+/// The parameter and run store over one NOR flash: the parameter region's two sectors and
+/// the run region's range (see the module docs).
 pub struct ParamStore<F: MultiwriteNorFlash> {
     map: Map<F>,
+    params: ParamSectors,
     buf: AlignedBuf,
     wipes: u32,
     /// Run item keys the committed run index lists (bit i = key `RUN_KEY_FIRST + i`).
@@ -245,48 +272,96 @@ pub struct ParamStore<F: MultiwriteNorFlash> {
     runs_wipes: u32,
     /// Set when the part's flash cannot hold the map: the flash is never touched.
     too_small: Option<FlashTooSmall>,
+    /// Set when the parameter sectors given to [`Self::from_config`] are unusable.
+    bad_layout: bool,
+    /// Parameter records moved from the run region since the store was built.
+    moved: u32,
+}
+
+/// What a stored parameter record's bytes give.
+fn decode_record(bytes: &[u8]) -> Result<ParamRecord, LoadWarning> {
+    match ParamRecord::decode(bytes) {
+        Ok(record) => match record.validate() {
+            Ok(()) => Ok(record),
+            Err(e) => Err(LoadWarning::Invalid(e)),
+        },
+        Err(FormatError::UnsupportedVersion { found }) => {
+            Err(LoadWarning::UnsupportedVersion { found })
+        }
+        Err(e) => Err(LoadWarning::Malformed(e)),
+    }
 }
 
 impl<F: MultiwriteNorFlash> ParamStore<F> {
-    /// A store over `range` (byte offsets in `flash`; page aligned, at least two pages).
+    /// A store with the parameter region on `params` and the run region on `runs` (byte
+    /// offsets in `flash`; the run range page aligned, at least two pages; the parameter
+    /// sectors whole erase units of `flash`, word aligned, apart from each other and the runs).
     ///
     /// # Errors
-    /// [`StoreError::BadRange`] if the range is misaligned or too small.
-    pub fn new(flash: F, range: Range<u32>) -> Result<Self, StoreError> {
-        let config = MapConfig::<F>::try_new(range).map_err(|_| StoreError::BadRange)?;
-        Ok(Self::from_config(flash, config))
+    /// [`StoreError::BadRange`] if the layout is not that.
+    pub fn new(flash: F, params: ParamSectors, runs: Range<u32>) -> Result<Self, StoreError> {
+        if !Self::layout_ok(&params, &runs) {
+            return Err(StoreError::BadRange);
+        }
+        let config = MapConfig::<F>::try_new(runs).map_err(|_| StoreError::BadRange)?;
+        Ok(Self::from_config(flash, params, config))
     }
 
-    /// A store with a configuration checked at compile time, e.g.
-    /// `ParamStore::from_config(flash, const { MapConfig::new(RANGE) })` (an invalid range is
-    /// then a build error, so this cannot fail).
-    pub fn from_config(flash: F, config: MapConfig<F>) -> Self {
+    fn layout_ok(params: &ParamSectors, runs: &Range<u32>) -> bool {
+        params.valid(params::align_of::<F>(), PARAM_DATA_MAX) && !params.overlaps(runs)
+    }
+
+    /// A store with a run map configuration checked at compile time, e.g.
+    /// `ParamStore::from_config(flash, SECTORS, const { MapConfig::new(RANGE) })` (an invalid
+    /// range is then a build error). Parameter sectors that [`Self::new`] would refuse give a
+    /// store that never touches the flash (loads the defaults, refuses to write, with
+    /// [`StoreError::BadRange`]); check them at compile time with [`ParamSectors::valid`].
+    pub fn from_config(flash: F, params: ParamSectors, runs: MapConfig<F>) -> Self {
+        let map = MapStorage::new(flash, runs, Cache::new_uncached());
+        let bad_layout = !Self::layout_ok(&params, &map.flash_range());
         ParamStore {
-            map: MapStorage::new(flash, config, Cache::new_uncached()),
+            map,
+            params,
             buf: AlignedBuf([0; BUF_LEN]),
             wipes: 0,
             live_run_keys: 0,
             next_serial: 1,
             runs_wipes: 0,
             too_small: None,
+            bad_layout,
+            moved: 0,
         }
     }
 
     /// A store that refuses to touch the flash, for a part whose flash is smaller than the
     /// map: loading gives the defaults with [`LoadWarning::FlashTooSmall`], saving fails with
     /// [`StoreError::FlashTooSmall`], no runs are restored or stored.
-    pub fn without_flash(flash: F, config: MapConfig<F>, too_small: FlashTooSmall) -> Self {
-        let mut store = Self::from_config(flash, config);
+    pub fn without_flash(
+        flash: F,
+        params: ParamSectors,
+        runs: MapConfig<F>,
+        too_small: FlashTooSmall,
+    ) -> Self {
+        let mut store = Self::from_config(flash, params, runs);
         store.too_small = Some(too_small);
         store
     }
 
-    /// Whether a write may go ahead: the part's flash holds the map and the motors are stopped
-    /// (an erase stalls the bus for up to seconds).
-    fn writable(&self, motors_stopped: bool) -> Result<(), StoreError> {
+    /// Why the store may not use the flash at all, if it may not.
+    fn unusable(&self) -> Result<(), StoreError> {
         if let Some(t) = self.too_small {
             return Err(StoreError::FlashTooSmall(t));
         }
+        if self.bad_layout {
+            return Err(StoreError::BadRange);
+        }
+        Ok(())
+    }
+
+    /// Whether a write may go ahead: the part's flash holds the map and the motors are stopped
+    /// (an erase stalls the bus).
+    fn writable(&self, motors_stopped: bool) -> Result<(), StoreError> {
+        self.unusable()?;
         if !motors_stopped {
             return Err(StoreError::MotorsRunning);
         }
@@ -298,59 +373,125 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         self.too_small
     }
 
-    /// Loads the stored record; falls back to [`ParamRecord::DEFAULT`] with a logged warning
-    /// when it is missing, unreadable, of another version, or invalid. Never panics, never
-    /// fails. May repair the flash after an interrupted save (writes/erases).
+    /// Loads the newest valid record of the parameter region; falls back to
+    /// [`ParamRecord::DEFAULT`] with a logged warning when it is missing, unreadable, of
+    /// another version, or invalid. Never panics, never fails, never erases the parameter
+    /// region.
+    ///
+    /// **Older firmware's record.** When the parameter region holds no valid record, the
+    /// record an older firmware kept in the run region's map (key [`PARAMS_KEY`]) is used: its
+    /// bytes are copied to the parameter region as they are, read back, and only then removed
+    /// from the run region. A power cut in between leaves it in one place or both; with a
+    /// record in the parameter region, a copy left in the run region is removed at boot.
     pub async fn load(&mut self) -> LoadOutcome {
-        if let Some(t) = self.too_small {
-            warn!("{}; using default parameters", t);
+        if let Err(e) = self.unusable() {
+            let warning = match e {
+                StoreError::FlashTooSmall(t) => LoadWarning::FlashTooSmall(t),
+                e => LoadWarning::Unreadable(e),
+            };
+            warn!("{}; using default parameters", warning);
             return LoadOutcome {
                 record: ParamRecord::DEFAULT,
-                warning: Some(LoadWarning::FlashTooSmall(t)),
+                warning: Some(warning),
             };
         }
-        let warning = match self
-            .map
-            .fetch_item::<&[u8]>(&mut self.buf.0, &PARAMS_KEY)
-            .await
-        {
-            Ok(Some(bytes)) => match ParamRecord::decode(bytes) {
-                Ok(record) => match record.validate() {
-                    Ok(()) => {
-                        return LoadOutcome {
-                            record,
-                            warning: None,
-                        };
-                    }
-                    Err(e) => LoadWarning::Invalid(e),
-                },
-                Err(FormatError::UnsupportedVersion { found }) => {
-                    LoadWarning::UnsupportedVersion { found }
+        let found = params::scan(self.map.flash(), &self.params, PARAM_DATA_MAX).await;
+        let loaded = match found {
+            Err(e) => Err(LoadWarning::Unreadable(e)),
+            Ok(found) => match found.newest {
+                Some(slot) => {
+                    let bytes = params::read(self.map.flash(), &slot, &mut self.buf.0).await;
+                    let loaded = bytes
+                        .map_err(LoadWarning::Unreadable)
+                        .and_then(decode_record);
+                    self.remove_old_copy().await;
+                    loaded
                 }
-                Err(e) => LoadWarning::Malformed(e),
+                None => self.move_old_record(found.blank()).await,
             },
-            Ok(None) => LoadWarning::Missing,
-            Err(e) => LoadWarning::Unreadable(e.into()),
         };
-        warn!("{}; using default parameters", warning);
-        LoadOutcome {
-            record: ParamRecord::DEFAULT,
-            warning: Some(warning),
+        match loaded {
+            Ok(record) => LoadOutcome {
+                record,
+                warning: None,
+            },
+            Err(warning) => {
+                warn!("{}; using default parameters", warning);
+                LoadOutcome {
+                    record: ParamRecord::DEFAULT,
+                    warning: Some(warning),
+                }
+            }
         }
     }
 
-    /// Saves `record` (validated first). Refuses while the motors run.
-    ///
-    /// If the stored data is proven bad (corrupted beyond `sequential-storage`'s own repair,
-    /// garbage filling the free space, an internal inconsistency), the range is erased (logged)
-    /// and the save retried once, so damaged contents never block saving. A flash *driver*
-    /// error is returned as it is and nothing is erased: the hardware failed, not the data, and
-    /// erasing could destroy the live record and then fail on the next sector too. A power cut
-    /// is not an error the code sees: it leaves the old or the new record (see the module docs).
+    /// The parameter region has no valid record: an older firmware's, from the run region,
+    /// decoded and moved (see [`Self::load`]). `blank`: the parameter region is erased.
+    async fn move_old_record(&mut self, blank: bool) -> Result<ParamRecord, LoadWarning> {
+        let data_at = self.buf.0.as_ptr() as usize + params::HEADER;
+        let fetched = self
+            .map
+            .fetch_item::<&[u8]>(&mut self.buf.0[KEY_AT..], &PARAMS_KEY)
+            .await;
+        let (in_place, len) = match fetched {
+            Ok(Some(bytes)) => (bytes.as_ptr() as usize == data_at, bytes.len()),
+            Ok(None) if blank => return Err(LoadWarning::Missing),
+            // Something is in the parameter region, and none of it is a valid record.
+            Ok(None) => return Err(LoadWarning::Unreadable(StoreError::Corrupted)),
+            Err(e) => return Err(LoadWarning::Unreadable(e.into())),
+        };
+        let data = params::HEADER..params::HEADER + len;
+        if !in_place {
+            // sequential-storage 8 stores a value right after its key.
+            return Err(LoadWarning::Unreadable(StoreError::Internal));
+        }
+        if len > PARAM_DATA_MAX {
+            // Too long for a slot (and for this firmware's decoder): said so, left in place.
+            return decode_record(&self.buf.0[data]);
+        }
+        let record = decode_record(&self.buf.0[data]);
+        let copied = params::append(
+            self.map.flash(),
+            &self.params,
+            &mut self.buf.0,
+            len,
+            PARAM_DATA_MAX,
+        )
+        .await;
+        match copied {
+            Ok(_) => {
+                self.moved = self.moved.saturating_add(1);
+                info!("parameters moved from the run region to the parameter region");
+                self.remove_old_copy().await;
+            }
+            Err(e) => warn!(
+                "moving the parameters to the parameter region failed ({}); read from the run region",
+                e
+            ),
+        }
+        record
+    }
+
+    /// Removes an older firmware's record from the run region, if one is left there (only
+    /// called with a valid record in the parameter region). A failure is logged: the record
+    /// in the parameter region wins anyway.
+    async fn remove_old_copy(&mut self) {
+        if let Err(e) = self.map.remove_item(&mut self.buf.0, &PARAMS_KEY).await {
+            warn!(
+                "removing the old parameter record from the run region failed ({})",
+                StoreError::from(e)
+            );
+        }
+    }
+
+    /// Saves `record` (validated first) as the newest copy in the parameter region. Refuses
+    /// while the motors run. Never erases the sector holding the newest valid record, never
+    /// touches the run region. A power cut at any byte leaves the old or the new record.
     ///
     /// # Errors
     /// [`StoreError::MotorsRunning`] if `motors_stopped` is false, [`StoreError::InvalidRecord`]
-    /// if the record does not validate, otherwise the flash or storage failure.
+    /// if the record does not validate, otherwise the flash failure (the stored record is then
+    /// unchanged).
     pub async fn save(
         &mut self,
         record: &ParamRecord,
@@ -358,32 +499,27 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     ) -> Result<(), StoreError> {
         self.writable(motors_stopped)?;
         record.validate().map_err(StoreError::InvalidRecord)?;
-        let first = self
-            .map
-            .store_item(&mut self.buf.0, &PARAMS_KEY, record)
-            .await
-            .map_err(StoreError::from);
-        let e = match first {
-            Ok(()) => return Ok(()),
-            Err(e @ (StoreError::Corrupted | StoreError::Full | StoreError::Internal)) => e,
+        let len = record
+            .encode(&mut self.buf.0[params::HEADER..])
+            .map_err(|_| StoreError::Encoding)?;
+        let saved = params::append(
+            self.map.flash(),
+            &self.params,
+            &mut self.buf.0,
+            len,
+            PARAM_DATA_MAX,
+        )
+        .await;
+        match saved {
+            Ok(_) => Ok(()),
             Err(e) => {
                 warn!(
                     "saving parameters failed ({}); the stored record is unchanged",
                     e
                 );
-                return Err(e);
+                Err(e)
             }
-        };
-        warn!(
-            "saving parameters failed ({}); erasing the parameter flash and retrying",
-            e
-        );
-        self.wipes = self.wipes.saturating_add(1);
-        self.map.erase_all().await.map_err(StoreError::from)?;
-        self.map
-            .store_item(&mut self.buf.0, &PARAMS_KEY, record)
-            .await
-            .map_err(StoreError::from)
+        }
     }
 
     /// Saves [`ParamRecord::DEFAULT`] (forgets the calibration and motion settings); the next
@@ -420,9 +556,16 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         embassy_futures::block_on(self.reset_to_defaults(motors_stopped))
     }
 
-    /// How many saves of this store had to erase the whole range to recover from a failure.
+    /// How many run saves had to erase the run region to recover from damaged contents (the
+    /// parameter region is never wiped).
     pub fn wipes(&self) -> u32 {
         self.wipes
+    }
+
+    /// How many older firmware's records this store moved from the run region to the
+    /// parameter region (0 or 1 in practice).
+    pub fn moved(&self) -> u32 {
+        self.moved
     }
 
     /// The flash, e.g. to inspect a simulated one.
@@ -430,9 +573,14 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         self.map.flash()
     }
 
-    /// The flash range in use.
+    /// The run region's range.
     pub fn range(&self) -> Range<u32> {
         self.map.flash_range()
+    }
+
+    /// The parameter region's sectors.
+    pub fn param_sectors(&self) -> &ParamSectors {
+        &self.params
     }
 
     /// Gives the flash back (a simulated power-down; build a new store to "boot" again).

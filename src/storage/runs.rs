@@ -1,4 +1,4 @@
-//! The session's runs in flash, next to the parameter record, power-fail safe.
+//! The session's runs in flash, in the run region (apart from the parameters), power-fail safe.
 //!
 //! Each stored run is one `sequential-storage` item (its path, the geometry it was driven with,
 //! the odometry end pose and its tick knots; [`RUN_ITEM_MAX`] bytes at most) under a key from
@@ -14,8 +14,8 @@
 //! item; a cut after it leaves the new state; a cut during a removal leaves an unlisted item,
 //! which is overwritten when its key is used again. Each index entry carries the run item's
 //! serial number, so an item that is not the one the index means (a stale or foreign one) is
-//! reported and skipped at boot, never restored. The parameter record has its own key and is
-//! never touched by a run update (only moved, as every live item, when a page fills).
+//! reported and skipped at boot, never restored. The parameter record lives in a region of its
+//! own ([`super::params`]); nothing here touches it.
 //!
 //! Layouts (little-endian, byte 0 = format version):
 //!
@@ -455,7 +455,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     /// Restores the stored runs into `runs` (with their measurements) and where each is stored
     /// into `ids`, both emptied first. Never fails: an unreadable or foreign run is skipped and
     /// reported in [`RunsLoaded::problem`] (also logged); an unreadable list restores nothing.
-    /// Like [`ParamStore::load`], may repair the flash after an interrupted write.
+    /// May repair the run region after an interrupted write (never the parameter region).
     pub async fn load_runs(
         &mut self,
         runs: &mut Vec<RunRecord, MAX_RUNS>,
@@ -466,7 +466,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         self.live_run_keys = 0;
         self.runs_wipes = self.wipes;
         let mut loaded = RunsLoaded::default();
-        if self.too_small.is_some() {
+        if self.unusable().is_err() {
             // Nothing can have been stored (the boot event already says why).
             return loaded;
         }
@@ -528,6 +528,11 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     /// items of runs no longer listed. Refuses while the motors run (a page change erases a
     /// sector). A power cut at any byte leaves the previously committed runs or these.
     ///
+    /// If the run region's contents are proven bad (corrupted beyond `sequential-storage`'s
+    /// own repair, full of garbage, an internal inconsistency), the run region alone is erased
+    /// (logged, counted by [`Self::wipes`]) and every run written again, once. The parameter
+    /// region is never touched. A flash *driver* error is returned as it is, nothing erased.
+    ///
     /// # Errors
     /// [`StoreError::MotorsRunning`], [`StoreError::Encoding`] if `runs` and `ids` differ in
     /// length, otherwise the flash or storage failure (the committed runs stay as they were).
@@ -541,8 +546,28 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         if runs.len() != ids.len() || runs.len() > MAX_RUNS {
             return Err(StoreError::Encoding);
         }
+        match self.write_runs(runs, ids).await {
+            Err(e @ (StoreError::Corrupted | StoreError::Full | StoreError::Internal)) => {
+                warn!(
+                    "storing the runs failed ({}); erasing the run region and writing them again",
+                    e
+                );
+                self.wipes = self.wipes.saturating_add(1);
+                self.map.erase_all().await.map_err(StoreError::from)?;
+                self.write_runs(runs, ids).await
+            }
+            other => other,
+        }
+    }
+
+    /// One attempt of [`Self::save_runs`].
+    async fn write_runs(
+        &mut self,
+        runs: &[RunRecord],
+        ids: &mut [Option<StoredRun>],
+    ) -> Result<(), StoreError> {
         if self.runs_wipes != self.wipes {
-            // A parameter save erased the whole range: every run is written again.
+            // The run region was erased: every run is written again.
             ids.iter_mut().for_each(|id| *id = None);
             self.live_run_keys = 0;
             self.runs_wipes = self.wipes;

@@ -1,19 +1,81 @@
 //! Shared pieces of the storage integration tests: flash types, records, a small PRNG.
 #![allow(dead_code)]
 
+use embedded_storage_async::nor_flash::MultiwriteNorFlash;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::profile::MotionLimits;
 use odocal::storage::ram_flash::RamFlash;
-use odocal::storage::{AppliedCalibration, ParamRecord};
+use odocal::storage::{AppliedCalibration, ParamRecord, ParamSectors, ParamStore};
 
-/// Sector size of the STM32F407's sectors 10 and 11, bytes.
-pub const SECTOR: usize = 128 * 1024;
+/// Sector size of the STM32F407's sectors 1 and 2 (the parameter region), bytes, and the page
+/// of [`BoardFlash`].
+pub const SECTOR: usize = 16 * 1024;
 
-/// The board's parameter area: two 128 KiB sectors, byte-programmable (as the HAL drives it).
-pub type BoardFlash = RamFlash<2, SECTOR, 1>;
+/// The board's storage: the two 16 KiB parameter sectors, then the 256 KiB run region (paged by
+/// 16 KiB here), byte-programmable (as the HAL drives it); host-sim's `SimFlash`.
+pub type BoardFlash = RamFlash<18, SECTOR, 1>;
 
-/// The whole of a [`BoardFlash`] as the store's range.
-pub const BOARD_RANGE: core::ops::Range<u32> = 0..(2 * SECTOR) as u32;
+/// The parameter sectors of a [`BoardFlash`] (pages 0 and 1).
+pub const BOARD_PARAMS: ParamSectors =
+    ParamSectors::new(0..SECTOR as u32, SECTOR as u32..2 * SECTOR as u32);
+
+/// The run region of a [`BoardFlash`]: the map older firmware kept the parameters in too.
+pub const BOARD_RUNS: core::ops::Range<u32> = (2 * SECTOR) as u32..(18 * SECTOR) as u32;
+
+/// The store over a [`BoardFlash`] (or anything laid out as one), as the board builds it.
+pub fn board_store<F: MultiwriteNorFlash>(flash: F) -> ParamStore<F> {
+    ParamStore::new(flash, BOARD_PARAMS, BOARD_RUNS).unwrap()
+}
+
+/// The parameter record bytes of the newest valid slot of the parameter region, read raw.
+pub fn newest_param_bytes<F: MultiwriteNorFlash>(
+    flash: &mut F,
+    sectors: &ParamSectors,
+) -> Option<Vec<u8>> {
+    use odocal::storage::params;
+    let found = embassy_futures::block_on(params::scan(
+        flash,
+        sectors,
+        odocal::storage::PARAM_DATA_MAX,
+    ))
+    .unwrap();
+    let slot = found.newest?;
+    let mut buf = vec![0u8; 1024];
+    Some(
+        embassy_futures::block_on(params::read(flash, &slot, &mut buf))
+            .unwrap()
+            .to_vec(),
+    )
+}
+
+/// Writes raw bytes under `key` into the map at `range` (the old shared map, or the run
+/// region), bypassing `ParamStore`'s checks.
+pub fn store_raw_in<F: MultiwriteNorFlash>(
+    flash: &mut F,
+    range: core::ops::Range<u32>,
+    key: u8,
+    bytes: &[u8],
+) {
+    use sequential_storage::cache::Cache;
+    use sequential_storage::map::{MapConfig, MapStorage};
+    let mut map = MapStorage::<u8, _, _>::new(flash, MapConfig::new(range), Cache::new_uncached());
+    let mut buf = [0u8; 2048];
+    embassy_futures::block_on(map.store_item(&mut buf, &key, &bytes)).unwrap();
+}
+
+/// The raw item under `key` in the map at `range`, if any.
+pub fn fetch_raw_in<F: MultiwriteNorFlash>(
+    flash: &mut F,
+    range: core::ops::Range<u32>,
+    key: u8,
+) -> Option<Vec<u8>> {
+    use sequential_storage::cache::Cache;
+    use sequential_storage::map::{MapConfig, MapStorage};
+    let mut map = MapStorage::<u8, _, _>::new(flash, MapConfig::new(range), Cache::new_uncached());
+    let mut buf = [0u8; 2048];
+    let item: Option<&[u8]> = embassy_futures::block_on(map.fetch_item(&mut buf, &key)).unwrap();
+    item.map(<[u8]>::to_vec)
+}
 
 /// A valid, calibrated record that differs from every other `n` in every calibration field.
 pub fn calibrated(n: u32) -> ParamRecord {

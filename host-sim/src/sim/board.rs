@@ -3,7 +3,7 @@
 //! [`Board`] is the simulated board: the library's [`Controller`] stepping the simulated robot
 //! at the control rate through the app core's control period (`app::control::period`, retimed
 //! by `app::control::Pacing` after `set control_hz`, as the firmware's control task), the library's [`Session`] executing protocol lines, and the library's
-//! [`ParamStore`] on the simulated parameter flash ([`SimParamFlash`], sectors 10–11), which
+//! [`ParamStore`] on the simulated storage flash ([`SimParamFlash`], sectors 1–2 and 10–11), which
 //! outlives the board: dropping a `Board` and booting a new one over the same flash is a
 //! simulated reboot. Bytes go through the library's receive loop and [`LineAssembler`], exactly
 //! as the USART2 RX interrupt feeds them on the board: a stop key (Ctrl-C, Esc) stops the

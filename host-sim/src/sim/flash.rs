@@ -1,9 +1,18 @@
-//! Simulated parameter flash: the board's sectors 10–11 as a [`RamFlash`] that outlives boots.
+//! Simulated storage flash: the board's parameter sectors 1–2 and run sectors 10–11 as a
+//! [`RamFlash`] that outlives boots.
 //!
 //! [`SimParamFlash`] is the simulator's flash chip. Each simulated boot builds a fresh
 //! [`ParamStore`] over it (as the firmware's `init` does) and loads the parameters; the contents
 //! stay in the `SimParamFlash` between boots, and can be kept in an image file between runs of
 //! the simulator (`--image`).
+//!
+//! Layout ([`SimFlash`]: 18 pages of 16 KiB, byte-programmable, STM32 write rule): pages 0–1 are
+//! the parameter sectors 1–2 ([`SIM_PARAMS`]), pages 2–17 the run region (sectors 10–11,
+//! [`SIM_RUNS`]). The run region's map pages by 16 KiB here, by 128 KiB on the board (the store
+//! works the same with any page size; only the erase counts differ). An image file is the
+//! parameter region then the run region, 288 KiB, as the emulator board's; a 256 KiB image of
+//! older versions (sectors 10–11 only) is read as the run region, so its parameter record is
+//! moved at the next boot as on a board.
 //!
 //! The `flash` subcommand ([`crate::commands::flash`]) shows it: `flash demo` boots an erased flash, saves a calibration,
 //! reboots, runs many saves and reports wear, damages the flash and boots again; `flash show`,
@@ -12,16 +21,30 @@
 use std::path::Path;
 
 use odocal::storage::ram_flash::RamFlash;
-use odocal::storage::{LoadOutcome, ParamStore};
+use odocal::storage::{LoadOutcome, ParamSectors, ParamStore};
 
-/// Size of one parameter sector (STM32F407 sectors 10 and 11), bytes.
-pub const SECTOR_BYTES: usize = 128 * 1024;
+/// Size of one parameter sector (STM32F407 sectors 1 and 2), bytes, and the simulated flash's
+/// page.
+pub const SECTOR_BYTES: usize = 16 * 1024;
 
-/// The board's parameter area: 2 × 128 KiB sectors, byte-programmable, STM32 write rule.
-pub type SimFlash = RamFlash<2, SECTOR_BYTES, 1>;
+/// Pages of the simulated flash: 2 parameter sectors, then 256 KiB of run region.
+pub const PAGES: usize = 2 + 256 * 1024 / SECTOR_BYTES;
 
-/// The store's range inside [`SimFlash`] (the whole of it; offset 0 = sector 10).
-pub const SIM_RANGE: std::ops::Range<u32> = 0..(2 * SECTOR_BYTES) as u32;
+/// The board's storage flash: parameter sectors and run region, byte-programmable, STM32 write
+/// rule.
+pub type SimFlash = RamFlash<PAGES, SECTOR_BYTES, 1>;
+
+/// The parameter sectors inside [`SimFlash`] (pages 0 and 1).
+pub const SIM_PARAMS: ParamSectors = ParamSectors::new(
+    0..SECTOR_BYTES as u32,
+    SECTOR_BYTES as u32..2 * SECTOR_BYTES as u32,
+);
+
+/// The run region inside [`SimFlash`] (the rest of it).
+pub const SIM_RUNS: std::ops::Range<u32> = 2 * SECTOR_BYTES as u32..SimFlash::CAPACITY as u32;
+
+/// Length of an image file of older versions (the run region alone, then shared).
+const OLD_IMAGE_BYTES: usize = 256 * 1024;
 
 /// The simulated flash chip; survives simulated reboots.
 pub struct SimParamFlash {
@@ -46,6 +69,11 @@ impl SimParamFlash {
     pub fn open(path: &Path) -> std::io::Result<Self> {
         let mut sim = Self::erased();
         match std::fs::read(path) {
+            Ok(bytes) if bytes.len() == OLD_IMAGE_BYTES => {
+                let mut image = vec![0xFF; SimFlash::CAPACITY];
+                image[SIM_RUNS.start as usize..].copy_from_slice(&bytes);
+                sim.flash.restore_image(&image);
+            }
             Ok(bytes) => sim.flash.restore_image(&bytes),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
             Err(e) => return Err(e),
@@ -62,10 +90,10 @@ impl SimParamFlash {
 
     /// A store over the flash, as built by the firmware at boot.
     pub fn store(&mut self) -> ParamStore<&mut SimFlash> {
-        // SIM_RANGE is two whole sectors of SimFlash, which MapConfig always accepts.
-        match ParamStore::new(&mut *self.flash, SIM_RANGE) {
+        // Whole pages of SimFlash, apart: a layout the store always accepts.
+        match ParamStore::new(&mut *self.flash, SIM_PARAMS, SIM_RUNS) {
             Ok(store) => store,
-            Err(e) => unreachable!("SIM_RANGE is valid for SimFlash: {e}"),
+            Err(e) => unreachable!("SIM_PARAMS and SIM_RUNS are valid for SimFlash: {e}"),
         }
     }
 

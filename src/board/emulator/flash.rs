@@ -1,21 +1,31 @@
-//! The emulator's parameter flash: sectors 10–11 of the board's map, kept in the host file
-//! [`IMAGE`] (256 KiB, created erased by the test harness) through semihosting.
+//! The emulator's storage flash: the board's parameter sectors 1–2 and run sectors 10–11, kept
+//! in the host file [`IMAGE`] (288 KiB: the 32 KiB parameter region, then the 256 KiB run
+//! region; created erased by the test harness) through semihosting.
 //!
-//! It behaves as NOR flash, like the board's: 128 KiB erase sectors that set every byte to 0xFF,
-//! and writes that can only clear bits (a write ANDs into what is there). Offsets and the store's
-//! range are the board's ([`PARAMS_RANGE`]), so the parameter store is configured exactly as on
-//! the board. QEMU's own flash model is ROM (writes are dropped), hence the file.
+//! It behaves as NOR flash, like the board's: erases of whole sectors that set every byte to
+//! 0xFF, and writes that can only clear bits (a write ANDs into what is there). Offsets, sectors
+//! and the store's layout are the board's ([`PARAM_SECTORS`], [`RUNS_RANGE`]), so the store is
+//! configured exactly as on the board. QEMU's own flash model is ROM (writes are dropped), hence
+//! the file.
 
 use embedded_storage_async::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 
 use super::semihosting::HostFile;
-use crate::board::f407::flash::{PARAMS_END, PARAMS_RANGE, PARAMS_START, SECTOR_BYTES};
+use crate::board::f407::flash::{
+    PARAM_A, PARAM_B, PARAM_SECTORS, RUNS_END, RUNS_RANGE, RUNS_START, SECTOR_BYTES, in_regions,
+    whole_sectors,
+};
 use crate::storage::{MapConfig, ParamStore};
 
 /// The flash image on the host, relative to the emulator's working directory.
 pub const IMAGE: &core::ffi::CStr = c"odocal-params.img";
+
+/// Size of the parameter region in [`IMAGE`] (it comes first), bytes.
+const PARAM_BYTES: u32 = PARAM_B.end - PARAM_A.start;
+/// Size of [`IMAGE`], bytes.
+pub const IMAGE_BYTES: u32 = PARAM_BYTES + (RUNS_END - RUNS_START);
 
 /// Bytes moved per semihosting call.
 const CHUNK: usize = 256;
@@ -24,7 +34,7 @@ const CHUNK: usize = 256;
 #[derive(Clone, Copy, Debug)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum EmulatorFlashError {
-    /// Outside the parameter sectors, or a misaligned erase.
+    /// Outside the two regions, or an erase of other than whole sectors.
     OutOfRange,
     /// The image file is missing, too small, or a host read/write failed.
     Host,
@@ -39,42 +49,46 @@ impl NorFlashError for EmulatorFlashError {
     }
 }
 
-/// The parameter sectors, backed by [`IMAGE`].
+/// The parameter and run sectors, backed by [`IMAGE`].
 pub struct BoardFlash {
     file: Option<HostFile>,
 }
 
 impl BoardFlash {
-    /// Opens the image; without it (or if it is shorter than the two sectors) every access fails
+    /// Opens the image; without it (or if it is not [`IMAGE_BYTES`] long) every access fails
     /// and the store falls back to the defaults, as with unreadable flash.
     pub fn open() -> Self {
-        let file = HostFile::open(IMAGE).filter(|f| f.size() == Some(PARAMS_END - PARAMS_START));
+        let file = HostFile::open(IMAGE).filter(|f| f.size() == Some(IMAGE_BYTES));
         if file.is_none() {
-            warn!("emulator flash image missing or not 256 KiB: storage unavailable");
+            warn!("emulator flash image missing or not 288 KiB: storage unavailable");
         }
         BoardFlash { file }
     }
 
+    /// The image and the position of `offset` in it, if `offset .. offset + len` lies inside
+    /// one region.
     fn file(&self, offset: u32, len: usize) -> Result<(&HostFile, u32), EmulatorFlashError> {
-        let end = u32::try_from(len)
-            .ok()
-            .and_then(|len| offset.checked_add(len));
-        match end {
-            Some(end) if offset >= PARAMS_START && end <= PARAMS_END => self
-                .file
-                .as_ref()
-                .map(|f| (f, offset - PARAMS_START))
-                .ok_or(EmulatorFlashError::Host),
-            _ => Err(EmulatorFlashError::OutOfRange),
+        if !in_regions(offset, len) {
+            return Err(EmulatorFlashError::OutOfRange);
         }
+        let at = if offset >= RUNS_START {
+            PARAM_BYTES + (offset - RUNS_START)
+        } else {
+            offset - PARAM_A.start
+        };
+        self.file
+            .as_ref()
+            .map(|f| (f, at))
+            .ok_or(EmulatorFlashError::Host)
     }
 }
 
-/// The parameter store on the emulated sectors (the board's range and configuration).
+/// The parameter and run store on the emulated sectors (the board's layout and configuration).
 pub fn param_store() -> ParamStore<BoardFlash> {
     ParamStore::from_config(
         BoardFlash::open(),
-        const { MapConfig::<BoardFlash>::new(PARAMS_RANGE) },
+        PARAM_SECTORS,
+        const { MapConfig::<BoardFlash>::new(RUNS_RANGE) },
     )
 }
 
@@ -95,7 +109,7 @@ impl ReadNorFlash for BoardFlash {
     }
 
     fn capacity(&self) -> usize {
-        PARAMS_END as usize
+        RUNS_END as usize
     }
 }
 
@@ -104,7 +118,7 @@ impl NorFlash for BoardFlash {
     const ERASE_SIZE: usize = SECTOR_BYTES as usize;
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        if from > to || !from.is_multiple_of(SECTOR_BYTES) || !to.is_multiple_of(SECTOR_BYTES) {
+        if whole_sectors(from, to).is_none() {
             return Err(EmulatorFlashError::OutOfRange);
         }
         let (file, mut at) = self.file(from, (to - from) as usize)?;

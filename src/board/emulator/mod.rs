@@ -12,7 +12,7 @@
 //! | `Encoders` | TIM2/TIM3 in encoder mode | the [`plant`]'s counters (the library's robot model, [`crate::plant`]); each read first advances the plant by one control period with the last motor command |
 //! | `BoardMotors` | TIM1 PWM + direction pins | stores the command for the plant |
 //! | `ControlTick` | TIM7 update at the control rate (1–10 kHz) | QEMU has no TIM6/TIM7: the control interrupt is pended from the SysTick monotonic (`CONTROL_FROM_MONOTONIC`, the app's `pace_control` task), one period per 1 ms tick whatever the rate; `set_rate_hz` retimes the plant instead |
-//! | `BoardFlash` | sectors 10–11 | a 256 KiB host file through semihosting ([`flash`]) |
+//! | `BoardFlash` | sectors 1–2 (parameters) and 10–11 (runs) | a 288 KiB host file through semihosting ([`flash`]) |
 //! | button, LEDs, watchdog | GPIO, EXTI0, IWDG | the same HAL drivers; QEMU logs their register writes as unimplemented (`-d unimp`) and never resets on a missing feed |
 //!
 //! The plant runs inside the control interrupt, so it costs emulated CPU time there; the
@@ -160,7 +160,7 @@ pub struct Board {
     pub console_tx: ConsoleTx,
     /// Independent watchdog, not started yet.
     pub watchdog: IndependentWatchdog,
-    /// The parameter store on the emulated sectors 10–11 (not loaded yet).
+    /// The parameter and run store on the emulated sectors 1–2 and 10–11 (not loaded yet).
     pub params: ParamStore<BoardFlash>,
     /// Why the MCU last reset (QEMU models no reset flags: `Unknown`).
     pub reset_cause: ResetCause,

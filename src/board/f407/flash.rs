@@ -1,17 +1,27 @@
-//! Internal flash of the STM32F407VG for the parameter store (target only).
+//! Internal flash of the STM32F407VG for the parameter and run store (target only).
 //!
-//! Flash map (offsets from `0x0800_0000`, see `memory.x`): sectors 0–9 (768 KiB) hold the
-//! program; sectors 10–11 (`PARAMS_START..PARAMS_END`, 2 × 128 KiB) are reserved for
-//! `sequential-storage` and never touched by the linker. The constants below are checked at
-//! compile time; `memory.x` checks its `PARAMS` region against the same addresses at link time.
+//! Flash map (offsets from `0x0800_0000`, see `memory.x` and `docs/storage.md`):
+//!
+//! | sectors | offsets | use |
+//! |---|---|---|
+//! | 0 | `0x0_0000..0x0_4000` | vector table (the rest of the sector unused) |
+//! | 1–2 | `0x0_4000..0x0_C000` ([`PARAM_SECTORS`]) | parameter region: two 16 KiB sectors used A/B |
+//! | 3–9 | `0x0_C000..0xC_0000` | program (`.text` starts here: `_stext` in `memory.x`) |
+//! | 10–11 | `0xC_0000..0x10_0000` ([`RUNS_RANGE`]) | run region: `sequential-storage` map, 2 × 128 KiB |
+//!
+//! The parameters sit on small sectors so that an erase of theirs stalls the CPU for a small
+//! sector's erase time (16 KiB: 400 ms typical, 800 ms at most at the HAL's x8 parallelism,
+//! datasheet DS8626 t_ERASE16KB) rather than a large one's (128 KiB: 2 s typical, 4 s at most;
+//! `docs/storage.md`), and apart from the runs so that nothing done to the runs touches them.
+//! The constants below are checked at compile time; `memory.x` checks the same addresses at
+//! link time.
 //!
 //! [`BoardFlash`] owns the HAL's [`LockedFlash`] and implements the async `embedded-storage` NOR
-//! traits that `sequential-storage` needs. It unlocks the flash controller only for the duration
-//! of one erase or write, and refuses any access outside the parameter sectors, so a logic error
-//! can never erase the program. Erase and program busy-wait inside the HAL: a 128 KiB sector
-//! erase stalls instruction fetches (and so every interrupt) for about 2 s, up to 4 s (datasheet
-//! t_ERASE128KB at x8 parallelism, which the HAL uses), which is why the store only writes while
-//! the motors are stopped.
+//! traits. It unlocks the flash controller only for the duration of one erase or write, and
+//! refuses any access outside the two regions and any erase that is not whole sectors of them
+//! ([`SECTORS`]), so a logic error can never erase the program. Erase and program busy-wait
+//! inside the HAL: an erase stalls instruction fetches (and so every interrupt), which is why
+//! the store only writes while the motors are stopped.
 
 use core::ops::Range;
 
@@ -19,40 +29,68 @@ use embedded_storage::nor_flash::{NorFlash as BlockingNorFlash, ReadNorFlash as 
 use embedded_storage_async::nor_flash::{
     ErrorType, MultiwriteNorFlash, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
-use stm32f4xx_hal::flash::{self as hal_flash, FlashExt, LockedFlash};
+use stm32f4xx_hal::flash::{self as hal_flash, FlashExt, LockedFlash, UnlockedFlash};
 use stm32f4xx_hal::pac::FLASH;
 
-use crate::storage::{FlashTooSmall, MapConfig, ParamStore};
+use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamSectors, ParamStore};
 
 /// Base address of the internal flash in the memory map.
 pub const FLASH_BASE: u32 = 0x0800_0000;
 /// Total internal flash of the STM32F407VG, bytes.
 pub const FLASH_BYTES: u32 = 1024 * 1024;
-/// Size of sectors 5–11, bytes (the erase unit of the parameter area).
+/// Size of sectors 0–3, bytes (the parameter region's erase unit).
+pub const SMALL_SECTOR_BYTES: u32 = 16 * 1024;
+/// Size of sectors 5–11, bytes (the run region's erase unit, `BoardFlash::ERASE_SIZE`).
 pub const SECTOR_BYTES: u32 = 128 * 1024;
-/// Flash reserved for the program (`FLASH` length in `memory.x`), bytes.
-pub const PROGRAM_BYTES: u32 = 768 * 1024;
-/// Start of the parameter area (sector 10), offset from [`FLASH_BASE`].
-pub const PARAMS_START: u32 = 0x000C_0000;
-/// End (exclusive) of the parameter area (end of sector 11), offset from [`FLASH_BASE`].
-pub const PARAMS_END: u32 = 0x0010_0000;
+/// Parameter sector A (sector 1), offsets from [`FLASH_BASE`].
+pub const PARAM_A: Range<u32> = 0x0000_4000..0x0000_8000;
+/// Parameter sector B (sector 2), offsets from [`FLASH_BASE`].
+pub const PARAM_B: Range<u32> = 0x0000_8000..0x0000_C000;
+/// The parameter region: sectors 1 and 2, used A/B.
+pub const PARAM_SECTORS: ParamSectors = ParamSectors::new(PARAM_A, PARAM_B);
+/// Start of the program's code (`_stext` in `memory.x`): sector 3.
+pub const TEXT_START: u32 = PARAM_B.end;
+/// End of the program region (start of sector 10), offset from [`FLASH_BASE`].
+pub const PROGRAM_END: u32 = 0x000C_0000;
+/// Start of the run region (sector 10), offset from [`FLASH_BASE`].
+pub const RUNS_START: u32 = 0x000C_0000;
+/// End (exclusive) of the run region (end of sector 11), offset from [`FLASH_BASE`].
+pub const RUNS_END: u32 = 0x0010_0000;
+/// The run region as the store's range (offsets understood by [`BoardFlash`]).
+pub const RUNS_RANGE: Range<u32> = RUNS_START..RUNS_END;
+
+/// The sectors [`BoardFlash`] may erase: (sector number, offsets).
+pub const SECTORS: [(u8, Range<u32>); 4] = [
+    (1, PARAM_A),
+    (2, PARAM_B),
+    (10, RUNS_START..RUNS_START + SECTOR_BYTES),
+    (11, RUNS_START + SECTOR_BYTES..RUNS_END),
+];
 
 const _: () = assert!(
-    PARAMS_START.is_multiple_of(SECTOR_BYTES) && PARAMS_END.is_multiple_of(SECTOR_BYTES),
-    "parameter area must be 128 KiB-sector aligned"
+    PARAM_A.end - PARAM_A.start == SMALL_SECTOR_BYTES
+        && PARAM_B.end - PARAM_B.start == SMALL_SECTOR_BYTES
+        && PARAM_A.start == SMALL_SECTOR_BYTES
+        && PARAM_B.start == PARAM_A.end,
+    "parameter region must be sectors 1 and 2"
 );
 const _: () = assert!(
-    PARAMS_START >= PROGRAM_BYTES,
-    "parameter area overlaps the program"
+    PARAM_SECTORS.valid(1, PARAM_DATA_MAX),
+    "parameter sectors too small for a record"
 );
-const _: () = assert!(PARAMS_END <= FLASH_BYTES, "parameter area beyond flash");
 const _: () = assert!(
-    PARAMS_END - PARAMS_START >= 2 * SECTOR_BYTES,
+    RUNS_START.is_multiple_of(SECTOR_BYTES) && RUNS_END.is_multiple_of(SECTOR_BYTES),
+    "run region must be 128 KiB-sector aligned"
+);
+const _: () = assert!(
+    TEXT_START <= PROGRAM_END && PROGRAM_END <= RUNS_START,
+    "run region overlaps the program"
+);
+const _: () = assert!(RUNS_END <= FLASH_BYTES, "run region beyond flash");
+const _: () = assert!(
+    RUNS_END - RUNS_START >= 2 * SECTOR_BYTES,
     "sequential-storage needs at least two sectors"
 );
-
-/// The parameter area as the store's range (offsets understood by [`BoardFlash`]).
-pub const PARAMS_RANGE: Range<u32> = PARAMS_START..PARAMS_END;
 
 /// Address of the flash size register (RM0090 §39.2: "Flash size", 16 bits, KiB).
 const FLASH_SIZE_REGISTER: *const u16 = 0x1FFF_7A22 as *const u16;
@@ -65,14 +103,50 @@ pub fn flash_size_kib() -> u16 {
     unsafe { core::ptr::read_volatile(FLASH_SIZE_REGISTER) }
 }
 
-/// The parameter store on sectors 10–11. The range is checked when the firmware is built
-/// (`MapConfig::new` in a const block), so this cannot fail at run time. On a part whose flash
-/// ends before sector 11 does (its flash size register says so), the store never touches the
-/// flash: boot uses the defaults and says why, `save` answers with an error.
+/// Whether `offset .. offset + len` lies inside one of the two regions.
+pub fn in_regions(offset: u32, len: usize) -> bool {
+    let end = u32::try_from(len)
+        .ok()
+        .and_then(|len| offset.checked_add(len));
+    match end {
+        Some(end) => {
+            (offset >= PARAM_A.start && end <= PARAM_B.end)
+                || (offset >= RUNS_START && end <= RUNS_END)
+        }
+        None => false,
+    }
+}
+
+/// The sectors that make up exactly `from..to` (in order), or `None` if the range is not
+/// whole sectors of [`SECTORS`].
+pub fn whole_sectors(
+    from: u32,
+    to: u32,
+) -> Option<impl Iterator<Item = &'static (u8, Range<u32>)>> {
+    let mut at = from;
+    while at < to {
+        let (_, s) = SECTORS.iter().find(|(_, s)| s.start == at)?;
+        if s.end > to {
+            return None;
+        }
+        at = s.end;
+    }
+    (from <= to).then(|| {
+        SECTORS
+            .iter()
+            .filter(move |(_, s)| s.start >= from && s.end <= to)
+    })
+}
+
+/// The parameter and run store on sectors 1–2 and 10–11. The layout is checked when the
+/// firmware is built (`MapConfig::new` in a const block, the assertions above), so this cannot
+/// fail at run time. On a part whose flash ends before sector 11 does (its flash size register
+/// says so), the store never touches the flash: boot uses the defaults and says why, `save`
+/// answers with an error.
 pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
-    let config = const { MapConfig::<BoardFlash>::new(PARAMS_RANGE) };
+    let runs = const { MapConfig::<BoardFlash>::new(RUNS_RANGE) };
     let part_kib = u32::from(flash_size_kib());
-    let needed_kib = PARAMS_END / 1024;
+    let needed_kib = RUNS_END / 1024;
     if part_kib < needed_kib {
         error!(
             "this part has {} KiB of flash, the storage map needs {} KiB: storage disabled",
@@ -80,21 +154,22 @@ pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
         );
         return ParamStore::without_flash(
             BoardFlash::new(flash),
-            config,
+            PARAM_SECTORS,
+            runs,
             FlashTooSmall {
                 part_kib,
                 needed_kib,
             },
         );
     }
-    ParamStore::from_config(BoardFlash::new(flash), config)
+    ParamStore::from_config(BoardFlash::new(flash), PARAM_SECTORS, runs)
 }
 
 /// Why a [`BoardFlash`] access failed.
 #[derive(Clone, Copy, Debug)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum BoardFlashError {
-    /// The access reaches outside the parameter sectors, or is misaligned for an erase.
+    /// The access reaches outside the two regions, or an erase is not whole sectors of them.
     OutOfRange,
     /// The HAL reported a programming or erase error.
     Hal(HalError),
@@ -138,10 +213,11 @@ impl NorFlashError for BoardFlashError {
     }
 }
 
-/// The internal flash, restricted to the parameter sectors.
+/// The internal flash, restricted to the parameter and run regions.
 ///
-/// Offsets are relative to [`FLASH_BASE`] (as in the HAL), so the store's range is
-/// [`PARAMS_RANGE`].
+/// Offsets are relative to [`FLASH_BASE`] (as in the HAL). `ERASE_SIZE` is the run region's
+/// 128 KiB sector, the page of its `sequential-storage` map; like the HAL's own flash driver,
+/// `erase` also takes the smaller sectors (here only the parameter region's, whole).
 pub struct BoardFlash {
     flash: LockedFlash,
 }
@@ -183,14 +259,12 @@ impl BoardFlash {
         }
     }
 
-    /// Checks that `offset .. offset + len` lies inside the parameter sectors.
+    /// Checks that `offset .. offset + len` lies inside the two regions.
     fn check(offset: u32, len: usize) -> Result<(), BoardFlashError> {
-        let end = u32::try_from(len)
-            .ok()
-            .and_then(|len| offset.checked_add(len));
-        match end {
-            Some(end) if offset >= PARAMS_START && end <= PARAMS_END => Ok(()),
-            _ => Err(BoardFlashError::OutOfRange),
+        if in_regions(offset, len) {
+            Ok(())
+        } else {
+            Err(BoardFlashError::OutOfRange)
         }
     }
 }
@@ -208,7 +282,7 @@ impl ReadNorFlash for BoardFlash {
     }
 
     fn capacity(&self) -> usize {
-        PARAMS_END as usize
+        RUNS_END as usize
     }
 }
 
@@ -218,14 +292,13 @@ impl NorFlash for BoardFlash {
     const ERASE_SIZE: usize = SECTOR_BYTES as usize;
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        if from > to || !from.is_multiple_of(SECTOR_BYTES) || !to.is_multiple_of(SECTOR_BYTES) {
-            return Err(BoardFlashError::OutOfRange);
-        }
-        Self::check(from, (to - from) as usize)?;
+        let sectors = whole_sectors(from, to).ok_or(BoardFlashError::OutOfRange)?;
         Self::clear_error_flags();
         let result = {
             let mut unlocked = self.flash.unlocked();
-            BlockingNorFlash::erase(&mut unlocked, from, to).map_err(BoardFlashError::from)
+            sectors.into_iter().try_for_each(|(number, _)| {
+                UnlockedFlash::erase(&mut unlocked, *number).map_err(BoardFlashError::from)
+            })
             // `unlocked` drops here and locks the flash again.
         };
         Self::reset_caches();

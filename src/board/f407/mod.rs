@@ -14,7 +14,8 @@
 //! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (USB-UART adapter) |
 //! | user button               | EXTI0           | PA0 (active high)    |
 //! | heartbeat / fault LEDs    | GPIO            | PD12 green / PD14 red |
-//! | parameters                | flash sectors 10–11 | 0x080C_0000..0x0810_0000 |
+//! | parameters                | flash sectors 1–2   | 0x0800_4000..0x0800_C000 |
+//! | stored runs               | flash sectors 10–11 | 0x080C_0000..0x0810_0000 |
 //!
 //! Everything `unsafe` in the firmware lives here and carries a `// SAFETY:` note.
 
@@ -228,7 +229,7 @@ pub struct Board {
     pub console_tx: ConsoleTx,
     /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
     pub watchdog: IndependentWatchdog,
-    /// The parameter store on flash sectors 10–11 (not loaded yet).
+    /// The parameter and run store on flash sectors 1–2 and 10–11 (not loaded yet).
     pub params: ParamStore<BoardFlash>,
     /// Why the MCU last reset.
     pub reset_cause: ResetCause,
