@@ -49,7 +49,8 @@ impl TxPort for ConsoleTx {
 }
 
 /// Parameter storage with the watchdog relaxed while the flash is written: a sector erase
-/// stalls every instruction fetch (the control task included) for up to 2 s, so the timeout is
+/// stalls every instruction fetch (the control task included) for up to 0.8 s (a parameter
+/// sector) or 4 s (a run sector), so the timeout is
 /// lengthened for the operation and restored right after. Saves are refused unless the motors
 /// are stopped, so nothing moves while the control task is stalled.
 pub struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {

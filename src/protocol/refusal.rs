@@ -192,10 +192,10 @@ pub struct StoreErrorText(pub StoreError);
 impl fmt::Display for StoreErrorText {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self.0 {
-            StoreError::BadRange => "bad parameter flash range",
+            StoreError::BadRange => "bad flash range",
             StoreError::Flash(_) => "flash driver error",
-            StoreError::Corrupted => "parameter flash corrupted",
-            StoreError::Full => "parameter flash full",
+            StoreError::Corrupted => "flash contents corrupted",
+            StoreError::Full => "run flash full",
             StoreError::FlashTooSmall(_) => {
                 "no storage: this part's flash is smaller than the storage map"
             }
@@ -391,7 +391,7 @@ mod tests {
             text(&Refusal::FlashFailed {
                 why: &StoreErrorText(StoreError::Full)
             }),
-            "err 19: flash error: parameter flash full\r\n"
+            "err 19: flash error: run flash full\r\n"
         );
         assert_eq!(
             text(&Refusal::MotorsRunning),
