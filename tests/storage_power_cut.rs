@@ -295,8 +295,12 @@ fn double_cut(
             let _ = param_store(&mut flash).save_blocking(&newer, true);
             flash.restore_power();
             let out = param_store(&mut flash).load_blocking();
-            let ok_first = out == first
-                && (first.warning.is_none() || (old.is_none() && nothing_stored(&first.warning)));
+            // With nothing stored before, either torn write leaves nothing stored: defaults,
+            // and a warning that says so (which of the two depends on where each cut fell).
+            let ok_first = (out == first && first.warning.is_none())
+                || (old.is_none()
+                    && out.record == ParamRecord::DEFAULT
+                    && nothing_stored(&out.warning));
             let ok_newer = out.record == newer && out.warning.is_none();
             if !(ok_first || ok_newer) {
                 eprintln!("p={p} cut={cut} cut2={cut2}/{len2}: {:?}", out.warning);

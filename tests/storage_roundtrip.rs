@@ -350,6 +350,47 @@ fn a_leftover_old_record_is_removed_and_never_wins() {
     assert_eq!(fetch_raw_in(&mut *flash, BOARD_RUNS, PARAMS_KEY), None);
 }
 
+/// A board updated from a firmware that never saved: the parameter sectors still hold that
+/// firmware's program code and the run region no record. Nothing is stored, and the boot says
+/// so (`Missing`, not a corrupted store); the first save erases a sector and is read back. A
+/// region whose slots are all damaged stays a corrupted store.
+#[test]
+fn old_program_code_in_the_parameter_sectors_is_no_record_and_the_first_save_clears_it() {
+    let mut flash = Box::new(BoardFlash::default());
+    let mut rng = storage_support::Rng(3);
+    let params_bytes = (BOARD_PARAMS.sectors[1].end - BOARD_PARAMS.sectors[0].start) as usize;
+    for i in 0..params_bytes {
+        flash.corrupt_byte(i, rng.next_u64() as u8);
+    }
+    {
+        let mut store = board_store(&mut *flash);
+        let out = store.load_blocking();
+        assert_eq!(
+            (out.warning, out.record),
+            (Some(LoadWarning::Missing), ParamRecord::DEFAULT)
+        );
+        store.save_blocking(&calibrated(8), true).unwrap();
+    }
+    let out = board_store(&mut *flash).load_blocking();
+    assert_eq!((out.warning, out.record), (None, calibrated(8)));
+
+    // Every slot damaged (its CRC no longer matches): a corrupted store, said so.
+    let mut flash = Box::new(BoardFlash::default());
+    board_store(&mut *flash)
+        .save_blocking(&calibrated(9), true)
+        .unwrap();
+    let slot_data = BOARD_PARAMS.sectors[0].start as usize + 20;
+    flash.corrupt_byte(slot_data, 0x55);
+    let out = board_store(&mut *flash).load_blocking();
+    assert_eq!(
+        (out.warning, out.record),
+        (
+            Some(LoadWarning::Unreadable(StoreError::Corrupted)),
+            ParamRecord::DEFAULT
+        )
+    );
+}
+
 /// Run items and the run index as the firmware that introduced them wrote them (fixed bytes)
 /// decode to the runs, serials, keys and measurements they were written from.
 #[test]

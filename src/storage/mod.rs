@@ -407,7 +407,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
                     self.remove_old_copy().await;
                     loaded
                 }
-                None => self.move_old_record(found.blank()).await,
+                None => self.move_old_record(found.never_written()).await,
             },
         };
         match loaded {
@@ -426,8 +426,10 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     }
 
     /// The parameter region has no valid record: an older firmware's, from the run region,
-    /// decoded and moved (see [`Self::load`]). `blank`: the parameter region is erased.
-    async fn move_old_record(&mut self, blank: bool) -> Result<ParamRecord, LoadWarning> {
+    /// decoded and moved (see [`Self::load`]). `never_written`: no slot was ever written to
+    /// the parameter region (erased, or an older firmware's program code still in it), so
+    /// without an older record nothing is stored.
+    async fn move_old_record(&mut self, never_written: bool) -> Result<ParamRecord, LoadWarning> {
         let data_at = self.buf.0.as_ptr() as usize + params::HEADER;
         let fetched = self
             .map
@@ -435,8 +437,8 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             .await;
         let (in_place, len) = match fetched {
             Ok(Some(bytes)) => (bytes.as_ptr() as usize == data_at, bytes.len()),
-            Ok(None) if blank => return Err(LoadWarning::Missing),
-            // Something is in the parameter region, and none of it is a valid record.
+            Ok(None) if never_written => return Err(LoadWarning::Missing),
+            // Slots are in the parameter region, and none of them is a valid record.
             Ok(None) => return Err(LoadWarning::Unreadable(StoreError::Corrupted)),
             Err(e) => return Err(LoadWarning::Unreadable(e.into())),
         };

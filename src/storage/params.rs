@@ -114,12 +114,22 @@ pub struct Scan {
     pub free: [Option<u32>; 2],
     /// Per sector: whether any byte is programmed.
     pub dirty: [bool; 2],
+    /// Per sector: whether it holds something other than slots (its first bytes are neither
+    /// erased nor a slot header: an older firmware's program code, which these sectors held
+    /// before the parameters moved here).
+    pub foreign: [bool; 2],
 }
 
 impl Scan {
     /// Nothing at all stored in the region (every byte erased).
     pub fn blank(&self) -> bool {
         !self.dirty[0] && !self.dirty[1]
+    }
+
+    /// No slot was ever written to the region: each sector is erased or holds something else
+    /// from its first byte on (the first save erases it).
+    pub fn never_written(&self) -> bool {
+        (0..2).all(|i| !self.dirty[i] || self.foreign[i])
     }
 }
 
@@ -169,18 +179,20 @@ fn flash_error<F: MultiwriteNorFlash>(e: F::Error) -> StoreError {
     StoreError::Flash(e.kind().into())
 }
 
-/// Walks one sector: its newest valid slot, where its free space starts, whether it is dirty.
+/// Walks one sector: its newest valid slot, where its free space starts, whether it is dirty,
+/// whether its first bytes are something other than a slot (see [`Scan::foreign`]).
 async fn scan_sector<F: MultiwriteNorFlash>(
     flash: &mut F,
     sector: usize,
     range: &Range<u32>,
     data_max: usize,
-) -> Result<(Option<Slot>, Option<u32>, bool), StoreError> {
+) -> Result<(Option<Slot>, Option<u32>, bool, bool), StoreError> {
     let align = align_of::<F>();
     let header_read = HEADER.next_multiple_of(align);
     let mut newest: Option<Slot> = None;
     let mut at = range.start;
     let mut dirty = false;
+    let mut foreign = false;
     let free = loop {
         if (range.end - at) as usize <= header_read {
             // No room for another slot header: whatever is left is not free space.
@@ -215,7 +227,9 @@ async fn scan_sector<F: MultiwriteNorFlash>(
         let len = usize::from(len);
         let slot = slot_len(len, align) as u32;
         if len ^ usize::from(check) != 0xFFFF || len > data_max || slot > range.end - at {
-            // Not a slot (torn header, garbage): the rest of the sector is unusable.
+            // Not a slot (torn header, garbage): the rest of the sector is unusable. At the
+            // sector's start it never held slots.
+            foreign = at == range.start;
             break None;
         }
         // The whole slot from its (aligned) start: the CRC covers bytes 0..8 and the data.
@@ -240,7 +254,7 @@ async fn scan_sector<F: MultiwriteNorFlash>(
         }
         at += slot;
     };
-    Ok((newest, free, dirty))
+    Ok((newest, free, dirty, foreign))
 }
 
 /// Walks both sectors.
@@ -254,9 +268,10 @@ pub async fn scan<F: MultiwriteNorFlash>(
 ) -> Result<Scan, StoreError> {
     let mut out = Scan::default();
     for (i, range) in sectors.sectors.iter().enumerate() {
-        let (newest, free, dirty) = scan_sector(flash, i, range, data_max).await?;
+        let (newest, free, dirty, foreign) = scan_sector(flash, i, range, data_max).await?;
         out.free[i] = free;
         out.dirty[i] = dirty;
+        out.foreign[i] = foreign;
         if let Some(n) = newest
             && out.newest.is_none_or(|o| n.seq > o.seq)
         {
