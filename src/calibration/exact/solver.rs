@@ -2,24 +2,16 @@
 //! differences of re-integrations (in `f32` while iterating, `f64` at the end) and
 //! Levenberg–Marquardt with fixed run weights.
 
-use super::jacobian::end_pose_derivatives;
 use super::linalg::{Mat, solve};
-use super::problem::{CHANNELS, HEADING, MODELS, Problem, RESIDUAL_CACHE, Residuals, X, Y};
+use super::problem::{HEADING, Kept, MODELS, Precision, Problem, RESIDUAL_CACHE, Residuals, X, Y};
 use super::robust::{Weight, weight};
-use super::{COST_TOLERANCE, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE};
+use super::{
+    COST_TOLERANCE, COST_TOLERANCE_F32, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE,
+    STEP_TOLERANCE_F32,
+};
 use crate::calibration::CalibrationError;
 use crate::kinematics::reference::{ArcModel, ArcModelF32};
 use crate::util::num::fmax;
-
-/// The precision of the Jacobian's re-integrations (see the `exact` module docs, *Jacobian in
-/// `f32`*).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Jacobian {
-    /// `f32` ([`ArcModelF32`], step [`JACOBIAN_STEP_F32`]): steers the iterations.
-    F32,
-    /// `f64` ([`ArcModel`], step [`JACOBIAN_STEP`]): defines where the fit ends, and its 1σ.
-    F64,
-}
 
 /// The result of one least-squares solve.
 pub(super) struct Solved {
@@ -31,25 +23,26 @@ pub(super) struct Solved {
 }
 
 impl Problem<'_, '_> {
-    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p` in the precision `jacobian` and `r`
-    /// the `f64` residuals (see the module docs, *Jacobian in `f32`*).
+    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p` and `r` the residuals in the
+    /// precision `jacobian` (see the module docs, *`f32` while iterating*).
     ///
-    /// `at_p` are the residual rows at `p` as [`Problem::cost`] kept them: an end-pose run among
-    /// them gets the analytic Jacobian (one pass over its knots); other runs are re-integrated
-    /// at `p` and for the central differences.
+    /// `at_p` is what [`Problem::cost`] kept at `p`: an end-pose run among it has its residual
+    /// rows and the derivatives of its end pose from one pass there; another end-pose run gets
+    /// that pass here; a path run is re-integrated at `p` (in `f64`) and for the central
+    /// differences.
     pub(super) fn normal(
         &self,
         p: &[f64; 3],
         weights: Option<&[Weight]>,
-        jacobian: Jacobian,
+        jacobian: Precision,
         at_p: Option<&Residuals>,
     ) -> (Mat, [f64; 3]) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
         let h = match jacobian {
-            Jacobian::F32 => JACOBIAN_STEP_F32,
-            Jacobian::F64 => JACOBIAN_STEP,
+            Precision::F32 => JACOBIAN_STEP_F32,
+            Precision::F64 => JACOBIAN_STEP,
         };
         // A row's values are v[0] at p (`f64`), v[1 + 2i] at p + h·e_i and v[2 + 2i] at
         // p − h·e_i (in `models[1..]` or in `models32`).
@@ -78,22 +71,22 @@ impl Problem<'_, '_> {
         }
         let at = models[0];
         let (models, models32) = match jacobian {
-            Jacobian::F32 => (&models[..1], &models32[..2 * n]),
-            Jacobian::F64 => (&models[..1 + 2 * n], &models32[..0]),
+            Precision::F32 => (&models[..1], &models32[..2 * n]),
+            Precision::F64 => (&models[..1 + 2 * n], &models32[..0]),
         };
         for (k, run) in self.runs.iter().enumerate() {
             if !Self::usable(run) {
                 continue;
             }
             let w = weight(weights, k);
-            // The rows at p from the cache (`off` = 0) or from `models[0]` (`off` = 1).
-            let kept = Self::kept(k, run, at_p);
-            if let Some(r) = kept {
-                // An end pose with its residuals at hand: the analytic Jacobian, one pass.
-                let (_, d) = match jacobian {
-                    Jacobian::F32 => end_pose_derivatives::<f32>(&at, run.knots),
-                    Jacobian::F64 => end_pose_derivatives::<f64>(&at, run.knots),
+            if !Self::is_path(run) {
+                // An end pose: the analytic Jacobian, from the pass that gave its residual rows
+                // at p (kept by the cost evaluation, or one pass here).
+                let kept = match Self::kept(k, run, at_p) {
+                    Some(kept) => *kept,
+                    None => self.end_pass(run, &at, jacobian),
                 };
+                let (r, d) = (kept.rows, kept.d);
                 let heading = self.heading(run).map(|_| self.heading_length(run));
                 for c in [X, Y, HEADING] {
                     let scale = match (c, heading) {
@@ -115,17 +108,14 @@ impl Problem<'_, '_> {
                 }
                 continue;
             }
-            let (off, models) = match kept {
-                Some(_) => (0, &models[1..]),
-                None => (1, models),
-            };
+            // A path: central differences of re-integrations, `v[0]` the row at p.
             self.rows(run, models, models32, |v, c| {
-                let r = kept.map_or(v[0], |kept| kept[c]);
+                let r = v[0];
                 let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
                     // residual = measured − predicted, so ∂predicted = −∂residual.
-                    j[i] = -(v[off + 2 * i] - v[off + 1 + 2 * i]) / (2.0 * h);
+                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h);
                 }
                 for c in 0..n {
                     g[c] += w * j[c] * r;
@@ -144,20 +134,25 @@ impl Problem<'_, '_> {
         &self,
         mut p: [f64; 3],
         weights: Option<&[Weight]>,
-        jacobian: Jacobian,
+        jacobian: Precision,
         known: Option<&Residuals>,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
         // The residual rows at `p` (`known` ones, when given, are those at `p`) and at the
         // trial parameters.
-        let mut at_p: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
-        let mut at_q: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
+        let mut at_p: Residuals = [Kept::ZERO; RESIDUAL_CACHE];
+        let mut at_q: Residuals = [Kept::ZERO; RESIDUAL_CACHE];
         let start = match known {
             Some(known) => {
                 at_p = *known;
-                self.cost(&p, weights, Some(known), None)
+                self.cost(&p, weights, Some(known), None, jacobian)
             }
-            None => self.cost(&p, weights, None, Some(&mut at_p)),
+            None => self.cost(&p, weights, None, Some(&mut at_p), jacobian),
+        };
+        // The convergence tolerances of the precision the cost is evaluated in.
+        let (step_tolerance, cost_tolerance) = match jacobian {
+            Precision::F32 => (STEP_TOLERANCE_F32, COST_TOLERANCE_F32),
+            Precision::F64 => (STEP_TOLERANCE, COST_TOLERANCE),
         };
         let (mut cost, _) = start.ok_or(CalibrationError::OutOfRange)?;
         let mut lambda = 1e-3;
@@ -173,23 +168,39 @@ impl Problem<'_, '_> {
                 }
                 let delta = solve(aug, g, n).ok_or(CalibrationError::Degenerate)?;
                 let step = delta[..n].iter().fold(0.0, |s, v| fmax(s, libm::fabs(*v)));
+                // The decrease of the cost the linearised residuals predict for this step,
+                // `2δᵀg − δᵀAδ`: below the cost's tolerance no step gains more than rounding
+                // (noisy data, at the flat minimum), so the fit has converged at `p` without
+                // evaluating it (a rejected step at the noise floor costs a pass, and LM would
+                // shrink it by tenfold rejections until it fell below the step tolerance).
+                let mut predicted = 0.0;
+                for i in 0..n {
+                    predicted += 2.0 * delta[i] * g[i];
+                    for j in 0..n {
+                        predicted -= delta[i] * a[i][j] * delta[j];
+                    }
+                }
+                if predicted <= cost_tolerance * cost {
+                    converged = true;
+                    break;
+                }
                 let mut q = p;
                 for i in 0..n {
                     q[i] += delta[i];
                 }
-                match self.cost(&q, weights, None, Some(&mut at_q)) {
+                match self.cost(&q, weights, None, Some(&mut at_q), jacobian) {
                     Some((c, _)) if c <= cost => {
-                        at_p = at_q;
+                        core::mem::swap(&mut at_p, &mut at_q);
                         // Also converged when the cost no longer changes in its 13th digit
                         // (noisy data: the minimum is flat, and LM's last steps only shuffle
                         // rounding).
-                        converged = step < STEP_TOLERANCE || cost - c <= COST_TOLERANCE * cost;
+                        converged = step < step_tolerance || cost - c <= cost_tolerance * cost;
                         p = q;
                         cost = c;
                         lambda = fmax(lambda * 0.1, 1e-12);
                         break;
                     }
-                    _ if step < STEP_TOLERANCE => {
+                    _ if step < step_tolerance => {
                         // At the noise floor of the cost: no smaller step can improve it.
                         converged = true;
                         break;
