@@ -40,7 +40,11 @@ impl Real for f64 {
         self
     }
     fn ticks(t: i64) -> f64 {
-        t as f64
+        // The same value; from `i32` the conversion is a short library call on the M4F.
+        match i32::try_from(t) {
+            Ok(t) => f64::from(t),
+            Err(_) => t as f64,
+        }
     }
     fn sin_cos(self) -> (f64, f64) {
         trig::sincos(self)
@@ -61,7 +65,12 @@ impl Real for f32 {
         f64::from(self)
     }
     fn ticks(t: i64) -> f32 {
-        t as f32
+        // The same value; from `i32` the conversion is one FPU instruction on the M4F (from `i64`
+        // a library call).
+        match i32::try_from(t) {
+            Ok(t) => t as f32,
+            Err(_) => t as f32,
+        }
     }
     fn sin_cos(self) -> (f32, f32) {
         trig::sincos_f32(self)
@@ -75,9 +84,20 @@ impl Real for f32 {
 /// terms, `u¹⁴/15!` and `14·u¹³/15!`, are below 1e-15 of the value there.
 const SERIES_BELOW: f64 = 0.5;
 
+/// Below this `|u|` (the knots of straight legs) two terms of each series suffice: the first
+/// omitted ones, `u⁶/7!` and `6·u⁵/7!`, are below 2e-22 and 1.2e-18 (4e-15 of the slope) there.
+const SHORT_SERIES_BELOW: f64 = 1e-3;
+
 /// `(sinc u, sinc′ u)` with `sinc u = sin u / u`.
 fn sinc_and_slope<F: Real>(u: F) -> (F, F) {
-    if u.abs() < F::of(SERIES_BELOW) {
+    let a = u.abs();
+    if a < F::of(SHORT_SERIES_BELOW) {
+        let u2 = u * u;
+        let s = F::ONE - u2 * (F::of(1.0 / 6.0) - u2 * F::of(1.0 / 120.0));
+        let d = -u * (F::of(1.0 / 3.0) - u2 * F::of(1.0 / 30.0));
+        return (s, d);
+    }
+    if a < F::of(SERIES_BELOW) {
         let u2 = u * u;
         // Horner in u²: Σ (−1)^k u^{2k}/(2k+1)! and Σ (−1)^k 2k u^{2k−1}/(2k+1)!.
         let s = F::ONE
@@ -104,6 +124,14 @@ fn sinc_and_slope<F: Real>(u: F) -> (F, F) {
 /// The end pose `(x, y, θ)` of the arcs through `knots` from the origin, and its derivatives
 /// `d[q] = ∂(x, y, θ)/∂m_q` with respect to the model's numbers `m = (right, left, wheelbase)`,
 /// computed in the precision `F`.
+///
+/// Per knot `k` (tick totals `R_k`, `L_k` from the first knot, `ΔR`, `ΔL` since the previous):
+/// the heading `θ_k = (ρ_R R_k − ρ_L L_k)/b`, the travel `ds = (ρ_R ΔR + ρ_L ΔL)/2`, the half
+/// turn `u = (θ_k − θ_{k−1})/2`, the mid-heading `m = θ_{k−1} + u` and the chord `ds·sinc u`
+/// along it. With `∂θ_k/∂(ρ_R, ρ_L, b) = (R_k, −L_k, −θ_k)/b`, the derivatives of the chord and
+/// of `m` are linear in `ΔR`, `ΔL`, `R_k + R_{k−1}`, `L_k + L_{k−1}`, `u` and `m`, with the
+/// common factor `1/b` (and ½) taken out of the sums: per knot the integration's one sine and
+/// cosine, the two series, and a dozen products into nine running sums.
 pub(super) fn end_pose_derivatives<F: Real>(
     model: &ArcModel,
     knots: &[WheelTicks],
@@ -113,47 +141,70 @@ pub(super) fn end_pose_derivatives<F: Real>(
         F::of(model.left_m_per_tick),
         F::of(model.wheelbase_m),
     );
-    let (mut x, mut y) = (F::ZERO, F::ZERO);
-    let mut dx = [F::ZERO; 3];
-    let mut dy = [F::ZERO; 3];
-    let mut theta_prev = F::ZERO;
-    let mut dtheta_prev = [F::ZERO; 3];
     let Some(first) = knots.first() else {
         return ([0.0; 3], [[0.0; 3]; 3]);
     };
+    let (mut x, mut y) = (F::ZERO, F::ZERO);
+    // Σ ΔR·sinc·(cos m, sin m) and Σ ΔL·sinc·(cos m, sin m): the chord's travel terms.
+    let (mut sxr, mut syr, mut sxl, mut syl) = (F::ZERO, F::ZERO, F::ZERO, F::ZERO);
+    // b/½ times the remaining terms of ∂x, ∂y for ρ_R, ρ_L, and b times those for b.
+    let (mut txr, mut tyr, mut txl, mut tyl) = (F::ZERO, F::ZERO, F::ZERO, F::ZERO);
+    let (mut txb, mut tyb) = (F::ZERO, F::ZERO);
+    let (mut tr_prev, mut tl_prev) = (F::ZERO, F::ZERO);
+    let mut theta_prev = F::ZERO;
     let mut prev = *first;
     for &k in &knots[1..] {
         let t = k - *first;
         let (tr, tl) = (F::ticks(t.right), F::ticks(t.left));
         let theta = (right * tr - left * tl) / b;
-        let dtheta = [tr / b, -tl / b, -theta / b];
         let d = k - prev;
         let (dr, dl) = (F::ticks(d.right), F::ticks(d.left));
         let ds = F::HALF * (right * dr + left * dl);
-        let dds = [F::HALF * dr, F::HALF * dl, F::ZERO];
         let u = F::HALF * (theta - theta_prev);
         let (sinc, slope) = sinc_and_slope(u);
         let chord = ds * sinc;
-        let (s, c) = (theta_prev + u).sin_cos();
-        for q in 0..3 {
-            let du = F::HALF * (dtheta[q] - dtheta_prev[q]);
-            let dchord = dds[q] * sinc + ds * slope * du;
-            let dmid = F::HALF * (dtheta[q] + dtheta_prev[q]);
-            dx[q] = dx[q] + dchord * c - chord * s * dmid;
-            dy[q] = dy[q] + dchord * s + chord * c * dmid;
-        }
-        x = x + chord * c;
-        y = y + chord * s;
+        let m = theta_prev + u;
+        let (s, c) = m.sin_cos();
+        let (qc, qs) = (chord * c, chord * s);
+        x = x + qc;
+        y = y + qs;
+        // ∂chord = ½ΔR·sinc + ds·sinc′·∂u, ∂u = ½ΔR/b, ∂m = ½(R_k + R_{k−1})/b (ρ_R; ρ_L with
+        // the signs of L); for b: ∂u = −u/b, ∂m = −m/b.
+        let (ac, as_) = (sinc * c, sinc * s);
+        sxr = sxr + dr * ac;
+        syr = syr + dr * as_;
+        sxl = sxl + dl * ac;
+        syl = syl + dl * as_;
+        let p = ds * slope;
+        let (pc, ps) = (p * c, p * s);
+        let (mr, ml) = (tr + tr_prev, tl + tl_prev);
+        txr = txr + (dr * pc - mr * qs);
+        tyr = tyr + (dr * ps + mr * qc);
+        txl = txl + (ml * qs - dl * pc);
+        tyl = tyl - (dl * ps + ml * qc);
+        txb = txb + (m * qs - u * pc);
+        tyb = tyb - (u * ps + m * qc);
         prev = k;
         theta_prev = theta;
-        dtheta_prev = dtheta;
+        (tr_prev, tl_prev) = (tr, tl);
     }
+    let inv_b = F::ONE / b;
+    let half_b = F::HALF * inv_b;
+    let d = [
+        [
+            F::HALF * sxr + half_b * txr,
+            F::HALF * syr + half_b * tyr,
+            tr_prev * inv_b,
+        ],
+        [
+            F::HALF * sxl + half_b * txl,
+            F::HALF * syl + half_b * tyl,
+            -(tl_prev * inv_b),
+        ],
+        [inv_b * txb, inv_b * tyb, -(theta_prev * inv_b)],
+    ];
     let pose = [x.to_f64(), y.to_f64(), theta_prev.to_f64()];
-    let mut out = [[0.0; 3]; 3];
-    for q in 0..3 {
-        out[q] = [dx[q].to_f64(), dy[q].to_f64(), dtheta_prev[q].to_f64()];
-    }
-    (pose, out)
+    (pose, d.map(|row| row.map(F::to_f64)))
 }
 
 /// A 1 m square of `model`'s robot, 4 × (20 + 5) knots; `wobble` adds a count of jitter to the

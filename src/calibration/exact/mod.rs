@@ -218,6 +218,13 @@ pub const STEP_TOLERANCE_F32: f64 = 1e-7;
 /// fraction (the `f32` residuals' rounding).
 pub const COST_TOLERANCE_F32: f64 = 1e-6;
 
+/// A step whose predicted decrease of the cost is at most this fraction of the cost is the last
+/// one, taken without evaluating the cost there (see the module docs, *`f32` while iterating*):
+/// its size in the residuals, `|Jδ|`, is below 3e-5 of theirs, so the linearisation's error,
+/// of order `|δ|²`, is far below rounding; the rows and derivatives kept are those of the
+/// point before it.
+pub const UNCHECKED_DECREASE: f64 = 1e-9;
+
 /// Default multiplier `k` of a run's characteristic length `L` in its heading residual's length
 /// scale `ℓ = k·L` ([`ExactOptions::heading_weight`]): 1, a heading error counts like the lateral
 /// error it makes over one leg. Measured by transfer (leave one shared OptiOdom session out,

@@ -7,9 +7,10 @@ use super::problem::{HEADING, Kept, MODELS, Precision, Problem, RESIDUAL_CACHE, 
 use super::robust::{Weight, weight};
 use super::{
     COST_TOLERANCE, COST_TOLERANCE_F32, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE,
-    STEP_TOLERANCE_F32,
+    STEP_TOLERANCE_F32, UNCHECKED_DECREASE,
 };
 use crate::calibration::CalibrationError;
+use crate::calibration::FACTOR_RANGE;
 use crate::kinematics::reference::{ArcModel, ArcModelF32};
 use crate::util::num::fmax;
 
@@ -150,9 +151,12 @@ impl Problem<'_, '_> {
             None => self.cost(&p, weights, None, Some(&mut at_p), jacobian),
         };
         // The convergence tolerances of the precision the cost is evaluated in.
-        let (step_tolerance, cost_tolerance) = match jacobian {
-            Precision::F32 => (STEP_TOLERANCE_F32, COST_TOLERANCE_F32),
-            Precision::F64 => (STEP_TOLERANCE, COST_TOLERANCE),
+        let (step_tolerance, cost_tolerance, unchecked) = match jacobian {
+            // No unchecked steps in `f32`: they would move where the robust rounds settle
+            // (within the weights' tolerance, but visibly in the Monte Carlo's means), and the
+            // `f32` passes are cheap.
+            Precision::F32 => (STEP_TOLERANCE_F32, COST_TOLERANCE_F32, COST_TOLERANCE_F32),
+            Precision::F64 => (STEP_TOLERANCE, COST_TOLERANCE, UNCHECKED_DECREASE),
         };
         let (mut cost, _) = start.ok_or(CalibrationError::OutOfRange)?;
         let mut lambda = 1e-3;
@@ -168,11 +172,15 @@ impl Problem<'_, '_> {
                 }
                 let delta = solve(aug, g, n).ok_or(CalibrationError::Degenerate)?;
                 let step = delta[..n].iter().fold(0.0, |s, v| fmax(s, libm::fabs(*v)));
+                let mut q = p;
+                for i in 0..n {
+                    q[i] += delta[i];
+                }
                 // The decrease of the cost the linearised residuals predict for this step,
-                // `2δᵀg − δᵀAδ`: below the cost's tolerance no step gains more than rounding
-                // (noisy data, at the flat minimum), so the fit has converged at `p` without
-                // evaluating it (a rejected step at the noise floor costs a pass, and LM would
-                // shrink it by tenfold rejections until it fell below the step tolerance).
+                // `2δᵀg − δᵀAδ` (see the module docs, *`f32` while iterating*): at most the
+                // cost's tolerance, the fit has converged at `p`; at most `unchecked` times the
+                // cost (noisy data, a step that small that the linearisation holds to far below
+                // its size), the step is taken without evaluating it, and the fit has converged.
                 let mut predicted = 0.0;
                 for i in 0..n {
                     predicted += 2.0 * delta[i] * g[i];
@@ -180,13 +188,14 @@ impl Problem<'_, '_> {
                         predicted -= delta[i] * a[i][j] * delta[j];
                     }
                 }
-                if predicted <= cost_tolerance * cost {
+                if predicted <= unchecked * cost {
+                    if predicted > cost_tolerance * cost
+                        && (0..n).all(|i| FACTOR_RANGE.contains(&q[i]))
+                    {
+                        p = q;
+                    }
                     converged = true;
                     break;
-                }
-                let mut q = p;
-                for i in 0..n {
-                    q[i] += delta[i];
                 }
                 match self.cost(&q, weights, None, Some(&mut at_q), jacobian) {
                     Some((c, _)) if c <= cost => {
