@@ -12,10 +12,11 @@
 // Dense 3×3 linear algebra reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
+use super::exact::end_pose;
 use super::stats::{SquareStats, Welford};
 use super::{ClosedFormInputs, Method, RunObservation, closed_form, square_direction};
 use crate::kinematics::geometry::Geometry;
-use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::kinematics::reference::ArcModel;
 use crate::motion::run::Direction;
 use crate::util::num::fmax;
 
@@ -47,9 +48,20 @@ impl Quality {
         sigma: Option<[f64; 3]>,
         rms_residual_m: Option<f64>,
     ) -> Self {
+        let e_max_after_m = predicted_e_max(runs, corrected);
+        Quality::new(e_max_after_m, stats, sigma, rms_residual_m)
+    }
+
+    /// Collects the figures with `E_max,syst` after the correction already known.
+    pub(crate) fn new(
+        e_max_after_m: Option<f64>,
+        stats: Option<&SquareStats>,
+        sigma: Option<[f64; 3]>,
+        rms_residual_m: Option<f64>,
+    ) -> Self {
         Quality {
             e_max_before_m: stats.map(SquareStats::e_max_m),
-            e_max_after_m: predicted_e_max(runs, corrected),
+            e_max_after_m,
             scatter_m: stats.and_then(SquareStats::scatter_m),
             sigma_e_d: sigma.map(|s| s[0]),
             sigma_e_b: sigma.map(|s| s[1]),
@@ -60,18 +72,35 @@ impl Quality {
 }
 
 /// `E_max,syst` of the square runs re-integrated with `g`; `None` without knots or without a
-/// run in each direction.
+/// run in each direction. The end poses are the arc model's ([`ArcModel`]) to rounding, by the
+/// exact fit's pose pass (`exact::end_pose`, a third fewer instructions on the Cortex-M4F).
 pub fn predicted_e_max(runs: &[RunObservation<'_>], g: &Geometry) -> Option<f64> {
     let model = ArcModel::from_geometry(g);
+    e_max_of(runs, |_, r| end_residual(&model, r))
+}
+
+/// A run's end residual `measured − predicted` in x, y for `model` (`exact::end_pose`).
+pub(crate) fn end_residual(model: &ArcModel, run: &RunObservation<'_>) -> (f64, f64) {
+    let end = end_pose(model, run.knots);
+    (run.measured.x_m - end[0], run.measured.y_m - end[1])
+}
+
+/// `E_max,syst` of the square runs from their end residuals `measured − predicted` (x, y),
+/// which `residual` gives for a run and its index in `runs`; `None` without knots or without a
+/// run in each direction.
+pub(crate) fn e_max_of(
+    runs: &[RunObservation<'_>],
+    mut residual: impl FnMut(usize, &RunObservation<'_>) -> (f64, f64),
+) -> Option<f64> {
     let mut acc = [(Welford::default(), Welford::default()); 2];
-    for r in runs.iter().filter(|r| r.knots.len() >= 2) {
+    for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.knots.len() >= 2) {
         let Some((dir, _)) = square_direction(&r.path) else {
             continue;
         };
-        let end = model.integrate(PoseF64::default(), r.knots);
+        let (dx, dy) = residual(i, r);
         let a = &mut acc[usize::from(dir == Direction::Ccw)];
-        a.0.push(r.measured.x_m - end.x_m);
-        a.1.push(r.measured.y_m - end.y_m);
+        a.0.push(dx);
+        a.1.push(dy);
     }
     if acc.iter().any(|a| a.0.n == 0) {
         return None;

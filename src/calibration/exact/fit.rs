@@ -2,14 +2,14 @@
 //! solve, the degeneracy and range checks, the 1σ and the per-run report.
 
 use super::linalg::solve;
-use super::problem::{Precision, Problem};
+use super::problem::{Precision, Problem, X, Y};
 use super::report::{ExactFit, RunFit};
 use super::robust::{Weight, weight};
 use super::{
     ExactOptions, FREEZE_SCALES_AFTER, MAX_FACTOR_SIGMA, MAX_REWEIGHTS, MAX_RUN_FITS,
     MAX_WEIGHTED_RUNS, ScaleFit,
 };
-use crate::calibration::quality::Quality;
+use crate::calibration::quality::{Quality, e_max_of, end_residual};
 use crate::calibration::stats::SquareStats;
 use crate::calibration::{
     Calibration, CalibrationError, FACTOR_RANGE, Method, RunObservation, factors_of,
@@ -132,7 +132,7 @@ pub fn calibrate_exact(
         return Err(CalibrationError::OutOfRange);
     }
     // Uncertainty from the weighted residual scatter, the weights as relative precisions.
-    let (a, _) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
+    let (a, _, _) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
     let sigma2 = if m > n {
         cost / (m - n) as f64
     } else {
@@ -162,6 +162,7 @@ pub fn calibrate_exact(
         run_count: 0,
         fits: [RunFit::EMPTY; MAX_RUN_FITS],
     };
+    let known = Some(&solved.residuals);
     let mut weighted_components = 0.0;
     for (i, run) in runs.iter().enumerate() {
         if !Problem::usable(run) {
@@ -170,7 +171,7 @@ pub fn calibrate_exact(
         let wi = weight(w, i);
         weighted_components += wi.run * problem.components(run) as f64;
         let scale = if reweighted { scales[i] } else { None };
-        let kept = Problem::kept(i, run, Some(&solved.residuals));
+        let kept = Problem::kept(i, run, known);
         let rf = problem.run_fit(i, &model, kept, wi, scale);
         if rf.outlier {
             fit.outliers += 1;
@@ -182,7 +183,12 @@ pub fn calibrate_exact(
     }
     let stats = SquareStats::from_runs(runs, false).ok();
     let rms = libm::sqrt(cost / weighted_components);
-    let quality = Quality::from_runs(runs, &geometry, stats.as_ref(), sigma_out, Some(rms));
+    // E_max after the correction from the kept residual rows (the same end poses to rounding).
+    let e_max_after_m = e_max_of(runs, |i, run| match Problem::kept(i, run, known) {
+        Some(k) => (k.rows[X], k.rows[Y]),
+        None => end_residual(&model, run),
+    });
+    let quality = Quality::new(e_max_after_m, stats.as_ref(), sigma_out, Some(rms));
     Ok(Calibration {
         method: Method::Exact,
         e_d,

@@ -218,7 +218,11 @@ impl Problem<'_, '_> {
             heading_rad: 0.0,
         };
         if let Some(t) = self.heading(run) {
-            kept.heading_rad = wrap_angle(t - pose[HEADING]);
+            let a = t - pose[HEADING];
+            // In `f32` (a residual good to 1e-6 m anyway) an angle within ±π is its own wrap;
+            // `wrap_angle` (a sine, a cosine and an arctangent in soft-float `f64`) only beyond.
+            let plain = precision == Precision::F32 && libm::fabs(a) <= core::f64::consts::PI;
+            kept.heading_rad = if plain { a } else { wrap_angle(a) };
             kept.rows[HEADING] = kept.heading_rad * self.heading_length(run);
         }
         kept

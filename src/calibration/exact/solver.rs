@@ -14,6 +14,9 @@ use crate::calibration::FACTOR_RANGE;
 use crate::kinematics::reference::{ArcModel, ArcModelF32};
 use crate::util::num::fmax;
 
+/// `∂(right, left, wheelbase)/∂p_i` of the model (row `i`).
+pub(super) type Numbers = [[f64; 3]; 3];
+
 /// The result of one least-squares solve.
 pub(super) struct Solved {
     pub(super) p: [f64; 3],
@@ -37,7 +40,7 @@ impl Problem<'_, '_> {
         weights: Option<&[Weight]>,
         jacobian: Precision,
         at_p: Option<&Residuals>,
-    ) -> (Mat, [f64; 3]) {
+    ) -> (Mat, [f64; 3], Numbers) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
@@ -126,7 +129,33 @@ impl Problem<'_, '_> {
                 }
             });
         }
-        (a, g)
+        (a, g, numbers)
+    }
+
+    /// Moves the kept rows of the end-pose runs along a step `delta` by their linearisation,
+    /// `r(p + δ) = r(p) − Jδ` (for a step taken without a pass at its end: the error is of order
+    /// `|δ|²`, below 1e-12 m for the steps [`UNCHECKED_DECREASE`] admits); the derivatives stay
+    /// those at `p`.
+    fn advance(&self, kept: &mut Residuals, numbers: &Numbers, delta: &[f64; 3]) {
+        for (k, run) in self.runs.iter().enumerate().take(RESIDUAL_CACHE) {
+            if !Self::usable(run) || Self::is_path(run) {
+                continue;
+            }
+            let kept = &mut kept[k];
+            // The change of the predicted end pose, by channel.
+            let mut dpred = [0.0; 3];
+            for (c, v) in dpred.iter_mut().enumerate() {
+                for i in 0..self.n {
+                    *v += (0..3).map(|q| kept.d[q][c] * numbers[i][q]).sum::<f64>() * delta[i];
+                }
+            }
+            kept.rows[X] -= dpred[X];
+            kept.rows[Y] -= dpred[Y];
+            if self.heading(run).is_some() {
+                kept.heading_rad -= dpred[HEADING];
+                kept.rows[HEADING] = kept.heading_rad * self.heading_length(run);
+            }
+        }
     }
 
     /// Levenberg–Marquardt from `p` with fixed run weights, steered by a Jacobian in the
@@ -164,7 +193,7 @@ impl Problem<'_, '_> {
         let mut converged = false;
         while iterations < self.options.max_iterations && !converged {
             iterations += 1;
-            let (a, g) = self.normal(&p, weights, jacobian, Some(&at_p));
+            let (a, g, numbers) = self.normal(&p, weights, jacobian, Some(&at_p));
             loop {
                 let mut aug = a;
                 for (i, row) in aug.iter_mut().enumerate().take(n) {
@@ -192,7 +221,9 @@ impl Problem<'_, '_> {
                     if predicted > cost_tolerance * cost
                         && (0..n).all(|i| FACTOR_RANGE.contains(&q[i]))
                     {
+                        self.advance(&mut at_p, &numbers, &delta);
                         p = q;
+                        cost -= predicted;
                     }
                     converged = true;
                     break;
