@@ -168,84 +168,13 @@ fn sinc_and_slope<F: Real>(u: F) -> (F, F) {
     }
 }
 
-/// Below this `|u|` (the knots of legs driven with some wobble) [`sinc_only`] and
-/// [`sinc_and_slope`] keep three terms of each series.
+/// Below this `|u|` (the knots of legs driven with some wobble) [`sinc_and_slope`] (and the quality's
+/// pose pass, `quality::end_pose`) keep three terms of each series.
 const SMALL_SERIES_BELOW: f64 = 1e-2;
 
-/// Below this `|u|` (the knots of pivots split into a few intervals) [`sinc_only`] and
-/// [`sinc_and_slope`] drop the last term of each series.
+/// Below this `|u|` (the knots of pivots split into a few intervals) [`sinc_and_slope`] (and the quality's
+/// pose pass, `quality::end_pose`) drop the last term of each series.
 const MEDIUM_SERIES_BELOW: f64 = 0.1;
-
-/// `sin u / u` alone, by the series of [`sinc_and_slope`] (`f64`).
-fn sinc_only(u: f64) -> f64 {
-    let a = libm::fabs(u);
-    let u2 = u * u;
-    if a < SHORT_SERIES_BELOW {
-        1.0 - u2 * (1.0 / 6.0 - u2 * (1.0 / 120.0))
-    } else if a < SMALL_SERIES_BELOW {
-        1.0 - u2 * (1.0 / 6.0 - u2 * (1.0 / 120.0 - u2 * (1.0 / 5040.0)))
-    } else if a < MEDIUM_SERIES_BELOW {
-        // The first omitted term, u¹²/13!, is below 2e-22 here.
-        1.0 - u2
-            * (1.0 / 6.0
-                - u2 * (1.0 / 120.0
-                    - u2 * (1.0 / 5040.0 - u2 * (1.0 / 362_880.0 - u2 * (1.0 / 39_916_800.0)))))
-    } else if a < SERIES_BELOW {
-        1.0 - u2
-            * (1.0 / 6.0
-                - u2 * (1.0 / 120.0
-                    - u2 * (1.0 / 5040.0
-                        - u2 * (1.0 / 362_880.0
-                            - u2 * (1.0 / 39_916_800.0 - u2 * (1.0 / 6_227_020_800.0))))))
-    } else {
-        trig::sin(u) / u
-    }
-}
-
-/// The end pose `(x, y, θ)` of the arcs through `knots` from the origin for `model`, in `f64`:
-/// [`ArcModel::integrate`]'s arcs, equal to rounding (within 1e-14 m and rad on a 1 m square,
-/// test `end_pose_matches_the_arc_model`), in fewer operations, for a figure that needs an end
-/// pose but not the fit's last bit (the quality's predicted `E_max`, shown to 1e-6 m): the
-/// heading advanced by each interval's turn `ρ_R ΔR/b − ρ_L ΔL/b` (the wheelbase divided into the
-/// travel per tick once, not into every heading), `sinc` by its series instead of a sine and a
-/// division, tick counts converted from `i32` when they fit, and where two successive half turns
-/// add up to less than 1e-2 rad (a leg) the mid-heading's cosine and sine are the previous ones
-/// rotated by that angle (short series) instead of a sine and cosine of their own; at every
-/// larger turn they are computed afresh, so rounding accumulates along one leg only.
-pub(crate) fn end_pose(model: &ArcModel, knots: &[WheelTicks]) -> [f64; 3] {
-    let b = model.wheelbase_m;
-    let (ar, al) = (model.right_m_per_tick / b, model.left_m_per_tick / b);
-    let (hr, hl) = (0.5 * model.right_m_per_tick, 0.5 * model.left_m_per_tick);
-    let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
-    // Half the previous interval's turn, and the cosine and sine of its mid-heading.
-    let (mut u_prev, mut c, mut s) = (0.0, 1.0, 0.0);
-    let mut fresh = true;
-    for pair in knots.windows(2) {
-        let d = pair[1] - pair[0];
-        let (dr, dl) = (f64::ticks(d.right), f64::ticks(d.left));
-        let turn = ar * dr - al * dl;
-        let ds = hr * dr + hl * dl;
-        let u = 0.5 * turn;
-        let chord = ds * sinc_only(u);
-        // From the previous mid-heading to this one: w = u_prev + u.
-        let w = u_prev + u;
-        if fresh || libm::fabs(w) >= SMALL_SERIES_BELOW {
-            (s, c) = trig::sincos(theta + u);
-            fresh = false;
-        } else {
-            // Rotated by w (series: first omitted terms below 2e-18 and 2e-21).
-            let w2 = w * w;
-            let sw = w * (1.0 - w2 * (1.0 / 6.0 - w2 * (1.0 / 120.0)));
-            let cw = 1.0 - w2 * (0.5 - w2 * (1.0 / 24.0 - w2 * (1.0 / 720.0)));
-            (c, s) = (c * cw - s * sw, s * cw + c * sw);
-        }
-        u_prev = u;
-        x += chord * c;
-        y += chord * s;
-        theta += turn;
-    }
-    [x, y, theta]
-}
 
 /// The end pose `(x, y, θ)` of the arcs through `knots` from the origin, and its derivatives
 /// `d[q] = ∂(x, y, θ)/∂m_q` with respect to the model's numbers `m = (right, left, wheelbase)`,
@@ -367,26 +296,6 @@ mod tests {
 
     fn square(model: &ArcModel) -> Vec<WheelTicks> {
         square_knots(model, true)
-    }
-
-    /// The pose-only pass is the arc model's end pose to rounding.
-    #[test]
-    fn end_pose_matches_the_arc_model() {
-        let model = ArcModel::from_geometry(&Geometry::PAPER_NOMINAL.with_factors(1.01, 0.99, 1.0));
-        let knots = square(&model);
-        let e = model.integrate(PoseF64::default(), &knots);
-        let pose = end_pose(&model, &knots);
-        for (a, b) in pose.iter().zip([e.x_m, e.y_m, e.theta_rad]) {
-            assert!((a - b).abs() < 1e-14, "{pose:?} {e:?}");
-        }
-        assert_eq!(sinc_only(0.7), trig::sin(0.7) / 0.7);
-        for u in [1e-5, 5e-4, 0.3] {
-            assert_eq!(sinc_only(u), sinc_and_slope(u).0, "{u}");
-        }
-        for u in [2e-3f64, 9e-3, 0.05, 0.0999] {
-            let closed = u.sin() / u;
-            assert!((sinc_only(u) - closed).abs() < 2e-16, "{u}");
-        }
     }
 
     /// The series of `sinc` and its slope agree with the closed forms where both are accurate.

@@ -192,7 +192,6 @@ mod robust;
 mod solver;
 
 pub use fit::calibrate_exact;
-pub(crate) use jacobian::end_pose;
 pub(crate) use linalg::solve;
 pub use options::{ExactOptions, ScaleFit};
 pub use report::{ExactFit, RunFit};
