@@ -14,10 +14,12 @@
 
 use super::stats::{SquareStats, Welford};
 use super::{ClosedFormInputs, Method, RunObservation, closed_form, square_direction};
+use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
-use crate::kinematics::reference::{ArcModel, PoseF64};
+use crate::kinematics::reference::ArcModel;
 use crate::motion::run::Direction;
 use crate::util::num::fmax;
+use crate::util::trig;
 
 /// Quality figures of one calibration.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -47,9 +49,20 @@ impl Quality {
         sigma: Option<[f64; 3]>,
         rms_residual_m: Option<f64>,
     ) -> Self {
+        let e_max_after_m = predicted_e_max(runs, corrected);
+        Quality::new(e_max_after_m, stats, sigma, rms_residual_m)
+    }
+
+    /// Collects the figures with `E_max,syst` after the correction already known.
+    pub(crate) fn new(
+        e_max_after_m: Option<f64>,
+        stats: Option<&SquareStats>,
+        sigma: Option<[f64; 3]>,
+        rms_residual_m: Option<f64>,
+    ) -> Self {
         Quality {
             e_max_before_m: stats.map(SquareStats::e_max_m),
-            e_max_after_m: predicted_e_max(runs, corrected),
+            e_max_after_m,
             scatter_m: stats.and_then(SquareStats::scatter_m),
             sigma_e_d: sigma.map(|s| s[0]),
             sigma_e_b: sigma.map(|s| s[1]),
@@ -60,18 +73,35 @@ impl Quality {
 }
 
 /// `E_max,syst` of the square runs re-integrated with `g`; `None` without knots or without a
-/// run in each direction.
+/// run in each direction. The end poses are the arc model's ([`ArcModel`]) to rounding, by
+/// [`end_pose`] (fewer `f64` operations: on the Cortex-M4F each is a soft-float call).
 pub fn predicted_e_max(runs: &[RunObservation<'_>], g: &Geometry) -> Option<f64> {
     let model = ArcModel::from_geometry(g);
+    e_max_of(runs, |_, r| end_residual(&model, r))
+}
+
+/// A run's end residual `measured − predicted` in x, y for `model` ([`end_pose`]).
+pub(crate) fn end_residual(model: &ArcModel, run: &RunObservation<'_>) -> (f64, f64) {
+    let end = end_pose(model, run.knots);
+    (run.measured.x_m - end[0], run.measured.y_m - end[1])
+}
+
+/// `E_max,syst` of the square runs from their end residuals `measured − predicted` (x, y),
+/// which `residual` gives for a run and its index in `runs`; `None` without knots or without a
+/// run in each direction.
+pub(crate) fn e_max_of(
+    runs: &[RunObservation<'_>],
+    mut residual: impl FnMut(usize, &RunObservation<'_>) -> (f64, f64),
+) -> Option<f64> {
     let mut acc = [(Welford::default(), Welford::default()); 2];
-    for r in runs.iter().filter(|r| r.knots.len() >= 2) {
+    for (i, r) in runs.iter().enumerate().filter(|(_, r)| r.knots.len() >= 2) {
         let Some((dir, _)) = square_direction(&r.path) else {
             continue;
         };
-        let end = model.integrate(PoseF64::default(), r.knots);
+        let (dx, dy) = residual(i, r);
         let a = &mut acc[usize::from(dir == Direction::Ccw)];
-        a.0.push(r.measured.x_m - end.x_m);
-        a.1.push(r.measured.y_m - end.y_m);
+        a.0.push(dx);
+        a.1.push(dy);
     }
     if acc.iter().any(|a| a.0.n == 0) {
         return None;
@@ -81,6 +111,95 @@ pub fn predicted_e_max(runs: &[RunObservation<'_>], g: &Geometry) -> Option<f64>
             .map(|a| libm::hypot(a.0.mean, a.1.mean))
             .fold(0.0, fmax),
     )
+}
+
+/// Below these `|u|` [`sinc_series`] keeps two, three and five terms of the series, seven up to
+/// [`SERIES_BELOW`]: the first omitted term is below 1e-18 relative in each range (the exact fit's
+/// pass uses the same ranges).
+const SHORT_SERIES_BELOW: f64 = 1e-3;
+const SMALL_SERIES_BELOW: f64 = 1e-2;
+const MEDIUM_SERIES_BELOW: f64 = 0.1;
+/// Up to this `|u|` [`sinc_series`] uses the series, beyond a sine and a division.
+const SERIES_BELOW: f64 = 0.5;
+
+/// A tick count as `f64`, from `i32` when it fits (the same value; a shorter library call on the
+/// M4F).
+fn ticks(t: i64) -> f64 {
+    match i32::try_from(t) {
+        Ok(t) => f64::from(t),
+        Err(_) => t as f64,
+    }
+}
+
+/// `sin u / u` by its series (see [`SHORT_SERIES_BELOW`]).
+fn sinc_series(u: f64) -> f64 {
+    let a = libm::fabs(u);
+    let u2 = u * u;
+    if a < SHORT_SERIES_BELOW {
+        1.0 - u2 * (1.0 / 6.0 - u2 * (1.0 / 120.0))
+    } else if a < SMALL_SERIES_BELOW {
+        1.0 - u2 * (1.0 / 6.0 - u2 * (1.0 / 120.0 - u2 * (1.0 / 5040.0)))
+    } else if a < MEDIUM_SERIES_BELOW {
+        // The first omitted term, u¹²/13!, is below 2e-22 here.
+        1.0 - u2
+            * (1.0 / 6.0
+                - u2 * (1.0 / 120.0
+                    - u2 * (1.0 / 5040.0 - u2 * (1.0 / 362_880.0 - u2 * (1.0 / 39_916_800.0)))))
+    } else if a < SERIES_BELOW {
+        1.0 - u2
+            * (1.0 / 6.0
+                - u2 * (1.0 / 120.0
+                    - u2 * (1.0 / 5040.0
+                        - u2 * (1.0 / 362_880.0
+                            - u2 * (1.0 / 39_916_800.0 - u2 * (1.0 / 6_227_020_800.0))))))
+    } else {
+        trig::sin(u) / u
+    }
+}
+
+/// The end pose `(x, y, θ)` of the arcs through `knots` from the origin for `model`, in `f64`:
+/// [`ArcModel::integrate`]'s arcs, equal to rounding (within 1e-14 m and rad on a 1 m square,
+/// test `end_pose_matches_the_arc_model`), in fewer operations, for a figure that needs an end
+/// pose but not the fit's last bit (the quality's predicted `E_max`, shown to 1e-6 m): the
+/// heading advanced by each interval's turn `ρ_R ΔR/b − ρ_L ΔL/b` (the wheelbase divided into the
+/// travel per tick once, not into every heading), `sinc` by its series instead of a sine and a
+/// division, tick counts converted from `i32` when they fit, and where two successive half turns
+/// add up to less than 1e-2 rad (a leg) the mid-heading's cosine and sine are the previous ones
+/// rotated by that angle (short series) instead of a sine and cosine of their own; at every
+/// larger turn they are computed afresh, so rounding accumulates along one leg only.
+pub(crate) fn end_pose(model: &ArcModel, knots: &[WheelTicks]) -> [f64; 3] {
+    let b = model.wheelbase_m;
+    let (ar, al) = (model.right_m_per_tick / b, model.left_m_per_tick / b);
+    let (hr, hl) = (0.5 * model.right_m_per_tick, 0.5 * model.left_m_per_tick);
+    let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
+    // Half the previous interval's turn, and the cosine and sine of its mid-heading.
+    let (mut u_prev, mut c, mut s) = (0.0, 1.0, 0.0);
+    let mut fresh = true;
+    for pair in knots.windows(2) {
+        let d = pair[1] - pair[0];
+        let (dr, dl) = (ticks(d.right), ticks(d.left));
+        let turn = ar * dr - al * dl;
+        let ds = hr * dr + hl * dl;
+        let u = 0.5 * turn;
+        let chord = ds * sinc_series(u);
+        // From the previous mid-heading to this one: w = u_prev + u.
+        let w = u_prev + u;
+        if fresh || libm::fabs(w) >= SMALL_SERIES_BELOW {
+            (s, c) = trig::sincos(theta + u);
+            fresh = false;
+        } else {
+            // Rotated by w (series: first omitted terms below 2e-18 and 2e-21).
+            let w2 = w * w;
+            let sw = w * (1.0 - w2 * (1.0 / 6.0 - w2 * (1.0 / 120.0)));
+            let cw = 1.0 - w2 * (0.5 - w2 * (1.0 / 24.0 - w2 * (1.0 / 720.0)));
+            (c, s) = (c * cw - s * sw, s * cw + c * sw);
+        }
+        u_prev = u;
+        x += chord * c;
+        y += chord * s;
+        theta += turn;
+    }
+    [x, y, theta]
 }
 
 /// Step of the central differences through the closed-form formulas (metres or radians).
@@ -132,4 +251,49 @@ pub fn propagate(
         vb += db * db * variances[i];
     }
     Some([libm::sqrt(vd), libm::sqrt(vb)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::geometry::Geometry;
+    use crate::kinematics::reference::PoseF64;
+
+    /// The pose pass is the arc model's end pose to rounding, on a 1 m square (4 × 20 knots along
+    /// the sides with a tick of jitter, 4 × 5 through the pivots) and on a 16 m one; its series
+    /// of `sinc` is the closed form's to an ulp or two.
+    #[test]
+    fn end_pose_matches_the_arc_model() {
+        let model = ArcModel::from_geometry(&Geometry::PAPER_NOMINAL.with_factors(1.01, 0.99, 1.0));
+        for side_m in [1.0, 16.0] {
+            let side = (side_m / model.right_m_per_tick).round() as i64;
+            let turn = (0.25 * core::f64::consts::PI * model.wheelbase_m / model.right_m_per_tick)
+                .round() as i64;
+            let mut knots = std::vec![WheelTicks::new(0, 0)];
+            let (mut r, mut l) = (0, 0);
+            for _ in 0..4 {
+                for i in 1..=20 {
+                    knots.push(WheelTicks::new(
+                        r + side * i / 20,
+                        l + side * i / 20 + i % 3,
+                    ));
+                }
+                (r, l) = (r + side, l + side);
+                for i in 1..=5 {
+                    knots.push(WheelTicks::new(r + turn * i / 5, l - turn * i / 5));
+                }
+                (r, l) = (r + turn, l - turn);
+            }
+            let e = model.integrate(PoseF64::default(), &knots);
+            let pose = end_pose(&model, &knots);
+            for (a, b) in pose.iter().zip([e.x_m, e.y_m, e.theta_rad]) {
+                assert!((a - b).abs() < 1e-14 * side_m, "{pose:?} {e:?}");
+            }
+        }
+        assert_eq!(sinc_series(0.7), trig::sin(0.7) / 0.7);
+        for u in [1e-5f64, 5e-4, 2e-3, 9e-3, 0.05, 0.0999, 0.3] {
+            let closed = u.sin() / u;
+            assert!((sinc_series(u) - closed).abs() < 3e-16, "{u}");
+        }
+    }
 }

@@ -2,15 +2,14 @@
 //! solve, the degeneracy and range checks, the 1σ and the per-run report.
 
 use super::linalg::solve;
-use super::problem::Problem;
+use super::problem::{Precision, Problem, X, Y};
 use super::report::{ExactFit, RunFit};
 use super::robust::{Weight, weight};
-use super::solver::Jacobian;
 use super::{
     ExactOptions, FREEZE_SCALES_AFTER, MAX_FACTOR_SIGMA, MAX_REWEIGHTS, MAX_RUN_FITS,
     MAX_WEIGHTED_RUNS, ScaleFit,
 };
-use crate::calibration::quality::Quality;
+use crate::calibration::quality::{Quality, e_max_of, end_residual};
 use crate::calibration::stats::SquareStats;
 use crate::calibration::{
     Calibration, CalibrationError, FACTOR_RANGE, Method, RunObservation, factors_of,
@@ -53,9 +52,15 @@ pub fn calibrate_exact(
     };
     let n = problem.n;
     let p0 = [d0, b0, s0];
-    let (_, m) = problem
-        .cost(&p0, None, None, None)
-        .ok_or(CalibrationError::OutOfRange)?;
+    if !(0..n).all(|i| FACTOR_RANGE.contains(&p0[i])) {
+        return Err(CalibrationError::OutOfRange);
+    }
+    // Residual components.
+    let m: usize = runs
+        .iter()
+        .filter(|r| Problem::usable(r))
+        .map(|r| problem.components(r))
+        .sum();
     let rows: usize = runs
         .iter()
         .filter(|r| Problem::usable(r))
@@ -65,7 +70,7 @@ pub fn calibrate_exact(
         return Err(CalibrationError::Degenerate);
     }
     // The plain least-squares fit: the result, or the robust fit's start.
-    let mut solved = problem.solve_lm(p0, None, Jacobian::F32, None)?;
+    let mut solved = problem.solve_lm(p0, None, Precision::F32, None)?;
     let mut iterations = solved.iterations;
     let reweighted = options.robust && runs.len() <= MAX_WEIGHTED_RUNS;
     // Weights and scales indexed like `runs`, and the weights `solved` was fitted with.
@@ -88,7 +93,7 @@ pub fn calibrate_exact(
             }
             reweights += 1;
             fitted_with[..len].copy_from_slice(&weights[..len]);
-            solved = problem.solve_lm(solved.p, Some(&weights[..len]), Jacobian::F32, known)?;
+            solved = problem.solve_lm(solved.p, Some(&weights[..len]), Precision::F32, known)?;
             iterations += solved.iterations;
         }
     }
@@ -97,13 +102,16 @@ pub fn calibrate_exact(
     // times the residuals (see the `exact` module docs); the last solve ends at the minimum with
     // the `f64` Jacobian, from a start that close it takes one or two iterations.
     let fitted_with = (reweighted && reweights > 0).then_some(&fitted_with[..len]);
-    solved = problem.solve_lm(
-        solved.p,
-        fitted_with,
-        Jacobian::F64,
-        Some(&solved.residuals),
-    )?;
+    solved = problem.solve_lm(solved.p, fitted_with, Precision::F64, None)?;
     iterations += solved.iterations;
+    if reweighted {
+        // The weights and scales reported (and the 1σ's): those at the fitted parameters from
+        // its `f64` residuals; the rounds' came from `f32` residuals, good to about 1e-6 m, which
+        // in ideal kinematics would leave weights 1e-8 below 1 where these are 1 to rounding.
+        let frozen = reweights >= FREEZE_SCALES_AFTER;
+        let known = Some(&solved.residuals);
+        problem.reweight(&solved.p, known, &mut weights, &mut scales, frozen);
+    }
     let w = reweighted.then_some(&weights[..len]);
     let p = solved.p;
     let cost = solved.cost;
@@ -124,7 +132,7 @@ pub fn calibrate_exact(
         return Err(CalibrationError::OutOfRange);
     }
     // Uncertainty from the weighted residual scatter, the weights as relative precisions.
-    let (a, _) = problem.normal(&p, w, Jacobian::F64, Some(&solved.residuals));
+    let (a, _, _) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
     let sigma2 = if m > n {
         cost / (m - n) as f64
     } else {
@@ -154,6 +162,7 @@ pub fn calibrate_exact(
         run_count: 0,
         fits: [RunFit::EMPTY; MAX_RUN_FITS],
     };
+    let known = Some(&solved.residuals);
     let mut weighted_components = 0.0;
     for (i, run) in runs.iter().enumerate() {
         if !Problem::usable(run) {
@@ -162,7 +171,8 @@ pub fn calibrate_exact(
         let wi = weight(w, i);
         weighted_components += wi.run * problem.components(run) as f64;
         let scale = if reweighted { scales[i] } else { None };
-        let rf = problem.run_fit(i, &model, wi, scale);
+        let kept = Problem::kept(i, run, known);
+        let rf = problem.run_fit(i, &model, kept, wi, scale);
         if rf.outlier {
             fit.outliers += 1;
         }
@@ -173,7 +183,12 @@ pub fn calibrate_exact(
     }
     let stats = SquareStats::from_runs(runs, false).ok();
     let rms = libm::sqrt(cost / weighted_components);
-    let quality = Quality::from_runs(runs, &geometry, stats.as_ref(), sigma_out, Some(rms));
+    // E_max after the correction from the kept residual rows (the same end poses to rounding).
+    let e_max_after_m = e_max_of(runs, |i, run| match Problem::kept(i, run, known) {
+        Some(k) => (k.rows[X], k.rows[Y]),
+        None => end_residual(&model, run),
+    });
+    let quality = Quality::new(e_max_after_m, stats.as_ref(), sigma_out, Some(rms));
     Ok(Calibration {
         method: Method::Exact,
         e_d,

@@ -109,47 +109,61 @@
 //!   end heading of every closed path, so in-place turns and circles lose the information that
 //!   calibrates `E_b` best; it is the occasional slipping start, which the run weights handle).
 //!
-//! # Jacobian in `f32`
+//! # `f32` while iterating
 //!
-//! The residuals `r`, the cost, the normal equations, the solve and the convergence test are
-//! `f64`. For a run measured at its end, the Jacobian `J = ∂predicted/∂p` is analytic: the arc
-//! integration differentiated with respect to the model's three numbers (travel per tick of each
-//! wheel, wheelbase) in one pass over the knots (`jacobian`, forward mode: per knot the one
-//! sine and cosine the integration needs and short series for `sinc` and its slope), chained
-//! with `∂(numbers)/∂p` by central differences of the geometry (no integration). It reads the
-//! run's residual rows that the cost evaluation at the same parameters kept, and the same kept
-//! rows give each solve's start cost and the robust rounds' residuals, so an accepted step costs
-//! one `f64` re-integration (the cost) and one pass per run. While the fit iterates the pass is
-//! `f32`, at the end `f64` (test `derivatives_match_central_differences`: within 1e-4 and 1e-7
-//! of a column of the `f64` central differences, whose own error is about 1e-7). A run with ground truth along its path (residuals at every knot) keeps the
-//! central differences of re-integrations described next, two per fitted factor and run in every
-//! iteration. While the fit iterates those run in `f32` ([`ArcModelF32`] with [`crate::util::trig::sincos_f32`]: the
-//! Cortex-M4F's FPU instead of soft-float), with the step `h =` [`JACOBIAN_STEP_F32`] `= 1e-3` in
+//! The fit iterates in `f32` (the Cortex-M4F's FPU; an `f64` operation is a soft-float call
+//! there) and ends with a solve in `f64`, which defines the result.
+//!
+//! For a run measured at its end, one pass over its knots (`jacobian::end_pose_derivatives`)
+//! integrates the arcs and carries along the derivatives of the end pose with respect to the
+//! model's three numbers (travel per tick of each wheel, wheelbase: forward mode, per knot the
+//! one sine and cosine the integration needs and short series for `sinc` and its slope); they
+//! are chained with `∂(numbers)/∂p` by central differences of the geometry (no integration) into
+//! the Jacobian `J = ∂predicted/∂p`. The cost evaluation keeps what that pass gives (residual
+//! rows and derivatives, `problem::Kept`) for the first runs, so an accepted step costs
+//! one pass per run: its cost and the next iteration's normal equations; the kept rows also give
+//! each solve's start cost, the robust rounds' residuals, the 1σ and the per-run report.
+//!
+//! While the fit iterates (the plain fit and every reweighting round) the passes are `f32`:
+//! residuals, cost and Jacobian. An end pose integrated in `f32` is good to about 1e-6 m on a
+//! 2 m square (the heading from tick totals to about 2⁻²⁴ of the wheels' travel over the
+//! wheelbase, and one rounding of the position per knot), the derivatives to 1e-4 of a column
+//! (test `derivatives_match_central_differences`). Those solves stop at the `f32` resolution
+//! ([`STEP_TOLERANCE_F32`], [`COST_TOLERANCE_F32`]), and the robust rounds weigh the runs by their
+//! `f32` residuals (the weights' tolerance, 1e-3, is far coarser). The fit then ends with one
+//! solve in `f64` from the `f32` solution, with the weights it was fitted with: `f64` passes
+//! (residuals and the analytic Jacobian, whose `f64` derivatives match the central differences to
+//! 1e-7 of a column, their own error); from that close it takes one to three iterations, and it
+//! ends where the fit with `f64` throughout ends, to its tolerances. The weights and scales
+//! reported are recomputed from its `f64` residuals (in ideal kinematics they are 1 to rounding).
+//! (An `f32` Jacobian alone stops where `J̃ᵀWr = 0`, not at the cost's minimum `JᵀWr = 0`; the
+//! two are `(JᵀWJ)⁻¹EᵀWr` apart, `E` the Jacobian's error: on the recorded OptiOdom sessions
+//! 4e-8–1e-7 relative in `E_b` on squares and up to 2e-4 on the end poses of two free paths,
+//! more than the product's 1e-5. Hence the last solve in `f64`.)
+//!
+//! Every solve, in either precision, has converged when the decrease of the cost that the
+//! linearised residuals predict for the next step, `2δᵀg − δᵀAδ`, is below the cost's tolerance
+//! times the cost (noisy data at its flat minimum: no step can gain more than rounding, so it is
+//! not evaluated; Levenberg–Marquardt would otherwise reject it for a rounding rise of the cost
+//! and shrink it by tenfold rejections, one pass each, until it fell below the step tolerance),
+//! when an accepted step moves no parameter by more than the step tolerance or lowers the cost by
+//! less than its tolerance. In the `f64` solve a step predicted to lower the cost by at most
+//! [`UNCHECKED_DECREASE`] of it is the last: it is taken without a pass at its end, and the kept
+//! rows follow it by their linearisation (on noisy data this saves the last `f64` pass per run;
+//! in ideal kinematics the cost is rounding and every step is evaluated).
+//!
+//! A run with ground truth along its path (residuals at every knot) keeps central differences of
+//! re-integrations, two per fitted factor and run in every iteration, its rows at `p` in `f64`.
+//! While the fit iterates those run in `f32` ([`ArcModelF32`] with
+//! [`crate::util::trig::sincos_f32`]), with the step `h =` [`JACOBIAN_STEP_F32`] `= 1e-3` in
 //! each (dimensionless, ≈ 1) factor. An end pose in `f32` is good to about `ε ≈ 1e-7` m per metre
 //! travelled, so a column's error is the rounding `ε/h` plus the truncation `O(h²)`. Measured on
 //! a 1 m square (test `f32_jacobian_matches_f64`, largest error of a column against the `f64`
 //! one relative to the column's size, for `E_d`, `E_b`, `E_s`): 2–10e-3 at `h = 1e-5`, 2–7e-4
 //! at `1e-4` (rounding), 1.4–4.8e-5 at `1e-3`, 0.3–1.3e-4 at `3e-3`, 0.2–1.3e-3 at `1e-2`
-//! (truncation); the `f64` Jacobian's `h = 1e-6` would leave 2.5–12 %.
-//!
-//! An approximate Jacobian `J̃ = J + E` steers Levenberg–Marquardt as well as `J` does: a step is
-//! accepted only when the `f64` cost does not rise, and near the solution each Gauss–Newton step
-//! contracts the error by `O(|E|/|J|)` (besides the usual term of the residuals' curvature), about
-//! 5e-5, so it converges as fast. But it stops where `J̃ᵀWr = 0`, not where the cost is least
-//! (`JᵀWr = 0`): the two coincide where the runs fit exactly (`r = 0`, ideal kinematics), and with
-//! noisy runs they are `(JᵀWJ)⁻¹EᵀWr` apart. On the recorded OptiOdom sessions (read from their
-//! recorded starts) that moved `E_b` by 4e-8–1e-7 relative on squares, 3e-5 on the path fit of the
-//! line session and 2e-4 on the end poses of two free paths (3 factors from 6 numbers; on long
-//! paths the `f32` heading error grows with the distance driven). The fit therefore ends with one
-//! more solve, from the `f32` solution and with the weights it was fitted with, whose Jacobian is
-//! `f64` ([`ArcModel`], step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12, rounding 1e-10
-//! relative): it starts that close to the minimum that it takes two iterations, and it ends where
-//! an all-`f64` fit ends, to the convergence tolerances: plain fits of the recorded sessions agree
-//! to the nine printed digits (2–3e-8 on the free paths' flat minimum), the bench's robust fit of
-//! 10 squares to 2e-11; other robust fits differ by up to 7e-8 (6e-7, 1e-5 of its 1σ, for the line
-//! session's path fit), as their reweighting rounds start from the `f32` solutions and the weights
-//! settle within their tolerance at slightly different values. The 1σ comes from the `f64`
-//! Jacobian.
+//! (truncation); the `f64` Jacobian's `h = 1e-6` would leave 2.5–12 %. The last solve's central
+//! differences are `f64` ([`ArcModel`], step [`JACOBIAN_STEP`] `= 1e-6`: truncation 1e-12,
+//! rounding 1e-10 relative).
 //!
 //! Normal equations are accumulated run by run (3×3), so memory does not
 //! grow with the number of knots; the weights take one number per run (up to
@@ -159,7 +173,7 @@
 //! plain fit's `(JᵀJ)⁻¹ σ²` when every weight is 1).
 //!
 //! Parts: `options` (what the fit is asked for), `problem` (the model and its residuals),
-//! `solver` (the Jacobian and Levenberg–Marquardt), `jacobian` (the analytic end-pose Jacobian), `linalg` (the 3×3 solve), `robust` (the run
+//! `solver` (the normal equations and Levenberg–Marquardt), `jacobian` (the analytic end-pose Jacobian), `linalg` (the 3×3 solve), `robust` (the run
 //! and channel weights), `report` (the per-run report) and `fit` (the fit from start to result:
 //! the reweighting rounds, the degeneracy and range checks, the 1σ).
 //!
@@ -189,7 +203,7 @@ pub use report::{ExactFit, RunFit};
 pub const JACOBIAN_STEP: f64 = 1e-6;
 
 /// Central-difference step for the `f32` Jacobian, in units of the (≈ 1) factors (see the module
-/// docs, *Jacobian in `f32`*).
+/// docs, *`f32` while iterating*).
 pub const JACOBIAN_STEP_F32: f64 = 1e-3;
 
 /// Converged when no parameter moves by more than this in one step.
@@ -197,6 +211,24 @@ pub const STEP_TOLERANCE: f64 = 1e-12;
 
 /// Converged when an accepted step lowers the cost by less than this fraction.
 pub const COST_TOLERANCE: f64 = 1e-13;
+
+/// The `f32` solves (see the module docs, *`f32` while iterating*) have converged when no
+/// parameter moves by more than this in one step: about the `f32` resolution of the (≈ 1)
+/// factors, below which the `f32` cost cannot tell one step from the next.
+pub const STEP_TOLERANCE_F32: f64 = 1e-7;
+
+/// The `f32` solves have converged when an accepted step lowers the cost (or the next step is
+/// predicted to lower it) by less than this fraction: the `f32` cost's rounding, measured on the
+/// recorded squares of qemu-bench, where steps predicted to gain 1e-5 of the cost were rejected
+/// for a rise of the `f32` cost (each a pass over the runs, and no closer to the minimum).
+pub const COST_TOLERANCE_F32: f64 = 2e-5;
+
+/// A step whose predicted decrease of the cost is at most this fraction of the cost is the last
+/// one, taken without evaluating the cost there (see the module docs, *`f32` while iterating*):
+/// its size in the residuals, `|Jδ|`, is below 3e-5 of theirs, so the linearisation's error,
+/// of order `|δ|²`, is far below rounding; the rows and derivatives kept are those of the
+/// point before it.
+pub const UNCHECKED_DECREASE: f64 = 1e-9;
 
 /// Default multiplier `k` of a run's characteristic length `L` in its heading residual's length
 /// scale `ℓ = k·L` ([`ExactOptions::heading_weight`]): 1, a heading error counts like the lateral

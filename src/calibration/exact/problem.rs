@@ -1,11 +1,22 @@
 //! The model and its residuals: the runs re-integrated with the geometry of the parameters, the
 //! residual rows of each run (end pose, or positions along the path) and the weighted cost.
 
-use super::ExactOptions;
+use super::jacobian::end_pose_derivatives;
 use super::robust::{Weight, weight};
+use super::{ExactOptions, MAX_RUN_FITS};
 use crate::calibration::{FACTOR_RANGE, RunObservation, wrap_angle};
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, ArcModelF32, PoseF32, PoseF64};
+
+/// The precision of a pass over the runs (see the `exact` module docs, *`f32` while iterating*).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Precision {
+    /// `f32` ([`ArcModelF32`]): the residuals and the Jacobian that steer the iterations.
+    F32,
+    /// `f64` ([`ArcModel`]): the residuals and the Jacobian that define where the fit ends, and
+    /// its 1σ.
+    F64,
+}
 
 /// The most models a residual row is evaluated for at once (`1 + 2n`, n ≤ 3).
 pub(super) const MODELS: usize = 7;
@@ -16,12 +27,35 @@ pub(super) const X: usize = 0;
 pub(super) const Y: usize = 1;
 pub(super) const HEADING: usize = 2;
 
-/// How many runs' residual rows [`Problem::cost`] keeps for [`Problem::normal`] (runs beyond
-/// are re-integrated there).
-pub(super) const RESIDUAL_CACHE: usize = 32;
+/// How many runs' residual rows and end-pose derivatives [`Problem::cost`] keeps for
+/// [`Problem::normal`] (runs beyond get a pass of their own there): the most runs a fit reports
+/// ([`MAX_RUN_FITS`]; the board holds 12).
+pub(super) const RESIDUAL_CACHE: usize = MAX_RUN_FITS;
 
-/// The residual rows by channel of the first [`RESIDUAL_CACHE`] runs at one set of parameters.
-pub(super) type Residuals = [[f64; CHANNELS]; RESIDUAL_CACHE];
+/// What one pass over an end-pose run at a set of parameters keeps
+/// ([`Problem::end_pass`]): its residual rows and the derivatives of its predicted end pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Kept {
+    /// The residual rows by channel (x, y, `ℓ`·heading; zero for a heading not used).
+    pub(super) rows: [f64; CHANNELS],
+    /// `d[q][c] = ∂(x, y, θ)_c/∂m_q` of the predicted end pose, `m = (right, left, wheelbase)`
+    /// the model's numbers (see `jacobian::end_pose_derivatives`).
+    pub(super) d: [[f64; 3]; 3],
+    /// The wrapped heading residual, radians (zero for a heading not used).
+    pub(super) heading_rad: f64,
+}
+
+impl Kept {
+    pub(super) const ZERO: Kept = Kept {
+        rows: [0.0; CHANNELS],
+        d: [[0.0; 3]; 3],
+        heading_rad: 0.0,
+    };
+}
+
+/// What [`Problem::cost`] kept of the first [`RESIDUAL_CACHE`] runs at one set of parameters
+/// (meaningful for the end-pose runs among them).
+pub(super) type Residuals = [Kept; RESIDUAL_CACHE];
 
 /// `d²` by channel of an end-pose run's residual rows: their squares, as [`Problem::rows`]
 /// accumulates them (from zero, so bit for bit).
@@ -151,7 +185,7 @@ impl Problem<'_, '_> {
 
     /// Squared length `d²` of a run's residual for `model`, by channel (x, y, heading).
     pub(super) fn distance2(&self, run: &RunObservation<'_>, model: &ArcModel) -> [f64; CHANNELS] {
-        self.residual(run, model).1
+        self.residual(run, model, Precision::F64)
     }
 
     /// The residual rows of run `i` in `known`, when it is an end-pose run kept there (one row
@@ -160,24 +194,58 @@ impl Problem<'_, '_> {
         i: usize,
         run: &RunObservation<'_>,
         known: Option<&'k Residuals>,
-    ) -> Option<&'k [f64; CHANNELS]> {
+    ) -> Option<&'k Kept> {
         known.and_then(|r| r.get(i)).filter(|_| !Self::is_path(run))
     }
 
-    /// A run's residual rows for `model` by channel (meaningful for an end-pose run, whose rows
-    /// are one per channel; zero for a missing heading) and their squared length `d²` by channel.
+    /// One pass over an end-pose run for `model` in the precision `precision`: its residual
+    /// rows and the derivatives of its end pose (`jacobian::end_pose_derivatives`, which
+    /// integrates the same arcs as [`ArcModel::integrate`], equal to rounding).
+    pub(super) fn end_pass(
+        &self,
+        run: &RunObservation<'_>,
+        model: &ArcModel,
+        precision: Precision,
+    ) -> Kept {
+        let (pose, d) = match precision {
+            Precision::F32 => end_pose_derivatives::<f32>(model, run.knots),
+            Precision::F64 => end_pose_derivatives::<f64>(model, run.knots),
+        };
+        let meas = &run.measured;
+        let mut kept = Kept {
+            rows: [meas.x_m - pose[X], meas.y_m - pose[Y], 0.0],
+            d,
+            heading_rad: 0.0,
+        };
+        if let Some(t) = self.heading(run) {
+            let a = t - pose[HEADING];
+            // In `f32` (a residual good to 1e-6 m anyway) an angle within ±π is its own wrap;
+            // `wrap_angle` (a sine, a cosine and an arctangent in soft-float `f64`) only beyond.
+            let plain = precision == Precision::F32 && libm::fabs(a) <= core::f64::consts::PI;
+            kept.heading_rad = if plain { a } else { wrap_angle(a) };
+            kept.rows[HEADING] = kept.heading_rad * self.heading_length(run);
+        }
+        kept
+    }
+
+    /// The squared length `d²` by channel of a run's residual rows for `model` (zero for a
+    /// missing heading), the run re-integrated in the precision `precision`.
     fn residual(
         &self,
         run: &RunObservation<'_>,
         model: &ArcModel,
-    ) -> ([f64; CHANNELS], [f64; CHANNELS]) {
-        let mut r = [0.0; CHANNELS];
+        precision: Precision,
+    ) -> [f64; CHANNELS] {
         let mut d2 = [0.0; CHANNELS];
-        self.rows(run, core::slice::from_ref(model), &[], |v, c| {
-            r[c] = v[0];
+        let model32 = [ArcModelF32::from_model(model)];
+        let (models, models32) = match precision {
+            Precision::F64 => (core::slice::from_ref(model), &model32[..0]),
+            Precision::F32 => (&[][..], &model32[..]),
+        };
+        self.rows(run, models, models32, |v, c| {
             d2[c] += v[0] * v[0];
         });
-        (r, d2)
+        d2
     }
 
     /// Number of residual rows of a run (2 per knot of a path run).
@@ -191,17 +259,20 @@ impl Problem<'_, '_> {
     }
 
     /// Weighted sum of squared residuals and number of residual components; `None` for an
-    /// invalid geometry. The residual rows of the first [`RESIDUAL_CACHE`] runs are kept in
-    /// `residuals` when given (read by [`Problem::normal`] for the end-pose runs, which then
-    /// need no `f64` re-integration at the same parameters).
+    /// invalid geometry. With `residuals` given, every end-pose run is evaluated by
+    /// [`Problem::end_pass`] and what it keeps of the first [`RESIDUAL_CACHE`] runs goes there
+    /// (read by [`Problem::normal`], which then needs no pass of its own at the same
+    /// parameters); without, the runs are only re-integrated.
     /// `known` are residual rows already computed at `p` (an end-pose run among them is not
-    /// re-integrated; the cost is the same bit for bit).
+    /// re-integrated; the cost is the same bit for bit). The runs are re-integrated in the
+    /// precision `precision` (see the module docs, *`f32` while iterating*).
     pub(super) fn cost(
         &self,
         p: &[f64; 3],
         weights: Option<&[Weight]>,
         known: Option<&Residuals>,
         mut residuals: Option<&mut Residuals>,
+        precision: Precision,
     ) -> Option<(f64, usize)> {
         if !(0..self.n).all(|i| FACTOR_RANGE.contains(&p[i])) {
             return None;
@@ -211,12 +282,20 @@ impl Problem<'_, '_> {
         let mut m = 0;
         for (i, run) in self.runs.iter().enumerate() {
             if Self::usable(run) {
-                let (r, d2) = match Self::kept(i, run, known) {
-                    Some(r) => (*r, squares(r)),
-                    None => self.residual(run, &model),
+                let kept = match Self::kept(i, run, known) {
+                    Some(k) => Some(*k),
+                    None if residuals.is_some() && !Self::is_path(run) => {
+                        Some(self.end_pass(run, &model, precision))
+                    }
+                    None => None,
                 };
-                if let Some(slot) = residuals.as_deref_mut().and_then(|c| c.get_mut(i)) {
-                    *slot = r;
+                let d2 = match &kept {
+                    Some(k) => squares(&k.rows),
+                    None => self.residual(run, &model, precision),
+                };
+                let slot = residuals.as_deref_mut().and_then(|c| c.get_mut(i));
+                if let (Some(slot), Some(k)) = (slot, kept) {
+                    *slot = k;
                 }
                 let w = weight(weights, i);
                 ss += (0..CHANNELS).map(|c| w.row(c) * d2[c]).sum::<f64>();

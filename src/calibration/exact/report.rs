@@ -1,7 +1,7 @@
 //! What the exact fit reports per run: residuals against the fitted model, the run's scales and
 //! weights, and whether it was flagged as an outlier.
 
-use super::problem::Problem;
+use super::problem::{Kept, Problem, X, Y};
 use super::robust::{Scales, Weight};
 use super::{MAX_RUN_FITS, OUTLIER_WEIGHT};
 use crate::calibration::wrap_angle;
@@ -79,16 +79,33 @@ impl ExactFit {
 }
 
 impl Problem<'_, '_> {
-    /// The report of run `index` for the fitted model.
+    /// The report of run `index` for the fitted model; `kept` is what the last pass at the
+    /// fitted parameters kept of an end-pose run (its residuals, which then need no
+    /// re-integration).
     pub(super) fn run_fit(
         &self,
         index: usize,
         model: &ArcModel,
+        kept: Option<&Kept>,
         weight: Weight,
         scales: Option<Scales>,
     ) -> RunFit {
         let run = &self.runs[index];
-        let end = model.integrate(PoseF64::default(), run.knots);
+        let (residual_x_m, residual_y_m, residual_theta_rad) = match kept {
+            Some(k) => (
+                k.rows[X],
+                k.rows[Y],
+                self.heading(run).map(|_| k.heading_rad),
+            ),
+            None => {
+                let end = model.integrate(PoseF64::default(), run.knots);
+                (
+                    run.measured.x_m - end.x_m,
+                    run.measured.y_m - end.y_m,
+                    self.heading(run).map(|t| wrap_angle(t - end.theta_rad)),
+                )
+            }
+        };
         let path_rms_m = Self::is_path(run).then(|| {
             let mut pose = PoseF64::default();
             let mut ss = 0.0;
@@ -102,9 +119,9 @@ impl Problem<'_, '_> {
         });
         RunFit {
             index,
-            residual_x_m: run.measured.x_m - end.x_m,
-            residual_y_m: run.measured.y_m - end.y_m,
-            residual_theta_rad: self.heading(run).map(|t| wrap_angle(t - end.theta_rad)),
+            residual_x_m,
+            residual_y_m,
+            residual_theta_rad,
             path_rms_m,
             scale_m: scales.map(|s| s.position_m),
             scale_heading_rad: scales.and_then(|s| s.heading_rad),

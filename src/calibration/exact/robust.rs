@@ -105,7 +105,7 @@ impl Problem<'_, '_> {
         for (i, run) in runs.iter().enumerate() {
             if Self::usable(run) {
                 d2[i] = match Self::kept(i, run, known) {
-                    Some(r) => squares(r),
+                    Some(k) => squares(&k.rows),
                     None => self.distance2(run, &model),
                 };
                 m += self.components(run);

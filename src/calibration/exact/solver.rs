@@ -2,24 +2,20 @@
 //! differences of re-integrations (in `f32` while iterating, `f64` at the end) and
 //! Levenberg–Marquardt with fixed run weights.
 
-use super::jacobian::end_pose_derivatives;
 use super::linalg::{Mat, solve};
-use super::problem::{CHANNELS, HEADING, MODELS, Problem, RESIDUAL_CACHE, Residuals, X, Y};
+use super::problem::{HEADING, Kept, MODELS, Precision, Problem, RESIDUAL_CACHE, Residuals, X, Y};
 use super::robust::{Weight, weight};
-use super::{COST_TOLERANCE, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE};
+use super::{
+    COST_TOLERANCE, COST_TOLERANCE_F32, JACOBIAN_STEP, JACOBIAN_STEP_F32, STEP_TOLERANCE,
+    STEP_TOLERANCE_F32, UNCHECKED_DECREASE,
+};
 use crate::calibration::CalibrationError;
+use crate::calibration::FACTOR_RANGE;
 use crate::kinematics::reference::{ArcModel, ArcModelF32};
 use crate::util::num::fmax;
 
-/// The precision of the Jacobian's re-integrations (see the `exact` module docs, *Jacobian in
-/// `f32`*).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Jacobian {
-    /// `f32` ([`ArcModelF32`], step [`JACOBIAN_STEP_F32`]): steers the iterations.
-    F32,
-    /// `f64` ([`ArcModel`], step [`JACOBIAN_STEP`]): defines where the fit ends, and its 1σ.
-    F64,
-}
+/// `∂(right, left, wheelbase)/∂p_i` of the model (row `i`).
+pub(super) type Numbers = [[f64; 3]; 3];
 
 /// The result of one least-squares solve.
 pub(super) struct Solved {
@@ -31,25 +27,26 @@ pub(super) struct Solved {
 }
 
 impl Problem<'_, '_> {
-    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p` in the precision `jacobian` and `r`
-    /// the `f64` residuals (see the module docs, *Jacobian in `f32`*).
+    /// `JᵀWJ` and `JᵀWr` at `p`, with `J = ∂predicted/∂p` and `r` the residuals in the
+    /// precision `jacobian` (see the module docs, *`f32` while iterating*).
     ///
-    /// `at_p` are the residual rows at `p` as [`Problem::cost`] kept them: an end-pose run among
-    /// them gets the analytic Jacobian (one pass over its knots); other runs are re-integrated
-    /// at `p` and for the central differences.
+    /// `at_p` is what [`Problem::cost`] kept at `p`: an end-pose run among it has its residual
+    /// rows and the derivatives of its end pose from one pass there; another end-pose run gets
+    /// that pass here; a path run is re-integrated at `p` (in `f64`) and for the central
+    /// differences.
     pub(super) fn normal(
         &self,
         p: &[f64; 3],
         weights: Option<&[Weight]>,
-        jacobian: Jacobian,
+        jacobian: Precision,
         at_p: Option<&Residuals>,
-    ) -> (Mat, [f64; 3]) {
+    ) -> (Mat, [f64; 3], Numbers) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
         let h = match jacobian {
-            Jacobian::F32 => JACOBIAN_STEP_F32,
-            Jacobian::F64 => JACOBIAN_STEP,
+            Precision::F32 => JACOBIAN_STEP_F32,
+            Precision::F64 => JACOBIAN_STEP,
         };
         // A row's values are v[0] at p (`f64`), v[1 + 2i] at p + h·e_i and v[2 + 2i] at
         // p − h·e_i (in `models[1..]` or in `models32`).
@@ -78,22 +75,22 @@ impl Problem<'_, '_> {
         }
         let at = models[0];
         let (models, models32) = match jacobian {
-            Jacobian::F32 => (&models[..1], &models32[..2 * n]),
-            Jacobian::F64 => (&models[..1 + 2 * n], &models32[..0]),
+            Precision::F32 => (&models[..1], &models32[..2 * n]),
+            Precision::F64 => (&models[..1 + 2 * n], &models32[..0]),
         };
         for (k, run) in self.runs.iter().enumerate() {
             if !Self::usable(run) {
                 continue;
             }
             let w = weight(weights, k);
-            // The rows at p from the cache (`off` = 0) or from `models[0]` (`off` = 1).
-            let kept = Self::kept(k, run, at_p);
-            if let Some(r) = kept {
-                // An end pose with its residuals at hand: the analytic Jacobian, one pass.
-                let (_, d) = match jacobian {
-                    Jacobian::F32 => end_pose_derivatives::<f32>(&at, run.knots),
-                    Jacobian::F64 => end_pose_derivatives::<f64>(&at, run.knots),
+            if !Self::is_path(run) {
+                // An end pose: the analytic Jacobian, from the pass that gave its residual rows
+                // at p (kept by the cost evaluation, or one pass here).
+                let kept = match Self::kept(k, run, at_p) {
+                    Some(kept) => *kept,
+                    None => self.end_pass(run, &at, jacobian),
                 };
+                let (r, d) = (kept.rows, kept.d);
                 let heading = self.heading(run).map(|_| self.heading_length(run));
                 for c in [X, Y, HEADING] {
                     let scale = match (c, heading) {
@@ -115,17 +112,14 @@ impl Problem<'_, '_> {
                 }
                 continue;
             }
-            let (off, models) = match kept {
-                Some(_) => (0, &models[1..]),
-                None => (1, models),
-            };
+            // A path: central differences of re-integrations, `v[0]` the row at p.
             self.rows(run, models, models32, |v, c| {
-                let r = kept.map_or(v[0], |kept| kept[c]);
+                let r = v[0];
                 let w = w.row(c);
                 let mut j = [0.0; 3];
                 for i in 0..n {
                     // residual = measured − predicted, so ∂predicted = −∂residual.
-                    j[i] = -(v[off + 2 * i] - v[off + 1 + 2 * i]) / (2.0 * h);
+                    j[i] = -(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h);
                 }
                 for c in 0..n {
                     g[c] += w * j[c] * r;
@@ -135,7 +129,33 @@ impl Problem<'_, '_> {
                 }
             });
         }
-        (a, g)
+        (a, g, numbers)
+    }
+
+    /// Moves the kept rows of the end-pose runs along a step `delta` by their linearisation,
+    /// `r(p + δ) = r(p) − Jδ` (for a step taken without a pass at its end: the error is of order
+    /// `|δ|²`, below 1e-12 m for the steps [`UNCHECKED_DECREASE`] admits); the derivatives stay
+    /// those at `p`.
+    fn advance(&self, kept: &mut Residuals, numbers: &Numbers, delta: &[f64; 3]) {
+        for (k, run) in self.runs.iter().enumerate().take(RESIDUAL_CACHE) {
+            if !Self::usable(run) || Self::is_path(run) {
+                continue;
+            }
+            let kept = &mut kept[k];
+            // The change of the predicted end pose, by channel.
+            let mut dpred = [0.0; 3];
+            for (c, v) in dpred.iter_mut().enumerate() {
+                for i in 0..self.n {
+                    *v += (0..3).map(|q| kept.d[q][c] * numbers[i][q]).sum::<f64>() * delta[i];
+                }
+            }
+            kept.rows[X] -= dpred[X];
+            kept.rows[Y] -= dpred[Y];
+            if self.heading(run).is_some() {
+                kept.heading_rad -= dpred[HEADING];
+                kept.rows[HEADING] = kept.heading_rad * self.heading_length(run);
+            }
+        }
     }
 
     /// Levenberg–Marquardt from `p` with fixed run weights, steered by a Jacobian in the
@@ -144,20 +164,28 @@ impl Problem<'_, '_> {
         &self,
         mut p: [f64; 3],
         weights: Option<&[Weight]>,
-        jacobian: Jacobian,
+        jacobian: Precision,
         known: Option<&Residuals>,
     ) -> Result<Solved, CalibrationError> {
         let n = self.n;
         // The residual rows at `p` (`known` ones, when given, are those at `p`) and at the
         // trial parameters.
-        let mut at_p: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
-        let mut at_q: Residuals = [[0.0; CHANNELS]; RESIDUAL_CACHE];
+        let mut at_p: Residuals = [Kept::ZERO; RESIDUAL_CACHE];
+        let mut at_q: Residuals = [Kept::ZERO; RESIDUAL_CACHE];
         let start = match known {
             Some(known) => {
                 at_p = *known;
-                self.cost(&p, weights, Some(known), None)
+                self.cost(&p, weights, Some(known), None, jacobian)
             }
-            None => self.cost(&p, weights, None, Some(&mut at_p)),
+            None => self.cost(&p, weights, None, Some(&mut at_p), jacobian),
+        };
+        // The convergence tolerances of the precision the cost is evaluated in.
+        let (step_tolerance, cost_tolerance, unchecked) = match jacobian {
+            // No unchecked steps in `f32`: they would move where the robust rounds settle
+            // (within the weights' tolerance, but visibly in the Monte Carlo's means), and the
+            // `f32` passes are cheap.
+            Precision::F32 => (STEP_TOLERANCE_F32, COST_TOLERANCE_F32, COST_TOLERANCE_F32),
+            Precision::F64 => (STEP_TOLERANCE, COST_TOLERANCE, UNCHECKED_DECREASE),
         };
         let (mut cost, _) = start.ok_or(CalibrationError::OutOfRange)?;
         let mut lambda = 1e-3;
@@ -165,7 +193,7 @@ impl Problem<'_, '_> {
         let mut converged = false;
         while iterations < self.options.max_iterations && !converged {
             iterations += 1;
-            let (a, g) = self.normal(&p, weights, jacobian, Some(&at_p));
+            let (a, g, numbers) = self.normal(&p, weights, jacobian, Some(&at_p));
             loop {
                 let mut aug = a;
                 for (i, row) in aug.iter_mut().enumerate().take(n) {
@@ -177,19 +205,42 @@ impl Problem<'_, '_> {
                 for i in 0..n {
                     q[i] += delta[i];
                 }
-                match self.cost(&q, weights, None, Some(&mut at_q)) {
+                // The decrease of the cost the linearised residuals predict for this step,
+                // `2δᵀg − δᵀAδ` (see the module docs, *`f32` while iterating*): at most the
+                // cost's tolerance, the fit has converged at `p`; at most `unchecked` times the
+                // cost (noisy data, a step that small that the linearisation holds to far below
+                // its size), the step is taken without evaluating it, and the fit has converged.
+                let mut predicted = 0.0;
+                for i in 0..n {
+                    predicted += 2.0 * delta[i] * g[i];
+                    for j in 0..n {
+                        predicted -= delta[i] * a[i][j] * delta[j];
+                    }
+                }
+                if predicted <= unchecked * cost {
+                    if predicted > cost_tolerance * cost
+                        && (0..n).all(|i| FACTOR_RANGE.contains(&q[i]))
+                    {
+                        self.advance(&mut at_p, &numbers, &delta);
+                        p = q;
+                        cost -= predicted;
+                    }
+                    converged = true;
+                    break;
+                }
+                match self.cost(&q, weights, None, Some(&mut at_q), jacobian) {
                     Some((c, _)) if c <= cost => {
-                        at_p = at_q;
+                        core::mem::swap(&mut at_p, &mut at_q);
                         // Also converged when the cost no longer changes in its 13th digit
                         // (noisy data: the minimum is flat, and LM's last steps only shuffle
                         // rounding).
-                        converged = step < STEP_TOLERANCE || cost - c <= COST_TOLERANCE * cost;
+                        converged = step < step_tolerance || cost - c <= cost_tolerance * cost;
                         p = q;
                         cost = c;
                         lambda = fmax(lambda * 0.1, 1e-12);
                         break;
                     }
-                    _ if step < STEP_TOLERANCE => {
+                    _ if step < step_tolerance => {
                         // At the noise floor of the cost: no smaller step can improve it.
                         converged = true;
                         break;
