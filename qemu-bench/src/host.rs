@@ -103,6 +103,13 @@ pub fn control(out: &mut String) -> Result<(), String> {
     use qemu_bench::control;
 
     let mut c = control::controller().map_err(|e| e.to_string())?;
+    let (periods, record) = control::drive_square(&mut c, |_, c, r, l, robot| {
+        let out = c.step(r, l);
+        out.command.apply(robot);
+        out
+    })?;
+    report::run_line(out, "control_square_step", periods, &record).map_err(|e| e.to_string())?;
+    let mut c = control::controller().map_err(|e| e.to_string())?;
     let (periods, record) = control::drive_square(&mut c, control::period)?;
     report::run_line(out, "control_square", periods, &record).map_err(|e| e.to_string())
 }

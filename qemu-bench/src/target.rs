@@ -99,6 +99,7 @@ selector!(bench_select_calibrate, 10);
 selector!(bench_select_apply, 11);
 selector!(bench_select_identify, 12);
 selector!(bench_select_id_report, 13);
+selector!(bench_select_period, 14);
 
 /// One control period of odometry, as the firmware's control task performs it.
 #[inline(never)]
@@ -118,6 +119,13 @@ fn exact_solve(
     nominal: &Geometry,
 ) -> Result<Calibration, CalibrationError> {
     calibrate(runs, nominal, Method::Exact)
+}
+
+/// The controller's own step: encoders, odometry, routine, speed loops (the `control step`
+/// line, the same window as the figures before the app core).
+#[inline(never)]
+fn controller_step(controller: &mut Controller, raw_right: u32, raw_left: u32) -> StepOutput {
+    controller.step(raw_right, raw_left)
 }
 
 /// One period of the control task as the app core runs it (`app::control::period`, `TIM7`'s
@@ -340,16 +348,38 @@ fn main() -> ! {
         ));
     }
 
-    // The control task: a 1 m square with the simulated robot, one window per period.
+    // The controller driving a 1 m square with the simulated robot, one window per step (the
+    // motor command's hand-off outside it).
+    let Ok(mut controller) = control::controller() else {
+        fail("controller configuration rejected")
+    };
+    bench_select_control();
+    let driven = control::drive_square(&mut controller, |_, c, r, l, robot| {
+        // The robot's counter values are materialised before the window opens: otherwise the
+        // compiler may schedule the robot's arithmetic after `bench_start` and it would count
+        // as the controller's.
+        let (r, l) = (black_box(r), black_box(l));
+        bench_start();
+        let out = controller_step(black_box(c), r, l);
+        bench_end();
+        out.command.apply(robot);
+        out
+    });
+    let (periods, record) = match driven {
+        Ok(v) => v,
+        Err(e) => fail(e),
+    };
+    let mut line = heapless_line::Line::new();
+    let _ = report::run_line(&mut line, "control_square_step", periods, &record);
+    out(format_args!("{}", line.as_str()));
+
+    // The control task: the same square, one window per period of the app core.
     let Ok(mut controller) = control::controller() else {
         fail("controller configuration rejected")
     };
     let caller = paint_stack();
-    bench_select_control();
+    bench_select_period();
     let driven = control::drive_square(&mut controller, |h, c, r, l, robot| {
-        // The robot's counter values are materialised before the window opens: otherwise the
-        // compiler may schedule the robot's arithmetic after `bench_start` and it would count
-        // as the controller's.
         let (r, l) = (black_box(r), black_box(l));
         bench_start();
         let out = control_step(black_box(h), black_box(c), r, l, robot);
