@@ -235,8 +235,9 @@ pub const UNCHECKED_DECREASE: f64 = 1e-9;
 /// error it makes over one leg. Measured by transfer (leave one shared OptiOdom session out,
 /// docs/calibration.md, *Transfer*), a larger `k` lowers the mean final position error on the
 /// sessions of other kinds than squares (k = 1, 1.5, 2, 3, 4, 8: 17.3, 16.5, 16.2, 16.1, 16.0,
-/// 16.0 mm calibrated on the 1.7 m squares; 20.9, 20.2, 19.9, 19.8, 19.7, 19.7 mm on every other
-/// session), all of it on the one circle session and against the free paths and the squares, and
+/// 16.0 mm calibrated on the 1.7 m squares; on every other session, with `E_s` fitted from the
+/// straight lines only, 19.8 at k = 1 and 18.0, 17.4, 17.3 at k = 2, 4, 8), all of it on the one
+/// circle session and against the free paths and the squares, and
 /// it costs the robust fit its hold on a slipping start: at k = 2 the slipped run of
 /// 231220200029 keeps weight 0.71 (0.10 at k = 1), and in the Monte Carlo with 5 % slipping
 /// starts the spread of `E_b` grows by 21 % (4 % at k = 1) against the channel-weighted fit
