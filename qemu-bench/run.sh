@@ -180,6 +180,19 @@ awk -v goal="$ODOMETRY_GOAL" -v nres="$n_results" -v fail_in="$fail" -v fidelity
             printf "control period: mean %d max %d instructions\n",
                 int(w["period", "sum"] / w["period", "n"] - empty + 0.5), w["period", "max"] - empty
         } else { print "qemu-bench: FAILED: no control period windows counted"; fail = 1 }
+        # The longest controller lock of the console task: the most a console command delays a
+        # control period (the solve runs outside the lock).
+        # Reads run at any time; settings changes only while the robot is idle.
+        if (w["lock", "n"] > 0 && w["lock_idle", "n"] > 0) {
+            printf "console lock: max %d instructions over %d holds (%.1f us at 168 MHz; reads, at any time)\n",
+                w["lock", "max"] - empty, w["lock", "n"], (w["lock", "max"] - empty) / 168
+            printf "console lock while idle: max %d instructions over %d holds (%.1f us; settings changes)\n",
+                w["lock_idle", "max"] - empty, w["lock_idle", "n"], (w["lock_idle", "max"] - empty) / 168
+            worst = w["lock", "max"] > w["lock_idle", "max"] ? w["lock", "max"] : w["lock_idle", "max"]
+            if ((worst - empty) + (w["period", "max"] - empty) >= 16800) {
+                print "qemu-bench: FAILED: a console lock and a control period exceed the 10 kHz period"; fail = 1
+            }
+        } else { print "qemu-bench: FAILED: no console lock windows counted"; fail = 1 }
         # The controller period during a motor identification (its maximum: the closing period),
         # and the console task polling for the report (its maximum: the poll that takes it).
         if (w["identify", "n"] > 0 && w["id_report", "n"] > 0) {

@@ -11,14 +11,70 @@ use core::fmt;
 use heapless::Vec;
 use odocal::motion::controller::Controller;
 use odocal::motion::run::{MAX_RUNS, RunRecord};
-use odocal::session::library::LibraryCalibrator;
-use odocal::session::{ParamStorage, Session, Settings, StorageError};
+use odocal::session::library::{ControllerLock, LibraryCalibrator};
+use odocal::session::{ParamStorage, Robot, Session, Settings, StorageError};
 use odocal::storage::{RunsLoaded, StoredRun};
 
 use crate::squares::SquareRuns;
 
 /// The console commands the bench counts, in order.
 pub const COMMANDS: [&str; 2] = ["calibrate", "apply exact"];
+
+/// A console session touching every kind of controller access the console task makes: reads
+/// (`status`, `params`, `runs`), every parameter group handed to the controller (limits,
+/// geometry, wiring, tuning, rate, and back), `calibrate` and `apply` (the solve outside any
+/// lock, the geometry under it), `reset-params`. The bench counts every controller lock the
+/// console takes on its way (the firmware's `Locked`): the longest is the most the console
+/// task can delay a control period.
+pub const LOCK_SCRIPT: [&str; 17] = [
+    "status",
+    "params",
+    "runs",
+    "set max_speed 0.25",
+    "set d_right 0.1502",
+    "set d_right 0.15",
+    "set motor_left_sign -1",
+    "set motor_left_sign 1",
+    "set speed_bandwidth 30",
+    "set control_hz 10000",
+    "set control_hz 1000",
+    "calibrate",
+    "apply exact",
+    "status",
+    "reset-params",
+    "params",
+    "status",
+];
+
+/// Whether a console line changes what the controller runs with (`set`, `apply`,
+/// `reset-params`): refused unless the robot is idle, so its locks can only delay a period in
+/// which nothing moves. The others (`status`, `params`, `runs`, `calibrate`) run at any time.
+pub fn changes_settings(line: &str) -> bool {
+    ["set ", "apply", "reset-params"]
+        .iter()
+        .any(|p| line.starts_with(p))
+}
+
+/// The controller behind a lock whose every hold is bracketed by `open` and `close` (the
+/// bench's window markers on the target, nothing on the host): the console task's view of the
+/// controller, as the firmware's RTIC lock gives it.
+pub struct Bracketed<'a> {
+    /// The controller.
+    pub controller: &'a mut Controller,
+    /// Called when the lock is taken.
+    pub open: fn(),
+    /// Called when it is released.
+    pub close: fn(),
+}
+
+impl ControllerLock for Bracketed<'_> {
+    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
+        (self.open)();
+        let r = f(self.controller);
+        (self.close)();
+        r
+    }
+}
 
 /// Storage that holds the fixture runs and nothing else.
 pub struct FixtureRuns<'a>(pub &'a SquareRuns);
@@ -105,7 +161,7 @@ pub fn session(runs: &SquareRuns) -> Session<LibraryCalibrator> {
 /// Executes one console line on `session`; the reply goes into `reply`.
 pub fn command(
     session: &mut Session<LibraryCalibrator>,
-    robot: &mut Controller,
+    robot: &mut dyn Robot,
     runs: &SquareRuns,
     line: &str,
     reply: &mut ReplyHash,

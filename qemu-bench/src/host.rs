@@ -65,6 +65,7 @@ fn run_inner() -> Result<bool, String> {
     report::pose_line(&mut out, "odometry_midpoint", &mid).map_err(|e| e.to_string())?;
     solve(&mut out)?;
     console(&mut out)?;
+    console_locks(&mut out)?;
     control(&mut out)?;
     identify(&mut out)?;
     print!("{out}");
@@ -123,6 +124,33 @@ pub fn identify(out: &mut String) -> Result<(), String> {
     let (periods, report) =
         control::identify(&mut c, control::period, Controller::take_check_report)?;
     report::identify_line(out, "identify_lifted", periods, &report).map_err(|e| e.to_string())
+}
+
+/// The console session of [`qemu_bench::console::LOCK_SCRIPT`] through a controller lock: the
+/// result line.
+pub fn console_locks(out: &mut String) -> Result<(), String> {
+    use odocal::session::library::Locked;
+    use qemu_bench::console::{self, Bracketed};
+    use qemu_bench::squares::SquareRuns;
+
+    let runs = SquareRuns::generate();
+    let mut controller = qemu_bench::control::controller().map_err(|e| e.to_string())?;
+    let mut robot = Locked(Bracketed {
+        controller: &mut controller,
+        open: || {},
+        close: || {},
+    });
+    let mut session = console::session(&runs);
+    let mut reply = console::ReplyHash::default();
+    for line in console::LOCK_SCRIPT {
+        console::command(&mut session, &mut robot, &runs, line, &mut reply);
+    }
+    report::bits_line(
+        out,
+        "console_locks",
+        &[("reply_hash", reply.hash), ("reply_bytes", reply.bytes)],
+    )
+    .map_err(|e| e.to_string())
 }
 
 /// The console's `calibrate` and `apply exact` on the recorded squares: the result line.

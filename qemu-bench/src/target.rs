@@ -31,6 +31,7 @@ use odocal::kinematics::odometry::{Integration, Odometry, OdometryState, Pose};
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::bringup::CheckReport;
 use odocal::motion::controller::{Controller, StepOutput};
+use odocal::session::library::Locked;
 use qemu_bench::console;
 use qemu_bench::control::{self, BenchRobot};
 use qemu_bench::report;
@@ -100,6 +101,8 @@ selector!(bench_select_apply, 11);
 selector!(bench_select_identify, 12);
 selector!(bench_select_id_report, 13);
 selector!(bench_select_period, 14);
+selector!(bench_select_lock, 15);
+selector!(bench_select_lock_idle, 16);
 
 /// One control period of odometry, as the firmware's control task performs it.
 #[inline(never)]
@@ -346,6 +349,37 @@ fn main() -> ! {
         out(format_args!(
             "info stack console high_water={stack} at_call={caller}\n"
         ));
+    }
+
+    // The console task's controller locks (the firmware's `Locked`): one window per hold over
+    // a session touching every kind of access; the longest is the most a console command can
+    // delay a control period.
+    {
+        let Ok(mut controller) = control::controller() else {
+            fail("controller configuration rejected")
+        };
+        let mut robot = Locked(console::Bracketed {
+            controller: &mut controller,
+            open: || bench_start(),
+            close: || bench_end(),
+        });
+        let mut session = console::session(&runs);
+        let mut reply = console::ReplyHash::default();
+        for line in console::LOCK_SCRIPT {
+            if console::changes_settings(line) {
+                bench_select_lock_idle();
+            } else {
+                bench_select_lock();
+            }
+            console::command(black_box(&mut session), &mut robot, &runs, line, &mut reply);
+        }
+        let mut line = heapless_line::Line::new();
+        let _ = report::bits_line(
+            &mut line,
+            "console_locks",
+            &[("reply_hash", reply.hash), ("reply_bytes", reply.bytes)],
+        );
+        out(format_args!("{}", line.as_str()));
     }
 
     // The controller driving a 1 m square with the simulated robot, one window per step (the
