@@ -50,9 +50,12 @@ pub const LOCK_SCRIPT: [&str; 17] = [
 /// `reset-params`): refused unless the robot is idle, so its locks can only delay a period in
 /// which nothing moves. The others (`status`, `params`, `runs`, `calibrate`) run at any time.
 pub fn changes_settings(line: &str) -> bool {
-    ["set ", "apply", "reset-params"]
-        .iter()
-        .any(|p| line.starts_with(p))
+    matches!(
+        odocal::protocol::Command::parse(line),
+        Ok(odocal::protocol::Command::Set { .. }
+            | odocal::protocol::Command::Apply { .. }
+            | odocal::protocol::Command::ResetParams)
+    )
 }
 
 /// The controller behind a lock whose every hold is bracketed by `open` and `close` (the

@@ -452,14 +452,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             return decode_record(&self.buf.0[data]);
         }
         let record = decode_record(&self.buf.0[data]);
-        let copied = params::append(
-            self.map.flash(),
-            &self.params,
-            &mut self.buf.0,
-            len,
-            PARAM_DATA_MAX,
-        )
-        .await;
+        let copied = self.append_param_slot(len).await;
         match copied {
             Ok(_) => {
                 self.moved = self.moved.saturating_add(1);
@@ -472,6 +465,19 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             ),
         }
         record
+    }
+
+    /// Appends the `len` record bytes waiting in the working buffer (after the slot header) as
+    /// the newest slot of the parameter region ([`params::append`]).
+    async fn append_param_slot(&mut self, len: usize) -> Result<params::Slot, StoreError> {
+        params::append(
+            self.map.flash(),
+            &self.params,
+            &mut self.buf.0,
+            len,
+            PARAM_DATA_MAX,
+        )
+        .await
     }
 
     /// Removes an older firmware's record from the run region, if one is left there (only
@@ -504,14 +510,7 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
         let len = record
             .encode(&mut self.buf.0[params::HEADER..])
             .map_err(|_| StoreError::Encoding)?;
-        let saved = params::append(
-            self.map.flash(),
-            &self.params,
-            &mut self.buf.0,
-            len,
-            PARAM_DATA_MAX,
-        )
-        .await;
+        let saved = self.append_param_slot(len).await;
         match saved {
             Ok(_) => Ok(()),
             Err(e) => {

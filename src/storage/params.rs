@@ -121,11 +121,6 @@ pub struct Scan {
 }
 
 impl Scan {
-    /// Nothing at all stored in the region (every byte erased).
-    pub fn blank(&self) -> bool {
-        !self.dirty[0] && !self.dirty[1]
-    }
-
     /// No slot was ever written to the region: each sector is erased or holds something else
     /// from its first byte on (the first save erases it).
     pub fn never_written(&self) -> bool {

@@ -105,6 +105,49 @@ impl Rng {
     }
 }
 
+/// One noisy square with its direction: (direction, recorded knots, odometry end, measurement).
+pub type NoisyRun = (Direction, Vec<WheelTicks>, PoseF64, Measurement);
+
+/// `per_direction` noisy squares CW, then as many CCW ([`noisy_square`], drawn in that order).
+pub fn noisy_squares(
+    belief: &Geometry,
+    truth: &Geometry,
+    side_m: f64,
+    per_direction: u32,
+    args: &MonteCarloArgs,
+    rng: &mut Rng,
+) -> Vec<NoisyRun> {
+    let mut runs = Vec::with_capacity(2 * per_direction as usize);
+    for d in [Direction::Cw, Direction::Ccw] {
+        for _ in 0..per_direction {
+            let (k, o, m) = noisy_square(belief, truth, d, side_m, args, rng);
+            runs.push((d, k, o, m));
+        }
+    }
+    runs
+}
+
+/// Noisy squares of side `side_m` as the calibration reads them, driven believing `belief`.
+pub fn observations<'a>(
+    runs: &'a [NoisyRun],
+    side_m: f64,
+    belief: &Geometry,
+) -> Vec<RunObservation<'a>> {
+    runs.iter()
+        .map(|(d, k, o, m)| RunObservation {
+            path: PathKind::Square {
+                direction: *d,
+                side_m,
+            },
+            geometry: *belief,
+            knots: k,
+            odometry_end: *o,
+            measured: *m,
+            truth_path: &[],
+        })
+        .collect()
+}
+
 /// One noisy square: (recorded knots, odometry end, measurement).
 pub fn noisy_square(
     belief: &Geometry,
@@ -226,27 +269,8 @@ pub fn simulate(args: &MonteCarloArgs) -> Result<Vec<(String, Acc)>, String> {
     let mut acc = vec![Acc::default(); methods.len()];
     let mut rng = Rng::new(args.seed);
     for _ in 0..args.trials {
-        let mut recs = Vec::new();
-        for d in [Direction::Cw, Direction::Ccw] {
-            for _ in 0..args.runs {
-                let (k, o, m) = noisy_square(&nominal, &truth, d, args.side, args, &mut rng);
-                recs.push((d, k, o, m));
-            }
-        }
-        let obs: Vec<_> = recs
-            .iter()
-            .map(|(d, k, o, m)| RunObservation {
-                path: PathKind::Square {
-                    direction: *d,
-                    side_m: args.side,
-                },
-                geometry: nominal,
-                knots: k,
-                odometry_end: *o,
-                measured: *m,
-                truth_path: &[],
-            })
-            .collect();
+        let recs = noisy_squares(&nominal, &truth, args.side, args.runs, args, &mut rng);
+        let obs = observations(&recs, args.side, &nominal);
         for (i, (_, m, options)) in methods.iter().enumerate() {
             match calibrate_with(&obs, &nominal, *m, options) {
                 Ok(c) => acc[i].push(c.e_b / args.eb - 1.0, c.e_d / truth.diameter_ratio() - 1.0),

@@ -24,12 +24,11 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use odocal::calibration::track::{TrackAdviceInput, advise, evaluate};
-use odocal::calibration::{Method, RunObservation, SquareStats, calibrate};
+use odocal::calibration::{Method, SquareStats, calibrate};
 use odocal::kinematics::geometry::Geometry;
-use odocal::motion::run::{Direction, PathKind};
 use rayon::prelude::*;
 
-use crate::experiments::montecarlo::{MonteCarloArgs, Rng, noisy_square};
+use crate::experiments::montecarlo::{MonteCarloArgs, Rng, noisy_squares, observations};
 use crate::experiments::paper::{Format, TruthModel, true_geometry};
 use crate::sim::plot::{Figure, Series, Style, write_svg};
 
@@ -211,27 +210,8 @@ fn trial(
     let nominal = Geometry::PAPER_NOMINAL;
     let mc = mc_args(a, side_m, meas, slip);
     let mut rng = Rng::new(seed);
-    let mut recs = Vec::with_capacity(2 * a.runs as usize);
-    for d in [Direction::Cw, Direction::Ccw] {
-        for _ in 0..a.runs {
-            let (k, o, m) = noisy_square(&nominal, truth, d, side_m, &mc, &mut rng);
-            recs.push((d, k, o, m));
-        }
-    }
-    let obs: Vec<_> = recs
-        .iter()
-        .map(|(d, k, o, m)| RunObservation {
-            path: PathKind::Square {
-                direction: *d,
-                side_m,
-            },
-            geometry: nominal,
-            knots: k,
-            odometry_end: *o,
-            measured: *m,
-            truth_path: &[],
-        })
-        .collect();
+    let recs = noisy_squares(&nominal, truth, side_m, a.runs, &mc, &mut rng);
+    let obs = observations(&recs, side_m, &nominal);
     SWEEP_METHODS.map(|m| {
         calibrate(&obs, &nominal, m)
             .ok()
@@ -267,29 +247,15 @@ pub fn pilot_scatter(a: &SweepArgs, truth: &Geometry, slip: f64, seed: u64) -> O
     let nominal = Geometry::PAPER_NOMINAL;
     let mc = mc_args(a, PILOT_SIDE_M, 0.0, slip);
     let mut rng = Rng::new(seed);
-    let mut recs = Vec::new();
-    for d in [Direction::Cw, Direction::Ccw] {
-        for _ in 0..(5 * a.runs.max(1)) {
-            recs.push((
-                d,
-                noisy_square(&nominal, truth, d, PILOT_SIDE_M, &mc, &mut rng),
-            ));
-        }
-    }
-    let obs: Vec<_> = recs
-        .iter()
-        .map(|(d, (k, o, m))| RunObservation {
-            path: PathKind::Square {
-                direction: *d,
-                side_m: PILOT_SIDE_M,
-            },
-            geometry: nominal,
-            knots: k,
-            odometry_end: *o,
-            measured: *m,
-            truth_path: &[],
-        })
-        .collect();
+    let recs = noisy_squares(
+        &nominal,
+        truth,
+        PILOT_SIDE_M,
+        5 * a.runs.max(1),
+        &mc,
+        &mut rng,
+    );
+    let obs = observations(&recs, PILOT_SIDE_M, &nominal);
     SquareStats::from_runs(&obs, true).ok()?.scatter_m()
 }
 
