@@ -295,8 +295,9 @@ mod app {
         let motors = cx.local.motors;
         let mut controller = cx.shared.controller;
         let (fault, rate_hz) = controller.lock(|c| {
-            c.note_missed_periods(missed);
-            let out = odocal::app::control::period(handoff, c, raw_right, raw_left, press, motors);
+            let out = odocal::app::control::period(
+                handoff, c, missed, raw_right, raw_left, press, motors,
+            );
             (out.fault.is_some(), c.config().rate_hz)
         });
         if let Some(p) = press {

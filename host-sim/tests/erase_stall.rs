@@ -3,20 +3,18 @@
 //! types the next command. After the stall: no fault, the pose includes the roll, and every
 //! byte typed meanwhile is received — the console's DMA ring kept them
 //! ([`odocal::app::rx_ring`]), the control task counts the periods the stall took
-//! ([`odocal::app::control::MissedPeriods`], the cycle counter's view) and takes the counts
+//! ([`odocal::app::control::MissedPeriods`] on the simulated board's cycle counter, handed to
+//! the controller by the app core's period) and takes the counts
 //! that arrived as motion (a stall while idle is expected, not a missed period).
 
 use host_sim::sim::board::Board;
 use host_sim::sim::flash::SimParamFlash;
 use host_sim::sim::robot::sim_config;
-use odocal::app::control::MissedPeriods;
 use odocal::app::rx_ring::{RingCursor, RingRead};
 use odocal::protocol::rx::RxRead;
 
 /// The F407's console ring (`board::f407::console_rx::RX_RING_BYTES`, a target-only module).
 const RING: usize = 512;
-/// The F407's core clock, Hz (the cycle counter `MissedPeriods` reads).
-const CORE_HZ: u32 = 168_000_000;
 
 /// DMA1 stream 5 into the console ring: writes every received byte, sets its half and
 /// complete flags as it crosses them.
@@ -68,14 +66,10 @@ fn a_robot_rolled_back_and_keys_typed_during_an_erase_stall_lose_nothing() {
     let mut out = String::new();
     let mut board =
         Board::boot(sim_config(1.0, 1.0, 0.0, 1, RATE_HZ), &mut flash, &mut out).expect("boot");
-    let mut missed = MissedPeriods::new(CORE_HZ, RATE_HZ);
-    let cycles_per_period = CORE_HZ / RATE_HZ;
-    let mut cycles: u32 = 0;
     // A few ordinary periods at rest: on time, nothing missed.
     for _ in 0..10 {
-        assert_eq!(missed.observe(cycles), 0);
         board.step(&mut out);
-        cycles = cycles.wrapping_add(cycles_per_period);
+        assert_eq!(board.last_missed(), 0);
     }
     let x0 = board.controller.pose().to_f64().x_m;
     let true_x0 = board.sim.true_pose().x_m;
@@ -95,13 +89,13 @@ fn a_robot_rolled_back_and_keys_typed_during_an_erase_stall_lose_nothing() {
         }
     }
     board.sim.set_push(None);
-    cycles = cycles.wrapping_add(STALL_PERIODS * cycles_per_period);
+    board.stall(STALL_PERIODS);
 
-    // The first period after the stall: the cycle counter shows the periods that never ran.
-    let late = missed.observe(cycles);
-    assert_eq!(late, STALL_PERIODS);
-    board.controller.note_missed_periods(late);
+    // The first period after the stall: the cycle counter shows the periods that never ran,
+    // and the app core's period hands them to the controller.
     let step = board.step(&mut out);
+    let late = board.last_missed();
+    assert_eq!(late, STALL_PERIODS);
     assert_eq!(step.fault, None, "the roll is motion, not a glitch");
     let rolled = board.sim.true_pose().x_m - true_x0;
     let moved = board.controller.pose().to_f64().x_m - x0;

@@ -58,7 +58,7 @@ pub fn period(
     raw_left: u32,
     robot: &mut BenchRobot,
 ) -> StepOutput {
-    control::period(handoff, controller, raw_right, raw_left, None, robot)
+    control::period(handoff, controller, 0, raw_right, raw_left, None, robot)
 }
 
 /// Drives [`PATH`] with `controller` and a fresh robot; `step` performs each control period

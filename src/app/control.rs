@@ -9,19 +9,22 @@ use crate::motion::button::Press;
 use crate::motion::controller::{Controller, StepOutput};
 use crate::motion::motor::MotorDriver;
 
-/// One control period: a stop key received since the last period (Ctrl-C, Esc) aborts any
-/// motion first; the controller steps on the raw encoder counts and its command goes to
+/// One control period: the periods missed before it (`missed`, from [`MissedPeriods`]) are
+/// told to the controller; a stop key received since the last period (Ctrl-C, Esc) aborts any
+/// motion; the controller steps on the raw encoder counts and its command goes to
 /// `motors`; a long button press aborts now, not one period later (the controller steps again
 /// and that command goes out too). Returns the period's first step output (its fault is the
 /// one the fault LED shows). The caller hands `press` on to the console task, which acts on it.
 pub fn period<M: MotorDriver>(
     handoff: &Handoff,
     controller: &mut Controller,
+    missed: u32,
     raw_right: u32,
     raw_left: u32,
     press: Option<Press>,
     motors: &mut M,
 ) -> StepOutput {
+    controller.note_missed_periods(missed);
     if handoff.stop_request.swap(false, Ordering::Relaxed) {
         controller.abort();
     }

@@ -16,7 +16,7 @@
 use std::collections::VecDeque;
 
 use odocal::app::console::LineSource;
-use odocal::app::control::Pacing;
+use odocal::app::control::{MissedPeriods, Pacing};
 use odocal::app::serial::LineQueue;
 use odocal::app::{Handoff, console, control, serial};
 use odocal::kinematics::geometry::Geometry;
@@ -37,6 +37,9 @@ use crate::sim::robot::{Sim, SimConfig};
 /// Speed at which the simulated operator pushes the robot during `bringup push`, m/s.
 pub const HAND_PUSH_MPS: f64 = 0.1;
 
+/// The core clock the simulated cycle counter runs at, Hz (the F407's).
+pub const CORE_HZ: u32 = 168_000_000;
+
 /// The simulated board, over a simulated parameter flash that outlives it.
 pub struct Board<'f> {
     /// The simulated robot.
@@ -51,6 +54,10 @@ pub struct Board<'f> {
     handoff: Handoff,
     /// The control period's bookkeeping (retiming after `set control_hz`), as on the board.
     pacing: Pacing,
+    /// Periods missed before each period, from the simulated cycle counter, as on the board.
+    missed: MissedPeriods,
+    /// Periods missed before the last one (what the control task told the controller).
+    last_missed: u32,
     assembler: LineAssembler,
     /// Received lines and stop keys not yet handled by the session.
     input: Input,
@@ -114,6 +121,7 @@ impl<'f> Board<'f> {
         let period_us = 1_000_000 / u64::from(config.rate_hz);
         let handoff = Handoff::new();
         let pacing = Pacing::new(&handoff, config.rate_hz);
+        let missed = MissedPeriods::new(CORE_HZ, config.rate_hz);
         let mut board = Board {
             sim: Sim::new(config),
             controller,
@@ -121,6 +129,8 @@ impl<'f> Board<'f> {
             store,
             handoff,
             pacing,
+            missed,
+            last_missed: 0,
             assembler: LineAssembler::new(),
             input: Input::default(),
             now_us: 0,
@@ -216,6 +226,19 @@ impl<'f> Board<'f> {
         self.running = running;
     }
 
+    /// The CPU stalls for `periods` control periods (a flash erase on the board's single bank):
+    /// no period runs while simulated time goes on. The robot moves meanwhile only as the
+    /// caller moves it ([`Sim::advance`], a hand push); the next period learns from the cycle
+    /// counter how many periods it missed, as the board's control task does.
+    pub fn stall(&mut self, periods: u32) {
+        self.now_us += u64::from(periods) * self.period_us;
+    }
+
+    /// How many periods were missed before the last period ran (0 when it was on time).
+    pub fn last_missed(&self) -> u32 {
+        self.last_missed
+    }
+
     /// One control period: the controller reads the encoders and drives the motors, the robot
     /// moves, and the session gets its periodic poll (finished runs, pose stream).
     pub fn step(&mut self, out: &mut String) -> StepOutput {
@@ -229,10 +252,14 @@ impl<'f> Board<'f> {
         // The simulated operator's hand: during `bringup push` it pushes the robot forward.
         let pushing = matches!(status, Status::Checking(CheckKind::Push));
         self.sim.set_push(pushing.then_some(HAND_PUSH_MPS));
+        // The core's cycle counter at this period's start (it wraps, as the DWT's does).
+        let now_cycles = (self.now_us.wrapping_mul(u64::from(CORE_HZ / 1_000_000))) as u32;
+        let missed = self.missed.observe(now_cycles);
+        self.last_missed = missed;
         let (handoff, controller, pacing) = (&self.handoff, &mut self.controller, &mut self.pacing);
         let mut retime_hz = None;
         let output = self.sim.step_with(|r, l, motors| {
-            let out = control::period(handoff, controller, r, l, None, motors);
+            let out = control::period(handoff, controller, missed, r, l, None, motors);
             // `set control_hz` retimed the controller: the period source follows from this
             // period on, as the board's timer does after the period that saw the new rate.
             retime_hz = pacing
@@ -245,6 +272,7 @@ impl<'f> Board<'f> {
         });
         if let Some(hz) = retime_hz {
             self.period_us = 1_000_000 / u64::from(hz);
+            self.missed.set_rate(hz);
         }
         self.now_us += self.period_us;
         let _ = console::poll(
