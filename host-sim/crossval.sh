@@ -6,7 +6,8 @@
 #   bash host-sim/crossval.sh --by-set [DATA_DIR [REPLAY FLAGS...]]   # the older table by set
 #
 # DATA_DIR (default ../shared/data) holds optiodom/. REPLAY FLAGS go to every calibration (not
-# to the nominal row), e.g. --from-anchor, --channel-weights, --heading-weight K, --raw-truth,
+# to the nominal row), e.g. --from-anchor, --channel-weights, --heading-apart, --heading-weight K,
+# --raw-truth,
 # --scale-from lines|paths|never or --pool sessions. Needs jq.
 #
 # Leave one session out: every shared session in turn is evaluated (final position error and

@@ -194,6 +194,42 @@ fn a_slipping_start_is_flagged_and_does_not_drag_the_factors() {
 }
 
 #[test]
+fn with_the_heading_apart_a_slipping_start_keeps_its_end_position() {
+    // As above (run 2 turned by −75 mrad at its start, 1 mm / 1 mrad tape measure), with the
+    // heading weighted apart: the slip turns the slipped square's end about its start, by
+    // 75 mrad × its 40–60 mm closing error, so its position keeps part of its weight (a few
+    // millimetres against 1 mm of noise) and its heading row almost none; it is flagged.
+    let truth = Robot::paper(0.995, 1.010, 1.0);
+    let apart = ExactOptions {
+        heading_apart: true,
+        ..ExactOptions::default()
+    };
+    let mut worst = 0.0f64;
+    for seed in 1..=20 {
+        let r = runs(&truth, Some(2), -0.075, (1e-3, 1e-3), seed);
+        let c = fit(&r, &apart);
+        let f = c.fit.unwrap();
+        let slipped = f.runs()[2];
+        // The slipped run is flagged. The position's own weight rests on two components
+        // instead of three, so a clean run is flagged more often than with one weight per run
+        // (measured: 4 of the 180 clean runs of these 20 sets).
+        assert!(slipped.outlier, "{slipped:?}");
+        assert!(f.outliers <= 2, "seed {seed}: {f:?}");
+        // Its heading row keeps under 5 % of its position's weight.
+        assert!(
+            slipped.channel_weights[2] < 0.05,
+            "seed {seed}: {slipped:?}"
+        );
+        worst = worst
+            .max((c.e_b / 1.010 - 1.0).abs())
+            .max((c.e_d / 0.995 - 1.0).abs());
+    }
+    // The same bar as the robust fit's above: the slip does not drag the factors.
+    eprintln!("worst relative factor error with the heading apart: {worst:.2e}");
+    assert!(worst < 2e-4, "{worst}");
+}
+
+#[test]
 fn without_outliers_in_noise_the_robust_fit_stays_close_to_the_plain_fit() {
     // Gaussian noise only: the run weights stay near 1, nothing is flagged in 20 sets of 10 runs
     // (a false flag has probability < 0.4 % per run), and the factors move by far less than

@@ -109,6 +109,19 @@
 //!   end heading of every closed path, so in-place turns and circles lose the information that
 //!   calibrates `E_b` best; it is the occasional slipping start, which the run weights handle).
 //!
+//! ## Heading apart
+//!
+//! An option ([`ExactOptions::heading_apart`], off by default). A slipping start turns a run
+//! about its start point: a closed path ends where it would have, and only its end heading
+//! carries the slip. One weight per run then discards its good end position with its bad
+//! heading. With the option the position rows get the Cauchy weight of the x and y components
+//! alone and the heading row one of its own, from its own residual in units of its peers'
+//! heading scale; a run whose heading row ends below [`OUTLIER_WEIGHT`] is flagged as well. In
+//! the Monte Carlo with 5 % slipping starts it keeps the spread of `E_b` where it is without
+//! them, at any heading weight; on the shared OptiOdom sessions it transfers worse (their start
+//! transients are systematic and the paths a calibration is used for start with them too),
+//! docs/calibration.md, *Transfer*, third round.
+//!
 //! # `f32` while iterating
 //!
 //! The fit iterates in `f32` (the Cortex-M4F's FPU; an `f64` operation is a soft-float call

@@ -36,6 +36,10 @@ pub struct ExactOptions {
     /// heading variance among a run's peers, see the `exact` module docs); `false` = by `ℓ`
     /// alone.
     pub channel_weights: bool,
+    /// In the robust fit, give the heading row of a run its own Cauchy weight, from its own
+    /// residual, and the position rows theirs (see the `exact` module docs, *Heading apart*);
+    /// `false` = one weight per run from all its channels.
+    pub heading_apart: bool,
     /// Resolution of a measured position, metres: no channel's scale is taken below its
     /// rounding error `resolution/√12`.
     pub resolution_m: f64,
@@ -57,6 +61,7 @@ impl Default for ExactOptions {
             max_iterations: 100,
             robust: true,
             channel_weights: false,
+            heading_apart: false,
             resolution_m: 1e-3,
             resolution_rad: 0.1 * core::f64::consts::PI / 180.0,
         }

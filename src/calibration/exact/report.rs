@@ -1,7 +1,7 @@
 //! What the exact fit reports per run: residuals against the fitted model, the run's scales and
 //! weights, and whether it was flagged as an outlier.
 
-use super::problem::{Kept, Problem, X, Y};
+use super::problem::{HEADING, Kept, Problem, X, Y};
 use super::robust::{Scales, Weight};
 use super::{MAX_RUN_FITS, OUTLIER_WEIGHT};
 use crate::calibration::wrap_angle;
@@ -127,7 +127,13 @@ impl Problem<'_, '_> {
             scale_heading_rad: scales.and_then(|s| s.heading_rad),
             weight: weight.run,
             channel_weights: weight.channel,
-            outlier: weight.run < OUTLIER_WEIGHT,
+            // With the heading weighted apart, a heading row that lost its weight flags the
+            // run too (its position may still count in full).
+            outlier: weight.run < OUTLIER_WEIGHT
+                || (self.options.heading_apart
+                    && scales.is_some_and(|s| {
+                        weight.channel[HEADING] < OUTLIER_WEIGHT * s.heading_channel
+                    })),
         }
     }
 }

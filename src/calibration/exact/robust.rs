@@ -71,9 +71,43 @@ pub(super) fn weight(weights: Option<&[Weight]>, i: usize) -> Weight {
 pub(super) struct Scales {
     pub(super) position_m: f64,
     pub(super) heading_rad: Option<f64>,
+    /// The heading row's channel weight before any robust weight of its own.
+    pub(super) heading_channel: f64,
+}
+
+/// Cauchy weight of a mean squared residual component `u2` (in units of its scales).
+fn cauchy_weight(u2: f64) -> f64 {
+    1.0 / (1.0 + u2 / (CAUCHY_C * CAUCHY_C))
 }
 
 impl Problem<'_, '_> {
+    /// The weights of `run` from its squared residuals `d2` and the channel variances `s2`,
+    /// with the channel weights `channel` (a priori 1): one Cauchy weight from all its
+    /// components, or with [`ExactOptions::heading_apart`](super::ExactOptions::heading_apart)
+    /// the position's from x and y and the heading row's from the heading alone.
+    fn cauchy(
+        &self,
+        run: &RunObservation<'_>,
+        d2: &[f64; CHANNELS],
+        s2: &[f64; CHANNELS],
+        mut channel: [f64; CHANNELS],
+    ) -> Weight {
+        let z = |c: usize| d2[c] / s2[c];
+        if self.options.heading_apart && self.heading(run).is_some() {
+            let position = cauchy_weight(0.5 * (z(X) + z(Y)));
+            channel[HEADING] *= cauchy_weight(z(HEADING)) / position;
+            return Weight {
+                run: position,
+                channel,
+            };
+        }
+        let u2 = (0..CHANNELS).map(z).sum::<f64>() / self.components(run) as f64;
+        Weight {
+            run: cauchy_weight(u2),
+            channel,
+        }
+    }
+
     /// Whether runs `a` and `b` are peers (see the `exact` module docs).
     pub(super) fn peers(a: &RunObservation<'_>, b: &RunObservation<'_>) -> bool {
         let (la, lb) = (a.characteristic_length_m(), b.characteristic_length_m());
@@ -156,11 +190,13 @@ impl Problem<'_, '_> {
                     let sh = h * self.heading_length(run);
                     s2[HEADING] = sh * sh;
                 }
-                let u2 = (0..CHANNELS).map(|c| d2[i][c] / s2[c]).sum::<f64>()
-                    / self.components(run) as f64;
-                let run_weight = 1.0 / (1.0 + u2 / (CAUCHY_C * CAUCHY_C));
-                stable &= libm::fabs(run_weight - old.run) <= WEIGHT_TOLERANCE;
-                weights[i].run = run_weight;
+                let mut channel = old.channel;
+                channel[HEADING] = held.heading_channel;
+                let new = self.cauchy(run, &d2[i], &s2, channel);
+                stable &= libm::fabs(new.run - old.run) <= WEIGHT_TOLERANCE
+                    && (!self.options.heading_apart
+                        || libm::fabs(new.row(HEADING) - old.row(HEADING)) <= WEIGHT_TOLERANCE);
+                weights[i] = new;
                 continue;
             }
             weights[i] = Weight::ONE;
@@ -194,8 +230,6 @@ impl Problem<'_, '_> {
                 sh2 = Some(s);
                 heading_peers = count;
             }
-            let u2 =
-                (0..CHANNELS).map(|c| d2[i][c] / s2[c]).sum::<f64>() / self.components(run) as f64;
             // Each channel weighted by the pooled position variance over its own, so that the
             // fit stays in metres of position across runs of different kinds.
             let mut channel = [1.0; CHANNELS];
@@ -206,10 +240,7 @@ impl Problem<'_, '_> {
                     channel[HEADING] = sp2 / s2[HEADING];
                 }
             }
-            let new = Weight {
-                run: 1.0 / (1.0 + u2 / (CAUCHY_C * CAUCHY_C)),
-                channel,
-            };
+            let new = self.cauchy(run, &d2[i], &s2, channel);
             stable &= libm::fabs(new.run - old.run) <= WEIGHT_TOLERANCE
                 && (0..CHANNELS).all(|c| {
                     let (a, b) = (old.channel[c], new.channel[c]);
@@ -219,6 +250,7 @@ impl Problem<'_, '_> {
             scales[i] = Some(Scales {
                 position_m: libm::sqrt(sp2),
                 heading_rad: sh2.map(|s| libm::sqrt(s) / self.heading_length(run)),
+                heading_channel: channel[HEADING],
             });
         }
         stable

@@ -95,6 +95,8 @@ pub struct FitOptions {
     /// Weight the residual channels of the robust fit by their own scatter (default: the
     /// library's default, by the run's length a priori).
     pub channel_weights: bool,
+    /// Give each run's end-heading row its own robust weight.
+    pub heading_apart: bool,
 }
 
 impl Default for FitOptions {
@@ -109,6 +111,7 @@ impl Default for FitOptions {
             recorded_truth: false,
             from_start: true,
             channel_weights: ExactOptions::default().channel_weights,
+            heading_apart: ExactOptions::default().heading_apart,
         }
     }
 }
@@ -167,6 +170,7 @@ pub fn calibrate_method(
         heading_weight: fit.heading_weight,
         robust: method != EXACT_LS,
         channel_weights: method != EXACT_LS && fit.channel_weights,
+        heading_apart: method != EXACT_LS && fit.heading_apart,
         ..ExactOptions::default()
     };
     calibrate_with(&obs, &first.nominal, lib_method, &options).map_err(|e| e.to_string())

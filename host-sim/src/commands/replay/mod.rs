@@ -130,6 +130,10 @@ pub struct ReplayArgs {
     /// run's peers (default: the heading by the run's length, a priori).
     #[arg(long)]
     pub channel_weights: bool,
+    /// Give the robust fits' end-heading rows a Cauchy weight of their own (default: the
+    /// library's, one weight per run from all its channels).
+    #[arg(long)]
+    pub heading_apart: bool,
 }
 
 fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
@@ -241,6 +245,7 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         recorded_truth: args.raw_truth,
         from_start: !args.from_anchor,
         channel_weights: args.channel_weights,
+        heading_apart: args.heading_apart || FitOptions::default().heading_apart,
     };
     let all = calibrated_methods();
     let names: Vec<&str> = match args.method.as_deref() {
