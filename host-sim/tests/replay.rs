@@ -146,7 +146,7 @@ fn json_rows_carry_the_fixed_keys_for_every_method() {
     }
     for r in &rows {
         let default = r["default"].as_bool().unwrap();
-        assert_eq!(default, r["method"] == "exact", "{r}");
+        assert_eq!(default, r["method"] == "exact-mocap", "{r}");
         let calibrated = !matches!(r["method"].as_str(), Some("nominal" | "geometry"));
         assert_eq!(
             r["calib_sessions"].as_array().unwrap().len(),

@@ -43,14 +43,18 @@ pub fn calibrate_exact(
         ScaleFit::Never => false,
     };
     let (d0, b0, s0) = factors_of(&first.geometry, nominal);
-    let problem = Problem {
+    let mut problem = Problem {
         runs,
         nominal: *nominal,
         n: if fit_scale { 3 } else { 2 },
         fixed_scale: s0,
         options: *options,
+        groups: Default::default(),
     };
+    problem.groups = problem.offset_groups();
     let n = problem.n;
+    // Two offsets per group are fitted besides the factors.
+    let fitted = n + 2 * problem.groups.count();
     let p0 = [d0, b0, s0];
     if !(0..n).all(|i| FACTOR_RANGE.contains(&p0[i])) {
         return Err(CalibrationError::OutOfRange);
@@ -66,7 +70,7 @@ pub fn calibrate_exact(
         .filter(|r| Problem::usable(r))
         .map(|r| problem.row_count(r))
         .sum();
-    if rows <= n {
+    if rows <= fitted {
         return Err(CalibrationError::Degenerate);
     }
     // The plain least-squares fit: the result, or the robust fit's start.
@@ -133,13 +137,13 @@ pub fn calibrate_exact(
     }
     // Uncertainty from the weighted residual scatter, the weights as relative precisions.
     let (a, _, _) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
-    let sigma2 = if m > n {
-        cost / (m - n) as f64
+    let sigma2 = if m > fitted {
+        cost / (m - fitted) as f64
     } else {
         f64::NAN
     };
     let mut sigma = [None; 3];
-    for (i, s) in sigma.iter_mut().enumerate().take(n).filter(|_| m > n) {
+    for (i, s) in sigma.iter_mut().enumerate().take(n).filter(|_| m > fitted) {
         let mut e = [0.0; 3];
         e[i] = 1.0;
         if let Some(col) = solve(a, e, n) {
@@ -163,6 +167,13 @@ pub fn calibrate_exact(
         fits: [RunFit::EMPTY; MAX_RUN_FITS],
     };
     let known = Some(&solved.residuals);
+    let offsets = problem.offsets(&problem.groups, w, |i, run| {
+        let r = match Problem::kept(i, run, known) {
+            Some(k) => k.rows,
+            None => problem.end_pass(run, &model, Precision::F64).rows,
+        };
+        [r[X], r[Y]]
+    });
     let mut weighted_components = 0.0;
     for (i, run) in runs.iter().enumerate() {
         if !Problem::usable(run) {
@@ -172,7 +183,8 @@ pub fn calibrate_exact(
         weighted_components += wi.run * problem.components(run) as f64;
         let scale = if reweighted { scales[i] } else { None };
         let kept = Problem::kept(i, run, known);
-        let rf = problem.run_fit(i, &model, kept, wi, scale);
+        let offset = problem.group(&problem.groups, run).map(|g| offsets[g]);
+        let rf = problem.run_fit(i, &model, kept, wi, scale, offset);
         if rf.outlier {
             fit.outliers += 1;
         }

@@ -122,6 +122,25 @@
 //! transients are systematic and the paths a calibration is used for start with them too),
 //! docs/calibration.md, *Transfer*, third round.
 //!
+//! ## End offset
+//!
+//! An option ([`ExactOptions::end_offset`], off by default; on in `host-sim replay`'s default for
+//! motion-capture logs). The end positions of a session's squares can share an offset that no
+//! wheel geometry makes: on the shared OptiOdom 1.7 m squares +16 to +20 mm along the first
+//! leg, in both turn directions. A wheelbase or diameter error moves CW and CCW ends apart;
+//! a common offset (where the start is read, how the robot stops) moves them together, and the
+//! fit without it reads part of it as geometry. With the option, the closed paths (squares,
+//! circles) measured at their end with their heading, of one kind and size ([`PEER_LENGTH_RATIO`])
+//! and with runs in both directions, share an offset `(x, y)` fitted besides the factors: for
+//! given factors it is their weighted mean residual, so the fit minimises the residuals about it
+//! (variable projection: the cost and the normal equations less each group's mean, two degrees
+//! of freedom per group). Without headings the offset would take what CW and CCW ends share of
+//! `E_d` and `E_b` too, so runs without a heading get none. The position then says less about
+//! the wheelbase and the heading more: with motion capture (headings to a milliradian) it
+//! transfers better, with a heading measured by hand the factors scatter more (docs/calibration.md,
+//! *Transfer*, third round: `E_b` spread 7.9e-4 against 5.8e-4 with a 10 mrad heading). Each run reports its group's offset
+//! ([`RunFit::end_offset_m`]).
+//!
 //! # `f32` while iterating
 //!
 //! The fit iterates in `f32` (the Cortex-M4F's FPU; an `f64` operation is a soft-float call
@@ -201,6 +220,7 @@
 mod fit;
 mod jacobian;
 mod linalg;
+mod offset;
 mod options;
 mod problem;
 mod report;
@@ -254,7 +274,10 @@ pub const UNCHECKED_DECREASE: f64 = 1e-9;
 /// it costs the robust fit its hold on a slipping start: at k = 2 the slipped run of
 /// 231220200029 keeps weight 0.71 (0.10 at k = 1), and in the Monte Carlo with 5 % slipping
 /// starts the spread of `E_b` grows by 21 % (4 % at k = 1) against the channel-weighted fit
-/// before. k = 1 keeps that robustness.
+/// before. k = 1 keeps that robustness, and a heading measured by hand does not decide the fit.
+/// Where headings come from motion capture, `host-sim replay`'s default (`exact-mocap`) takes
+/// k = 3 with the end offset ([`ExactOptions::end_offset`]; docs/calibration.md, *Transfer*,
+/// third round).
 pub const HEADING_WEIGHT: f64 = 1.0;
 
 /// Cauchy constant `c` of the robust weights (95 % efficiency at the normal model).

@@ -40,6 +40,10 @@ pub struct ExactOptions {
     /// residual, and the position rows theirs (see the `exact` module docs, *Heading apart*);
     /// `false` = one weight per run from all its channels.
     pub heading_apart: bool,
+    /// Fit an end-position offset common to the closed paths of one kind and size measured with
+    /// their heading, with runs in both turn directions (see the `exact` module docs, *End
+    /// offset*); `false` = every end position as measured.
+    pub end_offset: bool,
     /// Resolution of a measured position, metres: no channel's scale is taken below its
     /// rounding error `resolution/√12`.
     pub resolution_m: f64,
@@ -62,6 +66,7 @@ impl Default for ExactOptions {
             robust: true,
             channel_weights: false,
             heading_apart: false,
+            end_offset: false,
             resolution_m: 1e-3,
             resolution_rad: 0.1 * core::f64::consts::PI / 180.0,
         }

@@ -2,6 +2,7 @@
 //! residual rows of each run (end pose, or positions along the path) and the weighted cost.
 
 use super::jacobian::end_pose_derivatives;
+use super::offset::{Groups, Sums};
 use super::robust::{Weight, weight};
 use super::{ExactOptions, MAX_RUN_FITS};
 use crate::calibration::{FACTOR_RANGE, RunObservation, wrap_angle};
@@ -74,6 +75,8 @@ pub(super) struct Problem<'r, 'a> {
     pub(super) n: usize,
     pub(super) fixed_scale: f64,
     pub(super) options: ExactOptions,
+    /// The groups of runs that share an end offset ([`Problem::offset_groups`]).
+    pub(super) groups: Groups,
 }
 
 impl Problem<'_, '_> {
@@ -280,11 +283,13 @@ impl Problem<'_, '_> {
         let model = ArcModel::from_geometry(&self.geometry(p));
         let mut ss = 0.0;
         let mut m = 0;
+        let mut sums = Sums::default();
         for (i, run) in self.runs.iter().enumerate() {
             if Self::usable(run) {
+                let group = self.group(&self.groups, run);
                 let kept = match Self::kept(i, run, known) {
                     Some(k) => Some(*k),
-                    None if residuals.is_some() && !Self::is_path(run) => {
+                    None if (residuals.is_some() || group.is_some()) && !Self::is_path(run) => {
                         Some(self.end_pass(run, &model, precision))
                     }
                     None => None,
@@ -300,8 +305,12 @@ impl Problem<'_, '_> {
                 let w = weight(weights, i);
                 ss += (0..CHANNELS).map(|c| w.row(c) * d2[c]).sum::<f64>();
                 m += self.components(run);
+                if let (Some(g), Some(k)) = (group, kept) {
+                    sums.add(g, X, w.row(X), k.rows[X], &[0.0; 3]);
+                    sums.add(g, Y, w.row(Y), k.rows[Y], &[0.0; 3]);
+                }
             }
         }
-        Some((ss, m))
+        Some((ss - sums.cost_reduction(), m))
     }
 }

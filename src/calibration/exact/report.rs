@@ -13,7 +13,8 @@ use crate::kinematics::reference::{ArcModel, PoseF64};
 pub struct RunFit {
     /// Index of the run in the input slice.
     pub index: usize,
-    /// End-pose residual `measured − predicted` in x, metres, with the fitted geometry.
+    /// End-pose residual `measured − predicted` in x, metres, with the fitted geometry (less
+    /// the end offset of the run's group, when it has one).
     pub residual_x_m: f64,
     /// End-pose residual in y, metres.
     pub residual_y_m: f64,
@@ -35,6 +36,9 @@ pub struct RunFit {
     pub channel_weights: [f64; 3],
     /// The weight ended below [`OUTLIER_WEIGHT`]: the run disagrees with its peers.
     pub outlier: bool,
+    /// The end offset `(x, y)` of the run's group, metres, when one was fitted (see the `exact`
+    /// module docs, *End offset*).
+    pub end_offset_m: Option<[f64; 2]>,
 }
 
 impl RunFit {
@@ -49,6 +53,7 @@ impl RunFit {
         weight: 1.0,
         channel_weights: [1.0; 3],
         outlier: false,
+        end_offset_m: None,
     };
 }
 
@@ -89,6 +94,7 @@ impl Problem<'_, '_> {
         kept: Option<&Kept>,
         weight: Weight,
         scales: Option<Scales>,
+        end_offset_m: Option<[f64; 2]>,
     ) -> RunFit {
         let run = &self.runs[index];
         let (residual_x_m, residual_y_m, residual_theta_rad) = match kept {
@@ -117,10 +123,11 @@ impl Problem<'_, '_> {
             }
             libm::sqrt(ss / (run.knots.len() - 1) as f64)
         });
+        let [offset_x, offset_y] = end_offset_m.unwrap_or_default();
         RunFit {
             index,
-            residual_x_m,
-            residual_y_m,
+            residual_x_m: residual_x_m - offset_x,
+            residual_y_m: residual_y_m - offset_y,
             residual_theta_rad,
             path_rms_m,
             scale_m: scales.map(|s| s.position_m),
@@ -134,6 +141,7 @@ impl Problem<'_, '_> {
                     && scales.is_some_and(|s| {
                         weight.channel[HEADING] < OUTLIER_WEIGHT * s.heading_channel
                     })),
+            end_offset_m,
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The robust weighting: per-run Cauchy weights and per-channel weights from the scatter of each
 //! run's peers (see the module docs of [`super`], *Robust fit*).
 
-use super::problem::{CHANNELS, HEADING, Problem, Residuals, X, Y, squares};
+use super::problem::{CHANNELS, HEADING, Precision, Problem, Residuals, X, Y, squares};
 use super::{
     CAUCHY_C, CHANNEL_TOLERANCE, MAX_WEIGHTED_RUNS, MIN_CHANNEL_PEERS, MIN_PEERS,
     PEER_LENGTH_RATIO, WEIGHT_TOLERANCE,
@@ -133,20 +133,37 @@ impl Problem<'_, '_> {
         let mut stable = true;
         let model = ArcModel::from_geometry(&self.geometry(p));
         let runs = &self.runs[..self.runs.len().min(MAX_WEIGHTED_RUNS)];
+        // A grouped run's residual rows are taken about its group's offset (with the weights
+        // the parameters were fitted with).
+        let end_rows = |i: usize, run: &RunObservation<'_>| match Self::kept(i, run, known) {
+            Some(k) => k.rows,
+            None => self.end_pass(run, &model, Precision::F64).rows,
+        };
+        let offsets = self.offsets(&self.groups, Some(&weights[..runs.len()]), |i, run| {
+            let r = end_rows(i, run);
+            [r[X], r[Y]]
+        });
         // Squared x, y and (ℓ-scaled) heading residuals of every run.
         let mut d2 = [[0.0; CHANNELS]; MAX_WEIGHTED_RUNS];
         let mut m = 0;
         for (i, run) in runs.iter().enumerate() {
             if Self::usable(run) {
-                d2[i] = match Self::kept(i, run, known) {
-                    Some(k) => squares(&k.rows),
-                    None => self.distance2(run, &model),
+                d2[i] = match (self.group(&self.groups, run), Self::kept(i, run, known)) {
+                    (Some(g), _) => {
+                        let mut r = end_rows(i, run);
+                        r[X] -= offsets[g][0];
+                        r[Y] -= offsets[g][1];
+                        squares(&r)
+                    }
+                    (None, Some(k)) => squares(&k.rows),
+                    (None, None) => self.distance2(run, &model),
                 };
                 m += self.components(run);
             }
         }
-        let dof = if m > self.n {
-            m as f64 / (m - self.n) as f64
+        let fitted = self.n + 2 * self.groups.count();
+        let dof = if m > fitted {
+            m as f64 / (m - fitted) as f64
         } else {
             1.0
         };

@@ -3,6 +3,7 @@
 //! Levenberg–Marquardt with fixed run weights.
 
 use super::linalg::{Mat, solve};
+use super::offset::Sums;
 use super::problem::{HEADING, Kept, MODELS, Precision, Problem, RESIDUAL_CACHE, Residuals, X, Y};
 use super::robust::{Weight, weight};
 use super::{
@@ -44,6 +45,7 @@ impl Problem<'_, '_> {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
         let mut g = [0.0; 3];
+        let mut sums = Sums::default();
         let h = match jacobian {
             Precision::F32 => JACOBIAN_STEP_F32,
             Precision::F64 => JACOBIAN_STEP,
@@ -91,6 +93,7 @@ impl Problem<'_, '_> {
                     None => self.end_pass(run, &at, jacobian),
                 };
                 let (r, d) = (kept.rows, kept.d);
+                let group = self.group(&self.groups, run);
                 let heading = self.heading(run).map(|_| self.heading_length(run));
                 for c in [X, Y, HEADING] {
                     let scale = match (c, heading) {
@@ -108,6 +111,9 @@ impl Problem<'_, '_> {
                         for f in 0..n {
                             a[e][f] += w * j[e] * j[f];
                         }
+                    }
+                    if let (Some(gi), X | Y) = (group, c) {
+                        sums.add(gi, c, w, r[c], &j);
                     }
                 }
                 continue;
@@ -129,6 +135,7 @@ impl Problem<'_, '_> {
                 }
             });
         }
+        sums.project(&mut a, &mut g, n);
         (a, g, numbers)
     }
 

@@ -136,6 +136,20 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
     if f.run_count > f.runs().len() {
         println!("      ({} more runs)", f.run_count - f.runs().len());
     }
+    // The end offsets fitted (one per group of closed paths of one kind and size), each once.
+    let mut offsets: Vec<[f64; 2]> = Vec::new();
+    for o in f.runs().iter().filter_map(|r| r.end_offset_m) {
+        if !offsets.contains(&o) {
+            offsets.push(o);
+        }
+    }
+    for [x, y] in offsets {
+        println!(
+            "    end offset common to a group of closed paths (truth − fit): x {:+.1} mm, y {:+.1} mm",
+            x * 1e3,
+            y * 1e3
+        );
+    }
 }
 
 pub(super) fn print_text(

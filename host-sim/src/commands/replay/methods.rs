@@ -1,7 +1,8 @@
 //! The parameter sets `replay` evaluates and how each is calibrated: the library's methods by
 //! name, `exact-ls` and `exact-path` (the exact fit by plain least squares, and to the ground
-//! truth along every run's whole path), `nominal`, and an absolute `--geometry`; the fit options
-//! the command line sets.
+//! truth along every run's whole path), `exact-mocap` (the exact fit for end headings measured
+//! by motion capture, the default), `nominal`, and an absolute `--geometry`; the fit options the
+//! command line sets.
 
 use odocal::calibration::{Calibration, ExactOptions, Method, ScaleFit, calibrate_with};
 use odocal::kinematics::geometry::Geometry;
@@ -12,6 +13,16 @@ use crate::sim::optiodom::{Kind, Session};
 pub const EXACT_LS: &str = "exact-ls";
 /// The exact fit along the ground-truth path.
 pub const EXACT_PATH: &str = "exact-path";
+/// The exact fit of logs whose end headings come from motion capture: the end heading weighted
+/// by [`MOCAP_HEADING_WEIGHT`] times the run's length and an end offset per group of closed
+/// paths (`ExactOptions::end_offset`). `replay`'s default; `exact` is the board's fit.
+pub const EXACT_MOCAP: &str = "exact-mocap";
+/// Heading weight `k` of [`EXACT_MOCAP`]: chosen by transfer (docs/calibration.md, *Transfer*,
+/// third round), the smallest `k` within 0.1 mm of the best mean final error on the other kinds
+/// in both rows (from the 1.7 m squares 16.1, 16.0, 16.0, 16.0 mm at k = 2, 3, 4, 8; from every
+/// other session 17.7, 17.5, 17.4, 17.4). A motion-capture heading is good to about a milliradian;
+/// an operator's is not, and the board keeps the library's `k` = 1 without an offset.
+pub const MOCAP_HEADING_WEIGHT: f64 = 3.0;
 /// The uncalibrated row.
 pub const NOMINAL: &str = "nominal";
 /// The `--geometry` row.
@@ -20,13 +31,14 @@ pub const GEOMETRY: &str = "geometry";
 /// Every calibrated parameter set, in display order.
 pub fn calibrated_methods() -> Vec<&'static str> {
     let mut v: Vec<&'static str> = Method::ALL.iter().map(|m| m.as_str()).collect();
-    v.extend([EXACT_LS, EXACT_PATH]);
+    v.extend([EXACT_LS, EXACT_PATH, EXACT_MOCAP]);
     v
 }
 
-/// The name of the method a user gets by default.
+/// The name of the parameter set `replay` marks as its default: the exact fit for
+/// motion-capture end poses ([`EXACT_MOCAP`]).
 pub fn default_method() -> &'static str {
-    Method::Exact.as_str()
+    EXACT_MOCAP
 }
 
 /// One parameter set to evaluate.
@@ -86,8 +98,9 @@ pub struct FitOptions {
     pub pool: Pool,
     /// Heading residual length scale.
     pub heading_length_m: Option<f64>,
-    /// Multiplier of each end-pose run's length in its heading residual's length scale.
-    pub heading_weight: f64,
+    /// Multiplier of each end-pose run's length in its heading residual's length scale (`None`:
+    /// each method's own, [`MOCAP_HEADING_WEIGHT`] for [`EXACT_MOCAP`], the library's otherwise).
+    pub heading_weight: Option<f64>,
     /// Calibrate against the ground truth as recorded (not turned by its heading offset).
     pub recorded_truth: bool,
     /// Calibrate from each run's first knot, not from its anchor.
@@ -97,6 +110,8 @@ pub struct FitOptions {
     pub channel_weights: bool,
     /// Give each run's end-heading row its own robust weight.
     pub heading_apart: bool,
+    /// Fit an end offset per group of closed paths.
+    pub end_offset: bool,
 }
 
 impl Default for FitOptions {
@@ -107,11 +122,12 @@ impl Default for FitOptions {
             scale_from: ScaleRuns::default(),
             pool: Pool::default(),
             heading_length_m: None,
-            heading_weight: ExactOptions::default().heading_weight,
+            heading_weight: None,
             recorded_truth: false,
             from_start: true,
             channel_weights: ExactOptions::default().channel_weights,
             heading_apart: ExactOptions::default().heading_apart,
+            end_offset: ExactOptions::default().end_offset,
         }
     }
 }
@@ -129,8 +145,9 @@ pub fn calibrate_method(
     // A free path is fitted along its whole path by every exact fit: its end pose alone (a few
     // numbers from a path of metres that need not close) does not determine the factors.
     let along_path = |kind: Kind| method == EXACT_PATH || kind == Kind::Free;
+    let mocap = method == EXACT_MOCAP;
     let lib_method = match method {
-        EXACT_LS | EXACT_PATH => Method::Exact,
+        EXACT_LS | EXACT_PATH | EXACT_MOCAP => Method::Exact,
         m => Method::parse(m).ok_or_else(|| format!("unknown method {m:?}"))?,
     };
     let obs: Vec<_> = sessions
@@ -167,10 +184,15 @@ pub fn calibrate_method(
         },
         use_heading: fit.heading,
         heading_length_m: fit.heading_length_m,
-        heading_weight: fit.heading_weight,
+        heading_weight: fit.heading_weight.unwrap_or(if mocap {
+            MOCAP_HEADING_WEIGHT
+        } else {
+            ExactOptions::default().heading_weight
+        }),
         robust: method != EXACT_LS,
         channel_weights: method != EXACT_LS && fit.channel_weights,
         heading_apart: method != EXACT_LS && fit.heading_apart,
+        end_offset: fit.end_offset || mocap,
         ..ExactOptions::default()
     };
     calibrate_with(&obs, &first.nominal, lib_method, &options).map_err(|e| e.to_string())
@@ -207,7 +229,7 @@ pub fn calibrated_sets(calib: &[Session], names: &[&str], fit: &FitOptions) -> V
     let ids: Vec<String> = calib.iter().map(|s| s.id.clone()).collect();
     let mut sets = Vec::new();
     for name in names {
-        let exact = [Method::Exact.as_str(), EXACT_LS, EXACT_PATH].contains(name);
+        let exact = [Method::Exact.as_str(), EXACT_LS, EXACT_PATH, EXACT_MOCAP].contains(name);
         if exact && fit.pool == Pool::Sessions && calib.len() > 1 {
             match super::pooled::calibrate_pooled(calib, name, fit) {
                 Ok(set) => sets.push(set),

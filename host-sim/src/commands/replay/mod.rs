@@ -15,7 +15,12 @@
 //! add `E_s`), free paths fitted along their whole path (an end pose of a path that need not
 //! close says little) —, `exact-ls` (the same fit by plain least squares) and `exact-path` (the robust
 //! exact fit to the ground truth along every run's whole path, as a user with a motion-capture log
-//! can do). Without `--method` every one is evaluated; with it, that one and `nominal`.
+//! can do), and `exact-mocap`, **the default here**: the robust exact fit of the end poses read
+//! as motion capture measures them, the end heading (good to a milliradian) weighted by three
+//! times the run's length and an end offset per group of closed paths fitted besides the
+//! factors ([`methods::EXACT_MOCAP`]; chosen by transfer, docs/calibration.md, *Transfer*).
+//! `exact` is what the board computes from the same end poses. Without `--method` every one is
+//! evaluated; with it, that one and `nominal`.
 //!
 //! **Calibration** uses each session's nominal geometry as the belief the runs were driven with;
 //! the result is absolute, so sessions with different nominal values can be mixed. It reads the
@@ -38,7 +43,7 @@
 //! path_rms_m, path_max_m, E_b, E_d, E_s, D_R_m, D_L_m, b_m`, then one summary object per
 //! parameter set with `"session": "all"`, `"kind": "all"`, `"run": "all"`, the means over the
 //! evaluated runs and, under `sessions`, the means per session. The `method` a user gets by
-//! default (`exact`) carries `"default": true`. The same lines go to `<out>/replay.jsonl`; next to
+//! default here (`exact-mocap`) carries `"default": true`. The same lines go to `<out>/replay.jsonl`; next to
 //! it, each evaluated free-path run gets a plot of its paths (ground truth, nominal odometry,
 //! calibrated odometry) and of the position error along it.
 //!
@@ -113,8 +118,8 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub heading_length: Option<f64>,
     /// Multiplier of each run's length in the exact fits' heading residuals (the side of a
-    /// square, the radius of a circle, the wheel travel of a line or turn; default: the
-    /// library's, odocal::calibration::exact::HEADING_WEIGHT).
+    /// square, the radius of a circle, the wheel travel of a line or turn; default: 3 for
+    /// `exact-mocap`, the library's odocal::calibration::exact::HEADING_WEIGHT for the others).
     #[arg(long)]
     pub heading_weight: Option<f64>,
     /// Calibrate against the ground truth as recorded, without turning it by the session's
@@ -134,6 +139,10 @@ pub struct ReplayArgs {
     /// library's, one weight per run from all its channels).
     #[arg(long)]
     pub heading_apart: bool,
+    /// Fit an end-position offset common to the closed paths of one kind and size measured
+    /// with their heading (default: the library's).
+    #[arg(long)]
+    pub end_offset: bool,
 }
 
 fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
@@ -239,13 +248,12 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         scale_from: args.scale_from,
         pool: args.pool,
         heading_length_m: args.heading_length,
-        heading_weight: args
-            .heading_weight
-            .unwrap_or(FitOptions::default().heading_weight),
+        heading_weight: args.heading_weight,
         recorded_truth: args.raw_truth,
         from_start: !args.from_anchor,
         channel_weights: args.channel_weights,
         heading_apart: args.heading_apart || FitOptions::default().heading_apart,
+        end_offset: args.end_offset || FitOptions::default().end_offset,
     };
     let all = calibrated_methods();
     let names: Vec<&str> = match args.method.as_deref() {
