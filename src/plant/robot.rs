@@ -124,14 +124,15 @@ const NODES: [f64; 3] = [
 ];
 const WEIGHTS: [f64; 3] = [5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0];
 
-/// A wheel's lag decays for a sub-step `h` and time constant `τ`: `exp(−h/τ)` and
-/// `exp(−t/τ)` at the quadrature's nodes `t` of the period `n·h` (0 for τ = 0: no lag).
+/// A wheel's lag decays for a sub-step `h` and time constant `τ`: `exp(−h/τ)`, and at each of
+/// the quadrature's nodes `t` of the period `n·h` the decay `exp(−t/τ)` and the rotation per
+/// unit of initial lag up to it, `τ (1 − exp(−t/τ))` (0 and 0 for τ = 0: no lag).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Decay {
     h: f64,
     tau: f64,
     substep: f64,
-    nodes: [f64; 3],
+    nodes: [(f64, f64); 3],
 }
 
 impl Decay {
@@ -140,8 +141,20 @@ impl Decay {
         h: f64::NAN,
         tau: f64::NAN,
         substep: f64::NAN,
-        nodes: [f64::NAN; 3],
+        nodes: [(f64::NAN, f64::NAN); 3],
     };
+}
+
+/// The sine and cosine of the heading at the start of a period, from an anchor heading whose
+/// sine and cosine were computed exactly, by the angle-addition formulas for the difference
+/// (below 0.01 rad: its series): no error accumulates from period to period, and the library
+/// call is needed only when the heading has moved 0.01 rad from the anchor (a call per ten
+/// periods in a turn, rarely on a leg).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Heading {
+    anchor: f64,
+    sin: f64,
+    cos: f64,
 }
 
 /// `(sin δ, cos δ − 1)` for a heading change δ within a period: their Taylor series to `δ⁷`
@@ -180,6 +193,8 @@ pub struct Robot<N: Numerics = Portable> {
     /// The last decays of each wheel's lag (over a sub-step and to the quadrature's nodes):
     /// commands change rarely, so most periods reuse them.
     decay: [Decay; 2],
+    /// The heading's sine and cosine anchor.
+    heading: Heading,
     numerics: PhantomData<N>,
 }
 
@@ -196,6 +211,11 @@ impl<N: Numerics> Robot<N> {
             raw_offset: (0, 0),
             push_mps: None,
             decay: [Decay::NONE; 2],
+            heading: Heading {
+                anchor: 0.0,
+                sin: 0.0,
+                cos: 1.0,
+            },
             numerics: PhantomData,
         }
     }
@@ -296,6 +316,27 @@ impl<N: Numerics> Robot<N> {
         self.command
     }
 
+    /// `(sin θ, cos θ)` of the heading `theta` ([`Heading`]).
+    fn heading_sin_cos(&mut self, theta: f64) -> (f64, f64) {
+        let h = &mut self.heading;
+        let d = theta - h.anchor;
+        if libm::fabs(d) < 0.01 {
+            let (sin_d, cos_d_1) = turn::<N>(d);
+            (
+                h.sin + (h.sin * cos_d_1 + h.cos * sin_d),
+                h.cos + (h.cos * cos_d_1 - h.sin * sin_d),
+            )
+        } else {
+            let (sin, cos) = N::sin_cos(theta);
+            *h = Heading {
+                anchor: theta,
+                sin,
+                cos,
+            };
+            (sin, cos)
+        }
+    }
+
     /// Simulates one control period with the current command.
     pub fn advance(&mut self) {
         self.advance_slipping(1.0, 1.0);
@@ -372,7 +413,10 @@ impl<N: Numerics> Robot<N> {
                     h,
                     tau,
                     substep: exp(h),
-                    nodes: NODES.map(|f| exp(f * period_s)),
+                    nodes: NODES.map(|f| {
+                        let e = exp(f * period_s);
+                        (e, tau * (1.0 - e))
+                    }),
                 };
             }
             *cache
@@ -381,12 +425,11 @@ impl<N: Numerics> Robot<N> {
         let (decay_r, decay_l) = (decay(cache_r, tau_r), decay(cache_l, tau_l));
         let e = N::Pair::new(decay_r.substep, decay_l.substep);
         let target = N::Pair::new(target_r, target_l);
-        let tau = N::Pair::new(tau_r, tau_l);
         let lag = Lag {
             n,
             target,
             target_h: target * N::Pair::splat(h),
-            tau,
+            tau: N::Pair::new(tau_r, tau_l),
             e,
             one_minus_e: N::Pair::splat(1.0) - e,
             cpr: N::Pair::splat(f64::from(g.counts_per_rev)),
@@ -416,10 +459,9 @@ impl<N: Numerics> Robot<N> {
             .zip(WEIGHTS)
             .zip(decay_r.nodes.into_iter().zip(decay_l.nodes))
         {
-            let en = N::Pair::new(node_r, node_l);
-            let speed = (target + lag0 * en) * ground;
+            let speed = (target + lag0 * N::Pair::new(node_r.0, node_l.0)) * ground;
             let rotation = (target * N::Pair::splat(f * period_s)
-                + lag0 * tau * (N::Pair::splat(1.0) - en))
+                + lag0 * N::Pair::new(node_r.1, node_l.1))
                 * ground;
             let v = 0.5 * (speed.a() + speed.b());
             let (sin_d, cos_d_1) = turn::<N>((rotation.a() - rotation.b()) / g.wheelbase_m);
@@ -429,7 +471,7 @@ impl<N: Numerics> Robot<N> {
         let along = 0.5 * (ds_r + ds_l) + period_s * along;
         let across = period_s * across;
         let theta0 = self.pose.theta_rad;
-        let (s0, c0) = N::sin_cos(theta0);
+        let (s0, c0) = self.heading_sin_cos(theta0);
         self.pose.x_m += c0 * along - s0 * across;
         self.pose.y_m += s0 * along + c0 * across;
         self.pose.theta_rad = theta0 + (ds_r - ds_l) / g.wheelbase_m;
