@@ -148,8 +148,8 @@ impl Decay {
 /// The sine and cosine of the heading at the start of a period, from an anchor heading whose
 /// sine and cosine were computed exactly, by the angle-addition formulas for the difference
 /// (below 0.01 rad: its series): no error accumulates from period to period, and the library
-/// call is needed only when the heading has moved 0.01 rad from the anchor (a call per ten
-/// periods in a turn, rarely on a leg).
+/// call is needed only when the heading has moved 0.01 rad from the anchor (every ten periods
+/// of a 1 rad/s turn at 1 kHz, rarely on a leg).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Heading {
     anchor: f64,
