@@ -2,7 +2,7 @@
 //! step, the motors, a long press's abort, and the period's bookkeeping (retiming after
 //! `set control_hz`, the heartbeat).
 
-use core::sync::atomic::Ordering;
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use super::Handoff;
 use crate::motion::button::Press;
@@ -25,7 +25,7 @@ pub fn period<M: MotorDriver>(
     motors: &mut M,
 ) -> StepOutput {
     controller.note_missed_periods(missed);
-    if handoff.stop_request.swap(false, Ordering::Relaxed) {
+    if take_flag(&handoff.stop_request) {
         controller.abort();
     }
     let out = controller.step(raw_right, raw_left);
@@ -35,6 +35,16 @@ pub fn period<M: MotorDriver>(
         controller.step(raw_right, raw_left).command.apply(motors);
     }
     out
+}
+
+/// Takes a flag another context sets: whether it was set, clearing it. Nearly every period finds
+/// it clear, and a plain load says so; only a set flag is swapped (an atomic read-modify-write
+/// is a locked instruction on the host, which waits for every pending store, and a load/store
+/// exclusive loop on the board). The same outcome as a swap alone: the other contexts only ever
+/// set the flag, so a flag set after the load is taken by the next period's.
+#[inline(always)]
+fn take_flag(flag: &AtomicBool) -> bool {
+    flag.load(Ordering::Relaxed) && flag.swap(false, Ordering::Relaxed)
 }
 
 /// What the board does after a period besides the control itself: it follows the controller's
@@ -91,7 +101,7 @@ impl Pacing {
         if toggle_heartbeat {
             self.heartbeat_periods = 0;
         }
-        if handoff.press_refused.swap(false, Ordering::Relaxed) {
+        if take_flag(&handoff.press_refused) {
             self.refusal_periods = Some(0);
         }
         // Lit in every other eighth of a second: 4 Hz, for one second of periods.

@@ -350,6 +350,16 @@ impl SpeedPi {
         let i2 = state.integral2 + i1 * dt;
         let unsat = deadband_inverse(g, ff + p + g.ki * i1 + g.kii * i2);
         let limit = g.output_limit;
+        let (m1, m2) = self.integral_max;
+        // Nearly every period: the output within its limit and neither integral at its clamp.
+        // Then nothing below changes the integrals' advance to `i1`, `i2`, and the output it
+        // computes from them is `unsat` itself (the same expression of the same values), so
+        // it is returned as it is, without recomputing it.
+        if unsat <= limit && unsat >= -limit && i1 >= -m1 && i1 <= m1 && i2 >= -m2 && i2 <= m2 {
+            state.integral_ticks = i1;
+            state.integral2 = i2;
+            return unsat;
+        }
         // Conditional integration: do not wind further into a saturated output.
         // The sign of the saturation (0 when not saturated): an increment winds further into
         // it when their product is positive (one multiply and compare instead of branches).
@@ -368,7 +378,6 @@ impl SpeedPi {
             state.integral2 += state.integral_ticks * dt;
         }
         // Clamp: an integral alone never needs more than the full output.
-        let (m1, m2) = self.integral_max;
         state.integral_ticks = clamp(state.integral_ticks, -m1, m1);
         state.integral2 = clamp(state.integral2, -m2, m2);
         let out = deadband_inverse(
@@ -586,5 +595,99 @@ mod tests {
         let mut t = SpeedTuning::DEFAULT;
         t.bandwidth_radps = f32::NAN;
         assert_eq!(t.validate(), Err(TuningError::Bandwidth));
+    }
+
+    /// The control law as written before its shortcut for an unsaturated output: the
+    /// conditional integration, the clamps, the output recomputed from the clamped integrals.
+    fn general_law(
+        pi: &SpeedPi,
+        state: &mut SpeedPiState,
+        reference: &WheelReference,
+        measured_delta: f32,
+    ) -> f32 {
+        let g = &pi.gains;
+        let dt = pi.period_s;
+        let err_step = reference.delta_ticks - measured_delta;
+        let v = reference.velocity_tps;
+        let kff = if v < 0.0 { g.kff_v_back } else { g.kff_v };
+        let ff = kff * (v + g.tau_s * reference.accel_tps2);
+        let p = g.kp * err_step * pi.rate_hz;
+        let i1 = state.integral_ticks + err_step;
+        let i2 = state.integral2 + i1 * dt;
+        let unsat = deadband_inverse(g, ff + p + g.ki * i1 + g.kii * i2);
+        let limit = g.output_limit;
+        let saturation = if unsat > limit {
+            1.0
+        } else if unsat < -limit {
+            -1.0
+        } else {
+            0.0
+        };
+        let winds = |inc: f32| inc * saturation > 0.0;
+        if !winds(err_step) {
+            state.integral_ticks = i1;
+        }
+        if !winds(state.integral_ticks) {
+            state.integral2 += state.integral_ticks * dt;
+        }
+        let (m1, m2) = pi.integral_max;
+        state.integral_ticks = clamp(state.integral_ticks, -m1, m1);
+        state.integral2 = clamp(state.integral2, -m2, m2);
+        let out = deadband_inverse(
+            g,
+            ff + p + g.ki * state.integral_ticks + g.kii * state.integral2,
+        );
+        if out.is_nan() {
+            0.0
+        } else {
+            clamp(out, -limit, limit)
+        }
+    }
+
+    #[test]
+    fn the_unsaturated_shortcut_is_the_general_law_bit_for_bit() {
+        // A dead-band, a duty limit below 1 and states from rest to both clamps, references from
+        // standstill to beyond saturation either way, and NaN: every output and state the same
+        // bits as the general law's.
+        let mut tuning = SpeedTuning::DEFAULT;
+        tuning.right.deadband = 0.05;
+        tuning.output_limit = 0.8;
+        let pi = SpeedPi::new(tuning.gains(&tuning.right, M_PER_TICK), 1000.0);
+        let (m1, m2) = pi.integral_max;
+        let mut shortcut = 0;
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = |scale: f32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            ((seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
+        };
+        for i in 0..20_000 {
+            let state = SpeedPiState {
+                integral_ticks: next(1.2 * m1),
+                integral2: next(1.2 * m2),
+            };
+            let reference = WheelReference {
+                delta_ticks: next(600.0),
+                velocity_tps: next(600_000.0),
+                accel_tps2: next(2_000_000.0),
+            };
+            let measured = if i % 1000 == 0 { f32::NAN } else { next(600.0) };
+            let (mut a, mut b) = (state, state);
+            let fast = pi.step(&mut a, &reference, measured);
+            let general = general_law(&pi, &mut b, &reference, measured);
+            assert_eq!(
+                fast.to_bits(),
+                general.to_bits(),
+                "{state:?} {reference:?} {measured}"
+            );
+            assert_eq!(a.integral_ticks.to_bits(), b.integral_ticks.to_bits());
+            assert_eq!(a.integral2.to_bits(), b.integral2.to_bits());
+            if fast.abs() < 0.8 && a.integral_ticks.abs() < m1 && a.integral2.abs() < m2 {
+                shortcut += 1;
+            }
+        }
+        // Both paths were taken many times.
+        assert!((2_000..18_000).contains(&shortcut), "{shortcut}");
     }
 }

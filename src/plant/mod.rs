@@ -12,7 +12,8 @@
 //!   (floor) and presented as wrapping hardware counters like the board's: right on a 32-bit
 //!   timer, left on a 16-bit timer counting *down* when the wheel rolls forward; optionally
 //!   miswired ([`RobotConfig::wiring`]).
-//! - **True pose** in `f64`, integrated as exact arcs per sub-step.
+//! - **True pose** in `f64`, integrated as one exact arc per control period (the wheels' ground
+//!   travel over it; the speeds change only smoothly within a period).
 //! - **Disturbances** a test or a simulated operator applies: a blocked wheel, a counter jump,
 //!   a hand pushing the robot, and per-period slip factors of the wheels' ground travel
 //!   ([`Robot::advance_slipping`]; host-sim draws them from its noise model).

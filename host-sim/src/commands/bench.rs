@@ -11,8 +11,8 @@
 //!   slip and measurement noise, five calibration methods per trial), timed as a whole; its
 //!   result table is printed as well.
 //!
-//! Goals (issue 8): session ≤ 0.1 s at 1 kHz, Monte Carlo ≤ 10 s. They are reported, not
-//! enforced: wall-clock time depends on the machine and its load.
+//! Goals: session ≤ 60 ms of CPU time at 1 kHz (issue 33; it was 0.1 s, issue 8), Monte Carlo
+//! ≤ 10 s. They are reported, not enforced: time depends on the machine and its load.
 
 use std::time::{Duration, Instant};
 
@@ -25,8 +25,8 @@ use crate::sim::board::{Board, measure_line};
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::sim_config;
 
-/// Session goal, seconds.
-const SESSION_GOAL_S: f64 = 0.1;
+/// Session goal, seconds of CPU time (issue 33).
+const SESSION_GOAL_S: f64 = 0.060;
 /// Monte Carlo goal, seconds.
 const MONTE_CARLO_GOAL_S: f64 = 10.0;
 
