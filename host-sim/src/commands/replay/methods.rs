@@ -23,6 +23,16 @@ pub const EXACT_MOCAP: &str = "exact-mocap";
 /// other session 17.7, 17.5, 17.4, 17.4). A motion-capture heading is good to about a milliradian;
 /// an operator's is not, and the board keeps the library's `k` = 1 without an offset.
 pub const MOCAP_HEADING_WEIGHT: f64 = 3.0;
+/// The library options of [`EXACT_MOCAP`] (robust, the end offset, the heading at
+/// [`MOCAP_HEADING_WEIGHT`] times the run's length).
+pub fn mocap_options() -> ExactOptions {
+    ExactOptions {
+        end_offset: true,
+        heading_weight: MOCAP_HEADING_WEIGHT,
+        ..ExactOptions::default()
+    }
+}
+
 /// The uncalibrated row.
 pub const NOMINAL: &str = "nominal";
 /// The `--geometry` row.
