@@ -198,7 +198,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Box<dyn std::error::Error>> {
             slip_start_rad: 0.0,
             heading: false,
             meas_sigma_rad: 0.0,
-            end_offset_mm: [0.0, 0.0],
+            end_offset_mm: Vec::new(),
             format: Format::Text,
         };
         println!(

@@ -71,30 +71,15 @@ pub struct MonteCarloArgs {
     pub meas_sigma_rad: f64,
     /// A bias of every measured end position, `x,y` in millimetres in the run's start frame (the
     /// start read off the axle by the same vector every time): what the exact fit's end offset
-    /// models (`exact-mocap` row, with `--heading`).
-    #[arg(long, value_parser = parse_offset_mm, default_value = "0,0")]
-    pub end_offset_mm: [f64; 2],
+    /// models (`exact-mocap` row, with `--heading`). A lone value is x.
+    #[arg(long, value_delimiter = ',', num_args = 1..=2)]
+    pub end_offset_mm: Vec<f64>,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Text)]
     pub format: Format,
-}
-
-/// Parses `x,y` (millimetres).
-fn parse_offset_mm(text: &str) -> Result<[f64; 2], String> {
-    let v: Vec<f64> = text
-        .split(',')
-        .map(|s| s.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("{text:?}: expected x,y in millimetres"))?;
-    match v[..] {
-        [x, y] if x.is_finite() && y.is_finite() => Ok([x, y]),
-        _ => Err(format!(
-            "{text:?}: expected two finite numbers x,y in millimetres"
-        )),
-    }
 }
 
 /// SplitMix64 with Box–Muller normals: small, seedable, reproducible.
@@ -204,8 +189,10 @@ pub fn noisy_square(
     }
     let odo = ArcModel::from_geometry(belief).integrate(PoseF64::default(), &knots);
     let t = ArcModel::from_geometry(truth).integrate(PoseF64::default(), &true_knots);
-    let x_m = t.x_m + args.meas_sigma * rng.normal() + args.end_offset_mm[0] * 1e-3;
-    let y_m = t.y_m + args.meas_sigma * rng.normal() + args.end_offset_mm[1] * 1e-3;
+    // `x,y`; a missing y (or both) is zero.
+    let offset = |i: usize| args.end_offset_mm.get(i).copied().unwrap_or(0.0) * 1e-3;
+    let x_m = t.x_m + args.meas_sigma * rng.normal() + offset(0);
+    let y_m = t.y_m + args.meas_sigma * rng.normal() + offset(1);
     let theta_rad = args
         .heading
         .then(|| t.theta_rad + args.meas_sigma_rad * rng.normal());
@@ -275,6 +262,9 @@ pub fn simulate(args: &MonteCarloArgs) -> Result<Vec<(String, Acc)>, String> {
     if !(args.side > 0.0 && args.runs > 0 && args.trials > 1) {
         return Err("need side > 0, runs ≥ 1, trials ≥ 2".into());
     }
+    if !args.end_offset_mm.iter().all(|v| v.is_finite()) {
+        return Err("--end-offset-mm must be finite millimetres x,y".into());
+    }
     let mut methods: Vec<(String, Method, ExactOptions)> = [
         Method::UmbmarkX,
         Method::UmbmarkY,
@@ -328,7 +318,7 @@ mod tests {
             slip_start_rad: 0.075,
             heading: true,
             meas_sigma_rad: 0.0,
-            end_offset_mm: [0.0, 0.0],
+            end_offset_mm: Vec::new(),
             seed: 1,
             format: Format::Text,
         }
@@ -357,9 +347,9 @@ mod tests {
         let mut a = args(0.0);
         (a.trials, a.eb, a.ed, a.meas_sigma, a.meas_sigma_rad) = (40, 1.010, 0.995, 1e-3, 1e-3);
         (a.slip, a.substeps) = (0.002, 20);
-        a.end_offset_mm = [15.0, 5.0];
+        a.end_offset_mm = vec![15.0, 5.0];
         let shifted = simulate(&a).unwrap();
-        a.end_offset_mm = [0.0, 0.0];
+        a.end_offset_mm = Vec::new();
         let clean = simulate(&a).unwrap();
         let mean_eb = |rows: &[(String, Acc)], m: &str| {
             let (_, acc) = rows.iter().find(|(l, _)| l == m).unwrap();

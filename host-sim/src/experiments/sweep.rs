@@ -194,7 +194,7 @@ fn mc_args(a: &SweepArgs, side_m: f64, meas: f64, slip: f64) -> MonteCarloArgs {
         slip_start_rad: 0.0,
         heading: false,
         meas_sigma_rad: 0.0,
-        end_offset_mm: [0.0, 0.0],
+        end_offset_mm: Vec::new(),
         format: Format::Text,
     }
 }

@@ -167,13 +167,7 @@ pub fn calibrate_exact(
         fits: [RunFit::EMPTY; MAX_RUN_FITS],
     };
     let known = Some(&solved.residuals);
-    let offsets = problem.offsets(&problem.groups, w, |i, run| {
-        let r = match Problem::kept(i, run, known) {
-            Some(k) => k.rows,
-            None => problem.end_pass(run, &model, Precision::F64).rows,
-        };
-        [r[X], r[Y]]
-    });
+    let offsets = problem.offsets(w, known, &model);
     let mut weighted_components = 0.0;
     for (i, run) in runs.iter().enumerate() {
         if !Problem::usable(run) {

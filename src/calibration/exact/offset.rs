@@ -7,9 +7,10 @@
 //! and `(Σ w J)(Σ w r) / Σ w`. That is the fit with the two offsets of every group as free
 //! parameters, solved for them in closed form (variable projection).
 
-use super::problem::{Problem, X, Y};
+use super::problem::{CHANNELS, Precision, Problem, Residuals, X, Y};
 use super::robust::{Weight, weight};
 use crate::calibration::RunObservation;
+use crate::kinematics::reference::ArcModel;
 use crate::motion::run::{Direction, PathKind};
 
 /// Most groups with an offset of their own; runs of further groups are fitted without one.
@@ -162,21 +163,36 @@ impl Problem<'_, '_> {
         (0..groups.count).find(|&g| Self::peers(&self.runs[groups.first[g]], run))
     }
 
-    /// The offsets of `groups` for the runs' signed residual rows `rows(i)` (x, y) and the
-    /// weights `weights`.
+    /// The signed residual rows of end-pose run `i` for `model`: those kept in `known`, or one
+    /// `f64` pass.
+    pub(super) fn end_rows(
+        &self,
+        i: usize,
+        run: &RunObservation<'_>,
+        known: Option<&Residuals>,
+        model: &ArcModel,
+    ) -> [f64; CHANNELS] {
+        match Self::kept(i, run, known) {
+            Some(k) => k.rows,
+            None => self.end_pass(run, model, Precision::F64).rows,
+        }
+    }
+
+    /// The offsets of `self.groups` for `model` (residual rows kept in `known` where there are)
+    /// and the weights `weights`.
     pub(super) fn offsets(
         &self,
-        groups: &Groups,
         weights: Option<&[Weight]>,
-        mut rows: impl FnMut(usize, &RunObservation<'_>) -> [f64; 2],
+        known: Option<&Residuals>,
+        model: &ArcModel,
     ) -> [[f64; 2]; MAX_GROUPS] {
         let mut sums = Sums::default();
         for (i, run) in self.runs.iter().enumerate() {
-            if let Some(g) = self.group(groups, run) {
-                let r = rows(i, run);
+            if let Some(g) = self.group(&self.groups, run) {
+                let r = self.end_rows(i, run, known, model);
                 let w = weight(weights, i);
-                sums.add(g, X, w.row(X), r[0], &[0.0; 3]);
-                sums.add(g, Y, w.row(Y), r[1], &[0.0; 3]);
+                sums.add(g, X, w.row(X), r[X], &[0.0; 3]);
+                sums.add(g, Y, w.row(Y), r[Y], &[0.0; 3]);
             }
         }
         sums.offsets()

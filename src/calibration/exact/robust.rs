@@ -1,7 +1,7 @@
 //! The robust weighting: per-run Cauchy weights and per-channel weights from the scatter of each
 //! run's peers (see the module docs of [`super`], *Robust fit*).
 
-use super::problem::{CHANNELS, HEADING, Precision, Problem, Residuals, X, Y, squares};
+use super::problem::{CHANNELS, HEADING, Problem, Residuals, X, Y, squares};
 use super::{
     CAUCHY_C, CHANNEL_TOLERANCE, MAX_WEIGHTED_RUNS, MIN_CHANNEL_PEERS, MIN_PEERS,
     PEER_LENGTH_RATIO, WEIGHT_TOLERANCE,
@@ -135,14 +135,7 @@ impl Problem<'_, '_> {
         let runs = &self.runs[..self.runs.len().min(MAX_WEIGHTED_RUNS)];
         // A grouped run's residual rows are taken about its group's offset (with the weights
         // the parameters were fitted with).
-        let end_rows = |i: usize, run: &RunObservation<'_>| match Self::kept(i, run, known) {
-            Some(k) => k.rows,
-            None => self.end_pass(run, &model, Precision::F64).rows,
-        };
-        let offsets = self.offsets(&self.groups, Some(&weights[..runs.len()]), |i, run| {
-            let r = end_rows(i, run);
-            [r[X], r[Y]]
-        });
+        let offsets = self.offsets(Some(&weights[..runs.len()]), known, &model);
         // Squared x, y and (ℓ-scaled) heading residuals of every run.
         let mut d2 = [[0.0; CHANNELS]; MAX_WEIGHTED_RUNS];
         let mut m = 0;
@@ -150,7 +143,7 @@ impl Problem<'_, '_> {
             if Self::usable(run) {
                 d2[i] = match (self.group(&self.groups, run), Self::kept(i, run, known)) {
                     (Some(g), _) => {
-                        let mut r = end_rows(i, run);
+                        let mut r = self.end_rows(i, run, known, &model);
                         r[X] -= offsets[g][0];
                         r[Y] -= offsets[g][1];
                         squares(&r)

@@ -155,7 +155,12 @@ pub fn calibrate_method(
     // A free path is fitted along its whole path by every exact fit: its end pose alone (a few
     // numbers from a path of metres that need not close) does not determine the factors.
     let along_path = |kind: Kind| method == EXACT_PATH || kind == Kind::Free;
-    let mocap = method == EXACT_MOCAP;
+    // The method's own options, which the command line's refine.
+    let base = if method == EXACT_MOCAP {
+        mocap_options()
+    } else {
+        ExactOptions::default()
+    };
     let lib_method = match method {
         EXACT_LS | EXACT_PATH | EXACT_MOCAP => Method::Exact,
         m => Method::parse(m).ok_or_else(|| format!("unknown method {m:?}"))?,
@@ -194,16 +199,12 @@ pub fn calibrate_method(
         },
         use_heading: fit.heading,
         heading_length_m: fit.heading_length_m,
-        heading_weight: fit.heading_weight.unwrap_or(if mocap {
-            MOCAP_HEADING_WEIGHT
-        } else {
-            ExactOptions::default().heading_weight
-        }),
+        heading_weight: fit.heading_weight.unwrap_or(base.heading_weight),
         robust: method != EXACT_LS,
         channel_weights: method != EXACT_LS && fit.channel_weights,
         heading_apart: method != EXACT_LS && fit.heading_apart,
-        end_offset: fit.end_offset || mocap,
-        ..ExactOptions::default()
+        end_offset: fit.end_offset || base.end_offset,
+        ..base
     };
     calibrate_with(&obs, &first.nominal, lib_method, &options).map_err(|e| e.to_string())
 }
