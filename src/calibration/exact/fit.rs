@@ -1,10 +1,11 @@
 //! The exact fit from start to result: the plain fit, the reweighting rounds, the final `f64`
 //! solve, the degeneracy and range checks, the 1σ and the per-run report.
 
-use super::linalg::solve;
+use super::linalg::{Mat, solve};
 use super::problem::{Precision, Problem, X, Y};
 use super::report::{ExactFit, RunFit};
 use super::robust::{Weight, weight};
+use super::solver::HeadingPart;
 use super::{
     ExactOptions, FREEZE_SCALES_AFTER, MAX_FACTOR_SIGMA, MAX_REWEIGHTS, MAX_RUN_FITS,
     MAX_WEIGHTED_RUNS, ScaleFit,
@@ -18,6 +19,32 @@ use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::ArcModel;
 use crate::motion::run::PathKind;
 use crate::util::num::fmax;
+
+/// The variance of one weighted residual component of the position rows and of the end-heading
+/// rows, each from its own weighted sum of squares over its share of the degrees of freedom
+/// (the factors' `n` shared in proportion to the rows, the offsets' `fitted − n` all the
+/// positions'). One variance for both (`cost / (m − fitted)`) when either share is under one
+/// degree of freedom or there is no heading row; `NaN` without a degree of freedom.
+fn channel_variances(
+    cost: f64,
+    m: usize,
+    fitted: usize,
+    n: usize,
+    heading: &HeadingPart,
+) -> (f64, f64) {
+    if m <= fitted {
+        return (f64::NAN, f64::NAN);
+    }
+    let pooled = cost / (m - fitted) as f64;
+    let (mh, mf) = (heading.rows as f64, m as f64);
+    let dof_heading = mh - n as f64 * mh / mf;
+    let dof_position = (m - fitted) as f64 - dof_heading;
+    if heading.rows == 0 || dof_heading < 1.0 || dof_position < 1.0 {
+        return (pooled, pooled);
+    }
+    let position_cost = fmax(cost - heading.cost, 0.0);
+    (position_cost / dof_position, heading.cost / dof_heading)
+}
 
 /// Fits the parameters; see the `exact` module docs.
 ///
@@ -135,19 +162,25 @@ pub fn calibrate_exact(
     {
         return Err(CalibrationError::OutOfRange);
     }
-    // Uncertainty from the weighted residual scatter, the weights as relative precisions.
-    let (a, _, _) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
-    let sigma2 = if m > fitted {
-        cost / (m - fitted) as f64
-    } else {
-        f64::NAN
-    };
+    // Uncertainty from the weighted residual scatter, the weights as relative precisions, by
+    // channel (see the module docs, *Uncertainty*).
+    let (a, _, _, heading) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
+    let (s2_position, s2_heading) = channel_variances(cost, m, fitted, n, &heading);
     let mut sigma = [None; 3];
     for (i, s) in sigma.iter_mut().enumerate().take(n).filter(|_| m > fitted) {
         let mut e = [0.0; 3];
         e[i] = 1.0;
         if let Some(col) = solve(a, e, n) {
-            *s = Some(libm::sqrt(fmax(col[i], 0.0) * sigma2));
+            // colᵀ (s²_pos·A_pos + s²_head·A_head) col with A_pos = A − A_head; one variance
+            // for both gives s²·col[i].
+            let quad = |m: &Mat| -> f64 {
+                (0..n)
+                    .map(|e| (0..n).map(|f| col[e] * m[e][f] * col[f]).sum::<f64>())
+                    .sum()
+            };
+            let head = quad(&heading.a);
+            let var = s2_position * (col[i] - head) + s2_heading * head;
+            *s = Some(libm::sqrt(fmax(var, 0.0)));
         }
     }
     if sigma.iter().flatten().any(|s| *s > MAX_FACTOR_SIGMA) {

@@ -7,9 +7,9 @@
 //! approximation), and the residual is `measured − predicted` in the start frame:
 //! - a run measured at its end (the operator's tape measure): the end pose's `x`, `y` in metres
 //!   and, when θ was measured, the wrapped heading residual multiplied by a length scale `ℓ` (by
-//!   default [`HEADING_WEIGHT`] = 1 times the run's characteristic length — the side of a
-//!   square —, so a heading error counts like the lateral error it produces over one leg; see
-//!   [`HEADING_WEIGHT`] for what a heavier heading does);
+//!   default [`HEADING_WEIGHT`] = 1.5 times the run's characteristic length — the side of a
+//!   square —, so a heading error counts like the lateral error it produces over one and a half
+//!   legs; see [`HEADING_WEIGHT`] for how it was chosen);
 //! - a run with ground truth along the whole path ([`RunObservation::truth_path`], e.g. a
 //!   motion-capture log): the position error at every knot, each divided by `√N` (`N` knots after
 //!   the start), so that the run adds the *mean* squared position error along its path to the
@@ -56,8 +56,9 @@
 //!    `c =` [`CAUCHY_C`] `= 2.3849` (95 % efficiency at the normal model). The Cauchy loss
 //!    redescends: a run 10 σ off keeps about 5 % of its weight, so its pull on the factors is
 //!    about half that of a run at 1 σ, where a plain fit lets it pull ten times as hard. A run
-//!    whose weight ends below [`OUTLIER_WEIGHT`] = 0.5 (`u_i > c`) is flagged as an outlier: under
-//!    the model that happens to fewer than 0.4 % of runs;
+//!    whose weight ends below [`OUTLIER_WEIGHT`] = 0.5 (`u_i > c`) is flagged as an outlier: with
+//!    the scales taken from a few peers that happens to about 0.8 % of clean runs (simulated 5 + 5
+//!    squares measured to 2 mm and 2 mrad: 16 of 2000);
 //! 5. the weighted fit is repeated from the current parameters with the new weights, and the
 //!    weights recomputed, until no weight changes by more than [`WEIGHT_TOLERANCE`] (1e-3: a
 //!    weight known to 0.1 % moves the factors by a small fraction of their 1σ) and no channel
@@ -124,8 +125,8 @@
 //!
 //! ## End offset
 //!
-//! An option ([`ExactOptions::end_offset`], off by default; on in `host-sim replay`'s default for
-//! motion-capture logs). The end positions of a session's squares can share an offset that no
+//! On by default ([`ExactOptions::end_offset`]; chosen by transfer, docs/calibration.md,
+//! *Transfer*, third and fourth rounds). The end positions of a session's squares can share an offset that no
 //! wheel geometry makes: on the shared OptiOdom 1.7 m squares +16 to +20 mm along the first
 //! leg, in both turn directions. A wheelbase or diameter error moves CW and CCW ends apart;
 //! a common offset (where the start is read, how the robot stops) moves them together, and the
@@ -136,10 +137,11 @@
 //! (variable projection: the cost and the normal equations less each group's mean, two degrees
 //! of freedom per group). Without headings the offset would take what CW and CCW ends share of
 //! `E_d` and `E_b` too, so runs without a heading get none. The position then says less about
-//! the wheelbase and the heading more: with motion capture (headings to a milliradian) it
-//! transfers better, with a heading measured by hand the factors scatter more (docs/calibration.md,
-//! *Transfer*, third round: `E_b` spread 7.9e-4 against 5.8e-4 with a 10 mrad heading). Each run reports its group's offset
-//! ([`RunFit::end_offset_m`]).
+//! the wheelbase and the heading more. It transfers better with motion-capture headings and with
+//! end poses measured by hand to 2–3 mm and 14–17 mrad alike; in the Monte Carlo with random
+//! slipping starts and 10 mrad headings the factors scatter more (`E_b` spread 7.3e-4 by
+//! default against 5.8e-4 with the heading at `L` and no offset). Each run reports its group's
+//! offset ([`RunFit::end_offset_m`]).
 //!
 //! # `f32` while iterating
 //!
@@ -200,9 +202,23 @@
 //! Normal equations are accumulated run by run (3×3), so memory does not
 //! grow with the number of knots; the weights take one number per run (up to
 //! [`MAX_WEIGHTED_RUNS`] runs are reweighted; a larger set is fitted plainly and says so in
-//! [`ExactFit::reweighted`]). 1σ uncertainty: the weights act as the rows' relative precisions,
-//! `(JᵀWJ)⁻¹ s²` with `s² = Σ_i w_i Σ_c λ_ic d_ic² / (M − n)` (`λ_ic` the channel weights; the
-//! plain fit's `(JᵀJ)⁻¹ σ²` when every weight is 1).
+//! [`ExactFit::reweighted`]).
+//!
+//! # Uncertainty
+//!
+//! The weights act as the rows' relative precisions, and the end-heading rows and the position
+//! rows each get their own variance per weighted component, from their own weighted sum of
+//! squares: `s_h² = Σ_heading rows w r² / (M_h − n M_h/M)` and `s_p²` likewise from the rest,
+//! whose degrees of freedom also pay for the end offsets (`M_h` heading rows of `M`). With
+//! `A = JᵀWJ` and `A_h` its heading rows' part, the covariance is
+//! `A⁻¹ (s_p² (A − A_h) + s_h² A_h) A⁻¹`. The heading's a priori length scale `ℓ` is chosen by
+//! transfer, not by the noise, so its rows' scatter in metres can be several times the
+//! positions' (on the shared 231220200029 squares heading residuals of 3–20 mrad times
+//! `ℓ` = 2.55 m against position residuals of 2–23 mm): one variance for all
+//! rows would understate the uncertainty of what the headings determine (`E_b`) and overstate
+//! that of what the positions determine (`E_s` from lines). With one variance for both, or
+//! either share under one degree of freedom, it is `A⁻¹ s²`, `s² = Σ w r² / (M − n)`, the plain
+//! fit's `(JᵀJ)⁻¹ σ²` when every weight is 1.
 //!
 //! Parts: `options` (what the fit is asked for), `problem` (the model and its residuals),
 //! `solver` (the normal equations and Levenberg–Marquardt), `jacobian` (the analytic end-pose Jacobian), `linalg` (the 3×3 solve), `robust` (the run
@@ -264,21 +280,20 @@ pub const COST_TOLERANCE_F32: f64 = 2e-5;
 pub const UNCHECKED_DECREASE: f64 = 1e-9;
 
 /// Default multiplier `k` of a run's characteristic length `L` in its heading residual's length
-/// scale `ℓ = k·L` ([`ExactOptions::heading_weight`]): 1, a heading error counts like the lateral
-/// error it makes over one leg. Measured by transfer (leave one shared OptiOdom session out,
-/// docs/calibration.md, *Transfer*), a larger `k` lowers the mean final position error on the
-/// sessions of other kinds than squares (k = 1, 1.5, 2, 3, 4, 8: 17.3, 16.5, 16.2, 16.1, 16.0,
-/// 16.0 mm calibrated on the 1.7 m squares; on every other session, with `E_s` fitted from the
-/// straight lines only, 19.8 at k = 1 and 18.0, 17.4, 17.3 at k = 2, 4, 8), all of it on the one
-/// circle session and against the free paths and the squares, and
-/// it costs the robust fit its hold on a slipping start: at k = 2 the slipped run of
-/// 231220200029 keeps weight 0.71 (0.10 at k = 1), and in the Monte Carlo with 5 % slipping
-/// starts the spread of `E_b` grows by 21 % (4 % at k = 1) against the channel-weighted fit
-/// before. k = 1 keeps that robustness, and a heading measured by hand does not decide the fit.
-/// Where headings come from motion capture, `host-sim replay`'s default (`exact-mocap`) takes
-/// k = 3 with the end offset ([`ExactOptions::end_offset`]; docs/calibration.md, *Transfer*,
-/// third round).
-pub const HEADING_WEIGHT: f64 = 1.0;
+/// scale `ℓ = k·L` ([`ExactOptions::heading_weight`]): 1.5, a heading error counts like the
+/// lateral error it makes over one and a half legs. Chosen by transfer in the board's context
+/// (leave one shared OptiOdom session out, calibrated on the 1.7 m squares, the end poses
+/// measured as by hand, 2 mm and 14 mrad, 20 draws; `bash host-sim/crossval-hand.sh`;
+/// docs/calibration.md, *Transfer*, fourth round), with the end offset
+/// ([`ExactOptions::end_offset`]): the mean final position error on the sessions of other kinds
+/// is 16.91, 16.61, 16.52, 16.47 mm at k = 1, 1.5, 2, 3 (17.63 at k = 1 without the offset;
+/// Jung & Chung 16.75), and 17.02, 16.77, 16.71 at 3 mm and 17 mrad (17.71; 16.98). Beyond 1.5
+/// the gain is within the spread over the draws (0.4–0.6 mm), and a heavier heading costs the
+/// robust fit part of its hold on a random slipping start (Monte Carlo, 5 % slipping starts,
+/// 1 mrad headings: `E_b` spread 4.3e-4, 4.6e-4, 4.8e-4 at k = 1, 1.5, 2 with the offset,
+/// 3.9e-4 at k = 1 without it, 7.4e-4 for the plain fit). `host-sim replay`'s default for
+/// motion-capture logs (`exact-mocap`) takes k = 3.
+pub const HEADING_WEIGHT: f64 = 1.5;
 
 /// Cauchy constant `c` of the robust weights (95 % efficiency at the normal model).
 pub const CAUCHY_C: f64 = 2.3849;

@@ -42,7 +42,7 @@ pub struct ExactOptions {
     pub heading_apart: bool,
     /// Fit an end-position offset common to the closed paths of one kind and size measured with
     /// their heading, with runs in both turn directions (see the `exact` module docs, *End
-    /// offset*); `false` = every end position as measured.
+    /// offset*; the default); `false` = every end position as measured.
     pub end_offset: bool,
     /// Resolution of a measured position, metres: no channel's scale is taken below its
     /// rounding error `resolution/√12`.
@@ -53,9 +53,10 @@ pub struct ExactOptions {
 
 impl Default for ExactOptions {
     /// The robust fit with run weights only (the heading weighted a priori by
-    /// [`HEADING_WEIGHT`](super::HEADING_WEIGHT) times the run's length, no channel weights:
-    /// chosen by how the calibration transfers to the paths it did not see, docs/calibration.md,
-    /// *Transfer*), headings used, `E_s` when a line or a path run is present.
+    /// [`HEADING_WEIGHT`](super::HEADING_WEIGHT) times the run's length, no channel weights) and
+    /// the end offset: chosen by how the calibration transfers to the paths it did not see, with
+    /// the end poses measured by hand (docs/calibration.md, *Transfer*); headings used, `E_s`
+    /// when a line or a path run is present.
     fn default() -> Self {
         ExactOptions {
             scale: ScaleFit::Auto,
@@ -66,7 +67,7 @@ impl Default for ExactOptions {
             robust: true,
             channel_weights: false,
             heading_apart: false,
-            end_offset: false,
+            end_offset: true,
             resolution_m: 1e-3,
             resolution_rad: 0.1 * core::f64::consts::PI / 180.0,
         }

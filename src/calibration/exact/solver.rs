@@ -18,6 +18,15 @@ use crate::util::num::fmax;
 /// `∂(right, left, wheelbase)/∂p_i` of the model (row `i`).
 pub(super) type Numbers = [[f64; 3]; 3];
 
+/// The end-heading rows' part of the normal equations: `JᵀWJ` and `rᵀWr` over those rows alone,
+/// and how many there are (for the uncertainty by channel, see [`Problem::normal`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct HeadingPart {
+    pub(super) a: Mat,
+    pub(super) cost: f64,
+    pub(super) rows: usize,
+}
+
 /// The result of one least-squares solve.
 pub(super) struct Solved {
     pub(super) p: [f64; 3],
@@ -34,16 +43,18 @@ impl Problem<'_, '_> {
     /// `at_p` is what [`Problem::cost`] kept at `p`: an end-pose run among it has its residual
     /// rows and the derivatives of its end pose from one pass there; another end-pose run gets
     /// that pass here; a path run is re-integrated at `p` (in `f64`) and for the central
-    /// differences.
+    /// differences. The end-heading rows' own share of `JᵀWJ` and of the cost comes with them
+    /// (the offsets touch position rows only, so it needs no projection).
     pub(super) fn normal(
         &self,
         p: &[f64; 3],
         weights: Option<&[Weight]>,
         jacobian: Precision,
         at_p: Option<&Residuals>,
-    ) -> (Mat, [f64; 3], Numbers) {
+    ) -> (Mat, [f64; 3], Numbers, HeadingPart) {
         let n = self.n;
         let mut a = [[0.0; 3]; 3];
+        let mut heading_part = HeadingPart::default();
         let mut g = [0.0; 3];
         let mut sums = Sums::default();
         let h = match jacobian {
@@ -112,6 +123,15 @@ impl Problem<'_, '_> {
                             a[e][f] += w * j[e] * j[f];
                         }
                     }
+                    if c == HEADING {
+                        for e in 0..n {
+                            for f in 0..n {
+                                heading_part.a[e][f] += w * j[e] * j[f];
+                            }
+                        }
+                        heading_part.cost += w * r[c] * r[c];
+                        heading_part.rows += 1;
+                    }
                     if let (Some(gi), X | Y) = (group, c) {
                         sums.add(gi, c, w, r[c], &j);
                     }
@@ -136,7 +156,7 @@ impl Problem<'_, '_> {
             });
         }
         sums.project(&mut a, &mut g, n);
-        (a, g, numbers)
+        (a, g, numbers, heading_part)
     }
 
     /// Moves the kept rows of the end-pose runs along a step `delta` by their linearisation,
@@ -200,7 +220,7 @@ impl Problem<'_, '_> {
         let mut converged = false;
         while iterations < self.options.max_iterations && !converged {
             iterations += 1;
-            let (a, g, numbers) = self.normal(&p, weights, jacobian, Some(&at_p));
+            let (a, g, numbers, _) = self.normal(&p, weights, jacobian, Some(&at_p));
             loop {
                 let mut aug = a;
                 for (i, row) in aug.iter_mut().enumerate().take(n) {

@@ -71,7 +71,7 @@ pub use self::evaluation::{
 pub use self::format::json_lines;
 use self::format::print_text;
 pub use self::methods::{
-    EXACT_LS, EXACT_PATH, FitOptions, GEOMETRY, NOMINAL, ParamSet, Pool, ScaleRuns,
+    EXACT_LS, EXACT_PATH, EndNoise, FitOptions, GEOMETRY, NOMINAL, ParamSet, Pool, ScaleRuns,
     calibrate_method, calibrated_methods, calibrated_sets, default_method, parse_geometry,
 };
 
@@ -140,9 +140,21 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub heading_apart: bool,
     /// Fit an end-position offset common to the closed paths of one kind and size measured
-    /// with their heading (default: the library's).
-    #[arg(long)]
+    /// with their heading (the library's default).
+    #[arg(long, conflicts_with = "no_end_offset")]
     pub end_offset: bool,
+    /// Do not fit the end offset (every end position as measured).
+    #[arg(long)]
+    pub no_end_offset: bool,
+    /// Measure the calibration runs' end poses as an operator does by hand: add Gaussian noise
+    /// of `MM` millimetres to x and y and `MRAD` milliradians to the heading of every end-pose
+    /// run (not to runs read along their paths), one draw per session and run for a
+    /// `--noise-seed` (the board's context; docs/calibration.md, *Transfer*, fourth round).
+    #[arg(long, value_delimiter = ',', value_name = "MM,MRAD")]
+    pub end_noise: Vec<f64>,
+    /// Seed of `--end-noise`.
+    #[arg(long, default_value_t = 1)]
+    pub noise_seed: u64,
 }
 
 fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
@@ -253,7 +265,18 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         from_start: !args.from_anchor,
         channel_weights: args.channel_weights,
         heading_apart: args.heading_apart || FitOptions::default().heading_apart,
-        end_offset: args.end_offset || FitOptions::default().end_offset,
+        end_offset: !args.no_end_offset && (args.end_offset || FitOptions::default().end_offset),
+        end_noise: match args.end_noise[..] {
+            [] => None,
+            [mm, mrad] if mm >= 0.0 && mrad >= 0.0 && mm.is_finite() && mrad.is_finite() => {
+                Some(EndNoise {
+                    position_m: mm * 1e-3,
+                    heading_rad: mrad * 1e-3,
+                    seed: args.noise_seed,
+                })
+            }
+            _ => return Err("--end-noise: expected MM,MRAD, two non-negative numbers".into()),
+        },
     };
     let all = calibrated_methods();
     let names: Vec<&str> = match args.method.as_deref() {
