@@ -255,6 +255,11 @@ fn an_end_offset_common_to_the_runs_is_fitted_apart_from_the_factors() {
         // The offset is recovered: within 1.5 mm (the mean of 10 runs' 1 mm noise, and the
         // part of it the factors take).
         let f = with.fit.unwrap();
+        // One group (the squares of one side), reported once, from its first run.
+        let groups = f.end_offsets();
+        assert_eq!(groups.len(), 1);
+        assert_eq!(groups[0].first_run, 0);
+        assert_eq!(Some(groups[0].offset_m), f.runs()[0].end_offset_m);
         for run in f.runs() {
             let [x, y] = run.end_offset_m.unwrap();
             assert!(

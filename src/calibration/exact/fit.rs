@@ -2,8 +2,9 @@
 //! solve, the degeneracy and range checks, the 1σ and the per-run report.
 
 use super::linalg::{Mat, solve};
+use super::offset::MAX_GROUPS;
 use super::problem::{Precision, Problem, X, Y};
-use super::report::{ExactFit, RunFit};
+use super::report::{EndOffset, ExactFit, RunFit};
 use super::robust::{Weight, weight};
 use super::solver::HeadingPart;
 use super::{
@@ -198,9 +199,23 @@ pub fn calibrate_exact(
         outliers: 0,
         run_count: 0,
         fits: [RunFit::EMPTY; MAX_RUN_FITS],
+        end_offsets: [EndOffset::default(); MAX_GROUPS],
+        end_offset_groups: 0,
     };
     let known = Some(&solved.residuals);
     let offsets = problem.offsets(w, known, &model);
+    fit.end_offset_groups = problem.groups.count();
+    for (g, e) in fit
+        .end_offsets
+        .iter_mut()
+        .enumerate()
+        .take(fit.end_offset_groups)
+    {
+        *e = EndOffset {
+            first_run: problem.groups.first(g),
+            offset_m: offsets[g],
+        };
+    }
     let mut weighted_components = 0.0;
     for (i, run) in runs.iter().enumerate() {
         if !Problem::usable(run) {

@@ -246,7 +246,7 @@ mod solver;
 pub use fit::calibrate_exact;
 pub(crate) use linalg::solve;
 pub use options::{ExactOptions, ScaleFit};
-pub use report::{ExactFit, RunFit};
+pub use report::{EndOffset, ExactFit, RunFit};
 
 /// Central-difference step for the `f64` Jacobian, in units of the (≈ 1) factors.
 pub const JACOBIAN_STEP: f64 = 1e-6;

@@ -105,6 +105,11 @@ impl Groups {
     pub(super) fn count(&self) -> usize {
         self.count
     }
+
+    /// Index of the first run of group `g`.
+    pub(super) fn first(&self, g: usize) -> usize {
+        self.first[g]
+    }
 }
 
 impl Problem<'_, '_> {

@@ -1,6 +1,7 @@
 //! What the exact fit reports per run: residuals against the fitted model, the run's scales and
 //! weights, and whether it was flagged as an outlier.
 
+use super::offset::MAX_GROUPS;
 use super::problem::{HEADING, Kept, Problem, X, Y};
 use super::robust::{Scales, Weight};
 use super::{MAX_RUN_FITS, OUTLIER_WEIGHT};
@@ -74,12 +75,34 @@ pub struct ExactFit {
     /// Runs in the fit (those with at least two knots).
     pub run_count: usize,
     pub(super) fits: [RunFit; MAX_RUN_FITS],
+    /// The end offset of every group of closed paths (see the module docs, *End offset*), in
+    /// the order of each group's first run.
+    pub(super) end_offsets: [EndOffset; MAX_GROUPS],
+    pub(super) end_offset_groups: usize,
+}
+
+/// The end offset of one group of closed paths of one kind and size (see the `exact` module
+/// docs, *End offset*).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct EndOffset {
+    /// Index of the group's first run in the runs given to the fit.
+    pub first_run: usize,
+    /// The offset `(x, y)` in the start frame, metres (truth − fit).
+    pub offset_m: [f64; 2],
 }
 
 impl ExactFit {
     /// The fits of the first [`MAX_RUN_FITS`] runs in the fit, in input order.
     pub fn runs(&self) -> &[RunFit] {
         &self.fits[..self.run_count.min(MAX_RUN_FITS)]
+    }
+
+    /// The end offsets fitted, one per group of closed paths of one kind and size, in the order
+    /// of each group's first run; empty when none was fitted. Every run's own is in its
+    /// [`RunFit::end_offset_m`], for the first [`MAX_RUN_FITS`] runs.
+    pub fn end_offsets(&self) -> &[EndOffset] {
+        &self.end_offsets[..self.end_offset_groups.min(MAX_GROUPS)]
     }
 }
 

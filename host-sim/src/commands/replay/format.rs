@@ -136,18 +136,13 @@ fn print_fit(c: &Calibration, calib: &[Session]) {
     if f.run_count > f.runs().len() {
         println!("      ({} more runs)", f.run_count - f.runs().len());
     }
-    // The end offsets fitted (one per group of closed paths of one kind and size), each once.
-    let mut offsets: Vec<[f64; 2]> = Vec::new();
-    for o in f.runs().iter().filter_map(|r| r.end_offset_m) {
-        if !offsets.contains(&o) {
-            offsets.push(o);
-        }
-    }
-    for [x, y] in offsets {
+    // The end offsets fitted, one per group of closed paths of one kind and size.
+    for o in f.end_offsets() {
+        let (sid, run, _) = labels.get(o.first_run).cloned().unwrap_or_default();
         println!(
-            "    end offset common to a group of closed paths (truth − fit): x {:+.1} mm, y {:+.1} mm",
-            x * 1e3,
-            y * 1e3
+            "    end offset common to a group of closed paths (truth − fit): x {:+.1} mm, y {:+.1} mm ({sid} run {run} and its peers)",
+            o.offset_m[0] * 1e3,
+            o.offset_m[1] * 1e3
         );
     }
 }
