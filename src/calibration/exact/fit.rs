@@ -1,7 +1,7 @@
 //! The exact fit from start to result: the plain fit, the reweighting rounds, the final `f64`
 //! solve, the degeneracy and range checks, the 1σ and the per-run report.
 
-use super::linalg::{Mat, solve};
+use super::linalg::solve;
 use super::offset::MAX_GROUPS;
 use super::problem::{Precision, Problem, X, Y};
 use super::report::{EndOffset, ExactFit, RunFit};
@@ -25,26 +25,26 @@ use crate::util::num::fmax;
 /// rows, each from its own weighted sum of squares over its share of the degrees of freedom
 /// (the factors' `n` shared in proportion to the rows, the offsets' `fitted − n` all the
 /// positions'). One variance for both (`cost / (m − fitted)`) when either share is under one
-/// degree of freedom or there is no heading row; `NaN` without a degree of freedom.
+/// degree of freedom or there is no heading row; `None` without a degree of freedom.
 fn channel_variances(
     cost: f64,
     m: usize,
     fitted: usize,
     n: usize,
     heading: &HeadingPart,
-) -> (f64, f64) {
+) -> Option<(f64, f64)> {
     if m <= fitted {
-        return (f64::NAN, f64::NAN);
+        return None;
     }
     let pooled = cost / (m - fitted) as f64;
     let (mh, mf) = (heading.rows as f64, m as f64);
     let dof_heading = mh - n as f64 * mh / mf;
     let dof_position = (m - fitted) as f64 - dof_heading;
     if heading.rows == 0 || dof_heading < 1.0 || dof_position < 1.0 {
-        return (pooled, pooled);
+        return Some((pooled, pooled));
     }
     let position_cost = fmax(cost - heading.cost, 0.0);
-    (position_cost / dof_position, heading.cost / dof_heading)
+    Some((position_cost / dof_position, heading.cost / dof_heading))
 }
 
 /// Fits the parameters; see the `exact` module docs.
@@ -166,22 +166,24 @@ pub fn calibrate_exact(
     // Uncertainty from the weighted residual scatter, the weights as relative precisions, by
     // channel (see the module docs, *Uncertainty*).
     let (a, _, _, heading) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
-    let (s2_position, s2_heading) = channel_variances(cost, m, fitted, n, &heading);
     let mut sigma = [None; 3];
-    for (i, s) in sigma.iter_mut().enumerate().take(n).filter(|_| m > fitted) {
-        let mut e = [0.0; 3];
-        e[i] = 1.0;
-        if let Some(col) = solve(a, e, n) {
-            // colᵀ (s²_pos·A_pos + s²_head·A_head) col with A_pos = A − A_head; one variance
-            // for both gives s²·col[i].
-            let quad = |m: &Mat| -> f64 {
-                (0..n)
-                    .map(|e| (0..n).map(|f| col[e] * m[e][f] * col[f]).sum::<f64>())
-                    .sum()
-            };
-            let head = quad(&heading.a);
-            let var = s2_position * (col[i] - head) + s2_heading * head;
-            *s = Some(libm::sqrt(fmax(var, 0.0)));
+    if let Some((s2_position, s2_heading)) = channel_variances(cost, m, fitted, n, &heading) {
+        for (i, s) in sigma.iter_mut().enumerate().take(n) {
+            let mut e = [0.0; 3];
+            e[i] = 1.0;
+            if let Some(col) = solve(a, e, n) {
+                // colᵀ (s²_pos·A_pos + s²_head·A_head) col with A_pos = A − A_head, and
+                // colᵀ A col = col[i]; one variance for both gives s²·col[i].
+                let head: f64 = (0..n)
+                    .map(|e| {
+                        (0..n)
+                            .map(|f| col[e] * heading.a[e][f] * col[f])
+                            .sum::<f64>()
+                    })
+                    .sum();
+                let var = s2_position * (col[i] - head) + s2_heading * head;
+                *s = Some(libm::sqrt(fmax(var, 0.0)));
+            }
         }
     }
     if sigma.iter().flatten().any(|s| *s > MAX_FACTOR_SIGMA) {
@@ -225,7 +227,7 @@ pub fn calibrate_exact(
         weighted_components += wi.run * problem.components(run) as f64;
         let scale = if reweighted { scales[i] } else { None };
         let kept = Problem::kept(i, run, known);
-        let offset = problem.group(&problem.groups, run).map(|g| offsets[g]);
+        let offset = problem.group(run).map(|g| offsets[g]);
         let rf = problem.run_fit(i, &model, kept, wi, scale, offset);
         if rf.outlier {
             fit.outliers += 1;

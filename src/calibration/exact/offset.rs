@@ -60,6 +60,13 @@ impl Sums {
         o
     }
 
+    /// Adds the x and y rows `rows` of an end-pose run of group `g` with its weights `w`, for
+    /// the offsets and the cost only (no Jacobian).
+    pub(super) fn add_position(&mut self, g: usize, w: Weight, rows: &[f64; CHANNELS]) {
+        self.add(g, X, w.row(X), rows[X], &[0.0; 3]);
+        self.add(g, Y, w.row(Y), rows[Y], &[0.0; 3]);
+    }
+
     /// What the offsets take off the weighted sum of squares.
     pub(super) fn cost_reduction(&self) -> f64 {
         let mut s = 0.0;
@@ -160,8 +167,9 @@ impl Problem<'_, '_> {
         groups
     }
 
-    /// The group of `run` in `groups`, if it shares an offset.
-    pub(super) fn group(&self, groups: &Groups, run: &RunObservation<'_>) -> Option<usize> {
+    /// The group of `run` in `self.groups`, if it shares an offset.
+    pub(super) fn group(&self, run: &RunObservation<'_>) -> Option<usize> {
+        let groups = &self.groups;
         if groups.count == 0 || !self.offset_candidate(run) {
             return None;
         }
@@ -193,11 +201,8 @@ impl Problem<'_, '_> {
     ) -> [[f64; 2]; MAX_GROUPS] {
         let mut sums = Sums::default();
         for (i, run) in self.runs.iter().enumerate() {
-            if let Some(g) = self.group(&self.groups, run) {
-                let r = self.end_rows(i, run, known, model);
-                let w = weight(weights, i);
-                sums.add(g, X, w.row(X), r[X], &[0.0; 3]);
-                sums.add(g, Y, w.row(Y), r[Y], &[0.0; 3]);
+            if let Some(g) = self.group(run) {
+                sums.add_position(g, weight(weights, i), &self.end_rows(i, run, known, model));
             }
         }
         sums.offsets()

@@ -286,7 +286,7 @@ impl Problem<'_, '_> {
         let mut sums = Sums::default();
         for (i, run) in self.runs.iter().enumerate() {
             if Self::usable(run) {
-                let group = self.group(&self.groups, run);
+                let group = self.group(run);
                 let kept = match Self::kept(i, run, known) {
                     Some(k) => Some(*k),
                     None if (residuals.is_some() || group.is_some()) && !Self::is_path(run) => {
@@ -306,8 +306,7 @@ impl Problem<'_, '_> {
                 ss += (0..CHANNELS).map(|c| w.row(c) * d2[c]).sum::<f64>();
                 m += self.components(run);
                 if let (Some(g), Some(k)) = (group, kept) {
-                    sums.add(g, X, w.row(X), k.rows[X], &[0.0; 3]);
-                    sums.add(g, Y, w.row(Y), k.rows[Y], &[0.0; 3]);
+                    sums.add_position(g, w, &k.rows);
                 }
             }
         }

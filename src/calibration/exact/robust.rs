@@ -141,7 +141,7 @@ impl Problem<'_, '_> {
         let mut m = 0;
         for (i, run) in runs.iter().enumerate() {
             if Self::usable(run) {
-                d2[i] = match (self.group(&self.groups, run), Self::kept(i, run, known)) {
+                d2[i] = match (self.group(run), Self::kept(i, run, known)) {
                     (Some(g), _) => {
                         let mut r = self.end_rows(i, run, known, &model);
                         r[X] -= offsets[g][0];

@@ -104,7 +104,7 @@ impl Problem<'_, '_> {
                     None => self.end_pass(run, &at, jacobian),
                 };
                 let (r, d) = (kept.rows, kept.d);
-                let group = self.group(&self.groups, run);
+                let group = self.group(run);
                 let heading = self.heading(run).map(|_| self.heading_length(run));
                 for c in [X, Y, HEADING] {
                     let scale = match (c, heading) {
@@ -121,14 +121,12 @@ impl Problem<'_, '_> {
                         g[e] += w * j[e] * r[c];
                         for f in 0..n {
                             a[e][f] += w * j[e] * j[f];
-                        }
-                    }
-                    if c == HEADING {
-                        for e in 0..n {
-                            for f in 0..n {
+                            if c == HEADING {
                                 heading_part.a[e][f] += w * j[e] * j[f];
                             }
                         }
+                    }
+                    if c == HEADING {
                         heading_part.cost += w * r[c] * r[c];
                         heading_part.rows += 1;
                     }

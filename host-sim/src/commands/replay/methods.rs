@@ -34,6 +34,11 @@ pub fn mocap_options() -> ExactOptions {
     }
 }
 
+/// Whether `name` is one of the exact fits (the library's `exact` and replay's variants of it).
+fn is_exact(name: &str) -> bool {
+    [Method::Exact.as_str(), EXACT_LS, EXACT_PATH, EXACT_MOCAP].contains(&name)
+}
+
 /// The uncalibrated row.
 pub const NOMINAL: &str = "nominal";
 /// The `--geometry` row.
@@ -194,7 +199,7 @@ pub fn calibrate_method(
         ExactOptions::default()
     };
     let lib_method = match method {
-        EXACT_LS | EXACT_PATH | EXACT_MOCAP => Method::Exact,
+        m if is_exact(m) => Method::Exact,
         m => Method::parse(m).ok_or_else(|| format!("unknown method {m:?}"))?,
     };
     let obs: Vec<_> = sessions
@@ -280,8 +285,7 @@ pub fn calibrated_sets(calib: &[Session], names: &[&str], fit: &FitOptions) -> V
     let ids: Vec<String> = calib.iter().map(|s| s.id.clone()).collect();
     let mut sets = Vec::new();
     for name in names {
-        let exact = [Method::Exact.as_str(), EXACT_LS, EXACT_PATH, EXACT_MOCAP].contains(name);
-        if exact && fit.pool == Pool::Sessions && calib.len() > 1 {
+        if is_exact(name) && fit.pool == Pool::Sessions && calib.len() > 1 {
             match super::pooled::calibrate_pooled(calib, name, fit) {
                 Ok(set) => sets.push(set),
                 Err(e) => eprintln!("{name}: not calibrated on {}: {e}", ids.join(", ")),
