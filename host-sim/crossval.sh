@@ -7,15 +7,16 @@
 #
 # DATA_DIR (default ../shared/data) holds optiodom/. REPLAY FLAGS go to every calibration (not
 # to the nominal row), e.g. --from-anchor, --channel-weights, --heading-apart, --heading-weight K,
-# --raw-truth,
+# --raw-truth, --every-date,
 # --scale-from lines|paths|never or --pool sessions. Needs jq.
 #
 # Leave one session out: every shared session in turn is evaluated (final position error and
 # path RMS against the ground truth as recorded, from the recorded start), calibrated on
 #  - "squares": the 1.7 m square sessions other than itself (the plan a user drives on the floor:
 #    squares of one size; the closed forms need one side and one driving belief), and
-#  - "every session": every other shared session (the closed forms, which read squares of one
-#    side only, are then the squares row's).
+#  - "every session": every other shared session, of which replay calibrates with those of the
+#    campaign nearest in time to the evaluated one (--every-date: all; the closed forms, which
+#    read squares of one side only, repeat the squares row where the sessions mix sizes).
 # Printed: the cell per evaluated session (mean over its runs, mm), then the means by kind of
 # session (squares, circles, lines = Ivanjko, free) and the mean over the kinds other than
 # squares ("other"), for the final position error and the path RMS. The default (`"default":

@@ -29,7 +29,10 @@
 //! and every run from its recorded start, as every evaluated path is driven and measured
 //! (`--from-anchor`: every run that rolls at least 1 m from its anchor, 0.1 m of wheel travel
 //! after its start, its start transient left out, [`crate::sim::optiodom::anchor`]; the
-//! leave-one-session-out transfer in docs/calibration.md chose the start). `E_b`, `E_d`,
+//! leave-one-session-out transfer in docs/calibration.md chose the start). Of the `--calibrate`
+//! sessions only those of the campaign nearest in time to the evaluated sessions calibrate
+//! ([`campaign`]: recorded within `--campaign-days` of the one nearest to them; the others are
+//! named on stderr and missing from `calib_sessions`; `--every-date` keeps all). `E_b`, `E_d`,
 //! `E_s` are reported relative to the first calibration session's nominal geometry (or the first
 //! evaluated one's when nothing is calibrated), for every row, `nominal` included.
 //!
@@ -47,10 +50,12 @@
 //! it, each evaluated free-path run gets a plot of its paths (ground truth, nominal odometry,
 //! calibrated odometry) and of the position error along it.
 //!
-//! The command is split by concept: [`methods`] names the parameter sets and calibrates them,
+//! The command is split by concept: [`campaign`] chooses the calibration sessions by date,
+//! [`methods`] names the parameter sets and calibrates them,
 //! [`evaluation`] replays runs against the ground truth, and [`format`] writes the text table and
 //! the JSON lines.
 
+pub mod campaign;
 pub mod evaluation;
 pub mod format;
 pub mod methods;
@@ -65,6 +70,7 @@ use crate::commands::paper::Format;
 use crate::sim::optiodom::{Kind, Session, read_session};
 use crate::sim::plot::{Figure, Series, Style, write_svg};
 
+use self::campaign::{CAMPAIGN_DAYS, nearest_campaign};
 pub use self::evaluation::{
     Means, RunEval, SetEval, e_max_syst, evaluate_run, evaluate_set, geometry_on,
 };
@@ -155,6 +161,14 @@ pub struct ReplayArgs {
     /// Seed of `--end-noise`.
     #[arg(long, default_value_t = 1)]
     pub noise_seed: u64,
+    /// Length of a campaign in days: the calibration sessions recorded within this of the one
+    /// nearest in time to the evaluated sessions calibrate them, the others are left out (the
+    /// session ids are their recording times, DDMMYYYYhhmm; undated sessions always count).
+    #[arg(long, default_value_t = CAMPAIGN_DAYS, value_name = "DAYS")]
+    pub campaign_days: f64,
+    /// Calibrate on every --calibrate session, whenever it was recorded.
+    #[arg(long)]
+    pub every_date: bool,
 }
 
 fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
@@ -254,6 +268,23 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         .or(evals.first())
         .map(|s| s.nominal)
         .ok_or("no session")?;
+    if !(args.campaign_days.is_finite() && args.campaign_days >= 0.0) {
+        return Err("--campaign-days: expected a non-negative number of days".into());
+    }
+    let calib = if args.every_date {
+        calib
+    } else {
+        let (kept, left_out) = nearest_campaign(&calib, &evals, args.campaign_days);
+        for o in &left_out {
+            eprintln!(
+                "calibration: session {} left out, recorded {:.0} days from the evaluated sessions, \
+                 another campaign than the calibration sessions {:.0} days from them \
+                 (--campaign-days {}; --every-date keeps it)",
+                o.id, o.days, o.nearest_days, args.campaign_days
+            );
+        }
+        kept
+    };
     let fit = FitOptions {
         heading: !args.no_heading,
         fit_scale: args.fit_scale,

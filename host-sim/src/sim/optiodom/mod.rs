@@ -31,11 +31,12 @@
 //! The reader is split by concept: [`session`] reads a session folder (its metadata, its run
 //! files in order, the checks that span a run), [`run_file`] reads one run file (rows, dropouts,
 //! glitches), [`heading_offset`] measures and removes the motion-capture heading offset,
-//! [`anchor`] places each run's start anchor past its start transient, and [`run`] turns a run
-//! into a calibration input.
+//! [`anchor`] places each run's start anchor past its start transient, [`run`] turns a run
+//! into a calibration input, and [`recorded`] reads when a session was recorded from its id.
 
 pub mod anchor;
 pub mod heading_offset;
+pub mod recorded;
 pub mod run;
 pub mod run_file;
 pub mod session;
@@ -50,6 +51,7 @@ pub use self::heading_offset::{
     OFFSET_HALF_WINDOW, OFFSET_MAX_TURN_RAD, OFFSET_MIN_CHORD_M, OFFSET_MIN_SAMPLES, TruthOffset,
     truth_heading_offset,
 };
+pub use self::recorded::recorded_days;
 pub use self::run::OptiRun;
 pub use self::run_file::{MAX_ROW_GAP, MAX_ROW_SPEED_M_S, MAX_ROW_TICKS, TruthGaps};
 pub use self::session::{SIDE_MISMATCH, SWAP_MIN_TURN_RAD, read_session};
