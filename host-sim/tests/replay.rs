@@ -47,6 +47,19 @@ fn sim() -> Command {
     Command::new(env!("CARGO_BIN_EXE_host-sim"))
 }
 
+/// The JSON lines of a successful `replay --format json`, parsed; a failure shows its stderr.
+fn json_rows(out: &std::process::Output) -> Vec<Value> {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
 #[test]
 fn an_absent_session_folder_is_a_clear_error() {
     let out = sim()
@@ -94,16 +107,7 @@ fn json_rows_carry_the_fixed_keys_for_every_method() {
         .arg(&out_dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
-    let rows: Vec<Value> = text
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let rows = json_rows(&out);
     let keys = [
         "method",
         "calib_sessions",
@@ -524,15 +528,8 @@ fn replay_summary(
         .args(extra)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let summary: Value = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+    let summary = json_rows(&out)
+        .into_iter()
         .find(|r| r["method"] == "exact-mocap" && r["run"] == "all")
         .unwrap();
     let calib = summary["calib_sessions"]
