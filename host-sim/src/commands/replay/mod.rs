@@ -263,11 +263,6 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
     } else {
         read_all(&eval_dirs)?
     };
-    let reference = calib
-        .first()
-        .or(evals.first())
-        .map(|s| s.nominal)
-        .ok_or("no session")?;
     if !(args.campaign_days.is_finite() && args.campaign_days >= 0.0) {
         return Err("--campaign-days: expected a non-negative number of days".into());
     }
@@ -277,14 +272,19 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         let (kept, left_out) = nearest_campaign(&calib, &evals, args.campaign_days);
         for o in &left_out {
             eprintln!(
-                "calibration: session {} left out, recorded {:.0} days from the evaluated sessions, \
-                 another campaign than the calibration sessions {:.0} days from them \
-                 (--campaign-days {}; --every-date keeps it)",
+                "calibration: session {} left out: recorded {:.0} days from the evaluated sessions, \
+                 where the nearest calibration session is {:.0} days from them (another \
+                 campaign; --campaign-days {}, --every-date keeps it)",
                 o.id, o.days, o.nearest_days, args.campaign_days
             );
         }
         kept
     };
+    let reference = calib
+        .first()
+        .or(evals.first())
+        .map(|s| s.nominal)
+        .ok_or("no session")?;
     let fit = FitOptions {
         heading: !args.no_heading,
         fit_scale: args.fit_scale,
