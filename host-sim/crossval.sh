@@ -14,9 +14,10 @@
 # path RMS against the ground truth as recorded, from the recorded start), calibrated on
 #  - "squares": the 1.7 m square sessions other than itself (the plan a user drives on the floor:
 #    squares of one size; the closed forms need one side and one driving belief), and
-#  - "every session": every other shared session, of which replay calibrates with those of the
-#    campaign nearest in time to the evaluated one (--every-date: all; the closed forms, which
-#    read squares of one side only, repeat the squares row where the sessions mix sizes).
+#  - "every session": every other shared session given to replay, which calibrates with those
+#    of them in the campaign nearest in time to the evaluated session (--every-date: with all).
+#    The closed forms read squares of one side only: where the sessions mix sizes, their cells
+#    repeat the squares row's.
 # Printed: the cell per evaluated session (mean over its runs, mm), then the means by kind of
 # session (squares, circles, lines = Ivanjko, free) and the mean over the kinds other than
 # squares ("other"), for the final position error and the path RMS. The default (`"default":

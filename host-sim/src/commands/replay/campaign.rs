@@ -6,64 +6,68 @@
 //! about 2.9e-3 of `E_b` between sessions, five to ten times a session's own 1σ, and sessions
 //! recorded on one evening agree where sessions six months apart do not (docs/calibration.md,
 //! *Transfer*, fifth round). A calibration is therefore taken from the sessions recorded near the
-//! drives it is to correct: every calibration session recorded within [`CAMPAIGN_DAYS`] of the
-//! calibration session nearest in time to an evaluated session. When every calibration session
-//! is far from the evaluated drives, the nearest campaign still calibrates them. Sessions without
-//! a recording time ([`recorded_days`]) are always kept, and without a dated evaluated session
-//! every calibration session is (`--every-date` keeps them all regardless).
+//! drives it is to correct. For every evaluated session, the calibration session recorded
+//! nearest in time to it anchors a campaign: every calibration session recorded within
+//! [`CAMPAIGN_DAYS`] of an anchor calibrates, the others are left out. However far every
+//! calibration session is from the evaluated drives, the nearest one and its campaign still
+//! calibrate them. Undated calibration sessions ([`recorded_days`]) are always kept; undated
+//! evaluated sessions anchor nothing, so when no evaluated session is dated every calibration
+//! session is kept (`--every-date` keeps them all regardless).
 
 use crate::sim::optiodom::{Session, recorded_days};
 
-/// Length of a campaign, days: calibration sessions recorded within this of the one nearest to
-/// the evaluated drives calibrate them together. A month: longer than a measurement campaign
+/// Length of a campaign, days: the calibration sessions recorded within this of the one nearest
+/// to an evaluated session calibrate it together. A month: longer than a measurement campaign
 /// (the shared sessions' campaigns span 11 days, December 2020 to January 2021, and one evening
 /// in June 2020), shorter than the half year between them; every value from 11 to 182 days
 /// selects the same sessions from the shared data.
 pub const CAMPAIGN_DAYS: f64 = 30.0;
 
-/// A calibration session left out, with how far in time it lies from the evaluated drives.
+/// A calibration session left out, with how far in time it lies from the campaigns that
+/// calibrate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LeftOut {
     /// Session id.
     pub id: String,
-    /// Days from the evaluated session nearest to it.
+    /// Days from the nearest anchor: a calibration session nearest in time to an evaluated one.
     pub days: f64,
-    /// Days from the evaluated drives to the calibration session nearest to them.
-    pub nearest_days: f64,
 }
 
-/// The calibration sessions of the campaign nearest in time to `evals` (module docs), and the
+/// The calibration sessions of the campaigns nearest in time to `evals` (module docs), and the
 /// sessions left out. `window_days` is the campaign's length ([`CAMPAIGN_DAYS`]).
 pub fn nearest_campaign(
     calib: &[Session],
     evals: &[Session],
     window_days: f64,
 ) -> (Vec<Session>, Vec<LeftOut>) {
-    let eval_days: Vec<f64> = evals.iter().filter_map(|s| recorded_days(&s.id)).collect();
-    // Each calibration session's distance in days from the evaluated drives (None: undated).
-    let distance: Vec<Option<f64>> = calib
-        .iter()
-        .map(|s| {
-            let t = recorded_days(&s.id)?;
-            eval_days
-                .iter()
-                .map(|e| (t - e).abs())
-                .min_by(f64::total_cmp)
-        })
-        .collect();
-    let Some(nearest) = distance.iter().flatten().copied().min_by(f64::total_cmp) else {
+    let calib_days: Vec<Option<f64>> = calib.iter().map(|s| recorded_days(&s.id)).collect();
+    let dated = || calib_days.iter().flatten().copied();
+    // The anchors: for every dated evaluated session, the dated calibration sessions nearest to
+    // it (every one of them when several are equally near).
+    let mut anchors: Vec<f64> = Vec::new();
+    for e in evals.iter().filter_map(|e| recorded_days(&e.id)) {
+        let nearest = dated().map(|t| (t - e).abs()).fold(f64::INFINITY, f64::min);
+        anchors.extend(dated().filter(|t| (t - e).abs() == nearest));
+    }
+    if anchors.is_empty() {
         return (calib.to_vec(), Vec::new());
-    };
+    }
     let mut kept = Vec::new();
     let mut left_out = Vec::new();
-    for (s, d) in calib.iter().zip(&distance) {
-        match d {
-            Some(days) if *days > nearest + window_days => left_out.push(LeftOut {
+    for (s, t) in calib.iter().zip(&calib_days) {
+        let days = t.map_or(0.0, |t| {
+            anchors
+                .iter()
+                .map(|a| (t - a).abs())
+                .fold(f64::INFINITY, f64::min)
+        });
+        if days > window_days {
+            left_out.push(LeftOut {
                 id: s.id.clone(),
-                days: *days,
-                nearest_days: nearest,
-            }),
-            _ => kept.push(s.clone()),
+                days,
+            });
+        } else {
+            kept.push(s.clone());
         }
     }
     (kept, left_out)
@@ -106,14 +110,18 @@ mod tests {
             january.clone(),
             undated,
         ];
-        // A December drive: December and January (11 days) kept, June (183 days) left out,
-        // the undated session kept.
+        // A December drive: its anchor is the December session; January (11 days) kept, June
+        // (183 days) left out, the undated session kept.
         let (kept, out) = nearest_campaign(&calib, &[session("231220200134")], CAMPAIGN_DAYS);
         assert_eq!(ids(&kept), ["231220200029", "030120210001", "bench-run"]);
         assert_eq!(ids(&kept).len() + out.len(), calib.len());
         assert_eq!(out.len(), 2);
-        assert!(out.iter().all(|o| o.days > 182.0 && o.nearest_days < 0.1));
-        // A June drive: the other June session only (and the undated one).
+        assert!(
+            out.iter().all(|o| o.days > 182.0 && o.days < 184.0),
+            "{out:?}"
+        );
+        // A June drive at 20:00, before either June session: both June sessions (and the
+        // undated one).
         let (kept, _) = nearest_campaign(&calib, &[session("230620202000")], CAMPAIGN_DAYS);
         assert_eq!(ids(&kept), ["230620202042", "230620202144", "bench-run"]);
         // Drives of both campaigns: both calibrate.
@@ -135,5 +143,41 @@ mod tests {
         let (kept, out) = nearest_campaign(&calib, &[session("free-1")], CAMPAIGN_DAYS);
         assert_eq!(kept.len(), calib.len());
         assert!(out.is_empty());
+    }
+
+    #[test]
+    fn the_campaign_is_measured_from_its_anchor_not_from_the_drive() {
+        // A drive on 10 April; sessions 5 days before it and 30 and 31 days after it. The
+        // anchor is the session of 5 April: the session of 10 May is 35 days from it and left
+        // out although it is 30 days from the drive, the one of 11 May too.
+        let calib = [
+            session("050420200000"),
+            session("100520200000"),
+            session("110520200000"),
+        ];
+        let drive = [session("100420200000")];
+        let (kept, out) = nearest_campaign(&calib, &drive, CAMPAIGN_DAYS);
+        assert_eq!(ids(&kept), ["050420200000"]);
+        assert_eq!(out.len(), 2);
+        assert!((out[0].days - 35.0).abs() < 1e-9, "{out:?}");
+        // The window's edge is inside: 35 days keeps the 10 May session, not the 11 May one.
+        let (kept, _) = nearest_campaign(&calib, &drive, 35.0);
+        assert_eq!(ids(&kept), ["050420200000", "100520200000"]);
+        // A window of 0 keeps the anchor and the sessions recorded at the same minute.
+        let twins = [
+            session("070420200000"),
+            session("070420200000"),
+            session("050420200000"),
+        ];
+        let (kept, _) = nearest_campaign(&twins, &drive, 0.0);
+        assert_eq!(ids(&kept), ["070420200000", "070420200000"]);
+        // Two sessions equally far on either side of the drive: both anchor, both calibrate.
+        let sides = [
+            session("050420200000"),
+            session("150420200000"),
+            session("150620200000"),
+        ];
+        let (kept, _) = nearest_campaign(&sides, &drive, 0.0);
+        assert_eq!(ids(&kept), ["050420200000", "150420200000"]);
     }
 }

@@ -31,9 +31,10 @@
 //! after its start, its start transient left out, [`crate::sim::optiodom::anchor`]; the
 //! leave-one-session-out transfer in docs/calibration.md chose the start). Of the `--calibrate`
 //! sessions only those of the campaign nearest in time to the evaluated sessions calibrate
-//! ([`campaign`]: recorded within `--campaign-days` of the one nearest to them; the others are
-//! named on stderr and missing from `calib_sessions`; `--every-date` keeps all). `E_b`, `E_d`,
-//! `E_s` are reported relative to the first calibration session's nominal geometry (or the first
+//! ([`campaign`]: recorded within `--campaign-days` of the calibration session nearest in time
+//! to an evaluated one; the others are named on stderr and missing from `calib_sessions`;
+//! `--every-date` keeps all). `E_b`, `E_d`, `E_s` are reported relative to the nominal geometry
+//! of the first session that calibrates (or the first
 //! evaluated one's when nothing is calibrated), for every row, `nominal` included.
 //!
 //! **Evaluation** re-integrates each evaluated run's ticks with the parameter set (exact arcs,
@@ -161,9 +162,10 @@ pub struct ReplayArgs {
     /// Seed of `--end-noise`.
     #[arg(long, default_value_t = 1)]
     pub noise_seed: u64,
-    /// Length of a campaign in days: the calibration sessions recorded within this of the one
-    /// nearest in time to the evaluated sessions calibrate them, the others are left out (the
-    /// session ids are their recording times, DDMMYYYYhhmm; undated sessions always count).
+    /// Length of a campaign in days: the calibration sessions recorded within this of the
+    /// calibration session nearest in time to an evaluated session calibrate, the others are
+    /// left out (the session ids are their recording times, DDMMYYYYhhmm; undated sessions
+    /// always count).
     #[arg(long, default_value_t = CAMPAIGN_DAYS, value_name = "DAYS")]
     pub campaign_days: f64,
     /// Calibrate on every --calibrate session, whenever it was recorded.
@@ -272,10 +274,10 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
         let (kept, left_out) = nearest_campaign(&calib, &evals, args.campaign_days);
         for o in &left_out {
             eprintln!(
-                "calibration: session {} left out: recorded {:.0} days from the evaluated sessions, \
-                 where the nearest calibration session is {:.0} days from them (another \
-                 campaign; --campaign-days {}, --every-date keeps it)",
-                o.id, o.days, o.nearest_days, args.campaign_days
+                "calibration: session {} left out: recorded {:.0} days from the calibration \
+                 session nearest in time to an evaluated one (another campaign; \
+                 --campaign-days {}, --every-date keeps it)",
+                o.id, o.days, args.campaign_days
             );
         }
         kept
