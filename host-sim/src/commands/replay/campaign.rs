@@ -92,24 +92,24 @@ mod tests {
         }
     }
 
+    fn sessions(ids: &[&str]) -> Vec<Session> {
+        ids.iter().map(|id| session(id)).collect()
+    }
+
     fn ids(v: &[Session]) -> Vec<&str> {
         v.iter().map(|s| s.id.as_str()).collect()
     }
 
     #[test]
     fn the_campaign_nearest_to_the_drives_calibrates_them() {
-        let june = session("230620202042");
-        let june_later = session("230620202144");
-        let december = session("231220200029");
-        let january = session("030120210001");
-        let undated = session("bench-run");
-        let calib = [
-            june.clone(),
-            june_later.clone(),
-            december.clone(),
-            january.clone(),
-            undated,
-        ];
+        // June, June an hour later, December, January, undated.
+        let calib = sessions(&[
+            "230620202042",
+            "230620202144",
+            "231220200029",
+            "030120210001",
+            "bench-run",
+        ]);
         // A December drive: its anchor is the December session; January (11 days) kept, June
         // (183 days) left out, the undated session kept.
         let (kept, out) = nearest_campaign(&calib, &[session("231220200134")], CAMPAIGN_DAYS);
@@ -134,7 +134,7 @@ mod tests {
         assert!(out.is_empty());
         // A drive a year after every calibration session: the nearest campaign still calibrates.
         let (kept, _) = nearest_campaign(
-            &[june.clone(), december.clone()],
+            &sessions(&["230620202042", "231220200029"]),
             &[session("231220210000")],
             CAMPAIGN_DAYS,
         );
@@ -150,11 +150,7 @@ mod tests {
         // A drive on 10 April; sessions 5 days before it and 30 and 31 days after it. The
         // anchor is the session of 5 April: the session of 10 May is 35 days from it and left
         // out although it is 30 days from the drive, the one of 11 May too.
-        let calib = [
-            session("050420200000"),
-            session("100520200000"),
-            session("110520200000"),
-        ];
+        let calib = sessions(&["050420200000", "100520200000", "110520200000"]);
         let drive = [session("100420200000")];
         let (kept, out) = nearest_campaign(&calib, &drive, CAMPAIGN_DAYS);
         assert_eq!(ids(&kept), ["050420200000"]);
@@ -164,19 +160,11 @@ mod tests {
         let (kept, _) = nearest_campaign(&calib, &drive, 35.0);
         assert_eq!(ids(&kept), ["050420200000", "100520200000"]);
         // A window of 0 keeps the anchor and the sessions recorded at the same minute.
-        let twins = [
-            session("070420200000"),
-            session("070420200000"),
-            session("050420200000"),
-        ];
+        let twins = sessions(&["070420200000", "070420200000", "050420200000"]);
         let (kept, _) = nearest_campaign(&twins, &drive, 0.0);
         assert_eq!(ids(&kept), ["070420200000", "070420200000"]);
         // Two sessions equally far on either side of the drive: both anchor, both calibrate.
-        let sides = [
-            session("050420200000"),
-            session("150420200000"),
-            session("150620200000"),
-        ];
+        let sides = sessions(&["050420200000", "150420200000", "150620200000"]);
         let (kept, _) = nearest_campaign(&sides, &drive, 0.0);
         assert_eq!(ids(&kept), ["050420200000", "150420200000"]);
     }
