@@ -3,6 +3,10 @@
 //! The closed-loop behaviour with sub-stepping, slip, true geometry and motor mismatch is
 //! tested in `host-sim/tests/closed_loop.rs`.
 
+#[path = "support/arcs.rs"]
+mod arcs;
+
+use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::button::Press;
@@ -408,6 +412,69 @@ fn new_geometry_applies_and_pose_continues() {
     c.set_geometry(g).unwrap();
     assert_eq!(c.pose().to_f64(), rest);
     assert_eq!(c.config().geometry, g);
+}
+
+/// Catches a calibration that is stored but not applied to the running odometry (the new
+/// geometry's `Odometry` not installed by `set_geometry`, so later ticks are still converted
+/// with the old wheels and wheelbase), and one that moves or restarts the pose when applied.
+/// The robot drives to a pose with the nominal geometry, the calibration (`E_d` 0.99, `E_b`
+/// 1.02) is applied at rest, and it drives an arc of ~0.9 m turning ~1.5 rad; the pose is
+/// compared with the independent arc model (`support/arcs.rs`) of the new geometry driving the
+/// ticks the controller read, from the pose it had when the calibration was applied.
+#[test]
+fn a_calibration_applied_at_rest_converts_the_next_drive_with_the_new_geometry() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    let read = |plant: &Plant| WheelTicks::new(plant.pos[0].floor() as i64, plant.pos[1].floor() as i64);
+    // Drive to a pose off the origin and off the x axis, then wait for rest.
+    for k in 0..1500 {
+        if k % 100 == 0 {
+            c.drive(0.3, 0.4).unwrap();
+        }
+        plant.step(&mut c);
+    }
+    while !plant.step(&mut c).command.is_stop() {}
+    // The plant's lag lets the wheels roll on after the stop: wait until they are still, so
+    // that no tick the old geometry should convert is left for the new one.
+    while plant.vel[0].abs() + plant.vel[1].abs() > 1e-3 {
+        plant.step(&mut c);
+    }
+    // The counts the controller reads in its last period before the calibration: the first knot.
+    let last_read = read(&plant);
+    plant.step(&mut c);
+    let start = c.pose().to_f64();
+    assert!(start.x_m > 0.2 && start.y_m > 0.05, "{start:?}");
+    let g = Geometry::PAPER_NOMINAL.with_factors(0.99, 1.02, 1.0);
+    c.set_geometry(g).unwrap();
+    assert_eq!(c.pose().to_f64(), start, "applying a calibration moves no pose");
+    let mut knots = vec![last_read];
+    for k in 0..3000 {
+        if k < 2000 && k % 100 == 0 {
+            c.drive(0.3, 0.5).unwrap();
+        }
+        knots.push(read(&plant));
+        plant.step(&mut c);
+    }
+    let end = c.pose().to_f64();
+    let model = arcs::Robot::of(&g).drive(start, &knots);
+    let (dx, dy, dth) = (
+        end.x_m - model.x_m,
+        end.y_m - model.y_m,
+        end.theta_rad - model.theta_rad,
+    );
+    let nominal = arcs::Robot::of(&Geometry::PAPER_NOMINAL).drive(start, &knots);
+    println!(
+        "end {end:?}, model on the new geometry {model:?} (off by {:.3e} m, {dth:.2e} rad), \
+         on the old one {nominal:?}",
+        dx.hypot(dy)
+    );
+    assert!(end.distance_to(&start) > 0.5, "it drove: {end:?}");
+    // Measured: 2.9e-10 m and 3e-15 rad off (the Q40 pose's per-period rounding over 3000
+    // periods; the heading is a function of the tick totals). Bounds at 10× that; converting
+    // with the old geometry is 11.7 mm and 0.039 rad off.
+    assert!(dx.hypot(dy) < 3e-9, "{dx}, {dy}");
+    assert!(dth.abs() < 1e-13, "{dth}");
 }
 
 #[test]
