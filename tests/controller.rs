@@ -426,7 +426,8 @@ fn a_calibration_applied_at_rest_converts_the_next_drive_with_the_new_geometry()
     let mut c = controller();
     let mut plant = Plant::new(1000);
     plant.step(&mut c);
-    let read = |plant: &Plant| WheelTicks::new(plant.pos[0].floor() as i64, plant.pos[1].floor() as i64);
+    let read =
+        |plant: &Plant| WheelTicks::new(plant.pos[0].floor() as i64, plant.pos[1].floor() as i64);
     // Drive to a pose off the origin and off the x axis, then wait for rest.
     for k in 0..1500 {
         if k % 100 == 0 {
@@ -447,7 +448,11 @@ fn a_calibration_applied_at_rest_converts_the_next_drive_with_the_new_geometry()
     assert!(start.x_m > 0.2 && start.y_m > 0.05, "{start:?}");
     let g = Geometry::PAPER_NOMINAL.with_factors(0.99, 1.02, 1.0);
     c.set_geometry(g).unwrap();
-    assert_eq!(c.pose().to_f64(), start, "applying a calibration moves no pose");
+    assert_eq!(
+        c.pose().to_f64(),
+        start,
+        "applying a calibration moves no pose"
+    );
     let mut knots = vec![last_read];
     for k in 0..3000 {
         if k < 2000 && k % 100 == 0 {

@@ -383,7 +383,14 @@ fn a_square_whose_counters_wrap_mid_run_ends_where_the_plant_does() {
         // Measured 0.68 µm (the knots re-integrated: 0.40 µm); bound at 10×.
         let o = r.record.odometry_end;
         let off = o.distance_to(&r.true_end);
-        println!("odometry vs plant: {off:.3e} m, knots vs plant {:.3e} m", r.knot_error_m());
-        assert!(off < 7e-6, "odometry end {o:?} vs true end {:?}", r.true_end);
+        println!(
+            "odometry vs plant: {off:.3e} m, knots vs plant {:.3e} m",
+            r.knot_error_m()
+        );
+        assert!(
+            off < 7e-6,
+            "odometry end {o:?} vs true end {:?}",
+            r.true_end
+        );
     }
 }

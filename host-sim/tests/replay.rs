@@ -320,7 +320,10 @@ fn lines_add_e_s_and_paths_fit_the_whole_trajectory() {
         .collect();
     assert_eq!(ratios.len(), 3, "{ratios:?}");
     let lines_e_s = ratios.iter().sum::<f64>() / 3.0;
-    println!("E_s {} ± {s_es}; the lines' lengths give {lines_e_s} ({ratios:?})", both.e_s);
+    println!(
+        "E_s {} ± {s_es}; the lines' lengths give {lines_e_s} ({ratios:?})",
+        both.e_s
+    );
     assert!(
         (both.e_s - lines_e_s).abs() < s_es,
         "E_s {} vs {lines_e_s} from the lines",

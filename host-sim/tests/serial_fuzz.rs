@@ -63,9 +63,8 @@ fn answers(line: &str, fin: &str) -> bool {
     let fault = fin.starts_with("err 11: fault latched: ");
     let unmeasured = fin.starts_with("err 24: run ") && fin.contains(" is not measured");
     let refused_start = busy || fault || unmeasured;
-    let started = |what: &str| {
-        fin.starts_with("ok run ") && fin.ends_with(&format!(" started: {what}"))
-    };
+    let started =
+        |what: &str| fin.starts_with("ok run ") && fin.ends_with(&format!(" started: {what}"));
     let set = |reply: &str| fin.starts_with(reply) || busy;
     let calibrate_refused = busy || fin.starts_with("err 13: ") || fin.starts_with("err 16: ");
     match line {

@@ -1,14 +1,14 @@
 //! `host-sim sweep` on a tiny grid (two sides, one noise level), and the track-size advice held
 //! per method and side to a larger Monte Carlo.
 
+use host_sim::experiments::paper::{TruthModel, true_geometry};
 use host_sim::experiments::sweep::{
     MethodStats, PILOT_SIDE_M, SWEEP_METHODS, SweepArgs, csv, sweep, write_outputs,
 };
-use host_sim::experiments::paper::{TruthModel, true_geometry};
-use odocal::calibration::track::{TrackAdviceInput, evaluate};
-use odocal::kinematics::geometry::Geometry;
 use indicatif::ProgressBar;
 use odocal::calibration::Method;
+use odocal::calibration::track::{TrackAdviceInput, evaluate};
+use odocal::kinematics::geometry::Geometry;
 
 fn tiny() -> SweepArgs {
     SweepArgs {
@@ -147,8 +147,8 @@ fn the_advice_predicts_every_methods_error_within_the_monte_carlos_sampling_erro
                     observed_scatter: Some((pilot * (1.0 + pilot_rel), PILOT_SIDE_M)),
                     ..input
                 };
-                let pilot_se = evaluate(&pilot_input, *m, c.side_m).unwrap().expected_error
-                    - predicted;
+                let pilot_se =
+                    evaluate(&pilot_input, *m, c.side_m).unwrap().expected_error - predicted;
                 let se = rms_standard_error(s);
                 let tol = 4.0 * (se * se + pilot_se * pilot_se).sqrt();
                 let off = s.rms_error - predicted;
