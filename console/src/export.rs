@@ -124,7 +124,7 @@ fn number_after(text: &str, key: &str) -> Option<f64> {
 }
 
 /// The `active d_right=… d_left=… wheelbase=… m` line of a `params` reply.
-fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geometry> {
+pub(crate) fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geometry> {
     let line = params.iter().find_map(|l| l.strip_prefix("active "))?;
     Some(Geometry {
         diameter_right_m: number_after(line, "d_right")?,

@@ -13,11 +13,13 @@
 //! which `cargo console export LOG --format ros2|urdf|json [-o FILE]` turns into files a robot
 //! stack loads. An SVG of the runs is written next to the log.
 
+mod covariance;
 mod export;
 mod guide;
 mod link;
 mod log;
 mod plot;
+mod ros2;
 mod ui;
 
 use std::path::{Path, PathBuf};
@@ -85,6 +87,9 @@ enum Cmd {
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
     },
+    /// Bridge the board to a ROS 2 network: odometry, tf, joint states and diagnostics out,
+    /// cmd_vel in (docs/operator.md, "Using odocal on a ROS 2 robot").
+    Ros2(ros2::Options),
     /// List candidate serial ports.
     Ports,
 }
@@ -139,6 +144,10 @@ fn main() -> ExitCode {
             format,
             output,
         }) => export::run(log, *format, output.as_deref()),
+        Some(Cmd::Ros2(opts)) => {
+            catch_ctrl_c();
+            ros2::run(opts)
+        }
         Some(Cmd::Ports) => {
             let ports = link::candidate_ports();
             if ports.is_empty() {
