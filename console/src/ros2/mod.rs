@@ -182,12 +182,11 @@ fn default_qos(depth: usize) -> QosProfile {
         .history(History::KeepLast { depth })
 }
 
+/// A topic of the root namespace, where the node lives (`odom` and `/odom` are one topic,
+/// `rt/odom` in DDS).
 fn topic_name(name: &str) -> Result<Name, String> {
-    let (ns, base) = match name.strip_prefix('/') {
-        Some(base) => ("/", base),
-        None => ("", name),
-    };
-    Name::new(ns, base).map_err(|e| format!("topic `{name}`: {e:?}"))
+    let base = name.trim_start_matches('/');
+    Name::new("/", base).map_err(|e| format!("topic `{name}`: {e:?}"))
 }
 
 fn publisher<M: serde::Serialize>(
@@ -199,7 +198,7 @@ fn publisher<M: serde::Serialize>(
     let topic = node
         .create_topic(&topic_name(name)?, MessageTypeName::new(ty.0, ty.1), qos)
         .map_err(|e| format!("topic {name}: {e:?}"))?;
-    node.create_publisher::<M>(&topic, None)
+    node.create_publisher::<M>(&topic, Some(qos.clone()))
         .map_err(|e| format!("publisher {name}: {e:?}"))
 }
 
@@ -445,21 +444,22 @@ pub fn run(opts: &Options) -> Result<(), String> {
         } else {
             (geometry_msgs::TWIST, "Twist")
         };
+        let qos = default_qos(10);
         let topic = node
             .create_topic(
                 &topic_name("cmd_vel")?,
                 MessageTypeName::new(ty.0, ty.1),
-                &default_qos(10),
+                &qos,
             )
             .map_err(|e| format!("topic cmd_vel: {e:?}"))?;
         let sub = if opts.stamped {
             CmdVel::Stamped(
-                node.create_subscription(&topic, None)
+                node.create_subscription(&topic, Some(qos.clone()))
                     .map_err(|e| format!("cmd_vel ({name}): {e:?}"))?,
             )
         } else {
             CmdVel::Plain(
-                node.create_subscription(&topic, None)
+                node.create_subscription(&topic, Some(qos.clone()))
                     .map_err(|e| format!("cmd_vel ({name}): {e:?}"))?,
             )
         };
