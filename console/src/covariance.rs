@@ -30,9 +30,9 @@
 /// `diff_drive_controller` commonly do.
 pub const UNOBSERVED_VARIANCE: f64 = 1.0e6;
 
-/// The slip term used when none is given: 2 mm of random travel error per wheel after one metre
-/// (σ² = 4e-6 m²/m), a robot with rubber tyres on a hard indoor floor.
-pub const DEFAULT_SLIP_M2_PER_M: f64 = 4.0e-6;
+/// The slip term used when none is given: 2 mm of random travel error (1σ) per wheel after one
+/// metre (σ² = 4e-6 m²/m), a robot with rubber tyres on a hard indoor floor.
+pub const DEFAULT_SLIP_M: f64 = 0.002;
 
 /// The relative 1σ of `E_d` and `E_b` assumed for a calibrated board when no session log gives
 /// the calibration's own: `E_b`'s is the drift between sessions of one robot on one floor
@@ -94,10 +94,7 @@ impl PoseCovariance {
         let ds_d = 0.25 * (dr - dl);
         let dth_d = ds / b;
         let dth_b = -dth;
-        for (sens, d_ds, d_dth) in [
-            (&mut self.s_d, ds_d, dth_d),
-            (&mut self.s_b, 0.0, dth_b),
-        ] {
+        for (sens, d_ds, d_dth) in [(&mut self.s_d, ds_d, dth_d), (&mut self.s_b, 0.0, dth_b)] {
             let tm_sens = sens[2] + 0.5 * d_dth;
             sens[0] += d_ds * c - ds * s * tm_sens;
             sens[1] += d_ds * s + ds * c * tm_sens;

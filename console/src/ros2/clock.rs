@@ -106,11 +106,17 @@ mod tests {
         let wire = 60.0 * 10.0 / 115_200.0;
         let off = 1000.0;
         let a = m.map(1.00, 1.00 + off + wire + 0.003, 60);
-        assert!((a - (1.00 + off + 0.003)).abs() < 1e-9, "first line: its own delay");
+        assert!(
+            (a - (1.00 + off + 0.003)).abs() < 1e-9,
+            "first line: its own delay"
+        );
         let b = m.map(1.01, 1.01 + off + wire + 0.001, 60);
         assert!((b - (1.01 + off + 0.001)).abs() < 1e-9);
         let c = m.map(1.02, 1.02 + off + wire + 0.002, 60);
-        assert!((c - (1.02 + off + 0.001)).abs() < 1e-9, "stamped with the minimum");
+        assert!(
+            (c - (1.02 + off + 0.001)).abs() < 1e-9,
+            "stamped with the minimum"
+        );
         let s = m.stats().unwrap();
         assert!((s.offset_s - (off + 0.001)).abs() < 1e-9);
         assert!((s.jitter_max_s - 0.001).abs() < 1e-9, "{s:?}");

@@ -82,7 +82,7 @@ pub struct Options {
     #[arg(long)]
     pub calibration: Option<PathBuf>,
     /// Random travel error of each wheel after one metre (1σ, m) in the pose covariance.
-    #[arg(long, default_value_t = 0.002)]
+    #[arg(long, default_value_t = covariance::DEFAULT_SLIP_M)]
     pub slip: f64,
     /// Log every line to and from the board to this file (JSON lines, as the guided session).
     #[arg(long)]
@@ -139,9 +139,7 @@ pub enum Range {
 ///
 /// # Errors
 /// A value ROS 2 does not define, as text.
-pub fn ros_environment(
-    get: impl Fn(&str) -> Option<String>,
-) -> Result<(u16, Range), String> {
+pub fn ros_environment(get: impl Fn(&str) -> Option<String>) -> Result<(u16, Range), String> {
     let domain = match get("ROS_DOMAIN_ID").filter(|v| !v.trim().is_empty()) {
         None => 0,
         Some(v) => v
@@ -270,7 +268,11 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<((f64, f64), String), St
                 log.display()
             )
         })?;
-        let board_method = board.calibration.split_whitespace().next().unwrap_or("none");
+        let board_method = board
+            .calibration
+            .split_whitespace()
+            .next()
+            .unwrap_or("none");
         if e.method.as_deref() != Some(board_method) {
             return Err(format!(
                 "{}: its calibration ({}) is not the board's ({board_method})",
@@ -467,7 +469,10 @@ pub fn run(opts: &Options) -> Result<(), String> {
     };
 
     let on = link
-        .command(&format!("stream on {}", opts.rate_hz), Duration::from_secs(5))
+        .command(
+            &format!("stream on {}", opts.rate_hz),
+            Duration::from_secs(5),
+        )
         .map_err(|e| e.to_string())?;
     if !on.ok() {
         return Err(format!("the board refused `stream on`: {}", on.last));
@@ -488,7 +493,11 @@ pub fn run(opts: &Options) -> Result<(), String> {
         } else {
             format!(
                 "cmd_vel ({}) drives the board",
-                if opts.stamped { "TwistStamped" } else { "Twist" }
+                if opts.stamped {
+                    "TwistStamped"
+                } else {
+                    "Twist"
+                }
             )
         },
         sd_source
@@ -504,9 +513,8 @@ pub fn run(opts: &Options) -> Result<(), String> {
         }
     });
 
-    let wire_baud = (!std::fs::canonicalize(&opts.port)
-        .is_ok_and(|p| p.starts_with("/dev/pts")))
-    .then_some(crate::link::BAUD);
+    let wire_baud = (!std::fs::canonicalize(&opts.port).is_ok_and(|p| p.starts_with("/dev/pts")))
+        .then_some(crate::link::BAUD);
     let mut clock = ClockMap::new(wire_baud, 10.0);
     let mut cov = PoseCovariance::new(board.wheelbase, u);
     let mut stats = Stats::default();

@@ -52,7 +52,9 @@ impl<'de> Deserialize<'de> for Covariance {
 /// `(package, name)` of a message for [`ros2_client::MessageTypeName`].
 pub type TypeName = (&'static str, &'static str);
 
-/// The DDS type name ROS 2 gives a message type (`nav_msgs::msg::dds_::Odometry_`).
+/// The DDS type name ROS 2 gives a message type (`nav_msgs::msg::dds_::Odometry_`), as
+/// `ros2_client::MessageTypeName` forms it.
+#[cfg(test)]
 pub fn type_name((package, name): TypeName) -> String {
     format!("{package}::msg::dds_::{name}_")
 }
@@ -76,6 +78,7 @@ pub mod builtin_interfaces {
             }
         }
         /// Seconds since the Unix epoch.
+        #[cfg(test)]
         pub fn secs(&self) -> f64 {
             f64::from(self.sec) + f64::from(self.nanosec) * 1e-9
         }
