@@ -74,17 +74,18 @@ pub fn stale_params<'a>(
                 continue;
             }
         }
-        if *tx != Some(true) && (l == "ok" || l.starts_with("ok ") || l.starts_with("err ")) {
-            if let Some((line, command)) = pending.take()
-                && l.starts_with("ok")
-                && !l.ends_with("(unchanged)")
-            {
-                return Some(Stale {
-                    line,
-                    command,
-                    params_line: lines[end].0,
-                });
-            }
+        // The command's reply: its accepted change makes the last `params` stale.
+        if *tx != Some(true)
+            && (l == "ok" || l.starts_with("ok ") || l.starts_with("err "))
+            && let Some((line, command)) = pending.take()
+            && l.starts_with("ok")
+            && !l.ends_with("(unchanged)")
+        {
+            return Some(Stale {
+                line,
+                command,
+                params_line: lines[end].0,
+            });
         }
     }
     None
