@@ -283,7 +283,12 @@ fn ros2_bridge() {
     // Stood still: 50 samples in a row (0.5 s) with the same pose and zero speeds.
     let mut still = 0;
     let mut last = peer.odom();
+    let deadline = Instant::now() + WAIT;
     while still < 50 {
+        assert!(
+            Instant::now() < deadline,
+            "the robot never stood still: {last:?}"
+        );
         let o = peer.odom();
         let same = (o.x, o.y, o.yaw) == (last.x, last.y, last.yaw) && o.v == 0.0 && o.w == 0.0;
         still = if same { still + 1 } else { 0 };
@@ -337,8 +342,13 @@ fn ros2_bridge() {
     // at rest for good (0.2 s of zero speeds).
     let mut stop: Option<Odom> = None;
     let mut zero = 0;
+    let deadline = Instant::now() + WAIT;
     while zero < 20 {
         let o = peer.odom();
+        assert!(
+            Instant::now() < deadline,
+            "the robot never stopped after the last command: {o:?}"
+        );
         if o.t > t_last && o.v.abs() < 0.05 * v_cmd && stop.is_none() {
             stop = Some(o);
         }
