@@ -136,8 +136,8 @@ def main():
                 }
             )
 
-    threading.Thread(target=read, daemon=True).start()
     emit({"k": "ready"})
+    threading.Thread(target=read, daemon=True).start()
     for line in sys.stdin:
         w = line.split()
         if not w:
