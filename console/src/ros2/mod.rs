@@ -42,6 +42,10 @@ use msgs::std_msgs::Header;
 use msgs::tf2_msgs::{self, TFMessage};
 use msgs::{Covariance, TypeName};
 
+/// The board's deadman: it stops the motors when no `drive` came for this long
+/// (docs/protocol.md).
+const DEADMAN_S: f64 = 0.5;
+
 /// Options of `ros2`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct Options {
@@ -521,6 +525,8 @@ pub fn run(opts: &Options) -> Result<(), String> {
     let mut prev: Option<StreamLine> = None;
     let (mut wheel_right_rad, mut wheel_left_rad) = (0.0f64, 0.0f64);
     let mut last_drive_reply = String::new();
+    // The stream line current when the latest command was sent, while commands come.
+    let mut commanding: Option<StreamLine> = None;
     let mut next_status = Instant::now();
     let result = loop {
         if crate::interrupted() {
@@ -537,6 +543,16 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 let stamp_s = clock.map(s.t_s, arrived, line.len() + 2);
                 let dt = prev.map_or(0.0, |p| (s.t_s - p.t_s).max(0.0));
                 prev = Some(s);
+                if let Some(c) = commanding
+                    && s.t_s - c.t_s >= DEADMAN_S
+                {
+                    commanding = None;
+                    println!(
+                        "ros2: cmd_vel: none since board t={:.6} at x={:.6} y={:.6} (the \
+                         board's deadman stops the robot {DEADMAN_S} s after it)",
+                        c.t_s, c.x_m, c.y_m
+                    );
+                }
                 let (dr, dl) = (s.v_right * dt, s.v_left * dt);
                 wheel_right_rad += dr / (0.5 * board.d_right);
                 wheel_left_rad += dl / (0.5 * board.d_left);
@@ -564,18 +580,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
                         covariance: Covariance(cov.ros()),
                     },
                     twist: TwistWithCovariance {
-                        twist: Twist {
-                            linear: Vector3 {
-                                x: v,
-                                y: 0.0,
-                                z: 0.0,
-                            },
-                            angular: Vector3 {
-                                x: 0.0,
-                                y: 0.0,
-                                z: w,
-                            },
-                        },
+                        twist: Twist::planar(v, w),
                         covariance: twist_cov,
                     },
                 };
@@ -625,6 +630,15 @@ pub fn run(opts: &Options) -> Result<(), String> {
             match link.command(&cmd, Duration::from_secs(2)) {
                 Ok(r) => {
                     stats.commands += 1;
+                    if let Some(p) = prev {
+                        if commanding.is_none() {
+                            println!(
+                                "ros2: cmd_vel: driving from board t={:.6} at x={:.6} y={:.6}",
+                                p.t_s, p.x_m, p.y_m
+                            );
+                        }
+                        commanding = Some(p);
+                    }
                     if r.last != last_drive_reply && r.last != "ok" {
                         eprintln!("ros2: cmd_vel: `{cmd}`: {}", r.last);
                     }
@@ -684,6 +698,10 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 KeyValue {
                     key: "calibration".into(),
                     value: board.calibration.clone(),
+                },
+                KeyValue {
+                    key: "cmd_vel_last_reply".into(),
+                    value: last_drive_reply.clone(),
                 },
                 KeyValue {
                     key: "distance_driven_m".into(),
@@ -772,18 +790,7 @@ mod tests {
 
     #[test]
     fn commands_stay_in_the_protocols_ranges() {
-        let t = |v: f64, w: f64| Twist {
-            linear: Vector3 {
-                x: v,
-                y: 0.0,
-                z: 0.0,
-            },
-            angular: Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: w,
-            },
-        };
+        let t = Twist::planar;
         assert_eq!(
             drive_line(&t(0.2, -0.5)).as_deref(),
             Some("drive 0.200000 -0.500000")

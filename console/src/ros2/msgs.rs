@@ -155,6 +155,21 @@ pub mod geometry_msgs {
         pub linear: Vector3,
         pub angular: Vector3,
     }
+    impl Twist {
+        /// A planar robot's twist: `v` forward (m/s), `w` about z (rad/s).
+        pub fn planar(v: f64, w: f64) -> Twist {
+            Twist {
+                linear: Vector3 {
+                    x: v,
+                    ..Vector3::default()
+                },
+                angular: Vector3 {
+                    z: w,
+                    ..Vector3::default()
+                },
+            }
+        }
+    }
     /// `geometry_msgs/msg/TwistStamped`.
     #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
     pub struct TwistStamped {
