@@ -337,10 +337,7 @@ fn ros2_bridge() {
     let paused = bridge.until(|l| l.starts_with("ros2: cmd_vel: none since board"));
     let board_t = |l: &str| number_after(l, "t");
     let (t_first, t_last) = (board_t(&driving), board_t(&paused));
-    let at_last = (
-        number_after(&paused, "x"),
-        number_after(&paused, "y"),
-    );
+    let at_last = (number_after(&paused, "x"), number_after(&paused, "y"));
     let done = loop {
         let m = peer.next();
         if m["k"] == "cmd_vel_done" {
