@@ -528,7 +528,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
     // The stream line current when the latest command was sent, while commands come.
     let mut commanding: Option<StreamLine> = None;
     let mut next_status = Instant::now();
-    let result = loop {
+    let result = 'bridge: loop {
         if crate::interrupted() {
             break Ok(());
         }
@@ -657,7 +657,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
                     println!("{}", r.last);
                 }
                 Err(LinkError::Timeout(c)) => println!("no reply to `{c}`"),
-                Err(e) => return Err(e.to_string()),
+                Err(e) => break 'bridge Err(e),
             }
         }
         // The board's state and faults, once a second.
