@@ -216,6 +216,12 @@ fn still_limits(g: &Geometry) -> (u64, u64) {
 
 impl Controller {
     /// A controller for `config`; idle, encoders synchronised at the first [`Controller::step`].
+    /// The rules of the setters apply: the limits must be countable on the geometry's encoders
+    /// ([`MotionLimits::validate_for`], as [`Controller::set_limits`]), and everything kept in
+    /// counts or periods (the glitch limit included) is derived from the geometry, limits and
+    /// rate by the setters' own `rederive`, whatever `config` held.
+    ///
+    /// [`MotionLimits::validate_for`]: crate::motion::profile::MotionLimits::validate_for
     ///
     /// # Errors
     /// [`ConfigError`] for the first invalid setting.
@@ -223,7 +229,7 @@ impl Controller {
         if !rate_supported(config.rate_hz) {
             return Err(ConfigError::Rate);
         }
-        config.limits.validate()?;
+        config.limits.validate_for(&config.geometry)?;
         config.speed.validate()?;
         let s = &config.stall;
         if !(s.min_duty > 0.0 && s.min_duty <= 1.0 && (1..=10_000).contains(&s.time_ms)) {
@@ -238,7 +244,7 @@ impl Controller {
         }
         let odometry = Odometry::new(&config.geometry, config.integration)?;
         let per_ms = |ms: u32| periods_of_ms(ms, config.rate_hz);
-        Ok(Controller {
+        let mut c = Controller {
             config,
             odometry,
             odo_state: OdometryState::default(),
@@ -264,7 +270,9 @@ impl Controller {
             missed_periods: 0,
             catch_up: 0,
             pose_lost: false,
-        })
+        };
+        c.rederive();
+        Ok(c)
     }
 
     fn speed_pis(c: &ControllerConfig) -> (SpeedPi, SpeedPi) {
