@@ -23,6 +23,8 @@ struct Dma {
     write: usize,
     half: bool,
     full: bool,
+    /// Bytes received since the cursor's last call (what the board's cycle counter bounds).
+    arrived: usize,
 }
 
 impl Dma {
@@ -32,10 +34,12 @@ impl Dma {
             write: 0,
             half: false,
             full: false,
+            arrived: 0,
         }
     }
 
     fn receive(&mut self, byte: u8) {
+        self.arrived += 1;
         self.buf[self.write] = byte;
         self.write = (self.write + 1) % RING;
         self.half |= self.write == RING / 2;
@@ -50,7 +54,8 @@ impl Dma {
                 std::mem::take(&mut self.half),
                 std::mem::take(&mut self.full),
             );
-            match cursor.next(self.write, half, full) {
+            let arrived = std::mem::take(&mut self.arrived);
+            match cursor.next(self.write, half, full, arrived) {
                 RingRead::Byte(i) => reads.push(RxRead::Byte(self.buf[i])),
                 RingRead::Empty => return reads,
                 RingRead::Overrun => reads.push(RxRead::Error),

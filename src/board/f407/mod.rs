@@ -370,14 +370,14 @@ pub fn init(dp: pac::Peripherals) -> Board {
     let usart = Serial::new(
         dp.USART2,
         (gpioa.pa2, gpioa.pa3),
-        serial::Config::default().baudrate(115_200.bps()),
+        serial::Config::default().baudrate(console_rx::CONSOLE_BAUD.bps()),
         &mut rcc,
     );
     let (console_tx, console_rx) = match usart {
         Ok(s) => s.split(),
         Err(_) => defmt::panic!("USART2 configuration rejected"),
     };
-    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc);
+    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc, clocks.sysclk().raw());
     condition_inputs();
 
     Board {
