@@ -211,3 +211,29 @@ fn stored_limits_are_rederived_at_boot() {
         "{reply}"
     );
 }
+
+/// `save` writes the parameter region only: the run region (its index and every run item)
+/// keeps every byte, however many saves there are (no wear for nothing).
+#[test]
+fn parameter_save_leaves_the_run_region_alone() {
+    use host_sim::sim::flash::SIM_RUNS;
+    let run_region = |b: &mut Board| -> Vec<Option<u8>> {
+        let flash = b.store.flash();
+        SIM_RUNS.map(|i| flash.byte(i as usize)).collect()
+    };
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    let mut out = b.send("line 0.2");
+    assert!(out.starts_with("ok run "), "{out}");
+    assert!(b.run_until_rest(60_000, &mut out) < 60_000, "{out}");
+    assert!(out.contains("event run 1 finished"), "{out}");
+    let before = run_region(&mut b);
+    assert!(before.iter().any(|&x| x != Some(0xFF)), "the run is stored");
+    for side in ["1.5", "1.6"] {
+        assert!(b.send(&format!("set square_side {side}")).starts_with("ok "));
+        assert!(save(&mut b).starts_with("ok "));
+        let mut out = String::new();
+        b.run_until_rest(200, &mut out);
+    }
+    assert!(run_region(&mut b) == before, "a parameter save wrote the run region");
+}
