@@ -90,7 +90,9 @@ fn load_falls_back_to_the_older_valid_record() {
 
     let mut flash = Box::new(BoardFlash::default());
     let older = calibrated(1);
-    board_store(&mut *flash).save_blocking(&older, true).unwrap();
+    board_store(&mut *flash)
+        .save_blocking(&older, true)
+        .unwrap();
     // A record whose motion limit is out of range, appended as the newest slot (checksum ok).
     let mut bad = calibrated(2);
     bad.motion.max_speed_mps = 99.0;
@@ -109,7 +111,10 @@ fn load_falls_back_to_the_older_valid_record() {
     let loaded = store.load_blocking();
     assert_eq!(loaded.record, older);
     assert_eq!(loaded.warning, None);
-    assert!(matches!(loaded.older, Some(LoadWarning::Invalid(_))), "{loaded:?}");
+    assert!(
+        matches!(loaded.older, Some(LoadWarning::Invalid(_))),
+        "{loaded:?}"
+    );
     let mut line = String::new();
     write_boot_event(&mut line, &loaded, &[], Some("power-on")).unwrap();
     assert_eq!(
@@ -121,5 +126,8 @@ fn load_falls_back_to_the_older_valid_record() {
     let next = calibrated(3);
     store.save_blocking(&next, true).unwrap();
     let loaded = store.load_blocking();
-    assert_eq!((loaded.record, loaded.warning, loaded.older), (next, None, None));
+    assert_eq!(
+        (loaded.record, loaded.warning, loaded.older),
+        (next, None, None)
+    );
 }

@@ -230,10 +230,16 @@ fn parameter_save_leaves_the_run_region_alone() {
     let before = run_region(&mut b);
     assert!(before.iter().any(|&x| x != Some(0xFF)), "the run is stored");
     for side in ["1.5", "1.6"] {
-        assert!(b.send(&format!("set square_side {side}")).starts_with("ok "));
+        assert!(
+            b.send(&format!("set square_side {side}"))
+                .starts_with("ok ")
+        );
         assert!(save(&mut b).starts_with("ok "));
         let mut out = String::new();
         b.run_until_rest(200, &mut out);
     }
-    assert!(run_region(&mut b) == before, "a parameter save wrote the run region");
+    assert!(
+        run_region(&mut b) == before,
+        "a parameter save wrote the run region"
+    );
 }
