@@ -404,15 +404,18 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
             Err(e) => Err(LoadWarning::Unreadable(e)),
             Ok(found) => match found.newest {
                 Some(slot) => {
-                    let mut loaded = self.read_record(&slot).await;
-                    // The newest record does not decode or validate: the valid one before it.
-                    if let (Err(why), Some(prev)) = (&loaded, found.previous)
-                        && let Ok(record) = self.read_record(&prev).await
-                    {
-                        warn!("{}; using the record before it", why);
-                        older = Some(why.clone());
-                        loaded = Ok(record);
-                    }
+                    let loaded = match (self.read_record(&slot).await, found.previous) {
+                        // The newest record does not decode or validate: the valid one before it.
+                        (Err(why), Some(prev)) => match self.read_record(&prev).await {
+                            Ok(record) => {
+                                warn!("{}; using the record before it", why);
+                                older = Some(why);
+                                Ok(record)
+                            }
+                            Err(_) => Err(why),
+                        },
+                        (newest, _) => newest,
+                    };
                     self.remove_old_copy().await;
                     loaded
                 }

@@ -377,9 +377,11 @@ impl Controller {
         } else {
             self.miss_debt = self.miss_debt.saturating_sub(1);
         }
-        // The speed loops and checks see one period's share of counts that took `periods`.
-        let p = i64::from(periods);
-        let (dr, dl) = (dr / p, dl / p);
+        // The speed loops and checks see one period's share of counts that took `periods`
+        // (a count passed the glitch check, so it fits an i32: the core's 32-bit divide).
+        let p = i32::try_from(periods).unwrap_or(i32::MAX);
+        let share = |d: i64| i64::from(i32::try_from(d).unwrap_or(0) / p);
+        let (dr, dl) = (share(dr), share(dl));
         let (command, tracking) = if self.driving_run() {
             self.step_run(dr, dl)
         } else if self.drive.is_some() {
