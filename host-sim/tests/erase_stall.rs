@@ -182,7 +182,10 @@ fn a_lap_during_an_erase_stall_is_one_err_21_and_no_spliced_line() {
         1,
         "{reads:?}"
     );
-    assert!(!reads.iter().any(|r| matches!(r, RxRead::Byte(_))), "{reads:?}");
+    assert!(
+        !reads.iter().any(|r| matches!(r, RxRead::Byte(_))),
+        "{reads:?}"
+    );
     board.receive_reads(reads, &mut echo);
     for &b in b"status\r" {
         dma.receive(b);
@@ -198,5 +201,8 @@ fn a_lap_during_an_erase_stall_is_one_err_21_and_no_spliced_line() {
     board.process(&mut reply, false);
     assert_eq!(reply.matches("err 21").count(), 1, "{reply}");
     assert_eq!(reply.matches("ok state=").count(), 1, "{reply}");
-    assert!(!reply.contains("err 1:") && !reply.contains("unknown"), "{reply}");
+    assert!(
+        !reply.contains("err 1:") && !reply.contains("unknown"),
+        "{reply}"
+    );
 }
