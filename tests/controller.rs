@@ -890,3 +890,87 @@ fn counts_during_an_erase_stall_are_motion_and_the_pose_includes_them() {
         Some(Fault::EncoderGlitch { .. })
     ));
 }
+
+/// A flash erase stalls the control task for 4 s (10 kHz, no period runs) while the robot is
+/// pivoted by hand about one wheel: 40,000 counts on the left wheel alone reach its 16-bit
+/// counter as −25,536, which the widened check takes as motion, so the pose is marked lost;
+/// 20,000 counts on the right wheel alone likewise (the left counter could have wrapped as
+/// well). 3,000 counts (7 mm) on either wheel cannot have wrapped: the pose is kept.
+#[test]
+fn stall_motion_on_either_wheel_marks_the_pose_lost() {
+    for (right, left, lost) in [
+        (0.0, 40_000.0, true),
+        (20_000.0, 0.0, true),
+        (3_000.0, -3_000.0, false),
+    ] {
+        let mut c =
+            Controller::new(ControllerConfig::new(Geometry::PAPER_NOMINAL, 10_000)).unwrap();
+        let mut plant = Plant::new(10_000);
+        plant.step(&mut c);
+        c.note_missed_periods(40_000);
+        plant.pos[0] += right;
+        plant.pos[1] += left;
+        let out = plant.step(&mut c);
+        assert_eq!(out.fault, None, "right {right}, left {left}");
+        assert_eq!(c.pose_lost(), lost, "right {right}, left {left}");
+    }
+}
+
+/// Missed periods while the robot drives at 0.9 m/s (382 counts per period, glitch limit 1,273
+/// at 1 kHz): 3 missed periods bring 4 periods' counts (1,528) at once, which are motion, not an
+/// encoder glitch; the speed loop takes a quarter of them per period (its position error moves
+/// by less than a period's counts, not by three), and the periods are counted. One miss in 10
+/// periods kept up latches `overrun` within 0.2 s; one in 25 never does.
+#[test]
+fn missed_periods_while_moving_are_overruns() {
+    let limits = MotionLimits {
+        max_speed_mps: 1.0,
+        ..MotionLimits::DEFAULT
+    };
+    // Drives at 0.9 m/s for `periods`, missing one period every `every` (0: none); the plant
+    // moves through each missed period at the speed it had.
+    let run = |c: &mut Controller, plant: &mut Plant, periods: u32, every: u32| {
+        for i in 1..=periods {
+            if every > 0 && i % every == 0 {
+                for w in 0..2 {
+                    plant.pos[w] += plant.vel[w] * plant.dt;
+                }
+                c.note_missed_periods(1);
+            }
+            let _ = c.drive(0.9, 0.0);
+            if plant.step(c).fault.is_some() {
+                return Some(i);
+            }
+        }
+        None
+    };
+    let mut c = controller();
+    c.set_limits(limits).unwrap();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    assert_eq!(run(&mut c, &mut plant, 4_000, 0), None);
+    let before = c.wheel_errors_ticks();
+    for w in 0..2 {
+        plant.pos[w] += 3.0 * plant.vel[w] * plant.dt;
+    }
+    c.note_missed_periods(3);
+    let _ = c.drive(0.9, 0.0);
+    let out = plant.step(&mut c);
+    assert_eq!(out.fault, None, "4 periods' counts at once are motion");
+    assert_eq!(c.missed_periods(), 3);
+    let after = c.wheel_errors_ticks();
+    let per_period = 0.9 / Geometry::PAPER_NOMINAL.meters_per_tick_right() / 1000.0;
+    for (b, a) in [(before.0, after.0), (before.1, after.1)] {
+        assert!(
+            f64::from((a - b).abs()) < per_period,
+            "speed loop error {b} -> {a} ticks"
+        );
+    }
+    // One in 25 for 2 s: counted, never latched.
+    assert_eq!(run(&mut c, &mut plant, 2_000, 25), None);
+    assert_eq!(c.missed_periods(), 3 + 80);
+    // One in 10: latched within 0.2 s.
+    let latched = run(&mut c, &mut plant, 2_000, 10);
+    assert!(latched.is_some_and(|i| i <= 200), "{latched:?}");
+    assert!(matches!(c.fault(), Some(Fault::Overrun { .. })));
+}
