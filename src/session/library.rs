@@ -15,7 +15,7 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::Settings;
 use super::traits::{
-    Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
+    Activity, Calibrator, Culprit, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
     RunResidual, Solution, SolveError, StorageError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
@@ -501,6 +501,31 @@ impl Calibrator for LibraryCalibrator {
         let obs = observations(runs);
         let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
         Ok(solution(&c, runs))
+    }
+
+    fn culprit(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Culprit {
+        let obs = observations(runs);
+        let positions: Vec<usize, MAX_RUNS> = runs
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| RunObservation::from_record(r).is_some())
+            .map(|(i, _)| i + 1)
+            .collect();
+        // Each run left out in turn: the robust fit of the others flags none.
+        let mut agreeing = positions.iter().enumerate().filter(|&(k, _)| {
+            let rest: Vec<RunObservation<'_>, MAX_RUNS> = obs
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| i != k)
+                .map(|(_, o)| *o)
+                .collect();
+            calibration::calibrate(&rest, nominal, Method::Exact)
+                .is_ok_and(|c| c.fit.is_some_and(|f| f.outliers == 0))
+        });
+        match (agreeing.next(), agreeing.next()) {
+            (Some((_, &run)), None) => Culprit::Run(run),
+            _ => Culprit::CannotTell,
+        }
     }
 
     fn advice(
