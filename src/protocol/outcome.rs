@@ -154,7 +154,8 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
             };
             write!(
                 out,
-                "ok {name}_unit = {symbol}: bare {name} values are {symbol} (this session only,                  not saved)"
+                "ok {name}_unit = {symbol}: bare {name} values are {symbol} (this session only, \
+                 not saved)"
             )?;
         }
     }

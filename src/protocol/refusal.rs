@@ -322,7 +322,8 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
             };
             write!(
                 out,
-                "<{what}> {} has no unit: write {units} after it ({}{}), or declare one for                  this session: set {setting}",
+                "<{what}> {} has no unit: write {units} after it ({}{}), or declare one for \
+                 this session: set {setting}",
                 Plain(value),
                 Plain(value),
                 if what == "theta" { "deg" } else { "mm" },

@@ -1,8 +1,9 @@
 //! Plausibility of a measured end pose, before it is accepted.
 //!
 //! A run ends where its odometry says, give or take what the robot's geometry may differ from
-//! its nominal values. The bound is computed for the run's own path: its recorded wheel ticks are
-//! integrated again with the nominal geometry changed by each corner of the tolerance box
+//! its nominal values. The bound is computed for the run's own path: the wheel ticks of that
+//! path as commanded (a square's legs and in-place turns, a line, a circle's arc) are
+//! integrated with the run's geometry changed by each corner of the tolerance box
 //! (diameter ratio `E_d` ±[`DIAMETER_RATIO_TOLERANCE`], wheelbase ±[`WHEELBASE_TOLERANCE`], mean
 //! diameter ±[`SCALE_TOLERANCE`]); the farthest of those eight ends from the odometry end, plus
 //! the measuring precision ([`MEASURING_PRECISION_M`], [`MEASURING_PRECISION_DEG`]), bounds the
@@ -11,8 +12,15 @@
 
 use core::fmt;
 
+use core::f64::consts::PI;
+
+use heapless::Vec;
+
+use crate::calibration::synth::{SQUARE_KNOTS, leg_ticks, square_knots, turn_ticks};
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
-use crate::motion::run::RunRecord;
+use crate::motion::run::{PathKind, RunRecord};
 use crate::util::decimal::Decimal;
 use crate::util::num::fmax;
 
@@ -49,10 +57,35 @@ pub struct Bound {
     pub heading_deg: f64,
 }
 
-/// The bound of `run`: its ticks integrated with every corner of the geometry tolerance box,
-/// the farthest end (and heading) from the nominal one, plus the measuring precision.
+/// The cumulative wheel ticks of `path` as commanded from `g` (first knot `(0, 0)`).
+fn path_knots(g: &Geometry, path: &PathKind) -> Vec<WheelTicks, SQUARE_KNOTS> {
+    let mut knots = Vec::new();
+    let _ = knots.push(WheelTicks::default());
+    match *path {
+        PathKind::Square { direction, side_m } => {
+            knots = Vec::from_slice(&square_knots(g, direction, side_m)).unwrap_or(knots);
+        }
+        PathKind::Line { length_m } => {
+            let _ = knots.push(leg_ticks(g, length_m));
+        }
+        PathKind::Circle {
+            direction,
+            radius_m,
+        } => {
+            // One arc: the centre line's travel plus the turn's difference between the wheels.
+            let leg = leg_ticks(g, 2.0 * PI * radius_m);
+            let turn = turn_ticks(g, direction.turn_sign() * 2.0 * PI);
+            let _ = knots.push(WheelTicks::new(leg.right + turn.right, leg.left + turn.left));
+        }
+    }
+    knots
+}
+
+/// The bound of `run`: its path's ticks integrated with every corner of the geometry tolerance
+/// box, the farthest end (and heading) from the nominal one, plus the measuring precision.
 pub fn bound(run: &RunRecord) -> Bound {
-    let nominal = ArcModel::from_geometry(&run.geometry).integrate(PoseF64::default(), &run.knots);
+    let knots = path_knots(&run.geometry, &run.path);
+    let nominal = ArcModel::from_geometry(&run.geometry).integrate(PoseF64::default(), &knots);
     let mut position_m: f64 = 0.0;
     let mut heading_deg: f64 = 0.0;
     for corner in 0..8u8 {
@@ -62,7 +95,7 @@ pub fn bound(run: &RunRecord) -> Bound {
             1.0 + sign(2) * WHEELBASE_TOLERANCE,
             1.0 + sign(4) * SCALE_TOLERANCE,
         );
-        let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &run.knots);
+        let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &knots);
         position_m = fmax(position_m, libm::hypot(end.x_m - nominal.x_m, end.y_m - nominal.y_m));
         heading_deg = fmax(heading_deg, libm::fabs(wrap_deg(
             (end.theta_rad - nominal.theta_rad).to_degrees(),
@@ -142,7 +175,7 @@ impl fmt::Display for Implausible {
                 bound_deg,
             } => write!(
                 f,
-                "measured heading {} deg from the odometry heading, more than {}",
+                "measured heading {} deg from the odometry heading, more than {} deg",
                 Decimal::signed(diff_deg, 1),
                 Decimal::fixed(bound_deg, 1),
             )?,
@@ -157,37 +190,52 @@ impl fmt::Display for Implausible {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::encoder::WheelTicks;
-    use crate::kinematics::geometry::Geometry;
-    use crate::motion::run::PathKind;
 
-    /// A straight line of `length_m` as the nominal geometry counts it, in 10 knots.
-    fn line_run(length_m: f64) -> RunRecord {
+    use crate::motion::run::Direction;
+
+    fn run_on(path: PathKind) -> RunRecord {
         let g = Geometry::PAPER_NOMINAL;
-        let ticks = (length_m / g.meters_per_tick_right()).round() as i64;
-        let mut knots = heapless::Vec::new();
-        for k in 0..=10 {
-            knots.push(WheelTicks::new(ticks * k / 10, ticks * k / 10)).unwrap();
-        }
+        let knots = path_knots(&g, &path);
         let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &knots);
         RunRecord {
-            path: PathKind::Line { length_m },
+            path,
             geometry: g,
-            knots,
+            knots: Vec::from_slice(&knots).unwrap(),
             odometry_end: end,
             measured: None,
         }
     }
 
+    fn line_run(length_m: f64) -> RunRecord {
+        run_on(PathKind::Line { length_m })
+    }
+
     #[test]
     fn the_bound_follows_the_geometry_tolerance_on_the_path() {
         // A 1 m line: the scale tolerance moves the end by 1 % (10 mm) and E_d bends it by
-        // about L²·ΔE_d/(4b); the bound grows with the path.
+        // about L²·ΔE_d/(4b); the bound grows faster than the path.
         let short = bound(&line_run(1.0));
         let long = bound(&line_run(4.0));
         assert!(short.position_m > 0.02 && short.position_m < 0.2, "{short:?}");
         assert!(long.position_m > 4.0 * (short.position_m - MEASURING_PRECISION_M));
         assert!(short.heading_deg > MEASURING_PRECISION_DEG);
+        // A square: the wheelbase tolerance turns each corner by up to 3 % of 90°.
+        let square = |side_m| {
+            bound(&run_on(PathKind::Square {
+                direction: Direction::Cw,
+                side_m,
+            }))
+        };
+        let (one, two) = (square(1.0), square(2.0));
+        std::println!("bound 1 m square {one:?}, 2 m square {two:?}");
+        assert!(one.heading_deg > 4.0 * 90.0 * WHEELBASE_TOLERANCE, "{one:?}");
+        // A centimetre value read as metres (0.5355 m for 5.355 mm in x and y) is beyond it.
+        assert!(one.position_m < 0.75, "{one:?}");
+        let circle = bound(&run_on(PathKind::Circle {
+            direction: Direction::Ccw,
+            radius_m: 0.5,
+        }));
+        assert!(circle.position_m > MEASURING_PRECISION_M, "{circle:?}");
     }
 
     #[test]
