@@ -71,7 +71,7 @@ fn scripted_session_calibrate_save_reboot() {
         assert_eq!(
             line,
             format!(
-                "measure {:.6} {:.6} {:.4}",
+                "measure {:.6}m {:.6}m {:.4}deg",
                 p.x_m,
                 p.y_m,
                 wrap_angle(p.theta_rad).to_degrees()
