@@ -44,7 +44,7 @@ fn scripted_session_calibrate_save_reboot() {
     );
     // Before any run: the refusals the protocol promises.
     assert_eq!(
-        b.send("measure 0 0"),
+        b.send("measure 0m 0m"),
         "err 12: no finished run to measure (run cw|ccw or next first)\r\n"
     );
     let mut log = String::new();
