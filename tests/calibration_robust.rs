@@ -517,7 +517,11 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
     let mut rng = Rng(42);
     let mut all: Vec<Run> = (0..6)
         .map(|i| {
-            let d = if i % 2 == 0 { Direction::Cw } else { Direction::Ccw };
+            let d = if i % 2 == 0 {
+                Direction::Cw
+            } else {
+                Direction::Ccw
+            };
             Run::square(&truth, d, 0.0, 1e-3, 0.2f64.to_radians(), &mut rng)
         })
         .collect();
@@ -527,7 +531,10 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
     let stored = records(&all);
     let mut calibrator = LibraryCalibrator::default();
     // Leaving run 4 out, and only run 4, makes the others agree.
-    assert_eq!(calibrator.culprit(&stored, &NOMINAL), Culprit::Run(wrong + 1));
+    assert_eq!(
+        calibrator.culprit(&stored, &NOMINAL),
+        Culprit::Run(wrong + 1)
+    );
     let numbered = Numbered {
         runs: &stored,
         numbers: &[],
@@ -558,5 +565,8 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         numbers: &[],
     };
     write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
-    assert!(!out.contains("DISAGREES") && !out.contains("left out"), "{out}");
+    assert!(
+        !out.contains("DISAGREES") && !out.contains("left out"),
+        "{out}"
+    );
 }

@@ -22,8 +22,7 @@
 //! xorshift64*, so a failure is reproducible from the printed sequence index.
 
 use odocal::protocol::command::{
-    DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, PATH_RANGE_M, RUN_NUMBER_MAX,
-    STREAM_RANGE_HZ,
+    DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, PATH_RANGE_M, RUN_NUMBER_MAX, STREAM_RANGE_HZ,
 };
 use odocal::protocol::reply::parse_error_reply;
 use odocal::protocol::{Command, LineAssembler, LineError, LineEvent, ParseError, StopKey};
@@ -259,7 +258,9 @@ fn check_command(cmd: &Command<'_>) {
         Command::Line { length_m } => length_m.is_none_or(|v| within(v, PATH_RANGE_M)),
         Command::Circle { radius_m, .. } => radius_m.is_none_or(|v| within(v, PATH_RANGE_M)),
         // Ranges of measured values are checked once their unit is known (the session's).
-        Command::Measure { run, x, y, theta, .. } => {
+        Command::Measure {
+            run, x, y, theta, ..
+        } => {
             let any = (f64::MIN, f64::MAX);
             run.is_none_or(|n| (1..=RUN_NUMBER_MAX as usize).contains(&n))
                 && within(x.value, any)

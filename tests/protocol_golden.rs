@@ -263,7 +263,10 @@ fn error_replies_are_exact() {
             "measure 0.1 0.2 3 4",
             "err 7: <confirmation> must be one of yes\r\n",
         ),
-        ("measure 1mm 2mm 3deg yes 4", "err 3: too many arguments\r\n"),
+        (
+            "measure 1mm 2mm 3deg yes 4",
+            "err 3: too many arguments\r\n",
+        ),
         (
             "measure 0,1 0.2",
             "err 4: <x> is not a number (use a decimal point)\r\n",
@@ -352,7 +355,10 @@ fn error_replies_are_exact() {
             "err 6: <value> must be within 1..6 runs\r\n",
         ),
         ("measure #0 0 0", "err 6: <n> must be within 1..65535\r\n"),
-        ("measure #65536 0 0", "err 6: <n> must be within 1..65535\r\n"),
+        (
+            "measure #65536 0 0",
+            "err 6: <n> must be within 1..65535\r\n",
+        ),
         ("measure #x 0 0", "err 4: <n> is not a number\r\n"),
         ("measure # 0 0", "err 4: <n> is not a number\r\n"),
         ("measure #2 0", "err 2: missing argument <y>\r\n"),

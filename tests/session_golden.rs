@@ -15,8 +15,7 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Culprit,
-    Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
+    Activity, Calibrator, Culprit, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
     Settings, Solution, SolveError, StorageError,
 };
 use odocal::storage::{RunsLoaded, StoredRun};
@@ -549,7 +548,10 @@ fn run_lifecycle_golden() {
          theta_deg=+0.5000): read x=+23.300 mm y=-14.500 mm; error vs odometry dx=+0.011000 dy=-0.010000 m (heading kept: \
          theta_deg=+0.5000)\r\n"
     );
-    assert_eq!(b.send("measure #2 0m 0m"), "err 14: no run 2 (1 stored)\r\n");
+    assert_eq!(
+        b.send("measure #2 0m 0m"),
+        "err 14: no run 2 (1 stored)\r\n"
+    );
     assert_eq!(b.send("line 1"), "ok run 2 started: line d=1.000 m\r\n");
     // A finished run is collected before the next command runs, without an explicit poll.
     b.robot.finish(1.0, 0.0);
@@ -656,10 +658,16 @@ fn runs_keep_their_numbers_when_one_is_dropped() {
     );
     // Numbers typed from the list before still mean the same runs.
     assert_eq!(b.send("drop 1"), "err 14: no run 1 (1 stored)\r\n");
-    assert!(b.send("measure #2 21mm 13mm").starts_with("ok run 2 square ccw"));
+    assert!(
+        b.send("measure #2 21mm 13mm")
+            .starts_with("ok run 2 square ccw")
+    );
     assert!(b.send("record 2").contains("ok"));
     // The next run gets a new number, never a dropped one.
-    assert_eq!(b.send("run cw"), "ok run 3 started: square cw L=2.000 m\r\n");
+    assert_eq!(
+        b.send("run cw"),
+        "ok run 3 started: square cw L=2.000 m\r\n"
+    );
     b.robot.finish(0.0, 0.0);
     assert!(b.poll(0).starts_with("event run 3 finished"));
     assert_eq!(
@@ -778,18 +786,34 @@ fn units_are_never_inferred_and_an_implausible_end_needs_yes() {
     assert_eq!((m.x_m, m.y_m), (41.841 * 0.001, 3.9523 * 0.01));
     assert!((m.theta_rad.unwrap() + 0.02618).abs() < 1e-15);
     // A declared unit reads the bare values for the rest of the session.
-    assert_eq!(b.send("set measure_unit cm"), "ok measure_unit = cm: bare measure values are cm (this session only, not saved)\r\n");
-    assert_eq!(b.send("set heading_unit deg"), "ok heading_unit = deg: bare heading values are deg (this session only, not saved)\r\n");
-    assert_eq!(b.send("measure #1 4.1841 3.9523 -1.5"), "ok run 1 square cw L=2.000 m measured (replaced x=+0.041841 y=+0.039523 theta_deg=-1.5000): read x=+41.841 mm y=+39.523 mm theta=-1.50 deg; error vs odometry dx=+0.029541 dy=+0.044023 m\r\n");
+    assert_eq!(
+        b.send("set measure_unit cm"),
+        "ok measure_unit = cm: bare measure values are cm (this session only, not saved)\r\n"
+    );
+    assert_eq!(
+        b.send("set heading_unit deg"),
+        "ok heading_unit = deg: bare heading values are deg (this session only, not saved)\r\n"
+    );
+    assert_eq!(
+        b.send("measure #1 4.1841 3.9523 -1.5"),
+        "ok run 1 square cw L=2.000 m measured (replaced x=+0.041841 y=+0.039523 theta_deg=-1.5000): read x=+41.841 mm y=+39.523 mm theta=-1.50 deg; error vs odometry dx=+0.029541 dy=+0.044023 m\r\n"
+    );
     // Beyond the bound with yes: kept as typed.
-    assert!(b.send("measure #1 41.841m 39.523m yes").starts_with("ok run 1 "));
+    assert!(
+        b.send("measure #1 41.841m 39.523m yes")
+            .starts_with("ok run 1 ")
+    );
     assert_eq!(b.session.runs()[0].measured.unwrap().x_m, 41.841);
     // The declarations are not settings: a new session (a reboot) has none.
     let mut fresh = Bench::new();
     fresh.send("run cw");
     fresh.robot.finish(0.0, 0.0);
     fresh.poll(0);
-    assert!(fresh.send("measure 1 2").starts_with("err 26: <x> 1 has no unit"));
+    assert!(
+        fresh
+            .send("measure 1 2")
+            .starts_with("err 26: <x> 1 has no unit")
+    );
 }
 
 #[test]
@@ -1160,7 +1184,10 @@ fn run_store_ram() {
     // speed-loop tuning: 40 B) and the stream state: under 600 B more.
     let ids = MAX_RUNS * size_of::<Option<StoredRun>>();
     let numbers = MAX_RUNS * size_of::<u16>();
-    assert!(session < MAX_RUNS * record + ids + numbers + 600, "{session}");
+    assert!(
+        session < MAX_RUNS * record + ids + numbers + 600,
+        "{session}"
+    );
 }
 
 /// The wiring check: the operator's instructions, and the verdicts and proposals from the
@@ -1260,7 +1287,10 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     // A flash failure is reported once, and the next change tries again.
     b.store.fail_runs = true;
     // The run left keeps its number: run 2 (a dropped run leaves a gap).
-    assert!(b.send("measure #1 0.022m 0.011m").starts_with("err 14: no run 1 (1 stored)"));
+    assert!(
+        b.send("measure #1 0.022m 0.011m")
+            .starts_with("err 14: no run 1 (1 stored)")
+    );
     let reply = b.send("measure #2 0.022m 0.011m");
     assert!(
         reply.ends_with("\r\nevent runs not stored: flash error: flash driver error\r\n"),

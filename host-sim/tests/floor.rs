@@ -58,10 +58,16 @@ fn measure_asks_for_the_unit() {
         reply.starts_with("ok run 1 square cw L=1.000 m measured (replaced "),
         "{reply}"
     );
-    assert!(reply.contains(": read x=-5.356 mm y=+5.326 mm theta=-9.10 deg;"), "{reply}");
+    assert!(
+        reply.contains(": read x=-5.356 mm y=+5.326 mm theta=-9.10 deg;"),
+        "{reply}"
+    );
     // Centimetres typed as metres: far beyond the 1 m square's bound, kept only with yes.
     let reply = b.send("measure #1 -0.5355m -0.5326m");
-    assert!(reply.starts_with("err 22: run 1 square cw L=1.000 m: measured end "), "{reply}");
+    assert!(
+        reply.starts_with("err 22: run 1 square cw L=1.000 m: measured end "),
+        "{reply}"
+    );
     assert!(reply.ends_with("or add yes to keep it\r\n"), "{reply}");
 }
 
@@ -222,13 +228,22 @@ fn runs_keep_their_numbers() {
         let line = measure_line(&b).expect("a run was driven");
         assert!(b.send(&line).starts_with("ok run "));
     }
-    assert!(b.send("drop 1").starts_with("ok dropped run 1: square cw L=0.500 m; 1 run left"));
+    assert!(
+        b.send("drop 1")
+            .starts_with("ok dropped run 1: square cw L=0.500 m; 1 run left")
+    );
     let runs = b.send("runs");
-    assert!(runs.starts_with("  run 2 square ccw L=0.500 m odometry "), "{runs}");
+    assert!(
+        runs.starts_with("  run 2 square ccw L=0.500 m odometry "),
+        "{runs}"
+    );
     assert!(runs.ends_with("ok 1 run, 1 measured\r\n"), "{runs}");
     assert_eq!(b.send("drop 1"), "err 14: no run 1 (1 stored)\r\n");
     let log = drive(&mut b, "run cw 0.5");
-    assert!(log.contains("ok run 3 started") && log.contains("event run 3 finished"), "{log}");
+    assert!(
+        log.contains("ok run 3 started") && log.contains("event run 3 finished"),
+        "{log}"
+    );
 }
 
 #[test]

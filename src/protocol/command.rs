@@ -479,7 +479,11 @@ fn finite(value: f64, what: &'static str) -> Result<f64, ParseError> {
 
 /// A measured length: a number with `m`, `cm`, `mm` written after it or as the next word, or a
 /// bare number (its unit the session's `measure_unit`); ranges are checked once converted.
-fn measured_length(words: &mut Words<'_>, word: &str, what: &'static str) -> Result<Length, ParseError> {
+fn measured_length(
+    words: &mut Words<'_>,
+    word: &str,
+    what: &'static str,
+) -> Result<Length, ParseError> {
     let mut l =
         parse_length(word).map_err(|e| unit_error(e, word, what, NumberHint::LengthUnit))?;
     finite(l.value, what)?;
@@ -491,7 +495,11 @@ fn measured_length(words: &mut Words<'_>, word: &str, what: &'static str) -> Res
 
 /// A measured heading: a number with `deg`, `rad` written after it or as the next word, or a
 /// bare number (its unit the session's `heading_unit`).
-fn measured_angle(words: &mut Words<'_>, word: &str, what: &'static str) -> Result<Angle, ParseError> {
+fn measured_angle(
+    words: &mut Words<'_>,
+    word: &str,
+    what: &'static str,
+) -> Result<Angle, ParseError> {
     let mut a = parse_angle(word).map_err(|e| unit_error(e, word, what, NumberHint::AngleUnit))?;
     finite(a.value, what)?;
     if a.unit.is_none() {

@@ -218,7 +218,10 @@ mod tests {
             }
         );
         assert_eq!(bare.metres(None), None);
-        assert_eq!(bare.metres(Some(LengthUnit::Millimetre)), Some(-5.356 * 0.001));
+        assert_eq!(
+            bare.metres(Some(LengthUnit::Millimetre)),
+            Some(-5.356 * 0.001)
+        );
         assert_eq!(parse_length("2e-3").map(|l| l.value), Ok(2e-3));
         let angle = parse_angle("-0.16").unwrap();
         assert_eq!(angle.degrees(None), None);
@@ -234,7 +237,10 @@ mod tests {
         let mm = parse_length("-5.356mm").unwrap();
         assert_eq!(mm.unit, Some(LengthUnit::Millimetre));
         assert_eq!(mm.metres(None), Some(-5.356 * 0.001));
-        assert_eq!(parse_length("-5.4cm").unwrap().metres(None), Some(-5.4 * 0.01));
+        assert_eq!(
+            parse_length("-5.4cm").unwrap().metres(None),
+            Some(-5.4 * 0.01)
+        );
         assert_eq!(parse_length("0.05M").unwrap().metres(None), Some(0.05));
         assert_eq!(parse_angle("2.5deg").unwrap().degrees(None), Some(2.5));
         let rad = parse_angle("0.04rad").unwrap();

@@ -75,7 +75,10 @@ fn path_knots(g: &Geometry, path: &PathKind) -> Vec<WheelTicks, SQUARE_KNOTS> {
             // One arc: the centre line's travel plus the turn's difference between the wheels.
             let leg = leg_ticks(g, 2.0 * PI * radius_m);
             let turn = turn_ticks(g, direction.turn_sign() * 2.0 * PI);
-            let _ = knots.push(WheelTicks::new(leg.right + turn.right, leg.left + turn.left));
+            let _ = knots.push(WheelTicks::new(
+                leg.right + turn.right,
+                leg.left + turn.left,
+            ));
         }
     }
     knots
@@ -96,10 +99,14 @@ pub fn bound(run: &RunRecord) -> Bound {
             1.0 + sign(4) * SCALE_TOLERANCE,
         );
         let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &knots);
-        position_m = fmax(position_m, libm::hypot(end.x_m - nominal.x_m, end.y_m - nominal.y_m));
-        heading_deg = fmax(heading_deg, libm::fabs(wrap_deg(
-            (end.theta_rad - nominal.theta_rad).to_degrees(),
-        )));
+        position_m = fmax(
+            position_m,
+            libm::hypot(end.x_m - nominal.x_m, end.y_m - nominal.y_m),
+        );
+        heading_deg = fmax(
+            heading_deg,
+            libm::fabs(wrap_deg((end.theta_rad - nominal.theta_rad).to_degrees())),
+        );
     }
     Bound {
         position_m: position_m + MEASURING_PRECISION_M,
@@ -216,7 +223,10 @@ mod tests {
         // about L²·ΔE_d/(4b); the bound grows faster than the path.
         let short = bound(&line_run(1.0));
         let long = bound(&line_run(4.0));
-        assert!(short.position_m > 0.02 && short.position_m < 0.2, "{short:?}");
+        assert!(
+            short.position_m > 0.02 && short.position_m < 0.2,
+            "{short:?}"
+        );
         assert!(long.position_m > 4.0 * (short.position_m - MEASURING_PRECISION_M));
         assert!(short.heading_deg > MEASURING_PRECISION_DEG);
         // A square: the wheelbase tolerance turns each corner by up to 3 % of 90°.
@@ -228,7 +238,10 @@ mod tests {
         };
         let (one, two) = (square(1.0), square(2.0));
         std::println!("bound 1 m square {one:?}, 2 m square {two:?}");
-        assert!(one.heading_deg > 4.0 * 90.0 * WHEELBASE_TOLERANCE, "{one:?}");
+        assert!(
+            one.heading_deg > 4.0 * 90.0 * WHEELBASE_TOLERANCE,
+            "{one:?}"
+        );
         // A centimetre value read as metres (0.5355 m for 5.355 mm in x and y) is beyond it.
         assert!(one.position_m < 0.75, "{one:?}");
         let circle = bound(&run_on(PathKind::Circle {

@@ -50,12 +50,12 @@ use heapless::Vec;
 
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
+use crate::protocol::command::UnitSetting;
+use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::record;
 use crate::protocol::refusal::{InProgress, Refusal, StoreErrorText, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
-use crate::protocol::command::UnitSetting;
-use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::unit::{AngleUnit, LengthUnit};
 use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
@@ -253,7 +253,9 @@ impl<C: Calibrator> Session<C> {
 
     /// The number of the run at store position `index` (0-based).
     fn number_at(&self, index: usize) -> usize {
-        self.numbers.get(index).map_or(index + 1, |&n| usize::from(n))
+        self.numbers
+            .get(index)
+            .map_or(index + 1, |&n| usize::from(n))
     }
 
     /// The number of each stored run, in store order (as `runs` lists them).

@@ -141,7 +141,11 @@ impl<C: Calibrator> Session<C> {
         if robot.status().activity != Activity::Idle {
             return robot_err(out, RobotError::Busy, robot);
         }
-        let calibration = self.settings.calibration.as_ref().map(|c| c.method.as_str());
+        let calibration = self
+            .settings
+            .calibration
+            .as_ref()
+            .map(|c| c.method.as_str());
         let unsaved = self.unsaved && self.settings != defaults;
         if !confirmed && (calibration.is_some() || unsaved) {
             let refusal = Refusal::ResetUnconfirmed {

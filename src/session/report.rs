@@ -306,7 +306,9 @@ pub(super) fn write_residuals(
     if !residuals.iter().any(|r| r.outlier) {
         return Ok(());
     }
-    out.write_str("  the runs disagree by more than the robust scale (x/y swapped, a sign, a unit?)")?;
+    out.write_str(
+        "  the runs disagree by more than the robust scale (x/y swapped, a sign, a unit?)",
+    )?;
     match culprit {
         Some(n) => write!(
             out,

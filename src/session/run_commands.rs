@@ -16,10 +16,10 @@ use super::{ActiveRun, Session, measure, robot_err};
 use crate::motion::run::{Measurement, PathKind};
 use crate::protocol::command::check_measure_range;
 use crate::protocol::outcome::{Outcome, write_outcome};
-use crate::protocol::reply::{ErrorCode, write_err};
-use crate::protocol::unit::{Angle, Length};
 use crate::protocol::record;
 use crate::protocol::refusal::{Refusal, write_refusal};
+use crate::protocol::reply::{ErrorCode, write_err};
+use crate::protocol::unit::{Angle, Length};
 
 /// Removes and returns element `i` of `v`, keeping the order of the others (as `Vec::remove`),
 /// or `None` when there is no element `i`. The element walks to the end by swaps of disjoint

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, write_calibration};
+use odocal::session::{Calibrator, Numbered, write_calibration};
 use serde_json::json;
 
 use super::runs::Measured;
@@ -33,9 +33,13 @@ impl Guide {
             );
             let mut out = String::new();
             let runs = self.live();
+            let numbered = Numbered {
+                runs: &runs,
+                numbers: &[],
+            };
             write_calibration(
                 &mut LibraryCalibrator::default(),
-                &runs,
+                numbered,
                 &self.nominal,
                 None,
                 &mut out,
@@ -73,7 +77,9 @@ impl Guide {
                         w[1], w[2], w[7], w[8], w[9]
                     ));
                 }
-            } else if l.starts_with("run ") || l.starts_with("check run") || l.starts_with("advice")
+            } else if l.starts_with("run ")
+                || l.starts_with("the runs disagree")
+                || l.starts_with("advice")
             {
                 self.ui.say(&format!("  {l}"));
             } else if l.starts_with("ok ") || l.starts_with("err ") {
@@ -86,31 +92,31 @@ impl Guide {
     /// swapped, a sign) or to drop it and drive it again; returns whether any run changed, so
     /// that the calibration is computed again.
     pub(super) fn review_flagged_runs(&mut self, table: &[String]) -> Result<bool, Stop> {
-        let flagged: Vec<usize> = table
-            .iter()
-            .find_map(|l| l.strip_prefix("check run"))
-            .map(|rest| {
-                rest.split(':')
-                    .next()
-                    .unwrap_or("")
-                    .split_whitespace()
-                    .filter_map(|w| w.parse().ok())
-                    .collect()
-            })
-            .unwrap_or_default();
+        let (flagged, culprit) = flagged_and_culprit(table);
         // What stays flagged when nothing changes (the runs kept), for the plot's title.
         self.flagged.clone_from(&flagged);
+        // The run whose removal makes the others agree is the one to look at; when no single
+        // run does, every flagged one.
+        let review = match culprit {
+            Some(n) => vec![n],
+            None => flagged,
+        };
         let mut changed = false;
-        // Highest first, so the board's numbers of the others stay valid.
-        'runs: for &n in flagged.iter().rev() {
+        // The board's numbers stay valid when a run is dropped; the table computed on the PC
+        // numbers the live runs 1, 2, … (highest first keeps them valid).
+        let on_board = self.board_has_all();
+        'runs: for &n in review.iter().rev() {
             let live: Vec<usize> = (0..self.slots.len())
                 .filter(|&i| self.slots[i].record.is_some())
                 .collect();
-            let Some(&slot) = live.get(n - 1) else {
+            let slot = if on_board {
+                self.board_slot(n)
+            } else {
+                n.checked_sub(1).and_then(|i| live.get(i)).copied()
+            };
+            let Some(slot) = slot else {
                 continue;
             };
-            // Measuring again needs the run on the board (`measure #n`).
-            let on_board = self.board_has_all();
             let question = format!(
                 "Run {n} disagrees with the others: {}[d]rop it, [r]e-drive it (drop it and \
                  drive a new one), or [k]eep it",
@@ -147,7 +153,7 @@ impl Guide {
                             if !r.ok() {
                                 return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
                             }
-                            self.board.retain(|&s| s != slot);
+                            self.board.retain(|&(_, s)| s != slot);
                         }
                         self.slots[slot].record = None;
                         self.link.log.entry("drop", json!({ "slot": slot }), true);
@@ -375,5 +381,42 @@ impl Guide {
                 None
             }
         }
+    }
+}
+
+/// The runs a `calibrate` table flags (`run <n> … DISAGREES`) and the one whose removal makes
+/// the others agree (`… without run <n> the others agree …`), if the board could tell.
+fn flagged_and_culprit(table: &[String]) -> (Vec<usize>, Option<usize>) {
+    let number = |l: &str, after: &str| -> Option<usize> {
+        let rest = &l[l.find(after)? + after.len()..];
+        rest.split_whitespace().next()?.parse().ok()
+    };
+    let flagged = table
+        .iter()
+        .filter(|l| l.trim_end().ends_with("DISAGREES"))
+        .filter_map(|l| number(l.trim_start(), "run "))
+        .collect();
+    let culprit = table.iter().find_map(|l| {
+        l.contains("the others agree")
+            .then(|| number(l, "without run "))?
+    });
+    (flagged, culprit)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_flagged_runs_and_the_one_to_check_are_read_from_the_table() {
+        let table = [
+            "run 2  dx=+0.1 mm dy=+0.2 mm weight=0.91".to_string(),
+            "run 4  dx=+141.167 mm dy=-164.262 mm weight=0.00 DISAGREES".to_string(),
+            "run 7  dx=+1.0 mm dy=-1.0 mm weight=0.31 DISAGREES".to_string(),
+            "the runs disagree by more than the robust scale (x/y swapped, a sign, a unit?); \
+             without run 4 the others agree (each run left out in turn): check run 4, then \
+             measure #4 x y or drop 4, and calibrate again"
+                .to_string(),
+        ];
+        assert_eq!(super::flagged_and_culprit(&table), (vec![4, 7], Some(4)));
+        assert_eq!(super::flagged_and_culprit(&table[..3]), (vec![4, 7], None));
     }
 }

@@ -23,7 +23,7 @@ pub(super) const HOW_TO_MEASURE: &str = "\
     edges' distance minus one tyre width, to about 1 mm (0.3 %): the calibration corrects it.
   - counts per revolution: encoder lines per motor turn x 4 (quadrature) x the gear ratio,
     from the data sheets; it must be exact.
-  A bare number is metres; a unit may be typed with it (150mm, 15cm, 0.15m).";
+  Every length with its unit (150mm, 15 cm, 0.15m): a bare number is refused.";
 
 /// A length in metres as sent to the board: to the picometre, without the binary noise of a
 /// unit conversion (`150mm` is `0.15`, not `0.15000000000000002`).
@@ -224,9 +224,10 @@ impl Guide {
     /// A length in metres (a unit may be typed with it), within the board's range.
     fn ask_length(&mut self, what: &str, default: f64) -> Result<f64, Stop> {
         loop {
-            let a = self
-                .ui
-                .ask(&format!("{what} (m, or 150mm)"), Some(&default.to_string()))?;
+            let a = self.ui.ask(
+                &format!("{what} (with its unit: 150mm, 15cm, 0.15m)"),
+                Some(&format!("{}m", metres_text(default))),
+            )?;
             if a == "help" || a == "?" {
                 self.ui.say(HOW_TO_MEASURE);
                 continue;
@@ -234,7 +235,7 @@ impl Guide {
             match super::length(&a) {
                 Ok(v) if v > 0.0 && v <= 5.0 => return Ok(v),
                 Ok(v) => self.ui.say(&format!(
-                    "  {v} m is not a plausible {what}: a bare number is metres (150mm, 0.15)"
+                    "  {v} m is not a plausible {what} (check the unit: 150mm, 0.15m)"
                 )),
                 Err(e) => self.ui.say(&format!("  {e}")),
             }
