@@ -391,21 +391,21 @@ fn help_lists_every_command_then_ok() {
         "  help                      this list\r\n\
          \x20 status                    state, pose, faults, session progress\r\n\
          \x20 params                    parameters and the active calibration\r\n\
-         \x20 set <name> <value>        change a parameter (names as in params)\r\n\
+         \x20 set <name> <value>        change a parameter (params; measure_unit, heading_unit)\r\n\
          \x20 run cw|ccw [L]            drive a square of side L m (default: planned side)\r\n\
          \x20 next                      start the next planned run (button short press)\r\n\
          \x20 line [d]                  drive straight d m\r\n\
          \x20 circle cw|ccw [r]         drive a full circle of radius r m\r\n\
          \x20 stop                      stop now (Ctrl-C or Esc also stop at once)\r\n\
          \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
-         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m m deg; or 5mm 1cm 2deg)\r\n\
+         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n, units written (5mm 1cm 2deg)\r\n\
          \x20 runs                      list stored runs\r\n\
          \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
          \x20 drop <n>|all yes          delete run n, or every run\r\n\
          \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
          \x20 apply <method> [yes]      use a method's result (then save; yes: with a flagged run)\r\n\
          \x20 save                      store parameters in flash (motors stopped)\r\n\
-         \x20 reset-params              restore the defaults (then save)\r\n\
+         \x20 reset-params [yes]        restore the defaults (then save; yes: discard changes)\r\n\
          \x20 pose                      odometry pose\r\n\
          \x20 odom reset                set the odometry pose to the origin\r\n\
          \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\

@@ -512,18 +512,23 @@ impl Calibrator for LibraryCalibrator {
             .map(|(i, _)| i + 1)
             .collect();
         // Each run left out in turn: the robust fit of the others flags none.
-        let mut agreeing = positions.iter().enumerate().filter(|&(k, _)| {
-            let rest: Vec<RunObservation<'_>, MAX_RUNS> = obs
-                .iter()
-                .enumerate()
-                .filter(|&(i, _)| i != k)
-                .map(|(_, o)| *o)
-                .collect();
-            calibration::calibrate(&rest, nominal, Method::Exact)
-                .is_ok_and(|c| c.fit.is_some_and(|f| f.outliers == 0))
-        });
-        match (agreeing.next(), agreeing.next()) {
-            (Some((_, &run)), None) => Culprit::Run(run),
+        let (mut agreeing, mut found) = (0u8, None);
+        for k in 0..obs.len() {
+            let mut rest: Vec<RunObservation<'_>, MAX_RUNS> = Vec::new();
+            for (i, o) in obs.iter().enumerate() {
+                if i != k {
+                    let _ = rest.push(*o);
+                }
+            }
+            if let Ok(c) = calibration::calibrate(&rest, nominal, Method::Exact)
+                && c.fit.is_some_and(|f| f.outliers == 0)
+            {
+                agreeing += 1;
+                found = positions.get(k).copied();
+            }
+        }
+        match (agreeing, found) {
+            (1, Some(run)) => Culprit::Run(run),
             _ => Culprit::CannotTell,
         }
     }

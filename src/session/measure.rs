@@ -17,6 +17,7 @@ use core::f64::consts::PI;
 use heapless::Vec;
 
 use crate::calibration::synth::{SQUARE_KNOTS, leg_ticks, square_knots, turn_ticks};
+use crate::calibration::wrap_angle;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
@@ -36,17 +37,6 @@ pub const SCALE_TOLERANCE: f64 = 0.01;
 pub const MEASURING_PRECISION_M: f64 = 0.01;
 /// Precision of a measured end heading, degrees (a straight edge on a floor line: about 1°).
 pub const MEASURING_PRECISION_DEG: f64 = 1.0;
-
-/// Angle in degrees wrapped into (-180, 180].
-fn wrap_deg(d: f64) -> f64 {
-    let mut d = crate::util::trig::fmod(d, 360.0);
-    if d > 180.0 {
-        d -= 360.0;
-    } else if d <= -180.0 {
-        d += 360.0;
-    }
-    d
-}
 
 /// How far a measured end may lie from a run's odometry end.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -105,7 +95,7 @@ pub fn bound(run: &RunRecord) -> Bound {
         );
         heading_deg = fmax(
             heading_deg,
-            libm::fabs(wrap_deg((end.theta_rad - nominal.theta_rad).to_degrees())),
+            libm::fabs(wrap_angle(end.theta_rad - nominal.theta_rad)).to_degrees(),
         );
     }
     Bound {
@@ -154,7 +144,7 @@ pub fn check(
         });
     }
     if let Some(t) = theta_deg {
-        let diff_deg = wrap_deg(t - odo.theta_rad.to_degrees());
+        let diff_deg = wrap_angle(t.to_radians() - odo.theta_rad).to_degrees();
         if diff_deg.abs() > b.heading_deg {
             return Err(Implausible::Heading {
                 diff_deg,

@@ -158,7 +158,9 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = push_settings(robot, &defaults) {
             return robot_err(out, e, robot);
         }
-        self.unsaved = self.settings != defaults;
+        // RAM now differs from the flash, unless both hold the defaults (a further reset then
+        // finds nothing to discard: the settings equal the defaults).
+        self.unsaved = true;
         self.settings = defaults;
         self.dropped = None;
         write_param_outcome(out, &ParamOutcome::Reset)

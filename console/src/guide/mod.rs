@@ -117,6 +117,9 @@ struct Guide {
     less: [u32; 2],
     /// Whether the applied calibration was saved.
     saved: bool,
+    /// Changes made on the board this session and not saved yet (the nominal geometry, the
+    /// wiring, the speed-loop tuning): offered for `save` even when no calibration is applied.
+    pending: Vec<&'static str>,
     /// The runs (board numbers) the last `calibrate` flagged.
     flagged: Vec<usize>,
     /// The check square's end error and the runs' mean end error before (if any), metres.
@@ -168,6 +171,14 @@ pub fn run(opts: &Options) -> Result<(), String> {
         Some(p) => (p.clone(), Some(LogContents::read(p)?)),
         None => (opts.log.clone().unwrap_or_else(log_default), None),
     };
+    // A new session never appends to an existing log (two sessions in one file).
+    if resumed.is_none() && log_path.exists() {
+        return Err(format!(
+            "{} exists: give a new --log name, or --resume {} to continue that session",
+            log_path.display(),
+            log_path.display()
+        ));
+    }
     let answers = match &opts.answers {
         Some(p) => std::fs::read_to_string(p)
             .map_err(|e| format!("{}: {e}", p.display()))?
@@ -208,6 +219,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         stop_runs: false,
         less: [0, 0],
         saved: false,
+        pending: Vec::new(),
         flagged: Vec::new(),
         check: None,
     };
@@ -401,8 +413,7 @@ impl Guide {
         loop {
             self.drive_missing_runs()?;
             let table = self.calibrate()?;
-            if !self.review_flagged_runs(&table)? {
-                self.apply_save_verify(&table)?;
+            if !self.review_flagged_runs(&table)? && !self.apply_save_verify(&table)? {
                 break;
             }
         }

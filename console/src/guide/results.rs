@@ -101,6 +101,12 @@ impl Guide {
             Some(n) => vec![n],
             None => flagged,
         };
+        self.review_runs(&review, "disagrees with the others")
+    }
+
+    /// Offers each run of `review` (its number in the table) to be measured again, dropped,
+    /// driven again or kept; `why` says why it is asked. Returns whether any run changed.
+    fn review_runs(&mut self, review: &[usize], why: &str) -> Result<bool, Stop> {
         let mut changed = false;
         // The board's numbers stay valid when a run is dropped; the table computed on the PC
         // numbers the live runs 1, 2, … (highest first keeps them valid).
@@ -118,7 +124,7 @@ impl Guide {
                 continue;
             };
             let question = format!(
-                "Run {n} disagrees with the others: {}[d]rop it, [r]e-drive it (drop it and \
+                "Run {n} {why}: {}[d]rop it, [r]e-drive it (drop it and \
                  drive a new one), or [k]eep it",
                 if on_board {
                     "[m]easure it again (a typing mistake: x/y swapped, a sign), "
@@ -187,7 +193,10 @@ impl Guide {
         Ok(changed)
     }
 
-    pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<(), Stop> {
+    /// Asks which method to apply, applies, saves and verifies it. A declined apply returns to
+    /// the choice (a run measured again, dropped or driven again, another method, or nothing
+    /// applied); returns whether the runs changed (`calibrate` again).
+    pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<bool, Stop> {
         let solved: Vec<(String, f64)> = table
             .iter()
             .filter_map(|l| {
@@ -207,68 +216,163 @@ impl Guide {
             .or_else(|| solved.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
             .map(|(m, _)| m.clone())
             .ok_or_else(|| Stop::Failed("no method solved".into()))?;
-        let method = loop {
-            let a = self.ui.ask(
-                "Apply which method (none: keep the current parameters)",
-                Some(&recommended),
-            )?;
-            if a.eq_ignore_ascii_case("none") {
+        'choice: loop {
+            let method = loop {
+                let a = self.ui.ask(
+                    "Apply which method (none: keep the current parameters)",
+                    Some(&recommended),
+                )?;
+                if a.eq_ignore_ascii_case("none") {
+                    self.ui
+                        .say("nothing applied; the board keeps its parameters");
+                    self.offer_pending_save()?;
+                    return Ok(false);
+                }
+                if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
+                    break m.clone();
+                }
+                let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
                 self.ui
-                    .say("nothing applied; the board keeps its parameters");
-                return Ok(());
+                    .say(&format!("  one of {}, or none", names.join(", ")));
+            };
+            if !self.board_has_all() {
+                self.ui.warn(&format!(
+                    "the board holds {} of the session's {} runs: `apply {method}` on the board \
+                     would compute from those only. The result from all runs is in the table \
+                     above and in the log (`cargo console recalibrate LOG --method {method}`)",
+                    self.board.len(),
+                    self.live().len()
+                ));
+                if !self
+                    .ui
+                    .confirm("Apply the board's result from its runs anyway", false)?
+                {
+                    match self.after_decline(table)? {
+                        Declined::Again => continue 'choice,
+                        Declined::Changed => return Ok(true),
+                        Declined::Skip => return Ok(false),
+                    }
+                }
             }
-            if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
-                break m.clone();
-            }
-            let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
-            self.ui
-                .say(&format!("  one of {}, or none", names.join(", ")));
-        };
-        if !self.board_has_all() {
-            self.ui.warn(&format!(
-                "the board holds {} of the session's {} runs: `apply {method}` on the board \
-                 would compute from those only. The result from all runs is in the table above \
-                 and in the log (`cargo console recalibrate LOG --method {method}`)",
-                self.board.len(),
-                self.live().len()
-            ));
+            let row = table
+                .iter()
+                .find(|l| l.split_whitespace().next() == Some(method.as_str()))
+                .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>())
+                .filter(|w| w.len() == 3)
+                .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
+                .unwrap_or_default();
             if !self
                 .ui
-                .confirm("Apply the board's result from its runs anyway", false)?
+                .confirm_explicit(&format!("Apply {method}{row} to the board"))?
             {
-                return Ok(());
+                match self.after_decline(table)? {
+                    Declined::Again => continue 'choice,
+                    Declined::Changed => return Ok(true),
+                    Declined::Skip => return Ok(false),
+                }
+            }
+            let mut applied = self.cmd(&format!("apply {method}"))?;
+            if applied.err_code() == Some(25) {
+                // A run is flagged (the board's own check): applied only on a second yes.
+                self.ui.say(&format!("  {}", applied.last));
+                if !self.ui.confirm_explicit(&format!(
+                    "Apply {method} anyway, with the flagged run in it"
+                ))? {
+                    match self.after_decline(table)? {
+                        Declined::Again => continue 'choice,
+                        Declined::Changed => return Ok(true),
+                        Declined::Skip => return Ok(false),
+                    }
+                }
+                applied = self.cmd(&format!("apply {method} yes"))?;
+            }
+            return self.save_and_verify(method, applied).map(|()| false);
+        }
+    }
+
+    /// After an apply was declined: measure a run again, drop it, drive it again, pick another
+    /// method, or apply nothing (pending changes are still offered for `save`).
+    fn after_decline(&mut self, table: &[String]) -> Result<Declined, Stop> {
+        let on_board = self.board_has_all();
+        loop {
+            let choice = self.choose(
+                "Not applied. Now",
+                &[
+                    ("m", "measure a run again"),
+                    ("d", "drop a run"),
+                    ("r", "re-drive a run"),
+                    ("o", "another method"),
+                    ("s", "skip: apply nothing"),
+                ],
+                "o",
+                "  m, d or r ask which run (its number in the table) and then what to do with \
+                 it; o returns to the method question; s applies nothing (changes made this \
+                 session are still offered for save)",
+            )?;
+            match choice.as_str() {
+                "o" => return Ok(Declined::Again),
+                "s" => {
+                    self.ui
+                        .say("nothing applied; the board keeps its parameters");
+                    self.offer_pending_save()?;
+                    return Ok(Declined::Skip);
+                }
+                _ => {}
+            }
+            let a = self
+                .ui
+                .ask("Which run (its number in the table; back)", None)?;
+            if a.eq_ignore_ascii_case("back") {
+                continue;
+            }
+            let Ok(n) = a.trim().parse::<usize>() else {
+                self.ui.say("  a run number as the table lists it");
+                continue;
+            };
+            if !table
+                .iter()
+                .any(|l| l.trim_start().starts_with(&format!("run {n} ")))
+                && on_board
+            {
+                self.ui.say(&format!("  the table lists no run {n}"));
+            }
+            if self.review_runs(&[n], "chosen")? {
+                return Ok(Declined::Changed);
             }
         }
-        let row = table
-            .iter()
-            .find(|l| l.split_whitespace().next() == Some(method.as_str()))
-            .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>())
-            .filter(|w| w.len() == 3)
-            .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
-            .unwrap_or_default();
-        if !self
-            .ui
-            .confirm_explicit(&format!("Apply {method}{row} to the board"))?
-        {
-            self.ui
-                .say("nothing applied; the board keeps its parameters");
+    }
+
+    /// Offers `save` for the changes made on the board this session when nothing is applied.
+    fn offer_pending_save(&mut self) -> Result<(), Stop> {
+        if self.pending.is_empty() || self.saved {
             return Ok(());
         }
-        let mut applied = self.cmd(&format!("apply {method}"))?;
-        if applied.err_code() == Some(25) {
-            // A run is flagged (the board's own check): applied only on a second yes.
-            self.ui.say(&format!("  {}", applied.last));
-            if !self.ui.confirm_explicit(&format!(
-                "Apply {method} anyway, with the flagged run in it"
-            ))? {
-                self.ui.say(
-                    "nothing applied: re-measure or drop the flagged run (a terminal: `measure \
-                     #n …`, `drop n`), or resume this session to drive it again",
-                );
-                return Ok(());
+        let what = self.pending.join(", ");
+        if self.ui.confirm_explicit(&format!(
+            "Save the changes made this session ({what}) to flash"
+        ))? {
+            let saved = self.cmd("save")?;
+            self.link.log.entry(
+                "save",
+                json!({ "ok": saved.ok(), "reply": saved.last }),
+                true,
+            );
+            self.ui.say(&format!("  {}", saved.last));
+            if !saved.ok() {
+                return Err(Stop::Failed(format!("save: {}", saved.last)));
             }
-            applied = self.cmd(&format!("apply {method} yes"))?;
+            self.saved = true;
+            self.pending.clear();
+        } else {
+            self.ui.say(&format!(
+                "  not saved ({what}): lost at the next reset (type `save` on a terminal to keep)"
+            ));
         }
+        Ok(())
+    }
+
+    /// Logs the apply, saves on a yes, and reads `params` back.
+    fn save_and_verify(&mut self, method: String, applied: crate::link::Reply) -> Result<(), Stop> {
         self.link.log.entry(
             "apply",
             json!({ "method": method, "reply": applied.last }),
@@ -294,6 +398,7 @@ impl Guide {
             }
             self.ui.say(&format!("  {}", saved.last));
             self.saved = true;
+            self.pending.clear();
         } else {
             self.ui.say(
                 "  not saved: the board uses the calibration until it is reset (type `save` on \
@@ -382,6 +487,16 @@ impl Guide {
             }
         }
     }
+}
+
+/// What the operator chose after declining an apply.
+enum Declined {
+    /// Ask for the method again.
+    Again,
+    /// A run changed: drive what is missing and calibrate again.
+    Changed,
+    /// Apply nothing.
+    Skip,
 }
 
 /// The runs a `calibrate` table flags (`run <n> … DISAGREES`) and the one whose removal makes
