@@ -448,10 +448,20 @@ fn solution(c: &Calibration, runs: &[RunRecord]) -> Solution {
     }
 }
 
+/// 1σ of a measured end position the procedure asks for (and the advice assumes), metres.
+pub const MEASURED_POSITION_SIGMA_M: f64 = 1e-3;
+/// 1σ of a measured end heading the procedure asks for (and the advice assumes), degrees.
+pub const MEASURED_HEADING_SIGMA_DEG: f64 = 0.2;
+
 impl Default for LibraryCalibrator {
-    /// 1 mm and 0.2° measurement error, squares up to 4 m.
+    /// [`MEASURED_POSITION_SIGMA_M`] and [`MEASURED_HEADING_SIGMA_DEG`] measurement error,
+    /// squares up to 4 m.
     fn default() -> Self {
-        LibraryCalibrator::new(1e-3, 0.2f64.to_radians(), 4.0)
+        LibraryCalibrator::new(
+            MEASURED_POSITION_SIGMA_M,
+            MEASURED_HEADING_SIGMA_DEG.to_radians(),
+            4.0,
+        )
     }
 }
 
