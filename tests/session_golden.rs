@@ -924,7 +924,8 @@ fn calibrate_apply_save_golden() {
     b.send("drive 0.1 0");
     assert_eq!(
         b.send("save"),
-        "err 18: motors running, flash not written\r\n"
+        "err 18: motors not confirmed stopped (running, or the control loop has not run yet), flash \
+         not written\r\n"
     );
     assert!(b.store.saved.is_none());
     // Nothing that takes seconds (the exact solve) or changes parameters while moving: the

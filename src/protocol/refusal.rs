@@ -372,7 +372,9 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
             }
         }
         Refusal::MethodFailed { why } | Refusal::InvalidParams { why } => write!(out, "{why}")?,
-        Refusal::MotorsRunning => out.write_str("motors running, flash not written")?,
+        Refusal::MotorsRunning => out.write_str(
+            "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
+        )?,
         Refusal::FlashFailed { why } => write!(out, "flash error: {why}")?,
         Refusal::NotStorable { why } => write!(out, "parameters not storable: {why}")?,
         Refusal::NoMethodSucceeded => {
@@ -443,7 +445,7 @@ mod tests {
         );
         assert_eq!(
             text(&Refusal::MotorsRunning),
-            "err 18: motors running, flash not written\r\n"
+            "err 18: motors not confirmed stopped (running, or the control loop has not run yet), flash not written\r\n"
         );
     }
 }

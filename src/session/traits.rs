@@ -91,7 +91,7 @@ pub enum Rejection {
 impl fmt::Display for Rejection {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            Rejection::NotReady => "encoders not read yet",
+            Rejection::NotReady => "the control loop has not run yet (encoders not read: no control-timer interrupt, as under QEMU)",
             Rejection::Path => "path size not accepted by the routine",
             Rejection::Check => "check not accepted by the controller",
             Rejection::NotFinite => "speeds must be finite",
@@ -204,7 +204,9 @@ pub enum StorageError {
 impl fmt::Display for StorageError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            StorageError::MotorsRunning => f.write_str("motors running, flash not written"),
+            StorageError::MotorsRunning => f.write_str(
+                "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
+            ),
             StorageError::Store(e) => write!(f, "flash error: {}", StoreErrorText(*e)),
             StorageError::Flash(why) => write!(f, "flash error: {why}"),
             StorageError::Record(e) => write!(f, "parameters not storable: {e}"),
