@@ -540,6 +540,18 @@ pub(super) fn fault_cause(fault: &str) -> Option<&'static str> {
     }
 }
 
+/// The first measured value typed without a unit, if any (the words as the board reads them:
+/// x, y, then θ).
+fn bare_value(words: &[String]) -> Option<&str> {
+    words.iter().enumerate().find_map(|(i, w)| {
+        let bare = match i {
+            0 | 1 => parse_length(w).is_ok_and(|l| l.unit.is_none()),
+            _ => parse_angle(w).is_ok_and(|a| a.unit.is_none()),
+        };
+        bare.then_some(w.as_str())
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::fault_cause;
@@ -551,16 +563,4 @@ mod tests {
         assert!(fault_cause("stall").is_some());
         assert_eq!(fault_cause("identify"), None);
     }
-}
-
-/// The first measured value typed without a unit, if any (the words as the board reads them:
-/// x, y, then θ).
-fn bare_value(words: &[String]) -> Option<&str> {
-    words.iter().enumerate().find_map(|(i, w)| {
-        let bare = match i {
-            0 | 1 => parse_length(w).is_ok_and(|l| l.unit.is_none()),
-            _ => parse_angle(w).is_ok_and(|a| a.unit.is_none()),
-        };
-        bare.then_some(w.as_str())
-    })
 }
