@@ -304,7 +304,9 @@ impl Guide {
                     ("o", "another method"),
                     ("s", "skip: apply nothing"),
                 ],
-                "o",
+                // The default ends the question: a script answering every question with its
+                // default (--yes) must not loop between the method and this choice.
+                "s",
                 "  m, d or r ask which run (its number in the table) and then what to do with \
                  it; o returns to the method question; s applies nothing (changes made this \
                  session are still offered for save)",
