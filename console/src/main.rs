@@ -143,7 +143,11 @@ fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
         nominal.wheelbase_m
     );
     let mut out = String::new();
-    write_calibration(&mut calibrator, &runs, &nominal, method, &mut out)
+    let numbered = odocal::session::Numbered {
+        runs: &runs,
+        numbers: &[],
+    };
+    write_calibration(&mut calibrator, numbered, &nominal, method, &mut out)
         .map_err(|e| e.to_string())?;
     print!("{}", out.replace("\r\n", "\n"));
     if out.lines().last().is_some_and(|l| l.starts_with("err ")) {

@@ -27,6 +27,13 @@ const LINES: &[&str] = &[
     "circle cw 0.2",
     "measure 10mm -20mm",
     "measure 10mm -20mm 1.5deg",
+    "measure 0.01 -0.02",
+    "measure 0.01m -0.02m",
+    "measure 10 mm -20 mm 1.5 deg",
+    "measure 0.01m -0.02m 0.01rad",
+    "measure #2 1cm 2cm yes",
+    "set measure_unit mm",
+    "set heading_unit rad",
     "measure nan 0",
     "drop 1",
     "drop 12",
@@ -66,6 +73,10 @@ fn answers(line: &str, fin: &str) -> bool {
     let started =
         |what: &str| fin.starts_with("ok run ") && fin.ends_with(&format!(" started: {what}"));
     let set = |reply: &str| fin.starts_with(reply) || busy;
+    let measured = (fin.starts_with("ok run ") && fin.contains(" measured: "))
+        || fin.starts_with("err 10: a run is driving")
+        || fin.starts_with("err 12: ")
+        || fin.starts_with("err 22: ");
     let calibrate_refused = busy || fin.starts_with("err 13: ") || fin.starts_with("err 16: ");
     match line {
         "help" => fin.starts_with("ok ") && fin.ends_with(" commands"),
@@ -88,13 +99,25 @@ fn answers(line: &str, fin: &str) -> bool {
         "run ccw 0.2" => started("square ccw L=0.200 m") || refused_start,
         "line 0.2" => started("line d=0.200 m") || refused_start,
         "circle cw 0.2" => started("circle cw r=0.200 m") || refused_start,
-        "measure 10mm -20mm" | "measure 10mm -20mm 1.5deg" => {
-            (fin.starts_with("ok run ") && fin.contains(" measured: "))
+        "measure 10mm -20mm"
+        | "measure 10mm -20mm 1.5deg"
+        | "measure 0.01m -0.02m"
+        | "measure 10 mm -20 mm 1.5 deg"
+        | "measure 0.01m -0.02m 0.01rad" => measured,
+        // A bare value is read only in a declared unit; which one depends on what ran before.
+        "measure 0.01 -0.02" => measured || fin.starts_with("err 26: <x> 0.01 has no unit"),
+        "measure #2 1cm 2cm yes" => {
+            (fin.starts_with("ok run 2 ") && fin.contains(" measured"))
+                || fin.starts_with("err 14: no run 2 (")
                 || fin.starts_with("err 10: a run is driving")
-                || fin.starts_with("err 12: ")
-                || fin.starts_with("err 22: ")
         }
-        "measure nan 0" => fin.starts_with("err 5: <x_m> "),
+        "set measure_unit mm" => {
+            fin == "ok measure_unit = mm: bare measure values are mm (this session only, not saved)"
+        }
+        "set heading_unit rad" => {
+            fin == "ok heading_unit = rad: bare heading values are rad (this session only, not saved)"
+        }
+        "measure nan 0" => fin == "err 5: <x> must be finite",
         "drop 1" => fin.starts_with("ok dropped run 1: ") || fin.starts_with("err 14: no run 1 ("),
         "drop 12" => {
             fin.starts_with("ok dropped run 12: ") || fin.starts_with("err 14: no run 12 (")
@@ -104,11 +127,14 @@ fn answers(line: &str, fin: &str) -> bool {
         }
         "apply exact" => fin.starts_with("ok applied exact: ") || calibrate_refused,
         "apply umbmark-x" => fin.starts_with("ok applied umbmark-x: ") || calibrate_refused,
-        "save" => fin == "ok saved" || fin.starts_with("err 18: motors running"),
-        "reset-params" => set("ok parameters reset to defaults"),
+        "save" => fin == "ok saved" || fin.starts_with("err 18: motors not confirmed stopped"),
+        "reset-params" => {
+            set("ok parameters reset to defaults")
+                || fin.starts_with("err 25: reset-params discards ")
+        }
         "stream on 100" => fin == "ok stream on 100 Hz",
         "stream off" => fin == "ok stream off",
-        "drive 0.2 0.5" | "drive -0.1 0" => fin == "ok" || busy || fault,
+        "drive 0.2 0.5" | "drive -0.1 0" => fin == "ok" || refused_start,
         "set max_speed 0.5" => set("ok max_speed = 0.500 m/s ("),
         "set wheelbase 0.39" => set("ok wheelbase = 0.390000000 m ("),
         "set runs_per_direction 2" => set("ok runs_per_direction = 2 runs ("),

@@ -45,7 +45,7 @@ fn scripted_session_calibrate_save_reboot() {
     );
     // Before any run: the refusals the protocol promises.
     assert_eq!(
-        b.send("measure 0 0"),
+        b.send("measure 0m 0m"),
         "err 12: no finished run to measure (run cw|ccw or next first)\r\n"
     );
     let mut log = String::new();
@@ -72,7 +72,7 @@ fn scripted_session_calibrate_save_reboot() {
         assert_eq!(
             line,
             format!(
-                "measure {:.6} {:.6} {:.4}",
+                "measure {:.6}m {:.6}m {:.4}deg",
                 p.x_m,
                 p.y_m,
                 wrap_angle(p.theta_rad).to_degrees()

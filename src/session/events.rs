@@ -151,7 +151,7 @@ impl<C: Calibrator> Session<C> {
         // mistaken for an aborted one.
         let status = robot.status();
         while let Some(run) = robot.take_finished_run() {
-            self.active = None;
+            let started = self.active.take();
             self.last_aborted = None;
             let end = run.odometry_end;
             let path = run.path;
@@ -161,10 +161,13 @@ impl<C: Calibrator> Session<C> {
                 write!(out, "event run discarded: run store full\r\n")?;
                 continue;
             }
+            let number = started.map_or(self.next_number, |a| a.number as u16);
             let _ = self.runs.push(run);
             let _ = self.run_ids.push(None);
+            let _ = self.numbers.push(number);
+            self.next_number = number.saturating_add(1);
             self.runs_changed();
-            write_run_finished(out, self.runs.len(), &path, &end)?;
+            write_run_finished(out, usize::from(number), &path, &end)?;
         }
         if let Some(a) = self.active
             && !matches!(status.activity, Activity::Running(_))

@@ -103,6 +103,7 @@ impl<C: Calibrator> Session<C> {
         }
         let bandwidth = candidate.tuning.bandwidth_radps;
         self.settings = candidate;
+        self.unsaved = true;
         write!(
             out,
             "event identify done ({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep)\r\n",

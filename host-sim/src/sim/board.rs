@@ -360,7 +360,7 @@ impl<'f> Board<'f> {
 pub fn measure_line(board: &Board) -> Option<String> {
     board.true_pose_in_run_frame().map(|p| {
         format!(
-            "measure {:.6} {:.6} {:.4}",
+            "measure {:.6}m {:.6}m {:.4}deg",
             p.x_m,
             p.y_m,
             odocal::calibration::wrap_angle(p.theta_rad).to_degrees()
