@@ -139,6 +139,14 @@ pub use crate::board::f407::{ButtonInput, CONSOLE_INTERRUPT, ConsoleTx, Leds};
 pub type ConsoleRx = stm32f4xx_hal::serial::Rx<stm32f4xx_hal::pac::USART2>;
 /// The RX interrupt serves the console's receive half: nothing to poll.
 pub const CONSOLE_RX_POLLED: bool = false;
+/// QEMU has no TIM7: the app pends the control interrupt from the monotonic.
+pub const CONTROL_FROM_MONOTONIC: bool = true;
+
+/// What the boot line ends with: what QEMU does not model, so nobody takes the emulated board's
+/// numbers for a robot's.
+pub fn boot_note(_clock: ClockSource) -> &'static str {
+    "emulated: QEMU has no motors, encoders, PWM or TIM7 (a simulated robot drives)"
+}
 
 /// Everything the board gives the application (see [`crate::board`]).
 pub struct Board {
@@ -215,6 +223,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         watchdog,
         params: flash::param_store(),
         reset_cause,
-        clock: ClockSource::Crystal,
+        clock: ClockSource::External,
     }
 }

@@ -1,27 +1,15 @@
-//! Internal flash of the STM32F407VG for the parameter and run store (target only).
-//!
-//! Flash map (offsets from `0x0800_0000`, see `memory.x` and `docs/storage.md`):
-//!
-//! | sectors | offsets | use |
-//! |---|---|---|
-//! | 0 | `0x0_0000..0x0_4000` | vector table (the rest of the sector unused) |
-//! | 1–2 | `0x0_4000..0x0_C000` ([`PARAM_SECTORS`]) | parameter region: two 16 KiB sectors used A/B |
-//! | 3–9 | `0x0_C000..0xC_0000` | program (`.text` starts here: `_stext` in `memory.x`) |
-//! | 10–11 | `0xC_0000..0x10_0000` ([`RUNS_RANGE`]) | run region: `sequential-storage` map, 2 × 128 KiB |
-//!
-//! The parameters sit on small sectors so that an erase of theirs stalls the CPU for a small
-//! sector's erase time (16 KiB: 400 ms typical, 800 ms at most at the HAL's x8 parallelism,
-//! datasheet DS8626 t_ERASE16KB) rather than a large one's (128 KiB: 2 s typical, 4 s at most;
-//! `docs/storage.md`), and apart from the runs so that nothing done to the runs touches them.
-//! The constants below are checked at compile time; `memory.x` checks the same addresses at
-//! link time.
+//! The internal flash of an STM32F4 as the parameter and run store (target only): the driver
+//! every board shares. The map (which sectors hold what) is the board's own `flash` module,
+//! [`crate::board::flash_map`]: its parameter region (two small sectors used A/B), its run region
+//! (two or more 128 KiB sectors), and the sectors that may be erased. The map is checked here at
+//! compile time; the board's `memory.x` checks the same addresses at link time.
 //!
 //! [`BoardFlash`] owns the HAL's [`LockedFlash`] and implements the async `embedded-storage` NOR
 //! traits. It unlocks the flash controller only for the duration of one erase or write, and
 //! refuses any access outside the two regions and any erase that is not whole sectors of them
-//! ([`SECTORS`]), so a logic error can never erase the program. Erase and program busy-wait
-//! inside the HAL: an erase stalls instruction fetches (and so every interrupt), which is why
-//! the store only writes while the motors are stopped.
+//! (the map's `SECTORS`), so a logic error can never erase the program. Erase and program
+//! busy-wait inside the HAL: an erase stalls instruction fetches (and so every interrupt), which
+//! is why the store only writes while the motors are stopped.
 
 use core::ops::Range;
 
@@ -32,40 +20,14 @@ use embedded_storage_async::nor_flash::{
 use stm32f4xx_hal::flash::{self as hal_flash, FlashExt, LockedFlash, UnlockedFlash};
 use stm32f4xx_hal::pac::FLASH;
 
-use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamSectors, ParamStore};
+use crate::board::flash_map::{
+    FLASH_BYTES, PARAM_A, PARAM_B, PARAM_SECTORS, PROGRAM_END, RUNS_END, RUNS_RANGE, RUNS_START,
+    SECTOR_BYTES, SECTORS, SMALL_SECTOR_BYTES, TEXT_START,
+};
+use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamStore};
 
 /// Base address of the internal flash in the memory map.
 pub const FLASH_BASE: u32 = 0x0800_0000;
-/// Total internal flash of the STM32F407VG, bytes.
-pub const FLASH_BYTES: u32 = 1024 * 1024;
-/// Size of sectors 0–3, bytes (the parameter region's erase unit).
-pub const SMALL_SECTOR_BYTES: u32 = 16 * 1024;
-/// Size of sectors 5–11, bytes (the run region's erase unit, `BoardFlash::ERASE_SIZE`).
-pub const SECTOR_BYTES: u32 = 128 * 1024;
-/// Parameter sector A (sector 1), offsets from [`FLASH_BASE`].
-pub const PARAM_A: Range<u32> = 0x0000_4000..0x0000_8000;
-/// Parameter sector B (sector 2), offsets from [`FLASH_BASE`].
-pub const PARAM_B: Range<u32> = 0x0000_8000..0x0000_C000;
-/// The parameter region: sectors 1 and 2, used A/B.
-pub const PARAM_SECTORS: ParamSectors = ParamSectors::new(PARAM_A, PARAM_B);
-/// Start of the program's code (`_stext` in `memory.x`): sector 3.
-pub const TEXT_START: u32 = PARAM_B.end;
-/// End of the program region (start of sector 10), offset from [`FLASH_BASE`].
-pub const PROGRAM_END: u32 = 0x000C_0000;
-/// Start of the run region (sector 10), offset from [`FLASH_BASE`].
-pub const RUNS_START: u32 = 0x000C_0000;
-/// End (exclusive) of the run region (end of sector 11), offset from [`FLASH_BASE`].
-pub const RUNS_END: u32 = 0x0010_0000;
-/// The run region as the store's range (offsets understood by [`BoardFlash`]).
-pub const RUNS_RANGE: Range<u32> = RUNS_START..RUNS_END;
-
-/// The sectors [`BoardFlash`] may erase: (sector number, offsets).
-pub const SECTORS: [(u8, Range<u32>); 4] = [
-    (1, PARAM_A),
-    (2, PARAM_B),
-    (10, RUNS_START..RUNS_START + SECTOR_BYTES),
-    (11, RUNS_START + SECTOR_BYTES..RUNS_END),
-];
 
 const _: () = assert!(
     PARAM_A.end - PARAM_A.start == SMALL_SECTOR_BYTES
@@ -91,12 +53,31 @@ const _: () = assert!(
     RUNS_END - RUNS_START >= 2 * SECTOR_BYTES,
     "sequential-storage needs at least two sectors"
 );
+// Every erasable sector lies in one of the two regions, and the regions are whole sectors.
+const _: () = {
+    let mut i = 0;
+    let mut covered = 0;
+    while i < SECTORS.len() {
+        let s = &SECTORS[i].1;
+        assert!(
+            (s.start >= PARAM_A.start && s.end <= PARAM_B.end)
+                || (s.start >= RUNS_START && s.end <= RUNS_END),
+            "an erasable sector outside the two regions"
+        );
+        covered += s.end - s.start;
+        i += 1;
+    }
+    assert!(
+        covered == (PARAM_B.end - PARAM_A.start) + (RUNS_END - RUNS_START),
+        "the erasable sectors do not cover the two regions"
+    );
+};
 
 /// Address of the flash size register (RM0090 §39.2: "Flash size", 16 bits, KiB).
 const FLASH_SIZE_REGISTER: *const u16 = 0x1FFF_7A22 as *const u16;
 
-/// The part's flash size in KiB, as its flash size register reports it (1024 on an
-/// STM32F407VG, 512 on an STM32F407VE).
+/// The part's flash size in KiB, as its flash size register reports it (1024 on a
+/// 1 MiB part, 512 on a 512 KiB one).
 #[inline(never)]
 pub fn flash_size_kib() -> u16 {
     // SAFETY: a 16-bit read of a read-only system-memory register that every STM32F4 has.
@@ -138,9 +119,9 @@ pub fn whole_sectors(
     })
 }
 
-/// The parameter and run store on sectors 1–2 and 10–11. The layout is checked when the
+/// The parameter and run store on the board's parameter and run sectors. The layout is checked when the
 /// firmware is built (`MapConfig::new` in a const block, the assertions above), so this cannot
-/// fail at run time. On a part whose flash ends before sector 11 does (its flash size register
+/// fail at run time. On a part whose flash ends before the run region does (its flash size register
 /// says so), the store never touches the flash: boot uses the defaults and says why, `save`
 /// answers with an error.
 pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
