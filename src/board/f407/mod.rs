@@ -23,12 +23,12 @@ pub mod flash;
 pub mod safety;
 
 use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, PE7, PE8, PE13, Pull};
-use stm32f4xx_hal::pac::{self, TIM2, TIM3, TIM7, USART2};
+use stm32f4xx_hal::pac::{self, TIM7, USART2};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
 use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::serial::{self, Serial, Tx};
-use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
+use stm32f4xx_hal::timer::Event;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::storage::ParamStore;
@@ -106,47 +106,10 @@ pub fn boot_note(clock: ClockSource) -> &'static str {
     clock.describe(&CLOCK_TEXTS)
 }
 
-/// The two quadrature encoders: TIM2 (32-bit, right) and TIM3 (16-bit, left).
-pub struct Encoders {
-    right: Qei<TIM2>,
-    left: Qei<TIM3>,
-}
-
-impl Encoders {
-    /// The raw hardware counter values (right, left); the library extends them to tick totals.
-    pub fn read(&mut self) -> (u32, u32) {
-        (self.right.count(), u32::from(self.left.count()))
-    }
-}
-
+pub use super::stm32f4::timers::Encoders;
 /// The control-period interrupt source: TIM7's update at the control rate (84 MHz timer clock,
 /// so every rate of [`crate::motion::controller::RATES_HZ`] divides exactly).
-pub struct ControlTick {
-    timer: CounterHz<TIM7>,
-    rate_hz: u32,
-}
-
-impl ControlTick {
-    /// Acknowledges the period's interrupt.
-    pub fn clear(&mut self) {
-        self.timer.clear_flags(Flag::Update);
-    }
-
-    /// The rate TIM7 runs at, Hz.
-    pub fn rate_hz(&self) -> u32 {
-        self.rate_hz
-    }
-
-    /// Retimes TIM7 to `rate_hz`: the counter restarts, so the next update comes one new
-    /// period after the call (the update interrupt stays enabled).
-    pub fn set_rate_hz(&mut self, rate_hz: u32) {
-        if self.timer.start(rate_hz.Hz()).is_err() {
-            error!("control timer refused {} Hz", rate_hz);
-        } else {
-            self.rate_hz = rate_hz;
-        }
-    }
-}
+pub type ControlTick = super::stm32f4::timers::ControlTick<TIM7>;
 
 /// The user button on PA0 (EXTI0, both edges, pressed = high).
 pub struct ButtonInput(PA0<Input>);

@@ -9,6 +9,8 @@
 //! | [`flash`] | the parameter and run store's flash driver, over the board's flash map |
 //! | [`motors`] | two H-bridge channels on TIM1 channels 1 and 2, with the board's DIR and enable pins |
 //! | [`reset`] | reset cause, crash record, fault guard, debug-halt freeze |
+//! | [`safe_state`] | the motor pins' safe state and emergency stop for PWM and enable pins on one port |
+//! | [`timers`] | the encoders (TIM2, TIM3), the control-period tick, the encoder input filter and pull-ups |
 //! | [`watchdog`] | the independent watchdog's timeout changes |
 
 pub mod clock;
@@ -16,4 +18,6 @@ pub mod console_rx;
 pub mod flash;
 pub mod motors;
 pub mod reset;
+pub mod safe_state;
+pub mod timers;
 pub mod watchdog;

@@ -1,0 +1,132 @@
+//! The motor outputs' safe state for a board whose TIM1 PWM pins and bridge enable share one GPIO
+//! port (the register work of a board's `safety` module; the board names the port and pins).
+//!
+//! Safe means: the PWM pins and the bridge enable are push-pull outputs driven low, with
+//! pull-downs (out of reset they are floating inputs, which some bridges read as "enabled"); in
+//! an emergency also TIM1's main output off with its automatic re-enable cleared (BDTR.MOE and
+//! BDTR.AOE: the HAL's PWM sets AOE, which would set MOE again at the next update) and both
+//! compare values zero.
+
+use stm32f4xx_hal::pac::{self, gpioa::RegisterBlock};
+
+/// GPIO register values for `pins`: (BSRR word that drives them low, MODER/PUPDR mask of their
+/// bit pairs, MODER bits making them outputs, PUPDR bits giving them pull-downs).
+pub const fn pin_fields(pins: &[u32]) -> (u32, u32, u32, u32) {
+    let (mut low, mut mask2, mut output, mut pull_down) = (0u32, 0u32, 0u32, 0u32);
+    let mut i = 0;
+    while i < pins.len() {
+        let pin = pins[i];
+        low |= 1 << (pin + 16);
+        mask2 |= 0b11 << (2 * pin);
+        output |= 0b01 << (2 * pin);
+        pull_down |= 0b10 << (2 * pin);
+        i += 1;
+    }
+    (low, mask2, output, pull_down)
+}
+
+/// Drives `pins` of `port` low as outputs with pull-downs.
+///
+/// # Safety
+/// `port` is a GPIO port's register block whose clock is on, owned by the caller (nothing else
+/// writes it meanwhile); only the bit pairs of `pins` change.
+pub unsafe fn drive_safe(port: *const RegisterBlock, pins: &[u32]) {
+    let (low, mask2, output, pull_down) = pin_fields(pins);
+    // SAFETY: the caller's promise above; BSRR resets only these pins, and the MODER/PUPDR
+    // read-modify-writes change only their bit pairs.
+    unsafe {
+        let port = &*port;
+        port.bsrr().write(|w| w.bits(low));
+        port.pupdr()
+            .modify(|r, w| w.bits((r.bits() & !mask2) | pull_down));
+        port.moder()
+            .modify(|r, w| w.bits((r.bits() & !mask2) | output));
+    }
+}
+
+/// TIM1_BDTR.MOE: main output enable.
+const BDTR_MOE: u32 = 1 << 15;
+/// TIM1_BDTR.AOE: automatic output enable (MOE set again at the next update event).
+const BDTR_AOE: u32 = 1 << 14;
+
+/// Motors off from any context: `pins` of `port` driven low as plain outputs, TIM1's main output
+/// off, both compare values zero.
+///
+/// # Safety
+/// Called only from the panic and HardFault handlers, which never return: the drivers that own
+/// these registers never run again, so their read-modify-writes cannot be undone by an
+/// interrupted one. With the port's or TIM1's clock still off (a fault early in `init`) the
+/// writes are ignored and the pins are still in their reset state.
+pub unsafe fn emergency_stop(port: *const RegisterBlock, pins: &[u32]) {
+    let (low, mask2, output, _) = pin_fields(pins);
+    // SAFETY: the caller's promise above. BSRR is a write-only set/reset register (the write
+    // drives only `pins` low), MODER changes only their bit pairs (AF → output), the BDTR write
+    // clears only MOE and AOE, and CCR1/CCR2 become 0.
+    unsafe {
+        let port = &*port;
+        port.bsrr().write(|w| w.bits(low));
+        port.moder()
+            .modify(|r, w| w.bits((r.bits() & !mask2) | output));
+        let tim1 = &*pac::TIM1::ptr();
+        tim1.bdtr()
+            .modify(|r, w| w.bits(r.bits() & !(BDTR_MOE | BDTR_AOE)));
+        tim1.ccr1().write(|w| w.bits(0));
+        tim1.ccr2().write(|w| w.bits(0));
+    }
+}
+
+/// A board's motor-pin functions for TIM1 PWM and bridge enable pins on one GPIO port:
+/// `motors_off_at_reset` (the first thing `init` does: the port's clock on, the pins safe),
+/// `motor_pins_safe_after_port_reset` (right after the HAL's `split` of that port, which resets
+/// it: the pins float for the few core cycles in between, the PWM timer not yet started) and
+/// `odocal_emergency_stop` (from the panic and HardFault handlers; never inlined and with a fixed
+/// symbol name, so the firmware-in-the-loop check can see the handlers call it first).
+///
+/// `motor_safety!(GPIOA, gpioaen, [8, 9, 10])`: the port, its RCC_AHB1ENR enable field, and the
+/// pins (the PWM pins and the bridge enable).
+#[macro_export]
+macro_rules! motor_safety {
+    ($port:ident, $enable:ident, $pins:expr) => {
+        /// The PWM and bridge-enable pins of the motor port.
+        pub const MOTOR_PINS: [u32; 3] = $pins;
+
+        /// Drives the motor pins to the safe state: the first thing `init` does.
+        pub fn motors_off_at_reset(rcc: &stm32f4xx_hal::pac::RCC) {
+            rcc.ahb1enr().modify(|_, w| w.$enable().set_bit());
+            // Two peripheral-clock cycles must pass before the port responds: a read-back of
+            // the enable register provides them.
+            let _ = rcc.ahb1enr().read().bits();
+            // SAFETY: the port's clock is on; `init` owns the port (nothing else runs).
+            unsafe {
+                $crate::board::stm32f4::safe_state::drive_safe(
+                    stm32f4xx_hal::pac::$port::ptr().cast(),
+                    &MOTOR_PINS,
+                )
+            };
+        }
+
+        /// The motor pins back in the safe state right after the HAL's `split` of their port.
+        pub fn motor_pins_safe_after_port_reset() {
+            // SAFETY: `init` owns the port (its HAL parts were just created and not used yet).
+            unsafe {
+                $crate::board::stm32f4::safe_state::drive_safe(
+                    stm32f4xx_hal::pac::$port::ptr().cast(),
+                    &MOTOR_PINS,
+                )
+            };
+        }
+
+        /// Motors off from any context (panic, HardFault).
+        #[inline(never)]
+        #[unsafe(no_mangle)]
+        pub extern "C" fn odocal_emergency_stop() {
+            // SAFETY: called only from the fault handlers, which never return.
+            unsafe {
+                $crate::board::stm32f4::safe_state::emergency_stop(
+                    stm32f4xx_hal::pac::$port::ptr().cast(),
+                    &MOTOR_PINS,
+                )
+            };
+        }
+    };
+}
