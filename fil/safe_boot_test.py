@@ -1,6 +1,10 @@
 """The motor outputs' safe state, checked on the shipped ELF itself.
 
-    python3 fil/safe_boot_test.py ELF [--workdir DIR]
+    python3 fil/safe_boot_test.py ELF [--workdir DIR] [--board NAME]
+
+Written for the F407 (PE9, PE11 PWM, PE13 enable on GPIOE); `--board` (fil/boards.py) checks
+another board's motor port and pins the same way (the NUCLEO-F446RE and the Black Pill F411CE:
+PA8, PA9 PWM, PA10 enable on GPIOA).
 
 1. Boot order (emulator run): QEMU logs every access to the peripherals it does not model, in
    order (`-d unimp`). The first GPIOE access must be the write that drives PE9, PE11 and PE13
@@ -39,6 +43,27 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import console  # noqa: E402
 import emulator  # noqa: E402
+from boards import BOARDS, board as board_profile  # noqa: E402
+
+# The board under test (main: --board): the motors' port, pins and enable pin, the control timer.
+PROFILE = board_profile("f407")
+PORT = PROFILE["motor_port"]
+
+
+def set_board(name):
+    global PROFILE, PORT, PE13, PORT_RESET_BIT
+    PROFILE = board_profile(name)
+    PORT = PROFILE["motor_port"]
+    PE13 = PROFILE["enable_pin"]
+    PORT_RESET_BIT = 1 << PROFILE["port_reset_bit"]
+
+
+def pin_bits(shift, width):
+    """The motor pins' field value `shift` in a register with `width`-bit fields, OR'ed."""
+    out = 0
+    for pin in PROFILE["motor_pins"]:
+        out |= shift << (width * pin)
+    return out
 
 WRITE = re.compile(r"^(\S[^:]*): unimplemented device write \(size \d+, offset (0x[0-9a-f]+), value (0x[0-9a-f]+)\)")
 ACCESS = re.compile(r"^(\S[^:]*): unimplemented device (read|write)")
@@ -67,42 +92,45 @@ def wait_for(log_path, pattern, seconds):
 
 
 def check_boot_order(elf, workdir):
-    e = emulator.Emulator(elf, workdir, name="safe-boot")
+    e = emulator.Emulator(elf, workdir, name="safe-boot", board=PROFILE["name"])
     try:
         e.start()
         if not wait_for(e.log, "Flash Int", 60):
             return "no flash interface access within 60 s"
         # The control timer (TIM7) is set up after every GPIO port: the whole pin set-up is in
         # the log once it appears.
-        if not wait_for(e.log, "timer[7]", 60):
-            return "no control-timer (TIM7) access within 60 s"
+        if not wait_for(e.log, PROFILE["control_timer"], 60):
+            return f"no control-timer ({PROFILE['timer_name']}) access within 60 s"
     finally:
         e.stop()
     acc = accesses(e.log)
-    gpioe = [i for i, a in enumerate(acc) if a[0] == "GPIOE"]
+    gpioe = [i for i, a in enumerate(acc) if a[0] == PORT]
     flash = [i for i, a in enumerate(acc) if a[0] == "Flash Int"]
     if not gpioe or not flash:
-        return f"GPIOE accesses {len(gpioe)}, flash accesses {len(flash)}"
+        return f"{PORT} accesses {len(gpioe)}, flash accesses {len(flash)}"
     first = acc[gpioe[0]]
-    if first[1:] != ("write", 0x18, 0x2A000000):
-        return f"first GPIOE access is {first}, not BSRR = 0x2A000000"
+    low = pin_bits(1 << 16, 1)
+    if first[1:] != ("write", 0x18, low):
+        return f"first {PORT} access is {first}, not BSRR = 0x{low:08X}"
     moder = [acc[i] for i in gpioe if acc[i][1] == "write" and acc[i][2] == 0x00]
-    mask = (3 << 18) | (3 << 22) | (3 << 26)
-    want = (1 << 18) | (1 << 22) | (1 << 26)
+    mask = pin_bits(3, 2)
+    want = pin_bits(1, 2)
     if not moder or moder[0][3] & mask != want:
-        return f"MODER does not make PE9/PE11/PE13 outputs first: {moder[:1]}"
+        return f"MODER does not make the motor pins outputs first: {moder[:1]}"
     moder_at = next(i for i in gpioe if acc[i][1] == "write" and acc[i][2] == 0x00)
     if not (gpioe[0] < moder_at < flash[0]):
         return f"order: BSRR at {gpioe[0]}, MODER at {moder_at}, first flash access at {flash[0]}"
-    print(f"boot order: PE9/PE11/PE13 driven low (access {gpioe[0]}) and made outputs "
+    print(f"boot order ({PROFILE['name']}): {PORT} pins {PROFILE['motor_pins']} driven low "
+          f"(access {gpioe[0]}) and made outputs "
           f"(access {moder_at}) before the first flash-interface access (access {flash[0]})")
     return check_every_gpioe_write(acc)
 
 
-# RCC_AHB1RSTR and its GPIOE bit; GPIOE's MODER, PUPDR, ODR, BSRR offsets.
-AHB1RSTR, GPIOERST = 0x10, 1 << 4
+# RCC_AHB1RSTR and the motor port's bit (GPIOE's on the F407); MODER, PUPDR, ODR, BSRR offsets.
+AHB1RSTR, PORT_RESET_BIT = 0x10, 1 << PROFILE["port_reset_bit"]
 MODER, PUPDR, ODR, BSRR = 0x00, 0x0C, 0x14, 0x18
-PE13 = 13
+# The bridge enable pin (PE13 on the F407).
+PE13 = PROFILE["enable_pin"]
 
 
 def field(value, pin):
@@ -116,19 +144,19 @@ def check_every_gpioe_write(acc):
     for i, (dev, kind, off, val) in enumerate(acc):
         if kind != "write":
             continue
-        if dev == "RCC" and off == AHB1RSTR and val & GPIOERST:
+        if dev == "RCC" and off == AHB1RSTR and val & PORT_RESET_BIT:
             events.append((i, "reset", None, None))
-        elif dev == "GPIOE":
+        elif dev == PORT:
             events.append((i, "write", off, val))
         elif dev in ("TIM1", "timer[1]"):
             events.append((i, "tim1", off, val))
     names = {MODER: "MODER", PUPDR: "PUPDR", ODR: "ODR", BSRR: "BSRR", 0x04: "OTYPER",
              0x08: "OSPEEDR", 0x20: "AFRL", 0x24: "AFRH"}
-    print("GPIOE writes during boot, in order:")
-    low = (1 << (9 + 16)) | (1 << (11 + 16)) | (1 << (13 + 16))
-    mask = (3 << 18) | (3 << 22) | (3 << 26)
-    pulls = (2 << 18) | (2 << 22) | (2 << 26)
-    outputs = (1 << 18) | (1 << 22) | (1 << 26)
+    print(f"{PORT} writes during boot, in order:")
+    low = pin_bits(1 << 16, 1)
+    mask = pin_bits(3, 2)
+    pulls = pin_bits(2, 2)
+    outputs = pin_bits(1, 2)
     # After a port reset: which of the safe-state writes are still owed.
     owed = set()
     resets = 0
@@ -136,21 +164,21 @@ def check_every_gpioe_write(acc):
         if what == "reset":
             resets += 1
             owed = {"low", "pull", "output"}
-            print(f"  access {i}: RCC_AHB1RSTR.GPIOERST: port E reset (pins float, pulls off)")
+            print(f"  access {i}: RCC_AHB1RSTR: {PORT} reset (pins float, pulls off)")
             continue
         if what == "tim1":
             if owed:
                 return f"access {i}: TIM1 written while the port reset's safe state is owed ({sorted(owed)})"
             continue
         name = names.get(off, f"offset 0x{off:02x}")
-        print(f"  access {i}: GPIOE {name} = 0x{val:08x}")
+        print(f"  access {i}: {PORT} {name} = 0x{val:08x}")
         if owed:
             expected = "low" if "low" in owed else "pull" if "pull" in owed else "output"
             ok = {"low": off == BSRR and val & low == low,
                   "pull": off == PUPDR and val & mask == pulls,
                   "output": off == MODER and val & mask == outputs}[expected]
             if not ok:
-                return (f"access {i}: GPIOE {name} = 0x{val:08x} after a port reset, while "
+                return (f"access {i}: {PORT} {name} = 0x{val:08x} after a port reset, while "
                         f"{sorted(owed)} of the motor pins' safe state is still owed")
             owed.discard(expected)
         if off == BSRR and val & (1 << PE13):
@@ -164,8 +192,9 @@ def check_every_gpioe_write(acc):
     if owed:
         return f"the boot ended with the motor pins' safe state owed after a port reset: {sorted(owed)}"
     if resets == 0:
-        return "no GPIOE port reset in the boot log (the HAL's split resets the port: the log is incomplete)"
-    print(f"every GPIOE write: PE13 never high, never floating after the port reset "
+        return f"no {PORT} port reset in the boot log (the HAL's split resets the port: the log is incomplete)"
+    print(f"every {PORT} write: the enable pin ({PORT} pin {PE13}) never high, never floating "
+          f"after the port reset "
           f"({resets} reset(s), each followed at once by the safe state)")
     return None
 
@@ -218,10 +247,10 @@ def check_fault_path(elf, workdir):
     # With -no-reboot a reset the guest asks for (SYSRESETREQ) ends QEMU with a SHUTDOWN event
     # whose reason is `guest-reset`, and exit status 0; a crash of QEMU (e.g. a lockup: a fault
     # in the fault handler) sends no such event.
-    e = emulator.Emulator(elf, workdir, name="safe-fault",
+    e = emulator.Emulator(elf, workdir, name="safe-fault", board=PROFILE["name"],
                           extra=["-no-reboot", "-qmp", f"unix:{qmp},server=on,wait=off"])
     qmp_sock, qmp_in = qmp_connect(qmp)
-    script, _ = emulator.boot_assist_script(elf, e.port)
+    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib)
     # Drop the flash-size answers: the read then HardFaults as it would on a part without the
     # word mapped.
     kept, skip = [], False
@@ -249,17 +278,17 @@ def check_fault_path(elf, workdir):
     e.stop()
     reset = shutdown == {"guest": True, "reason": "guest-reset"} and status == 0
     acc = accesses(e.log)
-    low = ("write", 0x18, 0x2A000000)
-    boot = next((i for i, a in enumerate(acc) if a[0] == "GPIOE" and a[1:] == low), None)
+    low = ("write", 0x18, pin_bits(1 << 16, 1))
+    boot = next((i for i, a in enumerate(acc) if a[0] == PORT and a[1:] == low), None)
     stop = next((i for i, a in enumerate(acc)
-                 if boot is not None and i > boot and a[0] == "GPIOE" and a[1:] == low), None)
+                 if boot is not None and i > boot and a[0] == PORT and a[1:] == low), None)
     if boot is None or stop is None:
-        return f"no second PE9/PE11/PE13-low write after boot (boot {boot}, stop {stop})"
-    mask = (3 << 18) | (3 << 22) | (3 << 26)
-    want = (1 << 18) | (1 << 22) | (1 << 26)
-    moder = [a for a in acc[stop:] if a[0] == "GPIOE" and a[1] == "write" and a[2] == 0x00]
+        return f"no second motor-pins-low write after boot (boot {boot}, stop {stop})"
+    mask = pin_bits(3, 2)
+    want = pin_bits(1, 2)
+    moder = [a for a in acc[stop:] if a[0] == PORT and a[1] == "write" and a[2] == 0x00]
     if not moder or moder[0][3] & mask != want:
-        return f"PE9/PE11/PE13 not made GPIO outputs after the fault: {moder[:1]}"
+        return f"the motor pins not made GPIO outputs after the fault: {moder[:1]}"
     # QEMU names the unmodelled TIM1 "timer[1]".
     tim1 = [a for a in acc[stop:] if a[0] in ("TIM1", "timer[1]") and a[1] == "write" and a[2] == 0x44]
     if not tim1 or tim1[0][3] & ((1 << 15) | (1 << 14)):
@@ -267,15 +296,15 @@ def check_fault_path(elf, workdir):
     if not reset:
         return (f"the MCU did not reset after the fault: QEMU's shutdown event {shutdown}, exit "
                 f"status {status} (a guest reset is `guest-reset`, status 0)")
-    print(f"fault path: HardFault → PE9/PE11/PE13 low GPIO outputs, "
+    print(f"fault path: HardFault → {PORT} pins {PROFILE['motor_pins']} low GPIO outputs, "
           f"TIM1 BDTR = 0x{tim1[0][3]:08x} (MOE and AOE off), reset (QEMU: shutdown "
           f"`{shutdown['reason']}`, status {status})")
     return None
 
 
 def check_crash_record(elf, workdir):
-    e = emulator.Emulator(elf, workdir, name="safe-crash")
-    script, _ = emulator.boot_assist_script(elf, e.port)
+    e = emulator.Emulator(elf, workdir, name="safe-crash", board=PROFILE["name"])
+    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib)
     # The first flash-size read is left unanswered (it HardFaults); the later ones are answered.
     lines, in_size_block = [], False
     for line in script.splitlines():
@@ -301,13 +330,15 @@ def check_crash_record(elf, workdir):
         _, after = c.command("status", timeout=30)
     finally:
         e.stop()
-    if not re.search(r"reset: hard fault at pc 0x[0-9a-f]{8}$", boot or ""):
+    # (the board's clock note follows the reset cause after `; `)
+    if not re.search(r"reset: hard fault at pc 0x[0-9a-f]{8}(; |$)", boot or ""):
         return f"the boot after a HardFault does not name it: {boot!r}"
     if not re.search(r' reset="hard fault at pc 0x[0-9a-f]{8}"$', status or ""):
         return f"status after the HardFault does not name it: {status!r}"
     if cleared != "ok reset cause cleared" or "reset=" in (after or ""):
         return f"clear did not acknowledge the reset cause: {cleared!r}, then {after!r}"
-    print(f"crash record: the boot after the HardFault says `{boot.split(', ')[-1]}`, status "
+    said = re.search(r"reset: hard fault at pc 0x[0-9a-f]{8}", boot).group(0)
+    print(f"crash record: the boot after the HardFault says `{said}`, status "
           f"shows it until clear")
     return None
 
@@ -333,7 +364,9 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("elf")
     ap.add_argument("--workdir", default="target/fil")
+    ap.add_argument("--board", default="f407", choices=sorted(BOARDS))
     args = ap.parse_args()
+    set_board(args.board)
     os.makedirs(args.workdir, exist_ok=True)
     failures = [f for f in (check_handlers(args.elf), check_boot_order(args.elf, args.workdir),
                             check_fault_path(args.elf, args.workdir),

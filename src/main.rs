@@ -236,7 +236,11 @@ mod app {
                 let _ = write_fault_event(&mut sink, fault);
             }
         }
-        defmt::info!("reset cause: {}, clock: {}", reset_cause, board.clock);
+        defmt::info!(
+            "reset cause: {}, {}",
+            reset_cause,
+            odocal::board::boot_note(board.clock)
+        );
         let (press_in, press_out) = cx.local.presses.split();
 
         report::spawn().ok();
