@@ -348,8 +348,8 @@ mod app {
 
     /// On a board without a control-period timer (the emulator), pends the control interrupt
     /// from the monotonic: every period at 1 kHz, one period per 1 ms tick at higher rates
-    /// (the emulator's plant counts periods, not wall time). On the F407, TIM7 raises it and
-    /// this task ends at once.
+    /// (the emulator's plant counts periods, not wall time). On a board, its control timer raises
+    /// it and this task ends at once.
     #[task(priority = 3, local = [pace_handoff])]
     async fn pace_control(cx: pace_control::Context) {
         if !CONTROL_FROM_MONOTONIC {

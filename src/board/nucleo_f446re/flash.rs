@@ -9,7 +9,7 @@
 //! | 3–5 | `0x0_C000..0x4_0000` | program (`.text` from sector 3; 16 + 64 + 128 = 208 KiB) |
 //! | 6–7 | `0x4_0000..0x8_0000` ([`RUNS_RANGE`]) | run region: `sequential-storage` map, 2 × 128 KiB |
 //!
-//! The same split as the F407's: the parameters on small sectors (an erase stalls the CPU for a
+//! The same split on every board: the parameters on small sectors (an erase stalls the CPU for a
 //! 16 KiB sector's erase time, not a 128 KiB one's: docs/storage.md) and apart from the runs.
 
 use core::ops::Range;
