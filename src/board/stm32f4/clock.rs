@@ -67,7 +67,7 @@ pub extern "C" fn odocal_hse_ready() -> bool {
 /// polls for it: the clock source to configure. Without it the oscillator is switched off again.
 pub fn start_external(rcc: &pac::RCC, bypass: bool) -> ClockSource {
     if bypass {
-        // HSEBYP is written while the HSE is off (RM0390 §6.3.1).
+        // HSEBYP can be written only while the HSE is off.
         rcc.cr().modify(|_, w| w.hsebyp().set_bit());
     }
     rcc.cr().modify(|_, w| w.hseon().set_bit());
