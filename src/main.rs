@@ -62,7 +62,8 @@ const RX_READS_PER_IRQ: usize = 32;
 const REPLY_ROOM: usize = 1_800;
 
 /// The RTIC app, for the board's control-timer and button interrupts (RTIC's `binds` takes an
-/// interrupt's name, so the board's names are passed in: one line per board below).
+/// interrupt's name, so the board's names are passed in: one line per board below). rustfmt
+/// leaves a macro's body as written: the app below is formatted as if it stood alone.
 #[cfg(target_os = "none")]
 macro_rules! odocal_app {
     (control = $control:ident, button = $button:ident) => {
