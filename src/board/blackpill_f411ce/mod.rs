@@ -25,22 +25,21 @@
 pub mod flash;
 pub mod safety;
 
-use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PA10, PB0, PB12, PB13, PC13, Pull};
-use stm32f4xx_hal::pac::{self, TIM11, USART2};
+use stm32f4xx_hal::gpio::{Edge, Output, PA10, PB0, PB12, PB13, PC13, Pull};
+use stm32f4xx_hal::pac::{self, TIM11};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
 use stm32f4xx_hal::rcc::Config;
-use stm32f4xx_hal::serial::{self, Serial, Tx};
-use stm32f4xx_hal::timer::Event;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use super::stm32f4::clock::start_external;
 pub use super::stm32f4::clock::{ClockSource, ClockTexts};
 pub use super::stm32f4::console_rx::ConsoleRx;
+use super::stm32f4::motors::Tim1Motors;
 pub use super::stm32f4::timers::Encoders;
 use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
 pub use super::stm32f4::watchdog;
-use crate::storage::ParamStore;
+use super::stm32f4::{check_clocks, start_console, start_tick};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
 
@@ -93,61 +92,22 @@ pub fn boot_note(clock: ClockSource) -> &'static str {
 }
 
 /// The motors: TIM1 channels 1 and 2 (PA8, PA9), DIR on PB12/PB13, bridge enable on PA10.
-pub type BoardMotors = super::stm32f4::motors::Tim1Motors<PB12<Output>, PB13<Output>, PA10<Output>>;
+pub type BoardMotors = Tim1Motors<PB12<Output>, PB13<Output>, PA10<Output>>;
 
 /// The control-period interrupt source: TIM11's update at the control rate (100 MHz timer
 /// clock).
 pub type ControlTick = super::stm32f4::timers::ControlTick<TIM11>;
 
 /// The KEY on PA0 (EXTI0, both edges; pressed = low, the internal pull-up).
-pub struct ButtonInput(PA0<Input>);
-
-impl ButtonInput {
-    /// Acknowledges the edge interrupt and reads the level (true = pressed).
-    pub fn edge(&mut self) -> bool {
-        self.0.clear_interrupt_pending_bit();
-        crate::app::io::button_pressed(&mut self.0, false)
-    }
-}
+pub type ButtonInput = super::stm32f4::ButtonInput<'A', 0, false>;
 
 /// Heartbeat (on-board, PC13, active low: it blinks all the same) and fault (external, PB0) LEDs.
 pub type Leds = crate::app::io::Leds<PC13<Output>, PB0<Output>>;
 
-/// The console's receive half is read from its DMA ring: the app pends the console interrupt
-/// every millisecond to drain it.
-pub const CONSOLE_RX_POLLED: bool = true;
-/// The console port's transmit half (USART2 TXE interrupt).
-pub type ConsoleTx = Tx<USART2>;
-/// The interrupt that serves the console port; the console task pends it to start sending.
-pub const CONSOLE_INTERRUPT: pac::Interrupt = pac::Interrupt::USART2;
+pub use super::stm32f4::{CONSOLE_INTERRUPT, CONSOLE_RX_POLLED, ConsoleTx};
 
 /// Everything the board gives the application (see [`crate::board`]).
-pub struct Board {
-    /// Core clock the monotonic timer runs at, Hz.
-    pub sysclk_hz: u32,
-    /// Wheel encoders.
-    pub encoders: Encoders,
-    /// Motor outputs (zero duty, bridge disabled until the controller's first command).
-    pub motors: BoardMotors,
-    /// Control-period interrupt, already running.
-    pub tick: ControlTick,
-    /// User button.
-    pub button: ButtonInput,
-    /// Status LEDs.
-    pub leds: Leds,
-    /// Console receive half.
-    pub console_rx: ConsoleRx,
-    /// Console transmit half.
-    pub console_tx: ConsoleTx,
-    /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
-    pub watchdog: IndependentWatchdog,
-    /// The parameter and run store on flash sectors 1–2 and 6–7 (not loaded yet).
-    pub params: ParamStore<BoardFlash>,
-    /// Why the MCU last reset.
-    pub reset_cause: ResetCause,
-    /// Where the core clock comes from (the internal oscillator if the crystal did not start).
-    pub clock: ClockSource,
-}
+pub type Board = super::stm32f4::Board<BoardMotors, ControlTick, ButtonInput, Leds>;
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
@@ -172,19 +132,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
             .pclk2(PCLK2_HZ.Hz()),
     );
     let clocks = rcc.clocks;
-    if clocks.sysclk().raw() != SYSCLK_HZ
-        || clocks.pclk1().raw() != PCLK1_HZ
-        || clocks.timclk1().raw() != TIMCLK1_HZ
-        || clocks.timclk2().raw() != TIMCLK2_HZ
-    {
-        error!(
-            "clocks differ from the board's: sysclk {} pclk1 {} timers {} / {} Hz",
-            clocks.sysclk().raw(),
-            clocks.pclk1().raw(),
-            clocks.timclk1().raw(),
-            clocks.timclk2().raw()
-        );
-    }
+    check_clocks(&clocks, SYSCLK_HZ, PCLK1_HZ, TIMCLK1_HZ, TIMCLK2_HZ);
     let params = flash::param_store(dp.FLASH);
 
     // The HAL's split resets each port: port A's motor pins go back to the safe state at once.
@@ -221,28 +169,14 @@ pub fn init(dp: pac::Peripherals) -> Board {
     button_pin.enable_interrupt(&mut exti);
 
     // At the default rate until the app has loaded the stored one.
-    let rate_hz = crate::motion::controller::DEFAULT_RATE_HZ;
-    let mut tick = dp.TIM11.counter_hz(&mut rcc);
-    if tick.start(rate_hz.Hz()).is_err() {
-        error!("control timer did not start");
-    }
-    tick.listen(Event::Update);
+    let tick = start_tick(dp.TIM11.counter_hz(&mut rcc));
 
     // Started by the app once the parameters are loaded.
     let watchdog = IndependentWatchdog::new(dp.IWDG);
 
     // Serial console: USART2 on PA2/PA3 (a USB-UART adapter), RX by DMA.
-    let usart = Serial::new(
-        dp.USART2,
-        (gpioa.pa2, gpioa.pa3),
-        serial::Config::default().baudrate(115_200.bps()),
-        &mut rcc,
-    );
-    let (console_tx, console_rx) = match usart {
-        Ok(s) => s.split(),
-        Err(_) => defmt::panic!("USART2 configuration rejected"),
-    };
-    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc);
+    let (console_tx, console_rx) =
+        start_console(dp.USART2, (gpioa.pa2, gpioa.pa3), dp.DMA1, &mut rcc);
     // SAFETY: the ports' clocks are on (split above); `init` owns them and nothing else runs.
     unsafe {
         pull_up(pac::GPIOA::ptr(), &[3, 15]);
@@ -254,11 +188,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
         sysclk_hz: clocks.sysclk().raw(),
         encoders: Encoders { right, left },
         motors,
-        tick: ControlTick {
-            timer: tick,
-            rate_hz,
-        },
-        button: ButtonInput(button_pin),
+        tick,
+        button: ButtonInput::new(button_pin),
         leds: Leds::new(
             gpioc.pc13.into_push_pull_output(),
             gpiob.pb0.into_push_pull_output(),
