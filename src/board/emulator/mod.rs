@@ -28,7 +28,7 @@ pub mod flash;
 pub mod plant;
 pub mod semihosting;
 
-use crate::board::f407::ResetCause;
+use crate::board::stm32f4::reset::ResetCause;
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
 use stm32f4xx_hal::gpio::{Edge, Pull};
@@ -38,9 +38,9 @@ use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use super::f407::ClockSource;
-pub use super::f407::watchdog;
 pub use super::f407::{FLASH_WATCHDOG_MS, WATCHDOG_MS};
+use super::stm32f4::clock::ClockSource;
+pub use super::stm32f4::watchdog;
 pub use flash::BoardFlash;
 use plant::Plant;
 
@@ -179,7 +179,7 @@ pub struct Board {
 
 /// Brings up the emulated board.
 pub fn init(dp: pac::Peripherals) -> Board {
-    let reset_cause = crate::board::f407::safety::reset_cause(&dp.RCC);
+    let reset_cause = crate::board::stm32f4::reset::reset_cause(&dp.RCC);
     let mut rcc = dp.RCC.freeze(Config::hsi());
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
