@@ -84,7 +84,6 @@ pub unsafe fn emergency_stop(port: *const RegisterBlock, pins: &[u32]) {
 ///
 /// `motor_safety!(GPIOA, gpioaen, [8, 9, 10])`: the port, its RCC_AHB1ENR enable field, and the
 /// pins (the PWM pins and the bridge enable).
-#[macro_export]
 macro_rules! motor_safety {
     ($port:ident, $enable:ident, $pins:expr) => {
         /// The PWM and bridge-enable pins of the motor port.
@@ -130,3 +129,4 @@ macro_rules! motor_safety {
         }
     };
 }
+pub(crate) use motor_safety;
