@@ -83,7 +83,9 @@ pub unsafe fn emergency_stop(port: *const RegisterBlock, pins: &[u32]) {
 /// symbol name, so the firmware-in-the-loop check can see the handlers call it first).
 ///
 /// `motor_safety!(GPIOA, gpioaen, [8, 9, 10])`: the port, its RCC_AHB1ENR enable field, and the
-/// pins (the PWM pins and the bridge enable).
+/// pins (the PWM pins and the bridge enable). (Unused on the F407, whose `safety` module has
+/// its own.)
+#[allow(unused_macros)]
 macro_rules! motor_safety {
     ($port:ident, $enable:ident, $pins:expr) => {
         /// The PWM and bridge-enable pins of the motor port.
@@ -129,4 +131,5 @@ macro_rules! motor_safety {
         }
     };
 }
+#[allow(unused_imports)]
 pub(crate) use motor_safety;
