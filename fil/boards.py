@@ -2,7 +2,7 @@
 what differs between them as QEMU's netduinoplus2 (STM32F405) sees them. The USART2, IWDG,
 SYSCFG/EXTI and flash-size addresses are the same on all of them.
 
-Each scripts takes `--board NAME` (default `f407`).
+Each script takes `--board NAME` (default `f407`).
 """
 
 BOARDS = {
