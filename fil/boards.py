@@ -24,6 +24,9 @@ BOARDS = {
         # the PWM and enable pins, the enable pin, and the control timer (its name, and QEMU's
         # name for it in that log).
         motor_port="GPIOE", port_reset_bit=4, motor_pins=(9, 11, 13), enable_pin=13,
+        # The motor port's pins the boot makes inputs (none: port E has only the motor and
+        # direction pins).
+        port_inputs=(),
         timer_name="TIM7", control_timer="timer[7]",
     ),
     "nucleo-f446re": dict(
@@ -36,6 +39,8 @@ BOARDS = {
                         "running on the internal oscillator (HSI, 180 MHz through the PLL; "
                         "timing and baud rate within a few %)"),
         motor_port="GPIOA", port_reset_bit=0, motor_pins=(8, 9, 10), enable_pin=10,
+        # PA0/PA1 (encoder) become alternate functions: no port A pin is made an input.
+        port_inputs=(),
         timer_name="TIM7", control_timer="timer[7]",
     ),
     "blackpill-f411ce": dict(
@@ -47,6 +52,9 @@ BOARDS = {
         no_clock_fault=("no crystal: HSE did not start, running on the internal oscillator "
                         "(HSI, 100 MHz through the PLL; timing and baud rate within a few %)"),
         motor_port="GPIOA", port_reset_bit=0, motor_pins=(8, 9, 10), enable_pin=10,
+        # PA15 (right encoder A, a JTAG alternate function out of reset) is made an input
+        # before TIM2 takes it; PA0 (KEY) is an input from reset (its mode is not written).
+        port_inputs=(15,),
         timer_name="TIM11", control_timer="timer[11]",
     ),
 }

@@ -192,7 +192,8 @@ mod app {
         // Parameters first: loading may repair an interrupted save (motors are off here).
         let mut params_store = board.params;
         let loaded = params_store.load_blocking();
-        let settings = loaded.record;
+        // The stored values the settings' rules refuse take their defaults (said at boot).
+        let (settings, refused) = loaded.record.for_boot();
         let calibrated_with = settings.calibration.as_ref().map_or_else(
             || "none".try_into().unwrap_or_default(),
             |c| c.method.clone(),
@@ -229,7 +230,8 @@ mod app {
             let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
             let _ = write_boot_event(
                 &mut sink,
-                loaded.warning.as_ref(),
+                &loaded,
+                &refused,
                 Some(cause.as_str()),
                 Some(odocal::board::boot_note(board.clock)),
             );

@@ -1292,7 +1292,7 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
 
     assert_eq!(
         b.send("identify floor"),
-        "ok identify floor: robot on the floor with 1 m free ahead and behind (it stops beyond 1 m); both wheels; a slow probe, then steps to 25/50/75 % of max_speed 0.30 m/s forward and backward, about 7 s\r\n"
+        "ok identify floor: robot on the floor with 1 m free ahead and behind (it stays within 1 m, with lower steps if that needs them); both wheels; a slow probe, then steps to 25/50/75 % of max_speed 0.30 m/s forward and backward, about 7 s\r\n"
     );
     b.robot
         .check_reports

@@ -1031,6 +1031,61 @@ fn ros2_export() {
     assert_eq!(json["runs"].as_array().unwrap().len(), 2);
     assert!(json["sd"]["e_b"].as_f64().unwrap() >= 0.0);
     assert_eq!(json["method"], "exact");
+
+    // Drop-in: the controller's name, its wheels, and the twist covariance.
+    let named = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+        .arg("export")
+        .arg(&log)
+        .args(["--controller", "base_controller"])
+        .args([
+            "--left-wheel",
+            "wheel_l_joint",
+            "--right-wheel",
+            "wheel_r_joint",
+        ])
+        .output()
+        .unwrap();
+    assert!(named.status.success());
+    let yaml = String::from_utf8(named.stdout).unwrap();
+    assert!(
+        yaml.contains("base_controller:\n  ros__parameters:\n"),
+        "{yaml}"
+    );
+    let e = check(&yaml);
+    let value = |key: &str| &e.iter().find(|(k, _)| k == key).unwrap().1;
+    assert_eq!(value("left_wheel_names"), "[\"wheel_l_joint\"]");
+    assert_eq!(value("right_wheel_names"), "[\"wheel_r_joint\"]");
+    let twist: Vec<f64> = value("twist_covariance_diagonal")
+        .trim_matches(['[', ']'])
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    assert!(
+        twist.len() == 6 && twist[0] > 0.0 && twist[5] > 0.0,
+        "{yaml}"
+    );
+
+    // A log whose last `params` reply came before a `reset-params` the board accepted is
+    // refused, naming the line.
+    let mut stale = std::fs::read_to_string(&log).unwrap();
+    let line = stale.lines().count() + 1;
+    stale.push_str(
+        "{\"kind\":\"tx\",\"line\":\"reset-params\",\"t\":0}\n\
+         {\"kind\":\"rx\",\"line\":\"ok parameters reset to defaults (not saved; save to keep)\",\"t\":0}\n",
+    );
+    let stale_log = dir.join("stale.jsonl");
+    std::fs::write(&stale_log, stale).unwrap();
+    let refused = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+        .arg("export")
+        .arg(&stale_log)
+        .output()
+        .unwrap();
+    let why = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "a stale log exported");
+    assert!(
+        why.contains(&format!("stale.jsonl:{line}: `reset-params` came after")),
+        "{why}"
+    );
 }
 
 /// The whole procedure on a factory-default board whose right motor is wired the other way

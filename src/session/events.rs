@@ -10,34 +10,50 @@ use core::fmt::{self, Write};
 
 use super::Session;
 use super::report;
+use super::settings::BootRefusal;
 use super::traits::{Activity, Calibrator, Robot};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::controller::Fault;
 use crate::motion::run::PathKind;
 use crate::protocol::reply::EOL;
-use crate::storage::{LoadWarning, RunsLoaded};
+use crate::storage::{LoadOutcome, RunsLoaded};
 use crate::util::decimal::Decimal;
 
-/// The first line the board sends after a reset: `event boot: parameters loaded`, or
-/// `event boot: default parameters (<why>)` when the stored record was not used, followed by
-/// `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`, `pin`,
-/// `software`, `power-on`, …), then by the board's note after `; ` (which clock runs; on the
-/// emulated board, what QEMU lacks).
+/// The first line the board sends after a reset: `event boot: parameters loaded` (with
+/// ` (previous record; newest: <why>)` when the newest record was unusable and the one before it
+/// was loaded), or `event boot: default parameters (<why>)` when no stored record was used,
+/// followed by `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`,
+/// `pin`, `software`, `power-on`, …), by `; <name> <value> refused (<why>), default used` for
+/// each stored value the settings' rules refused ([`BootRefusal`]), then by the board's note
+/// after `; ` (which clock runs; on the emulated board, what QEMU lacks).
 ///
 /// # Errors
 /// Only those of `out`.
 pub fn write_boot_event(
     out: &mut dyn Write,
-    warning: Option<&LoadWarning>,
+    loaded: &LoadOutcome,
+    refused: &[BootRefusal],
     reset_cause: Option<&str>,
     board_note: Option<&str>,
 ) -> fmt::Result {
-    match warning {
+    match &loaded.warning {
         None => write!(out, "event boot: parameters loaded")?,
         Some(w) => write!(out, "event boot: default parameters ({w})")?,
     }
+    if let Some(w) = &loaded.older {
+        write!(out, " (previous record; newest: {w})")?;
+    }
     if let Some(cause) = reset_cause {
         write!(out, ", reset: {cause}")?;
+    }
+    for r in refused {
+        write!(
+            out,
+            "; {} {} refused ({}), default used",
+            r.name.as_str(),
+            crate::util::decimal::Plain(r.value),
+            r.why
+        )?;
     }
     if let Some(note) = board_note {
         write!(out, "; {note}")?;

@@ -60,7 +60,7 @@ pub use crate::storage::record::AppliedCalibration;
 use crate::util::text::keyword_eq;
 pub use calibrate_commands::write_calibration;
 pub use events::{write_boot_event, write_fault_event, write_runs_restored};
-pub use settings::{SettingsError, check_nominal};
+pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
 /// struct (its row of [`crate::protocol::PARAMS`] names the field).

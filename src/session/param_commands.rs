@@ -113,14 +113,9 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = storable(&self.settings) {
             return storage_err(out, e);
         }
+        // The parameter region is apart from the runs': a save leaves the run region alone.
         match storage.save(&self.settings, robot.motors_stopped()) {
-            Ok(()) => {
-                // A save that had to wipe damaged flash took the runs with it.
-                if !self.runs.is_empty() {
-                    self.store_runs_again();
-                }
-                write_param_outcome(out, &ParamOutcome::Saved)
-            }
+            Ok(()) => write_param_outcome(out, &ParamOutcome::Saved),
             Err(e) => storage_err(out, e),
         }
     }

@@ -135,9 +135,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
     check_clocks(&clocks, SYSCLK_HZ, PCLK1_HZ, TIMCLK1_HZ, TIMCLK2_HZ);
     let params = flash::param_store(dp.FLASH);
 
-    // The HAL's split resets each port: port A's motor pins go back to the safe state at once.
-    let gpioa = dp.GPIOA.split(&mut rcc);
-    safety::motor_pins_safe_after_port_reset();
+    // Port A without the HAL's port reset: the motor pins stay in their safe state.
+    let gpioa = safety::motor_port_without_reset(dp.GPIOA);
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpioc = dp.GPIOC.split(&mut rcc);
 
@@ -175,9 +174,15 @@ pub fn init(dp: pac::Peripherals) -> Board {
     let watchdog = IndependentWatchdog::new(dp.IWDG);
 
     // Serial console: USART2 on PA2/PA3 (a USB-UART adapter), RX by DMA.
-    let (console_tx, console_rx) =
-        start_console(dp.USART2, (gpioa.pa2, gpioa.pa3), dp.DMA1, &mut rcc);
-    // SAFETY: the ports' clocks are on (split above); `init` owns them and nothing else runs.
+    let (console_tx, console_rx) = start_console(
+        dp.USART2,
+        (gpioa.pa2, gpioa.pa3),
+        dp.DMA1,
+        &mut rcc,
+        clocks.sysclk().raw(),
+    );
+    // SAFETY: the ports' clocks are on (port A's since `motors_off_at_reset`, port B's by its
+    // split above); `init` owns them and nothing else runs.
     unsafe {
         pull_up(pac::GPIOA::ptr(), &[3, 15]);
         pull_up(pac::GPIOB::ptr().cast(), &[3, 4, 5]);

@@ -83,17 +83,19 @@ pub fn check_clocks(clocks: &Clocks, sysclk: u32, pclk1: u32, timclk1: u32, timc
 }
 
 /// The serial console: USART2 on PA2 (TX) / PA3 (RX) at 115,200 Bd, the receive half by DMA into
-/// its ring ([`console_rx`]).
+/// its ring ([`console_rx`], which bounds the bytes that can have arrived between two reads by
+/// the core's cycle count at `sysclk_hz`).
 pub fn start_console(
     usart: USART2,
     pins: (PA2, PA3),
     dma: DMA1,
     rcc: &mut Rcc,
+    sysclk_hz: u32,
 ) -> (Tx<USART2>, console_rx::ConsoleRx) {
     let usart = Serial::new(
         usart,
         pins,
-        serial::Config::default().baudrate(115_200.bps()),
+        serial::Config::default().baudrate(console_rx::CONSOLE_BAUD.bps()),
         rcc,
     );
     let (console_tx, console_rx) = match usart {
@@ -102,7 +104,7 @@ pub fn start_console(
     };
     (
         console_tx,
-        console_rx::ConsoleRx::start(console_rx, dma, rcc),
+        console_rx::ConsoleRx::start(console_rx, dma, rcc, sysclk_hz),
     )
 }
 

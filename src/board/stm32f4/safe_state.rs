@@ -77,17 +77,17 @@ pub unsafe fn emergency_stop(port: *const RegisterBlock, pins: &[u32]) {
 
 /// A board's motor-pin functions for TIM1 PWM and bridge enable pins on one GPIO port:
 /// `motors_off_at_reset` (the first thing `init` does: the port's clock on, the pins safe),
-/// `motor_pins_safe_after_port_reset` (right after the HAL's `split` of that port, which resets
-/// it: the pins float for the few core cycles in between, the PWM timer not yet started) and
-/// `odocal_emergency_stop` (from the panic and HardFault handlers; never inlined and with a fixed
-/// symbol name, so the firmware-in-the-loop check can see the handlers call it first).
+/// `motor_port_without_reset` (the port's pin tokens without the HAL's `split`, which would reset
+/// the port and leave the motor pins floating, pull-downs cleared, until their drivers take them)
+/// and `odocal_emergency_stop` (from the panic and HardFault handlers; never inlined and with a
+/// fixed symbol name, so the firmware-in-the-loop check can see the handlers call it first).
 ///
-/// `motor_safety!(GPIOA, gpioaen, [8, 9, 10])`: the port, its RCC_AHB1ENR enable field, and the
-/// pins (the PWM pins and the bridge enable). (Unused on the F407, whose `safety` module has
-/// its own.)
+/// `motor_safety!(GPIOA, gpioa, gpioaen, [8, 9, 10])`: the port, its HAL module, its
+/// RCC_AHB1ENR enable field, and the pins (the PWM pins and the bridge enable). (Unused on the
+/// F407, whose `safety` module has its own.)
 #[allow(unused_macros)]
 macro_rules! motor_safety {
-    ($port:ident, $enable:ident, $pins:expr) => {
+    ($port:ident, $module:ident, $enable:ident, $pins:expr) => {
         /// The PWM and bridge-enable pins of the motor port.
         pub const MOTOR_PINS: [u32; 3] = $pins;
 
@@ -106,15 +106,23 @@ macro_rules! motor_safety {
             };
         }
 
-        /// The motor pins back in the safe state right after the HAL's `split` of their port.
-        pub fn motor_pins_safe_after_port_reset() {
-            // SAFETY: `init` owns the port (its HAL parts were just created and not used yet).
-            unsafe {
-                $crate::board::stm32f4::safe_state::drive_safe(
-                    stm32f4xx_hal::pac::$port::ptr().cast(),
-                    &MOTOR_PINS,
-                )
-            };
+        /// The motor port's pin tokens without the HAL's `split`, which would reset the whole
+        /// port (RCC_AHB1RSTR) and leave the motor pins floating, pull-downs cleared, until their
+        /// drivers take them. Here they keep the state [`motors_off_at_reset`] gave them (which
+        /// also enabled the port's clock); the HAL's mode changes then set each pin's mode, type
+        /// and alternate function and never touch PUPDR, so the pull-downs stay on. The other
+        /// pins of the port are as the chip's reset left them. `fil/safe_boot_test.py` lists
+        /// every write to the port during the shipped image's boot and rejects a port reset.
+        pub fn motor_port_without_reset(
+            port: stm32f4xx_hal::pac::$port,
+        ) -> stm32f4xx_hal::gpio::$module::Parts {
+            const { assert!(core::mem::size_of::<stm32f4xx_hal::gpio::$module::Parts>() == 0) };
+            // The port's only handle: no other pin tokens of the port can be made after this.
+            let _ = port;
+            // SAFETY: `Parts` is zero-sized (a zero-sized token per pin, checked above): no
+            // bytes are made up. `port`, consumed here, was the only way to get the port's
+            // tokens, so these are the only ones, as `split` would have returned them.
+            unsafe { core::mem::zeroed() }
         }
 
         /// Motors off from any context (panic, HardFault).
