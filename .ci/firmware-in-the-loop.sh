@@ -4,7 +4,8 @@
 #   Stage 1: the exact ELF `cargo fw` builds (sha256 printed) boots with a boot assist generated
 #            from the ELF (fil/emulator.py), answers a scripted console session compared with
 #            fil/golden/console.txt, and its defmt boot log is decoded from RTT; the same ELF
-#            boots without a crystal and as on a 512 KiB part (fil/degraded_boot_test.py).
+#            boots without a crystal and as on a 512 KiB part (fil/degraded_boot_test.py). The same
+#            for the NUCLEO-F446RE's and the Black Pill F411CE's shipped ELFs (`--board`).
 #   Stage 2: the same app built with `--features emulator` (src/board/emulator/: a simulated robot
 #            behind the board seam) runs a whole calibration session over USART2, keeps the
 #            parameters across an emulator restart, survives a 64 KiB random burst, streams the
@@ -53,6 +54,20 @@ python3 fil/boot_test.py "$OUT/firmware-shipped" --workdir "$OUT" | tee "$OUT/st
 python3 fil/safe_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
 # The same ELF on a board whose crystal never starts, and on a 512 KiB part.
 python3 fil/degraded_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
+# The other boards' shipped ELFs, the same three checks (fil/boards.py: their storage regions,
+# flash size, clock texts, motor port and pins, control timer). QEMU's STM32F405 runs their code
+# unchanged: the same core, USART2, IWDG, SYSCFG/EXTI and flash-size addresses; the boot assist
+# answers their clock set-up's ready loops (the NUCLEO's over-drive included).
+for board in nucleo-f446re blackpill-f411ce; do
+    echo "-- stage 1: $board"
+    cargo "fw-$board" --quiet
+    cp "$ELF" "$OUT/firmware-$board"
+    sha256sum "$OUT/firmware-$board"
+    python3 fil/boot_test.py "$OUT/firmware-$board" --workdir "$OUT/$board" --board "$board" \
+        | tee "$OUT/stage1-$board.txt"
+    python3 fil/safe_boot_test.py "$OUT/firmware-$board" --workdir "$OUT/$board" --board "$board"
+    python3 fil/degraded_boot_test.py "$OUT/firmware-$board" --workdir "$OUT/$board" --board "$board"
+done
 t1=$(date +%s.%N)
 awk -v a="$t0" -v b="$t1" 'BEGIN { printf "stage 1 wall time: %.1f s\n", b - a }'
 

@@ -13,7 +13,11 @@ boot log from the RTT buffer of a RAM dump. Every check waits for what the conso
 reply, a marker command's reply, stream lines), never for a time to pass; the timeouts only
 bound a hang.
 
-    python3 fil/boot_test.py ELF [--regen] [--workdir DIR]
+    python3 fil/boot_test.py ELF [--regen] [--workdir DIR] [--board NAME]
+
+`--board` (fil/boards.py, default `f407`): the board the ELF is built for. Its storage regions
+and flash size go to the emulator; the golden file is the F407's, and a board's boot line differs
+from it only in the clock it names (the board's `clock_note`), which is swapped in.
 
 Prints `shipped ELF <sha256 prefix>: <N> console lines answered as expected` and exits 0 when
 every reply matches; `--regen` rewrites the golden file from this run instead.
@@ -28,6 +32,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console, ConsoleError  # noqa: E402
+from boards import BOARDS, board as board_profile  # noqa: E402
 from emulator import Emulator, defmt_log, rtt_up_bytes, watchdog_feeds  # noqa: E402
 
 GOLDEN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "golden", "console.txt")
@@ -291,8 +296,8 @@ def shown(data):
     return "".join(chr(b) if 32 <= b < 127 and b != 92 else f"\\x{b:02x}" for b in data)
 
 
-def run(elf, workdir):
-    emu = Emulator(elf, workdir, assist=True, name="shipped")
+def run(elf, workdir, board="f407"):
+    emu = Emulator(elf, workdir, assist=True, name="shipped", board=board)
     blocks = []
     try:
         con = Console.unix(emu.u2)
@@ -359,26 +364,35 @@ def main():
     ap.add_argument("elf")
     ap.add_argument("--regen", action="store_true")
     ap.add_argument("--workdir", default="target/fil")
+    ap.add_argument("--board", default="f407", choices=sorted(BOARDS))
     args = ap.parse_args()
+    profile = board_profile(args.board)
     sha = hashlib.sha256(open(args.elf, "rb").read()).hexdigest()
     print(f"boot test: {args.elf} sha256 {sha}")
     blocks, log, alive, points, (paste_problems, paste_got), (typing_problems, typed) = run(
-        args.elf, args.workdir)
+        args.elf, args.workdir, args.board)
     print("boot assist (generated from the ELF):")
     for kind, bp, resume, reg in points:
-        print(f"  {kind:10} break 0x{bp:08x} resume 0x{resume:08x} ({reg})")
+        where = reg if isinstance(reg, str) else f"{reg[0]} + {reg[1]}, lsls #{reg[2]}"
+        print(f"  {kind:10} break 0x{bp:08x} resume 0x{resume:08x} ({where})")
     print("defmt log (RTT buffer of the RAM dump, decoded by defmt-print):")
     for line, n in collapse(log.splitlines()):
         print("  " + line + (f"   (x{n})" if n > 1 else ""))
     text = render(blocks)
     with open(os.path.join(args.workdir, "console.txt"), "w") as f:
         f.write(text)
+    if args.regen and args.board != "f407":
+        raise SystemExit("--regen: the golden file is the F407's (run it with --board f407)")
     if args.regen:
         os.makedirs(os.path.dirname(GOLDEN), exist_ok=True)
         with open(GOLDEN, "w") as f:
             f.write(text)
         print(f"golden file rewritten: {GOLDEN}")
     golden = parse(open(GOLDEN).read())
+    # The board's boot line names its own clock.
+    f407_note = "; " + BOARDS["f407"]["clock_note"]
+    golden = [(sent, [g.replace(f407_note, "; " + profile["clock_note"]) if sent == "(reset)"
+                      else g for g in want]) for sent, want in golden]
     fail = 0
     good = 0
     if len(golden) != len(blocks):
@@ -415,7 +429,7 @@ def main():
         print(f"typing: `status` typed key by key ({TYPING_GAP} s apart) with the pose stream at "
               f"20 Hz: echoed whole right before its reply, {streams} whole stream lines around "
               "it, none between its keys")
-    # QEMU has no TIM7, so the control task never runs here. The feeds are exactly: the one of
+    # QEMU has no TIM7 (nor TIM11), so the control task never runs here. The feeds are exactly: the one of
     # `init` that starts the watchdog (`set_timeout`), and the two of the console task's one
     # flash access with the watchdog relaxed (restoring the stored runs at boot: 10 s and back to
     # 50 ms, one reload-key write after each change has crossed over; the script's `save` is
@@ -426,14 +440,15 @@ def main():
     feeds = watchdog_feeds(os.path.join(args.workdir, "shipped.log"))
     print(f"watchdog: {feeds} feeds (IWDG_KR = 0xAAAA) in the QEMU log, {WATCHDOG_FEEDS} expected "
           "(start, then relaxed and restored around the boot's flash access); the control task "
-          "never ran (no TIM7 in QEMU): a stalled control task, seen as missing feeds")
+          f"never ran (no {profile['timer_name']} in QEMU): a stalled control task, seen as "
+          "missing feeds")
     if feeds != WATCHDOG_FEEDS:
         print(f"FAILED: {feeds} watchdog feeds, not {WATCHDOG_FEEDS}")
         fail = 1
     if fail:
         print(f"boot test FAILED (transcript: {args.workdir}/console.txt)")
         return 1
-    print(f"shipped ELF {sha[:12]}: {good} console lines answered as expected")
+    print(f"shipped ELF {sha[:12]} ({args.board}): {good} console lines answered as expected")
     return 0
 
 

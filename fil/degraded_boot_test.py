@@ -2,15 +2,19 @@
 """The shipped ELF on a degraded board: a crystal that never starts, and a part with too little
 flash for the storage map. Both must boot, say what is wrong, and keep answering.
 
-    python3 fil/degraded_boot_test.py ELF [--workdir DIR]
+    python3 fil/degraded_boot_test.py ELF [--workdir DIR] [--board NAME]
 
-1. No crystal: the boot assist leaves `odocal_hse_ready` alone, so RCC_CR.HSERDY reads 0 (QEMU
-   does not model the RCC) as on a board whose crystal never starts. The bounded wait must end,
-   the board must run on the internal oscillator (HSI, PLL re-derived for 168 MHz) and say so
-   right after the boot line (`event fault: no crystal: …`), then answer the console.
-2. A 512 KiB part (STM32F407VE): the boot assist answers every flash-size read with 512. The
-   board must refuse its storage cleanly — the boot line names the reason and the defaults are
-   used, `save` answers with an error naming it, nothing panics.
+1. No crystal (no external clock): the boot assist leaves `odocal_hse_ready` alone, so
+   RCC_CR.HSERDY reads 0 (QEMU does not model the RCC) as on a board whose crystal (or clock
+   input) never starts. The bounded wait must end, the board must run on the internal oscillator
+   (HSI, PLL re-derived for the same core clock), name it at the end of the boot line and say why
+   right after it (`event fault: no crystal: …`, the board's text), then answer the console.
+2. A part with half the flash (STM32F407VE for the F407's 1024 KiB, a 256 KiB STM32F446RC or
+   STM32F411CC for the 512 KiB boards): the boot assist answers every flash-size read with it.
+   The board must refuse its storage cleanly — the boot line names the reason and the defaults
+   are used, `save` answers with an error naming it, nothing panics.
+
+`--board` (fil/boards.py, default `f407`): the board the ELF is built for.
 """
 
 import argparse
@@ -19,17 +23,16 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console  # noqa: E402
+from boards import BOARDS, board as board_profile  # noqa: E402
 from emulator import Emulator  # noqa: E402
 
-NO_CRYSTAL_EVENT = ("event fault: no crystal: HSE did not start, running on the internal "
-                    "oscillator (HSI, 168 MHz through the PLL; timing and baud rate within a few %)")
-SMALL_BOOT = ("event boot: default parameters (no storage: this part has 512 KiB of flash, the "
-              "storage map needs 1024 KiB), reset: unknown")
+# The board under test (main: --board).
+PROFILE = board_profile("f407")
 SMALL_SAVE = "err 19: flash error: no storage: this part's flash is smaller than the storage map"
 
 
 def boot(elf, workdir, name, **kw):
-    emu = Emulator(elf, workdir, assist=True, name=name, **kw)
+    emu = Emulator(elf, workdir, assist=True, name=name, board=PROFILE["name"], **kw)
     con = Console.unix(emu.u2)
     emu.start()
     return emu, con
@@ -46,9 +49,9 @@ def no_crystal(elf, workdir):
         emu.stop()
     print(f"no crystal: `{line}`, then `{fault}`; `status` → `{status[:40]}…`")
     problems = []
-    if not line.startswith("event boot: "):
-        problems.append(f"boot line `{line}`")
-    if fault != NO_CRYSTAL_EVENT:
+    if not line.startswith("event boot: ") or not line.endswith("; " + PROFILE["internal_note"]):
+        problems.append(f"boot line `{line}` (should end with `{PROFILE['internal_note']}`)")
+    if fault != "event fault: " + PROFILE["no_clock_fault"]:
         problems.append(f"fault event `{fault}`")
     if echo != "ok echo off" or not status.startswith("ok state=idle"):
         problems.append(f"console `{echo}` / `{status}`")
@@ -56,7 +59,8 @@ def no_crystal(elf, workdir):
 
 
 def small_flash(elf, workdir):
-    emu, con = boot(elf, workdir, "small-flash", flash_kib=512)
+    small, full = PROFILE["small_kib"], PROFILE["flash_kib"]
+    emu, con = boot(elf, workdir, "small-flash", flash_kib=small)
     try:
         line = con.wait_event("event boot", 60)
         con.command("echo off", 10)
@@ -65,9 +69,11 @@ def small_flash(elf, workdir):
         alive = emu.alive()
     finally:
         emu.stop()
-    print(f"512 KiB part: `{line}`; `save` → `{save}`; `status` → `{status[:40]}…`")
+    print(f"{small} KiB part: `{line}`; `save` → `{save}`; `status` → `{status[:40]}…`")
     problems = []
-    if line != SMALL_BOOT:
+    want = (f"event boot: default parameters (no storage: this part has {small} KiB of flash, "
+            f"the storage map needs {full} KiB), reset: unknown; {PROFILE['clock_note']}")
+    if line != want:
         problems.append(f"boot line `{line}`")
     if save != SMALL_SAVE:
         problems.append(f"save `{save}`")
@@ -80,7 +86,10 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("elf")
     ap.add_argument("--workdir", default="target/fil")
+    ap.add_argument("--board", default="f407", choices=sorted(BOARDS))
     args = ap.parse_args()
+    global PROFILE
+    PROFILE = board_profile(args.board)
     os.makedirs(args.workdir, exist_ok=True)
     problems = no_crystal(args.elf, args.workdir) + small_flash(args.elf, args.workdir)
     for p in problems:
@@ -88,7 +97,8 @@ def main():
     if problems:
         print("degraded boot test FAILED")
         return 1
-    print("degraded boot: no crystal and a 512 KiB part both boot, report and answer")
+    print(f"degraded boot ({args.board}): no crystal and a {PROFILE['small_kib']} KiB part both "
+          "boot, report and answer")
     return 0
 
 

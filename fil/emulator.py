@@ -4,15 +4,18 @@ socket, RAM dump and the defmt log from the RTT buffer.
 What the emulator needs from outside the image, and why (QEMU 7.2 as shipped by Debian):
 
 - RCC is not modelled (every register reads 0), so `Rcc::freeze` would wait for ever for the
-  HSE and PLL ready bits. The boot assist (a gdb-multiarch script generated from the ELF's
-  disassembly by `boot_assist_script`) puts a breakpoint on the branch of each of those two
-  polling loops and continues after it, as if the bit had been set. The clock tree is not
+  HSE and PLL ready bits, and on a part run above 168 MHz (the STM32F446 at 180 MHz) for the
+  power controller's over-drive ready bits (PWR_CSR.ODRDY, ODSWRDY: PWR is not modelled either).
+  The boot assist (a gdb-multiarch script generated from the ELF's disassembly by
+  `boot_assist_script`) puts a breakpoint on the branch of each of those polling loops and
+  continues after it, as if the bit had been set. The clock tree is not
   modelled either: SysTick runs at 168 MHz whatever RCC says, which is the shipped
   configuration's core clock.
 - The flash-size word at 0x1FFF7A22 (system memory) is not mapped: reading it HardFaults, and the
   HAL reads it before every flash access, the board once at boot to check that the storage map
-  fits. The boot assist breaks on each `ldrh` from that address and supplies 1024 (KiB, the
-  STM32F407VG's size) in the destination register — or another size, to boot the image as on a
+  fits. The boot assist breaks on each `ldrh` from that address and supplies the part's size
+  (KiB: 1024 for the STM32F407VG, 512 for the STM32F446RE and STM32F411CE) in the destination
+  register — or another size, to boot the image as on a
   smaller part (`flash_kib`).
 - The board waits a bounded time for the crystal (`odocal_hse_ready`, RCC_CR.HSERDY) and falls
   back to the internal oscillator without it. The boot assist returns true from that function
@@ -21,7 +24,8 @@ What the emulator needs from outside the image, and why (QEMU 7.2 as shipped by 
 - The storage sectors of a freshly flashed board are erased (0xFF); QEMU's flash is ROM filled
   with zeros where the ELF has nothing. QEMU's generic loader puts 0xFF (or a given storage
   image) into the parameter sectors 1-2 (32 KiB at 0x08004000, between the vector table and
-  `.text`) and the run sectors 10-11 (256 KiB at 0x080C0000).
+  `.text`) and the run sectors (256 KiB: sectors 10-11 at 0x080C0000 on the F407, 6-7 at
+  0x08040000 on the 512 KiB parts; `fil/boards.py`).
 
 Everything else runs as built: the vector table, RTIC's dispatchers, SysTick, USART2's RX/TX
 interrupts (USART2 is the second `-serial`).
@@ -35,7 +39,10 @@ import struct
 import subprocess
 import time
 
-# The storage regions (src/board/f407/flash.rs, memory.x).
+from boards import board as board_profile
+
+# The storage regions of the default board (src/board/f407/flash.rs, memory.x); other boards'
+# in fil/boards.py.
 PARAM_REGION_ADDR = 0x08004000
 PARAM_REGION_LEN = 32 * 1024
 RUN_REGION_ADDR = 0x080C0000
@@ -46,6 +53,10 @@ PARAMS_LEN = PARAM_REGION_LEN + RUN_REGION_LEN
 RAM_ADDR = 0x20000000
 RAM_LEN = 128 * 1024
 RCC_BASE = 0x40023800
+# The registers whose ready bits the clock set-up polls: RCC_CR (HSERDY bit 17, PLLRDY bit 25)
+# and PWR_CSR (ODRDY bit 16, ODSWRDY bit 17), with the `lsls` shift that moves the bit to the
+# sign: 31 - bit.
+READY_LOOPS = {RCC_BASE: (14, 6), 0x40007004: (15, 14)}
 FLASH_SIZE_ADDR = 0x1FFF7A22
 # objdump's names of r9..r12 as gdb names them.
 GDB_REGISTER = {"sb": "r9", "sl": "r10", "fp": "r11", "ip": "r12"}
@@ -69,8 +80,9 @@ def boot_assist_points(elf):
     """The ELF's RCC ready-bit polling loops and flash-size reads, found in its disassembly.
 
     Returns a list of (kind, breakpoint address, resume address, register) tuples:
-    - `("rcc-ready", branch, next, base_register)`: the loop `ldr rA, [rB]; lsls rA, rA, #n;
-      bpl <ldr>` with n = 14 (RCC_CR.HSERDY, bit 17) or n = 6 (RCC_CR.PLLRDY, bit 25);
+    - `("rcc-ready", branch, next, (base_register, offset, n))`: the loop `ldr rA, [rB, #off];
+      lsls rA, rA, #n; bpl <ldr>` with n = 14 (RCC_CR.HSERDY, bit 17) or n = 6 (RCC_CR.PLLRDY,
+      bit 25), or n = 15 / 14 on PWR_CSR (ODRDY, ODSWRDY; READY_LOOPS);
     - `("flash-size", ldrh, next, destination)`: the address into rX, by `movw rX, #0x7a22;
       movt rX, #0x1fff` or (size-optimised code) by `ldr rX, [pc, #n]` from a literal word
       0x1fff7a22, followed by `ldrh rD, [rX, #0]`.
@@ -80,13 +92,15 @@ def boot_assist_points(elf):
     reg = r"(r\d+|sb|sl|fp|ip)"
     for i in range(len(insns) - 3):
         (a0, op0, arg0), (_, op1, arg1), (a2, op2, arg2), (a3, _, _) = insns[i:i + 4]
-        m0 = re.match(reg + r", \[" + reg + r"(?:, #0)?\]$", arg0)
+        m0 = re.match(reg + r", \[" + reg + r"(?:, #(\d+))?\]$", arg0)
         m1 = re.match(reg + ", " + reg + r", #(\d+)", arg1)
         if (op0 in ("ldr", "ldr.w") and op1 == "lsls" and op2.startswith("bpl") and m0 and m1
                 and m1.group(1) == m1.group(2) == m0.group(1)
-                and int(m1.group(3)) in (6, 14)
+                and int(m1.group(3)) in (6, 14, 15)
                 and arg2.startswith(f"{a0:x} ")):
-            points.append(("rcc-ready", a2, a3, GDB_REGISTER.get(m0.group(2), m0.group(2))))
+            base = GDB_REGISTER.get(m0.group(2), m0.group(2))
+            points.append(("rcc-ready", a2, a3,
+                           (base, int(m0.group(3) or 0), int(m1.group(3)))))
     def flash_size_read(reg, start):
         for k in range(start, min(start + 3, len(insns) - 1)):
             ak, opk, argk = insns[k]
@@ -145,13 +159,18 @@ def boot_assist_script(elf, port, flash_kib=FLASH_SIZE_KIB, crystal=True):
         ]
     for kind, bp, resume, reg in points:
         if kind == "rcc-ready":
+            base, offset, shift = reg
+            # The register polled must be one whose bit `shift` selects is a ready flag.
+            allowed = " || ".join(f"${base} + {offset} == 0x{addr:x}"
+                                  for addr, shifts in READY_LOOPS.items() if shift in shifts)
             lines += [
-                f"# RCC ready-bit loop (base {reg} must be RCC): leave it as if the bit were set",
+                f"# ready-bit loop ({base} + {offset}, lsls #{shift}: RCC_CR or PWR_CSR): leave "
+                "it as if the bit were set",
                 f"break *0x{bp:x}",
                 "commands",
                 "silent",
-                f"if ${reg} != 0x{RCC_BASE:x}",
-                f'  echo boot assist: loop at 0x{bp:x} does not poll RCC\\n',
+                f"if !({allowed})",
+                f'  echo boot assist: loop at 0x{bp:x} does not poll a clock ready bit\\n',
                 "  kill",
                 "  quit 1",
                 "end",
@@ -190,8 +209,9 @@ class Emulator:
     """
 
     def __init__(self, elf, workdir, assist=True, flash_image=None, extra=(), name="qemu",
-                 flash_kib=FLASH_SIZE_KIB, crystal=True):
-        self.flash_kib = flash_kib
+                 flash_kib=None, crystal=True, board="f407"):
+        profile = board_profile(board)
+        self.flash_kib = profile["flash_kib"] if flash_kib is None else flash_kib
         self.crystal = crystal
         self.elf = elf
         self.workdir = workdir
@@ -216,8 +236,8 @@ class Emulator:
                 image = f.read()
             if len(image) != PARAMS_LEN:
                 raise SystemExit(f"{flash_image}: a storage image is {PARAMS_LEN} bytes")
-            for part, addr, data in (("params", PARAM_REGION_ADDR, image[:PARAM_REGION_LEN]),
-                                     ("runs", RUN_REGION_ADDR, image[PARAM_REGION_LEN:])):
+            for part, addr, data in (("params", profile["param_addr"], image[:PARAM_REGION_LEN]),
+                                     ("runs", profile["run_addr"], image[PARAM_REGION_LEN:])):
                 path = os.path.join(workdir, f"{name}-{part}.bin")
                 with open(path, "wb") as f:
                     f.write(data)

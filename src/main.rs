@@ -1,13 +1,15 @@
-//! odocal firmware entry point (RTIC 2, STM32F407).
+//! odocal firmware entry point (RTIC 2, any board of `src/board/`).
 //!
 //! Wiring only: tasks own peripherals, call one library function each and publish the result.
-//! Priorities: control (TIM7, 1–10 kHz: the stored `control_hz`) 3 > serial/button 2 >
-//! background 1.
+//! Priorities: control (the board's control timer, 1–10 kHz: the stored `control_hz`) 3 >
+//! serial/button 2 > background 1. The wiring is the same on every board; only the names of
+//! the two board-specific interrupts RTIC binds to come from one line per board (the end of
+//! this file).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(not(target_os = "none"))]
 fn main() {
-    eprintln!("the odocal firmware runs on the STM32F407; on the host, use `cargo sim`");
+    eprintln!("the odocal firmware runs on an STM32F4 board; on the host, use `cargo sim`");
 }
 
 #[cfg(target_os = "none")]
@@ -49,7 +51,7 @@ unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
 rtic_monotonics::systick_monotonic!(Mono, 1000);
 
 /// Most receive reads per USART2 interrupt: by RXNE the rest re-enters the interrupt; from the
-/// F407's DMA ring the next millisecond's pend reads it (32 bytes a millisecond, about three
+/// board's DMA ring the next millisecond's pend reads it (32 bytes a millisecond, about three
 /// times the line rate, so a backlog after an erase's stall drains).
 #[cfg(target_os = "none")]
 const RX_READS_PER_IRQ: usize = 32;
@@ -59,8 +61,25 @@ const RX_READS_PER_IRQ: usize = 32;
 #[cfg(target_os = "none")]
 const REPLY_ROOM: usize = 1_800;
 
+/// The RTIC app, for the board's control-timer and button interrupts (RTIC's `binds` takes an
+/// interrupt's name, so the board's names are passed in: one line per board below). rustfmt
+/// leaves a macro's body as written: the app below is formatted as if it stood alone.
 #[cfg(target_os = "none")]
+macro_rules! odocal_app {
+    (control = $control:ident, button = $button:ident) => {
+        // The names agree with the board's constants (the app pends and unmasks by those).
+        const _: () = assert!(
+            odocal::board::CONTROL_INTERRUPT as u16
+                == stm32f4xx_hal::pac::Interrupt::$control as u16
+                && odocal::board::BUTTON_INTERRUPT as u16
+                    == stm32f4xx_hal::pac::Interrupt::$button as u16,
+            "src/main.rs binds other interrupts than the board's"
+        );
+
+// RTIC's generated `unsafe fn`s call unsafe functions without an `unsafe` block; through this
+// crate's macro their code takes this crate's edition (2024), where that is a warning.
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
+#[allow(unsafe_op_in_unsafe_fn)]
 mod app {
     use core::fmt::Write as _;
     use heapless::spsc::{Consumer, Producer, Queue};
@@ -209,12 +228,22 @@ mod app {
                 }
             }
             let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
-            let _ = write_boot_event(&mut sink, &loaded, &refused, Some(cause.as_str()));
-            if let Some(fault) = board.clock.fault() {
+            let _ = write_boot_event(
+                &mut sink,
+                &loaded,
+                &refused,
+                Some(cause.as_str()),
+                Some(odocal::board::boot_note(board.clock)),
+            );
+            if let Some(fault) = board.clock.fault(&odocal::board::CLOCK_TEXTS) {
                 let _ = write_fault_event(&mut sink, fault);
             }
         }
-        defmt::info!("reset cause: {}, clock: {}", reset_cause, board.clock);
+        defmt::info!(
+            "reset cause: {}, {}",
+            reset_cause,
+            odocal::board::boot_note(board.clock)
+        );
         let (press_in, press_out) = cx.local.presses.split();
 
         report::spawn().ok();
@@ -275,7 +304,7 @@ mod app {
 
     /// Control period: encoders → odometry → routine → speed loops → motors; button presses
     /// handed to the console task; retiming and LEDs.
-    #[task(binds = TIM7, priority = 3,
+    #[task(binds = $control, priority = 3,
            local = [control_handoff, encoders, tick, pacing, missed, motors, press_in,
                     ring_on_press, leds],
            shared = [controller, button, watchdog])]
@@ -322,8 +351,8 @@ mod app {
 
     /// On a board without a control-period timer (the emulator), pends the control interrupt
     /// from the monotonic: every period at 1 kHz, one period per 1 ms tick at higher rates
-    /// (the emulator's plant counts periods, not wall time). On the F407, TIM7 raises it and
-    /// this task ends at once.
+    /// (the emulator's plant counts periods, not wall time). On a board, its control timer raises
+    /// it and this task ends at once.
     #[task(priority = 3, local = [pace_handoff])]
     async fn pace_control(cx: pace_control::Context) {
         if !CONTROL_FROM_MONOTONIC {
@@ -338,7 +367,7 @@ mod app {
         }
     }
 
-    /// On a board whose console receives by DMA into a ring (the F407), pends the console
+    /// On a board whose console receives by DMA into a ring (every board), pends the console
     /// interrupt every millisecond so the serial receive drains the ring (and, after a flash
     /// erase's stall, what arrived during it); on a board with an RX interrupt it ends at once.
     #[task(priority = 3)]
@@ -353,7 +382,7 @@ mod app {
     }
 
     /// Button edges, time-stamped for the debouncer.
-    #[task(binds = EXTI0, priority = 2, local = [button_pin], shared = [button])]
+    #[task(binds = $button, priority = 2, local = [button_pin], shared = [button])]
     fn button_edge(mut cx: button_edge::Context) {
         let pressed = cx.local.button_pin.edge();
         cx.shared.button.lock(|b| b.edge(now_ms(), pressed));
@@ -477,3 +506,12 @@ mod app {
         }
     }
 }
+    };
+}
+
+#[cfg(all(target_os = "none", feature = "board-f407"))]
+odocal_app!(control = TIM7, button = EXTI0);
+#[cfg(all(target_os = "none", feature = "board-nucleo-f446re"))]
+odocal_app!(control = TIM7, button = EXTI15_10);
+#[cfg(all(target_os = "none", feature = "board-blackpill-f411ce"))]
+odocal_app!(control = TIM1_TRG_COM_TIM11, button = EXTI0);

@@ -116,7 +116,7 @@ fn load_falls_back_to_the_older_valid_record() {
         "{loaded:?}"
     );
     let mut line = String::new();
-    write_boot_event(&mut line, &loaded, &[], Some("power-on")).unwrap();
+    write_boot_event(&mut line, &loaded, &[], Some("power-on"), None).unwrap();
     assert_eq!(
         line,
         "event boot: parameters loaded (previous record; newest: stored parameters invalid: \

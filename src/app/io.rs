@@ -3,8 +3,8 @@
 //! A board hands the app core its pins and serial port as the standard traits: the LEDs as
 //! [`OutputPin`]s (the heartbeat a [`StatefulOutputPin`], so it can toggle), the button as an
 //! [`InputPin`], the console's receiver as an `embedded-hal-nb` serial reader and its transmitter
-//! as an `embedded-io` writer. A board other than the STM32F407 is then its pin map and its
-//! interrupt acknowledgements, not a rewrite of the glue.
+//! as an `embedded-io` writer. A new board is then its pin map and its interrupt
+//! acknowledgements, not a rewrite of the glue.
 //!
 //! Pin errors are `Infallible` on every MCU GPIO; a pin that can fail (an I/O expander) fails
 //! safe: an LED write that fails is dropped (a status light, nothing depends on it), and a

@@ -7,13 +7,13 @@
 //!
 //! | priority on the board | part | what it does |
 //! |---|---|---|
-//! | 3, control period (TIM7) | [`control::period`], [`control::Pacing`] | stop requests, one controller step, the motors, a long press's abort; retiming, the heartbeat and the refused-press blink |
+//! | 3, control period (the board's timer) | [`control::period`], [`control::Pacing`] | stop requests, one controller step, the motors, a long press's abort; retiming, the heartbeat and the refused-press blink |
 //! | 2, serial receive (USART2) | [`serial::receive`] | bytes → lines (echo, stop keys, lines lost to a full queue) |
 //! | 2, serial transmit (USART2) | [`serial::transmit`] | the echo first, then the console's replies |
 //! | 1, console task | [`console::take_line`], [`console::press`], [`console::poll`] | lines and presses on the session; events and the pose stream |
 //!
 //! [`io`] holds the board's LEDs, button and console port in embedded-hal terms; [`rx_ring`] the
-//! reading side of a console receive ring that a DMA stream fills (the F407's console).
+//! reading side of a console receive ring that a DMA stream fills (the boards' console).
 //!
 //! The few facts the parts at different priorities tell each other live in one [`Handoff`],
 //! lock-free (see its fields for who writes and who reads each).

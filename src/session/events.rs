@@ -24,8 +24,8 @@ use crate::util::decimal::Decimal;
 /// was loaded), or `event boot: default parameters (<why>)` when no stored record was used,
 /// followed by `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`,
 /// `pin`, `software`, `power-on`, …), by `; <name> <value> refused (<why>), default used` for
-/// each stored value the settings' rules refused ([`BootRefusal`]), and on the emulated board by
-/// what QEMU lacks.
+/// each stored value the settings' rules refused ([`BootRefusal`]), then by the board's note
+/// after `; ` (which clock runs; on the emulated board, what QEMU lacks).
 ///
 /// # Errors
 /// Only those of `out`.
@@ -34,6 +34,7 @@ pub fn write_boot_event(
     loaded: &LoadOutcome,
     refused: &[BootRefusal],
     reset_cause: Option<&str>,
+    board_note: Option<&str>,
 ) -> fmt::Result {
     match &loaded.warning {
         None => write!(out, "event boot: parameters loaded")?,
@@ -54,20 +55,11 @@ pub fn write_boot_event(
             r.why
         )?;
     }
-    if let Some(note) = BOARD_NOTE {
+    if let Some(note) = board_note {
         write!(out, "; {note}")?;
     }
     out.write_str(EOL)
 }
-
-/// What the board the firmware is built for lacks, at the end of the boot line: the emulated
-/// board (cargo feature `emulator`) says what QEMU does not model, so nobody takes its numbers
-/// for a robot's.
-const BOARD_NOTE: Option<&str> = if cfg!(feature = "emulator") {
-    Some("emulated: QEMU has no motors, encoders, PWM or TIM7 (a simulated robot drives)")
-} else {
-    None
-};
 
 /// `event fault: <text>`: a fault found at boot that the board works around (e.g. a missing
 /// crystal), or a fault the controller latched, in full.

@@ -150,8 +150,8 @@ pub enum StoreError {
     FlashTooSmall(FlashTooSmall),
 }
 
-/// A part with less flash than the storage map needs (e.g. a 512 KiB STM32F407VE for a map
-/// that ends at 1 MiB).
+/// A part with less flash than the storage map needs (e.g. a 512 KiB part for a map that ends
+/// at 1 MiB).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct FlashTooSmall {

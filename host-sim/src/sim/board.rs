@@ -113,7 +113,7 @@ impl<'f> Board<'f> {
         let controller = Controller::new(settings.controller_config())
             .map_err(|e| format!("stored parameters: {e}"))?;
         config.rate_hz = settings.control_hz;
-        write_boot_event(out, &loaded, &refused, None).map_err(|e| e.to_string())?;
+        write_boot_event(out, &loaded, &refused, None, None).map_err(|e| e.to_string())?;
         let mut session = Session::new(settings, LibraryCalibrator::default());
         session
             .restore_runs(&mut store, out)

@@ -28,7 +28,7 @@ pub mod flash;
 pub mod plant;
 pub mod semihosting;
 
-use crate::board::f407::ResetCause;
+use crate::board::stm32f4::reset::ResetCause;
 use core::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 
 use stm32f4xx_hal::gpio::{Edge, Pull};
@@ -38,9 +38,9 @@ use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use super::f407::ClockSource;
-pub use super::f407::watchdog;
 pub use super::f407::{FLASH_WATCHDOG_MS, WATCHDOG_MS};
+use super::stm32f4::clock::ClockSource;
+pub use super::stm32f4::watchdog;
 pub use flash::BoardFlash;
 use plant::Plant;
 
@@ -139,6 +139,14 @@ pub use crate::board::f407::{ButtonInput, CONSOLE_INTERRUPT, ConsoleTx, Leds};
 pub type ConsoleRx = stm32f4xx_hal::serial::Rx<stm32f4xx_hal::pac::USART2>;
 /// The RX interrupt serves the console's receive half: nothing to poll.
 pub const CONSOLE_RX_POLLED: bool = false;
+/// QEMU has no TIM7: the app pends the control interrupt from the monotonic.
+pub const CONTROL_FROM_MONOTONIC: bool = true;
+
+/// What the boot line ends with: what QEMU does not model, so nobody takes the emulated board's
+/// numbers for a robot's.
+pub fn boot_note(_clock: ClockSource) -> &'static str {
+    "emulated: QEMU has no motors, encoders, PWM or TIM7 (a simulated robot drives)"
+}
 
 /// Everything the board gives the application (see [`crate::board`]).
 pub struct Board {
@@ -171,7 +179,7 @@ pub struct Board {
 
 /// Brings up the emulated board.
 pub fn init(dp: pac::Peripherals) -> Board {
-    let reset_cause = crate::board::f407::safety::reset_cause(&dp.RCC);
+    let reset_cause = crate::board::stm32f4::reset::reset_cause(&dp.RCC);
     let mut rcc = dp.RCC.freeze(Config::hsi());
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
@@ -215,6 +223,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         watchdog,
         params: flash::param_store(),
         reset_cause,
-        clock: ClockSource::Crystal,
+        clock: ClockSource::External,
     }
 }

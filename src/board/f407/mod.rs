@@ -19,26 +19,34 @@
 //!
 //! Everything `unsafe` in the firmware lives here and carries a `// SAFETY:` note.
 
-pub mod console_rx;
 pub mod flash;
-pub mod motors;
 pub mod safety;
-pub mod watchdog;
 
-use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, Pull};
-use stm32f4xx_hal::pac::{self, TIM2, TIM3, TIM7, USART2};
+use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, PE7, PE8, PE13, Pull};
+use stm32f4xx_hal::pac::{self, TIM7, USART2};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
 use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::serial::{self, Serial, Tx};
-use stm32f4xx_hal::timer::{CounterHz, Event, Flag};
+use stm32f4xx_hal::timer::Event;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::storage::ParamStore;
 
+pub use super::stm32f4::clock::{ClockSource, ClockTexts};
+pub use super::stm32f4::{console_rx, watchdog};
 pub use flash::BoardFlash;
-pub use motors::BoardMotors;
 pub use safety::ResetCause;
+
+/// The motors: TIM1 channels 1 and 2 (PE9, PE11), DIR on PE7/PE8, bridge enable on PE13.
+pub type BoardMotors = super::stm32f4::motors::Tim1Motors<PE7<Output>, PE8<Output>, PE13<Output>>;
+
+/// The interrupt the control task is bound to: TIM7's update (`binds = TIM7` in `src/main.rs`).
+pub const CONTROL_INTERRUPT: pac::Interrupt = pac::Interrupt::TIM7;
+/// The interrupt of the button's EXTI line (PA0: EXTI0; `binds = EXTI0` in `src/main.rs`).
+pub const BUTTON_INTERRUPT: pac::Interrupt = pac::Interrupt::EXTI0;
+/// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic: no, TIM7 raises it.
+pub const CONTROL_FROM_MONOTONIC: bool = false;
 
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -85,101 +93,23 @@ pub const WATCHDOG_MS: u32 = 50;
 /// gives at least 6.8 s.
 pub const FLASH_WATCHDOG_MS: u32 = 10_000;
 
-/// Polls of the crystal oscillator's ready flag before the internal oscillator is used instead.
-/// Each poll is a call of [`odocal_hse_ready`], a volatile register read, a test and a loop
-/// branch (12 instructions in the release build, about 20 cycles at the 16 MHz HSI the core
-/// runs on at reset), so the wait is about 0.25 s, and at least 60 ms however the loop is
-/// compiled; an 8 MHz crystal starts within 2 ms (datasheet t_SU(HSE)).
-pub const HSE_POLLS: u32 = 200_000;
+/// The clocks as the boot line and the fault event name them.
+pub const CLOCK_TEXTS: ClockTexts = ClockTexts {
+    external: "clock: 8 MHz crystal (HSE), 168 MHz",
+    internal: "clock: internal oscillator (HSI 16 MHz), 168 MHz",
+    fault: "no crystal: HSE did not start, running on the internal oscillator (HSI, 168 MHz \
+            through the PLL; timing and baud rate within a few %)",
+};
 
-/// Where the core clock comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum ClockSource {
-    /// The 8 MHz crystal (HSE) through the PLL: 168 MHz, crystal accuracy.
-    Crystal,
-    /// The crystal did not start: the internal 16 MHz RC oscillator (HSI) through the PLL, still
-    /// 168 MHz (timers, PWM and the baud rate as configured), but only as accurate as the HSI
-    /// (±1 % at 25 °C, a few % over temperature).
-    Internal,
+/// What the boot line ends with: which clock runs.
+pub fn boot_note(clock: ClockSource) -> &'static str {
+    clock.describe(&CLOCK_TEXTS)
 }
 
-impl ClockSource {
-    /// The fault text of the boot event when the crystal did not start, `None` with a crystal.
-    pub fn fault(self) -> Option<&'static str> {
-        match self {
-            ClockSource::Crystal => None,
-            ClockSource::Internal => Some(
-                "no crystal: HSE did not start, running on the internal oscillator (HSI, 168 MHz \
-                 through the PLL; timing and baud rate within a few %)",
-            ),
-        }
-    }
-}
-
-/// The crystal oscillator's ready flag (RCC_CR.HSERDY). Out of line and unmangled, so the
-/// emulator's boot assist can answer it (QEMU does not model the RCC).
-#[unsafe(no_mangle)]
-#[inline(never)]
-pub extern "C" fn odocal_hse_ready() -> bool {
-    // SAFETY: a read of RCC_CR, which has no read side effects.
-    unsafe { (*pac::RCC::ptr()).cr().read().hserdy().bit_is_set() }
-}
-
-/// Starts the crystal oscillator and waits at most [`HSE_POLLS`] polls for it: the clock source
-/// to configure. Without a crystal the oscillator is switched off again.
-fn start_crystal(rcc: &pac::RCC) -> ClockSource {
-    rcc.cr().modify(|_, w| w.hseon().set_bit());
-    for _ in 0..HSE_POLLS {
-        if odocal_hse_ready() {
-            return ClockSource::Crystal;
-        }
-    }
-    rcc.cr().modify(|_, w| w.hseon().clear_bit());
-    ClockSource::Internal
-}
-
-/// The two quadrature encoders: TIM2 (32-bit, right) and TIM3 (16-bit, left).
-pub struct Encoders {
-    right: Qei<TIM2>,
-    left: Qei<TIM3>,
-}
-
-impl Encoders {
-    /// The raw hardware counter values (right, left); the library extends them to tick totals.
-    pub fn read(&mut self) -> (u32, u32) {
-        (self.right.count(), u32::from(self.left.count()))
-    }
-}
-
+pub use super::stm32f4::timers::Encoders;
 /// The control-period interrupt source: TIM7's update at the control rate (84 MHz timer clock,
 /// so every rate of [`crate::motion::controller::RATES_HZ`] divides exactly).
-pub struct ControlTick {
-    timer: CounterHz<TIM7>,
-    rate_hz: u32,
-}
-
-impl ControlTick {
-    /// Acknowledges the period's interrupt.
-    pub fn clear(&mut self) {
-        self.timer.clear_flags(Flag::Update);
-    }
-
-    /// The rate TIM7 runs at, Hz.
-    pub fn rate_hz(&self) -> u32 {
-        self.rate_hz
-    }
-
-    /// Retimes TIM7 to `rate_hz`: the counter restarts, so the next update comes one new
-    /// period after the call (the update interrupt stays enabled).
-    pub fn set_rate_hz(&mut self, rate_hz: u32) {
-        if self.timer.start(rate_hz.Hz()).is_err() {
-            error!("control timer refused {} Hz", rate_hz);
-        } else {
-            self.rate_hz = rate_hz;
-        }
-    }
-}
+pub type ControlTick = super::stm32f4::timers::ControlTick<TIM7>;
 
 /// The user button on PA0 (EXTI0, both edges, pressed = high).
 pub struct ButtonInput(PA0<Input>);
@@ -289,9 +219,9 @@ pub fn init(dp: pac::Peripherals) -> Board {
     // the PLL derived from it for the same 168 MHz core and 42/84 MHz buses, so timers, PWM
     // and baud rates stay as configured (a missing crystal must not hang the boot before the
     // watchdog runs).
-    let clock = start_crystal(&dp.RCC);
+    let clock = super::stm32f4::clock::start_external(&dp.RCC, false);
     let source = match clock {
-        ClockSource::Crystal => Config::hse(HSE_HZ.Hz()),
+        ClockSource::External => Config::hse(HSE_HZ.Hz()),
         ClockSource::Internal => {
             error!("the crystal (HSE) did not start: running on the internal oscillator (HSI)");
             Config::hsi()

@@ -87,8 +87,8 @@ pub const DEFAULT_RATE_HZ: u32 = 1_000;
 
 /// The control rates the controller accepts, Hz: 1 kHz to 10 kHz in whole kilohertz that give a
 /// whole number of microseconds per period. Every time the controller keeps in milliseconds is
-/// then a whole number of periods, the board's TIM7 (84 MHz) divides exactly to each rate, and a
-/// simulated period is a whole number of microseconds.
+/// then a whole number of periods, the boards' control timers (84, 90 and 100 MHz) divide exactly
+/// to each rate, and a simulated period is a whole number of microseconds.
 pub const RATES_HZ: [u32; 6] = [1_000, 2_000, 4_000, 5_000, 8_000, 10_000];
 
 /// Whether `rate_hz` is one of [`RATES_HZ`].

@@ -1,9 +1,10 @@
-//! The console's receive half on the F407: USART2 RX by DMA1 stream 5 (channel 4, RM0090
-//! Table 42) in circular mode into a RAM ring, so bytes keep arriving while the CPU is stalled by
-//! a flash erase (the F407 has one flash bank: an erase stops instruction fetch, and with it
-//! every interrupt, for up to a second on a 16 KiB sector and two on a 128 KiB one; the DMA and
-//! the USART keep running from RAM). The serial receive reads the ring when it runs: the app
-//! pends it every millisecond (`CONSOLE_RX_POLLED`), and after a stall it drains what arrived.
+//! The console's receive half on every board: USART2 RX by DMA1 stream 5 (channel 4: RM0090
+//! Table 42, the same request mapping in RM0390 and RM0383) in circular mode into a RAM ring, so
+//! bytes keep arriving while the CPU is stalled by a flash erase (one flash bank: an erase stops
+//! instruction fetch, and with it every interrupt, for up to a second on a 16 KiB sector and two
+//! on a 128 KiB one; the DMA and the USART keep running from RAM). The serial receive reads the
+//! ring when it runs: the app pends it every millisecond (`CONSOLE_RX_POLLED`), and after a
+//! stall it drains what arrived.
 //!
 //! The ring holds [`RX_RING_BYTES`]: at 115,200 baud (11.5 bytes per millisecond) that is 44 ms
 //! of a continuous stream, about 100 s of typing. More than that between two reads (a long
@@ -171,7 +172,8 @@ impl serial::Read<u8> for ConsoleRx {
         }
         let write = RX_RING_BYTES - after.min(RX_RING_BYTES);
         // Whole bytes in the time since the previous read, plus the ones under way at either
-        // end (CYCCNT wraps after 25 s at 168 MHz; reads come every millisecond).
+        // end (CYCCNT wraps after 23 s at 180 MHz, the fastest of these parts; reads come every
+        // millisecond).
         let now = cortex_m::peripheral::DWT::cycle_count();
         let arrivable = (now.wrapping_sub(*last_cycles) / *cycles_per_byte) as usize + 2;
         *last_cycles = now;

@@ -1,0 +1,147 @@
+//! What every STM32F4 board of odocal shares, whatever its pin map: the parts are the same
+//! peripherals at the same addresses on the STM32F407, STM32F446 and STM32F411 (reference
+//! manuals RM0090, RM0390, RM0383), so a board folder uses them as they are.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`clock`] | the external clock with the bounded wait and the fall-back to the HSI |
+//! | [`console_rx`] | USART2's receive half by DMA1 stream 5 channel 4 into a ring (the same request mapping on the three parts) |
+//! | [`flash`] | the parameter and run store's flash driver, over the board's flash map |
+//! | [`map_512k`] | the flash map of the 512 KiB parts (parameters in sectors 1–2, runs in 6–7) |
+//! | [`motors`] | two H-bridge channels on TIM1 channels 1 and 2, with the board's DIR and enable pins |
+//! | [`reset`] | reset cause, crash record, fault guard, debug-halt freeze |
+//! | [`safe_state`] | the motor pins' safe state and emergency stop for PWM and enable pins on one port |
+//! | [`timers`] | the encoders (TIM2, TIM3), the control-period tick, the encoder input filter and pull-ups |
+//! | [`watchdog`] | the independent watchdog's timeout changes |
+
+pub mod clock;
+pub mod console_rx;
+pub mod flash;
+pub mod map_512k;
+pub mod motors;
+pub mod reset;
+pub mod safe_state;
+pub mod timers;
+pub mod watchdog;
+
+use stm32f4xx_hal::gpio::{PA2, PA3};
+use stm32f4xx_hal::pac::{DMA1, USART2};
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::{Clocks, Rcc};
+use stm32f4xx_hal::serial::{self, Serial, Tx};
+use stm32f4xx_hal::timer::{CounterHz, Event, Instance};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
+
+use crate::storage::ParamStore;
+
+/// Everything a board gives the application (see [`crate::board`]), over the board's motors
+/// `M`, control tick `T`, button `B` and LEDs `L`.
+pub struct Board<M, T, B, L> {
+    /// Core clock the monotonic timer runs at, Hz.
+    pub sysclk_hz: u32,
+    /// Wheel encoders.
+    pub encoders: timers::Encoders,
+    /// Motor outputs (zero duty, bridge disabled until the controller's first command).
+    pub motors: M,
+    /// Control-period interrupt, already running.
+    pub tick: T,
+    /// User button.
+    pub button: B,
+    /// Status LEDs.
+    pub leds: L,
+    /// Console receive half.
+    pub console_rx: console_rx::ConsoleRx,
+    /// Console transmit half.
+    pub console_tx: Tx<USART2>,
+    /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
+    pub watchdog: IndependentWatchdog,
+    /// The parameter and run store on the board's flash map (not loaded yet).
+    pub params: ParamStore<flash::BoardFlash>,
+    /// Why the MCU last reset.
+    pub reset_cause: reset::ResetCause,
+    /// Where the core clock comes from (the internal oscillator if the external clock did not
+    /// start).
+    pub clock: clock::ClockSource,
+}
+
+/// Logs an error if the HAL's clocks differ from the board's (`sysclk`, `pclk1` and the two
+/// timer clocks, Hz): the timer periods, the PWM and the baud rate assume exactly those.
+pub fn check_clocks(clocks: &Clocks, sysclk: u32, pclk1: u32, timclk1: u32, timclk2: u32) {
+    if clocks.sysclk().raw() != sysclk
+        || clocks.pclk1().raw() != pclk1
+        || clocks.timclk1().raw() != timclk1
+        || clocks.timclk2().raw() != timclk2
+    {
+        error!(
+            "clocks differ from the board's: sysclk {} pclk1 {} timers {} / {} Hz",
+            clocks.sysclk().raw(),
+            clocks.pclk1().raw(),
+            clocks.timclk1().raw(),
+            clocks.timclk2().raw()
+        );
+    }
+}
+
+/// The serial console: USART2 on PA2 (TX) / PA3 (RX) at 115,200 Bd, the receive half by DMA into
+/// its ring ([`console_rx`], which bounds the bytes that can have arrived between two reads by
+/// the core's cycle count at `sysclk_hz`).
+pub fn start_console(
+    usart: USART2,
+    pins: (PA2, PA3),
+    dma: DMA1,
+    rcc: &mut Rcc,
+    sysclk_hz: u32,
+) -> (Tx<USART2>, console_rx::ConsoleRx) {
+    let usart = Serial::new(
+        usart,
+        pins,
+        serial::Config::default().baudrate(console_rx::CONSOLE_BAUD.bps()),
+        rcc,
+    );
+    let (console_tx, console_rx) = match usart {
+        Ok(s) => s.split(),
+        Err(_) => defmt::panic!("USART2 configuration rejected"),
+    };
+    (
+        console_tx,
+        console_rx::ConsoleRx::start(console_rx, dma, rcc, sysclk_hz),
+    )
+}
+
+/// The control tick on `timer`, started at the default rate (until the app has loaded the stored
+/// one) with its update interrupt enabled.
+pub fn start_tick<TIM: Instance>(mut timer: CounterHz<TIM>) -> timers::ControlTick<TIM> {
+    let rate_hz = crate::motion::controller::DEFAULT_RATE_HZ;
+    if timer.start(rate_hz.Hz()).is_err() {
+        error!("control timer did not start");
+    }
+    timer.listen(Event::Update);
+    timers::ControlTick { timer, rate_hz }
+}
+
+/// The user button on an EXTI line (both edges), pressed at the level `ACTIVE_HIGH` says.
+pub struct ButtonInput<const P: char, const N: u8, const ACTIVE_HIGH: bool>(
+    stm32f4xx_hal::gpio::Pin<P, N, stm32f4xx_hal::gpio::Input>,
+);
+
+impl<const P: char, const N: u8, const ACTIVE_HIGH: bool> ButtonInput<P, N, ACTIVE_HIGH> {
+    /// The button on `pin`, already an interrupt source.
+    pub fn new(pin: stm32f4xx_hal::gpio::Pin<P, N, stm32f4xx_hal::gpio::Input>) -> Self {
+        ButtonInput(pin)
+    }
+
+    /// Acknowledges the edge interrupt and reads the level (true = pressed).
+    pub fn edge(&mut self) -> bool {
+        use stm32f4xx_hal::gpio::ExtiPin;
+        self.0.clear_interrupt_pending_bit();
+        crate::app::io::button_pressed(&mut self.0, ACTIVE_HIGH)
+    }
+}
+
+/// The console's receive half is read from its DMA ring: the app pends the console interrupt
+/// every millisecond to drain it.
+pub const CONSOLE_RX_POLLED: bool = true;
+/// The console port's transmit half (USART2 TXE interrupt).
+pub type ConsoleTx = Tx<USART2>;
+/// The interrupt that serves the console port; the console task pends it to start sending.
+pub const CONSOLE_INTERRUPT: stm32f4xx_hal::pac::Interrupt = stm32f4xx_hal::pac::Interrupt::USART2;
