@@ -2,7 +2,7 @@
 # Transfer in the board's context: leave one session out (host-sim/crossval.sh) with every
 # calibration run's end pose measured as an operator measures it by hand, Gaussian noise of MM
 # millimetres in x and y and MRAD milliradians in the heading (replay --end-noise), averaged over
-# SEEDS draws (docs/calibration.md, "Transfer", fourth round).
+# SEEDS draws (docs/calibration.md, "Transfer", "Heading weight and end offset").
 #
 #   bash host-sim/crossval-hand.sh [DATA_DIR [MM MRAD [SEEDS [REPLAY FLAGS...]]]]
 #

@@ -16,7 +16,7 @@ use super::line::LineError;
 ///
 /// Format strings spell it as `\r\n` inside the literal rather than as an `{EOL}` argument: a
 /// line without other arguments then compiles to a single `write_str`, and no call site pays
-/// for an extra argument (−844 B of flash over the replies; docs/performance.md).
+/// for an extra argument (−868 B of flash; docs/performance.md, Firmware footprint).
 pub const EOL: &str = "\r\n";
 
 /// Capacity that fits any single reply line, bytes.

@@ -121,12 +121,12 @@
 //! the Monte Carlo with 5 % slipping starts it keeps the spread of `E_b` where it is without
 //! them, at any heading weight; on the shared OptiOdom sessions it transfers worse (their start
 //! transients are systematic and the paths a calibration is used for start with them too),
-//! docs/calibration.md, *Transfer*, third round.
+//! docs/calibration.md, *Transfer*, *Heading weight and end offset*.
 //!
 //! ## End offset
 //!
 //! On by default ([`ExactOptions::end_offset`]; chosen by transfer, docs/calibration.md,
-//! *Transfer*, third and fourth rounds). The end positions of a session's squares can share an offset that no
+//! *Transfer*, *Heading weight and end offset*). The end positions of a session's squares can share an offset that no
 //! wheel geometry makes: on the shared OptiOdom 1.7 m squares +16 to +20 mm along the first
 //! leg, in both turn directions. A wheelbase or diameter error moves CW and CCW ends apart;
 //! a common offset (where the start is read, how the robot stops) moves them together, and the
@@ -284,7 +284,7 @@ pub const UNCHECKED_DECREASE: f64 = 1e-9;
 /// lateral error it makes over one and a half legs. Chosen by transfer in the board's context
 /// (leave one shared OptiOdom session out, calibrated on the 1.7 m squares, the end poses
 /// measured as by hand, 2 mm and 14 mrad, 20 draws; `bash host-sim/crossval-hand.sh`;
-/// docs/calibration.md, *Transfer*, fourth round), with the end offset
+/// docs/calibration.md, *Transfer*, *Heading weight and end offset*), with the end offset
 /// ([`ExactOptions::end_offset`]): the mean final position error on the sessions of other kinds
 /// is 16.91, 16.61, 16.52, 16.47 mm at k = 1, 1.5, 2, 3 (17.63 at k = 1 without the offset;
 /// Jung & Chung 16.75), and 17.02, 16.77, 16.71 at 3 mm and 17 mrad (17.71; 16.98). Beyond 1.5

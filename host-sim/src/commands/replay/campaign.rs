@@ -5,7 +5,7 @@
 //! remounted wheel): on the shared OptiOdom sessions the wheelbase fitted per session scatters by
 //! about 2.9e-3 of `E_b` between sessions, five to ten times a session's own 1σ, and sessions
 //! recorded on one evening agree where sessions six months apart do not (docs/calibration.md,
-//! *Transfer*, fifth round). A calibration is therefore taken from the sessions recorded near the
+//! *Transfer*, *The campaign*). A calibration is therefore taken from the sessions recorded near the
 //! drives it is to correct. For every evaluated session, the calibration session recorded
 //! nearest in time to it anchors a campaign: every calibration session recorded within
 //! [`CAMPAIGN_DAYS`] of an anchor calibrates, the others are left out. However far every

@@ -19,10 +19,10 @@ pub const EXACT_PATH: &str = "exact-path";
 /// paths (`ExactOptions::end_offset`). `replay`'s default; `exact` is the board's fit.
 pub const EXACT_MOCAP: &str = "exact-mocap";
 /// Heading weight `k` of [`EXACT_MOCAP`]: chosen by transfer (docs/calibration.md, *Transfer*,
-/// third round), the smallest `k` within 0.1 mm of the best mean final error on the other kinds
+/// *Heading weight and end offset*), the smallest `k` within 0.1 mm of the best mean final error on the other kinds
 /// in both rows (from the 1.7 m squares 16.1, 16.0, 16.0, 16.0 mm at k = 2, 3, 4, 8; from every
-/// other session 17.7, 17.5, 17.4, 17.4; and again with the campaign nearest in time, fifth
-/// round: 16.08 / 16.26, 16.04 / 16.18, 16.03 / 16.15, 16.02 / 16.12 at k = 2, 3, 4, 8). A
+/// other session 17.7, 17.5, 17.4, 17.4; and again with the campaign nearest in time, *The
+/// campaign*: 16.08 / 16.26, 16.04 / 16.18, 16.03 / 16.15, 16.02 / 16.12 at k = 2, 3, 4, 8). A
 /// motion-capture heading is good to about a milliradian;
 /// an operator's is not, and the board keeps the library's `k` (1.5, chosen the same way with
 /// the end poses measured as by hand; `exact` is the board's fit).

@@ -156,7 +156,7 @@ pub struct ReplayArgs {
     /// Measure the calibration runs' end poses as an operator does by hand: add Gaussian noise
     /// of `MM` millimetres to x and y and `MRAD` milliradians to the heading of every end-pose
     /// run (not to runs read along their paths), one draw per session and run for a
-    /// `--noise-seed` (the board's context; docs/calibration.md, *Transfer*, fourth round).
+    /// `--noise-seed` (the board's context; docs/calibration.md, *Transfer*, *Heading weight and end offset*).
     #[arg(long, value_delimiter = ',', value_name = "MM,MRAD")]
     pub end_noise: Vec<f64>,
     /// Seed of `--end-noise`.
