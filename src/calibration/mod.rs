@@ -93,15 +93,6 @@ impl<'a> RunObservation<'a> {
         )
     }
 
-    /// Total commanded path length, metres (4L for a square).
-    pub fn path_length_m(&self) -> f64 {
-        match self.path {
-            PathKind::Square { side_m, .. } => 4.0 * side_m,
-            PathKind::Line { length_m } => length_m,
-            PathKind::Circle { radius_m, .. } => 2.0 * core::f64::consts::PI * radius_m,
-        }
-    }
-
     /// Characteristic length of the path, metres: the side of a square, the length of a line,
     /// the radius of a circle. The exact method weights heading residuals by it.
     pub fn characteristic_length_m(&self) -> f64 {
@@ -123,7 +114,7 @@ impl<'a> RunObservation<'a> {
             && o.x_m.is_finite()
             && o.y_m.is_finite()
             && o.theta_rad.is_finite();
-        let len = self.path_length_m();
+        let len = self.path.length_m();
         if !finite || !len.is_finite() || len <= 0.0 {
             return Err(CalibrationError::InvalidMeasurement { index });
         }

@@ -10,7 +10,6 @@
 //! values plausible (millimetres and centimetres often both do), since a unit slip is the usual
 //! cause; a value typed with its unit is read exactly.
 
-use core::f64::consts::PI;
 use core::fmt;
 
 use crate::motion::run::{PathKind, RunRecord};
@@ -27,18 +26,9 @@ pub const POSITION_FLOOR_M: f64 = 0.05;
 /// Largest accepted heading difference between measured and odometry end, degrees.
 pub const HEADING_LIMIT_DEG: f64 = 45.0;
 
-/// Length of the path a run drove, metres.
-pub fn path_length_m(path: &PathKind) -> f64 {
-    match *path {
-        PathKind::Square { side_m, .. } => 4.0 * side_m,
-        PathKind::Line { length_m } => length_m,
-        PathKind::Circle { radius_m, .. } => 2.0 * PI * radius_m,
-    }
-}
-
 /// The position bound for a run, metres.
 pub fn position_bound_m(path: &PathKind) -> f64 {
-    (POSITION_FRACTION * path_length_m(path)).max(POSITION_FLOOR_M)
+    (POSITION_FRACTION * path.length_m()).max(POSITION_FLOOR_M)
 }
 
 /// Angle in degrees wrapped into (-180, 180].
