@@ -16,6 +16,7 @@ use crate::motion::run::{PathKind, RunRecord};
 use crate::protocol::command::MeasureUnits;
 use crate::protocol::unit::{Angle, Length, LengthUnit};
 use crate::util::decimal::{Decimal, Plain};
+use crate::util::trig;
 
 /// Largest accepted distance between measured and odometry end, as a fraction of the path
 /// length (25 %: ten times the error of a badly calibrated robot, far below what a unit error
@@ -29,17 +30,6 @@ pub const HEADING_LIMIT_DEG: f64 = 45.0;
 /// The position bound for a run, metres.
 pub fn position_bound_m(path: &PathKind) -> f64 {
     (POSITION_FRACTION * path.length_m()).max(POSITION_FLOOR_M)
-}
-
-/// Angle in degrees wrapped into (-180, 180].
-fn wrap_deg(d: f64) -> f64 {
-    let mut d = crate::util::trig::fmod(d, 360.0);
-    if d > 180.0 {
-        d -= 360.0;
-    } else if d <= -180.0 {
-        d += 360.0;
-    }
-    d
 }
 
 /// A measured end pose as typed: each value converted from its written unit, with the unit
@@ -135,7 +125,7 @@ fn distance(run: &RunRecord, x_m: f64, y_m: f64) -> f64 {
 }
 
 fn heading_diff_deg(run: &RunRecord, theta_deg: f64) -> f64 {
-    wrap_deg(theta_deg - run.odometry_end.theta_rad.to_degrees())
+    trig::wrap_deg(theta_deg - run.odometry_end.theta_rad.to_degrees())
 }
 
 /// Checks a measurement of `run` given as bare numbers (`x_m`, `y_m` in metres, `theta_deg` in

@@ -14,6 +14,7 @@ use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
+use crate::util::trig::wrap_deg;
 
 /// `<n> <noun>` with the noun in the plural unless `n` is 1 (`1 run`, `2 runs`).
 pub(crate) struct Count(pub usize, pub &'static str);
@@ -73,24 +74,13 @@ pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
     write!(out, "ok {} commands\r\n", HELP.len())
 }
 
-/// Heading in degrees wrapped into (-180, 180].
-fn wrapped_deg(theta_rad: f64) -> f64 {
-    let mut d = crate::util::trig::fmod(theta_rad.to_degrees(), 360.0);
-    if d > 180.0 {
-        d -= 360.0;
-    } else if d <= -180.0 {
-        d += 360.0;
-    }
-    d
-}
-
 pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
     write!(
         out,
         "x={} y={} theta_deg={}",
         Decimal::signed(p.x_m, 6),
         Decimal::signed(p.y_m, 6),
-        Decimal::signed(wrapped_deg(p.theta_rad), 4)
+        Decimal::signed(wrap_deg(p.theta_rad.to_degrees()), 4)
     )
 }
 
@@ -110,7 +100,7 @@ pub(super) fn write_stream_line(
         (now_us % 1_000_000) as u32,
         Decimal::signed(p.x_m, 6),
         Decimal::signed(p.y_m, 6),
-        Decimal::signed(wrapped_deg(p.theta_rad), 4),
+        Decimal::signed(wrap_deg(p.theta_rad.to_degrees()), 4),
         Decimal::signed(v_right, 4),
         Decimal::signed(v_left, 4)
     )
