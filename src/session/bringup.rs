@@ -11,10 +11,11 @@ use core::fmt::{self, Write};
 use super::traits::{Calibrator, Robot};
 use super::{Session, robot_err};
 use crate::motion::bringup::{
-    CheckKind, CheckReport, MIN_MOTION_M, PULSE_DUTY, PUSH_DISTANCE_M, PUSH_MS, PulseReport,
-    PushReport, PushVerdict, WheelVerdict,
+    CheckKind, CheckReport, PULSE_DUTY, PUSH_DISTANCE_M, PUSH_MS, PulseReport, PushReport,
+    PushVerdict, WheelVerdict,
 };
 use crate::motion::controller::Wheel;
+use crate::motion::wheel::MIN_MOTION_M;
 use crate::protocol::ParamName;
 use crate::util::num::ceil_i64;
 
