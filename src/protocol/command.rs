@@ -14,6 +14,7 @@ use super::unit::{AngleUnit, LengthUnit, UnitError, parse_angle, parse_length};
 use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
+use crate::storage::record::METHOD_NAME_MAX;
 use crate::util::decimal::Plain;
 pub use crate::util::text::keyword_eq;
 
@@ -29,8 +30,6 @@ pub const DRIVE_LIMIT_MPS: f64 = 2.0;
 pub const DRIVE_LIMIT_RADPS: f64 = 10.0;
 /// Accepted pose-stream rates, Hz.
 pub const STREAM_RANGE_HZ: (u32, u32) = (1, 100);
-/// Longest accepted calibration method name, bytes.
-pub const METHOD_NAME_MAX: usize = 16;
 
 /// A parsed command. Optional arguments are `None` when omitted (the session fills defaults).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -491,7 +490,8 @@ fn direction(word: &str) -> Result<Direction, ParseError> {
     }
 }
 
-/// A method name: 1..=16 bytes of `[a-z0-9_-]` (any case).
+/// A method name: 1..=[`METHOD_NAME_MAX`] bytes of `[a-z0-9_-]` (any case): no longer than the
+/// parameter record stores (every method's name is shorter).
 fn method_name(word: &str) -> Result<&str, ParseError> {
     let ok = word.len() <= METHOD_NAME_MAX
         && word
