@@ -16,9 +16,9 @@ use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
     Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
-    Settings, Solution, SolveError, StorageError,
+    Settings, Solution, SolveError, StoreError,
 };
-use odocal::storage::{RunsLoaded, StoredRun};
+use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
 #[derive(Default)]
 struct ScriptedRobot {
@@ -171,16 +171,16 @@ struct MemoryStore {
 }
 
 impl ParamStorage for MemoryStore {
-    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         if !motors_stopped {
-            return Err(StorageError::MotorsRunning);
+            return Err(StoreError::MotorsRunning);
         }
         self.saved = Some(s.clone());
         Ok(())
     }
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
         if !motors_stopped {
-            return Err(StorageError::MotorsRunning);
+            return Err(StoreError::MotorsRunning);
         }
         self.resets += 1;
         self.saved = Some(Settings::default());
@@ -191,12 +191,12 @@ impl ParamStorage for MemoryStore {
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         if !motors_stopped {
-            return Err(StorageError::MotorsRunning);
+            return Err(StoreError::MotorsRunning);
         }
         if self.fail_runs {
-            return Err(StorageError::Flash("flash driver error"));
+            return Err(StoreError::Flash(FlashFault::Other));
         }
         for id in ids.iter_mut().filter(|id| id.is_none()) {
             self.next_key = self.next_key.wrapping_add(1);

@@ -12,8 +12,8 @@ use heapless::Vec;
 use odocal::motion::controller::Controller;
 use odocal::motion::run::{MAX_RUNS, RunRecord};
 use odocal::session::library::{ControllerLock, LibraryCalibrator};
-use odocal::session::{ParamStorage, Robot, Session, Settings, StorageError};
-use odocal::storage::{RunsLoaded, StoredRun};
+use odocal::session::{ParamStorage, Robot, Session, Settings, StoreError};
+use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
 use crate::squares::SquareRuns;
 
@@ -82,14 +82,14 @@ impl ControllerLock for Bracketed<'_> {
 /// Storage that holds the fixture runs and nothing else.
 pub struct FixtureRuns<'a>(pub &'a SquareRuns);
 
-const NO_FLASH: StorageError = StorageError::Flash("the bench has no flash");
+const NO_FLASH: StoreError = StoreError::Flash(FlashFault::Other);
 
 impl ParamStorage for FixtureRuns<'_> {
-    fn save(&mut self, _: &Settings, _: bool) -> Result<(), StorageError> {
+    fn save(&mut self, _: &Settings, _: bool) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 
-    fn reset(&mut self, _: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, _: bool) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 
@@ -98,7 +98,7 @@ impl ParamStorage for FixtureRuns<'_> {
         _: &[RunRecord],
         _: &mut [Option<StoredRun>],
         _: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 

@@ -13,7 +13,7 @@ use crate::motion::controller::Controller;
 use crate::motion::run::{MAX_RUNS, RunRecord};
 use crate::protocol::rx::RxRead;
 use crate::session::library::ControllerLock;
-use crate::session::{ParamStorage, Settings, StorageError};
+use crate::session::{ParamStorage, Settings, StoreError};
 use crate::storage::{ParamStore, RunsLoaded, StoredRun};
 
 impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
@@ -87,13 +87,13 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
 }
 
 impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'_, W> {
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         self.relaxed(motors_stopped, |s| {
             ParamStorage::save(s, settings, motors_stopped)
         })
     }
 
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
         self.relaxed(motors_stopped, |s| ParamStorage::reset(s, motors_stopped))
     }
 
@@ -102,7 +102,7 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         self.relaxed(motors_stopped, |s| {
             ParamStorage::save_runs(s, runs, ids, motors_stopped)
         })

@@ -16,7 +16,7 @@ use super::MAX_RUNS;
 use super::Settings;
 use super::traits::{
     Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
-    RunResidual, Solution, SolveError, StorageError,
+    RunResidual, Solution, SolveError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
@@ -31,7 +31,7 @@ use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
 
-use crate::storage::{ParamStore, RunsLoaded, StoredRun};
+use crate::storage::{ParamStore, RunsLoaded, StoreError, StoredRun};
 use crate::util::decimal::Decimal;
 
 /// Short name of a fault as the protocol shows it.
@@ -287,26 +287,13 @@ impl<L: ControllerLock> Robot for Locked<L> {
     }
 }
 
-/// A store error as the session's [`StorageError`]: refusals keep their own kinds, every flash
-/// failure stays the typed [`crate::storage::StoreError`] up to the reply that names it.
-fn store_error(e: crate::storage::StoreError) -> StorageError {
-    use crate::storage::StoreError as E;
-    match e {
-        E::MotorsRunning => StorageError::MotorsRunning,
-        E::InvalidRecord(e) => StorageError::Record(e),
-        e => StorageError::Store(e),
-    }
-}
-
 impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         self.save_blocking(settings, motors_stopped)
-            .map_err(store_error)
     }
 
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
         self.reset_to_defaults_blocking(motors_stopped)
-            .map_err(store_error)
     }
 
     fn save_runs(
@@ -314,9 +301,8 @@ impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         self.save_runs_blocking(runs, ids, motors_stopped)
-            .map_err(store_error)
     }
 
     fn load_runs(

@@ -51,7 +51,7 @@ use heapless::Vec;
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::record;
-use crate::protocol::refusal::{InProgress, Refusal, StoreErrorText, write_refusal};
+use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::{Command, LineEvent, ParseError};
@@ -65,10 +65,11 @@ pub use settings::{SettingsError, check_nominal};
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
 /// struct (its row of [`crate::protocol::PARAMS`] names the field).
 pub type Settings = crate::storage::record::ParamRecord;
+pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
     Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
-    RunResidual, Solution, SolveError, StorageError,
+    RunResidual, Solution, SolveError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -147,19 +148,9 @@ fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
     write_refusal(out, &Refusal::Busy(what))
 }
 
-/// The `err` reply for a failed parameter store, with the code of its cause.
-fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
-    let store_text;
-    let refusal = match &e {
-        StorageError::MotorsRunning => Refusal::MotorsRunning,
-        StorageError::Record(why) => Refusal::NotStorable { why },
-        StorageError::Store(store) => {
-            store_text = StoreErrorText(*store);
-            Refusal::FlashFailed { why: &store_text }
-        }
-        StorageError::Flash(why) => Refusal::FlashFailed { why },
-    };
-    write_refusal(out, &refusal)
+/// The `err` reply for a failed store operation: its code and text are the error's own.
+fn storage_err(out: &mut dyn Write, e: StoreError) -> fmt::Result {
+    write_refusal(out, &Refusal::Store(e))
 }
 
 /// Counts of square runs per direction: `(stored, measured)` for CW and CCW.
@@ -483,9 +474,9 @@ impl<C: Calibrator> Session<C> {
 /// that validates.
 ///
 /// # Errors
-/// [`StorageError::Record`] with the record's reason.
-pub fn storable(settings: &Settings) -> Result<(), StorageError> {
-    settings.validate().map_err(StorageError::Record)
+/// [`StoreError::InvalidRecord`] with the record's reason.
+pub fn storable(settings: &Settings) -> Result<(), StoreError> {
+    settings.validate().map_err(StoreError::InvalidRecord)
 }
 
 /// Square runs per direction, stored and measured, of `runs`.

@@ -17,8 +17,6 @@ use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
-use crate::protocol::refusal::StoreErrorText;
-use crate::storage::record::RecordError;
 use crate::storage::{RunsLoaded, StoreError, StoredRun};
 
 /// What the robot is doing.
@@ -186,57 +184,31 @@ pub trait Robot {
     fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError>;
 }
 
-/// Why a flash operation failed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum StorageError {
-    /// The motors are running; flash erases stall the CPU, so nothing was written.
-    MotorsRunning,
-    /// The library's parameter store failed: the typed error, named in the reply.
-    Store(StoreError),
-    /// Another store's flash layer failed (the message says how).
-    Flash(&'static str),
-    /// The settings fail the parameter record's validation (the one rule `apply` and `save`
-    /// share).
-    Record(RecordError),
-}
-
-impl fmt::Display for StorageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            StorageError::MotorsRunning => f.write_str("motors running, flash not written"),
-            StorageError::Store(e) => write!(f, "flash error: {}", StoreErrorText(*e)),
-            StorageError::Flash(why) => write!(f, "flash error: {why}"),
-            StorageError::Record(e) => write!(f, "parameters not storable: {e}"),
-        }
-    }
-}
-
 /// Persistent parameter storage.
 pub trait ParamStorage {
     /// Writes `settings`.
     ///
     /// # Errors
-    /// [`StorageError`]; the previously stored settings stay intact.
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError>;
+    /// [`StoreError`]; the previously stored settings stay intact.
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError>;
     /// Stores the defaults.
     ///
     /// # Errors
-    /// [`StorageError`]; the previously stored settings stay intact.
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError>;
+    /// [`StoreError`]; the previously stored settings stay intact.
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError>;
     /// Stores the run store: each run whose id is `None` is written and gets its id, then the
     /// list of runs with their measurements; runs no longer listed are forgotten. A power cut
     /// leaves the previously stored runs or these, never a mix, and never touches the
     /// parameters.
     ///
     /// # Errors
-    /// [`StorageError`]; the previously stored runs stay intact.
+    /// [`StoreError`]; the previously stored runs stay intact.
     fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError>;
+    ) -> Result<(), StoreError>;
     /// Restores the stored runs (at boot) into `runs` and where each is stored into `ids`.
     /// Never fails: what cannot be restored is skipped and reported in the result.
     fn load_runs(

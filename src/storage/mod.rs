@@ -171,20 +171,23 @@ impl fmt::Display for FlashTooSmall {
     }
 }
 
+/// The one wording of a store error: what the `err` replies and the boot line say.
 impl fmt::Display for StoreError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            StoreError::BadRange => {
-                f.write_str("storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)")
-            }
-            StoreError::MotorsRunning => f.write_str("stop the motors before writing flash"),
-            StoreError::InvalidRecord(e) => write!(f, "invalid parameters: {e}"),
-            StoreError::Flash(e) => write!(f, "flash: {e}"),
-            StoreError::Corrupted => f.write_str("flash contents corrupted"),
-            StoreError::Full => f.write_str("run region full"),
-            StoreError::Encoding => f.write_str("parameter record could not be encoded"),
-            StoreError::Internal => f.write_str("storage internal error"),
-            StoreError::FlashTooSmall(t) => write!(f, "{t}"),
+            StoreError::BadRange => f.write_str(
+                "flash error: storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)",
+            ),
+            StoreError::MotorsRunning => f.write_str("motors running, flash not written"),
+            StoreError::InvalidRecord(e) => write!(f, "parameters not storable: {e}"),
+            StoreError::Flash(e) => write!(f, "flash error: {e}"),
+            StoreError::Corrupted => f.write_str("flash error: flash contents corrupted"),
+            StoreError::Full => f.write_str("flash error: run flash full"),
+            StoreError::Encoding => f.write_str("flash error: parameter record could not be encoded"),
+            StoreError::Internal => f.write_str("flash error: storage internal error"),
+            StoreError::FlashTooSmall(_) => f.write_str(
+                "flash error: no storage: this part's flash is smaller than the storage map",
+            ),
         }
     }
 }
