@@ -35,7 +35,7 @@ pub fn position_bound_m(path: &PathKind) -> f64 {
 /// A measured end pose as typed: each value converted from its written unit, with the unit
 /// (`None`: bare, metres or degrees).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Typed {
+pub struct MeasuredPose {
     /// x in the run's start frame.
     pub x: Length,
     /// y in the run's start frame.
@@ -44,10 +44,10 @@ pub struct Typed {
     pub theta: Option<Angle>,
 }
 
-impl Typed {
+impl MeasuredPose {
     /// The pose of a parsed `measure` (values in metres and degrees, and the units written).
     pub fn new(x_m: f64, y_m: f64, theta_deg: Option<f64>, units: MeasureUnits) -> Self {
-        Typed {
+        MeasuredPose {
             x: Length {
                 m: x_m,
                 unit: units.x,

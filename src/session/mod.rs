@@ -446,7 +446,7 @@ impl<C: Calibrator> Session<C> {
                 theta_deg,
                 units,
             } => {
-                let typed = measure::Typed::new(x_m, y_m, theta_deg, units);
+                let typed = measure::MeasuredPose::new(x_m, y_m, theta_deg, units);
                 self.measure(run, typed, robot, out)
             }
             Command::Runs => report::write_runs(out, &self.runs),

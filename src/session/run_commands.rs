@@ -219,7 +219,7 @@ impl<C: Calibrator> Session<C> {
     pub(super) fn measure(
         &mut self,
         index: Option<usize>,
-        typed: measure::Typed,
+        typed: measure::MeasuredPose,
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
@@ -235,7 +235,7 @@ impl<C: Calibrator> Session<C> {
     fn try_measure(
         &mut self,
         index: Option<usize>,
-        typed: measure::Typed,
+        typed: measure::MeasuredPose,
         robot: &mut dyn Robot,
     ) -> Result<Outcome, RunError> {
         if robot.status().activity != Activity::Idle {
