@@ -79,7 +79,7 @@ mod app {
     use odocal::protocol::LineAssembler;
     use odocal::protocol::reply::ByteSink;
     use odocal::protocol::rx::{INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender};
-    use odocal::session::library::{LibraryCalibrator, Locked};
+    use odocal::session::library::{LibraryCalibrator, LockedController};
     use odocal::session::{Session, Settings, write_boot_event, write_fault_event};
     use odocal::storage::ParamStore;
     use rtic_monotonics::systick::prelude::*;
@@ -447,7 +447,7 @@ mod app {
                 watchdog: &mut cx.shared.watchdog,
             };
             let tx_in = &mut *cx.local.tx_in;
-            let mut robot = Locked(&mut cx.shared.controller);
+            let mut robot = LockedController(&mut cx.shared.controller);
             let mut dropped = 0;
             if room(tx_in) {
                 let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());

@@ -24,7 +24,7 @@ pub const COMMANDS: [&str; 2] = ["calibrate", "apply exact"];
 /// (`status`, `params`, `runs`), every parameter group handed to the controller (limits,
 /// geometry, wiring, tuning, rate, and back), `calibrate` and `apply` (the solve outside any
 /// lock, the geometry under it), `reset-params`. The bench counts every controller lock the
-/// console takes on its way (the firmware's `Locked`): the longest is the most the console
+/// console takes on its way (the firmware's `LockedController`): the longest is the most the console
 /// task can delay a control period.
 pub const LOCK_SCRIPT: [&str; 17] = [
     "status",

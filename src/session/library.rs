@@ -1,6 +1,6 @@
 //! The session traits implemented for the library's own types.
 //!
-//! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`Locked`], which wraps
+//! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`LockedController`], which wraps
 //!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
 //!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
 //!   short operation at a time and never during a calibration solve;
@@ -192,11 +192,11 @@ pub trait ControllerLock {
 
 /// A [`Robot`] that locks the controller for each call separately.
 #[derive(Debug)]
-pub struct Locked<L>(pub L);
+pub struct LockedController<L>(pub L);
 
 // Each method out of line: the session calls most of them from several places, and an
 // inlined lock (interrupt-priority raise and restore) at every call site costs flash.
-impl<L: ControllerLock> Robot for Locked<L> {
+impl<L: ControllerLock> Robot for LockedController<L> {
     #[inline(never)]
     fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::start(c, path))
