@@ -81,7 +81,7 @@ mod app {
     use odocal::protocol::rx::{INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender};
     use odocal::session::library::{LibraryCalibrator, LockedController};
     use odocal::session::{Session, Settings, write_boot_event, write_fault_event};
-    use odocal::storage::ParamStore;
+    use odocal::storage::ParamAndRunStore;
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Channel, Receiver, Sender};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
@@ -112,7 +112,7 @@ mod app {
         motors: BoardMotors,
         button_pin: ButtonInput,
         leds: Leds,
-        params_store: ParamStore<BoardFlash>,
+        params_store: ParamAndRunStore<BoardFlash>,
         session: Session<LibraryCalibrator>,
         usart_rx: ConsoleRx,
         usart_tx: ConsoleTx,

@@ -8,7 +8,7 @@ mod storage_support;
 use odocal::motion::run::{MAX_KNOTS, MAX_RUNS, RunRecord};
 use odocal::session::write_runs_restored;
 use odocal::storage::runs::{RunFormatError, decode_run};
-use odocal::storage::{ParamStore, RunLoadProblem, StoredRun};
+use odocal::storage::{ParamAndRunStore, RunLoadProblem, StoredRun};
 use storage_support::{
     BOARD_PARAMS, BOARD_RUNS, BoardFlash, Rng, SECTOR, board_store, calibrated, measurement,
     run_record,
@@ -217,7 +217,7 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
         part_kib: 512,
         needed_kib: 1024,
     };
-    let mut store = ParamStore::without_flash(
+    let mut store = ParamAndRunStore::without_flash(
         &mut *flash,
         BOARD_PARAMS,
         MapConfig::try_new(BOARD_RUNS).unwrap(),

@@ -14,7 +14,7 @@ use crate::motion::run::{MAX_RUNS, RunRecord};
 use crate::protocol::rx::RxRead;
 use crate::session::library::ControllerLock;
 use crate::session::{ParamStorage, Settings, StoreError};
-use crate::storage::{ParamStore, RunsLoaded, StoredRun};
+use crate::storage::{ParamAndRunStore, RunsLoaded, StoredRun};
 
 impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
     fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
@@ -55,7 +55,7 @@ impl TxPort for ConsoleTx {
 /// are stopped, so nothing moves while the control task is stalled.
 pub struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
     /// The parameter and run store.
-    pub store: &'a mut ParamStore<BoardFlash>,
+    pub store: &'a mut ParamAndRunStore<BoardFlash>,
     /// The watchdog, shared with the control task.
     pub watchdog: W,
 }
@@ -64,7 +64,7 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
     fn relaxed<R>(
         &mut self,
         motors_stopped: bool,
-        f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R,
+        f: impl FnOnce(&mut ParamAndRunStore<BoardFlash>) -> R,
     ) -> R {
         if !motors_stopped {
             // The store refuses without touching the flash: nothing to relax.

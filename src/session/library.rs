@@ -4,7 +4,7 @@
 //!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
 //!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
 //!   short operation at a time and never during a calibration solve;
-//! - [`ParamStorage`] for [`ParamStore`] (blocking; the motors must be stopped);
+//! - [`ParamStorage`] for [`ParamAndRunStore`] (blocking; the motors must be stopped);
 //! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`].
 
 use core::fmt::{self, Write};
@@ -31,7 +31,7 @@ use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
 
-use crate::storage::{ParamStore, RunsLoaded, StoreError, StoredRun};
+use crate::storage::{ParamAndRunStore, RunsLoaded, StoreError, StoredRun};
 use crate::util::decimal::Decimal;
 
 /// Short name of a fault as the protocol shows it.
@@ -287,7 +287,7 @@ impl<L: ControllerLock> Robot for LockedController<L> {
     }
 }
 
-impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
+impl<F: MultiwriteNorFlash> ParamStorage for ParamAndRunStore<F> {
     fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         self.save_blocking(settings, motors_stopped)
     }

@@ -3,7 +3,7 @@
 //! Owns the stored parameter record and its flash map; may use [`crate::motion`]
 //! (motion limits), [`crate::kinematics`] (geometry) and [`crate::util`].
 //!
-//! [`ParamStore`] keeps the [`ParamRecord`] in the **parameter region**, two erase sectors used
+//! [`ParamAndRunStore`] keeps the [`ParamRecord`] in the **parameter region**, two erase sectors used
 //! A/B ([`params`]: each save appends a copy; the sector holding the newest valid copy is never
 //! erased), and the session's runs in the **run region**, a `sequential-storage` map over any
 //! [`MultiwriteNorFlash`] range of at least two erase pages ([`runs`]). Nothing done to the run
@@ -12,7 +12,7 @@
 //! contents readable (see `tests/storage_power_cut.rs`, `docs/storage.md`).
 //!
 //! Older firmware kept the record in the run region's map (key [`PARAMS_KEY`]); loading moves
-//! it to the parameter region ([`ParamStore::load`]).
+//! it to the parameter region ([`ParamAndRunStore::load`]).
 //!
 //! Loading never fails: a missing, unreadable, corrupt, unknown-version or invalid record gives
 //! [`ParamRecord::DEFAULT`] plus a [`LoadWarning`] (also logged with `warn!`). Writing refuses
@@ -208,7 +208,7 @@ impl<E: NorFlashError> From<sequential_storage::Error<E>> for StoreError {
     }
 }
 
-/// Why [`ParamStore::load`] fell back to defaults.
+/// Why [`ParamAndRunStore::load`] fell back to defaults.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
@@ -262,7 +262,7 @@ pub struct LoadOutcome {
 
 /// The parameter and run store over one NOR flash: the parameter region's two sectors and
 /// the run region's range (see the module docs).
-pub struct ParamStore<F: MultiwriteNorFlash> {
+pub struct ParamAndRunStore<F: MultiwriteNorFlash> {
     map: Map<F>,
     params: ParamSectors,
     buf: AlignedBuf,
@@ -295,7 +295,7 @@ fn decode_record(bytes: &[u8]) -> Result<ParamRecord, LoadWarning> {
     }
 }
 
-impl<F: MultiwriteNorFlash> ParamStore<F> {
+impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     /// A store with the parameter region on `params` and the run region on `runs` (byte
     /// offsets in `flash`; the run range page aligned, at least two pages; the parameter
     /// sectors whole erase units of `flash`, word aligned, apart from each other and the runs).
@@ -315,14 +315,14 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     }
 
     /// A store with a run map configuration checked at compile time, e.g.
-    /// `ParamStore::from_config(flash, SECTORS, const { MapConfig::new(RANGE) })` (an invalid
+    /// `ParamAndRunStore::from_config(flash, SECTORS, const { MapConfig::new(RANGE) })` (an invalid
     /// range is then a build error). Parameter sectors that [`Self::new`] would refuse give a
     /// store that never touches the flash (loads the defaults, refuses to write, with
     /// [`StoreError::BadRange`]); check them at compile time with [`ParamSectors::valid`].
     pub fn from_config(flash: F, params: ParamSectors, runs: MapConfig<F>) -> Self {
         let map = MapStorage::new(flash, runs, Cache::new_uncached());
         let bad_layout = !Self::layout_ok(&params, &map.flash_range());
-        ParamStore {
+        ParamAndRunStore {
             map,
             params,
             buf: AlignedBuf([0; BUF_LEN]),

@@ -32,7 +32,7 @@ use embedded_storage_async::nor_flash::{
 use stm32f4xx_hal::flash::{self as hal_flash, FlashExt, LockedFlash, UnlockedFlash};
 use stm32f4xx_hal::pac::FLASH;
 
-use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamSectors, ParamStore};
+use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamAndRunStore, ParamSectors};
 
 /// Base address of the internal flash in the memory map.
 pub const FLASH_BASE: u32 = 0x0800_0000;
@@ -143,7 +143,7 @@ pub fn whole_sectors(
 /// fail at run time. On a part whose flash ends before sector 11 does (its flash size register
 /// says so), the store never touches the flash: boot uses the defaults and says why, `save`
 /// answers with an error.
-pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
+pub fn param_store(flash: FLASH) -> ParamAndRunStore<BoardFlash> {
     let runs = const { MapConfig::<BoardFlash>::new(RUNS_RANGE) };
     let part_kib = u32::from(flash_size_kib());
     let needed_kib = RUNS_END / 1024;
@@ -152,7 +152,7 @@ pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
             "this part has {} KiB of flash, the storage map needs {} KiB: storage disabled",
             part_kib, needed_kib
         );
-        return ParamStore::without_flash(
+        return ParamAndRunStore::without_flash(
             BoardFlash::new(flash),
             PARAM_SECTORS,
             runs,
@@ -162,7 +162,7 @@ pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
             },
         );
     }
-    ParamStore::from_config(BoardFlash::new(flash), PARAM_SECTORS, runs)
+    ParamAndRunStore::from_config(BoardFlash::new(flash), PARAM_SECTORS, runs)
 }
 
 /// Why a [`BoardFlash`] access failed.
