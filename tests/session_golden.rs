@@ -15,8 +15,8 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Activity, Calibrator, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
-    Settings, Solution, SolveError, StoreError,
+    Activity, Calibrator, MAX_RUNS, Robot, RobotError, RobotStatus, Session, Settings,
+    SettingsAndRuns, Solution, SolveError, StoreError,
 };
 use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
@@ -170,7 +170,7 @@ struct MemoryStore {
     fail_runs: bool,
 }
 
-impl ParamStorage for MemoryStore {
+impl SettingsAndRuns for MemoryStore {
     fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         if !motors_stopped {
             return Err(StoreError::MotorsRunning);

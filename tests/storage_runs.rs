@@ -209,7 +209,7 @@ fn foreign_or_damaged_run_bytes_are_refused_by_the_decoder() {
 /// error; nothing panics.
 #[test]
 fn a_part_with_too_little_flash_refuses_storage_cleanly() {
-    use odocal::session::{ParamStorage, Settings, write_boot_event};
+    use odocal::session::{Settings, SettingsAndRuns, write_boot_event};
     use odocal::storage::{FlashTooSmall, LoadWarning, MapConfig, ParamRecord, StoreError};
 
     let mut flash = Box::new(BoardFlash::default());
@@ -238,7 +238,7 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
         Err(StoreError::FlashTooSmall(too_small))
     );
     // Through the session's storage interface: the `err` text of `save`.
-    let e = ParamStorage::save(&mut store, &Settings::default(), true).unwrap_err();
+    let e = SettingsAndRuns::save(&mut store, &Settings::default(), true).unwrap_err();
     // The typed store error reaches the reply that names it.
     assert_eq!(e, StoreError::FlashTooSmall(too_small));
     assert_eq!(

@@ -12,7 +12,7 @@ use heapless::Vec;
 use odocal::motion::controller::Controller;
 use odocal::motion::run::{MAX_RUNS, RunRecord};
 use odocal::session::library::{ControllerLock, LibraryCalibrator};
-use odocal::session::{ParamStorage, Robot, Session, Settings, StoreError};
+use odocal::session::{Robot, Session, Settings, SettingsAndRuns, StoreError};
 use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
 use crate::squares::SquareRuns;
@@ -84,7 +84,7 @@ pub struct FixtureRuns<'a>(pub &'a SquareRuns);
 
 const NO_FLASH: StoreError = StoreError::Flash(FlashFault::Other);
 
-impl ParamStorage for FixtureRuns<'_> {
+impl SettingsAndRuns for FixtureRuns<'_> {
     fn save(&mut self, _: &Settings, _: bool) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }

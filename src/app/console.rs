@@ -9,7 +9,7 @@ use super::Handoff;
 use crate::motion::button::Press;
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::{InputReceiver, Received};
-use crate::session::{Calibrator, ParamStorage, Robot, Session};
+use crate::session::{Calibrator, Robot, Session, SettingsAndRuns};
 
 /// Where the console task takes received lines and stop keys from.
 pub trait LineSource {
@@ -41,7 +41,7 @@ pub fn take_line<C: Calibrator>(
     session: &mut Session<C>,
     lines: &mut impl LineSource,
     robot: &mut dyn Robot,
-    storage: &mut dyn ParamStorage,
+    storage: &mut dyn SettingsAndRuns,
     out: &mut dyn Write,
 ) -> fmt::Result {
     if lines.is_empty() {
@@ -99,7 +99,7 @@ pub fn poll<C: Calibrator>(
     session: &mut Session<C>,
     now_us: u64,
     robot: &mut dyn Robot,
-    storage: &mut dyn ParamStorage,
+    storage: &mut dyn SettingsAndRuns,
     out: &mut dyn Write,
 ) -> fmt::Result {
     session.set_typing(handoff.typing.load(Ordering::Relaxed));

@@ -4,7 +4,7 @@
 //!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
 //!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
 //!   short operation at a time and never during a calibration solve;
-//! - [`ParamStorage`] for [`ParamAndRunStore`] (blocking; the motors must be stopped);
+//! - [`SettingsAndRuns`] for [`ParamAndRunStore`] (blocking; the motors must be stopped);
 //! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`].
 
 use core::fmt::{self, Write};
@@ -15,8 +15,8 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::Settings;
 use super::traits::{
-    Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
-    RunResidual, Solution, SolveError,
+    Activity, Calibrator, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    SettingsAndRuns, Solution, SolveError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
@@ -287,7 +287,7 @@ impl<L: ControllerLock> Robot for LockedController<L> {
     }
 }
 
-impl<F: MultiwriteNorFlash> ParamStorage for ParamAndRunStore<F> {
+impl<F: MultiwriteNorFlash> SettingsAndRuns for ParamAndRunStore<F> {
     fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         self.save_blocking(settings, motors_stopped)
     }

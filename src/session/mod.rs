@@ -6,7 +6,7 @@
 //! The session owns the run store (up to [`MAX_RUNS`] [`RunRecord`]s, measured or not), the
 //! [`Settings`] and the pose-stream schedule. It never owns the hardware: every call takes the
 //! [`Robot`] (one short controller operation per method) and, where needed, the
-//! [`ParamStorage`], so the firmware can lock its control task's controller per call and never
+//! [`SettingsAndRuns`], so the firmware can lock its control task's controller per call and never
 //! holds that lock during a calibration solve.
 //!
 //! Workflow: the plan is `runs_per_direction` squares per direction with side `square_side`;
@@ -68,8 +68,8 @@ pub type Settings = crate::storage::record::ParamRecord;
 pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
-    RunResidual, Solution, SolveError,
+    Activity, Calibrator, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    SettingsAndRuns, Solution, SolveError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -197,7 +197,7 @@ impl<C: Calibrator> Session<C> {
     /// Only those of `out`.
     pub fn restore_runs(
         &mut self,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         let loaded = storage.load_runs(&mut self.runs, &mut self.run_ids);
@@ -227,7 +227,7 @@ impl<C: Calibrator> Session<C> {
     fn store_runs(
         &mut self,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         if !self.runs_dirty || self.runs_store_failed || !robot.motors_stopped() {
@@ -305,7 +305,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         input: &Received,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         if self.echo {
@@ -323,7 +323,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         event: LineEvent<'_>,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         match event {
@@ -346,7 +346,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         line: &str,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         match Command::parse(line) {
@@ -375,7 +375,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         cmd: Command<'_>,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         self.execute_command(cmd, robot, storage, out)?;
@@ -385,7 +385,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         cmd: Command<'_>,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         self.collect_finished(robot, out)?;

@@ -2,7 +2,7 @@
 //!
 //! The firmware implements [`Robot`] by locking the control task's controller for the duration
 //! of *one* call (never across a calibration solve); host-sim implements it on the simulated
-//! controller directly. [`ParamStorage`] persists [`Settings`]; [`Calibrator`] runs the
+//! controller directly. [`SettingsAndRuns`] persists [`Settings`] and the runs; [`Calibrator`] runs the
 //! calibration methods. All units SI (metres, seconds, radians) unless a name says otherwise.
 
 use core::fmt;
@@ -184,8 +184,8 @@ pub trait Robot {
     fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError>;
 }
 
-/// Persistent parameter storage.
-pub trait ParamStorage {
+/// Where the session keeps its settings and its runs across a power cut.
+pub trait SettingsAndRuns {
     /// Writes `settings`.
     ///
     /// # Errors
