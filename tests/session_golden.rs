@@ -8,6 +8,7 @@ use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::wiring::Wiring;
 use std::fmt;
 
+use odocal::calibration::CalibrationError;
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
@@ -267,7 +268,7 @@ impl Calibrator for KnownCalibrator {
                 sd_e_b: None,
                 residuals: heapless::Vec::new(),
             }),
-            "beta" => Err(SolveError::Failed("degenerate")),
+            "beta" => Err(SolveError::Failed(CalibrationError::Degenerate)),
             "wild" => Ok(Solution {
                 e_d: 1.0,
                 e_b: 1.3,
@@ -776,7 +777,7 @@ fn calibrate_apply_save_golden() {
                  E_max_mm  sd_E_d    sd_E_b\r\n\
                  \x20 alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   388.8500   \
                  1.200     2.500e-4  -\r\n\
-                 \x20 beta         failed: degenerate\r\n\
+                 \x20 beta         failed: degenerate: the runs do not determine every factor\r\n\
                  \x20 wild         1.000000000  1.300000000  1.000000000  150.0000   150.0000   500.5000   \
                  -         -         -\r\n\
                  \x20 advice all L=2.000 m is adequate\r\n\
@@ -802,7 +803,7 @@ fn calibrate_apply_save_golden() {
         b.send("calibrate beta"),
         "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
          E_max_mm  sd_E_d    sd_E_b\r\n\
-         \x20 beta         failed: degenerate\r\n\
+         \x20 beta         failed: degenerate: the runs do not determine every factor\r\n\
          err 16: no method succeeded (check the measurements: runs)\r\n"
     );
     // One rule for apply and save: what the record cannot store is not applied.
@@ -826,7 +827,10 @@ fn calibrate_apply_save_golden() {
         ),
         refused
     );
-    assert_eq!(b.send("apply beta"), "err 16: degenerate\r\n");
+    assert_eq!(
+        b.send("apply beta"),
+        "err 16: degenerate: the runs do not determine every factor\r\n"
+    );
     assert_eq!(
         b.send("apply ALPHA"),
         "ok applied alpha: E_d=0.995000000 E_b=1.010000000 E_s=1.000000000 (not saved; save to keep)\r\n"

@@ -280,7 +280,7 @@ impl fmt::Display for Calibration {
 }
 
 /// Why a calibration failed.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum CalibrationError {

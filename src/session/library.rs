@@ -448,20 +448,13 @@ fn observations(runs: &[RunRecord]) -> Vec<RunObservation<'_>, MAX_RUNS> {
         .collect()
 }
 
+/// Missing runs are the session's own refusal (`NotEnoughRuns`); every other calibration error
+/// stays typed up to the reply.
 fn solve_error(e: CalibrationError) -> SolveError {
     use CalibrationError as E;
     match e {
         E::NoRuns | E::NoSquareRuns | E::NoCwRun | E::NoCcwRun => SolveError::NotEnoughRuns,
-        E::NoHeading => SolveError::Failed("needs measured headings (measure x y theta)"),
-        E::InvalidMeasurement { .. } => SolveError::Failed("a measurement is invalid or absurd"),
-        E::MixedSide => SolveError::Failed("squares differ in side (drop some runs)"),
-        E::MixedGeometry => {
-            SolveError::Failed("runs driven with different geometries (drop the older ones)")
-        }
-        E::InvalidGeometry => SolveError::Failed("invalid geometry"),
-        E::Degenerate => SolveError::Failed("the runs do not determine every factor"),
-        E::NotConverged => SolveError::Failed("did not converge"),
-        E::OutOfRange => SolveError::Failed("factor outside 0.5..2"),
+        e => SolveError::Failed(e),
     }
 }
 

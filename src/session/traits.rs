@@ -8,6 +8,7 @@
 use core::fmt;
 
 use super::Settings;
+use crate::calibration::CalibrationError;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
@@ -264,8 +265,8 @@ pub enum SolveError {
     UnknownMethod,
     /// The runs do not contain what this method needs.
     NotEnoughRuns,
-    /// The computation failed (degenerate data, no convergence); the message says how.
-    Failed(&'static str),
+    /// The computation failed (degenerate data, no convergence): the calibration's own error.
+    Failed(CalibrationError),
 }
 
 impl fmt::Display for SolveError {
@@ -273,7 +274,16 @@ impl fmt::Display for SolveError {
         match self {
             SolveError::UnknownMethod => f.write_str("unknown method"),
             SolveError::NotEnoughRuns => f.write_str("not enough suitable measured runs"),
-            SolveError::Failed(why) => f.write_str(why),
+            // The calibration's wording, and what the operator can do about it at the console.
+            SolveError::Failed(e) => {
+                write!(f, "{e}")?;
+                f.write_str(match e {
+                    CalibrationError::NoHeading => " (measure x y theta)",
+                    CalibrationError::MixedSide => " (drop some runs)",
+                    CalibrationError::MixedGeometry => " (drop the older ones)",
+                    _ => "",
+                })
+            }
         }
     }
 }
