@@ -9,6 +9,7 @@ use super::Handoff;
 use crate::motion::button::Press;
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::{InputReceiver, Received};
+use crate::protocol::token::LinesDropped;
 use crate::session::{Calibrator, Robot, Session, SettingsAndRuns};
 
 /// Where the console task takes received lines and stop keys from.
@@ -47,11 +48,7 @@ pub fn take_line<C: Calibrator>(
     if lines.is_empty() {
         let lost = handoff.lines_dropped.swap(0, Ordering::Relaxed);
         if lost > 0 {
-            return write_err(
-                out,
-                ErrorCode::Busy,
-                &format_args!("{lost} line(s) dropped: input queue full"),
-            );
+            return write_err(out, ErrorCode::Busy, &LinesDropped(lost));
         }
     }
     // Busy from before the line leaves the queue: a line starting after the take but before

@@ -85,7 +85,7 @@ pub fn write_measurement(out: &mut dyn Write, m: &Measurement) -> fmt::Result {
 pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
     match *outcome {
         Outcome::Started { run, path } => {
-            write!(out, "ok run {run} started: ")?;
+            super::token::write_run_started(out, run)?;
             write_path(out, &path)?;
         }
         Outcome::Stopped { aborted: None } => out.write_str("ok stopped")?,

@@ -17,6 +17,7 @@ use crate::motion::bringup::{
 use crate::motion::controller::Wheel;
 use crate::motion::wheel::MIN_MOTION_M;
 use crate::protocol::ParamName;
+use crate::protocol::token::{EventTag, WIRING_OK};
 use crate::util::num::ceil_i64;
 
 fn wheel_name(w: Wheel) -> &'static str {
@@ -98,11 +99,8 @@ impl<C: Calibrator> Session<C> {
         } else {
             "-1"
         };
-        write!(
-            out,
-            "event bringup propose: set {} {flipped}\r\n",
-            name.as_str()
-        )
+        EventTag::BringupPropose.write(out)?;
+        write!(out, "set {} {flipped}\r\n", name.as_str())
     }
 
     fn report_push(&self, p: &PushReport, out: &mut dyn Write) -> fmt::Result {
@@ -216,7 +214,7 @@ impl Findings {
     /// push checks the encoders alone), and announces proposals only when some were made.
     fn write_done(self, kind: CheckKind, out: &mut dyn Write) -> fmt::Result {
         let (p, u) = (self.proposed, self.unfixed);
-        out.write_str("event bringup done: ")?;
+        EventTag::BringupDone.write(out)?;
         if p + u == 0 {
             return match kind {
                 CheckKind::Push => write!(
@@ -224,7 +222,7 @@ impl Findings {
                     "encoders count forward (the push checks the encoders only; bringup motors \
                      checks the motors)\r\n"
                 ),
-                _ => write!(out, "wiring ok\r\n"),
+                _ => write!(out, "{WIRING_OK}\r\n"),
             };
         }
         let finding = |n: u32| if n == 1 { "finding" } else { "findings" };

@@ -15,6 +15,7 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::controller::Fault;
 use crate::motion::run::PathKind;
 use crate::protocol::reply::EOL;
+use crate::protocol::token::EventTag;
 use crate::storage::{LoadWarning, RunsLoaded};
 use crate::util::decimal::Decimal;
 
@@ -30,9 +31,10 @@ pub fn write_boot_event(
     warning: Option<&LoadWarning>,
     reset_cause: Option<&str>,
 ) -> fmt::Result {
+    EventTag::Boot.write(out)?;
     match warning {
-        None => write!(out, "event boot: parameters loaded")?,
-        Some(w) => write!(out, "event boot: default parameters ({w})")?,
+        None => out.write_str("parameters loaded")?,
+        Some(w) => write!(out, "default parameters ({w})")?,
     }
     if let Some(cause) = reset_cause {
         write!(out, ", reset: {cause}")?;
@@ -58,7 +60,8 @@ const BOARD_NOTE: Option<&str> = if cfg!(feature = "emulator") {
 /// # Errors
 /// Only those of `out`.
 pub fn write_fault_event(out: &mut dyn Write, text: impl fmt::Display) -> fmt::Result {
-    write!(out, "event fault: {text}\r\n")
+    EventTag::Fault.write(out)?;
+    write!(out, "{text}\r\n")
 }
 
 /// The line that tells the operator which runs survived a reset:
@@ -93,7 +96,7 @@ fn write_run_finished(
     path: &PathKind,
     end: &PoseF64,
 ) -> fmt::Result {
-    write!(out, "event run {n} finished: ")?;
+    EventTag::RunFinished(n).write(out)?;
     report::write_path(out, path)?;
     write!(
         out,
@@ -114,7 +117,7 @@ fn write_run_aborted(
     path: &PathKind,
     fault: Option<&str>,
 ) -> fmt::Result {
-    write!(out, "event run {n} aborted, not stored: ")?;
+    EventTag::RunAborted(n).write(out)?;
     report::write_path(out, path)?;
     if let Some(fault) = fault {
         write!(out, " (fault: {fault})")?;

@@ -30,6 +30,7 @@ use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
+use crate::protocol::token::ADVICE;
 
 use crate::storage::{ParamAndRunStore, RunsLoaded, StoreError, StoredRun};
 use crate::util::decimal::Decimal;
@@ -521,7 +522,7 @@ impl Calibrator for LibraryCalibrator {
             }
             let now = track::evaluate(&input, method, side);
             let best = track::advise(&input, method);
-            write!(out, "  advice {:<12}", method.as_str())?;
+            write!(out, "  {ADVICE}{:<12}", method.as_str())?;
             match now {
                 Some(a) => write!(
                     out,

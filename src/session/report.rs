@@ -12,6 +12,7 @@ use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
+use crate::protocol::token::{CHECK_RUN, METHOD_FAILED, STREAM, WITH_FLAGGED};
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
 use crate::util::trig::wrap_deg;
@@ -93,7 +94,7 @@ pub(super) fn write_stream_line(
 ) -> fmt::Result {
     write!(
         out,
-        "stream {}.{:06} {} {} {} {} {}\r\n",
+        "{STREAM}{}.{:06} {} {} {} {} {}\r\n",
         // Both casts are exact (the quotient is below 2^64 / 10^6 < 2^63, the remainder below
         // 10^6): the replies print integers through the `i64` and `u32` formatters only.
         (now_us / 1_000_000) as i64,
@@ -292,7 +293,7 @@ pub(super) fn write_residuals(
     let Some(first) = flagged.next() else {
         return Ok(());
     };
-    write!(out, "  check run {first}")?;
+    write!(out, "  {CHECK_RUN}{first}")?;
     let mut only = true;
     for run in flagged {
         write!(out, " {run}")?;
@@ -338,7 +339,7 @@ pub(super) fn write_solution_row(
 ) -> fmt::Result {
     write!(out, "  {name:<12}")?;
     match result {
-        Err(e) => write!(out, " failed: {e}")?,
+        Err(e) => write!(out, " {METHOD_FAILED}{e}")?,
         Ok(s) => {
             let g = &s.geometry;
             write!(
@@ -358,7 +359,7 @@ pub(super) fn write_solution_row(
             write_opt(out, s.sd_e_d, true)?;
             write_opt(out, s.sd_e_b, false)?;
             if !flagged.is_empty() {
-                out.write_str("  [with flagged run")?;
+                out.write_str(WITH_FLAGGED)?;
                 if flagged.len() > 1 {
                     out.write_str("s")?;
                 }
