@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::token::{self, TableRow};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, write_calibration};
 use serde_json::json;
@@ -59,24 +60,32 @@ impl Guide {
     pub(super) fn show_table(&mut self, table: &[String]) {
         self.ui
             .say("  method        E_d          E_b          E_max_mm   sd_E_d     sd_E_b");
+        let known = |method: &str| LibraryCalibrator::default().methods().contains(&method);
         for l in table {
-            let w: Vec<&str> = l.split_whitespace().collect();
-            let method = w.first().copied().unwrap_or("");
-            if LibraryCalibrator::default().methods().contains(&method) && l.len() > 14 {
-                if w.get(1) == Some(&"failed:") {
+            match TableRow::parse(l) {
+                Some(TableRow::Failed { method, why }) if known(method) => {
+                    let why = why.split_whitespace().collect::<Vec<_>>().join(" ");
                     self.ui
-                        .say(&format!("  {method:<12}  {}", w[1..].join(" ")));
-                } else if w.len() >= 10 {
-                    let flagged = l.find("  [with flagged").map_or("", |i| &l[i..]);
-                    self.ui.say(&format!(
-                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {}{flagged}",
-                        w[1], w[2], w[7], w[8], w[9]
-                    ));
+                        .say(&format!("  {method:<12}  {}{why}", token::METHOD_FAILED));
                 }
-            } else if l.starts_with("run ") || l.starts_with("check run") || l.starts_with("advice")
-            {
-                self.ui.say(&format!("  {l}"));
-            } else if l.starts_with("ok ") || l.starts_with("err ") {
+                Some(TableRow::Solved {
+                    method, columns, ..
+                }) if known(method) => {
+                    let w: Vec<&str> = columns.split_whitespace().collect();
+                    if w.len() >= 9 {
+                        let flagged = l.find(token::WITH_FLAGGED).map_or("", |i| &l[i..]);
+                        self.ui.say(&format!(
+                            "  {method:<12}  {}  {}  {:<9}  {:<9}  {}{flagged}",
+                            w[0], w[1], w[6], w[7], w[8]
+                        ));
+                    }
+                }
+                Some(TableRow::Residual(_) | TableRow::CheckRun { .. } | TableRow::Advice(_)) => {
+                    self.ui.say(&format!("  {l}"));
+                }
+                _ => {}
+            }
+            if l.starts_with("ok ") || l.starts_with("err ") {
                 self.ui.say(&format!("  ({l})"));
             }
         }
@@ -88,12 +97,12 @@ impl Guide {
     pub(super) fn review_flagged_runs(&mut self, table: &[String]) -> Result<bool, Stop> {
         let flagged: Vec<usize> = table
             .iter()
-            .find_map(|l| l.strip_prefix("check run"))
-            .map(|rest| {
-                rest.split(':')
-                    .next()
-                    .unwrap_or("")
-                    .split_whitespace()
+            .find_map(|l| match TableRow::parse(l) {
+                Some(TableRow::CheckRun { runs, .. }) => Some(runs),
+                _ => None,
+            })
+            .map(|runs| {
+                runs.split_whitespace()
                     .filter_map(|w| w.parse().ok())
                     .collect()
             })
