@@ -65,7 +65,8 @@ pub struct RunObservation<'a> {
     pub measured: Measurement,
     /// Ground truth along the path (e.g. a motion-capture log): the true pose in the start frame
     /// at every knot, as long as `knots`; empty when only the end pose was measured. The exact
-    /// method then fits the whole path, not only its end (see [`exact`]).
+    /// method then fits the whole path, not only its end (see [`exact`]); only with the
+    /// host-only `mocap` feature (without it a non-empty path is an invalid measurement).
     pub truth_path: &'a [PoseF64],
 }
 
@@ -123,7 +124,8 @@ impl<'a> RunObservation<'a> {
             return Err(CalibrationError::InvalidMeasurement { index });
         }
         let path_ok = self.truth_path.is_empty()
-            || (self.truth_path.len() == self.knots.len()
+            || (cfg!(feature = "mocap")
+                && self.truth_path.len() == self.knots.len()
                 && self
                     .truth_path
                     .iter()
