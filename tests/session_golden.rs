@@ -5,6 +5,7 @@
 //! closed-loop behaviour against the real controller and calibration is tested in host-sim.
 
 use odocal::motion::bringup::{CheckKind, CheckReport};
+use odocal::motion::controller::{Fault, Wheel};
 use odocal::motion::wiring::Wiring;
 use std::fmt;
 
@@ -25,7 +26,7 @@ use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 struct ScriptedRobot {
     running: Option<PathKind>,
     driving: bool,
-    fault: Option<&'static str>,
+    fault: Option<Fault>,
     pose: PoseF64,
     finished: Vec<RunRecord>,
     geometry: Option<Geometry>,
@@ -56,7 +57,7 @@ impl ScriptedRobot {
     }
     fn check_idle(&self) -> Result<(), RobotError> {
         if let Some(f) = self.fault {
-            return Err(RobotError::Fault(f));
+            return Err(RobotError::Fault(odocal::session::library::fault_name(&f)));
         }
         if self.running.is_some() || self.driving {
             return Err(RobotError::Busy);
@@ -109,7 +110,6 @@ impl Robot for ScriptedRobot {
                 (None, false) => Activity::Idle,
             },
             fault: self.fault,
-            fault_detail: None,
         }
     }
     fn pose(&mut self) -> PoseF64 {
@@ -682,10 +682,13 @@ fn stop_keys_and_garbled_stop_lines_stop() {
     // A fault ends the run too, and says so.
     b.send("run cw");
     b.robot.running = None;
-    b.robot.fault = Some("stall");
+    b.robot.fault = Some(Fault::Stall {
+        wheel: Wheel::Right,
+    });
     assert_eq!(
         b.poll(0),
-        "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n"
+        "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n\
+         event fault: Right wheel stalled\r\n"
     );
     // Echo is on at boot, for a person at a terminal.
     assert!(b.session.echo());
@@ -960,9 +963,15 @@ fn button_starts_next_clears_faults_and_stops() {
     );
     assert_eq!(b.robot.aborts, 1);
     out.clear();
-    b.robot.fault = Some("stall");
+    b.robot.fault = Some(Fault::Stall {
+        wheel: Wheel::Right,
+    });
     b.session.button_short(&mut b.robot, &mut out).unwrap();
-    assert_eq!(out, "event button: ok fault cleared\r\n");
+    // The fault is announced in full once (as the controller reports it), then cleared.
+    assert_eq!(
+        out,
+        "event fault: Right wheel stalled\r\nevent button: ok fault cleared\r\n"
+    );
     assert_eq!(b.robot.fault, None);
 }
 
@@ -1004,11 +1013,14 @@ fn pose_odom_drive_golden() {
         b.send("drive 0.1 0"),
         "err 10: a run is in progress (square cw L=2.000 m): wait for it to finish\r\n"
     );
-    b.robot.fault = Some("stall");
+    b.robot.fault = Some(Fault::Stall {
+        wheel: Wheel::Right,
+    });
     b.robot.running = None;
     assert_eq!(
         b.send("run cw"),
         "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n\
+         event fault: Right wheel stalled\r\n\
          err 11: fault latched: stall\r\n"
     );
     assert_eq!(b.send("clear"), "ok fault cleared (stall)\r\n");
@@ -1235,7 +1247,6 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
 /// applies (seen by the robot and in `params`), and the refusal of an implausible response.
 #[test]
 fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
-    use odocal::motion::controller::Wheel;
     use odocal::motion::identify::{
         IdentifyFailure, IdentifyMode, IdentifyProblem, IdentifyReport, MotorFit,
     };
@@ -1304,7 +1315,10 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
             wheel: Wheel::Left,
             problem: IdentifyProblem::Reversed,
         }));
-    b.robot.fault = Some("identify");
+    b.robot.fault = Some(Fault::Identify(IdentifyFailure {
+        wheel: Wheel::Left,
+        problem: IdentifyProblem::Reversed,
+    }));
     assert_eq!(
         b.poll(0),
         "event identify err 23: left motor: counts run against the duty: motor or encoder reversed (run bringup); motors stopped, tuning unchanged, fault latched (clear)\r\n"

@@ -9,6 +9,7 @@
 use core::fmt::{self, Write};
 
 use super::Session;
+use super::library::fault_name;
 use super::report;
 use super::traits::{Activity, Calibrator, Robot};
 use crate::kinematics::reference::PoseF64;
@@ -157,9 +158,14 @@ impl<C: Calibrator> Session<C> {
         {
             self.active = None;
             self.last_aborted = Some(a);
-            write_run_aborted(out, a.number, &a.path, status.fault)?;
+            write_run_aborted(
+                out,
+                a.number,
+                &a.path,
+                status.fault.as_ref().map(fault_name),
+            )?;
         }
-        self.announce_fault(status.fault_detail, out)
+        self.announce_fault(status.fault, out)
     }
 
     /// Announces a newly latched fault in full, once: `event fault: <what>` (which wheel, its

@@ -94,33 +94,14 @@ impl Robot for Controller {
     }
 
     fn status(&mut self) -> RobotStatus {
-        match Controller::status(self) {
-            Status::Idle => RobotStatus {
-                activity: Activity::Idle,
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Running { path, .. } => RobotStatus {
-                activity: Activity::Running(path),
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Driving => RobotStatus {
-                activity: Activity::Driving,
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Checking(kind) => RobotStatus {
-                activity: Activity::Checking(kind),
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Faulted(f) => RobotStatus {
-                activity: Activity::Idle,
-                fault: Some(fault_name(&f)),
-                fault_detail: Some(f),
-            },
-        }
+        let (activity, fault) = match Controller::status(self) {
+            Status::Idle => (Activity::Idle, None),
+            Status::Running { path, .. } => (Activity::Running(path), None),
+            Status::Driving => (Activity::Driving, None),
+            Status::Checking(kind) => (Activity::Checking(kind), None),
+            Status::Faulted(f) => (Activity::Idle, Some(f)),
+        };
+        RobotStatus { activity, fault }
     }
 
     fn pose(&mut self) -> PoseF64 {

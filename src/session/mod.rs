@@ -431,9 +431,13 @@ impl<C: Calibrator> Session<C> {
                 // The last reset's crash is acknowledged with the fault.
                 let crash = self.last_crash.take();
                 match robot.status().fault {
-                    Some(name) => {
+                    Some(fault) => {
                         robot.clear_fault();
-                        write!(out, "ok fault cleared ({name})\r\n")
+                        write!(
+                            out,
+                            "ok fault cleared ({})\r\n",
+                            library::fault_name(&fault)
+                        )
                     }
                     None if crash.is_some() => write!(out, "ok reset cause cleared\r\n"),
                     None => write!(out, "ok no fault latched\r\n"),

@@ -131,7 +131,11 @@ pub(super) fn write_status<C: Calibrator>(
             write_path(out, &path)?;
         }
     }
-    write!(out, " fault={} ", status.fault.unwrap_or("none"))?;
+    let fault = status
+        .fault
+        .as_ref()
+        .map_or("none", super::library::fault_name);
+    write!(out, " fault={fault} ")?;
     write_pose(out, pose)?;
     let p = session.progress();
     // Widened: the replies print unsigned numbers through the `u32` formatter only.

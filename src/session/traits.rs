@@ -38,10 +38,9 @@ pub enum Activity {
 pub struct RobotStatus {
     /// Current activity.
     pub activity: Activity,
-    /// The latched fault, if any (short lower-case name such as `stall`).
-    pub fault: Option<&'static str>,
-    /// The latched fault in full (which wheel, how far off), when the robot knows it.
-    pub fault_detail: Option<Fault>,
+    /// The latched fault, if any, in full (which wheel, how far off); replies name it by
+    /// [`super::library::fault_name`] (`stall`, `following-error`, …).
+    pub fault: Option<Fault>,
 }
 
 /// What the robot knows about the control loop's health (only what is worth telling).
