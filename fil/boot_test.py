@@ -54,7 +54,7 @@ SCRIPT = [
     (b"runs\r\n", True),
     (b"drop 1\r\n", True),
     (b"measure\r\n", True),
-    (b"measure 0.1 0.2 3\r\n", True),
+    (b"measure 0.1m 0.2m 3deg\r\n", True),
     (b"calibrate\r\n", True),
     (b"calibrate exakt\r\n", True),
     (b"apply exact\r\n", True),

@@ -135,7 +135,7 @@ def measure_line(start, end):
     dx, dy = end["x"] - start["x"], end["y"] - start["y"]
     x, y = c * dx + s * dy, -s * dx + c * dy
     theta = end["theta"] - start["theta"]
-    return f"measure {x:.6f} {y:.6f} {math.degrees(wrap_angle(theta)):.4f}"
+    return f"measure {x:.6f}m {y:.6f}m {math.degrees(wrap_angle(theta)):.4f}deg"
 
 
 def boot(elf, workdir, name, log):

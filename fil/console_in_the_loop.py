@@ -120,7 +120,7 @@ def main():
             print(line, flush=True)
             answer = None
             if line.startswith("? Square side L"):
-                answer = str(SIDE_M)
+                answer = f"{SIDE_M}m"
             elif line.startswith("? Runs per direction"):
                 answer = str(RUNS_PER_DIRECTION)
             elif line.startswith("? Enter starts the run"):

@@ -7,12 +7,14 @@
    (both PWM pins and the H-bridge enable) low — BSRR = 0x2A000000 — followed by MODER making
    them outputs, and both must come before the first access to the flash interface ("Flash
    Int": the clock set-up's wait states, then the parameter load, which may erase a sector for
-   seconds). Then every GPIOE write of the boot is listed in order, with the port resets the
-   HAL makes (RCC_AHB1RSTR.GPIOERST, which QEMU logs but does not model): after each reset the
-   port's first writes must put PE9/PE11/PE13 back low, pulled down and outputs, before any other
-   GPIOE write and before TIM1 is touched; no write may ever drive PE13 high, give it a pull
-   other than down, or make it anything but an output (QEMU reads these registers as 0, so a
-   read-modify-write logs only the fields it sets: a zero field is not a change).
+   seconds). Then every GPIOE write of the boot is listed in order. The port is never reset
+   (RCC_AHB1RSTR.GPIOERST, which QEMU logs but does not model: it would float the motor pins and
+   clear their pull-downs). No write may clear the motor pins' pull-downs or mode: a PUPDR write
+   gives PE9/PE11/PE13 a pull-down or leaves them, a MODER write leaves them or makes PE13 an
+   output and PE9/PE11 outputs or their PWM alternate function, and neither register is written
+   as a whole with nothing set (QEMU reads these registers as 0, so a read-modify-write logs
+   only the fields it sets: a zero field is not a change, a zero word is a clear; port E has no
+   input pins). No write may drive PE13 (the H-bridge enable) high.
 2. Fault path (emulator run): without the boot assist's flash-size answer, the HAL's read of the
    unmapped flash-size word HardFaults — a real fault in the shipped image. The HardFault
    handler must drive PE9, PE11 and PE13 low again (BSRR = 0x2A000000) and make them GPIO
@@ -103,6 +105,8 @@ def check_boot_order(elf, workdir):
 AHB1RSTR, GPIOERST = 0x10, 1 << 4
 MODER, PUPDR, ODR, BSRR = 0x00, 0x0C, 0x14, 0x18
 PE13 = 13
+# PE9 and PE11 (the PWM pins, alternate function 1 once TIM1 takes them) and PE13.
+MOTOR_PINS = (9, 11, 13)
 
 
 def field(value, pin):
@@ -112,61 +116,38 @@ def field(value, pin):
 def check_every_gpioe_write(acc):
     """Lists every GPIOE write and port reset in order and checks each against the rules in the
     module docs; returns the first violation, or None."""
-    events = []
+    names = {MODER: "MODER", PUPDR: "PUPDR", ODR: "ODR", BSRR: "BSRR", 0x04: "OTYPER",
+             0x08: "OSPEEDR", 0x20: "AFRL", 0x24: "AFRH"}
+    print("GPIOE writes during boot, in order:")
+    writes = 0
     for i, (dev, kind, off, val) in enumerate(acc):
         if kind != "write":
             continue
         if dev == "RCC" and off == AHB1RSTR and val & GPIOERST:
-            events.append((i, "reset", None, None))
-        elif dev == "GPIOE":
-            events.append((i, "write", off, val))
-        elif dev in ("TIM1", "timer[1]"):
-            events.append((i, "tim1", off, val))
-    names = {MODER: "MODER", PUPDR: "PUPDR", ODR: "ODR", BSRR: "BSRR", 0x04: "OTYPER",
-             0x08: "OSPEEDR", 0x20: "AFRL", 0x24: "AFRH"}
-    print("GPIOE writes during boot, in order:")
-    low = (1 << (9 + 16)) | (1 << (11 + 16)) | (1 << (13 + 16))
-    mask = (3 << 18) | (3 << 22) | (3 << 26)
-    pulls = (2 << 18) | (2 << 22) | (2 << 26)
-    outputs = (1 << 18) | (1 << 22) | (1 << 26)
-    # After a port reset: which of the safe-state writes are still owed.
-    owed = set()
-    resets = 0
-    for i, what, off, val in events:
-        if what == "reset":
-            resets += 1
-            owed = {"low", "pull", "output"}
-            print(f"  access {i}: RCC_AHB1RSTR.GPIOERST: port E reset (pins float, pulls off)")
+            print(f"  access {i}: RCC_AHB1RSTR.GPIOERST: port E reset")
+            return f"access {i}: port E reset (the motor pins float, their pull-downs cleared)"
+        if dev != "GPIOE":
             continue
-        if what == "tim1":
-            if owed:
-                return f"access {i}: TIM1 written while the port reset's safe state is owed ({sorted(owed)})"
-            continue
+        writes += 1
         name = names.get(off, f"offset 0x{off:02x}")
         print(f"  access {i}: GPIOE {name} = 0x{val:08x}")
-        if owed:
-            expected = "low" if "low" in owed else "pull" if "pull" in owed else "output"
-            ok = {"low": off == BSRR and val & low == low,
-                  "pull": off == PUPDR and val & mask == pulls,
-                  "output": off == MODER and val & mask == outputs}[expected]
-            if not ok:
-                return (f"access {i}: GPIOE {name} = 0x{val:08x} after a port reset, while "
-                        f"{sorted(owed)} of the motor pins' safe state is still owed")
-            owed.discard(expected)
         if off == BSRR and val & (1 << PE13):
             return f"access {i}: BSRR drives PE13 (H-bridge enable) high during boot"
         if off == ODR and val & (1 << PE13):
             return f"access {i}: ODR drives PE13 (H-bridge enable) high during boot"
-        if off == MODER and field(val, PE13) not in (0b00, 0b01):
-            return f"access {i}: MODER makes PE13 mode {field(val, PE13):02b}, not an output"
-        if off == PUPDR and field(val, PE13) not in (0b00, 0b10):
-            return f"access {i}: PUPDR gives PE13 pull {field(val, PE13):02b}, not a pull-down"
-    if owed:
-        return f"the boot ended with the motor pins' safe state owed after a port reset: {sorted(owed)}"
-    if resets == 0:
-        return "no GPIOE port reset in the boot log (the HAL's split resets the port: the log is incomplete)"
-    print(f"every GPIOE write: PE13 never high, never floating after the port reset "
-          f"({resets} reset(s), each followed at once by the safe state)")
+        if off in (MODER, PUPDR) and val == 0:
+            return f"access {i}: GPIOE {name} written as a whole with nothing set: a clear"
+        if off == PUPDR:
+            for pin in MOTOR_PINS:
+                if field(val, pin) not in (0b00, 0b10):
+                    return f"access {i}: PUPDR gives PE{pin} pull {field(val, pin):02b}, not its pull-down"
+        if off == MODER:
+            for pin in MOTOR_PINS:
+                allowed = (0b00, 0b01) if pin == PE13 else (0b00, 0b01, 0b10)
+                if field(val, pin) not in allowed:
+                    return f"access {i}: MODER makes PE{pin} mode {field(val, pin):02b}"
+    print(f"every GPIOE write ({writes}): no port reset, the motor pins' pull-downs and modes never "
+          f"cleared, PE13 never high")
     return None
 
 

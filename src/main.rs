@@ -173,7 +173,8 @@ mod app {
         // Parameters first: loading may repair an interrupted save (motors are off here).
         let mut params_store = board.params;
         let loaded = params_store.load_blocking();
-        let settings = loaded.record;
+        // The stored values the settings' rules refuse take their defaults (said at boot).
+        let (settings, refused) = loaded.record.for_boot();
         let calibrated_with = settings.calibration.as_ref().map_or_else(
             || "none".try_into().unwrap_or_default(),
             |c| c.method.clone(),
@@ -208,7 +209,7 @@ mod app {
                 }
             }
             let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
-            let _ = write_boot_event(&mut sink, loaded.warning.as_ref(), Some(cause.as_str()));
+            let _ = write_boot_event(&mut sink, &loaded, &refused, Some(cause.as_str()));
             if let Some(fault) = board.clock.fault() {
                 let _ = write_fault_event(&mut sink, fault);
             }

@@ -38,12 +38,41 @@ fn umbmark_y_hand_computed() {
     assert!((f.e_b - 1.003_353_461_925_811).abs() < TOL, "{}", f.e_b);
 }
 
+/// Catches a wrong sign or coordinate in eq. (11)'s terms: E_b and E_d by value.
 #[test]
 fn lee_eq11_hand_computed() {
     // Same inputs as the UMBmark x case; eq. (11) adds πb/(4(−4L²/(x_cw − x_ccw) − b/2)).
     let f = lee::lee_x(-0.02, 0.01, 2.0, 0.4).unwrap();
     assert!((f.e_d - 1.000_750_280_915_725_6).abs() < TOL, "{}", f.e_d);
     assert!((f.e_b - 1.001_172_288_043_329).abs() < TOL, "{}", f.e_b);
+    // The formula as printed, evaluated here.
+    let (l, b, x_cw, x_ccw) = (2.0_f64, 0.4_f64, -0.02_f64, 0.01_f64);
+    let alpha =
+        (x_cw + x_ccw) / (-4.0 * l) + PI * b / (4.0 * (-4.0 * l * l / (x_cw - x_ccw) - b / 2.0));
+    assert!((alpha - 0.001_839_269_598_647_579_1).abs() < TOL, "{alpha}");
+    assert!((f.e_b - (PI / 2.0) / (PI / 2.0 - alpha)).abs() < TOL);
+}
+
+/// Catches a wrong sign or coordinate in eq. (12)'s second term (`y_cw + y_ccw` written
+/// `y_cw − y_ccw`, or x for y): E_b is checked by value, not only through its 1σ figure.
+#[test]
+fn lee_eq12_hand_computed() {
+    // y_cw = −30 mm, y_ccw = +12 mm, L = 2 m, b = 0.4 m (the UMBmark y case):
+    // α = (y_cw − y_ccw)/(−4L) + πb/(4(−4L²/(y_cw + y_ccw) − b/2))
+    //   = 0.00525 + 0.4π/(4(16/0.018 − 0.2)) = 0.00525 + 3.535_087_129_892_743e-4,
+    // β = (y_cw + y_ccw)/(−4L) = 0.00225: E_d as UMBmark-y's, E_b = (π/2)/(π/2 − α).
+    let f = lee::lee_y(-0.03, 0.012, 2.0, 0.4).unwrap();
+    assert!((f.e_d - 1.000_450_101_177_822).abs() < TOL, "{}", f.e_d);
+    assert!((f.e_b - 1.003_580_075_661_129_3).abs() < TOL, "{}", f.e_b);
+    // The same by the formula as printed, evaluated here: the library evaluates the term
+    // multiplied through by (y_cw + y_ccw), which must not change its value.
+    let (l, b, y_cw, y_ccw) = (2.0_f64, 0.4_f64, -0.03_f64, 0.012_f64);
+    let alpha =
+        (y_cw - y_ccw) / (-4.0 * l) + PI * b / (4.0 * (-4.0 * l * l / (y_cw + y_ccw) - b / 2.0));
+    assert!((alpha - 0.005_603_508_712_989_274).abs() < TOL, "{alpha}");
+    assert!((f.e_b - (PI / 2.0) / (PI / 2.0 - alpha)).abs() < TOL);
+    // With the term's sum replaced by the difference E_b would be 1.003_882_5: 3e-4 away.
+    assert!((f.e_b - 1.003_882_545_434).abs() > 1e-4);
 }
 
 #[test]

@@ -16,7 +16,9 @@ use odocal::calibration::{
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
-use odocal::motion::run::{Direction, Measurement, PathKind};
+use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
+use odocal::session::library::LibraryCalibrator;
+use odocal::session::{Calibrator, Culprit, Numbered, write_calibration};
 use rng::Rng;
 
 const NOMINAL: Geometry = Geometry::PAPER_NOMINAL;
@@ -519,5 +521,82 @@ fn a_truth_path_is_refused_without_the_mocap_feature() {
     assert_eq!(
         calibrate(&obs, &NOMINAL, Method::Exact).unwrap_err(),
         odocal::calibration::CalibrationError::InvalidMeasurement { index: 0 }
+    );
+}
+
+/// The runs as the board stores them, run `i` (0-based) as `runs` would number it `i + 1`.
+fn records(runs: &[Run]) -> Vec<RunRecord> {
+    runs.iter()
+        .map(|r| RunRecord {
+            path: r.obs().path,
+            geometry: NOMINAL,
+            knots: heapless::Vec::from_slice(&r.knots).unwrap(),
+            odometry_end: r.odo,
+            measured: Some(r.measured),
+        })
+        .collect()
+}
+
+#[test]
+fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
+    // 3 + 3 squares of 2 m on the robot of the unit slip that went unnoticed (E_d = 0.995,
+    // E_b = 1.010), measured to 1 mm and 0.2°. Run 4's end was read in centimetres and typed
+    // with `mm`: its x and y are a tenth of the truth, which lies well inside the plausibility
+    // bound, so nothing refused it at `measure`.
+    let truth = Robot::paper(0.995, 1.010, 1.0);
+    let mut rng = Rng(42);
+    let mut all: Vec<Run> = (0..6)
+        .map(|i| {
+            let d = if i % 2 == 0 {
+                Direction::Cw
+            } else {
+                Direction::Ccw
+            };
+            Run::square(&truth, d, 0.0, 1e-3, 0.2f64.to_radians(), &mut rng)
+        })
+        .collect();
+    let wrong = 3;
+    all[wrong].measured.x_m *= 0.1;
+    all[wrong].measured.y_m *= 0.1;
+    let stored = records(&all);
+    let mut calibrator = LibraryCalibrator::default();
+    // Leaving run 4 out, and only run 4, makes the others agree.
+    assert_eq!(
+        calibrator.culprit(&stored, &NOMINAL),
+        Culprit::Run(wrong + 1)
+    );
+    let numbered = Numbered {
+        runs: &stored,
+        numbers: &[],
+    };
+    let mut out = String::new();
+    write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    assert!(
+        out.contains("without run 4 the others agree (each run left out in turn): check run 4"),
+        "{out}"
+    );
+    // With the session's numbers (run 1 dropped earlier: runs 2..7) the reply names run 5.
+    let numbers: Vec<u16> = (2..8).collect();
+    let mut out = String::new();
+    let numbered = Numbered {
+        runs: &stored,
+        numbers: &numbers,
+    };
+    write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    assert!(out.contains("without run 5 the others agree"), "{out}");
+    // Measured right, no run disagrees and none is named.
+    all[wrong].measured.x_m *= 10.0;
+    all[wrong].measured.y_m *= 10.0;
+    let stored = records(&all);
+    calibrator.runs_changed();
+    let mut out = String::new();
+    let numbered = Numbered {
+        runs: &stored,
+        numbers: &[],
+    };
+    write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    assert!(
+        !out.contains("DISAGREES") && !out.contains("left out"),
+        "{out}"
     );
 }

@@ -3,6 +3,10 @@
 //! The closed-loop behaviour with sub-stepping, slip, true geometry and motor mismatch is
 //! tested in `host-sim/tests/closed_loop.rs`.
 
+#[path = "support/arcs.rs"]
+mod arcs;
+
+use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::button::Press;
@@ -408,6 +412,74 @@ fn new_geometry_applies_and_pose_continues() {
     c.set_geometry(g).unwrap();
     assert_eq!(c.pose().to_f64(), rest);
     assert_eq!(c.config().geometry, g);
+}
+
+/// Catches a calibration that is stored but not applied to the running odometry (the new
+/// geometry's `Odometry` not installed by `set_geometry`, so later ticks are still converted
+/// with the old wheels and wheelbase), and one that moves or restarts the pose when applied.
+/// The robot drives to a pose with the nominal geometry, the calibration (`E_d` 0.99, `E_b`
+/// 1.02) is applied at rest, and it drives an arc of ~0.9 m turning ~1.5 rad; the pose is
+/// compared with the independent arc model (`support/arcs.rs`) of the new geometry driving the
+/// ticks the controller read, from the pose it had when the calibration was applied.
+#[test]
+fn a_calibration_applied_at_rest_converts_the_next_drive_with_the_new_geometry() {
+    let mut c = controller();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    let read =
+        |plant: &Plant| WheelTicks::new(plant.pos[0].floor() as i64, plant.pos[1].floor() as i64);
+    // Drive to a pose off the origin and off the x axis, then wait for rest.
+    for k in 0..1500 {
+        if k % 100 == 0 {
+            c.drive(0.3, 0.4).unwrap();
+        }
+        plant.step(&mut c);
+    }
+    while !plant.step(&mut c).command.is_stop() {}
+    // The plant's lag lets the wheels roll on after the stop: wait until they are still, so
+    // that no tick the old geometry should convert is left for the new one.
+    while plant.vel[0].abs() + plant.vel[1].abs() > 1e-3 {
+        plant.step(&mut c);
+    }
+    // The counts the controller reads in its last period before the calibration: the first knot.
+    let last_read = read(&plant);
+    plant.step(&mut c);
+    let start = c.pose().to_f64();
+    assert!(start.x_m > 0.2 && start.y_m > 0.05, "{start:?}");
+    let g = Geometry::PAPER_NOMINAL.with_factors(0.99, 1.02, 1.0);
+    c.set_geometry(g).unwrap();
+    assert_eq!(
+        c.pose().to_f64(),
+        start,
+        "applying a calibration moves no pose"
+    );
+    let mut knots = vec![last_read];
+    for k in 0..3000 {
+        if k < 2000 && k % 100 == 0 {
+            c.drive(0.3, 0.5).unwrap();
+        }
+        knots.push(read(&plant));
+        plant.step(&mut c);
+    }
+    let end = c.pose().to_f64();
+    let model = arcs::Robot::of(&g).drive(start, &knots);
+    let (dx, dy, dth) = (
+        end.x_m - model.x_m,
+        end.y_m - model.y_m,
+        end.theta_rad - model.theta_rad,
+    );
+    let nominal = arcs::Robot::of(&Geometry::PAPER_NOMINAL).drive(start, &knots);
+    println!(
+        "end {end:?}, model on the new geometry {model:?} (off by {:.3e} m, {dth:.2e} rad), \
+         on the old one {nominal:?}",
+        dx.hypot(dy)
+    );
+    assert!(end.distance_to(&start) > 0.5, "it drove: {end:?}");
+    // Measured: 2.9e-10 m and 3e-15 rad off (the Q40 pose's per-period rounding over 3000
+    // periods; the heading is a function of the tick totals). Bounds at 10× that; converting
+    // with the old geometry is 11.7 mm and 0.039 rad off.
+    assert!(dx.hypot(dy) < 3e-9, "{dx}, {dy}");
+    assert!(dth.abs() < 1e-13, "{dth}");
 }
 
 #[test]
@@ -817,4 +889,88 @@ fn counts_during_an_erase_stall_are_motion_and_the_pose_includes_them() {
         plant.step(&mut c).fault,
         Some(Fault::EncoderGlitch { .. })
     ));
+}
+
+/// A flash erase stalls the control task for 4 s (10 kHz, no period runs) while the robot is
+/// pivoted by hand about one wheel: 40,000 counts on the left wheel alone reach its 16-bit
+/// counter as −25,536, which the widened check takes as motion, so the pose is marked lost;
+/// 20,000 counts on the right wheel alone likewise (the left counter could have wrapped as
+/// well). 3,000 counts (7 mm) on either wheel cannot have wrapped: the pose is kept.
+#[test]
+fn stall_motion_on_either_wheel_marks_the_pose_lost() {
+    for (right, left, lost) in [
+        (0.0, 40_000.0, true),
+        (20_000.0, 0.0, true),
+        (3_000.0, -3_000.0, false),
+    ] {
+        let mut c =
+            Controller::new(ControllerConfig::new(Geometry::PAPER_NOMINAL, 10_000)).unwrap();
+        let mut plant = Plant::new(10_000);
+        plant.step(&mut c);
+        c.note_missed_periods(40_000);
+        plant.pos[0] += right;
+        plant.pos[1] += left;
+        let out = plant.step(&mut c);
+        assert_eq!(out.fault, None, "right {right}, left {left}");
+        assert_eq!(c.pose_lost(), lost, "right {right}, left {left}");
+    }
+}
+
+/// Missed periods while the robot drives at 0.9 m/s (382 counts per period, glitch limit 1,273
+/// at 1 kHz): 3 missed periods bring 4 periods' counts (1,528) at once, which are motion, not an
+/// encoder glitch; the speed loop takes a quarter of them per period (its position error moves
+/// by less than a period's counts, not by three), and the periods are counted. One miss in 10
+/// periods kept up latches `overrun` within 0.2 s; one in 25 never does.
+#[test]
+fn missed_periods_while_moving_are_overruns() {
+    let limits = MotionLimits {
+        max_speed_mps: 1.0,
+        ..MotionLimits::DEFAULT
+    };
+    // Drives at 0.9 m/s for `periods`, missing one period every `every` (0: none); the plant
+    // moves through each missed period at the speed it had.
+    let run = |c: &mut Controller, plant: &mut Plant, periods: u32, every: u32| {
+        for i in 1..=periods {
+            if every > 0 && i % every == 0 {
+                for w in 0..2 {
+                    plant.pos[w] += plant.vel[w] * plant.dt;
+                }
+                c.note_missed_periods(1);
+            }
+            let _ = c.drive(0.9, 0.0);
+            if plant.step(c).fault.is_some() {
+                return Some(i);
+            }
+        }
+        None
+    };
+    let mut c = controller();
+    c.set_limits(limits).unwrap();
+    let mut plant = Plant::new(1000);
+    plant.step(&mut c);
+    assert_eq!(run(&mut c, &mut plant, 4_000, 0), None);
+    let before = c.wheel_errors_ticks();
+    for w in 0..2 {
+        plant.pos[w] += 3.0 * plant.vel[w] * plant.dt;
+    }
+    c.note_missed_periods(3);
+    let _ = c.drive(0.9, 0.0);
+    let out = plant.step(&mut c);
+    assert_eq!(out.fault, None, "4 periods' counts at once are motion");
+    assert_eq!(c.missed_periods(), 3);
+    let after = c.wheel_errors_ticks();
+    let per_period = 0.9 / Geometry::PAPER_NOMINAL.meters_per_tick_right() / 1000.0;
+    for (b, a) in [(before.0, after.0), (before.1, after.1)] {
+        assert!(
+            f64::from((a - b).abs()) < per_period,
+            "speed loop error {b} -> {a} ticks"
+        );
+    }
+    // One in 25 for 2 s: counted, never latched.
+    assert_eq!(run(&mut c, &mut plant, 2_000, 25), None);
+    assert_eq!(c.missed_periods(), 3 + 80);
+    // One in 10: latched within 0.2 s.
+    let latched = run(&mut c, &mut plant, 2_000, 10);
+    assert!(latched.is_some_and(|i| i <= 200), "{latched:?}");
+    assert!(matches!(c.fault(), Some(Fault::Overrun { .. })));
 }

@@ -22,12 +22,10 @@
 //! xorshift64*, so a failure is reproducible from the printed sequence index.
 
 use odocal::protocol::command::{
-    DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, MEASURE_LIMIT_DEG, MEASURE_LIMIT_M, PATH_RANGE_M,
-    STREAM_RANGE_HZ,
+    DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, PATH_RANGE_M, RUN_NUMBER_MAX, STREAM_RANGE_HZ,
 };
 use odocal::protocol::reply::parse_error_reply;
 use odocal::protocol::{Command, LineAssembler, LineError, LineEvent, ParseError, StopKey};
-use odocal::session::MAX_RUNS;
 
 const SEQUENCES: u64 = 1_000_000;
 const CAP: usize = 40;
@@ -259,20 +257,17 @@ fn check_command(cmd: &Command<'_>) {
         Command::Run { side_m, .. } => side_m.is_none_or(|v| within(v, PATH_RANGE_M)),
         Command::Line { length_m } => length_m.is_none_or(|v| within(v, PATH_RANGE_M)),
         Command::Circle { radius_m, .. } => radius_m.is_none_or(|v| within(v, PATH_RANGE_M)),
+        // Ranges of measured values are checked once their unit is known (the session's).
         Command::Measure {
-            run,
-            x_m,
-            y_m,
-            theta_deg,
-            ..
+            run, x, y, theta, ..
         } => {
-            let m = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
-            run.is_none_or(|n| (1..=MAX_RUNS).contains(&n))
-                && within(x_m, m)
-                && within(y_m, m)
-                && theta_deg.is_none_or(|t| within(t, (-MEASURE_LIMIT_DEG, MEASURE_LIMIT_DEG)))
+            let any = (f64::MIN, f64::MAX);
+            run.is_none_or(|n| (1..=RUN_NUMBER_MAX as usize).contains(&n))
+                && within(x.value, any)
+                && within(y.value, any)
+                && theta.is_none_or(|t| within(t.value, any))
         }
-        Command::Drop { index } => (1..=MAX_RUNS).contains(&index),
+        Command::Drop { index } => (1..=RUN_NUMBER_MAX as usize).contains(&index),
         Command::Stream { on: Some(Some(hz)) } => {
             (STREAM_RANGE_HZ.0..=STREAM_RANGE_HZ.1).contains(&hz)
         }

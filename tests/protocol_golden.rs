@@ -2,12 +2,25 @@
 //! every parse/line error reply.
 
 use odocal::motion::run::Direction;
-use odocal::protocol::command::MeasureUnits;
+use odocal::protocol::command::UnitSetting;
 use odocal::protocol::reply::{line_error_reply, parse_error_reply};
-use odocal::protocol::unit::{AngleUnit, LengthUnit};
+use odocal::protocol::unit::{Angle, AngleUnit, Length, LengthUnit};
 use odocal::protocol::{
     Command, LINE_MAX, LineAssembler, LineError, LineEvent, ParamName, ParseError, StopKey,
 };
+
+/// A measured length typed bare.
+fn bare(value: f64) -> Length {
+    Length { value, unit: None }
+}
+
+/// A measured length typed with its unit.
+fn length(value: f64, unit: LengthUnit) -> Length {
+    Length {
+        value,
+        unit: Some(unit),
+    }
+}
 
 fn err_text(line: &str) -> String {
     let e = Command::parse(line).expect_err("line should not parse");
@@ -86,21 +99,55 @@ fn commands_parse_to_the_documented_values() {
             "measure 0.0123 -0.045",
             Command::Measure {
                 run: None,
-                x_m: 0.0123,
-                y_m: -0.045,
-                theta_deg: None,
-                units: MeasureUnits::default(),
+                x: bare(0.0123),
+                y: bare(-0.045),
+                theta: None,
+                confirmed: false,
             },
         ),
         (
-            "measure\t-1e-3  2E-2   -1.5",
+            "measure\t-1e-3  2E-2   -1.5 yes",
             Command::Measure {
                 run: None,
-                x_m: -0.001,
-                y_m: 0.02,
-                theta_deg: Some(-1.5),
-                units: MeasureUnits::default(),
+                x: bare(-0.001),
+                y: bare(0.02),
+                theta: Some(Angle {
+                    value: -1.5,
+                    unit: None,
+                }),
+                confirmed: true,
             },
+        ),
+        (
+            "measure #2 -9.1 mm -9 MM 0.2 rad",
+            Command::Measure {
+                run: Some(2),
+                x: length(-9.1, LengthUnit::Millimetre),
+                y: length(-9.0, LengthUnit::Millimetre),
+                theta: Some(Angle {
+                    value: 0.2,
+                    unit: Some(AngleUnit::Radian),
+                }),
+                confirmed: false,
+            },
+        ),
+        (
+            "measure 1m 2m yes",
+            Command::Measure {
+                run: None,
+                x: length(1.0, LengthUnit::Metre),
+                y: length(2.0, LengthUnit::Metre),
+                theta: None,
+                confirmed: true,
+            },
+        ),
+        (
+            "set measure_unit mm",
+            Command::SetUnit(UnitSetting::Length(LengthUnit::Millimetre)),
+        ),
+        (
+            "set HEADING_UNIT rad",
+            Command::SetUnit(UnitSetting::Angle(AngleUnit::Radian)),
         ),
         ("runs", Command::Runs),
         ("drop 3", Command::Drop { index: 3 }),
@@ -131,32 +178,31 @@ fn commands_parse_to_the_documented_values() {
             "measure -5.356mm -5.4cm 2.5deg",
             Command::Measure {
                 run: None,
-                x_m: -5.356 * 0.001,
-                y_m: -5.4 * 0.01,
-                theta_deg: Some(2.5),
-                units: MeasureUnits {
-                    x: Some(LengthUnit::Millimetre),
-                    y: Some(LengthUnit::Centimetre),
-                    theta: Some(AngleUnit::Degree),
-                },
+                x: length(-5.356, LengthUnit::Millimetre),
+                y: length(-5.4, LengthUnit::Centimetre),
+                theta: Some(Angle {
+                    value: 2.5,
+                    unit: Some(AngleUnit::Degree),
+                }),
+                confirmed: false,
             },
         ),
         (
             "measure #2 0.05m 1e-3 0.5rad",
             Command::Measure {
                 run: Some(2),
-                x_m: 0.05,
-                y_m: 0.001,
-                theta_deg: Some(0.5 * (180.0 / core::f64::consts::PI)),
-                units: MeasureUnits {
-                    x: Some(LengthUnit::Metre),
-                    y: None,
-                    theta: Some(AngleUnit::Radian),
-                },
+                x: length(0.05, LengthUnit::Metre),
+                y: bare(1e-3),
+                theta: Some(Angle {
+                    value: 0.5,
+                    unit: Some(AngleUnit::Radian),
+                }),
+                confirmed: false,
             },
         ),
         ("save", Command::Save),
-        ("reset-params", Command::ResetParams),
+        ("reset-params", Command::ResetParams { confirmed: false }),
+        ("reset-params yes", Command::ResetParams { confirmed: true }),
         ("pose", Command::Pose),
         ("odom reset", Command::OdomReset),
         ("stream on", Command::Stream { on: Some(None) }),
@@ -176,23 +222,26 @@ fn commands_parse_to_the_documented_values() {
         ),
         ("  stop  ", Command::Stop),
         (
-            "measure #3 0.01 -0.02",
+            "measure #3 0.01m -0.02m",
             Command::Measure {
                 run: Some(3),
-                x_m: 0.01,
-                y_m: -0.02,
-                theta_deg: None,
-                units: MeasureUnits::default(),
+                x: length(0.01, LengthUnit::Metre),
+                y: length(-0.02, LengthUnit::Metre),
+                theta: None,
+                confirmed: false,
             },
         ),
         (
-            "MEASURE #12 1 2 -3",
+            "MEASURE #40 1 2 -3",
             Command::Measure {
-                run: Some(12),
-                x_m: 1.0,
-                y_m: 2.0,
-                theta_deg: Some(-3.0),
-                units: MeasureUnits::default(),
+                run: Some(40),
+                x: bare(1.0),
+                y: bare(2.0),
+                theta: Some(Angle {
+                    value: -3.0,
+                    unit: None,
+                }),
+                confirmed: false,
             },
         ),
         ("echo on", Command::Echo { on: true }),
@@ -208,33 +257,42 @@ fn error_replies_are_exact() {
     let cases: &[(&str, &str)] = &[
         ("fly", "err 1: unknown command (try help)\r\n"),
         ("run", "err 2: missing argument <direction>\r\n"),
-        ("measure 0.1", "err 2: missing argument <y_m>\r\n"),
+        ("measure 0.1", "err 2: missing argument <y>\r\n"),
         ("stop now", "err 3: too many arguments\r\n"),
-        ("measure 0.1 0.2 3 4", "err 3: too many arguments\r\n"),
+        (
+            "measure 0.1 0.2 3 4",
+            "err 7: <confirmation> must be one of yes\r\n",
+        ),
+        (
+            "measure 1mm 2mm 3deg yes 4",
+            "err 3: too many arguments\r\n",
+        ),
         (
             "measure 0,1 0.2",
-            "err 4: <x_m> is not a number (use a decimal point)\r\n",
+            "err 4: <x> is not a number (use a decimal point)\r\n",
         ),
         // A measured value may carry its unit, but only one of its kind.
         (
             "measure 0.1 0.2deg",
-            "err 4: <y_m> has an unknown unit (m, cm or mm after the number)\r\n",
+            "err 4: <y> has an unknown unit (m, cm or mm after the number)\r\n",
         ),
         (
             "measure 41.8in 39.5mm -0.04",
-            "err 4: <x_m> has an unknown unit (m, cm or mm after the number)\r\n",
+            "err 4: <x> has an unknown unit (m, cm or mm after the number)\r\n",
         ),
         (
             "measure 0.1 0.2 3mm",
-            "err 4: <theta_deg> has an unknown unit (deg or rad after the number)\r\n",
+            "err 4: <theta> has an unknown unit (deg or rad after the number)\r\n",
+        ),
+        // A unit apart from its number is its unit; a word that is no unit is the next value.
+        ("measure 1 mm 2 in", "err 4: <theta> is not a number\r\n"),
+        (
+            "set measure_unit in",
+            "err 7: <value> must be one of mm|cm|m\r\n",
         ),
         (
-            "measure 101m 0",
-            "err 6: <x_m> must be within -100..100\r\n",
-        ),
-        (
-            "measure 0 0 7rad",
-            "err 6: <theta_deg> must be within -360..360\r\n",
+            "set heading_unit mm",
+            "err 7: <value> must be one of deg|rad\r\n",
         ),
         // Elsewhere a unit is still named as such.
         (
@@ -243,7 +301,7 @@ fn error_replies_are_exact() {
         ),
         ("run cw abc", "err 4: <side_m> is not a number\r\n"),
         ("drop 1.5", "err 4: <n> is not a whole number\r\n"),
-        ("drop -1", "err 6: <n> must be within 1..12\r\n"),
+        ("drop -1", "err 6: <n> must be within 1..65535\r\n"),
         (
             "set counts_per_rev 2e5.5",
             "err 4: <value> is not a number\r\n",
@@ -256,24 +314,15 @@ fn error_replies_are_exact() {
         // 20 significant digits: more than the parser's u64 mantissa holds.
         (
             "measure 0.12345678901234567891 0",
-            "err 4: <x_m> has too many digits (at most 19 significant)\r\n",
+            "err 4: <x> has too many digits (at most 19 significant)\r\n",
         ),
-        // Trailing zeros are not significant: 1e20, out of range rather than malformed.
-        (
-            "measure 100000000000000000000 0",
-            "err 6: <x_m> must be within -100..100\r\n",
-        ),
-        ("measure nan 0", "err 5: <x_m> must be finite\r\n"),
-        ("measure NaN 0", "err 5: <x_m> must be finite\r\n"),
-        ("measure 0 inf", "err 5: <y_m> must be finite\r\n"),
-        ("measure 0 -infinity", "err 5: <y_m> must be finite\r\n"),
+        ("measure nan 0", "err 5: <x> must be finite\r\n"),
+        ("measure NaN 0", "err 5: <x> must be finite\r\n"),
+        ("measure 0 inf", "err 5: <y> must be finite\r\n"),
+        ("measure 0 -infinity", "err 5: <y> must be finite\r\n"),
+        ("measure 0 -1e999mm", "err 5: <y> must be finite\r\n"),
         ("drive 1e999 0", "err 5: <v_mps> must be finite\r\n"),
         ("set max_speed inf", "err 5: <value> must be finite\r\n"),
-        ("measure 101 0", "err 6: <x_m> must be within -100..100\r\n"),
-        (
-            "measure 0 0 361",
-            "err 6: <theta_deg> must be within -360..360\r\n",
-        ),
         ("run cw 0.05", "err 6: <side_m> must be within 0.1..10\r\n"),
         (
             "circle cw 11",
@@ -286,8 +335,8 @@ fn error_replies_are_exact() {
         ),
         ("stream on 101", "err 6: <hz> must be within 1..100\r\n"),
         ("stream on 0", "err 6: <hz> must be within 1..100\r\n"),
-        ("drop 0", "err 6: <n> must be within 1..12\r\n"),
-        ("drop 99999999999", "err 6: <n> must be within 1..12\r\n"),
+        ("drop 0", "err 6: <n> must be within 1..65535\r\n"),
+        ("drop 99999999999", "err 6: <n> must be within 1..65535\r\n"),
         (
             "set wheelbase 0",
             "err 6: <value> must be within 0.01..5 m\r\n",
@@ -305,12 +354,15 @@ fn error_replies_are_exact() {
             "set runs_per_direction 7",
             "err 6: <value> must be within 1..6 runs\r\n",
         ),
-        ("measure #0 0 0", "err 6: <n> must be within 1..12\r\n"),
-        ("measure #13 0 0", "err 6: <n> must be within 1..12\r\n"),
+        ("measure #0 0 0", "err 6: <n> must be within 1..65535\r\n"),
+        (
+            "measure #65536 0 0",
+            "err 6: <n> must be within 1..65535\r\n",
+        ),
         ("measure #x 0 0", "err 4: <n> is not a number\r\n"),
         ("measure # 0 0", "err 4: <n> is not a number\r\n"),
-        ("measure #2 0", "err 2: missing argument <y_m>\r\n"),
-        ("measure #2 0 0 1 2", "err 3: too many arguments\r\n"),
+        ("measure #2 0", "err 2: missing argument <y>\r\n"),
+        ("measure #2 0 0 1 yes 2", "err 3: too many arguments\r\n"),
         ("echo", "err 2: missing argument <mode>\r\n"),
         ("echo loud", "err 7: <mode> must be one of on|off\r\n"),
         ("run left", "err 7: <direction> must be one of cw|ccw\r\n"),

@@ -17,7 +17,7 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Activity, Calibrator, MAX_RUNS, Robot, RobotError, RobotStatus, Session, Settings,
+    Activity, Calibrator, Culprit, MAX_RUNS, Robot, RobotError, RobotStatus, Session, Settings,
     SettingsAndRuns, Solution, SolveError, StoreError,
 };
 use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
@@ -282,6 +282,10 @@ impl Calibrator for KnownCalibrator {
             _ => Err(SolveError::UnknownMethod),
         }
     }
+    /// Its results carry no per-run residuals: no run to name.
+    fn culprit(&mut self, _: &[RunRecord], _: &Geometry) -> Culprit {
+        Culprit::CannotTell
+    }
     fn advice(
         &mut self,
         _: &[RunRecord],
@@ -337,7 +341,7 @@ impl Bench {
         self.robot.finish(x, y);
         assert!(self.poll(0).starts_with("event run"));
         assert!(
-            self.send(&format!("measure {mx} {my}"))
+            self.send(&format!("measure {mx}m {my}m"))
                 .starts_with("ok run")
         );
     }
@@ -388,21 +392,21 @@ fn help_lists_every_command_then_ok() {
         "  help                      this list\r\n\
          \x20 status                    state, pose, faults, session progress\r\n\
          \x20 params                    parameters and the active calibration\r\n\
-         \x20 set <name> <value>        change a parameter (names as in params)\r\n\
+         \x20 set <name> <value>        change a parameter (params; measure_unit, heading_unit)\r\n\
          \x20 run cw|ccw [L]            drive a square of side L m (default: planned side)\r\n\
          \x20 next                      start the next planned run (button short press)\r\n\
          \x20 line [d]                  drive straight d m\r\n\
          \x20 circle cw|ccw [r]         drive a full circle of radius r m\r\n\
          \x20 stop                      stop now (Ctrl-C or Esc also stop at once)\r\n\
          \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
-         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n (m m deg; or 5mm 1cm 2deg)\r\n\
+         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n, units written (5mm 1cm 2deg)\r\n\
          \x20 runs                      list stored runs\r\n\
          \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
          \x20 drop <n>|all yes          delete run n, or every run\r\n\
          \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
          \x20 apply <method> [yes]      use a method's result (then save; yes: with a flagged run)\r\n\
          \x20 save                      store parameters in flash (motors stopped)\r\n\
-         \x20 reset-params              restore the defaults (then save)\r\n\
+         \x20 reset-params [yes]        restore the defaults (then save; yes: discard changes)\r\n\
          \x20 pose                      odometry pose\r\n\
          \x20 odom reset                set the odometry pose to the origin\r\n\
          \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\
@@ -507,7 +511,7 @@ fn control_rate_is_set_validated_pushed_and_saved() {
 fn run_lifecycle_golden() {
     let mut b = Bench::new();
     assert_eq!(
-        b.send("measure 0.01 0.02"),
+        b.send("measure 0.01m 0.02m"),
         "err 12: no finished run to measure (run cw|ccw or next first)\r\n"
     );
     assert_eq!(
@@ -530,21 +534,25 @@ fn run_lifecycle_golden() {
          theta_deg=+0.0000; measure it\r\n"
     );
     assert_eq!(
-        b.send("measure 0.0223 -0.0145 0.5"),
-        "ok run 1 square cw L=2.000 m measured: error vs odometry dx=+0.010000 dy=-0.010000 m\r\n"
+        b.send("measure 0.0223m -0.0145m 0.5deg"),
+        "ok run 1 square cw L=2.000 m measured: read x=+22.300 mm y=-14.500 mm theta=+0.50 deg; \
+         error vs odometry dx=+0.010000 dy=-0.010000 m\r\n"
     );
     // A second plain `measure` never replaces silently: it needs the run number.
     assert_eq!(
-        b.send("measure 0.0223 -0.0145"),
+        b.send("measure 0.0223m -0.0145m"),
         "err 12: run 1 is already measured (measure #1 x y [theta] replaces it)\r\n"
     );
     assert_eq!(
-        b.send("measure #1 0.0233 -0.0145"),
+        b.send("measure #1 0.0233m -0.0145m"),
         "ok run 1 square cw L=2.000 m measured (replaced x=+0.022300 y=-0.014500 \
-         theta_deg=+0.5000): error vs odometry dx=+0.011000 dy=-0.010000 m (heading kept: \
+         theta_deg=+0.5000): read x=+23.300 mm y=-14.500 mm; error vs odometry dx=+0.011000 dy=-0.010000 m (heading kept: \
          theta_deg=+0.5000)\r\n"
     );
-    assert_eq!(b.send("measure #2 0 0"), "err 14: no run 2 (1 stored)\r\n");
+    assert_eq!(
+        b.send("measure #2 0m 0m"),
+        "err 14: no run 2 (1 stored)\r\n"
+    );
     assert_eq!(b.send("line 1"), "ok run 2 started: line d=1.000 m\r\n");
     // A finished run is collected before the next command runs, without an explicit poll.
     b.robot.finish(1.0, 0.0);
@@ -559,7 +567,18 @@ fn run_lifecycle_golden() {
     );
     assert_eq!(b.send("drop 3"), "err 14: no run 3 (2 stored)\r\n");
     // A run is measured or dropped before the next one starts (by command or button).
-    for start in ["run cw", "next", "line", "circle cw 0.5"] {
+    // Nothing moves the robot away from the end it is to be measured at.
+    for start in [
+        "run cw",
+        "next",
+        "line",
+        "circle cw 0.5",
+        "drive 0.1 0",
+        "identify floor",
+        "identify",
+        "bringup",
+        "bringup push",
+    ] {
         assert_eq!(
             b.send(start),
             "err 24: run 2 (line d=1.000 m) is not measured yet: measure it or drop it first \
@@ -576,15 +595,16 @@ fn run_lifecycle_golden() {
     );
     assert_eq!(b.robot.running, None);
     assert_eq!(
-        b.send("measure 1.001 0.002"),
-        "ok run 2 line d=1.000 m measured: error vs odometry dx=+0.001000 dy=+0.002000 m\r\n"
+        b.send("measure 1.001m 0.002m"),
+        "ok run 2 line d=1.000 m measured: read x=+1001.000 mm y=+2.000 mm; error vs odometry \
+         dx=+0.001000 dy=+0.002000 m\r\n"
     );
     // Squares beyond the plan are counted apart.
     b.send("set runs_per_direction 1");
     for _ in 0..2 {
         b.send("run cw");
         b.robot.finish(0.0, 0.0);
-        b.send("measure 0.001 0.001");
+        b.send("measure 0.001m 0.001m");
     }
     let status = b.send("status");
     assert!(
@@ -600,26 +620,64 @@ fn run_lifecycle_golden() {
     );
     assert_eq!(
         b.send("circle ccw"),
-        "ok run 2 started: circle ccw r=1.000 m\r\n"
+        "ok run 5 started: circle ccw r=1.000 m\r\n"
     );
     assert_eq!(
-        b.send("measure 0.0223 -0.0145"),
+        b.send("measure 0.0223m -0.0145m"),
         "err 10: a run is driving: measure after its `event run … finished` line\r\n"
     );
     assert_eq!(
         b.send("stop"),
-        "event run 2 aborted, not stored: circle ccw r=1.000 m\r\n\
-         ok stopped: run 2 aborted, not stored\r\n"
+        "event run 5 aborted, not stored: circle ccw r=1.000 m\r\n\
+         ok stopped: run 5 aborted, not stored\r\n"
     );
     assert_eq!(b.robot.aborts, 1);
     assert_eq!(b.send("stop"), "ok stopped\r\n");
     // The aborted run's measurement must not land on run 1.
     assert_eq!(
-        b.send("measure 0.0223 -0.0145"),
-        "err 12: run 2 was aborted and not stored: nothing to measure (drive it again; \
+        b.send("measure 0.0223m -0.0145m"),
+        "err 12: run 5 was aborted and not stored: nothing to measure (drive it again; \
          measure #<n> x y fills an earlier run)\r\n"
     );
     assert_eq!(b.session.runs().len(), 1);
+}
+
+#[test]
+fn runs_keep_their_numbers_when_one_is_dropped() {
+    let mut b = Bench::new();
+    b.measured_run("cw", 0.01, -0.02, 0.012, -0.018);
+    b.measured_run("ccw", 0.02, 0.01, 0.021, 0.012);
+    assert_eq!(
+        b.send("drop 1"),
+        "ok dropped run 1: square cw L=2.000 m; 1 run left\r\n"
+    );
+    assert_eq!(
+        b.send("runs"),
+        "\x20 run 2 square ccw L=2.000 m odometry x=+0.020000 y=+0.010000 measured x=+0.021000 \
+         y=+0.012000\r\n\
+         ok 1 run, 1 measured\r\n"
+    );
+    // Numbers typed from the list before still mean the same runs.
+    assert_eq!(b.send("drop 1"), "err 14: no run 1 (1 stored)\r\n");
+    assert!(
+        b.send("measure #2 21mm 13mm")
+            .starts_with("ok run 2 square ccw")
+    );
+    assert!(b.send("record 2").contains("ok"));
+    // The next run gets a new number, never a dropped one.
+    assert_eq!(
+        b.send("run cw"),
+        "ok run 3 started: square cw L=2.000 m\r\n"
+    );
+    b.robot.finish(0.0, 0.0);
+    assert!(b.poll(0).starts_with("event run 3 finished"));
+    assert_eq!(
+        b.send("drive 0.1 0"),
+        "err 24: run 3 (square cw L=2.000 m) is not measured yet: measure it or drop it first \
+         (measure x y [theta], or drop 3)\r\n"
+    );
+    assert!(b.send("measure 1mm 2mm").starts_with("ok run 3 "));
+    assert_eq!(b.send("drive 0.1 0"), "ok\r\n");
 }
 
 #[test]
@@ -698,43 +756,68 @@ fn stop_keys_and_garbled_stop_lines_stop() {
 }
 
 #[test]
-fn implausible_measurements_are_refused_with_a_unit_hint() {
+fn units_are_never_inferred_and_an_implausible_end_needs_yes() {
     let mut b = Bench::new();
     b.send("run cw");
     b.robot.finish(0.0123, -0.0045);
     b.poll(0);
-    // 41.841 mm typed as metres: 57.6 m from the odometry end of an 8 m path. Read as
-    // millimetres or as centimetres it would fit: the reply names both and converts nothing.
+    // A bare value has no unit until the session declares one: the reply names the units.
     assert_eq!(
-        b.send("measure 41.841 39.523"),
-        "err 22: run 1 square cw L=2.000 m: measured end 57.551 m from the odometry end, more \
-         than 2.000 m (25 % of the path): write the unit (41.841mm or 41.841cm)\r\n"
+        b.send("measure -0.5355 -0.5326"),
+        "err 26: <x> -0.5355 has no unit: write mm, cm or m after it (-0.5355mm), or declare one for this session: set measure_unit mm|cm|m\r\n"
     );
     assert_eq!(
-        b.send("measure 4.1841 3.9523"),
-        "err 22: run 1 square cw L=2.000 m: measured end 5.750 m from the odometry end, more \
-         than 2.000 m (25 % of the path): write the unit (4.1841mm or 4.1841cm)\r\n"
+        b.send("measure 41.841mm 39.523mm -1.5"),
+        "err 26: <theta> -1.5 has no unit: write deg or rad after it (-1.5deg), or declare one for this session: set heading_unit deg|rad\r\n"
     );
-    // A value with its unit is read exactly; an implausible one is not converted further.
+    // 41.841 mm typed as metres: far beyond what the nominal geometry's tolerance allows on a
+    // 2 m square; kept only with yes.
     assert_eq!(
         b.send("measure 41.841m 39.523m"),
-        "err 22: run 1 square cw L=2.000 m: measured end 57.551 m from the odometry end, more \
-         than 2.000 m (25 % of the path); x forward, y left, in metres\r\n"
+        "err 22: run 1 square cw L=2.000 m: measured end 57.551 m from the odometry end, more than 0.661 m (the nominal geometry's tolerance on this path, plus measuring): check the values, their units and signs, or add yes to keep it\r\n"
     );
     assert_eq!(
-        b.send("measure 0.041841 0.039523 60"),
-        "err 22: run 1 square cw L=2.000 m: measured heading +60.0 deg from the odometry \
-         heading, more than 45 (a bare heading is degrees, CCW positive; radians need the unit \
-         written: 0.04rad)\r\n"
+        b.send("measure 0.041841m 0.039523m 60deg"),
+        "err 22: run 1 square cw L=2.000 m: measured heading +60.0 deg from the odometry heading, more than 28.3 deg (the nominal geometry's tolerance on this path, plus measuring): check the values, their units and signs, or add yes to keep it\r\n"
     );
     assert_eq!(b.session.runs()[0].measured, None);
+    // Units written against the number or apart from it; the reply echoes the values as read.
     assert_eq!(
-        b.send("measure 41.841mm 3.9523cm -0.02618rad"),
-        "ok run 1 square cw L=2.000 m measured: error vs odometry dx=+0.029541 dy=+0.044023 m\r\n"
+        b.send("measure 41.841 mm 3.9523 cm -0.02618 rad"),
+        "ok run 1 square cw L=2.000 m measured: read x=+41.841 mm y=+39.523 mm theta=-1.50 deg; error vs odometry dx=+0.029541 dy=+0.044023 m\r\n"
     );
     let m = b.session.runs()[0].measured.unwrap();
     assert_eq!((m.x_m, m.y_m), (41.841 * 0.001, 3.9523 * 0.01));
     assert!((m.theta_rad.unwrap() + 0.02618).abs() < 1e-15);
+    // A declared unit reads the bare values for the rest of the session.
+    assert_eq!(
+        b.send("set measure_unit cm"),
+        "ok measure_unit = cm: bare measure values are cm (this session only, not saved)\r\n"
+    );
+    assert_eq!(
+        b.send("set heading_unit deg"),
+        "ok heading_unit = deg: bare heading values are deg (this session only, not saved)\r\n"
+    );
+    assert_eq!(
+        b.send("measure #1 4.1841 3.9523 -1.5"),
+        "ok run 1 square cw L=2.000 m measured (replaced x=+0.041841 y=+0.039523 theta_deg=-1.5000): read x=+41.841 mm y=+39.523 mm theta=-1.50 deg; error vs odometry dx=+0.029541 dy=+0.044023 m\r\n"
+    );
+    // Beyond the bound with yes: kept as typed.
+    assert!(
+        b.send("measure #1 41.841m 39.523m yes")
+            .starts_with("ok run 1 ")
+    );
+    assert_eq!(b.session.runs()[0].measured.unwrap().x_m, 41.841);
+    // The declarations are not settings: a new session (a reboot) has none.
+    let mut fresh = Bench::new();
+    fresh.send("run cw");
+    fresh.robot.finish(0.0, 0.0);
+    fresh.poll(0);
+    assert!(
+        fresh
+            .send("measure 1 2")
+            .starts_with("err 26: <x> 1 has no unit")
+    );
 }
 
 #[test]
@@ -848,7 +931,8 @@ fn calibrate_apply_save_golden() {
     b.send("drive 0.1 0");
     assert_eq!(
         b.send("save"),
-        "err 18: motors running, flash not written\r\n"
+        "err 18: motors not confirmed stopped (running, or the control loop has not run yet), flash \
+         not written\r\n"
     );
     assert!(b.store.saved.is_none());
     // Nothing that takes seconds (the exact solve) or changes parameters while moving: the
@@ -886,8 +970,15 @@ fn calibrate_apply_save_golden() {
     assert_eq!(b.robot.geometry, Some(applied.active));
     b.send("set d_left 0.151");
     let saved = b.store.saved.clone();
+    // A change not saved is not discarded without a yes.
     assert_eq!(
         b.send("reset-params"),
+        "err 25: reset-params discards changes not saved: type reset-params yes to do it (save \
+         first to keep them)\r\n"
+    );
+    assert_eq!(b.session.settings().nominal.diameter_left_m, 0.151);
+    assert_eq!(
+        b.send("reset-params yes"),
         "ok parameters reset to defaults (not saved; save to keep)\r\n"
     );
     assert_eq!(b.session.settings(), &Settings::default());
@@ -909,11 +1000,12 @@ fn next_alternates_and_completes_the_plan() {
         b.robot.finish(0.0, 0.0);
         let dir = if k % 2 == 1 { "cw" } else { "ccw" };
         assert_eq!(
-            b.send("measure 0.001 0"),
+            b.send("measure 0.001m 0m"),
             format!(
                 "event run {k} finished: square {dir} L=2.000 m odometry end x=+0.000000 \
                  y=+0.000000 theta_deg=+0.0000; measure it\r\n\
-                 ok run {k} square {dir} L=2.000 m measured: error vs odometry dx=+0.001000 \
+                 ok run {k} square {dir} L=2.000 m measured: read x=+1.000 mm y=+0.000 mm; error \
+                 vs odometry dx=+0.001000 \
                  dy=+0.000000 m\r\n"
             )
         );
@@ -936,7 +1028,7 @@ fn next_alternates_and_completes_the_plan() {
     b.send("drop 2");
     assert!(
         b.send("next")
-            .ends_with("ok run 4 started: square ccw L=2.000 m\r\n")
+            .ends_with("ok run 5 started: square ccw L=2.000 m\r\n")
     );
 }
 
@@ -981,7 +1073,7 @@ fn store_full_refuses_new_runs() {
     for _ in 0..MAX_RUNS {
         b.send("line 0.5");
         b.robot.finish(0.5, 0.0);
-        assert!(b.send("measure 0.5 0").contains("\r\nok run "));
+        assert!(b.send("measure 0.5m 0m").contains("\r\nok run "));
     }
     let reply = b.send("line 0.5");
     assert!(
@@ -1108,7 +1200,11 @@ fn run_store_ram() {
     // The session is the store, where each run is stored in flash, plus settings (with the
     // speed-loop tuning: 40 B) and the stream state: under 600 B more.
     let ids = MAX_RUNS * size_of::<Option<StoredRun>>();
-    assert!(session < MAX_RUNS * record + ids + 600, "{session}");
+    let numbers = MAX_RUNS * size_of::<u16>();
+    assert!(
+        session < MAX_RUNS * record + ids + numbers + 600,
+        "{session}"
+    );
 }
 
 /// The wiring check: the operator's instructions, and the verdicts and proposals from the
@@ -1207,7 +1303,12 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     assert_eq!(b.store.runs, b.session.runs());
     // A flash failure is reported once, and the next change tries again.
     b.store.fail_runs = true;
-    let reply = b.send("measure #1 0.022 0.011");
+    // The run left keeps its number: run 2 (a dropped run leaves a gap).
+    assert!(
+        b.send("measure #1 0.022m 0.011m")
+            .starts_with("err 14: no run 1 (1 stored)")
+    );
+    let reply = b.send("measure #2 0.022m 0.011m");
     assert!(
         reply.ends_with("\r\nevent runs not stored: flash error: flash driver error\r\n"),
         "{reply}"
@@ -1215,7 +1316,7 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     b.store.fail_runs = false;
     assert_eq!(b.poll(0), "");
     assert!(!b.session.runs_stored());
-    assert!(b.send("measure #1 0.023 0.011").starts_with("ok run 1"));
+    assert!(b.send("measure #2 0.023m 0.011m").starts_with("ok run 2"));
     assert!(b.session.runs_stored());
     assert_eq!(b.store.runs, b.session.runs());
     // A reset: a new session over the same storage resumes with the runs and measurements.
@@ -1231,7 +1332,9 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
     resumed.restore_runs(&mut b.store, &mut out).unwrap();
     assert_eq!(out, "event runs restored: 1 run, 1 measured\r\n");
     b.session = resumed;
-    assert_eq!(b.send("runs"), listing);
+    // A reboot starts a new session: the restored runs are numbered from 1 again.
+    assert!(listing.starts_with("  run 2 square ccw"), "{listing}");
+    assert_eq!(b.send("runs"), listing.replacen("  run 2 ", "  run 1 ", 1));
     // `drop all` asks first.
     assert_eq!(
         b.send("drop all"),
@@ -1307,7 +1410,7 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
 
     assert_eq!(
         b.send("identify floor"),
-        "ok identify floor: robot on the floor with 1 m free ahead and behind (it stops beyond 1 m); both wheels; a slow probe, then steps to 25/50/75 % of max_speed 0.30 m/s forward and backward, about 7 s\r\n"
+        "ok identify floor: robot on the floor with 1 m free ahead and behind (it stays within 1 m, with lower steps if that needs them); both wheels; a slow probe, then steps to 25/50/75 % of max_speed 0.30 m/s forward and backward, about 7 s\r\n"
     );
     b.robot
         .check_reports

@@ -78,3 +78,56 @@ fn garbage_bursts_give_defaults_and_the_next_save_works() {
         });
     }
 }
+
+/// The newest record has a valid checksum but does not validate (a value out of range, as
+/// another firmware could have written it): boot loads the valid record before it, says why
+/// the newest was not used (in the boot line too), and the next save becomes the newest.
+#[test]
+fn load_falls_back_to_the_older_valid_record() {
+    use odocal::session::write_boot_event;
+    use odocal::storage::{LoadWarning, PARAM_DATA_MAX, params};
+    use storage_support::BOARD_PARAMS;
+
+    let mut flash = Box::new(BoardFlash::default());
+    let older = calibrated(1);
+    board_store(&mut *flash)
+        .save_blocking(&older, true)
+        .unwrap();
+    // A record whose motion limit is out of range, appended as the newest slot (checksum ok).
+    let mut bad = calibrated(2);
+    bad.motion.max_speed_mps = 99.0;
+    let mut buf = vec![0u8; 2048];
+    let len = bad.encode(&mut buf[params::HEADER..]).unwrap();
+    embassy_futures::block_on(params::append(
+        &mut *flash,
+        &BOARD_PARAMS,
+        &mut buf,
+        len,
+        PARAM_DATA_MAX,
+    ))
+    .unwrap();
+
+    let mut store = board_store(&mut *flash);
+    let loaded = store.load_blocking();
+    assert_eq!(loaded.record, older);
+    assert_eq!(loaded.warning, None);
+    assert!(
+        matches!(loaded.older, Some(LoadWarning::Invalid(_))),
+        "{loaded:?}"
+    );
+    let mut line = String::new();
+    write_boot_event(&mut line, &loaded, &[], Some("power-on")).unwrap();
+    assert_eq!(
+        line,
+        "event boot: parameters loaded (previous record; newest: stored parameters invalid: \
+         max speed must be within 0.001..5 m/s), reset: power-on\r\n"
+    );
+
+    let next = calibrated(3);
+    store.save_blocking(&next, true).unwrap();
+    let loaded = store.load_blocking();
+    assert_eq!(
+        (loaded.record, loaded.warning, loaded.older),
+        (next, None, None)
+    );
+}

@@ -227,7 +227,7 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
     assert_eq!(loaded.record, ParamRecord::DEFAULT);
     assert_eq!(loaded.warning, Some(LoadWarning::FlashTooSmall(too_small)));
     let mut boot = String::new();
-    write_boot_event(&mut boot, loaded.warning.as_ref(), Some("power-on")).unwrap();
+    write_boot_event(&mut boot, &loaded, &[], Some("power-on")).unwrap();
     assert_eq!(
         boot,
         "event boot: default parameters (no storage: this part has 512 KiB of flash, the \

@@ -16,19 +16,45 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use odocal::calibration::{synth, wrap_angle};
+use odocal::calibration::synth;
 use odocal::kinematics::geometry::Geometry;
-use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::token;
 use odocal::session::Calibrator;
 use odocal::session::library::LibraryCalibrator;
 use serde_json::{Value, json};
 
 use crate::log::{LogContents, calibration_of, nominal_of, param};
 
-/// Variance written for the pose components a planar robot's odometry does not observe (z, roll,
-/// pitch), as ROS configurations of `diff_drive_controller` commonly do.
-const UNOBSERVED_VARIANCE: f64 = 1.0e6;
+use crate::covariance::{self, PoseCovariance, UNOBSERVED_VARIANCE, Uncertainty};
+
+/// What the ROS 2 parameter file is for: the controller's name (its top key), the wheel
+/// joints, and the inputs of the covariance model that are not in the log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Target {
+    /// The controller's name in the controller manager's configuration.
+    pub controller: String,
+    /// The left wheel's joint.
+    pub left_wheel: String,
+    /// The right wheel's joint.
+    pub right_wheel: String,
+    /// Random travel error of each wheel after one metre (1σ, m).
+    pub slip_m: f64,
+    /// The controller's update rate, Hz (the twist's averaging period).
+    pub rate_hz: f64,
+}
+
+impl Default for Target {
+    fn default() -> Self {
+        Target {
+            controller: "diff_drive_controller".into(),
+            left_wheel: "left_wheel_joint".into(),
+            right_wheel: "right_wheel_joint".into(),
+            slip_m: covariance::DEFAULT_SLIP_M,
+            rate_hz: 100.0,
+        }
+    }
+}
 
 /// The output formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -58,6 +84,8 @@ pub struct Export {
     pub source: String,
     /// The square side the pose covariance refers to (the board's `square_side`).
     pub side_m: f64,
+    /// The board's `max_accel` (the speed loop's limit, for the twist covariance), m/s².
+    pub max_accel: f64,
     /// The runs of a session log.
     pub runs: Vec<RunRecord>,
     /// The last `calibrate` table in the log (its lines).
@@ -109,7 +137,7 @@ fn scan<'a>(lines: impl Iterator<Item = &'a str>) -> Replies {
                 }
                 _ => {}
             }
-        } else if !(l.starts_with("event ") || l.starts_with("stream ")) {
+        } else if !(l.starts_with(token::EVENT) || l.starts_with(token::STREAM)) {
             current = None;
         }
     }
@@ -124,7 +152,7 @@ fn number_after(text: &str, key: &str) -> Option<f64> {
 }
 
 /// The `active d_right=… d_left=… wheelbase=… m` line of a `params` reply.
-fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geometry> {
+pub(crate) fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geometry> {
     let line = params.iter().find_map(|l| l.strip_prefix("active "))?;
     Some(Geometry {
         diameter_right_m: number_after(line, "d_right")?,
@@ -189,6 +217,35 @@ impl Export {
             .lines()
             .find(|l| !l.trim().is_empty())
             .is_some_and(|l| serde_json::from_str::<Value>(l).is_ok_and(|v| v["kind"].is_string()));
+        let stale = if session_log {
+            let entries: Vec<(usize, String, Option<bool>)> = text
+                .lines()
+                .enumerate()
+                .filter_map(|(i, l)| {
+                    let v = serde_json::from_str::<Value>(l).ok()?;
+                    let tx = match v["kind"].as_str()? {
+                        "tx" => true,
+                        "rx" => false,
+                        _ => return None,
+                    };
+                    Some((i + 1, v["line"].as_str()?.to_string(), Some(tx)))
+                })
+                .collect();
+            crate::stale::stale_params(entries.iter().map(|(n, l, t)| (*n, l.as_str(), *t)))
+        } else {
+            crate::stale::stale_params(text.lines().enumerate().map(|(i, l)| (i + 1, l, None)))
+        };
+        if let Some(s) = stale {
+            return Err(format!(
+                "{}:{}: `{}` came after the board's last `params` reply (line {}) and changed \
+                 its geometry: the board no longer holds the calibration that reply shows; type \
+                 `params` on the board and export a log that ends with its reply",
+                path.display(),
+                s.line,
+                s.command,
+                s.params_line
+            ));
+        }
         let (replies, runs, tables) = if session_log {
             let c = LogContents::read(path)?;
             let rx: Vec<String> = text
@@ -233,6 +290,7 @@ impl Export {
             .or(replies.table)
             .unwrap_or_default();
         let side_m = param(&params, "square_side").unwrap_or(2.0);
+        let max_accel = param(&params, "max_accel").unwrap_or(0.3);
         let mut export = Export {
             nominal,
             applied: active,
@@ -246,6 +304,7 @@ impl Export {
             sd: None,
             source: "the board's `params` (active geometry, 9 decimals)".into(),
             side_m,
+            max_accel,
             runs,
             table,
         };
@@ -280,10 +339,10 @@ impl Export {
         0.25 * (self.nominal.diameter_right_m + self.nominal.diameter_left_m)
     }
 
-    /// Writes the export in `format`.
-    pub fn write(&self, format: Format, log: &Path) -> String {
+    /// Writes the export in `format` for `target`.
+    pub fn write_for(&self, format: Format, log: &Path, target: &Target) -> String {
         match format {
-            Format::Ros2 => self.ros2(log),
+            Format::Ros2 => self.ros2(log, target),
             Format::Urdf => self.urdf(log),
             Format::Json => self.json(log).to_string() + "\n",
         }
@@ -305,9 +364,15 @@ impl Export {
         }
     }
 
-    fn ros2(&self, log: &Path) -> String {
+    fn ros2(&self, log: &Path, t: &Target) -> String {
         let g = &self.applied;
         let r = self.wheel_radius();
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|v| yaml_float(*v))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
         let mut s = String::new();
         let _ = writeln!(s, "# {}", self.origin(log));
         let _ = writeln!(s, "# Digits: {}.", self.source);
@@ -317,12 +382,9 @@ impl Export {
              # D_L = 2 * wheel_radius * left_wheel_radius_multiplier = {} m, b = wheel_separation.",
             g.diameter_right_m, g.diameter_left_m
         );
-        let _ = writeln!(
-            s,
-            "# Rename the top key to your controller's name and add left_wheel_names and \
-             right_wheel_names."
-        );
-        s.push_str("diff_drive_controller:\n  ros__parameters:\n");
+        let _ = writeln!(s, "{}:\n  ros__parameters:", t.controller);
+        let _ = writeln!(s, "    left_wheel_names: [\"{}\"]", t.left_wheel);
+        let _ = writeln!(s, "    right_wheel_names: [\"{}\"]", t.right_wheel);
         let _ = writeln!(s, "    wheel_separation: {}", yaml_float(g.wheelbase_m));
         let _ = writeln!(s, "    wheel_radius: {}", yaml_float(r));
         let _ = writeln!(s, "    wheel_separation_multiplier: 1.0");
@@ -336,34 +398,29 @@ impl Export {
             "    right_wheel_radius_multiplier: {}",
             yaml_float(g.diameter_right_m / (2.0 * r))
         );
-        match self.pose_covariance() {
-            Some(c) => {
-                let _ = writeln!(
-                    s,
-                    "    # Variances of x, y (m^2), z, roll, pitch (unobserved) and yaw (rad^2): \
-                     the end pose's spread after one {side} m square from the calibration's \
-                     1-sigma (sd_E_d={:.3e}, sd_E_b={:.3e}); see docs/operator.md.",
-                    self.sd.map_or(0.0, |v| v.0),
-                    self.sd.map_or(0.0, |v| v.1),
-                    side = self.side_m
-                );
-                let _ = writeln!(
-                    s,
-                    "    pose_covariance_diagonal: [{}]",
-                    c.iter()
-                        .map(|v| yaml_float(*v))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
-            }
-            None => {
-                let _ = writeln!(
-                    s,
-                    "    # pose_covariance_diagonal: not written: the log has no 1-sigma of the \
-                     calibration (no `calibrate` table, no runs)."
-                );
-            }
-        }
+        let (sd, sd_source) = self.relative_sd();
+        let slip = t.slip_m * t.slip_m;
+        let pose = self.pose_covariance(slip);
+        let _ = writeln!(
+            s,
+            "    # Variances of x, y (m^2), z, roll, pitch (unobserved) and yaw (rad^2): the end \
+             pose's spread after one {side} m square, from {sd_source} (relative sd_E_d={:.3e}, \
+             sd_E_b={:.3e}) and {slip_mm} mm of slip per wheel per metre; docs/operator.md.",
+            sd.0,
+            sd.1,
+            side = self.side_m,
+            slip_mm = 1e3 * t.slip_m
+        );
+        let _ = writeln!(s, "    pose_covariance_diagonal: [{}]", list(&pose));
+        let twist = self.twist_covariance(t.rate_hz);
+        let _ = writeln!(
+            s,
+            "    # Variances of vx (m^2/s^2), vy, vz, wx, wy (unobserved) and wz (rad^2/s^2): \
+             encoder counts ({} counts/rev) and the speed loop's max_accel ({} m/s^2) over one \
+             {} Hz update.",
+            self.nominal.counts_per_rev, self.max_accel, t.rate_hz
+        );
+        let _ = writeln!(s, "    twist_covariance_diagonal: [{}]", list(&twist));
         s
     }
 
@@ -438,56 +495,89 @@ impl Export {
                 "wheelbase_m": g.wheelbase_m, "counts_per_rev": g.counts_per_rev },
             "factors": { "e_d": self.factors.0, "e_b": self.factors.1, "e_s": self.factors.2 },
             "sd": self.sd.map(|(d, b)| json!({ "e_d": d, "e_b": b })),
-            "pose_covariance_diagonal": self.pose_covariance(),
+            "pose_covariance_diagonal": self.pose_covariance(
+                Target::default().slip_m * Target::default().slip_m
+            ),
+            "twist_covariance_diagonal": self.twist_covariance(Target::default().rate_hz),
             "covariance_square_side_m": self.side_m,
             "table": self.table,
             "runs": runs,
         })
     }
 
-    /// The diagonal of the pose covariance `[x, y, z, roll, pitch, yaw]` a robot stack may
-    /// publish with this calibration: the variance of the end pose of one square of the plan's
-    /// side L (CW and CCW, the larger of the two), when E_d and E_b are off by their 1σ. Each
-    /// factor is moved by ±1σ alone; the square's ticks, commanded with the applied geometry,
-    /// are integrated with the moved geometry by the library's exact-arc model; half the
-    /// difference of the two end poses is that factor's 1σ effect, and the two are added as
-    /// independent variances. z, roll and pitch are unobserved ([`UNOBSERVED_VARIANCE`]).
-    /// `None` without a 1σ.
-    pub fn pose_covariance(&self) -> Option<[f64; 6]> {
-        let (sd_d, sd_b) = self.sd?;
+    /// The relative 1σ of E_d and E_b for the covariance model, and where it comes from: the
+    /// log's, or the stated defaults ([`covariance::DEFAULT_SD_CALIBRATED`], or
+    /// [`covariance::DEFAULT_SD_NOMINAL`] for an uncalibrated board).
+    pub fn relative_sd(&self) -> ((f64, f64), &'static str) {
+        match (self.sd, &self.method) {
+            (Some((d, b)), _) => (
+                (d / self.factors.0, b / self.factors.1),
+                "the calibration's 1-sigma",
+            ),
+            (None, Some(_)) => (
+                covariance::DEFAULT_SD_CALIBRATED,
+                "default 1-sigma (the log has none)",
+            ),
+            (None, None) => (
+                covariance::DEFAULT_SD_NOMINAL,
+                "default 1-sigma of a nominal geometry",
+            ),
+        }
+    }
+
+    /// The diagonal of the pose covariance `[x, y, z, roll, pitch, yaw]` for a robot stack
+    /// whose covariance is a constant: the [`covariance`] model's at the end of one square of
+    /// the plan's side L (CW and CCW, the larger of the two), driven with the applied geometry,
+    /// with the relative 1σ of [`Export::relative_sd`] and `slip_m2_per_m` of slip.
+    pub fn pose_covariance(&self, slip_m2_per_m: f64) -> [f64; 6] {
         let g = &self.applied;
-        let (e_d, e_b) = (g.diameter_ratio(), g.wheelbase_m / self.nominal.wheelbase_m);
-        let end = |knots: &[odocal::kinematics::encoder::WheelTicks], d: f64, b: f64| -> PoseF64 {
-            let moved = g.corrected(1.0 + d / e_d, 1.0 + b / e_b, 1.0);
-            ArcModel::from_geometry(&moved).integrate(PoseF64::default(), knots)
+        let (sd_d, sd_b) = self.relative_sd().0;
+        let u = Uncertainty {
+            sd_d,
+            sd_b,
+            slip_m2_per_m,
         };
+        let per_tick = |d: f64| std::f64::consts::PI * d / f64::from(g.counts_per_rev);
         let mut var = [0.0f64; 3];
         for direction in [Direction::Cw, Direction::Ccw] {
             let knots = synth::square_knots(g, direction, self.side_m);
-            let mut v = [0.0f64; 3];
-            for (d, b) in [(sd_d, 0.0), (0.0, sd_b)] {
-                let (p, m) = (end(&knots, d, b), end(&knots, -d, -b));
-                let half = [
-                    0.5 * (p.x_m - m.x_m),
-                    0.5 * (p.y_m - m.y_m),
-                    0.5 * wrap_angle(p.theta_rad - m.theta_rad),
-                ];
-                for k in 0..3 {
-                    v[k] += half[k] * half[k];
+            let mut model = PoseCovariance::new(g.wheelbase_m, u);
+            for pair in knots.windows(2) {
+                let dr = (pair[1].right - pair[0].right) as f64 * per_tick(g.diameter_right_m);
+                let dl = (pair[1].left - pair[0].left) as f64 * per_tick(g.diameter_left_m);
+                const SUB: usize = 100;
+                for _ in 0..SUB {
+                    model.step(dr / SUB as f64, dl / SUB as f64);
                 }
             }
+            let c = model.xy_yaw();
             for k in 0..3 {
-                var[k] = var[k].max(v[k]);
+                var[k] = var[k].max(c[k][k]);
             }
         }
-        Some([
+        [
             var[0],
             var[1],
             UNOBSERVED_VARIANCE,
             UNOBSERVED_VARIANCE,
             UNOBSERVED_VARIANCE,
             var[2],
-        ])
+        ]
+    }
+
+    /// The diagonal of the twist covariance `[vx, vy, vz, wx, wy, wz]` of speeds averaged over
+    /// one update at `rate_hz` ([`covariance::twist_variance`]).
+    pub fn twist_covariance(&self, rate_hz: f64) -> [f64; 6] {
+        let g = &self.applied;
+        let (v, w) = covariance::twist_variance(
+            0.5 * (g.diameter_right_m + g.diameter_left_m),
+            g.counts_per_rev,
+            g.wheelbase_m,
+            1.0 / rate_hz,
+            self.max_accel,
+        );
+        let c = covariance::twist_ros(v, w);
+        [c[0], c[7], c[14], c[21], c[28], c[35]]
     }
 }
 
@@ -511,9 +601,9 @@ fn last_logged_params(text: &str) -> Option<Vec<String>> {
 ///
 /// # Errors
 /// As text.
-pub fn run(log: &Path, format: Format, out: Option<&Path>) -> Result<(), String> {
+pub fn run(log: &Path, format: Format, target: &Target, out: Option<&Path>) -> Result<(), String> {
     let export = Export::read(log)?;
-    let text = export.write(format, log);
+    let text = export.write_for(format, log, target);
     match out {
         Some(p) => {
             std::fs::write(p, text).map_err(|e| format!("{}: {e}", p.display()))?;
@@ -558,14 +648,15 @@ mod tests {
         assert_eq!(e.side_m, 1.0);
         // No calibrate table in the capture: no 1σ, no covariance.
         assert_eq!(e.sd, None);
-        let yaml = e.write(Format::Ros2, &log);
+        let yaml = e.write_for(Format::Ros2, &log, &Target::default());
         assert!(yaml.contains("    wheel_separation: 0.38885\n"), "{yaml}");
         assert!(yaml.contains("    wheel_radius: 0.075\n"), "{yaml}");
         assert!(
-            yaml.contains("# pose_covariance_diagonal: not written"),
+            yaml.contains("default 1-sigma (the log has none)"),
             "{yaml}"
         );
-        let urdf = e.write(Format::Urdf, &log);
+        assert!(yaml.contains("    pose_covariance_diagonal: ["), "{yaml}");
+        let urdf = e.write_for(Format::Urdf, &log, &Target::default());
         assert!(urdf.contains("<origin xyz=\"0 0.194425 0\""), "{urdf}");
         assert!(urdf.contains("radius=\"0.074812719\""), "{urdf}");
         let _ = std::fs::remove_dir_all(&dir);
@@ -585,8 +676,43 @@ mod tests {
         assert_eq!(yaml_float(1e20), "1.0e+20");
     }
 
+    /// The end pose's spread of one square when E_d and E_b move by ±1σ each, from the
+    /// library's exact-arc model (finite differences): the reference the covariance model's
+    /// first-order propagation must meet.
+    fn exact_arc_variance(e: &Export) -> [f64; 3] {
+        use odocal::calibration::wrap_angle;
+        use odocal::kinematics::reference::{ArcModel, PoseF64};
+        let (sd_d, sd_b) = e.sd.unwrap();
+        let g = &e.applied;
+        let (e_d, e_b) = (g.diameter_ratio(), g.wheelbase_m / e.nominal.wheelbase_m);
+        let end = |knots: &[odocal::kinematics::encoder::WheelTicks], d: f64, b: f64| {
+            let moved = g.corrected(1.0 + d / e_d, 1.0 + b / e_b, 1.0);
+            ArcModel::from_geometry(&moved).integrate(PoseF64::default(), knots)
+        };
+        let mut var = [0.0f64; 3];
+        for direction in [Direction::Cw, Direction::Ccw] {
+            let knots = synth::square_knots(g, direction, e.side_m);
+            let mut v = [0.0f64; 3];
+            for (d, b) in [(sd_d, 0.0), (0.0, sd_b)] {
+                let (p, m) = (end(&knots, d, b), end(&knots, -d, -b));
+                let half = [
+                    0.5 * (p.x_m - m.x_m),
+                    0.5 * (p.y_m - m.y_m),
+                    0.5 * wrap_angle(p.theta_rad - m.theta_rad),
+                ];
+                for k in 0..3 {
+                    v[k] += half[k] * half[k];
+                }
+            }
+            for k in 0..3 {
+                var[k] = var[k].max(v[k]);
+            }
+        }
+        var
+    }
+
     #[test]
-    fn the_covariance_grows_with_the_uncertainty() {
+    fn the_covariance_model_meets_the_exact_arc_and_grows_with_slip() {
         let nominal = Geometry::PAPER_NOMINAL;
         let mut e = Export {
             nominal,
@@ -596,25 +722,37 @@ mod tests {
             sd: Some((1e-4, 2e-4)),
             source: String::new(),
             side_m: 2.0,
+            max_accel: 0.3,
             runs: Vec::new(),
             table: Vec::new(),
         };
-        let small = e.pose_covariance().unwrap();
-        e.sd = Some((2e-4, 4e-4));
-        let large = e.pose_covariance().unwrap();
-        for k in [0, 1, 5] {
-            assert!(small[k] > 0.0, "{small:?}");
-            // First order: twice the 1σ, four times the variance.
+        // Without slip: the calibration's 1σ through the exact-arc model, to 1 % (first order
+        // against finite differences of ±1σ).
+        let model = e.pose_covariance(0.0);
+        let exact = exact_arc_variance(&e);
+        for (k, m) in [(0, 0), (1, 1), (2, 5)] {
             assert!(
-                (large[k] / small[k] - 4.0).abs() < 0.01,
-                "{small:?} {large:?}"
+                (model[m] / exact[k] - 1.0).abs() < 0.01,
+                "{model:?} vs {exact:?}"
             );
         }
-        assert_eq!(small[2], UNOBSERVED_VARIANCE);
-        // E_b alone: the four 90° turns' heading is off by 2π·sd_E_b/E_b.
-        e.sd = Some((0.0, 2e-4));
-        let turns = e.pose_covariance().unwrap();
-        let expected = 2.0 * std::f64::consts::PI * 2e-4 / 1.01;
-        assert!((turns[5].sqrt() / expected - 1.0).abs() < 0.01, "{turns:?}");
+        assert_eq!(model[2], UNOBSERVED_VARIANCE);
+        // Twice the 1σ, four times the variance.
+        e.sd = Some((2e-4, 4e-4));
+        let large = e.pose_covariance(0.0);
+        for k in [0, 1, 5] {
+            assert!((large[k] / model[k] - 4.0).abs() < 1e-9, "{large:?}");
+        }
+        // Slip adds to every observed variance.
+        let slipping = e.pose_covariance(4e-6);
+        for k in [0, 1, 5] {
+            assert!(slipping[k] > large[k], "{slipping:?}");
+        }
+        // The twist: nonzero, unobserved components large.
+        let t = e.twist_covariance(100.0);
+        assert!(
+            t[0] > 0.0 && t[5] > 0.0 && t[1] == UNOBSERVED_VARIANCE,
+            "{t:?}"
+        );
     }
 }

@@ -239,6 +239,16 @@ impl Link {
         self.write_raw(&[0x03])
     }
 
+    /// Sends one command line without waiting for its reply (the reply, when it comes, is
+    /// dropped like any other stray line).
+    ///
+    /// # Errors
+    /// A disconnect.
+    pub fn send_line(&mut self, line: &str) -> Result<(), LinkError> {
+        self.log.tx(line);
+        self.write_raw(format!("{line}\r\n").as_bytes())
+    }
+
     /// Receives one line within `timeout` (`None` if none came), logged.
     fn recv(&mut self, timeout: Duration) -> Result<Option<String>, LinkError> {
         if let Some(why) = &self.closed {

@@ -77,6 +77,14 @@ impl SessionLog {
         })
     }
 
+    /// A log that keeps nothing (a long-running bridge without `--log`).
+    pub fn discard() -> SessionLog {
+        SessionLog {
+            file: None,
+            path: PathBuf::new(),
+        }
+    }
+
     /// Appends one entry (`t` added); `durable` also waits for the disk.
     pub fn entry(&mut self, kind: &str, mut fields: Value, durable: bool) {
         if let Value::Object(m) = &mut fields {

@@ -13,11 +13,14 @@
 //! which `cargo console export LOG --format ros2|urdf|json [-o FILE]` turns into files a robot
 //! stack loads. An SVG of the runs is written next to the log.
 
+mod covariance;
 mod export;
 mod guide;
 mod link;
 mod log;
 mod plot;
+mod ros2;
+mod stale;
 mod ui;
 
 use std::path::{Path, PathBuf};
@@ -84,7 +87,26 @@ enum Cmd {
         /// Write to this file instead of stdout.
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
+        /// ros2: the controller's name (the file's top key).
+        #[arg(long, default_value = "diff_drive_controller")]
+        controller: String,
+        /// ros2: the left wheel's joint.
+        #[arg(long, default_value = "left_wheel_joint")]
+        left_wheel: String,
+        /// ros2: the right wheel's joint.
+        #[arg(long, default_value = "right_wheel_joint")]
+        right_wheel: String,
+        /// ros2: random travel error of each wheel after one metre (1σ, m), in the pose
+        /// covariance.
+        #[arg(long, default_value_t = covariance::DEFAULT_SLIP_M)]
+        slip: f64,
+        /// ros2: the controller's update rate, Hz (the twist covariance's averaging period).
+        #[arg(long, default_value_t = 100.0)]
+        rate_hz: f64,
     },
+    /// Bridge the board to a ROS 2 network: odometry, tf, joint states and diagnostics out,
+    /// cmd_vel in (docs/operator.md, "Using odocal on a ROS 2 robot").
+    Ros2(ros2::Options),
     /// List candidate serial ports.
     Ports,
 }
@@ -121,7 +143,11 @@ fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
         nominal.wheelbase_m
     );
     let mut out = String::new();
-    write_calibration(&mut calibrator, &runs, &nominal, method, &mut out)
+    let numbered = odocal::session::Numbered {
+        runs: &runs,
+        numbers: &[],
+    };
+    write_calibration(&mut calibrator, numbered, &nominal, method, &mut out)
         .map_err(|e| e.to_string())?;
     print!("{}", out.replace("\r\n", "\n"));
     if out.lines().last().is_some_and(|l| l.starts_with("err ")) {
@@ -138,7 +164,27 @@ fn main() -> ExitCode {
             log,
             format,
             output,
-        }) => export::run(log, *format, output.as_deref()),
+            controller,
+            left_wheel,
+            right_wheel,
+            slip,
+            rate_hz,
+        }) => export::run(
+            log,
+            *format,
+            &export::Target {
+                controller: controller.clone(),
+                left_wheel: left_wheel.clone(),
+                right_wheel: right_wheel.clone(),
+                slip_m: *slip,
+                rate_hz: *rate_hz,
+            },
+            output.as_deref(),
+        ),
+        Some(Cmd::Ros2(opts)) => {
+            catch_ctrl_c();
+            ros2::run(opts)
+        }
         Some(Cmd::Ports) => {
             let ports = link::candidate_ports();
             if ports.is_empty() {

@@ -639,7 +639,7 @@ fn ctrl_c_stops_the_robot() {
 #[test]
 fn reset_during_a_run_drives_it_again() {
     let mut sim = Sim::start_with(&host_sim(), &[]);
-    let (mut tool, log) = tool_answering(&sim, "reset-during-run", "0.2\n1\n");
+    let (mut tool, log) = tool_answering(&sim, "reset-during-run", "0.2m\n1\n");
     while let Some(l) = tool.next() {
         if l.starts_with("  progress") {
             break;
@@ -680,7 +680,7 @@ fn reset_during_a_run_drives_it_again() {
 #[test]
 fn reset_while_waiting_for_the_button_asks_again() {
     let mut sim = Sim::start_with(&host_sim(), &[]);
-    let (mut tool, log) = tool_answering(&sim, "reset-waiting-for-button", "0.2\n1\nb\n");
+    let (mut tool, log) = tool_answering(&sim, "reset-waiting-for-button", "0.2m\n1\nb\n");
     while let Some(l) = tool.next() {
         if l == "  waiting for the button (short press)" {
             break;
@@ -714,7 +714,7 @@ fn reset_while_waiting_for_the_button_asks_again() {
 #[test]
 fn a_fault_is_shown_with_the_wheel_and_the_likely_cause() {
     let mut sim = Sim::start_with(&host_sim(), &["--wiring", "right-motor-reversed"]);
-    let (mut tool, _) = tool_answering(&sim, "fault", "0.2\n1\n");
+    let (mut tool, _) = tool_answering(&sim, "fault", "0.2m\n1\n");
     let mut measured = 0;
     assert!(!tool.converse(&sim, &mut measured, Some("  likely cause: ")));
     let _ = sim.child.kill();
@@ -912,7 +912,7 @@ fn export(log: &Path, format: &str, out: &Path) -> String {
 #[test]
 fn ros2_export() {
     let sim = Sim::start(&host_sim());
-    let (mut tool, log) = tool_answering(&sim, "export", "0.5\n1\n");
+    let (mut tool, log) = tool_answering(&sim, "export", "0.5m\n1\n");
     let mut measured = 0;
     tool.converse(&sim, &mut measured, None);
     let (ok, text) = tool.finish();
@@ -1031,6 +1031,61 @@ fn ros2_export() {
     assert_eq!(json["runs"].as_array().unwrap().len(), 2);
     assert!(json["sd"]["e_b"].as_f64().unwrap() >= 0.0);
     assert_eq!(json["method"], "exact");
+
+    // Drop-in: the controller's name, its wheels, and the twist covariance.
+    let named = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+        .arg("export")
+        .arg(&log)
+        .args(["--controller", "base_controller"])
+        .args([
+            "--left-wheel",
+            "wheel_l_joint",
+            "--right-wheel",
+            "wheel_r_joint",
+        ])
+        .output()
+        .unwrap();
+    assert!(named.status.success());
+    let yaml = String::from_utf8(named.stdout).unwrap();
+    assert!(
+        yaml.contains("base_controller:\n  ros__parameters:\n"),
+        "{yaml}"
+    );
+    let e = check(&yaml);
+    let value = |key: &str| &e.iter().find(|(k, _)| k == key).unwrap().1;
+    assert_eq!(value("left_wheel_names"), "[\"wheel_l_joint\"]");
+    assert_eq!(value("right_wheel_names"), "[\"wheel_r_joint\"]");
+    let twist: Vec<f64> = value("twist_covariance_diagonal")
+        .trim_matches(['[', ']'])
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    assert!(
+        twist.len() == 6 && twist[0] > 0.0 && twist[5] > 0.0,
+        "{yaml}"
+    );
+
+    // A log whose last `params` reply came before a `reset-params` the board accepted is
+    // refused, naming the line.
+    let mut stale = std::fs::read_to_string(&log).unwrap();
+    let line = stale.lines().count() + 1;
+    stale.push_str(
+        "{\"kind\":\"tx\",\"line\":\"reset-params\",\"t\":0}\n\
+         {\"kind\":\"rx\",\"line\":\"ok parameters reset to defaults (not saved; save to keep)\",\"t\":0}\n",
+    );
+    let stale_log = dir.join("stale.jsonl");
+    std::fs::write(&stale_log, stale).unwrap();
+    let refused = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
+        .arg("export")
+        .arg(&stale_log)
+        .output()
+        .unwrap();
+    let why = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "a stale log exported");
+    assert!(
+        why.contains(&format!("stale.jsonl:{line}: `reset-params` came after")),
+        "{why}"
+    );
 }
 
 /// The whole procedure on a factory-default board whose right motor is wired the other way
@@ -1038,8 +1093,8 @@ fn ros2_export() {
 /// takes the nominal geometry in the operator's units, runs the bring-up check (push, then
 /// wheels up) and applies its proposal on a yes, checks again (`wiring ok`), identifies the
 /// motors on the floor, drives 2 + 2 squares whose measurements are typed in millimetres (a
-/// bare millimetre value is refused by the board, which asks for the unit; `help` and an empty
-/// answer explain), applies and saves only on a typed yes, drives the check square and ends
+/// bare millimetre value is refused, the units named; `help` and an empty answer explain),
+/// applies and saves only on a typed yes, drives the check square and ends
 /// with the summary.
 #[test]
 fn factory_default_board_full_procedure() {
@@ -1072,10 +1127,10 @@ fn factory_default_board_full_procedure() {
                 let pose = sim.true_end(measured);
                 let w: Vec<f64> = pose
                     .split_whitespace()
-                    .map(|v| v.parse().unwrap())
+                    .map(|v| v.trim_end_matches(char::is_alphabetic).parse().unwrap())
                     .collect();
                 if !bare && measured == 1 {
-                    // Millimetres typed without their unit: the board asks for it.
+                    // Millimetres typed without their unit: refused, the units named.
                     bare = true;
                     format!("{:.1} {:.1}", w[0] * 1e3, w[1] * 1e3)
                 } else {
@@ -1085,7 +1140,7 @@ fn factory_default_board_full_procedure() {
                 }
             }
         } else if q.starts_with("Square side L") {
-            "1".into()
+            "1 m".into()
         } else if q.starts_with("Runs per direction") {
             "2".into()
         } else if q.starts_with("Apply exact") && !empty_apply {
@@ -1123,12 +1178,12 @@ fn factory_default_board_full_procedure() {
     ] {
         assert!(text.contains(expected), "no `{expected}` in:\n{text}");
     }
-    // The bare millimetres: the board's reply asks for the unit, naming mm and cm.
+    // The bare millimetres: refused before anything is sent, the units named.
     let refused = text
         .lines()
-        .find(|l| l.starts_with("  err ") && l.contains("mm") && l.contains("cm"))
+        .find(|l| l.contains("has no unit") && l.contains("mm, cm or m"))
         .unwrap_or_else(|| panic!("no unit question:\n{text}"));
-    assert!(refused.contains("unit"), "{refused}");
+    assert!(refused.starts_with("  `"), "{refused}");
     // Apply asked twice (the empty answer is no yes), save once.
     assert_eq!(text.matches("? Apply exact").count(), 2, "{text}");
     assert!(text.contains("  ok saved"), "{text}");

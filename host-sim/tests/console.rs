@@ -51,7 +51,7 @@ fn ctrl_c_and_esc_stop_the_motors_in_the_same_period() {
         }
         // The aborted run is not measured onto anything.
         assert!(
-            b.send("measure 0 0")
+            b.send("measure 0m 0m")
                 .starts_with("err 12: run 1 was aborted")
         );
     }
@@ -211,8 +211,9 @@ fn calibrate_names_a_swapped_run() {
     println!("{table}");
     assert!(
         table.contains(
-            "  check run 4: disagrees with the others by more than the robust scale (x/y \
-             swapped, a sign, a unit?); drop 4 or measure #4 x y, then calibrate again\r\n"
+            "  the runs disagree by more than the robust scale (x/y swapped, a sign, a unit?); \
+             without run 4 the others agree (each run left out in turn): check run 4, then \
+             measure #4 x y or drop 4, and calibrate again\r\n"
         ),
         "{table}"
     );

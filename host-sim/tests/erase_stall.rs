@@ -23,6 +23,8 @@ struct Dma {
     write: usize,
     half: bool,
     full: bool,
+    /// Bytes received since the cursor's last call (what the board's cycle counter bounds).
+    arrived: usize,
 }
 
 impl Dma {
@@ -32,10 +34,12 @@ impl Dma {
             write: 0,
             half: false,
             full: false,
+            arrived: 0,
         }
     }
 
     fn receive(&mut self, byte: u8) {
+        self.arrived += 1;
         self.buf[self.write] = byte;
         self.write = (self.write + 1) % RING;
         self.half |= self.write == RING / 2;
@@ -50,7 +54,8 @@ impl Dma {
                 std::mem::take(&mut self.half),
                 std::mem::take(&mut self.full),
             );
-            match cursor.next(self.write, half, full) {
+            let arrived = std::mem::take(&mut self.arrived);
+            match cursor.next(self.write, half, full, arrived) {
                 RingRead::Byte(i) => reads.push(RxRead::Byte(self.buf[i])),
                 RingRead::Empty => return reads,
                 RingRead::Overrun => reads.push(RxRead::Error),
@@ -135,4 +140,69 @@ fn a_robot_rolled_back_and_keys_typed_during_an_erase_stall_lose_nothing() {
     assert!((x - moved).abs() < 1e-6, "status x={x}, odometry {moved}");
     assert!(!reply.contains("missed_periods"), "{reply}");
     assert!(!reply.contains("pose=lost"), "{reply}");
+}
+
+/// 770 bytes of pasted commands arrive during an erase stall, with the ring's last read at
+/// index 255: the write position ends at index 1, 258 bytes on as far as it can tell, and that
+/// path crosses both the middle and the end, so the DMA's flags alone look like no lap.
+/// The bytes the line can have delivered meanwhile (770) hold a whole extra lap: an overrun.
+/// The line in progress is discarded and answered `err 21` once; no line spliced from two
+/// commands runs, and the next command is answered normally.
+#[test]
+fn a_lap_during_an_erase_stall_is_one_err_21_and_no_spliced_line() {
+    let mut flash = SimParamFlash::default();
+    let mut out = String::new();
+    let mut board =
+        Board::boot(sim_config(1.0, 1.0, 0.0, 1, 1000), &mut flash, &mut out).expect("boot");
+    let mut dma = Dma::new();
+    let mut cursor = RingCursor::<RING>::new();
+    // 255 bytes read before the stall: `pose` lines (5 bytes each) make 255.
+    for _ in 0..51 {
+        for &b in b"pose\r" {
+            dma.receive(b);
+        }
+    }
+    let reads = dma.drain(&mut cursor);
+    assert_eq!(reads.len(), 255);
+    let mut echo = String::new();
+    board.receive_reads(reads, &mut echo);
+    let mut reply = String::new();
+    board.process(&mut reply, false);
+    assert_eq!(reply.matches("ok x=").count(), 51, "{reply}");
+
+    // 110 × `status\r` (770 bytes) while the CPU is stalled.
+    for _ in 0..110 {
+        for &b in b"status\r" {
+            dma.receive(b);
+        }
+    }
+    let reads = dma.drain(&mut cursor);
+    assert_eq!(
+        reads.iter().filter(|r| matches!(r, RxRead::Error)).count(),
+        1,
+        "{reads:?}"
+    );
+    assert!(
+        !reads.iter().any(|r| matches!(r, RxRead::Byte(_))),
+        "{reads:?}"
+    );
+    board.receive_reads(reads, &mut echo);
+    for &b in b"status\r" {
+        dma.receive(b);
+    }
+    let reads = dma.drain(&mut cursor);
+    board.receive_reads(reads, &mut echo);
+    for &b in b"status\r" {
+        dma.receive(b);
+    }
+    let reads = dma.drain(&mut cursor);
+    board.receive_reads(reads, &mut echo);
+    let mut reply = String::new();
+    board.process(&mut reply, false);
+    assert_eq!(reply.matches("err 21").count(), 1, "{reply}");
+    assert_eq!(reply.matches("ok state=").count(), 1, "{reply}");
+    assert!(
+        !reply.contains("err 1:") && !reply.contains("unknown"),
+        "{reply}"
+    );
 }

@@ -29,37 +29,46 @@ fn measure_asks_for_the_unit() {
     let mut flash = SimParamFlash::erased();
     let mut b = boot(&mut flash);
     b.send("set square_side 1");
-    let log = drive(&mut b, "run cw");
+    let log = drive(&mut b, "run cw 1");
     assert!(log.contains("event run 1 finished"), "{log}");
-    // Millimetres typed as metres: 5.3 m off on a 1 m square; as millimetres and as
-    // centimetres it would fit, so the reply names both and converts neither.
-    let reply = b.send("measure -5.356 -5.326");
-    assert!(
-        reply.starts_with("err 22: run 1 square cw L=1.000 m: measured end "),
-        "{reply}"
-    );
-    assert!(
-        reply.ends_with(": write the unit (-5.356mm or -5.356cm)\r\n"),
-        "{reply}"
+    // Bare values: no unit is inferred (not metres, not the one that would fit); the reply
+    // names the units.
+    assert_eq!(
+        b.send("measure -0.5355 -0.5326"),
+        "err 26: <x> -0.5355 has no unit: write mm, cm or m after it (-0.5355mm), or declare \
+         one for this session: set measure_unit mm|cm|m\r\n"
     );
     assert_eq!(b.session.runs()[0].measured, None);
-    // With its unit written the value is read exactly.
-    let reply = b.send("measure -5.356mm -5.326mm");
+    // With the units written the values are read exactly, and echoed as read: -0.16 rad is
+    // -9.17 degrees.
+    let reply = b.send("measure -5.356mm -5.326mm -0.16rad");
     assert!(
-        reply.starts_with("ok run 1 square cw L=1.000 m measured: error vs odometry"),
+        reply.starts_with(
+            "ok run 1 square cw L=1.000 m measured: read x=-5.356 mm y=-5.326 mm theta=-9.17 deg; \
+             error vs odometry"
+        ),
         "{reply}"
     );
     let m = b.session.runs()[0].measured.expect("measured");
     assert_eq!((m.x_m, m.y_m), (-5.356e-3, -5.326e-3));
-    // Centimetres and degrees, radians: each value in the unit written after it.
-    let reply = b.send("measure #1 -0.5356cm 5.326mm 0.01rad");
+    assert!((m.theta_rad.expect("heading") + 0.16).abs() < 1e-15);
+    // A unit apart from its number, centimetres and degrees.
+    let reply = b.send("measure #1 -0.5356 cm 5.326 mm -9.1 deg");
     assert!(
         reply.starts_with("ok run 1 square cw L=1.000 m measured (replaced "),
         "{reply}"
     );
-    let m = b.session.runs()[0].measured.expect("measured");
-    assert_eq!((m.x_m, m.y_m), (-0.5356 * 0.01, 5.326e-3));
-    assert!((m.theta_rad.expect("heading") - 0.01).abs() < 1e-15);
+    assert!(
+        reply.contains(": read x=-5.356 mm y=+5.326 mm theta=-9.10 deg;"),
+        "{reply}"
+    );
+    // Centimetres typed as metres: far beyond the 1 m square's bound, kept only with yes.
+    let reply = b.send("measure #1 -0.5355m -0.5326m");
+    assert!(
+        reply.starts_with("err 22: run 1 square cw L=1.000 m: measured end "),
+        "{reply}"
+    );
+    assert!(reply.ends_with("or add yes to keep it\r\n"), "{reply}");
 }
 
 #[test]
@@ -77,7 +86,7 @@ fn measure_n_keeps_the_heading_and_plain_measure_names_its_run() {
     let theta = b.session.runs()[0].measured.unwrap().theta_rad;
     assert!(theta.is_some());
     // Re-entering x and y only keeps the heading measured before, and says so.
-    let reply = b.send("measure #1 0.001 0.002");
+    let reply = b.send("measure #1 1mm 2mm");
     assert!(reply.contains(" (heading kept: theta_deg="), "{reply}");
     assert_eq!(b.session.runs()[0].measured.unwrap().theta_rad, theta);
 }
@@ -90,7 +99,18 @@ fn next_run_waits_for_measurement() {
     assert!(log.contains("event run 1 finished"), "{log}");
     let refusal = "err 24: run 1 (square cw L=0.500 m) is not measured yet: measure it or drop \
                    it first (measure x y [theta], or drop 1)\r\n";
-    for start in ["run cw 0.5", "next", "line 0.5", "circle ccw 0.3"] {
+    // Nothing moves the robot from the end it is to be measured at.
+    for start in [
+        "run cw 0.5",
+        "next",
+        "line 0.5",
+        "circle ccw 0.3",
+        "drive 0.1 0",
+        "identify floor",
+        "identify lifted",
+        "bringup motors",
+        "bringup push",
+    ] {
         assert_eq!(b.send(start), refusal, "{start}");
     }
     // The button refuses too, and the console says why.
@@ -117,7 +137,7 @@ fn next_run_waits_for_measurement() {
     let mut out = String::new();
     b.press_button(false, &mut out);
     assert!(
-        out.starts_with("event button: ok run 2 started: square "),
+        out.starts_with("event button: ok run 3 started: square "),
         "{out}"
     );
     assert!(!b.session.take_press_refused());
@@ -156,6 +176,7 @@ fn reset_params_resets_ram_only() {
             b.step(&mut out);
         }
         assert_eq!(b.send("save"), "ok saved\r\n");
+        // Saved: nothing is discarded, no question.
         assert_eq!(
             b.send("reset-params"),
             "ok parameters reset to defaults (not saved; save to keep)\r\n"
@@ -173,6 +194,56 @@ fn reset_params_resets_ram_only() {
     let params = b.send("params");
     assert!(params.contains("  max_speed 0.500 m/s\r\n"), "{params}");
     assert!(params.contains("  motor_left_sign -1 "), "{params}");
+}
+
+#[test]
+fn reset_params_asks_before_discarding_a_change() {
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    b.send("set max_speed 0.5");
+    assert_eq!(
+        b.send("reset-params"),
+        "err 25: reset-params discards changes not saved: type reset-params yes to do it (save \
+         first to keep them)\r\n"
+    );
+    assert!(b.send("params").contains("  max_speed 0.500 m/s\r\n"));
+    assert_eq!(
+        b.send("reset-params yes"),
+        "ok parameters reset to defaults (not saved; save to keep)\r\n"
+    );
+    assert!(b.send("params").contains("  max_speed 0.300 m/s\r\n"));
+    // At the defaults there is nothing to discard.
+    assert_eq!(
+        b.send("reset-params"),
+        "ok parameters reset to defaults (not saved; save to keep)\r\n"
+    );
+}
+
+#[test]
+fn runs_keep_their_numbers() {
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    for dir in ["cw", "ccw"] {
+        drive(&mut b, &format!("run {dir} 0.5"));
+        let line = measure_line(&b).expect("a run was driven");
+        assert!(b.send(&line).starts_with("ok run "));
+    }
+    assert!(
+        b.send("drop 1")
+            .starts_with("ok dropped run 1: square cw L=0.500 m; 1 run left")
+    );
+    let runs = b.send("runs");
+    assert!(
+        runs.starts_with("  run 2 square ccw L=0.500 m odometry "),
+        "{runs}"
+    );
+    assert!(runs.ends_with("ok 1 run, 1 measured\r\n"), "{runs}");
+    assert_eq!(b.send("drop 1"), "err 14: no run 1 (1 stored)\r\n");
+    let log = drive(&mut b, "run cw 0.5");
+    assert!(
+        log.contains("ok run 3 started") && log.contains("event run 3 finished"),
+        "{log}"
+    );
 }
 
 #[test]

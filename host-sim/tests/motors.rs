@@ -159,3 +159,53 @@ fn identification_at_10_khz_finds_the_same_motors() {
         }
     }
 }
+
+/// `identify floor` with weak and strong motors (gain 0.5 and 2 m/s per duty) at `max_speed`
+/// 0.3, 1 and 2 m/s: it finishes (or stops with a clear `err`), the robot never goes farther
+/// than 1 m from its start (the travel bound, stopping distance included: measured on the true
+/// pose at every period) and no wheel goes faster than `max_speed` + 10 % (the routine's own
+/// check).
+#[test]
+fn identify_floor_stays_within_its_travel_at_every_max_speed() {
+    use host_sim::sim::board::Board;
+    use host_sim::sim::flash::SimParamFlash;
+    use host_sim::sim::robot::{MotorArgs, sim_config};
+    for gain in [0.5, 2.0] {
+        for max_speed in [0.3, 1.0, 2.0] {
+            let mut config = sim_config(1.0, 1.0, 0.0, 1, 1000);
+            MotorArgs {
+                motor_gain: vec![gain],
+                ..MotorArgs::default()
+            }
+            .apply(&mut config)
+            .expect("motor options");
+            let mut flash = SimParamFlash::erased();
+            let mut out = String::new();
+            let mut b = Board::boot(config, &mut flash, &mut out).expect("boot");
+            assert!(
+                b.send(&format!("set max_speed {max_speed}"))
+                    .starts_with("ok ")
+            );
+            let reply = b.send("identify floor");
+            assert!(reply.starts_with("ok identify floor"), "{reply}");
+            let start = b.sim.true_pose();
+            let (mut far, mut fast) = (0.0f64, 0.0f64);
+            let mut log = String::new();
+            for _ in 0..60_000 {
+                b.step(&mut log);
+                let p = b.sim.true_pose();
+                far = far.max((p.x_m - start.x_m).hypot(p.y_m - start.y_m));
+                let (vr, vl) = b.sim.wheel_speeds_mps();
+                fast = fast.max(vr.abs()).max(vl.abs());
+                if log.contains("event identify done") || log.contains("event identify err") {
+                    break;
+                }
+            }
+            let case = format!("gain {gain}, max_speed {max_speed}: {far:.3} m, {fast:.3} m/s");
+            assert!(log.contains("event identify done"), "{case}: {log}");
+            assert!(far <= 1.0, "{case}");
+            assert!(fast <= 1.1 * max_speed, "{case}");
+            eprintln!("{case}");
+        }
+    }
+}

@@ -134,3 +134,112 @@ fn reset_params_brings_every_value_back_in_params_the_controller_and_flash() {
     }
     assert_controller_follows_settings(&board, "after reset-params, save and reboot");
 }
+
+/// A stored record goes through the rules `set` applies: after a reboot the controller's
+/// encoder-glitch limit is derived from the stored speed limit (not the default one), and a
+/// stored speed the encoders cannot count is refused at boot, named with its value in the boot
+/// line, and replaced by its default while every other stored value is kept.
+#[test]
+fn stored_limits_are_rederived_at_boot() {
+    let mut flash = SimParamFlash::erased();
+    // 2,048-count encoders on 100 mm wheels, pivoting at 8 rad/s on a 1 m wheelbase: 4 m/s at
+    // the wheels, 4 / (π·0.1 m) · 2,048 counts / 1 kHz, +50 % = 40 counts per period (the
+    // default limits' 2 m/s floor gives 20).
+    let after_set = {
+        let mut board = boot(&mut flash);
+        for cmd in [
+            "set d_right 0.1",
+            "set d_left 0.1",
+            "set counts_per_rev 2048",
+            "set wheelbase 1",
+            "set max_turn_rate 8",
+        ] {
+            let reply = board.send(cmd);
+            assert!(reply.starts_with("ok "), "{cmd}: {reply}");
+        }
+        save(&mut board);
+        let c = board.controller.config();
+        (c.right_encoder.max_step, c.left_encoder.max_step)
+    };
+    assert_eq!(after_set, (40, 40));
+    let board = boot(&mut flash);
+    let c = board.controller.config();
+    assert_eq!(
+        (c.right_encoder.max_step, c.left_encoder.max_step),
+        after_set
+    );
+    drop(board);
+
+    // 3 m/s on 100 mm wheels with 200,000 counts per revolution: 1.9 M counts/s, beyond the
+    // 1 M counts/s the encoder inputs follow (1.57 m/s). `set` refuses it; a stored record
+    // that holds it (written by other firmware, or before the rule) is refused at boot.
+    let mut stored = Settings::default();
+    stored.nominal.diameter_right_m = 0.1;
+    stored.nominal.diameter_left_m = 0.1;
+    stored.active = stored.nominal;
+    stored.motion.max_speed_mps = 3.0;
+    stored.motion.max_accel_mps2 = 0.5;
+    flash
+        .store()
+        .save_blocking(&stored, true)
+        .expect("store the record");
+    let mut out = String::new();
+    let mut board =
+        Board::boot_at_stored_rate(sim_config(1.0, 1.0, 0.0, 1, 1000), &mut flash, &mut out)
+            .expect("boot");
+    assert!(
+        out.contains(
+            "max_speed 3 refused (the wheels would turn faster than the encoders can count"
+        ) && out.contains("), default used"),
+        "{out}"
+    );
+    let c = board.controller.config();
+    assert_eq!(
+        c.limits.max_speed_mps,
+        Settings::default().motion.max_speed_mps
+    );
+    assert_eq!(
+        c.limits.max_accel_mps2, 0.5,
+        "the other stored values are kept"
+    );
+    assert_eq!(c.geometry.diameter_right_m, 0.1);
+    assert!(params_line(&mut board, ParamName::MaxSpeed).contains("0.300"));
+    assert!(params_line(&mut board, ParamName::MaxAccel).contains("0.500"));
+    let reply = board.send("set max_speed 2");
+    assert!(
+        reply.contains("faster than the encoders can count"),
+        "{reply}"
+    );
+}
+
+/// `save` writes the parameter region only: the run region (its index and every run item)
+/// keeps every byte, however many saves there are (no wear for nothing).
+#[test]
+fn parameter_save_leaves_the_run_region_alone() {
+    use host_sim::sim::flash::SIM_RUNS;
+    let run_region = |b: &mut Board| -> Vec<Option<u8>> {
+        let flash = b.store.flash();
+        SIM_RUNS.map(|i| flash.byte(i as usize)).collect()
+    };
+    let mut flash = SimParamFlash::erased();
+    let mut b = boot(&mut flash);
+    let mut out = b.send("line 0.2");
+    assert!(out.starts_with("ok run "), "{out}");
+    assert!(b.run_until_rest(60_000, &mut out) < 60_000, "{out}");
+    assert!(out.contains("event run 1 finished"), "{out}");
+    let before = run_region(&mut b);
+    assert!(before.iter().any(|&x| x != Some(0xFF)), "the run is stored");
+    for side in ["1.5", "1.6"] {
+        assert!(
+            b.send(&format!("set square_side {side}"))
+                .starts_with("ok ")
+        );
+        assert!(save(&mut b).starts_with("ok "));
+        let mut out = String::new();
+        b.run_until_rest(200, &mut out);
+    }
+    assert!(
+        run_region(&mut b) == before,
+        "a parameter save wrote the run region"
+    );
+}

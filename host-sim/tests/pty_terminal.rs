@@ -4,8 +4,8 @@
 //! `tmux capture-pane`. Needs `tmux` and `picocom` (`.ci/run` installs them).
 //!
 //! Sequence: `help`; a square run stopped with Ctrl-C (reported aborted, the pose frozen);
-//! `stop` typed after an arrow key; a square run to the end; `measure` in millimetres refused
-//! with the unit hint; the correct `measure`; `params`.
+//! `stop` typed after an arrow key; a square run to the end; `measure` in bare millimetres refused
+//! naming the units; the correct `measure`; `params`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -232,24 +232,19 @@ fn picocom_with_default_settings_drives_a_session() {
     let w: Vec<f64> = measure
         .split_whitespace()
         .skip(1)
-        .map(|v| v.parse().unwrap())
+        .map(|v| v.trim_end_matches(char::is_alphabetic).parse().unwrap())
         .collect();
-    // Millimetres typed for metres: the reply asks for the unit and names every unit that fits;
-    // nothing is converted or stored.
+    // Bare millimetres: no unit is inferred; the reply names the units and nothing is stored.
     t.line(&format!("measure {:.3} {:.3}", w[0] * 1e3, w[1] * 1e3));
-    let screen = t.wait_for("write the unit (", 1);
+    let screen = t.wait_for("has no unit: write mm, cm or m after it", 1);
     let refusal = screen
         .lines()
-        .find(|l| l.contains("write the unit ("))
+        .find(|l| l.contains("has no unit"))
         .unwrap_or_default();
-    assert!(refusal.starts_with("err 22: "), "{screen}");
-    assert!(refusal.contains("mm"), "{refusal}");
-    // The same numbers with their unit written are read exactly.
+    assert!(refusal.starts_with("err 26: <x> "), "{screen}");
+    // The same numbers with their unit written are read exactly, and echoed as read.
     t.line(&format!("measure {:.3}mm {:.3}mm", w[0] * 1e3, w[1] * 1e3));
-    t.wait_for(
-        "ok run 1 square cw L=0.500 m measured: error vs odometry",
-        1,
-    );
+    t.wait_for("ok run 1 square cw L=0.500 m measured: read x=", 1);
     // A finished run is measured or dropped before the next one starts.
     t.line("run cw 0.5");
     t.wait_for("event run 2 finished: square cw L=0.500 m", 1);
@@ -271,7 +266,7 @@ fn picocom_with_default_settings_drives_a_session() {
     // started before the last one was measured.
     let errors: Vec<&&str> = finals.iter().filter(|l| l.starts_with("err")).collect();
     assert_eq!(errors.len(), 2, "{screen}");
-    assert!(errors[0].starts_with("err 22: "), "{screen}");
+    assert!(errors[0].starts_with("err 26: "), "{screen}");
     assert!(errors[1].starts_with("err 24: "), "{screen}");
     println!("{screen}");
 }

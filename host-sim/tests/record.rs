@@ -74,7 +74,7 @@ fn record_pages_read_back_to_the_boards_run_record() {
         b.send(&format!("record 1 {knots}")),
         format!("err 6: run 1 has {knots} knots\r\n")
     );
-    assert_eq!(b.send("record 0"), "err 6: <n> must be within 1..12\r\n");
+    assert_eq!(b.send("record 0"), "err 6: <n> must be within 1..65535\r\n");
 
     // A page out of order or from another run is refused by the reader.
     let page1 = b.send("record 1 32");

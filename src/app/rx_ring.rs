@@ -7,8 +7,14 @@
 //! stream's half-transfer and transfer-complete flags, read and cleared at every call. From
 //! those it tells a byte to read, an empty ring, or an overrun: more bytes arrived since the
 //! last read than the ring holds, so some were overwritten. The write position alone cannot
-//! tell `k` laps apart; the flags can, whenever the path from the last seen write position to
-//! this one does not cross the boundary a set flag reports (a lap crosses both).
+//! tell `k` laps apart; the flags can whenever the path from the last seen write position to
+//! this one does not cross the boundary a set flag reports (a lap crosses both). When that path
+//! crosses both boundaries itself the flags cannot tell (they are sticky: one flag for any
+//! number of crossings), so the caller also gives the most bytes the line can have delivered
+//! since the previous call (the time elapsed, from a counter that runs through a stall, at the
+//! line's byte rate): if a whole extra lap fits in that, the read is an overrun too. Only such
+//! a path (more than half the ring arrived since the previous read, over a stall long enough
+//! for a lap) can be reported as an overrun without one.
 
 /// What the next read of the ring gives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,8 +65,9 @@ impl<const N: usize> RingCursor<N> {
 
     /// One read. `write` is the DMA's next write index (`N` − remaining count; `N` means 0);
     /// `half` and `full` whether the stream reported crossing the middle and the end of the
-    /// buffer since the previous call (the caller clears both flags as it reads them).
-    pub fn next(&mut self, write: usize, half: bool, full: bool) -> RingRead {
+    /// buffer since the previous call (the caller clears both flags as it reads them);
+    /// `arrivable` at least the number of bytes that can have arrived since the previous call.
+    pub fn next(&mut self, write: usize, half: bool, full: bool, arrivable: usize) -> RingRead {
         let write = write % N;
         let new = (write + N - self.seen_write) % N;
         // The boundaries the path seen_write → write crosses (unwrapped: positions
@@ -69,7 +76,9 @@ impl<const N: usize> RingCursor<N> {
         let crosses = |at: usize| self.seen_write < at && at <= end;
         let crosses_half = crosses(N / 2) || crosses(N + N / 2);
         let crosses_full = crosses(N);
-        let lapped = (half && !crosses_half) || (full && !crosses_full);
+        let lapped = (half && !crosses_half)
+            || (full && !crosses_full)
+            || (crosses_half && crosses_full && arrivable >= new + N);
         let overrun = lapped || self.pending() + new >= N;
         self.seen_write = write;
         if overrun {
@@ -96,10 +105,13 @@ mod tests {
         write: usize,
         half: bool,
         full: bool,
+        /// Bytes received since the cursor's last call (what a clock would bound).
+        arrived: usize,
     }
 
     impl Dma {
         fn receive(&mut self, bytes: &[u8]) {
+            self.arrived += bytes.len();
             for &b in bytes {
                 self.buf[self.write] = b;
                 self.write = (self.write + 1) % 8;
@@ -116,7 +128,8 @@ mod tests {
                 let (half, full) = (self.half, self.full);
                 self.half = false;
                 self.full = false;
-                match cursor.next(self.write, half, full) {
+                let arrived = core::mem::take(&mut self.arrived);
+                match cursor.next(self.write, half, full, arrived) {
                     RingRead::Byte(i) => got.push(self.buf[i]),
                     RingRead::Empty => return (got, overrun),
                     RingRead::Overrun => overrun = true,
@@ -183,11 +196,57 @@ mod tests {
             let (half, full) = (dma.half, dma.full);
             dma.half = false;
             dma.full = false;
-            if let RingRead::Byte(i) = c.next(dma.write, half, full) {
+            if let RingRead::Byte(i) = c.next(dma.write, half, full, 1) {
                 got.push(dma.buf[i]);
             }
         }
         // Behind by nothing: every arrival was followed by one read.
         assert_eq!(got, b"the quick brown fox");
+    }
+
+    /// Every start position of a ring of the board's length (512) × every byte count from 0 to
+    /// 4 × the ring arriving before the next read, with the flags the DMA would leave: fewer
+    /// bytes than the ring holds are handed over, from the first one on, all of them; as many
+    /// or more (one or more laps) are an overrun, never a byte. With `arrivable` exactly the
+    /// count (the tightest bound a board's clock can give) both hold; with any looser bound no
+    /// lap is ever handed over either.
+    #[test]
+    fn rx_ring_reports_every_lap() {
+        const N: usize = 512;
+        let mut cases = 0u32;
+        for start in 0..N {
+            for count in 0..=4 * N {
+                // The write position passes start+1 ..= start+count (unwrapped): the first of
+                // them at index `at` of the ring, if that is within the count.
+                let crosses = |at: usize| {
+                    let first = start + 1 + (at % N + N - (start + 1) % N) % N;
+                    first <= start + count
+                };
+                let (half, full) = (crosses(N / 2), crosses(N));
+                let write = (start + count) % N;
+                for slack in [0, 1, N, 4 * N] {
+                    let mut c = RingCursor::<N> {
+                        read: start,
+                        seen_write: start,
+                    };
+                    let got = c.next(write, half, full, count + slack);
+                    let lap = count >= N;
+                    if lap {
+                        assert_eq!(got, RingRead::Overrun, "start {start}, {count} bytes");
+                        assert_eq!(c.next(write, false, false, 1), RingRead::Empty);
+                    } else if slack == 0 {
+                        let want = if count == 0 {
+                            RingRead::Empty
+                        } else {
+                            RingRead::Byte(start)
+                        };
+                        assert_eq!(got, want, "start {start}, {count} bytes");
+                        assert_eq!(c.pending(), count.saturating_sub(1));
+                    }
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 512 * 2049 * 4);
     }
 }

@@ -16,6 +16,11 @@
 //!   positions). Headings (Jung & Chung) use `σ_θ² = σ_θ,meas² + (σ_ns(L)/L)²`;
 //! - **expected error** `sqrt(bias_b² + σ_b² + bias_d² + σ_d²)` of the relative errors of
 //!   `E_b` and `E_d`.
+//!
+//! Limits, against a Monte Carlo whose slip is a random walk in distance (`host-sim sweep`,
+//! docs/calibration.md): the closed forms' predictions hold to ~15 %; the exact method's is
+//! optimistic by up to ~40 % where slip dominates its error, because the scatter is taken as
+//! independent and equal per coordinate while a heading walk correlates the end errors.
 
 // Dense 3×3 linear algebra reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]

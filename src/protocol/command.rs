@@ -4,13 +4,17 @@
 //! checked here: malformed text (including more than 19 significant digits, see
 //! [`super::number`]), NaN/infinity (including overflow such as `1e999`) and values
 //! outside the documented ranges are distinct errors, so nothing downstream ever sees a
-//! non-finite or absurd value. Units on the wire: metres, m/s, rad/s, degrees (headings), Hz.
+//! non-finite or absurd value. Units on the wire: metres, m/s, rad/s, degrees (headings), Hz;
+//! a measured end pose carries its units (`mm`, `cm`, `m`; `deg`, `rad`), see [`super::unit`].
 
 use core::fmt;
 
 use super::number::{MAX_DIGITS, NumberError, parse_f64};
 use super::param::ParamName;
-use super::unit::{AngleUnit, LengthUnit, UnitError, parse_angle, parse_length};
+use super::unit::{
+    Angle, AngleUnit, Length, LengthUnit, UnitError, angle_unit, length_unit, parse_angle,
+    parse_length,
+};
 use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
@@ -30,6 +34,9 @@ pub const DRIVE_LIMIT_MPS: f64 = 2.0;
 pub const DRIVE_LIMIT_RADPS: f64 = 10.0;
 /// Accepted pose-stream rates, Hz.
 pub const STREAM_RANGE_HZ: (u32, u32) = (1, 100);
+/// Largest run number: runs keep the number they started with for the whole session (a dropped
+/// run leaves a gap), so numbers go beyond the store's size.
+pub const RUN_NUMBER_MAX: u32 = u16::MAX as u32;
 
 /// A parsed command. Optional arguments are `None` when omitted (the session fills defaults).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,20 +79,25 @@ pub enum Command<'a> {
     Stop,
     /// `clear`: clear a latched fault.
     Clear,
-    /// `measure [#n] <x_m> <y_m> [theta_deg]`: the true end pose of the last finished run, or
-    /// of run `n` (which replaces its measurement).
+    /// `measure [#n] <x> <y> [theta] [yes]`: the true end pose of the last finished run, or of
+    /// run `n` (which replaces its measurement); each value with its unit (written against the
+    /// number or apart from it) unless the session declared one.
     Measure {
-        /// 1-based run number (`#n`); `None` = the last finished run, if it is unmeasured.
+        /// Run number (`#n`, as `runs` lists it); `None` = the last finished run, if it is
+        /// unmeasured.
         run: Option<usize>,
-        /// True x in the run's start frame, metres.
-        x_m: f64,
-        /// True y in the run's start frame, metres.
-        y_m: f64,
-        /// True heading, degrees, if measured.
-        theta_deg: Option<f64>,
-        /// The units written with the values (`None`: bare, metres and degrees).
-        units: MeasureUnits,
+        /// True x in the run's start frame, as typed.
+        x: Length,
+        /// True y in the run's start frame, as typed.
+        y: Length,
+        /// True heading, as typed, if measured.
+        theta: Option<Angle>,
+        /// `yes` was typed last: keep a measurement beyond the plausibility bound.
+        confirmed: bool,
     },
+    /// `set measure_unit mm|cm|m` / `set heading_unit deg|rad`: the unit of the bare values of
+    /// `measure` for this session (never saved).
+    SetUnit(UnitSetting),
     /// `runs`: list the stored runs.
     Runs,
     /// `record <n> [first]`: run `n`'s full record (path, geometry, odometry end, measurement)
@@ -124,8 +136,12 @@ pub enum Command<'a> {
     },
     /// `save`: write the parameters to flash (motors must be stopped).
     Save,
-    /// `reset-params`: restore the defaults in RAM (not saved).
-    ResetParams,
+    /// `reset-params [yes]`: restore the defaults in RAM (not saved); `yes` is needed when it
+    /// would discard an applied calibration or an unsaved change.
+    ResetParams {
+        /// `yes` was typed after it.
+        confirmed: bool,
+    },
     /// `pose`: the odometry pose.
     Pose,
     /// `bringup [motors|push]`: the wiring check (motor pulses with the wheels off the ground,
@@ -161,15 +177,27 @@ pub enum Command<'a> {
     },
 }
 
-/// The units written with the values of a `measure` (`None`: a bare value, metres or degrees).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct MeasureUnits {
-    /// Unit of x.
-    pub x: Option<LengthUnit>,
-    /// Unit of y.
-    pub y: Option<LengthUnit>,
-    /// Unit of θ.
-    pub theta: Option<AngleUnit>,
+/// A unit declared for the bare values of `measure` (`set measure_unit`, `set heading_unit`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UnitSetting {
+    /// The unit of bare x and y.
+    Length(LengthUnit),
+    /// The unit of a bare heading.
+    Angle(AngleUnit),
+}
+
+/// Checks a measured end pose, converted to metres and degrees, against the accepted ranges
+/// ([`MEASURE_LIMIT_M`], [`MEASURE_LIMIT_DEG`]).
+///
+/// # Errors
+/// [`ParseError::OutOfRange`] naming the first value outside.
+pub fn check_measure_range(x_m: f64, y_m: f64, theta_deg: Option<f64>) -> Result<(), ParseError> {
+    in_range(x_m, "x", -MEASURE_LIMIT_M, MEASURE_LIMIT_M)?;
+    in_range(y_m, "y", -MEASURE_LIMIT_M, MEASURE_LIMIT_M)?;
+    if let Some(t) = theta_deg {
+        in_range(t, "theta", -MEASURE_LIMIT_DEG, MEASURE_LIMIT_DEG)?;
+    }
+    Ok(())
 }
 
 /// Why a line did not parse. Each variant maps to one error code (see `docs/protocol.md`).
@@ -287,6 +315,14 @@ impl<'a> Words<'a> {
     #[inline(never)]
     fn next(&mut self) -> Option<&'a str> {
         self.inner.next()
+    }
+
+    /// Takes the next word if `kind` reads it (a unit typed apart from its number).
+    fn take_if<T>(&mut self, kind: impl Fn(&str) -> Option<T>) -> Option<T> {
+        let mut ahead = self.inner.clone();
+        let found = ahead.next().and_then(kind)?;
+        self.inner = ahead;
+        Some(found)
     }
 
     fn required(&mut self, what: &'static str) -> Result<&'a str, ParseError> {
@@ -435,26 +471,40 @@ fn unit_error(e: UnitError, word: &str, what: &'static str, hint: NumberHint) ->
     }
 }
 
-/// A measured length: a bare number (metres) or one with `m`, `cm`, `mm` written after it,
-/// within `±limit_m` once converted.
-fn measured_length(
-    word: &str,
-    what: &'static str,
-    limit_m: f64,
-) -> Result<(f64, Option<LengthUnit>), ParseError> {
-    let l = parse_length(word).map_err(|e| unit_error(e, word, what, NumberHint::LengthUnit))?;
-    Ok((in_range(l.m, what, -limit_m, limit_m)?, l.unit))
+/// A finite number as typed, for a measured value.
+fn finite(value: f64, what: &'static str) -> Result<f64, ParseError> {
+    in_range(value, what, f64::NEG_INFINITY, f64::INFINITY)
 }
 
-/// A measured heading: a bare number (degrees) or one with `deg`, `rad` written after it,
-/// within `±limit_deg` once converted.
-fn measured_angle(
+/// A measured length: a number with `m`, `cm`, `mm` written after it or as the next word, or a
+/// bare number (its unit the session's `measure_unit`); ranges are checked once converted.
+fn measured_length(
+    words: &mut Words<'_>,
     word: &str,
     what: &'static str,
-    limit_deg: f64,
-) -> Result<(f64, Option<AngleUnit>), ParseError> {
-    let a = parse_angle(word).map_err(|e| unit_error(e, word, what, NumberHint::AngleUnit))?;
-    Ok((in_range(a.deg, what, -limit_deg, limit_deg)?, a.unit))
+) -> Result<Length, ParseError> {
+    let mut l =
+        parse_length(word).map_err(|e| unit_error(e, word, what, NumberHint::LengthUnit))?;
+    finite(l.value, what)?;
+    if l.unit.is_none() {
+        l.unit = words.take_if(length_unit);
+    }
+    Ok(l)
+}
+
+/// A measured heading: a number with `deg`, `rad` written after it or as the next word, or a
+/// bare number (its unit the session's `heading_unit`).
+fn measured_angle(
+    words: &mut Words<'_>,
+    word: &str,
+    what: &'static str,
+) -> Result<Angle, ParseError> {
+    let mut a = parse_angle(word).map_err(|e| unit_error(e, word, what, NumberHint::AngleUnit))?;
+    finite(a.value, what)?;
+    if a.unit.is_none() {
+        a.unit = words.take_if(angle_unit);
+    }
+    Ok(a)
 }
 
 /// `yes` as an optional last word (a confirmation); any other word is refused.
@@ -528,6 +578,22 @@ impl<'a> Command<'a> {
             Command::Params
         } else if is("set") {
             let name_word = words.required("name")?;
+            if keyword_eq(name_word, "measure_unit") {
+                let unit = length_unit(words.required("value")?).ok_or(ParseError::BadKeyword {
+                    what: "value",
+                    expected: "mm|cm|m",
+                })?;
+                words.end()?;
+                return Ok(Command::SetUnit(UnitSetting::Length(unit)));
+            }
+            if keyword_eq(name_word, "heading_unit") {
+                let unit = angle_unit(words.required("value")?).ok_or(ParseError::BadKeyword {
+                    what: "value",
+                    expected: "deg|rad",
+                })?;
+                words.end()?;
+                return Ok(Command::SetUnit(UnitSetting::Angle(unit)));
+            }
             let name = ParamName::from_name(name_word).ok_or(ParseError::UnknownParam {
                 suggestion: ParamName::nearest(name_word),
             })?;
@@ -574,39 +640,37 @@ impl<'a> Command<'a> {
         } else if is("clear") {
             Command::Clear
         } else if is("measure") {
-            let lim = (-MEASURE_LIMIT_M, MEASURE_LIMIT_M);
-            let mut first = words.required("x_m")?;
+            let mut first = words.required("x")?;
             let run = match first.strip_prefix('#') {
                 Some(n) => {
-                    let max = crate::motion::run::MAX_RUNS as u32;
-                    let index = whole(n, "n", 1, max)? as usize;
-                    first = words.required("x_m")?;
+                    let index = whole(n, "n", 1, RUN_NUMBER_MAX)? as usize;
+                    first = words.required("x")?;
                     Some(index)
                 }
                 None => None,
             };
-            let (x_m, x_unit) = measured_length(first, "x_m", lim.1)?;
-            let (y_m, y_unit) = measured_length(words.required("y_m")?, "y_m", lim.1)?;
-            let theta = words
-                .next()
-                .map(|w| measured_angle(w, "theta_deg", MEASURE_LIMIT_DEG))
-                .transpose()?;
+            let x = measured_length(&mut words, first, "x")?;
+            let y_word = words.required("y")?;
+            let y = measured_length(&mut words, y_word, "y")?;
+            let (theta, confirmed) = match words.next() {
+                None => (None, false),
+                Some(w) if keyword_eq(w, "yes") => (None, true),
+                Some(w) => (
+                    Some(measured_angle(&mut words, w, "theta")?),
+                    confirmation(&mut words)?,
+                ),
+            };
             Command::Measure {
                 run,
-                x_m,
-                y_m,
-                theta_deg: theta.map(|t| t.0),
-                units: MeasureUnits {
-                    x: x_unit,
-                    y: y_unit,
-                    theta: theta.and_then(|t| t.1),
-                },
+                x,
+                y,
+                theta,
+                confirmed,
             }
         } else if is("runs") {
             Command::Runs
         } else if is("record") {
-            let max = crate::motion::run::MAX_RUNS as u32;
-            let index = whole(words.required("n")?, "n", 1, max)? as usize;
+            let index = whole(words.required("n")?, "n", 1, RUN_NUMBER_MAX)? as usize;
             let last = crate::motion::run::MAX_KNOTS as u32 - 1;
             let first_knot = words
                 .next()
@@ -623,8 +687,7 @@ impl<'a> Command<'a> {
                     confirmed: confirmation(&mut words)?,
                 }
             } else {
-                let max = crate::motion::run::MAX_RUNS as u32;
-                let index = whole(which, "n", 1, max)? as usize;
+                let index = whole(which, "n", 1, RUN_NUMBER_MAX)? as usize;
                 Command::Drop { index }
             }
         } else if is("calibrate") {
@@ -639,7 +702,9 @@ impl<'a> Command<'a> {
         } else if is("save") {
             Command::Save
         } else if is("reset-params") {
-            Command::ResetParams
+            Command::ResetParams {
+                confirmed: confirmation(&mut words)?,
+            }
         } else if is("pose") {
             Command::Pose
         } else if is("bringup") {

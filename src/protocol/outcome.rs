@@ -5,9 +5,11 @@
 
 use core::fmt::{self, Write};
 
+use super::command::UnitSetting;
 use super::param::ParamName;
 use super::refusal::write_path;
 use super::reply::EOL;
+use super::token;
 use crate::motion::run::{Measurement, PathKind};
 use crate::util::decimal::Decimal;
 
@@ -17,7 +19,7 @@ use crate::util::decimal::Decimal;
 pub enum Outcome {
     /// A run started.
     Started {
-        /// Its number (its place in the store once it finishes).
+        /// Its number (kept for the session once it finishes).
         run: usize,
         /// Its path.
         path: PathKind,
@@ -35,6 +37,8 @@ pub enum Outcome {
         path: PathKind,
         /// The measurement it replaced, if any.
         replaced: Option<Measurement>,
+        /// The measurement as read (x, y in metres, θ in radians as typed, if typed).
+        read: Measurement,
         /// Measured − odometry end, x and y, metres.
         error_m: (f64, f64),
         /// The heading kept from the replaced measurement (no new one was given), radians.
@@ -54,6 +58,8 @@ pub enum Outcome {
         /// How many.
         runs: usize,
     },
+    /// `set measure_unit` / `set heading_unit`: the unit of bare values for this session.
+    UnitSet(UnitSetting),
 }
 
 /// `<n> run` / `<n> runs`.
@@ -96,6 +102,7 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
             run,
             path,
             replaced,
+            read,
             error_m: (dx, dy),
             heading_kept,
         } => {
@@ -109,7 +116,16 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
             }
             write!(
                 out,
-                ": error vs odometry dx={} dy={} m",
+                ": read x={} mm y={} mm",
+                Decimal::signed(read.x_m * 1e3, 3),
+                Decimal::signed(read.y_m * 1e3, 3)
+            )?;
+            if let (Some(t), None) = (read.theta_rad, heading_kept) {
+                write!(out, " theta={} deg", Decimal::signed(t.to_degrees(), 2))?;
+            }
+            write!(
+                out,
+                "; error vs odometry dx={} dy={} m",
                 Decimal::signed(dx, 6),
                 Decimal::signed(dy, 6),
             )?;
@@ -131,6 +147,17 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
         Outcome::DroppedAll { runs } => {
             out.write_str("ok dropped all ")?;
             write_count(out, runs, "run")?;
+        }
+        Outcome::UnitSet(setting) => {
+            let (name, symbol) = match setting {
+                UnitSetting::Length(u) => ("measure", u.symbol()),
+                UnitSetting::Angle(u) => ("heading", u.symbol()),
+            };
+            write!(
+                out,
+                "ok {name}_unit = {symbol}: bare {name} values are {symbol} (this session only, \
+                 not saved)"
+            )?;
         }
     }
     out.write_str(EOL)
@@ -203,7 +230,7 @@ pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> f
             write!(out, "ok {} = ", name.as_str())?;
             write_param_value(out, name, value)?;
             match change {
-                SetChange::Unchanged => return write!(out, " (unchanged)\r\n"),
+                SetChange::Unchanged => return write!(out, "{}\r\n", token::UNCHANGED),
                 SetChange::Changed => {}
                 SetChange::CalibrationRestored(m) => write!(out, " (calibration {m} restored)")?,
                 SetChange::CalibrationDropped(m) => write!(

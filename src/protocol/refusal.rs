@@ -11,7 +11,7 @@ use core::fmt::{self, Write};
 use super::reply::{EOL, ErrorCode};
 use crate::motion::run::PathKind;
 use crate::storage::StoreError;
-use crate::util::decimal::Decimal;
+use crate::util::decimal::{Decimal, Plain};
 
 /// What is in progress when a command is refused as busy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,6 +72,20 @@ pub enum Refusal<'a> {
         run: usize,
         /// Its path.
         path: PathKind,
+    },
+    /// `err 26`: a bare `measure` value and no unit declared for the session.
+    NoUnit {
+        /// The argument (`x`, `y`, `theta`).
+        what: &'static str,
+        /// The value as typed.
+        value: f64,
+    },
+    /// `err 25`: `reset-params` without `yes` while it would discard a change.
+    ResetUnconfirmed {
+        /// The applied calibration's method, if one is applied.
+        calibration: Option<&'a str>,
+        /// The settings differ from what is saved.
+        unsaved: bool,
     },
     /// `err 25`: `drop all` without `yes`.
     DropAllUnconfirmed {
@@ -169,7 +183,10 @@ impl Refusal<'_> {
             Refusal::StoreFull => ErrorCode::StoreFull,
             Refusal::PlanComplete => ErrorCode::PlanComplete,
             Refusal::Unmeasured { .. } => ErrorCode::Unmeasured,
-            Refusal::DropAllUnconfirmed { .. } | Refusal::Flagged { .. } => ErrorCode::NotConfirmed,
+            Refusal::DropAllUnconfirmed { .. }
+            | Refusal::Flagged { .. }
+            | Refusal::ResetUnconfirmed { .. } => ErrorCode::NotConfirmed,
+            Refusal::NoUnit { .. } => ErrorCode::NoUnit,
             Refusal::NotEnoughRuns { .. } => ErrorCode::NotEnoughRuns,
             Refusal::UnknownMethod { .. } => ErrorCode::BadKeyword,
             Refusal::Implausible { .. } => ErrorCode::Implausible,
@@ -270,6 +287,37 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
                  drop {run})"
             )?;
         }
+        Refusal::NoUnit { what, value } => {
+            let (units, setting) = if what == "theta" {
+                ("deg or rad", "heading_unit deg|rad")
+            } else {
+                ("mm, cm or m", "measure_unit mm|cm|m")
+            };
+            write!(
+                out,
+                "<{what}> {} has no unit: write {units} after it ({}{}), or declare one for \
+                 this session: set {setting}",
+                Plain(value),
+                Plain(value),
+                if what == "theta" { "deg" } else { "mm" },
+            )?;
+        }
+        Refusal::ResetUnconfirmed {
+            calibration,
+            unsaved,
+        } => {
+            out.write_str("reset-params discards ")?;
+            if let Some(m) = calibration {
+                write!(out, "the applied calibration ({m})")?;
+                if unsaved {
+                    out.write_str(" and ")?;
+                }
+            }
+            if unsaved {
+                out.write_str("changes not saved")?;
+            }
+            out.write_str(": type reset-params yes to do it (save first to keep them)")?;
+        }
         Refusal::DropAllUnconfirmed { runs } => {
             out.write_str("drop all forgets ")?;
             write_runs(out, runs)?;
@@ -364,7 +412,7 @@ mod tests {
         );
         assert_eq!(
             text(&Refusal::Store(StoreError::MotorsRunning)),
-            "err 18: motors running, flash not written\r\n"
+            "err 18: motors not confirmed stopped (running, or the control loop has not run yet), flash not written\r\n"
         );
     }
 }

@@ -82,8 +82,11 @@ pub enum ErrorCode {
     /// not measured: measure it or drop it first.
     Unmeasured = 24,
     /// 25: the command needs a confirmation (`apply <method> yes` with a flagged run,
-    /// `drop all yes`).
+    /// `drop all yes`, `reset-params yes` discarding a change).
     NotConfirmed = 25,
+    /// 26: a `measure` value without its unit while the session declares none (`set
+    /// measure_unit`, `set heading_unit`).
+    NoUnit = 26,
 }
 
 impl ErrorCode {

@@ -158,13 +158,33 @@ impl fmt::Display for LinesDropped {
     }
 }
 
+/// The end of a `set` reply that changed nothing: `ok <name>=<value> (unchanged)`.
+pub const UNCHANGED: &str = " (unchanged)";
+
 /// A method that failed, in its `calibrate` row: `<method> failed: <why>`.
 pub const METHOD_FAILED: &str = "failed: ";
 /// The end of a `calibrate` row computed with runs the robust fit flagged:
 /// `  [with flagged run 3]`, `  [with flagged runs 3 5]`.
 pub const WITH_FLAGGED: &str = "  [with flagged run";
-/// The `calibrate` line naming the flagged runs: `check run 3 5: <advice>`.
-pub const CHECK_RUN: &str = "check run ";
+/// The end of a residual row of a run the robust fit flagged: `run 4  dx=… weight=0.00 DISAGREES`.
+pub const DISAGREES: &str = " DISAGREES";
+/// The start of the `calibrate` line that follows flagged residual rows:
+/// `the runs disagree by more than the robust scale …`, naming the culprit when leaving one run
+/// out makes the others agree.
+pub const RUNS_DISAGREE: &str = "the runs disagree ";
+/// Before the culprit's number in the [`RUNS_DISAGREE`] line.
+const WITHOUT_RUN: &str = "without run ";
+/// After the culprit's number in the [`RUNS_DISAGREE`] line.
+const OTHERS_AGREE: &str = " the others agree";
+
+/// Writes the culprit of a [`RUNS_DISAGREE`] line: `without run <n> the others agree`.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+pub fn write_culprit(out: &mut dyn Write, run: usize) -> fmt::Result {
+    write!(out, "{WITHOUT_RUN}{run}{OTHERS_AGREE}")
+}
+
 /// A track-size advice line of `calibrate` and `advice`: `advice <method> …`.
 pub const ADVICE: &str = "advice ";
 /// A per-run residual line of `calibrate`: `run <n> dx=… dy=…`.
@@ -191,14 +211,17 @@ pub enum TableRow<'a> {
         /// The reason, as the board words it.
         why: &'a str,
     },
-    /// A per-run residual line (the text after `run `).
-    Residual(&'a str),
-    /// The flagged runs' numbers (space-separated) and the advice after them.
-    CheckRun {
-        /// The numbers of the runs that disagree with the others.
-        runs: &'a str,
-        /// What to do about them.
-        advice: &'a str,
+    /// A per-run residual line.
+    Residual {
+        /// The run's number.
+        run: usize,
+        /// Whether the robust fit flagged the run ([`DISAGREES`]).
+        disagrees: bool,
+    },
+    /// The [`RUNS_DISAGREE`] line: the run whose removal makes the others agree, if one does.
+    Disagree {
+        /// The run to check (`None`: leaving out one run at a time did not tell which).
+        culprit: Option<usize>,
     },
     /// A track-size advice line (the text after `advice `).
     Advice(&'a str),
@@ -208,18 +231,23 @@ impl<'a> TableRow<'a> {
     /// Reads one data line of the table; `None` for an empty line.
     pub fn parse(line: &'a str) -> Option<Self> {
         let line = line.trim_start();
-        if let Some(rest) = line.strip_prefix(CHECK_RUN) {
-            let (runs, advice) = rest.split_once(':').unwrap_or((rest, ""));
-            return Some(TableRow::CheckRun {
-                runs: runs.trim(),
-                advice: advice.trim_start(),
+        if line.starts_with(RUNS_DISAGREE) {
+            let culprit = line.find(WITHOUT_RUN).and_then(|i| {
+                let (number, after) = line[i + WITHOUT_RUN.len()..].split_once(' ')?;
+                after.starts_with(OTHERS_AGREE.trim_start()).then_some(())?;
+                number.parse().ok()
             });
+            return Some(TableRow::Disagree { culprit });
         }
         if let Some(rest) = line.strip_prefix(ADVICE) {
             return Some(TableRow::Advice(rest));
         }
         if let Some(rest) = line.strip_prefix(RESIDUAL) {
-            return Some(TableRow::Residual(rest));
+            let run = rest.split_whitespace().next()?.parse().ok()?;
+            return Some(TableRow::Residual {
+                run,
+                disagrees: rest.trim_end().ends_with(DISAGREES),
+            });
         }
         let (method, rest) = line.split_once(' ').unwrap_or((line, ""));
         if method.is_empty() {
@@ -337,23 +365,39 @@ mod tests {
                 why: "solver did not converge"
             })
         );
-        let check = format!("  {CHECK_RUN}2 4: disagrees with the others");
+        let mut verdict = format!("  {RUNS_DISAGREE}by more than the robust scale; ");
+        write_culprit(&mut verdict, 4).unwrap();
+        verdict.push_str(" (each run left out in turn): check run 4");
         assert_eq!(
-            TableRow::parse(&check),
-            Some(TableRow::CheckRun {
-                runs: "2 4",
-                advice: "disagrees with the others"
-            })
+            TableRow::parse(&verdict),
+            Some(TableRow::Disagree { culprit: Some(4) })
+        );
+        let unknown = format!("  {RUNS_DISAGREE}by more than the robust scale; leaving out");
+        assert_eq!(
+            TableRow::parse(&unknown),
+            Some(TableRow::Disagree { culprit: None })
         );
         let advice = format!("  {ADVICE}exact        L=2.000 m: expected error 0.1 %");
         assert!(matches!(
             TableRow::parse(&advice),
             Some(TableRow::Advice(a)) if a.starts_with("exact")
         ));
-        assert!(matches!(
+        assert_eq!(
             TableRow::parse("  run 1  dx=+0.100 mm dy=-0.200 mm weight=1.00"),
-            Some(TableRow::Residual(r)) if r.starts_with("1 ")
-        ));
+            Some(TableRow::Residual {
+                run: 1,
+                disagrees: false
+            })
+        );
+        assert_eq!(
+            TableRow::parse(&format!(
+                "  run 12 dx=+141.167 mm dy=-164.262 mm weight=0.00{DISAGREES}"
+            )),
+            Some(TableRow::Residual {
+                run: 12,
+                disagrees: true
+            })
+        );
         assert_eq!(TableRow::parse("   "), None);
     }
 }

@@ -1,11 +1,10 @@
 //! Numbers with an optional unit, for the measured end pose (`measure x y [θ]`): the one reader
 //! the board's parser and the PC console both use, so a value means the same in both.
 //!
-//! A bare number is metres (lengths) or degrees (angles), as the protocol documents; a number
-//! with its unit written right after it (`-5.356mm`, `-5.4cm`, `0.05m`, `2.5deg`, `0.04rad`,
-//! any case) is read exactly in that unit and converted. A unit is never guessed: when a bare
-//! value is implausible, the session asks for the unit written out
-//! ([`crate::session::measure`]).
+//! A number with its unit written right after it (`-5.356mm`, `-5.4cm`, `0.05m`, `2.5deg`,
+//! `0.04rad`, any case) is read exactly in that unit. A bare number has no unit: it means
+//! something only in the unit the operator declared for the session (`set measure_unit`,
+//! `set heading_unit`); a unit is never inferred ([`Length::metres`], [`Angle::degrees`]).
 
 use core::fmt;
 
@@ -79,23 +78,52 @@ impl AngleUnit {
     }
 }
 
-/// A length as typed: its value in metres and the unit written with it (`None`: bare, metres).
+/// A length as typed: the number and the unit written with it (`None`: bare).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Length {
-    /// The value in metres (converted from the written unit).
-    pub m: f64,
-    /// The unit written after the number, if any.
+    /// The number as typed.
+    pub value: f64,
+    /// The unit written after the number (or apart from it), if any.
     pub unit: Option<LengthUnit>,
 }
 
-/// An angle as typed: its value in degrees and the unit written with it (`None`: bare,
-/// degrees).
+impl Length {
+    /// The value in metres: in its written unit, else in `declared` (the session's
+    /// `measure_unit`); `None` for a bare value with nothing declared.
+    pub fn metres(self, declared: Option<LengthUnit>) -> Option<f64> {
+        self.unit.or(declared).map(|u| self.value * u.metres())
+    }
+}
+
+/// An angle as typed: the number and the unit written with it (`None`: bare).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Angle {
-    /// The value in degrees (converted from the written unit).
-    pub deg: f64,
-    /// The unit written after the number, if any.
+    /// The number as typed.
+    pub value: f64,
+    /// The unit written after the number (or apart from it), if any.
     pub unit: Option<AngleUnit>,
+}
+
+impl Angle {
+    /// The value in degrees: in its written unit, else in `declared` (the session's
+    /// `heading_unit`); `None` for a bare value with nothing declared.
+    pub fn degrees(self, declared: Option<AngleUnit>) -> Option<f64> {
+        self.unit.or(declared).map(|u| self.value * u.degrees())
+    }
+}
+
+/// The length unit a word names (`mm`, `cm`, `m`, any case), if any.
+pub fn length_unit(word: &str) -> Option<LengthUnit> {
+    LengthUnit::ALL
+        .into_iter()
+        .find(|u| keyword_eq(word, u.symbol()))
+}
+
+/// The angle unit a word names (`deg`, `rad`, any case), if any.
+pub fn angle_unit(word: &str) -> Option<AngleUnit> {
+    [AngleUnit::Degree, AngleUnit::Radian]
+        .into_iter()
+        .find(|u| keyword_eq(word, u.symbol()))
 }
 
 /// Why a word is not a number with a unit.
@@ -145,7 +173,7 @@ fn number_part(number: &str) -> Result<f64, UnitError> {
     parse_f64(number).map_err(UnitError::Number)
 }
 
-/// Reads a length: a bare number in metres, or a number with `m`, `cm` or `mm` after it.
+/// Reads a length: a bare number, or a number with `m`, `cm` or `mm` after it.
 ///
 /// # Errors
 /// [`UnitError`] for a malformed number or a suffix that is not a length unit. The value may
@@ -153,23 +181,14 @@ fn number_part(number: &str) -> Result<f64, UnitError> {
 pub fn parse_length(word: &str) -> Result<Length, UnitError> {
     let (number, suffix) = split_unit(word);
     let value = number_part(number)?;
-    if suffix.is_empty() {
-        return Ok(Length {
-            m: value,
-            unit: None,
-        });
-    }
-    let unit = LengthUnit::ALL
-        .into_iter()
-        .find(|u| keyword_eq(suffix, u.symbol()))
-        .ok_or(UnitError::UnknownUnit)?;
-    Ok(Length {
-        m: value * unit.metres(),
-        unit: Some(unit),
-    })
+    let unit = match suffix {
+        "" => None,
+        s => Some(length_unit(s).ok_or(UnitError::UnknownUnit)?),
+    };
+    Ok(Length { value, unit })
 }
 
-/// Reads an angle: a bare number in degrees, or a number with `deg` or `rad` after it.
+/// Reads an angle: a bare number, or a number with `deg` or `rad` after it.
 ///
 /// # Errors
 /// [`UnitError`] for a malformed number or a suffix that is not an angle unit. The value may
@@ -177,20 +196,11 @@ pub fn parse_length(word: &str) -> Result<Length, UnitError> {
 pub fn parse_angle(word: &str) -> Result<Angle, UnitError> {
     let (number, suffix) = split_unit(word);
     let value = number_part(number)?;
-    if suffix.is_empty() {
-        return Ok(Angle {
-            deg: value,
-            unit: None,
-        });
-    }
-    let unit = [AngleUnit::Degree, AngleUnit::Radian]
-        .into_iter()
-        .find(|u| keyword_eq(suffix, u.symbol()))
-        .ok_or(UnitError::UnknownUnit)?;
-    Ok(Angle {
-        deg: value * unit.degrees(),
-        unit: Some(unit),
-    })
+    let unit = match suffix {
+        "" => None,
+        s => Some(angle_unit(s).ok_or(UnitError::UnknownUnit)?),
+    };
+    Ok(Angle { value, unit })
 }
 
 #[cfg(test)]
@@ -198,35 +208,44 @@ mod tests {
     use super::*;
 
     #[test]
-    fn bare_numbers_are_metres_and_degrees() {
+    fn a_bare_number_has_no_unit_until_one_is_declared() {
+        let bare = parse_length("-5.356").unwrap();
         assert_eq!(
-            parse_length("-5.356"),
-            Ok(Length {
-                m: -5.356,
+            bare,
+            Length {
+                value: -5.356,
                 unit: None
-            })
+            }
         );
-        assert_eq!(parse_length("2e-3").map(|l| l.m), Ok(2e-3));
+        assert_eq!(bare.metres(None), None);
         assert_eq!(
-            parse_angle("2.5"),
-            Ok(Angle {
-                deg: 2.5,
-                unit: None
-            })
+            bare.metres(Some(LengthUnit::Millimetre)),
+            Some(-5.356 * 0.001)
         );
+        assert_eq!(parse_length("2e-3").map(|l| l.value), Ok(2e-3));
+        let angle = parse_angle("-0.16").unwrap();
+        assert_eq!(angle.degrees(None), None);
+        assert_eq!(angle.degrees(Some(AngleUnit::Degree)), Some(-0.16));
+        assert!((angle.degrees(Some(AngleUnit::Radian)).unwrap() + 9.167).abs() < 1e-3);
+        // A written unit wins over the declared one.
+        let mm = parse_length("4mm").unwrap();
+        assert_eq!(mm.metres(Some(LengthUnit::Metre)), Some(4.0 * 0.001));
     }
 
     #[test]
     fn written_units_are_read_exactly() {
         let mm = parse_length("-5.356mm").unwrap();
         assert_eq!(mm.unit, Some(LengthUnit::Millimetre));
-        assert_eq!(mm.m, -5.356 * 0.001);
-        assert_eq!(parse_length("-5.4cm").unwrap().m, -5.4 * 0.01);
-        assert_eq!(parse_length("0.05M").unwrap().m, 0.05);
-        assert_eq!(parse_angle("2.5deg").unwrap().deg, 2.5);
+        assert_eq!(mm.metres(None), Some(-5.356 * 0.001));
+        assert_eq!(
+            parse_length("-5.4cm").unwrap().metres(None),
+            Some(-5.4 * 0.01)
+        );
+        assert_eq!(parse_length("0.05M").unwrap().metres(None), Some(0.05));
+        assert_eq!(parse_angle("2.5deg").unwrap().degrees(None), Some(2.5));
         let rad = parse_angle("0.04rad").unwrap();
         assert_eq!(rad.unit, Some(AngleUnit::Radian));
-        assert!((rad.deg - 0.04f64.to_degrees()).abs() < 1e-12);
+        assert!((rad.degrees(None).unwrap() - 0.04f64.to_degrees()).abs() < 1e-12);
     }
 
     #[test]
@@ -243,8 +262,8 @@ mod tests {
             Err(UnitError::Number(NumberError::Malformed))
         );
         // Exponents and the special words stay numbers, never units.
-        assert_eq!(parse_length("1e2").unwrap().m, 100.0);
-        assert!(parse_length("nan").unwrap().m.is_nan());
-        assert!(parse_length("inf").unwrap().m.is_infinite());
+        assert_eq!(parse_length("1e2").unwrap().value, 100.0);
+        assert!(parse_length("nan").unwrap().value.is_nan());
+        assert!(parse_length("inf").unwrap().value.is_infinite());
     }
 }

@@ -8,6 +8,8 @@
 
 use core::fmt::{self, Write};
 
+use crate::protocol::refusal::write_refusal;
+
 use super::traits::{Calibrator, Robot};
 use super::{Session, robot_err};
 use crate::motion::bringup::{
@@ -44,6 +46,10 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        // Every check moves the robot (lifted, pushed or driven): not from an unmeasured end.
+        if let Some(refusal) = self.unmeasured_end() {
+            return write_refusal(out, &refusal);
+        }
         if let Err(e) = robot.start_check(kind) {
             return robot_err(out, e, robot);
         }

@@ -11,7 +11,7 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use super::AppliedCalibration;
-use super::traits::{Activity, Calibrator, Robot, RobotError, RunResidual};
+use super::traits::{Activity, Calibrator, Culprit, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::run::RunRecord;
@@ -45,7 +45,11 @@ impl<C: Calibrator> Session<C> {
             return self.unknown_method(out);
         }
         let nominal = self.settings.nominal;
-        write_calibration(&mut self.calibrator, &self.runs, &nominal, method, out)
+        let runs = Numbered {
+            runs: &self.runs,
+            numbers: &self.numbers,
+        };
+        write_calibration(&mut self.calibrator, runs, &nominal, method, out)
     }
 
     /// `err 7: unknown method; one of <m1>|<m2>|…`.
@@ -81,7 +85,11 @@ impl<C: Calibrator> Session<C> {
         let nominal = self.settings.nominal;
         // A flagged run (one the robust fit finds disagreeing with the others) skews every
         // result computed with it: applying one then takes an explicit `yes`.
-        let flagged = flagged_runs(&mut self.calibrator, &self.runs, &nominal);
+        let runs = Numbered {
+            runs: &self.runs,
+            numbers: &self.numbers,
+        };
+        let flagged = flagged_runs(&mut self.calibrator, runs, &nominal);
         if !flagged.is_empty() && !confirmed {
             let refusal = Refusal::Flagged {
                 runs: &flagged,
@@ -120,12 +128,33 @@ impl<C: Calibrator> Session<C> {
             return robot_err(out, e, robot);
         }
         self.settings = candidate;
+        self.unsaved = true;
         self.dropped = None;
         let outcome = ParamOutcome::Applied {
             method: name,
             factors: (sol.e_d, sol.e_b, sol.e_s),
         };
         write_param_outcome(out, &outcome)
+    }
+}
+
+/// Stored runs with the numbers they keep for the session (`numbers` empty: numbered by
+/// position, 1, 2, …, as a host numbers the runs it kept).
+#[derive(Clone, Copy, Debug)]
+pub struct Numbered<'a> {
+    /// The runs, in store order.
+    pub runs: &'a [RunRecord],
+    /// Their numbers, in the same order.
+    pub numbers: &'a [u16],
+}
+
+impl Numbered<'_> {
+    /// The number of the run at 1-based store `position`.
+    pub fn number(&self, position: usize) -> usize {
+        position
+            .checked_sub(1)
+            .and_then(|i| self.numbers.get(i))
+            .map_or(position, |&n| usize::from(n))
     }
 }
 
@@ -138,16 +167,17 @@ impl<C: Calibrator> Session<C> {
 /// Only if `out` refuses the text.
 pub fn write_calibration<C: Calibrator>(
     calibrator: &mut C,
-    runs: &[RunRecord],
+    numbered: Numbered<'_>,
     nominal: &Geometry,
     method: Option<&str>,
     out: &mut dyn Write,
 ) -> fmt::Result {
+    let runs = numbered.runs;
     let p = progress_of(runs);
     if let Some(refused) = refuse_calibration(&p, out) {
         return refused;
     }
-    let flagged = flagged_runs(calibrator, runs, nominal);
+    let flagged = flagged_runs(calibrator, numbered, nominal);
     report::write_solution_header(out)?;
     let mut solved = 0usize;
     // The first result with per-run residuals (the exact fit) is listed after the table.
@@ -161,13 +191,25 @@ pub fn write_calibration<C: Calibrator>(
         if let Ok(s) = &result {
             solved += 1;
             if residuals.is_none() && !s.residuals.is_empty() {
-                residuals = Some((name, s.residuals.clone()));
+                let mut r = s.residuals.clone();
+                for run in r.iter_mut() {
+                    run.run = numbered.number(run.run);
+                }
+                residuals = Some((name, r));
             }
         }
         report::write_solution_row(out, name, &result, &flagged)?;
     }
     if let Some((name, r)) = &residuals {
-        report::write_residuals(out, name, r)?;
+        // Which run to look at: the one whose removal makes the others agree.
+        let culprit = match r.iter().any(|r| r.outlier) {
+            true => match calibrator.culprit(runs, nominal) {
+                Culprit::Run(position) => Some(numbered.number(position)),
+                Culprit::CannotTell => None,
+            },
+            false => None,
+        };
+        report::write_residuals(out, name, r, culprit)?;
     }
     if solved == 0 {
         // Advice from a failed fit would be meaningless.
@@ -188,9 +230,10 @@ pub fn write_calibration<C: Calibrator>(
 /// `calibrate` table lists).
 pub fn flagged_runs<C: Calibrator>(
     calibrator: &mut C,
-    runs: &[RunRecord],
+    numbered: Numbered<'_>,
     nominal: &Geometry,
 ) -> Vec<usize, MAX_RUNS> {
+    let runs = numbered.runs;
     // The fit with residuals is the last method (exact, whose solution the calibrator keeps);
     // asking it first spares solving every closed form again on each `apply`.
     let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
@@ -202,7 +245,7 @@ pub fn flagged_runs<C: Calibrator>(
                 .residuals
                 .iter()
                 .filter(|r| r.outlier)
-                .map(|r| r.run)
+                .map(|r| numbered.number(r.run))
                 .collect();
         }
     }

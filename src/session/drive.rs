@@ -7,6 +7,8 @@
 
 use core::fmt::{self, Write};
 
+use crate::protocol::refusal::write_refusal;
+
 use super::traits::{Calibrator, Robot};
 use super::{Session, report, robot_err};
 use crate::protocol::reply::EOL;
@@ -22,6 +24,12 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        // The robot stays at an unmeasured run's end until it is measured or dropped.
+        if (v_mps != 0.0 || w_radps != 0.0)
+            && let Some(refusal) = self.unmeasured_end()
+        {
+            return write_refusal(out, &refusal);
+        }
         match robot.drive(v_mps, w_radps) {
             Ok(()) => {
                 // The controller clamps to the same limits; say so rather than silently.

@@ -11,34 +11,51 @@ use core::fmt::{self, Write};
 use super::Session;
 use super::library::fault_name;
 use super::report;
+use super::settings::BootRefusal;
 use super::traits::{Activity, Calibrator, Robot};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::controller::Fault;
 use crate::motion::run::PathKind;
 use crate::protocol::reply::EOL;
 use crate::protocol::token::EventTag;
-use crate::storage::{LoadWarning, RunsLoaded};
+use crate::storage::{LoadOutcome, RunsLoaded};
 use crate::util::decimal::Decimal;
 
-/// The first line the board sends after a reset: `event boot: parameters loaded`, or
-/// `event boot: default parameters (<why>)` when the stored record was not used, followed by
-/// `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`, `pin`,
-/// `software`, `power-on`, …), and on the emulated board by what QEMU lacks.
+/// The first line the board sends after a reset: `event boot: parameters loaded` (with
+/// ` (previous record; newest: <why>)` when the newest record was unusable and the one before it
+/// was loaded), or `event boot: default parameters (<why>)` when no stored record was used,
+/// followed by `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`,
+/// `pin`, `software`, `power-on`, …), by `; <name> <value> refused (<why>), default used` for
+/// each stored value the settings' rules refused ([`BootRefusal`]), and on the emulated board by
+/// what QEMU lacks.
 ///
 /// # Errors
 /// Only those of `out`.
 pub fn write_boot_event(
     out: &mut dyn Write,
-    warning: Option<&LoadWarning>,
+    loaded: &LoadOutcome,
+    refused: &[BootRefusal],
     reset_cause: Option<&str>,
 ) -> fmt::Result {
     EventTag::Boot.write(out)?;
-    match warning {
+    match &loaded.warning {
         None => out.write_str("parameters loaded")?,
         Some(w) => write!(out, "default parameters ({w})")?,
     }
+    if let Some(w) = &loaded.older {
+        write!(out, " (previous record; newest: {w})")?;
+    }
     if let Some(cause) = reset_cause {
         write!(out, ", reset: {cause}")?;
+    }
+    for r in refused {
+        write!(
+            out,
+            "; {} {} refused ({}), default used",
+            r.name.as_str(),
+            crate::util::decimal::Plain(r.value),
+            r.why
+        )?;
     }
     if let Some(note) = BOARD_NOTE {
         write!(out, "; {note}")?;
@@ -138,7 +155,7 @@ impl<C: Calibrator> Session<C> {
         // mistaken for an aborted one.
         let status = robot.status();
         while let Some(run) = robot.take_finished_run() {
-            self.active = None;
+            let started = self.active.take();
             self.last_aborted = None;
             let end = run.odometry_end;
             let path = run.path;
@@ -148,10 +165,13 @@ impl<C: Calibrator> Session<C> {
                 write!(out, "event run discarded: run store full\r\n")?;
                 continue;
             }
+            let number = started.map_or(self.next_number, |a| a.number as u16);
             let _ = self.runs.push(run);
             let _ = self.run_ids.push(None);
+            let _ = self.numbers.push(number);
+            self.next_number = number.saturating_add(1);
             self.runs_changed();
-            write_run_finished(out, self.runs.len(), &path, &end)?;
+            write_run_finished(out, usize::from(number), &path, &end)?;
         }
         if let Some(a) = self.active
             && !matches!(status.activity, Activity::Running(_))

@@ -54,7 +54,8 @@ impl<C: Calibrator> Session<C> {
         let where_ = match mode {
             IdentifyMode::Lifted => "wheels must be off the ground; right then left",
             IdentifyMode::Floor => {
-                "robot on the floor with 1 m free ahead and behind (it stops beyond 1 m); both wheels"
+                "robot on the floor with 1 m free ahead and behind (it stays within 1 m, with lower \
+                 steps if that needs them); both wheels"
             }
         };
         let cap = f64::from(self.settings.motion.max_speed_mps).min(MAX_SPEED_MPS);
@@ -100,6 +101,7 @@ impl<C: Calibrator> Session<C> {
         let bandwidth = candidate.tuning.bandwidth_radps;
         self.settings = candidate;
         EventTag::IdentifyDone.write(out)?;
+        self.unsaved = true;
         write!(
             out,
             "({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep)\r\n",

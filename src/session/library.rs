@@ -15,7 +15,7 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::Settings;
 use super::traits::{
-    Activity, Calibrator, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
     SettingsAndRuns, Solution, SolveError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
@@ -416,10 +416,20 @@ fn solution(c: &Calibration, runs: &[RunRecord]) -> Solution {
     }
 }
 
+/// 1σ of a measured end position the procedure asks for (and the advice assumes), metres.
+pub const MEASURED_POSITION_SIGMA_M: f64 = 1e-3;
+/// 1σ of a measured end heading the procedure asks for (and the advice assumes), degrees.
+pub const MEASURED_HEADING_SIGMA_DEG: f64 = 0.2;
+
 impl Default for LibraryCalibrator {
-    /// 1 mm and 0.2° measurement error, squares up to 4 m.
+    /// [`MEASURED_POSITION_SIGMA_M`] and [`MEASURED_HEADING_SIGMA_DEG`] measurement error,
+    /// squares up to 4 m.
     fn default() -> Self {
-        LibraryCalibrator::new(1e-3, 0.2f64.to_radians(), 4.0)
+        LibraryCalibrator::new(
+            MEASURED_POSITION_SIGMA_M,
+            MEASURED_HEADING_SIGMA_DEG.to_radians(),
+            4.0,
+        )
     }
 }
 
@@ -462,6 +472,36 @@ impl Calibrator for LibraryCalibrator {
         let obs = observations(runs);
         let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
         Ok(solution(&c, runs))
+    }
+
+    fn culprit(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Culprit {
+        let obs = observations(runs);
+        let positions: Vec<usize, MAX_RUNS> = runs
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| RunObservation::from_record(r).is_some())
+            .map(|(i, _)| i + 1)
+            .collect();
+        // Each run left out in turn: the robust fit of the others flags none.
+        let (mut agreeing, mut found) = (0u8, None);
+        for k in 0..obs.len() {
+            let mut rest: Vec<RunObservation<'_>, MAX_RUNS> = Vec::new();
+            for (i, o) in obs.iter().enumerate() {
+                if i != k {
+                    let _ = rest.push(*o);
+                }
+            }
+            if let Ok(c) = calibration::calibrate(&rest, nominal, Method::Exact)
+                && c.fit.is_some_and(|f| f.outliers == 0)
+            {
+                agreeing += 1;
+                found = positions.get(k).copied();
+            }
+        }
+        match (agreeing, found) {
+            (1, Some(run)) => Culprit::Run(run),
+            _ => Culprit::CannotTell,
+        }
     }
 
     fn advice(

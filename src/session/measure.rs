@@ -1,106 +1,110 @@
 //! Plausibility of a measured end pose, before it is accepted.
 //!
-//! A run ends where its odometry says, give or take the robot's systematic and random error,
-//! which for any robot worth calibrating is a few per cent of the path length: UMBmark's
-//! reference robot is 0.15 m off after a 6 m square, the paper's worst case about 1.5 %. A
-//! measured end pose is refused when it is farther from the odometry end than
-//! [`POSITION_FRACTION`] of the path length (at least [`POSITION_FLOOR_M`]), or when its heading
-//! differs from the odometry heading by more than [`HEADING_LIMIT_DEG`]. A unit is never guessed:
-//! the refusal asks for the unit written out and names every unit that would make the bare
-//! values plausible (millimetres and centimetres often both do), since a unit slip is the usual
-//! cause; a value typed with its unit is read exactly.
+//! A run ends where its odometry says, give or take what the robot's geometry may differ from
+//! its nominal values. The bound is computed for the run's own path: the wheel ticks of that
+//! path as commanded (a square's legs and in-place turns, a line, a circle's arc) are
+//! integrated with the run's geometry changed by each corner of the tolerance box
+//! (diameter ratio `E_d` ±[`DIAMETER_RATIO_TOLERANCE`], wheelbase ±[`WHEELBASE_TOLERANCE`], mean
+//! diameter ±[`SCALE_TOLERANCE`]); the farthest of those eight ends from the odometry end, plus
+//! the measuring precision ([`MEASURING_PRECISION_M`], [`MEASURING_PRECISION_DEG`]), bounds the
+//! position and the heading. A measurement beyond either is kept only with `yes` (a unit or a
+//! sign slip is the usual cause); units are never inferred (bare values are refused before).
 
 use core::fmt;
 
+use core::f64::consts::PI;
+
+use heapless::Vec;
+
+use crate::calibration::synth::{SQUARE_KNOTS, leg_ticks, square_knots, turn_ticks};
+use crate::calibration::wrap_angle;
+use crate::kinematics::encoder::WheelTicks;
+use crate::kinematics::geometry::Geometry;
+use crate::kinematics::reference::{ArcModel, PoseF64};
 use crate::motion::run::{PathKind, RunRecord};
-use crate::protocol::command::MeasureUnits;
-use crate::protocol::unit::{Angle, Length, LengthUnit};
-use crate::util::decimal::{Decimal, Plain};
-use crate::util::trig;
+use crate::util::decimal::Decimal;
+use crate::util::num::fmax;
 
-/// Largest accepted distance between measured and odometry end, as a fraction of the path
-/// length (25 %: ten times the error of a badly calibrated robot, far below what a unit error
-/// gives).
-pub const POSITION_FRACTION: f64 = 0.25;
-/// Smallest position bound, metres (short paths).
-pub const POSITION_FLOOR_M: f64 = 0.05;
-/// Largest accepted heading difference between measured and odometry end, degrees.
-pub const HEADING_LIMIT_DEG: f64 = 45.0;
+/// Tolerance of the wheel diameter ratio `E_d = D_R / D_L` around the nominal one (1 %: two
+/// wheels of the same make, measured to 0.5 % each).
+pub const DIAMETER_RATIO_TOLERANCE: f64 = 0.01;
+/// Tolerance of the wheelbase around its nominal value (3 %: the contact points of soft tyres
+/// move by a few millimetres on a 0.2–0.4 m wheelbase).
+pub const WHEELBASE_TOLERANCE: f64 = 0.03;
+/// Tolerance of the mean wheel diameter around its nominal value (1 %).
+pub const SCALE_TOLERANCE: f64 = 0.01;
+/// Precision of a measured end position, metres (a tape or a floor mark: 10 mm).
+pub const MEASURING_PRECISION_M: f64 = 0.01;
+/// Precision of a measured end heading, degrees (a straight edge on a floor line: about 1°).
+pub const MEASURING_PRECISION_DEG: f64 = 1.0;
 
-/// The position bound for a run, metres.
-pub fn position_bound_m(path: &PathKind) -> f64 {
-    (POSITION_FRACTION * path.length_m()).max(POSITION_FLOOR_M)
-}
-
-/// A measured end pose as typed: each value converted from its written unit, with the unit
-/// (`None`: bare, metres or degrees).
+/// How far a measured end may lie from a run's odometry end.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeasuredPose {
-    /// x in the run's start frame.
-    pub x: Length,
-    /// y in the run's start frame.
-    pub y: Length,
-    /// The heading, if measured.
-    pub theta: Option<Angle>,
+pub struct Bound {
+    /// Largest distance from the odometry end, metres.
+    pub position_m: f64,
+    /// Largest heading difference from the odometry heading, degrees.
+    pub heading_deg: f64,
 }
 
-impl MeasuredPose {
-    /// The pose of a parsed `measure` (values in metres and degrees, and the units written).
-    pub fn new(x_m: f64, y_m: f64, theta_deg: Option<f64>, units: MeasureUnits) -> Self {
-        MeasuredPose {
-            x: Length {
-                m: x_m,
-                unit: units.x,
-            },
-            y: Length {
-                m: y_m,
-                unit: units.y,
-            },
-            theta: theta_deg.map(|deg| Angle {
-                deg,
-                unit: units.theta,
-            }),
+/// The cumulative wheel ticks of `path` as commanded from `g` (first knot `(0, 0)`).
+fn path_knots(g: &Geometry, path: &PathKind) -> Vec<WheelTicks, SQUARE_KNOTS> {
+    let mut knots = Vec::new();
+    let _ = knots.push(WheelTicks::default());
+    match *path {
+        PathKind::Square { direction, side_m } => {
+            knots = Vec::from_slice(&square_knots(g, direction, side_m)).unwrap_or(knots);
+        }
+        PathKind::Line { length_m } => {
+            let _ = knots.push(leg_ticks(g, length_m));
+        }
+        PathKind::Circle {
+            direction,
+            radius_m,
+        } => {
+            // One arc: the centre line's travel plus the turn's difference between the wheels.
+            let leg = leg_ticks(g, 2.0 * PI * radius_m);
+            let turn = turn_ticks(g, direction.turn_sign() * 2.0 * PI);
+            let _ = knots.push(WheelTicks::new(
+                leg.right + turn.right,
+                leg.left + turn.left,
+            ));
         }
     }
+    knots
 }
 
-/// The units that would make a bare (unit-less) value plausible, for a refusal that asks for
-/// the unit written out; never used to convert anything.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct UnitHint {
-    /// A bare value as typed, to show the unit written after it.
-    pub example: f64,
-    /// The units (each one on its own, for every bare value) that make the measurement
-    /// plausible.
-    pub units: UnitSet,
-}
-
-/// A small set of length units (the plausible readings of a bare value).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct UnitSet {
-    /// Millimetres.
-    pub millimetres: bool,
-    /// Centimetres.
-    pub centimetres: bool,
-}
-
-impl UnitSet {
-    /// The symbols in the set, smallest length unit first.
-    pub fn symbols(&self) -> impl Iterator<Item = &'static str> {
-        [
-            (self.millimetres, LengthUnit::Millimetre.symbol()),
-            (self.centimetres, LengthUnit::Centimetre.symbol()),
-        ]
-        .into_iter()
-        .filter_map(|(on, s)| on.then_some(s))
+/// The bound of `run`: its path's ticks integrated with every corner of the geometry tolerance
+/// box, the farthest end (and heading) from the nominal one, plus the measuring precision.
+pub fn bound(run: &RunRecord) -> Bound {
+    let knots = path_knots(&run.geometry, &run.path);
+    let nominal = ArcModel::from_geometry(&run.geometry).integrate(PoseF64::default(), &knots);
+    let mut position_m: f64 = 0.0;
+    let mut heading_deg: f64 = 0.0;
+    for corner in 0..8u8 {
+        let sign = |bit: u8| if corner & bit == 0 { -1.0 } else { 1.0 };
+        let g = run.geometry.with_factors(
+            run.geometry.diameter_ratio() * (1.0 + sign(1) * DIAMETER_RATIO_TOLERANCE),
+            1.0 + sign(2) * WHEELBASE_TOLERANCE,
+            1.0 + sign(4) * SCALE_TOLERANCE,
+        );
+        let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &knots);
+        position_m = fmax(
+            position_m,
+            libm::hypot(end.x_m - nominal.x_m, end.y_m - nominal.y_m),
+        );
+        heading_deg = fmax(
+            heading_deg,
+            libm::fabs(wrap_angle(end.theta_rad - nominal.theta_rad)).to_degrees(),
+        );
     }
-
-    fn is_empty(&self) -> bool {
-        !(self.millimetres || self.centimetres)
+    Bound {
+        position_m: position_m + MEASURING_PRECISION_M,
+        heading_deg: heading_deg + MEASURING_PRECISION_DEG,
     }
 }
 
-/// Why a measurement was refused.
+/// Why a measurement needs `yes`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Implausible {
     /// The measured end is `distance_m` from the odometry end, more than `bound_m`.
@@ -109,109 +113,46 @@ pub enum Implausible {
         distance_m: f64,
         /// The bound, metres.
         bound_m: f64,
-        /// The units that would make the bare values plausible (`None`: none would, or every
-        /// value had its unit written).
-        unit_hint: Option<UnitHint>,
     },
-    /// The measured heading differs from the odometry heading by `diff_deg`.
+    /// The measured heading differs from the odometry heading by `diff_deg`, more than
+    /// `bound_deg`.
     Heading {
         /// Wrapped difference, degrees.
         diff_deg: f64,
+        /// The bound, degrees.
+        bound_deg: f64,
     },
 }
 
-fn distance(run: &RunRecord, x_m: f64, y_m: f64) -> f64 {
-    libm::hypot(x_m - run.odometry_end.x_m, y_m - run.odometry_end.y_m)
-}
-
-fn heading_diff_deg(run: &RunRecord, theta_deg: f64) -> f64 {
-    trig::wrap_deg(theta_deg - run.odometry_end.theta_rad.to_degrees())
-}
-
-/// Checks a measurement of `run` given as bare numbers (`x_m`, `y_m` in metres, `theta_deg` in
-/// degrees) against its odometry end: as [`check_typed`] with no unit written.
+/// Checks a measurement of `run` (metres, degrees) against its odometry end and [`bound`].
 ///
 /// # Errors
-/// [`Implausible`] with what is wrong.
+/// [`Implausible`] with what is beyond the bound.
 pub fn check(
     run: &RunRecord,
     x_m: f64,
     y_m: f64,
     theta_deg: Option<f64>,
 ) -> Result<(), Implausible> {
-    let bare = |m| Length { m, unit: None };
-    check_typed(
-        run,
-        bare(x_m),
-        bare(y_m),
-        theta_deg.map(|deg| Angle { deg, unit: None }),
-    )
-}
-
-/// Checks a measurement of `run` as typed (values converted from their written units) against
-/// its odometry end. A refused position names every unit that, written after each bare value,
-/// would make it plausible (millimetres and centimetres can both fit: the reply never picks
-/// one).
-///
-/// # Errors
-/// [`Implausible`] with what is wrong.
-pub fn check_typed(
-    run: &RunRecord,
-    x: Length,
-    y: Length,
-    theta: Option<Angle>,
-) -> Result<(), Implausible> {
-    let bound_m = position_bound_m(&run.path);
-    let distance_m = distance(run, x.m, y.m);
-    if distance_m > bound_m {
-        let mut units = UnitSet::default();
-        let example = [x, y].into_iter().find(|l| l.unit.is_none()).map(|l| l.m);
-        if example.is_some() {
-            for unit in [LengthUnit::Millimetre, LengthUnit::Centimetre] {
-                let scale = |l: Length| match l.unit {
-                    None => l.m * unit.metres(),
-                    Some(_) => l.m,
-                };
-                if distance(run, scale(x), scale(y)) <= bound_m {
-                    match unit {
-                        LengthUnit::Millimetre => units.millimetres = true,
-                        _ => units.centimetres = true,
-                    }
-                }
-            }
-        }
-        let unit_hint = example
-            .filter(|_| !units.is_empty())
-            .map(|example| UnitHint { example, units });
+    let b = bound(run);
+    let odo = run.odometry_end;
+    let distance_m = libm::hypot(x_m - odo.x_m, y_m - odo.y_m);
+    if distance_m > b.position_m {
         return Err(Implausible::Position {
             distance_m,
-            bound_m,
-            unit_hint,
+            bound_m: b.position_m,
         });
     }
-    if let Some(t) = theta {
-        // A bare heading is degrees; one that fits only as radians is not converted either
-        // (the refusal says how radians are written).
-        let diff_deg = heading_diff_deg(run, t.deg);
-        if diff_deg.abs() > HEADING_LIMIT_DEG {
-            return Err(Implausible::Heading { diff_deg });
+    if let Some(t) = theta_deg {
+        let diff_deg = wrap_angle(t.to_radians() - odo.theta_rad).to_degrees();
+        if diff_deg.abs() > b.heading_deg {
+            return Err(Implausible::Heading {
+                diff_deg,
+                bound_deg: b.heading_deg,
+            });
         }
     }
     Ok(())
-}
-
-impl fmt::Display for UnitHint {
-    /// `write the unit (-5.356mm or -5.356cm)`.
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("write the unit (")?;
-        for (i, symbol) in self.units.symbols().enumerate() {
-            if i > 0 {
-                f.write_str(" or ")?;
-            }
-            write!(f, "{}{symbol}", Plain(self.example))?;
-        }
-        f.write_str(")")
-    }
 }
 
 impl fmt::Display for Implausible {
@@ -220,94 +161,94 @@ impl fmt::Display for Implausible {
             Implausible::Position {
                 distance_m,
                 bound_m,
-                unit_hint,
-            } => {
-                write!(
-                    f,
-                    "measured end {} m from the odometry end, more than {} m ({} % of the path)",
-                    Decimal::fixed(distance_m, 3),
-                    Decimal::fixed(bound_m, 3),
-                    Decimal::fixed(POSITION_FRACTION * 100.0, 0),
-                )?;
-                match unit_hint {
-                    Some(hint) => write!(f, ": {hint}"),
-                    None => f.write_str("; x forward, y left, in metres"),
-                }
-            }
-            Implausible::Heading { diff_deg } => write!(
+            } => write!(
                 f,
-                "measured heading {} deg from the odometry heading, more than {} (a bare heading \
-                 is degrees, CCW positive; radians need the unit written: 0.04rad)",
+                "measured end {} m from the odometry end, more than {} m",
+                Decimal::fixed(distance_m, 3),
+                Decimal::fixed(bound_m, 3),
+            )?,
+            Implausible::Heading {
+                diff_deg,
+                bound_deg,
+            } => write!(
+                f,
+                "measured heading {} deg from the odometry heading, more than {} deg",
                 Decimal::signed(diff_deg, 1),
-                Decimal::fixed(HEADING_LIMIT_DEG, 0),
-            ),
+                Decimal::fixed(bound_deg, 1),
+            )?,
         }
+        f.write_str(
+            " (the nominal geometry's tolerance on this path, plus measuring): check the values, \
+             their units and signs, or add yes to keep it",
+        )
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::encoder::WheelTicks;
-    use crate::kinematics::geometry::Geometry;
-    use crate::kinematics::reference::PoseF64;
-    use crate::protocol::unit::AngleUnit;
-    use std::string::ToString;
 
-    fn line_run(length_m: f64) -> RunRecord {
-        let mut knots = heapless::Vec::new();
-        knots.push(WheelTicks::new(0, 0)).unwrap();
+    use crate::motion::run::Direction;
+
+    fn run_on(path: PathKind) -> RunRecord {
+        let g = Geometry::PAPER_NOMINAL;
+        let knots = path_knots(&g, &path);
+        let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &knots);
         RunRecord {
-            path: PathKind::Line { length_m },
-            geometry: Geometry::PAPER_NOMINAL,
-            knots,
-            odometry_end: PoseF64::new(length_m, 0.0, 0.0),
+            path,
+            geometry: g,
+            knots: Vec::from_slice(&knots).unwrap(),
+            odometry_end: end,
             measured: None,
         }
     }
 
-    fn bare(m: f64) -> Length {
-        Length { m, unit: None }
+    fn line_run(length_m: f64) -> RunRecord {
+        run_on(PathKind::Line { length_m })
     }
 
     #[test]
-    fn only_the_units_that_fit_are_named() {
-        // A 0.3 m line (bound 0.075 m): 300 fits as millimetres, not as centimetres.
-        let run = line_run(0.3);
-        let e = check_typed(&run, bare(300.0), bare(0.0), None).unwrap_err();
-        assert!(e.to_string().ends_with(": write the unit (300mm)"), "{e}");
-        // Nothing fits: no unit is suggested.
-        let e = check_typed(&run, bare(90.0), bare(90.0), None).unwrap_err();
+    fn the_bound_follows_the_geometry_tolerance_on_the_path() {
+        // A 1 m line: the scale tolerance moves the end by 1 % (10 mm) and E_d bends it by
+        // about L²·ΔE_d/(4b); the bound grows faster than the path.
+        let short = bound(&line_run(1.0));
+        let long = bound(&line_run(4.0));
         assert!(
-            e.to_string().ends_with("; x forward, y left, in metres"),
-            "{e}"
+            short.position_m > 0.02 && short.position_m < 0.2,
+            "{short:?}"
         );
-        // A value written with its unit is never rescaled: only the bare one is.
-        let mm = |m| Length {
-            m,
-            unit: Some(LengthUnit::Millimetre),
+        assert!(long.position_m > 4.0 * (short.position_m - MEASURING_PRECISION_M));
+        assert!(short.heading_deg > MEASURING_PRECISION_DEG);
+        // A square: the wheelbase tolerance turns each corner by up to 3 % of 90°.
+        let square = |side_m| {
+            bound(&run_on(PathKind::Square {
+                direction: Direction::Cw,
+                side_m,
+            }))
         };
-        assert_eq!(check_typed(&run, mm(0.3), bare(0.0), None), Ok(()));
-        let e = check_typed(&run, bare(300.0), mm(0.0003), None).unwrap_err();
-        assert!(e.to_string().ends_with(": write the unit (300mm)"), "{e}");
+        let (one, two) = (square(1.0), square(2.0));
+        std::println!("bound 1 m square {one:?}, 2 m square {two:?}");
+        assert!(
+            one.heading_deg > 4.0 * 90.0 * WHEELBASE_TOLERANCE,
+            "{one:?}"
+        );
+        // A centimetre value read as metres (0.5355 m for 5.355 mm in x and y) is beyond it.
+        assert!(one.position_m < 0.75, "{one:?}");
+        let circle = bound(&run_on(PathKind::Circle {
+            direction: Direction::Ccw,
+            radius_m: 0.5,
+        }));
+        assert!(circle.position_m > MEASURING_PRECISION_M, "{circle:?}");
     }
 
     #[test]
-    fn a_bare_heading_is_degrees_and_never_converted() {
+    fn a_value_beyond_the_bound_is_implausible() {
         let run = line_run(1.0);
-        let deg = |deg, unit| Some(Angle { deg, unit });
-        assert_eq!(
-            check_typed(&run, bare(1.0), bare(0.0), deg(0.8, None)),
-            Ok(())
-        );
-        // 50 would fit as radians only by accident; it is refused as degrees.
-        let e = check_typed(&run, bare(1.0), bare(0.0), deg(50.0, None)).unwrap_err();
+        assert_eq!(check(&run, 1.005, 0.002, Some(0.5)), Ok(()));
+        // 1 m typed where 1 cm was meant, or a centimetre value read as metres.
+        let e = check(&run, 0.01, 0.0, None).unwrap_err();
+        assert!(matches!(e, Implausible::Position { .. }), "{e}");
+        let e = check(&run, 1.0, 0.0, Some(0.5f64.to_degrees())).unwrap_err();
         assert!(matches!(e, Implausible::Heading { .. }), "{e}");
-        assert!(
-            e.to_string().contains("radians need the unit written"),
-            "{e}"
-        );
-        let rad = deg(0.04f64.to_degrees(), Some(AngleUnit::Radian));
-        assert_eq!(check_typed(&run, bare(1.0), bare(0.0), rad), Ok(()));
     }
 }

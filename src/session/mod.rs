@@ -50,17 +50,20 @@ use heapless::Vec;
 
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
+use crate::protocol::command::UnitSetting;
+use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::record;
 use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
+use crate::protocol::unit::{AngleUnit, LengthUnit};
 use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
 pub use crate::storage::record::AppliedCalibration;
 use crate::util::text::keyword_eq;
-pub use calibrate_commands::write_calibration;
+pub use calibrate_commands::{Numbered, write_calibration};
 pub use events::{write_boot_event, write_fault_event, write_runs_restored};
-pub use settings::{SettingsError, check_nominal};
+pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
 /// struct (its row of [`crate::protocol::PARAMS`] names the field).
@@ -68,7 +71,7 @@ pub type Settings = crate::storage::record::ParamRecord;
 pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
     SettingsAndRuns, Solution, SolveError,
 };
 
@@ -98,6 +101,18 @@ pub struct Session<C> {
     settings: Settings,
     runs: Vec<RunRecord, MAX_RUNS>,
     stream: Option<stream::Stream>,
+    /// The number of each run of `runs`, as announced when it started (kept for the session: a
+    /// dropped run leaves a gap).
+    numbers: Vec<u16, MAX_RUNS>,
+    /// The number the next run gets.
+    next_number: u16,
+    /// The unit of bare lengths in `measure` (`set measure_unit`; this session only).
+    measure_unit: Option<LengthUnit>,
+    /// The unit of a bare heading in `measure` (`set heading_unit`; this session only).
+    heading_unit: Option<AngleUnit>,
+    /// The settings changed since they were loaded or saved (`set`, `apply`, `identify`,
+    /// `reset-params`).
+    unsaved: bool,
     /// The last hand-push check of this boot (tells a reversed encoder from a reversed motor).
     last_push: Option<PushReport>,
     /// Echo received characters (a person at a terminal); `echo off` for programs.
@@ -173,6 +188,11 @@ impl<C: Calibrator> Session<C> {
             calibrator,
             settings,
             runs: Vec::new(),
+            numbers: Vec::new(),
+            next_number: 1,
+            measure_unit: None,
+            heading_unit: None,
+            unsaved: false,
             stream: None,
             last_push: None,
             echo: true,
@@ -201,10 +221,47 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         let loaded = storage.load_runs(&mut self.runs, &mut self.run_ids);
+        self.renumber();
         self.calibrator.runs_changed();
         self.runs_dirty = false;
         self.runs_store_failed = false;
         write_runs_restored(out, &loaded)
+    }
+
+    /// Numbers the stored runs 1, 2, … (at boot, and after `drop all`).
+    fn renumber(&mut self) {
+        self.numbers.clear();
+        for n in 1..=self.runs.len() {
+            let _ = self.numbers.push(n as u16);
+        }
+        self.next_number = self.runs.len() as u16 + 1;
+    }
+
+    /// The store position (0-based) of run number `number`, if it is stored.
+    fn position(&self, number: usize) -> Option<usize> {
+        self.numbers.iter().position(|&n| usize::from(n) == number)
+    }
+
+    /// The number of the run at store position `index` (0-based).
+    fn number_at(&self, index: usize) -> usize {
+        self.numbers
+            .get(index)
+            .map_or(index + 1, |&n| usize::from(n))
+    }
+
+    /// The number of each stored run, in store order (as `runs` lists them).
+    pub fn run_numbers(&self) -> &[u16] {
+        &self.numbers
+    }
+
+    /// Refuses motion while the last finished run is unmeasured: the robot must not leave the
+    /// end pose the run is to be measured at.
+    fn unmeasured_end(&self) -> Option<Refusal<'static>> {
+        let last = self.runs.last().filter(|r| r.measured.is_none())?;
+        Some(Refusal::Unmeasured {
+            run: self.number_at(self.runs.len() - 1),
+            path: last.path,
+        })
     }
 
     /// Marks the run store changed: it is written to flash at the next opportunity, and
@@ -445,15 +502,19 @@ impl<C: Calibrator> Session<C> {
             }
             Command::Measure {
                 run,
-                x_m,
-                y_m,
-                theta_deg,
-                units,
-            } => {
-                let typed = measure::MeasuredPose::new(x_m, y_m, theta_deg, units);
-                self.measure(run, typed, robot, out)
+                x,
+                y,
+                theta,
+                confirmed,
+            } => self.measure(run, (x, y, theta), confirmed, robot, out),
+            Command::SetUnit(unit) => {
+                match unit {
+                    UnitSetting::Length(u) => self.measure_unit = Some(u),
+                    UnitSetting::Angle(u) => self.heading_unit = Some(u),
+                }
+                write_outcome(out, &Outcome::UnitSet(unit))
             }
-            Command::Runs => report::write_runs(out, &self.runs),
+            Command::Runs => report::write_runs(out, &self.runs, &self.numbers),
             Command::Record { index, first_knot } => self.record(index, first_knot, out),
             Command::Version => record::write_version(out),
             Command::Drop { index } => self.drop_run(index, robot, out),
@@ -461,7 +522,7 @@ impl<C: Calibrator> Session<C> {
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method, confirmed } => self.apply(method, confirmed, robot, out),
             Command::Save => self.save(robot, storage, out),
-            Command::ResetParams => self.reset_params(robot, out),
+            Command::ResetParams { confirmed } => self.reset_params(confirmed, robot, out),
             Command::Pose => self.pose(robot, out),
             Command::OdomReset => self.odom_reset(robot, out),
             Command::Stream { on } => self.set_stream(on, out),

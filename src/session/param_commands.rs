@@ -90,6 +90,7 @@ impl<C: Calibrator> Session<C> {
             self.dropped = None;
         }
         self.settings = new;
+        self.unsaved = true;
         let change = match (&restored, &dropped) {
             (Some(m), _) => SetChange::CalibrationRestored(m),
             (None, Some(m)) => SetChange::CalibrationDropped(m),
@@ -113,23 +114,23 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = storable(&self.settings) {
             return storage_err(out, e);
         }
+        // The parameter region is apart from the runs': a save leaves the run region alone.
         match storage.save(&self.settings, robot.motors_stopped()) {
             Ok(()) => {
-                // A save that had to wipe damaged flash took the runs with it.
-                if !self.runs.is_empty() {
-                    self.store_runs_again();
-                }
+                self.unsaved = false;
                 write_param_outcome(out, &ParamOutcome::Saved)
             }
             Err(e) => storage_err(out, e),
         }
     }
 
-    /// `reset-params`: hands the default settings to the controller (every part: geometry,
-    /// limits, wiring, tuning, rate), in RAM only like `set` (`save` stores them); refused while
-    /// anything moves.
+    /// `reset-params [yes]`: hands the default settings to the controller (every part:
+    /// geometry, limits, wiring, tuning, rate), in RAM only like `set` (`save` stores them);
+    /// refused while anything moves, and without `yes` when it would discard an applied
+    /// calibration or a change not saved.
     pub(super) fn reset_params(
         &mut self,
+        confirmed: bool,
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
@@ -137,10 +138,26 @@ impl<C: Calibrator> Session<C> {
         if robot.status().activity != Activity::Idle {
             return robot_err(out, RobotError::Busy, robot);
         }
+        let calibration = self
+            .settings
+            .calibration
+            .as_ref()
+            .map(|c| c.method.as_str());
+        let unsaved = self.unsaved && self.settings != defaults;
+        if !confirmed && (calibration.is_some() || unsaved) {
+            let refusal = Refusal::ResetUnconfirmed {
+                calibration,
+                unsaved,
+            };
+            return write_refusal(out, &refusal);
+        }
         // Idle was checked above, so the controller accepts every part.
         if let Err(e) = push_settings(robot, &defaults) {
             return robot_err(out, e, robot);
         }
+        // RAM now differs from the flash, unless both hold the defaults (a further reset then
+        // finds nothing to discard: the settings equal the defaults).
+        self.unsaved = true;
         self.settings = defaults;
         self.dropped = None;
         write_param_outcome(out, &ParamOutcome::Reset)

@@ -12,7 +12,7 @@ use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
-use crate::protocol::token::{CHECK_RUN, METHOD_FAILED, STREAM, WITH_FLAGGED};
+use crate::protocol::token::{self, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, STREAM, WITH_FLAGGED};
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
 use crate::util::trig::wrap_deg;
@@ -37,21 +37,21 @@ const HELP: &[&str] = &[
     "help\tthis list",
     "status\tstate, pose, faults, session progress",
     "params\tparameters and the active calibration",
-    "set <name> <value>\tchange a parameter (names as in params)",
+    "set <name> <value>\tchange a parameter (params; measure_unit, heading_unit)",
     "run cw|ccw [L]\tdrive a square of side L m (default: planned side)",
     "next\tstart the next planned run (button short press)",
     "line [d]\tdrive straight d m",
     "circle cw|ccw [r]\tdrive a full circle of radius r m",
     "stop\tstop now (Ctrl-C or Esc also stop at once)",
     "clear\tclear a latched fault (stall, glitch, following)",
-    "measure [#n] <x> <y> [th]\ttrue end pose of the last run, or of run n (m m deg; or 5mm 1cm 2deg)",
+    "measure [#n] <x> <y> [th]\ttrue end pose of the last run, or of run n, units written (5mm 1cm 2deg)",
     "runs\tlist stored runs",
     "record <n> [first]\trun n's full record with its tick knots (host tools)",
     "drop <n>|all yes\tdelete run n, or every run",
     "calibrate [method]\tcompute all methods (or one) from measured runs",
     "apply <method> [yes]\tuse a method's result (then save; yes: with a flagged run)",
     "save\tstore parameters in flash (motors stopped)",
-    "reset-params\trestore the defaults (then save)",
+    "reset-params [yes]\trestore the defaults (then save; yes: discard changes)",
     "pose\todometry pose",
     "odom reset\tset the odometry pose to the origin",
     "bringup [motors|push]\twiring check: motor pulses (wheels up) or a hand push",
@@ -229,10 +229,12 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
     write!(out, "ok\r\n")
 }
 
-pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result {
+/// The `runs` reply: each stored run under the number it keeps for the session.
+pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord], numbers: &[u16]) -> fmt::Result {
     let mut measured = 0u32;
     for (i, r) in runs.iter().enumerate() {
-        write!(out, "  run {} ", i + 1)?;
+        let number = numbers.get(i).map_or(i + 1, |&n| usize::from(n));
+        write!(out, "  run {number} ")?;
         write_path(out, &r.path)?;
         let o = r.odometry_end;
         write!(
@@ -266,11 +268,14 @@ pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord]) -> fmt::Result
 }
 
 /// The per-run residual list of one result, then a line naming the runs that disagree with the
-/// others (robust scale), so a swapped or mistyped measurement is caught before `apply`.
+/// others (robust scale) and the run whose removal makes the others agree (`culprit`,
+/// leave-one-out; `None`: no single run does), so a swapped or mistyped measurement is caught
+/// before `apply` and a good run is not dropped for it.
 pub(super) fn write_residuals(
     out: &mut dyn Write,
     method: &str,
     residuals: &[super::RunResidual],
+    culprit: Option<usize>,
 ) -> fmt::Result {
     write!(
         out,
@@ -289,30 +294,33 @@ pub(super) fn write_residuals(
         }
         write!(out, " weight={}", Decimal::fixed(r.weight, 2))?;
         if r.outlier {
-            out.write_str(" DISAGREES")?;
+            out.write_str(DISAGREES)?;
         }
         out.write_str(EOL)?;
     }
-    let mut flagged = residuals.iter().filter(|r| r.outlier).map(|r| r.run);
-    let Some(first) = flagged.next() else {
+    if !residuals.iter().any(|r| r.outlier) {
         return Ok(());
-    };
-    write!(out, "  {CHECK_RUN}{first}")?;
-    let mut only = true;
-    for run in flagged {
-        write!(out, " {run}")?;
-        only = false;
     }
-    out.write_str(
-        ": disagrees with the others by more than the robust scale (x/y swapped, a sign, a \
-         unit?); ",
+    write!(
+        out,
+        "  {RUNS_DISAGREE}by more than the robust scale (x/y swapped, a sign, a unit?)"
     )?;
-    if only {
-        write!(out, "drop {first} or measure #{first} x y")?;
-    } else {
-        out.write_str("drop <n> or measure #<n> x y for each")?;
+    match culprit {
+        Some(n) => {
+            out.write_str("; ")?;
+            token::write_culprit(out, n)?;
+            write!(
+                out,
+                " (each run left out in turn): check run {n}, then measure #{n} x y or drop {n}, \
+                 and calibrate again\r\n"
+            )
+        }
+        None => write!(
+            out,
+            "; leaving out one run at a time does not tell which (none or several restore \
+             agreement): check the flagged runs' measurements\r\n"
+        ),
     }
-    write!(out, ", then calibrate again\r\n")
 }
 
 pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {

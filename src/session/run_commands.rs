@@ -14,9 +14,12 @@ use heapless::Vec;
 use super::traits::{Activity, Calibrator, Robot, RobotError};
 use super::{ActiveRun, Session, measure, robot_err};
 use crate::motion::run::{Measurement, PathKind};
+use crate::protocol::command::check_measure_range;
 use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::record;
 use crate::protocol::refusal::{Refusal, write_refusal};
+use crate::protocol::reply::{ErrorCode, write_err};
+use crate::protocol::unit::{Angle, Length};
 
 /// Removes and returns element `i` of `v`, keeping the order of the others (as `Vec::remove`),
 /// or `None` when there is no element `i`. The element walks to the end by swaps of disjoint
@@ -89,18 +92,14 @@ impl<C: Calibrator> Session<C> {
     /// measured or dropped before the next one starts, so its end pose is not lost and a plain
     /// `measure` cannot fill the wrong run) and while the run store is full.
     fn try_start(&mut self, path: PathKind, robot: &mut dyn Robot) -> Result<Outcome, RunError> {
-        if let Some(last) = self.runs.last().filter(|r| r.measured.is_none()) {
-            return Err(Refusal::Unmeasured {
-                run: self.runs.len(),
-                path: last.path,
-            }
-            .into());
+        if let Some(refusal) = self.unmeasured_end() {
+            return Err(refusal.into());
         }
         if self.runs.is_full() {
             return Err(Refusal::StoreFull.into());
         }
         robot.start(path).map_err(RunError::Robot)?;
-        let run = self.runs.len() + 1;
+        let run = usize::from(self.next_number);
         self.active = Some(ActiveRun { number: run, path });
         Ok(Outcome::Started { run, path })
     }
@@ -147,7 +146,7 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         let stored = self.runs.len();
-        let Some(run) = index.checked_sub(1).and_then(|i| self.runs.get(i)) else {
+        let Some(run) = self.position(index).and_then(|i| self.runs.get(i)) else {
             return write_refusal(out, &Refusal::NoSuchRun { run: index, stored });
         };
         if first_knot > 0 && first_knot >= run.knots.len() {
@@ -157,7 +156,8 @@ impl<C: Calibrator> Session<C> {
         record::write_record_page(out, index, run, first_knot)
     }
 
-    /// `drop <n>`: removes run `index` from the store; later runs move up one number.
+    /// `drop <n>`: removes run number `index` from the store; the other runs keep their
+    /// numbers (a gap is left).
     pub(super) fn drop_run(
         &mut self,
         index: usize,
@@ -170,13 +170,13 @@ impl<C: Calibrator> Session<C> {
 
     fn try_drop_run(&mut self, index: usize) -> Result<Outcome, RunError> {
         let stored = self.runs.len();
-        let removed = index
-            .checked_sub(1)
-            .and_then(|i| remove_at(&mut self.runs, i));
-        let Some(run) = removed else {
+        let position = self.position(index);
+        let removed = position.and_then(|i| remove_at(&mut self.runs, i));
+        let (Some(run), Some(i)) = (removed, position) else {
             return Err(Refusal::NoSuchRun { run: index, stored }.into());
         };
-        let _ = remove_at(&mut self.run_ids, index - 1);
+        let _ = remove_at(&mut self.run_ids, i);
+        let _ = remove_at(&mut self.numbers, i);
         self.runs_changed();
         Ok(Outcome::Dropped {
             run: index,
@@ -211,57 +211,85 @@ impl<C: Calibrator> Session<C> {
         }
         self.runs.clear();
         self.run_ids.clear();
+        self.renumber();
         self.runs_changed();
         Ok(Outcome::DroppedAll { runs })
     }
 
-    /// `measure [#n] x y [θ]` and its reply.
+    /// `measure [#n] x y [θ] [yes]` and its reply: each bare value in the session's declared
+    /// unit (none declared: refused, naming the units), ranges checked once converted.
     pub(super) fn measure(
         &mut self,
         index: Option<usize>,
-        typed: measure::MeasuredPose,
+        (x, y, theta): (Length, Length, Option<Angle>),
+        confirmed: bool,
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        let result = self.try_measure(index, typed, robot);
+        let no_unit = |what, value| Refusal::NoUnit { what, value };
+        let (Some(x_m), Some(y_m)) = (x.metres(self.measure_unit), y.metres(self.measure_unit))
+        else {
+            let (what, value) = match x.metres(self.measure_unit) {
+                None => ("x", x.value),
+                Some(_) => ("y", y.value),
+            };
+            return write_refusal(out, &no_unit(what, value));
+        };
+        let theta_deg = match theta {
+            None => None,
+            Some(t) => match t.degrees(self.heading_unit) {
+                Some(d) => Some(d),
+                None => return write_refusal(out, &no_unit("theta", t.value)),
+            },
+        };
+        if let Err(e) = check_measure_range(x_m, y_m, theta_deg) {
+            return write_err(out, ErrorCode::from(&e), &e);
+        }
+        let result = self.try_measure(index, (x_m, y_m, theta_deg), confirmed, robot);
         write_reply(out, result, robot)
     }
 
     /// `measure [#n] x y [θ]`: without `#n` it fills the last finished run if that is
     /// unmeasured (never an earlier one, never after an aborted run); `#n` fills or replaces run
     /// `n` and says what it replaced, keeping run n's measured heading when no new one is given.
-    /// Refused while anything moves, and when implausible (a bare value is never converted: the
-    /// reply asks for the unit written out).
+    /// Refused while anything moves, and beyond the plausibility bound unless `confirmed`.
     fn try_measure(
         &mut self,
         index: Option<usize>,
-        typed: measure::MeasuredPose,
+        (x_m, y_m, theta_deg): (f64, f64, Option<f64>),
+        confirmed: bool,
         robot: &mut dyn Robot,
     ) -> Result<Outcome, RunError> {
         if robot.status().activity != Activity::Idle {
             return Err(Refusal::MeasureWhileDriving.into());
         }
         let stored = self.runs.len();
-        let n = match index {
-            Some(n) if n > stored => return Err(Refusal::NoSuchRun { run: n, stored }.into()),
-            Some(n) => n,
+        let (n, i) = match index {
+            Some(n) => match self.position(n) {
+                Some(i) => (n, i),
+                None => return Err(Refusal::NoSuchRun { run: n, stored }.into()),
+            },
             None => {
                 if let Some(a) = self.last_aborted {
                     return Err(Refusal::Aborted { run: a.number }.into());
                 }
+                let last = stored.wrapping_sub(1);
                 match self.runs.last() {
                     None => return Err(Refusal::NothingToMeasure.into()),
                     Some(r) if r.measured.is_some() => {
-                        return Err(Refusal::AlreadyMeasured { run: stored }.into());
+                        let run = self.number_at(last);
+                        return Err(Refusal::AlreadyMeasured { run }.into());
                     }
-                    Some(_) => stored,
+                    Some(_) => (self.number_at(last), last),
                 }
             }
         };
-        let Some(run) = self.runs.get_mut(n - 1) else {
+        let Some(run) = self.runs.get_mut(i) else {
             return Err(Refusal::NoSuchRun { run: n, stored }.into());
         };
-        if let Err(why) = measure::check_typed(run, typed.x, typed.y, typed.theta) {
+        if let Err(why) = measure::check(run, x_m, y_m, theta_deg)
+            && !confirmed
+        {
             return Err(RunError::Implausible {
                 run: n,
                 path: run.path,
@@ -269,16 +297,16 @@ impl<C: Calibrator> Session<C> {
             });
         }
         // `measure #n x y` without θ keeps the heading measured before.
-        let heading_kept = match typed.theta {
+        let heading_kept = match theta_deg {
             None => run.measured.and_then(|m| m.theta_rad),
             Some(_) => None,
         };
-        let (x_m, y_m) = (typed.x.m, typed.y.m);
-        let replaced = run.measured.replace(Measurement {
+        let read = Measurement {
             x_m,
             y_m,
-            theta_rad: typed.theta.map(|t| t.deg.to_radians()).or(heading_kept),
-        });
+            theta_rad: theta_deg.map(f64::to_radians).or(heading_kept),
+        };
+        let replaced = run.measured.replace(read);
         let odo = run.odometry_end;
         let path = run.path;
         self.runs_changed();
@@ -286,6 +314,7 @@ impl<C: Calibrator> Session<C> {
             run: n,
             path,
             replaced,
+            read,
             error_m: (x_m - odo.x_m, y_m - odo.y_m),
             heading_kept,
         })

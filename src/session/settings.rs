@@ -10,6 +10,7 @@ use core::fmt;
 
 use crate::kinematics::geometry::{Geometry, GeometryError};
 use crate::motion::controller::{ControllerConfig, rate_supported};
+use crate::motion::profile::LimitsError;
 use crate::motion::speed::TuningError;
 use crate::protocol::{ParamGroup, ParamName, ValueKind};
 use crate::storage::record::ParamRecord;
@@ -38,7 +39,23 @@ pub enum SettingsError {
     /// A control rate the controller does not run at (not one of
     /// [`crate::motion::controller::RATES_HZ`]).
     Rate,
+    /// The motion limits are invalid, or faster than the encoders count.
+    Limits(LimitsError),
 }
+
+/// A stored value that [`ParamRecord::check`] refused at boot and its default replaced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BootRefusal {
+    /// The parameter.
+    pub name: ParamName,
+    /// The value stored.
+    pub value: f64,
+    /// The rule it broke.
+    pub why: SettingsError,
+}
+
+/// The values refused at boot (at most one per rule and limit).
+pub type BootRefusals = heapless::Vec<BootRefusal, 3>;
 
 /// Accepted nominal `d_right / d_left`: wheels of one robot differ by far less; a value outside
 /// is a typing error (a missing decimal point, millimetres for metres).
@@ -61,6 +78,7 @@ impl fmt::Display for SettingsError {
                 crate::util::decimal::Plain(DIAMETER_RATIO_RANGE.1),
             ),
             SettingsError::Rate => f.write_str(crate::motion::controller::RATE_RULE),
+            SettingsError::Limits(e) => write!(f, "{e}"),
             SettingsError::WheelbaseRatio { ratio } => write!(
                 f,
                 "wheelbase/wheel diameter would be {}, outside {}..{}",
@@ -101,12 +119,78 @@ impl ParamRecord {
     /// control rate with the active geometry, the motion limits, the wiring corrections and the
     /// speed-loop tuning. The firmware and the simulated board both boot their controller from
     /// it.
+    /// [`Controller::new`](crate::motion::controller::Controller::new) applies to it the rules
+    /// of `set` (glitch limit re-derived, encoders' countability checked); run
+    /// [`ParamRecord::for_boot`] first so that it accepts the result.
     pub fn controller_config(&self) -> ControllerConfig {
         let mut c = ControllerConfig::new(self.active, self.control_hz);
         c.limits = self.motion;
         c.wiring = self.wiring;
         c.speed = self.tuning;
         c
+    }
+
+    /// The rules that hold across the settings as a whole, as `set` (and so `apply` and
+    /// `reset-params`, which hand their settings to the controller the same way) enforces them:
+    /// the nominal geometry consistent ([`check_nominal`]) and the motion limits within what the
+    /// active geometry's encoders count ([`crate::motion::profile::MotionLimits::validate_for`],
+    /// the controller's own check). The parameter named is the one whose default is taken when
+    /// a stored record breaks the rule.
+    ///
+    /// # Errors
+    /// The first broken rule, with the parameter to blame.
+    pub fn check(&self) -> Result<(), (ParamName, SettingsError)> {
+        check_nominal(&self.nominal).map_err(|e| {
+            let name = match e {
+                SettingsError::WheelbaseRatio { .. } => ParamName::Wheelbase,
+                _ => ParamName::DiameterRight,
+            };
+            (name, e)
+        })?;
+        self.motion.validate_for(&self.active).map_err(|e| {
+            let m = &self.motion;
+            let name = match e {
+                LimitsError::Accel => ParamName::MaxAccel,
+                LimitsError::TurnAccel => ParamName::MaxTurnAccel,
+                LimitsError::TurnRate => ParamName::MaxTurnRate,
+                LimitsError::BeyondEncoders
+                    if f64::from(m.max_speed_mps) < m.wheel_speed_mps(&self.active) =>
+                {
+                    ParamName::MaxTurnRate
+                }
+                _ => ParamName::MaxSpeed,
+            };
+            (name, SettingsError::Limits(e))
+        })
+    }
+
+    /// The settings a board boots with from a stored record: the record itself when it keeps
+    /// [`ParamRecord::check`]'s rules, else with each value that breaks one replaced by its
+    /// default (a geometry value takes the whole default geometry, the calibration with it,
+    /// since a calibration is relative to its nominal geometry). Returns the values replaced,
+    /// for the boot line; nothing else is changed.
+    pub fn for_boot(&self) -> (ParamRecord, BootRefusals) {
+        let mut s = self.clone();
+        let mut refused = BootRefusals::new();
+        while let Err((mut name, why)) = s.check() {
+            if s.value(name) == ParamRecord::DEFAULT.value(name) {
+                // Even the default limit is beyond these encoders: the geometry is to blame.
+                name = ParamName::CountsPerRev;
+            }
+            let value = s.value(name);
+            if refused.push(BootRefusal { name, value, why }).is_err() {
+                // More than one value of each rule: nothing of the record is trusted.
+                return (ParamRecord::DEFAULT, refused);
+            }
+            if name.spec().group == ParamGroup::Geometry {
+                s.nominal = ParamRecord::DEFAULT.nominal;
+                s.active = s.nominal;
+                s.calibration = None;
+            } else {
+                (name.spec().set)(&mut s, ParamRecord::DEFAULT.value(name));
+            }
+        }
+        (s, refused)
     }
 
     /// Current value of a parameter (its row's reading of the record).

@@ -89,7 +89,7 @@ pub enum Rejection {
 impl fmt::Display for Rejection {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            Rejection::NotReady => "encoders not read yet",
+            Rejection::NotReady => "the control loop has not run yet (encoders not read: no control-timer interrupt, as under QEMU)",
             Rejection::Path => "path size not accepted by the routine",
             Rejection::Check => "check not accepted by the controller",
             Rejection::NotFinite => "speeds must be finite",
@@ -221,7 +221,7 @@ pub trait SettingsAndRuns {
 /// How one stored run fits a result (the exact method's robust fit).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RunResidual {
-    /// Run number as `runs` shows it (1-based position in the store).
+    /// 1-based position in the store (the session writes the run's number).
     pub run: usize,
     /// End residual `measured − predicted` in x, metres.
     pub dx_m: f64,
@@ -233,6 +233,16 @@ pub struct RunResidual {
     pub weight: f64,
     /// The run disagrees with the others (robust scale).
     pub outlier: bool,
+}
+
+/// Which run's removal makes the others agree (leave-one-out of the robust fit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Culprit {
+    /// Without this run (1-based store position) the robust fit of the others flags none, and
+    /// no other run's removal does that.
+    Run(usize),
+    /// No single run's removal restores agreement, or more than one does.
+    CannotTell,
 }
 
 /// One method's calibration result, factors relative to the nominal geometry.
@@ -305,6 +315,9 @@ pub trait Calibrator {
         nominal: &Geometry,
         method: &str,
     ) -> Result<Solution, SolveError>;
+    /// Leaves each measured run out of the robust fit in turn and names the one whose removal
+    /// makes the others agree, or says it cannot tell.
+    fn culprit(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Culprit;
     /// Writes track-size advice for these runs as data lines (each ending in `\r\n`), for
     /// every method or only for `only`.
     ///

@@ -178,7 +178,9 @@ impl fmt::Display for StoreError {
             StoreError::BadRange => f.write_str(
                 "flash error: storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)",
             ),
-            StoreError::MotorsRunning => f.write_str("motors running, flash not written"),
+            StoreError::MotorsRunning => f.write_str(
+                "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
+            ),
             StoreError::InvalidRecord(e) => write!(f, "parameters not storable: {e}"),
             StoreError::Flash(e) => write!(f, "flash error: {e}"),
             StoreError::Corrupted => f.write_str("flash error: flash contents corrupted"),
@@ -258,6 +260,8 @@ pub struct LoadOutcome {
     pub record: ParamRecord,
     /// `None` when the stored record was used.
     pub warning: Option<LoadWarning>,
+    /// Why the newest stored record was not used, when `record` is the valid one before it.
+    pub older: Option<LoadWarning>,
 }
 
 /// The parameter and run store over one NOR flash: the parameter region's two sectors and
@@ -396,17 +400,27 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
             return LoadOutcome {
                 record: ParamRecord::DEFAULT,
                 warning: Some(warning),
+                older: None,
             };
         }
         let found = params::scan(self.map.flash(), &self.params, PARAM_DATA_MAX).await;
+        let mut older = None;
         let loaded = match found {
             Err(e) => Err(LoadWarning::Unreadable(e)),
             Ok(found) => match found.newest {
                 Some(slot) => {
-                    let bytes = params::read(self.map.flash(), &slot, &mut self.buf.0).await;
-                    let loaded = bytes
-                        .map_err(LoadWarning::Unreadable)
-                        .and_then(decode_record);
+                    let loaded = match (self.read_record(&slot).await, found.previous) {
+                        // The newest record does not decode or validate: the valid one before it.
+                        (Err(why), Some(prev)) => match self.read_record(&prev).await {
+                            Ok(record) => {
+                                warn!("{}; using the record before it", why);
+                                older = Some(why);
+                                Ok(record)
+                            }
+                            Err(_) => Err(why),
+                        },
+                        (newest, _) => newest,
+                    };
                     self.remove_old_copy().await;
                     loaded
                 }
@@ -417,15 +431,25 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
             Ok(record) => LoadOutcome {
                 record,
                 warning: None,
+                older,
             },
             Err(warning) => {
                 warn!("{}; using default parameters", warning);
                 LoadOutcome {
                     record: ParamRecord::DEFAULT,
                     warning: Some(warning),
+                    older: None,
                 }
             }
         }
+    }
+
+    /// The record in `slot`, decoded and validated.
+    async fn read_record(&mut self, slot: &params::Slot) -> Result<ParamRecord, LoadWarning> {
+        params::read(self.map.flash(), slot, &mut self.buf.0)
+            .await
+            .map_err(LoadWarning::Unreadable)
+            .and_then(decode_record)
     }
 
     /// The parameter region has no valid record: an older firmware's, from the run region,

@@ -110,6 +110,9 @@ pub struct Slot {
 pub struct Scan {
     /// The newest valid slot.
     pub newest: Option<Slot>,
+    /// The valid slot before it (in either sector): the record to fall back to when the
+    /// newest one does not decode or validate.
+    pub previous: Option<Slot>,
     /// Per sector: where its erased free space starts (erased to the sector's end), if it has any.
     pub free: [Option<u32>; 2],
     /// Per sector: whether any byte is programmed.
@@ -181,10 +184,11 @@ async fn scan_sector<F: MultiwriteNorFlash>(
     sector: usize,
     range: &Range<u32>,
     data_max: usize,
-) -> Result<(Option<Slot>, Option<u32>, bool, bool), StoreError> {
+) -> Result<([Option<Slot>; 2], Option<u32>, bool, bool), StoreError> {
     let align = align_of::<F>();
     let header_read = HEADER.next_multiple_of(align);
-    let mut newest: Option<Slot> = None;
+    // The newest two valid slots, newest first.
+    let mut newest: [Option<Slot>; 2] = [None, None];
     let mut at = range.start;
     let mut dirty = false;
     let mut foreign = false;
@@ -239,17 +243,30 @@ async fn scan_sector<F: MultiwriteNorFlash>(
             }
         })
         .await?;
-        if !sum == crc && newest.is_none_or(|n| seq > n.seq) {
-            newest = Some(Slot {
-                sector,
-                at,
-                len,
-                seq,
-            });
+        if !sum == crc {
+            keep_newest(
+                &mut newest,
+                Slot {
+                    sector,
+                    at,
+                    len,
+                    seq,
+                },
+            );
         }
         at += slot;
     };
     Ok((newest, free, dirty, foreign))
+}
+
+/// Keeps the two newest of `top` and `slot` in `top`, newest first.
+fn keep_newest(top: &mut [Option<Slot>; 2], slot: Slot) {
+    if top[0].is_none_or(|n| slot.seq > n.seq) {
+        top[1] = top[0];
+        top[0] = Some(slot);
+    } else if top[1].is_none_or(|n| slot.seq > n.seq) {
+        top[1] = Some(slot);
+    }
 }
 
 /// Walks both sectors.
@@ -262,17 +279,17 @@ pub async fn scan<F: MultiwriteNorFlash>(
     data_max: usize,
 ) -> Result<Scan, StoreError> {
     let mut out = Scan::default();
+    let mut top = [None, None];
     for (i, range) in sectors.sectors.iter().enumerate() {
-        let (newest, free, dirty, foreign) = scan_sector(flash, i, range, data_max).await?;
+        let (found, free, dirty, foreign) = scan_sector(flash, i, range, data_max).await?;
         out.free[i] = free;
         out.dirty[i] = dirty;
         out.foreign[i] = foreign;
-        if let Some(n) = newest
-            && out.newest.is_none_or(|o| n.seq > o.seq)
-        {
-            out.newest = Some(n);
+        for slot in found.into_iter().flatten() {
+            keep_newest(&mut top, slot);
         }
     }
+    [out.newest, out.previous] = top;
     Ok(out)
 }
 

@@ -84,12 +84,12 @@ impl Guide {
         };
         let after = self.slots[slot].record.as_ref().and_then(end_error);
         // Not a calibration run: off the board's store and out of the session's runs.
-        if let Some(pos) = self.board.iter().position(|&s| s == slot) {
-            let r = self.cmd(&format!("drop {}", pos + 1))?;
+        if let Some(n) = self.board_number(slot) {
+            let r = self.cmd(&format!("drop {n}"))?;
             if !r.ok() {
-                return Err(Stop::Failed(format!("drop {}: {}", pos + 1, r.last)));
+                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
             }
-            self.board.remove(pos);
+            self.board.retain(|&(_, s)| s != slot);
         }
         self.slots[slot].record = None;
         self.link.log.entry("drop", json!({ "slot": slot }), true);

@@ -102,8 +102,9 @@ struct Guide {
     ui: Ui,
     opts: Options,
     slots: Vec<Slot>,
-    /// Board run number − 1 → slot.
-    board: Vec<usize>,
+    /// The board's runs in its store order: (the number the board gives it, slot). The board
+    /// keeps a run's number for its session (a dropped run leaves a gap).
+    board: Vec<(usize, usize)>,
     nominal: Geometry,
     side_m: f64,
     per_direction: u32,
@@ -117,6 +118,9 @@ struct Guide {
     less: [u32; 2],
     /// Whether the applied calibration was saved.
     saved: bool,
+    /// Changes made on the board this session and not saved yet (the nominal geometry, the
+    /// wiring, the speed-loop tuning): offered for `save` even when no calibration is applied.
+    pending: Vec<&'static str>,
     /// The runs (board numbers) the last `calibrate` flagged.
     flagged: Vec<usize>,
     /// The check square's end error and the runs' mean end error before (if any), metres.
@@ -168,6 +172,14 @@ pub fn run(opts: &Options) -> Result<(), String> {
         Some(p) => (p.clone(), Some(LogContents::read(p)?)),
         None => (opts.log.clone().unwrap_or_else(log_default), None),
     };
+    // A new session never appends to an existing log (two sessions in one file).
+    if resumed.is_none() && log_path.exists() {
+        return Err(format!(
+            "{} exists: give a new --log name, or --resume {} to continue that session",
+            log_path.display(),
+            log_path.display()
+        ));
+    }
     let answers = match &opts.answers {
         Some(p) => std::fs::read_to_string(p)
             .map_err(|e| format!("{}: {e}", p.display()))?
@@ -208,6 +220,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         stop_runs: false,
         less: [0, 0],
         saved: false,
+        pending: Vec::new(),
         flagged: Vec::new(),
         check: None,
     };
@@ -298,7 +311,8 @@ fn unit_symbols() -> impl Iterator<Item = &'static str> {
 }
 
 /// A length typed by the operator, in metres, read by the library's reader the board uses
-/// (`protocol::unit::parse_length`: a bare number is metres, `150mm`, `15cm`, `0.15m`).
+/// (`protocol::unit::parse_length`: `150mm`, `15cm`, `0.15m`, the unit against the number or
+/// apart from it); a bare number is refused, as the board refuses it: a unit is never inferred.
 fn length(typed: &str) -> Result<f64, String> {
     // A unit typed apart from its number (`38.5 cm`) joins it.
     let word: String = typed.split_whitespace().collect();
@@ -307,8 +321,10 @@ fn length(typed: &str) -> Result<f64, String> {
         return Err(format!("`{word}` is not a number (use a decimal point)"));
     }
     match parse_length(word) {
-        Ok(l) if l.m.is_finite() => Ok(l.m),
-        Ok(_) => Err(format!("`{word}` is not finite")),
+        Ok(l) if !l.value.is_finite() => Err(format!("`{word}` is not finite")),
+        Ok(l) => l
+            .metres(None)
+            .ok_or_else(|| format!("`{word}` has no unit: write mm, cm or m after it ({word}mm)")),
         Err(e) => Err(format!(
             "`{word}`: {e} (a number, with mm, cm or m after it if not metres)"
         )),
@@ -424,8 +440,7 @@ impl Guide {
         loop {
             self.drive_missing_runs()?;
             let table = self.calibrate()?;
-            if !self.review_flagged_runs(&table)? {
-                self.apply_save_verify(&table)?;
+            if !self.review_flagged_runs(&table)? && !self.apply_save_verify(&table)? {
                 break;
             }
         }
@@ -530,8 +545,8 @@ impl Guide {
         );
         loop {
             let a = self.ui.ask(
-                "Square side L in metres",
-                Some(&format!("{:.3}", self.side_m)),
+                "Square side L (with its unit: 2m, 150cm)",
+                Some(&format!("{:.3}m", self.side_m)),
             )?;
             if a.eq_ignore_ascii_case("help") || a == "?" {
                 self.ui.say(
@@ -600,6 +615,28 @@ impl Guide {
     }
 
     /// Fetches the record of board run `n` (all pages).
+    /// The numbers of the runs the board holds, in its store order (from `runs`).
+    fn board_numbers(&mut self) -> Result<Vec<usize>, Stop> {
+        let r = self.cmd("runs")?;
+        if !r.ok() {
+            return Err(Stop::Failed(format!("runs: {}", r.last)));
+        }
+        Ok(run_numbers(&r.data))
+    }
+
+    /// The slot of board run number `n`, if the board holds it.
+    pub(super) fn board_slot(&self, n: usize) -> Option<usize> {
+        self.board.iter().find(|&&(m, _)| m == n).map(|&(_, s)| s)
+    }
+
+    /// The board's number of slot `slot`'s run, if the board holds it.
+    pub(super) fn board_number(&self, slot: usize) -> Option<usize> {
+        self.board
+            .iter()
+            .find(|&&(_, s)| s == slot)
+            .map(|&(n, _)| n)
+    }
+
     fn fetch_record(&mut self, n: usize) -> Result<(RunRecord, Vec<String>), Stop> {
         let mut lines = Vec::new();
         let mut reader = odocal::protocol::record::RecordReader::new();
@@ -642,19 +679,23 @@ impl Guide {
             self.side_m,
             n = self.per_direction
         ));
-        let runs = self.cmd("runs")?;
-        let stored = runs.data.len();
+        let numbers = self.board_numbers()?;
+        let stored = numbers.len();
         // Does the board still hold the logged runs (firmware that keeps them in flash across
         // a reset)? Runs after them were driven after the last logged one (the tool died before
         // logging them): they join the session, and an unmeasured one is measured now.
         let mut board = Vec::new();
-        for n in 1..=stored {
+        for &n in &numbers {
             board.push(self.fetch_record(n)?);
         }
         let common = stored.min(logged.len());
         let same = (0..common).all(|i| self.slots[logged[i]].record.as_ref() == Some(&board[i].0));
         if same && stored >= logged.len() {
-            self.board = logged;
+            self.board = numbers
+                .iter()
+                .copied()
+                .zip(logged.iter().copied())
+                .collect();
             if common > 0 {
                 self.ui.say(&format!(
                     "the board still holds the {} logged run(s): continuing on the board",
@@ -663,7 +704,7 @@ impl Guide {
             }
             self.send_plan()?;
             for (i, (record, lines)) in board.into_iter().enumerate().skip(common) {
-                let n = i + 1;
+                let n = numbers.get(i).copied().unwrap_or(i + 1);
                 self.ui.say(&format!(
                     "board run {n} ({}) is not in the log yet: it joins the session",
                     path_text(&record.path)
@@ -698,9 +739,28 @@ impl Guide {
     }
 }
 
+/// The run numbers of a `runs` reply's data lines (`run <n> …`), in order.
+fn run_numbers(data: &[String]) -> Vec<usize> {
+    data.iter()
+        .filter_map(|l| {
+            let mut w = l.split_whitespace();
+            (w.next() == Some("run")).then(|| w.next()?.parse().ok())?
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{length, measurement_words, new_log_path};
+    use super::{length, measurement_words, new_log_path, run_numbers};
+
+    #[test]
+    fn run_numbers_are_read_from_the_runs_listing() {
+        let data = [
+            "  run 2 square ccw L=0.500 m odometry x=+0.001 y=+0.002 not measured".to_string(),
+            "run 5 line d=1.000 m odometry x=+1.0 y=+0.0 not measured".to_string(),
+        ];
+        assert_eq!(run_numbers(&data), [2, 5]);
+    }
 
     #[test]
     fn a_measurement_is_passed_on_as_the_board_reads_it() {
@@ -722,7 +782,11 @@ mod tests {
     #[test]
     fn a_length_is_read_with_the_boards_unit_reader() {
         assert_eq!(length("150mm").unwrap(), 150.0 * 0.001);
-        assert_eq!(length("0.385").unwrap(), 0.385);
+        assert_eq!(
+            length("0.385").unwrap_err(),
+            "`0.385` has no unit: write mm, cm or m after it (0.385mm)"
+        );
+        assert_eq!(length("0.385 m").unwrap(), 0.385);
         assert_eq!(length("38.5cm").unwrap(), 38.5 * 0.01);
         assert_eq!(length(" 38.5 cm ").unwrap(), 38.5 * 0.01);
         assert_eq!(

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::protocol::token::{self, TableRow};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, write_calibration};
+use odocal::session::{Calibrator, Numbered, write_calibration};
 use serde_json::json;
 
 use super::runs::Measured;
@@ -34,9 +34,13 @@ impl Guide {
             );
             let mut out = String::new();
             let runs = self.live();
+            let numbered = Numbered {
+                runs: &runs,
+                numbers: &[],
+            };
             write_calibration(
                 &mut LibraryCalibrator::default(),
-                &runs,
+                numbered,
                 &self.nominal,
                 None,
                 &mut out,
@@ -80,7 +84,9 @@ impl Guide {
                         ));
                     }
                 }
-                Some(TableRow::Residual(_) | TableRow::CheckRun { .. } | TableRow::Advice(_)) => {
+                Some(
+                    TableRow::Residual { .. } | TableRow::Disagree { .. } | TableRow::Advice(_),
+                ) => {
                     self.ui.say(&format!("  {l}"));
                 }
                 _ => {}
@@ -95,33 +101,39 @@ impl Guide {
     /// swapped, a sign) or to drop it and drive it again; returns whether any run changed, so
     /// that the calibration is computed again.
     pub(super) fn review_flagged_runs(&mut self, table: &[String]) -> Result<bool, Stop> {
-        let flagged: Vec<usize> = table
-            .iter()
-            .find_map(|l| match TableRow::parse(l) {
-                Some(TableRow::CheckRun { runs, .. }) => Some(runs),
-                _ => None,
-            })
-            .map(|runs| {
-                runs.split_whitespace()
-                    .filter_map(|w| w.parse().ok())
-                    .collect()
-            })
-            .unwrap_or_default();
+        let (flagged, culprit) = flagged_and_culprit(table);
         // What stays flagged when nothing changes (the runs kept), for the plot's title.
         self.flagged.clone_from(&flagged);
+        // The run whose removal makes the others agree is the one to look at; when no single
+        // run does, every flagged one.
+        let review = match culprit {
+            Some(n) => vec![n],
+            None => flagged,
+        };
+        self.review_runs(&review, "disagrees with the others")
+    }
+
+    /// Offers each run of `review` (its number in the table) to be measured again, dropped,
+    /// driven again or kept; `why` says why it is asked. Returns whether any run changed.
+    fn review_runs(&mut self, review: &[usize], why: &str) -> Result<bool, Stop> {
         let mut changed = false;
-        // Highest first, so the board's numbers of the others stay valid.
-        'runs: for &n in flagged.iter().rev() {
+        // The board's numbers stay valid when a run is dropped; the table computed on the PC
+        // numbers the live runs 1, 2, … (highest first keeps them valid).
+        let on_board = self.board_has_all();
+        'runs: for &n in review.iter().rev() {
             let live: Vec<usize> = (0..self.slots.len())
                 .filter(|&i| self.slots[i].record.is_some())
                 .collect();
-            let Some(&slot) = live.get(n - 1) else {
+            let slot = if on_board {
+                self.board_slot(n)
+            } else {
+                n.checked_sub(1).and_then(|i| live.get(i)).copied()
+            };
+            let Some(slot) = slot else {
                 continue;
             };
-            // Measuring again needs the run on the board (`measure #n`).
-            let on_board = self.board_has_all();
             let question = format!(
-                "Run {n} disagrees with the others: {}[d]rop it, [r]e-drive it (drop it and \
+                "Run {n} {why}: {}[d]rop it, [r]e-drive it (drop it and \
                  drive a new one), or [k]eep it",
                 if on_board {
                     "[m]easure it again (a typing mistake: x/y swapped, a sign), "
@@ -156,7 +168,7 @@ impl Guide {
                             if !r.ok() {
                                 return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
                             }
-                            self.board.retain(|&s| s != slot);
+                            self.board.retain(|&(_, s)| s != slot);
                         }
                         self.slots[slot].record = None;
                         self.link.log.entry("drop", json!({ "slot": slot }), true);
@@ -190,7 +202,10 @@ impl Guide {
         Ok(changed)
     }
 
-    pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<(), Stop> {
+    /// Asks which method to apply, applies, saves and verifies it. A declined apply returns to
+    /// the choice (a run measured again, dropped or driven again, another method, or nothing
+    /// applied); returns whether the runs changed (`calibrate` again).
+    pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<bool, Stop> {
         let solved: Vec<(String, f64)> = table
             .iter()
             .filter_map(|l| {
@@ -210,68 +225,165 @@ impl Guide {
             .or_else(|| solved.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
             .map(|(m, _)| m.clone())
             .ok_or_else(|| Stop::Failed("no method solved".into()))?;
-        let method = loop {
-            let a = self.ui.ask(
-                "Apply which method (none: keep the current parameters)",
-                Some(&recommended),
-            )?;
-            if a.eq_ignore_ascii_case("none") {
+        'choice: loop {
+            let method = loop {
+                let a = self.ui.ask(
+                    "Apply which method (none: keep the current parameters)",
+                    Some(&recommended),
+                )?;
+                if a.eq_ignore_ascii_case("none") {
+                    self.ui
+                        .say("nothing applied; the board keeps its parameters");
+                    self.offer_pending_save()?;
+                    return Ok(false);
+                }
+                if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
+                    break m.clone();
+                }
+                let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
                 self.ui
-                    .say("nothing applied; the board keeps its parameters");
-                return Ok(());
+                    .say(&format!("  one of {}, or none", names.join(", ")));
+            };
+            if !self.board_has_all() {
+                self.ui.warn(&format!(
+                    "the board holds {} of the session's {} runs: `apply {method}` on the board \
+                     would compute from those only. The result from all runs is in the table \
+                     above and in the log (`cargo console recalibrate LOG --method {method}`)",
+                    self.board.len(),
+                    self.live().len()
+                ));
+                if !self
+                    .ui
+                    .confirm("Apply the board's result from its runs anyway", false)?
+                {
+                    match self.after_decline(table)? {
+                        Declined::Again => continue 'choice,
+                        Declined::Changed => return Ok(true),
+                        Declined::Skip => return Ok(false),
+                    }
+                }
             }
-            if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
-                break m.clone();
-            }
-            let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
-            self.ui
-                .say(&format!("  one of {}, or none", names.join(", ")));
-        };
-        if !self.board_has_all() {
-            self.ui.warn(&format!(
-                "the board holds {} of the session's {} runs: `apply {method}` on the board \
-                 would compute from those only. The result from all runs is in the table above \
-                 and in the log (`cargo console recalibrate LOG --method {method}`)",
-                self.board.len(),
-                self.live().len()
-            ));
+            let row = table
+                .iter()
+                .find(|l| l.split_whitespace().next() == Some(method.as_str()))
+                .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>())
+                .filter(|w| w.len() == 3)
+                .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
+                .unwrap_or_default();
             if !self
                 .ui
-                .confirm("Apply the board's result from its runs anyway", false)?
+                .confirm_explicit(&format!("Apply {method}{row} to the board"))?
             {
-                return Ok(());
+                match self.after_decline(table)? {
+                    Declined::Again => continue 'choice,
+                    Declined::Changed => return Ok(true),
+                    Declined::Skip => return Ok(false),
+                }
+            }
+            let mut applied = self.cmd(&format!("apply {method}"))?;
+            if applied.err_code() == Some(25) {
+                // A run is flagged (the board's own check): applied only on a second yes.
+                self.ui.say(&format!("  {}", applied.last));
+                if !self.ui.confirm_explicit(&format!(
+                    "Apply {method} anyway, with the flagged run in it"
+                ))? {
+                    match self.after_decline(table)? {
+                        Declined::Again => continue 'choice,
+                        Declined::Changed => return Ok(true),
+                        Declined::Skip => return Ok(false),
+                    }
+                }
+                applied = self.cmd(&format!("apply {method} yes"))?;
+            }
+            return self.save_and_verify(method, applied).map(|()| false);
+        }
+    }
+
+    /// After an apply was declined: measure a run again, drop it, drive it again, pick another
+    /// method, or apply nothing (pending changes are still offered for `save`).
+    fn after_decline(&mut self, table: &[String]) -> Result<Declined, Stop> {
+        let on_board = self.board_has_all();
+        loop {
+            let choice = self.choose(
+                "Not applied. Now",
+                &[
+                    ("m", "measure a run again"),
+                    ("d", "drop a run"),
+                    ("r", "re-drive a run"),
+                    ("o", "another method"),
+                    ("s", "skip: apply nothing"),
+                ],
+                // The default ends the question: a script answering every question with its
+                // default (--yes) must not loop between the method and this choice.
+                "s",
+                "  m, d or r ask which run (its number in the table) and then what to do with \
+                 it; o returns to the method question; s applies nothing (changes made this \
+                 session are still offered for save)",
+            )?;
+            match choice.as_str() {
+                "o" => return Ok(Declined::Again),
+                "s" => {
+                    self.ui
+                        .say("nothing applied; the board keeps its parameters");
+                    self.offer_pending_save()?;
+                    return Ok(Declined::Skip);
+                }
+                _ => {}
+            }
+            let a = self
+                .ui
+                .ask("Which run (its number in the table; back)", None)?;
+            if a.eq_ignore_ascii_case("back") {
+                continue;
+            }
+            let Ok(n) = a.trim().parse::<usize>() else {
+                self.ui.say("  a run number as the table lists it");
+                continue;
+            };
+            if !table
+                .iter()
+                .any(|l| l.trim_start().starts_with(&format!("run {n} ")))
+                && on_board
+            {
+                self.ui.say(&format!("  the table lists no run {n}"));
+            }
+            if self.review_runs(&[n], "chosen")? {
+                return Ok(Declined::Changed);
             }
         }
-        let row = table
-            .iter()
-            .find(|l| l.split_whitespace().next() == Some(method.as_str()))
-            .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>())
-            .filter(|w| w.len() == 3)
-            .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
-            .unwrap_or_default();
-        if !self
-            .ui
-            .confirm_explicit(&format!("Apply {method}{row} to the board"))?
-        {
-            self.ui
-                .say("nothing applied; the board keeps its parameters");
+    }
+
+    /// Offers `save` for the changes made on the board this session when nothing is applied.
+    fn offer_pending_save(&mut self) -> Result<(), Stop> {
+        if self.pending.is_empty() || self.saved {
             return Ok(());
         }
-        let mut applied = self.cmd(&format!("apply {method}"))?;
-        if applied.err_code() == Some(25) {
-            // A run is flagged (the board's own check): applied only on a second yes.
-            self.ui.say(&format!("  {}", applied.last));
-            if !self.ui.confirm_explicit(&format!(
-                "Apply {method} anyway, with the flagged run in it"
-            ))? {
-                self.ui.say(
-                    "nothing applied: re-measure or drop the flagged run (a terminal: `measure \
-                     #n …`, `drop n`), or resume this session to drive it again",
-                );
-                return Ok(());
+        let what = self.pending.join(", ");
+        if self.ui.confirm_explicit(&format!(
+            "Save the changes made this session ({what}) to flash"
+        ))? {
+            let saved = self.cmd("save")?;
+            self.link.log.entry(
+                "save",
+                json!({ "ok": saved.ok(), "reply": saved.last }),
+                true,
+            );
+            self.ui.say(&format!("  {}", saved.last));
+            if !saved.ok() {
+                return Err(Stop::Failed(format!("save: {}", saved.last)));
             }
-            applied = self.cmd(&format!("apply {method} yes"))?;
+            self.saved = true;
+            self.pending.clear();
+        } else {
+            self.ui.say(&format!(
+                "  not saved ({what}): lost at the next reset (type `save` on a terminal to keep)"
+            ));
         }
+        Ok(())
+    }
+
+    /// Logs the apply, saves on a yes, and reads `params` back.
+    fn save_and_verify(&mut self, method: String, applied: crate::link::Reply) -> Result<(), Stop> {
         self.link.log.entry(
             "apply",
             json!({ "method": method, "reply": applied.last }),
@@ -297,6 +409,7 @@ impl Guide {
             }
             self.ui.say(&format!("  {}", saved.last));
             self.saved = true;
+            self.pending.clear();
         } else {
             self.ui.say(
                 "  not saved: the board uses the calibration until it is reset (type `save` on \
@@ -384,5 +497,51 @@ impl Guide {
                 None
             }
         }
+    }
+}
+
+/// What the operator chose after declining an apply.
+enum Declined {
+    /// Ask for the method again.
+    Again,
+    /// A run changed: drive what is missing and calibrate again.
+    Changed,
+    /// Apply nothing.
+    Skip,
+}
+
+/// The runs a `calibrate` table flags (`run <n> … DISAGREES`) and the one whose removal makes
+/// the others agree (`… without run <n> the others agree …`), if the board could tell.
+fn flagged_and_culprit(table: &[String]) -> (Vec<usize>, Option<usize>) {
+    let mut flagged = Vec::new();
+    let mut culprit = None;
+    for l in table {
+        match TableRow::parse(l) {
+            Some(TableRow::Residual {
+                run,
+                disagrees: true,
+            }) => flagged.push(run),
+            Some(TableRow::Disagree { culprit: Some(n) }) => culprit = Some(n),
+            _ => {}
+        }
+    }
+    (flagged, culprit)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_flagged_runs_and_the_one_to_check_are_read_from_the_table() {
+        let table = [
+            "run 2  dx=+0.1 mm dy=+0.2 mm weight=0.91".to_string(),
+            "run 4  dx=+141.167 mm dy=-164.262 mm weight=0.00 DISAGREES".to_string(),
+            "run 7  dx=+1.0 mm dy=-1.0 mm weight=0.31 DISAGREES".to_string(),
+            "the runs disagree by more than the robust scale (x/y swapped, a sign, a unit?); \
+             without run 4 the others agree (each run left out in turn): check run 4, then \
+             measure #4 x y or drop 4, and calibrate again"
+                .to_string(),
+        ];
+        assert_eq!(super::flagged_and_culprit(&table), (vec![4, 7], Some(4)));
+        assert_eq!(super::flagged_and_culprit(&table[..3]), (vec![4, 7], None));
     }
 }

@@ -2,6 +2,7 @@
 //! stream, the measured end pose checked with the library's plausibility rule before `measure`,
 //! and the run's record logged with its measurement.
 
+use odocal::protocol::unit::{parse_angle, parse_length};
 use std::time::Duration;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
@@ -274,8 +275,9 @@ impl Guide {
                 .say("the run was aborted and not stored: it is driven again");
             return Ok(());
         }
-        let runs = self.cmd("runs")?;
-        let n = runs.data.len();
+        let Some(n) = self.board_numbers()?.last().copied() else {
+            return Err(Stop::Failed("the finished run is not in `runs`".into()));
+        };
         let (record, _) = self.fetch_record(n)?;
         self.ui.say(&format!(
             "{title} finished: {} odometry end x={:+.6} y={:+.6} theta={:+.4} deg",
@@ -309,11 +311,11 @@ impl Guide {
         self.ui.say(&format!(
             "  Measure where the axle midpoint stopped, in the run's start frame: x along the \
              start heading (forward positive), y to the left (positive left), and if you can \
-             the heading change theta (CCW positive), e.g. `0.0418 -0.0395 -2.3`.\n  A bare \
-             number is metres (theta: degrees); type the unit when you measured in another \
-             one: `41.8mm -39.5mm`, `4.18cm`, `-2.3deg`, `-0.04rad`. The board checks it \
-             against the odometry end (x={:+.4} y={:+.4} m) and asks for the unit when a bare \
-             value is implausible as metres.{}",
+             the heading change theta (CCW positive), e.g. `41.8mm -39.5mm -2.3deg`.\n  \
+             Every value with its unit (mm, cm, m; deg, rad), against the number or apart from \
+             it: `41.8 mm`, `4.18cm`, `-0.04rad`; a bare number is refused. The board checks it \
+             against the odometry end (x={:+.4} y={:+.4} m) and what the nominal geometry's \
+             tolerance allows on this path, and asks before keeping a value beyond that.{}",
             o.x_m,
             o.y_m,
             if may_drop {
@@ -339,8 +341,8 @@ impl Guide {
         loop {
             let a = self.ui.ask(
                 &format!(
-                    "Measured end pose of run {n}: x y [theta] (m, deg; y to the left; or \
-                     41.8mm; help{})",
+                    "Measured end pose of run {n}: x y [theta], each with its unit (41.8mm \
+                     -39.5mm -2.3deg; y to the left; help{})",
                     if may_drop { ", drop, skip" } else { "" }
                 ),
                 None,
@@ -381,8 +383,27 @@ impl Guide {
                 ));
                 continue;
             }
-            let line = format!("measure #{n} {}", words.join(" "));
-            let r = self.cmd(&line)?;
+            if let Some(bare) = bare_value(&words) {
+                self.ui.say(&format!(
+                    "  `{bare}` has no unit: type each value with its unit (mm, cm or m; deg or \
+                     rad), e.g. `41.8mm -39.5mm -2.3deg`"
+                ));
+                continue;
+            }
+            let mut line = format!("measure #{n} {}", words.join(" "));
+            let mut r = self.cmd(&line)?;
+            if r.err_code() == Some(22) {
+                // Beyond what the nominal geometry's tolerance allows: kept only on a yes.
+                self.ui.say(&format!("  {}", r.last));
+                if !self.ui.confirm_explicit(
+                    "Keep this measurement anyway (check the values, units and signs first)",
+                )? {
+                    self.ui.say("  nothing stored; type it again");
+                    continue;
+                }
+                line.push_str(" yes");
+                r = self.cmd(&line)?;
+            }
             self.link.log.entry(
                 "measure",
                 json!({ "board": n, "line": line, "reply": r.last }),
@@ -390,11 +411,7 @@ impl Guide {
             );
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
-                if r.err_code() == Some(22) {
-                    self.ui.say(
-                        "  (nothing stored; type it again, with its unit if it was not metres)",
-                    );
-                }
+                self.ui.say("  (nothing stored; type it again)");
                 continue;
             }
             let (record, lines) = self.fetch_record(n)?;
@@ -432,8 +449,7 @@ impl Guide {
             }
             return Ok(());
         }
-        let (mut n, mut left) = (1, stored);
-        while n <= left {
+        for n in self.board_numbers()? {
             let (record, lines) = self.fetch_record(n)?;
             self.ui.say(&format!(
                 "  board run {n}: {}{}",
@@ -449,12 +465,6 @@ impl Guide {
             } else {
                 self.measure(n, &record, Vec::new())?;
             }
-            if self.board.len() < n {
-                // Dropped: the later runs moved up one number.
-                left -= 1;
-            } else {
-                n += 1;
-            }
         }
         Ok(())
     }
@@ -468,13 +478,13 @@ impl Guide {
             self.ui.say("  there is no run to drop yet");
             return Ok(());
         };
-        if let Some(pos) = self.board.iter().position(|&s| s == slot) {
-            let r = self.cmd(&format!("drop {}", pos + 1))?;
+        if let Some(n) = self.board_number(slot) {
+            let r = self.cmd(&format!("drop {n}"))?;
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
-                return Err(Stop::Failed(format!("drop {}: {}", pos + 1, r.last)));
+                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
             }
-            self.board.remove(pos);
+            self.board.retain(|&(_, s)| s != slot);
         }
         self.slots[slot].record = None;
         self.link.log.entry("drop", json!({ "slot": slot }), true);
@@ -497,9 +507,9 @@ impl Guide {
             path,
         });
         self.log_run(slot, n, &lines);
-        // The board numbers its runs 1..k: run n is the last one.
-        self.board.truncate(n - 1);
-        self.board.push(slot);
+        // Run n is the board's newest: any entry from n on is stale.
+        self.board.retain(|&(m, _)| m < n);
+        self.board.push((n, slot));
     }
 
     /// Logs slot `slot` (board run `n`) with its record `lines` and its path.
@@ -534,6 +544,18 @@ pub(super) fn fault_cause(fault: &str) -> Option<&'static str> {
         }
         _ => None,
     }
+}
+
+/// The first measured value typed without a unit, if any (the words as the board reads them:
+/// x, y, then θ).
+fn bare_value(words: &[String]) -> Option<&str> {
+    words.iter().enumerate().find_map(|(i, w)| {
+        let bare = match i {
+            0 | 1 => parse_length(w).is_ok_and(|l| l.unit.is_none()),
+            _ => parse_angle(w).is_ok_and(|a| a.unit.is_none()),
+        };
+        bare.then_some(w.as_str())
+    })
 }
 
 #[cfg(test)]

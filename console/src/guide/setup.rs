@@ -24,7 +24,7 @@ pub(super) const HOW_TO_MEASURE: &str = "\
     edges' distance minus one tyre width, to about 1 mm (0.3 %): the calibration corrects it.
   - counts per revolution: encoder lines per motor turn x 4 (quadrature) x the gear ratio,
     from the data sheets; it must be exact.
-  A bare number is metres; a unit may be typed with it (150mm, 15cm, 0.15m).";
+  Every length with its unit (150mm, 15 cm, 0.15m): a bare number is refused.";
 
 /// A length in metres as sent to the board: to the picometre, without the binary noise of a
 /// unit conversion (`150mm` is `0.15`, not `0.15000000000000002`).
@@ -181,19 +181,41 @@ impl Guide {
             return Ok(());
         }
         self.ui.say(HOW_TO_MEASURE);
-        let d_right = self.ask_length("Right wheel diameter D_R", n.diameter_right_m)?;
-        let d_left = self.ask_length("Left wheel diameter D_L", d_right)?;
-        let b = self.ask_length("Wheelbase b", n.wheelbase_m)?;
+        self.ui.say("  (back returns to the previous question)");
+        // Each question in turn; `back` goes to the one before (from the first: the choice).
+        let (mut d_right, mut d_left, mut b) =
+            (n.diameter_right_m, n.diameter_left_m, n.wheelbase_m);
+        let mut step = 0;
         let counts = loop {
-            let a = self.ui.ask(
-                "Encoder counts per wheel revolution",
-                Some(&n.counts_per_rev.to_string()),
-            )?;
-            match a.parse::<u32>() {
-                Ok(c) if c > 0 => break c,
-                _ => self
-                    .ui
-                    .say("  a whole number of counts (lines x 4 x gear ratio)"),
+            let answer = match step {
+                0 => self.ask_length("Right wheel diameter D_R", d_right)?,
+                1 => self.ask_length("Left wheel diameter D_L", d_right)?,
+                2 => self.ask_length("Wheelbase b", b)?,
+                _ => {
+                    let a = self.ui.ask(
+                        "Encoder counts per wheel revolution",
+                        Some(&n.counts_per_rev.to_string()),
+                    )?;
+                    if a.eq_ignore_ascii_case("back") {
+                        step = 2;
+                        continue;
+                    }
+                    match a.parse::<u32>() {
+                        Ok(c) if c > 0 => break c,
+                        _ => {
+                            self.ui
+                                .say("  a whole number of counts (lines x 4 x gear ratio)");
+                            continue;
+                        }
+                    }
+                }
+            };
+            match (answer, step) {
+                (None, 0) => return self.geometry_step(held),
+                (None, _) => step -= 1,
+                (Some(v), 0) => (d_right, step) = (v, 1),
+                (Some(v), 1) => (d_left, step) = (v, 2),
+                (Some(v), _) => (b, step) = (v, 3),
             }
         };
         for (name, value) in [
@@ -204,6 +226,9 @@ impl Guide {
         ] {
             let r = self.cmd(&format!("set {name} {value}"))?;
             self.ui.say(&format!("  {}", r.last));
+            if r.last.contains("(not saved") && !self.pending.contains(&"nominal geometry") {
+                self.pending.push("nominal geometry");
+            }
             if !r.ok() {
                 self.ui.warn(&format!(
                     "the board refused {name} {value}: the geometry stays as it was for it"
@@ -222,20 +247,24 @@ impl Guide {
         Ok(())
     }
 
-    /// A length in metres (a unit may be typed with it), within the board's range.
-    fn ask_length(&mut self, what: &str, default: f64) -> Result<f64, Stop> {
+    /// A length in metres, typed with its unit, within the board's range; `None` for `back`.
+    fn ask_length(&mut self, what: &str, default: f64) -> Result<Option<f64>, Stop> {
         loop {
-            let a = self
-                .ui
-                .ask(&format!("{what} (m, or 150mm)"), Some(&default.to_string()))?;
+            let a = self.ui.ask(
+                &format!("{what} (with its unit: 150mm, 15cm, 0.15m)"),
+                Some(&format!("{}m", metres_text(default))),
+            )?;
             if a == "help" || a == "?" {
                 self.ui.say(HOW_TO_MEASURE);
                 continue;
             }
+            if a.eq_ignore_ascii_case("back") {
+                return Ok(None);
+            }
             match super::length(&a) {
-                Ok(v) if v > 0.0 && v <= 5.0 => return Ok(v),
+                Ok(v) if v > 0.0 && v <= 5.0 => return Ok(Some(v)),
                 Ok(v) => self.ui.say(&format!(
-                    "  {v} m is not a plausible {what}: a bare number is metres (150mm, 0.15)"
+                    "  {v} m is not a plausible {what} (check the unit: 150mm, 0.15m)"
                 )),
                 Err(e) => self.ui.say(&format!("  {e}")),
             }
@@ -348,6 +377,9 @@ impl Guide {
                 if !r.ok() {
                     return Err(Stop::Failed(format!("{p}: {}", r.last)));
                 }
+                if !self.pending.contains(&"wiring") {
+                    self.pending.push("wiring");
+                }
             }
             self.ui.say("  checking again with the correction");
         }
@@ -411,6 +443,9 @@ impl Guide {
                 .last()
                 .is_some_and(|l| event_tag(l) == Some(EventTag::IdentifyDone))
             {
+                if !self.pending.contains(&"speed-loop tuning") {
+                    self.pending.push("speed-loop tuning");
+                }
                 return Ok(());
             }
             self.ui.warn(

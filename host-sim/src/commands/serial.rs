@@ -165,7 +165,9 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
         let (master, path, slave) = open_pty()?;
         println!("pty {path}");
-        eprintln!("serial: connect to {path} (e.g. picocom {path}); Ctrl-C to quit");
+        eprintln!(
+            "serial: connect to {path} at 115200 baud (e.g. picocom -b 115200 {path}); Ctrl-C to quit"
+        );
         eprintln!("serial: type `button`, `button long` or `reboot` here (`help` lists them)");
         eprint!("sim: {out}");
         let mut reader = master.try_clone().map_err(|e| e.to_string())?;

@@ -229,20 +229,4 @@ mod tests {
         );
         assert!(json.contains("\"method\":\"lee-x\""));
     }
-
-    #[test]
-    fn exact_method_reruns_to_zero_error() {
-        // Re-driving with the exact fit leaves only tick rounding: one pulse is 2.4 µm, so after
-        // a 4 × 2 m square the end error stays far below 0.1 mm.
-        let nominal = Geometry::PAPER_NOMINAL;
-        let truth = true_geometry(&nominal, 1.010, 0.995, TruthModel::Mean);
-        let runs = [
-            IdealRun::square(&nominal, &truth, Direction::Cw, 2.0),
-            IdealRun::square(&nominal, &truth, Direction::Ccw, 2.0),
-        ];
-        let obs: Vec<_> = runs.iter().map(IdealRun::observation).collect();
-        let c = calibrate(&obs, &nominal, Method::Exact).unwrap();
-        assert!(e_max(&c.geometry, &truth, 2.0) < 1e-4);
-        assert!(e_max(&nominal, &truth, 2.0) > 0.1);
-    }
 }

@@ -2,7 +2,7 @@
 //! advice ([`odocal::calibration::track`]).
 //!
 //! For every noise level (1σ measurement error of a coordinate × 1σ relative wheel slip per
-//! substep) and every side `L`, `trials` calibrations are simulated in paper mode
+//! substep, a substep being a fixed length of travel: [`substeps_for`]) and every side `L`, `trials` calibrations are simulated in paper mode
 //! ([`crate::experiments::montecarlo::noisy_square`]: pulse counts commanded from the belief, slip on the
 //! ground travel, measurement noise on the true end position), `runs` squares per direction
 //! each, and every position-based method is applied. The figure of merit per method and cell is
@@ -66,7 +66,11 @@ pub struct SweepArgs {
     /// Runs per direction in each calibration.
     #[arg(long, default_value_t = 5)]
     pub runs: u32,
-    /// Substeps per segment (slip is drawn per substep).
+    /// Substeps per segment of a [`PILOT_SIDE_M`] square (slip is drawn per substep); a side
+    /// `L` gets `substeps · L / PILOT_SIDE_M` of them (at least one), so slip is drawn per fixed
+    /// length of travel (0.1 m by default) and the end scatter grows as `L^1.5`, a random walk
+    /// in distance as on a floor. A fixed count per segment would draw larger slips on longer
+    /// legs and grow the scatter as `L²`, faster than any floor does.
     #[arg(long, default_value_t = 20)]
     pub substeps: u32,
     /// True E_b.
@@ -179,6 +183,14 @@ fn trial_seed(seed: u64, level: usize, side: usize, trial: u32) -> u64 {
     (r.uniform() * (1u64 << 53) as f64) as u64
 }
 
+/// Substeps per segment of a square of side `side_m`: `pilot_substeps` at [`PILOT_SIDE_M`],
+/// proportionally many elsewhere (at least one), so each substep is the same length of travel.
+/// (The quarter turns get the same count: their slip adds ≈ 2 % of a leg's heading variance at
+/// 2 m and less on longer sides.)
+pub fn substeps_for(pilot_substeps: u32, side_m: f64) -> u32 {
+    ((f64::from(pilot_substeps) * side_m / PILOT_SIDE_M).round() as u32).max(1)
+}
+
 fn mc_args(a: &SweepArgs, side_m: f64, meas: f64, slip: f64) -> MonteCarloArgs {
     MonteCarloArgs {
         trials: a.trials,
@@ -186,7 +198,7 @@ fn mc_args(a: &SweepArgs, side_m: f64, meas: f64, slip: f64) -> MonteCarloArgs {
         runs: a.runs,
         meas_sigma: meas,
         slip,
-        substeps: a.substeps,
+        substeps: substeps_for(a.substeps, side_m),
         eb: a.eb,
         ed: a.ed,
         seed: a.seed,

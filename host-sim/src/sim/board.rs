@@ -109,11 +109,11 @@ impl<'f> Board<'f> {
     ) -> Result<Board<'f>, String> {
         let mut store = flash.store();
         let loaded = store.load_blocking();
-        let settings = loaded.record;
+        let (settings, refused) = loaded.record.for_boot();
         let controller = Controller::new(settings.controller_config())
             .map_err(|e| format!("stored parameters: {e}"))?;
         config.rate_hz = settings.control_hz;
-        write_boot_event(out, loaded.warning.as_ref(), None).map_err(|e| e.to_string())?;
+        write_boot_event(out, &loaded, &refused, None).map_err(|e| e.to_string())?;
         let mut session = Session::new(settings, LibraryCalibrator::default());
         session
             .restore_runs(&mut store, out)
@@ -360,7 +360,7 @@ impl<'f> Board<'f> {
 pub fn measure_line(board: &Board) -> Option<String> {
     board.true_pose_in_run_frame().map(|p| {
         format!(
-            "measure {:.6} {:.6} {:.4}",
+            "measure {:.6}m {:.6}m {:.4}deg",
             p.x_m,
             p.y_m,
             odocal::calibration::wrap_angle(p.theta_rad).to_degrees()

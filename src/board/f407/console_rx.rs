@@ -23,6 +23,9 @@ use crate::app::rx_ring::{RingCursor, RingRead};
 /// Bytes of the receive ring (even: the DMA's half-transfer flag marks its middle).
 pub const RX_RING_BYTES: usize = 512;
 
+/// The console's baud rate; a byte is 10 bits on the line (8N1).
+pub const CONSOLE_BAUD: u32 = 115_200;
+
 /// DMA1 stream of USART2 RX.
 const STREAM: usize = 5;
 /// DMA1 channel of USART2 RX on that stream.
@@ -58,6 +61,11 @@ enum Mode {
     Dma {
         cursor: RingCursor<RX_RING_BYTES>,
         dma: DMA1,
+        /// Core cycles per byte on the line (rounded down: the bound errs high).
+        cycles_per_byte: u32,
+        /// DWT.CYCCNT at the previous read: it counts through a flash stall, so the bytes
+        /// that can have arrived since are bounded by the time elapsed.
+        last_cycles: u32,
     },
     /// The RX interrupt: the stream did not start (a part or an emulator without the DMA
     /// controller; the boot log says so).
@@ -68,7 +76,7 @@ impl ConsoleRx {
     /// Starts the DMA stream into the ring and lets USART2 request it for every received byte
     /// (its RX interrupt stays off: the DMA takes each byte). If the stream does not read back
     /// as enabled, receives by the RX interrupt instead.
-    pub fn start(mut rx: Rx<USART2>, dma: DMA1, rcc: &mut Rcc) -> Self {
+    pub fn start(mut rx: Rx<USART2>, dma: DMA1, rcc: &mut Rcc, sysclk_hz: u32) -> Self {
         DMA1::enable(rcc);
         let st = dma.st(STREAM);
         // RM0090 §10.3.17: a stream is configured while disabled.
@@ -118,6 +126,8 @@ impl ConsoleRx {
             mode: Mode::Dma {
                 cursor: RingCursor::new(),
                 dma,
+                cycles_per_byte: (sysclk_hz / (CONSOLE_BAUD / 10)).max(1),
+                last_cycles: cortex_m::peripheral::DWT::cycle_count(),
             },
             rx,
         }
@@ -130,7 +140,13 @@ impl serial::ErrorType for ConsoleRx {
 
 impl serial::Read<u8> for ConsoleRx {
     fn read(&mut self) -> nb::Result<u8, RingOverrun> {
-        let Mode::Dma { cursor, dma } = &mut self.mode else {
+        let Mode::Dma {
+            cursor,
+            dma,
+            cycles_per_byte,
+            last_cycles,
+        } = &mut self.mode
+        else {
             // Any receive error (overrun, framing, noise, parity) is reported as a lost line.
             return self.rx.read().map_err(|e| e.map(|_| RingOverrun));
         };
@@ -154,7 +170,12 @@ impl serial::Read<u8> for ConsoleRx {
             });
         }
         let write = RX_RING_BYTES - after.min(RX_RING_BYTES);
-        match cursor.next(write, half, full) {
+        // Whole bytes in the time since the previous read, plus the ones under way at either
+        // end (CYCCNT wraps after 25 s at 168 MHz; reads come every millisecond).
+        let now = cortex_m::peripheral::DWT::cycle_count();
+        let arrivable = (now.wrapping_sub(*last_cycles) / *cycles_per_byte) as usize + 2;
+        *last_cycles = now;
+        match cursor.next(write, half, full, arrivable) {
             RingRead::Byte(i) => {
                 // SAFETY: `i` < RX_RING_BYTES, a byte the DMA has written and will not write
                 // again before it has gone round the ring (which `next` reports as an overrun).

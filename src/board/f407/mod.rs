@@ -319,9 +319,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
     }
     let params = flash::param_store(dp.FLASH);
 
-    // The HAL's split resets each port: port E's motor pins go back to the safe state at once.
-    let gpioe = dp.GPIOE.split(&mut rcc);
-    safety::motor_pins_safe_after_port_reset();
+    // Port E without the HAL's port reset: the motor pins stay in their safe state.
+    let gpioe = safety::port_e_without_reset(dp.GPIOE);
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
@@ -370,14 +369,14 @@ pub fn init(dp: pac::Peripherals) -> Board {
     let usart = Serial::new(
         dp.USART2,
         (gpioa.pa2, gpioa.pa3),
-        serial::Config::default().baudrate(115_200.bps()),
+        serial::Config::default().baudrate(console_rx::CONSOLE_BAUD.bps()),
         &mut rcc,
     );
     let (console_tx, console_rx) = match usart {
         Ok(s) => s.split(),
         Err(_) => defmt::panic!("USART2 configuration rejected"),
     };
-    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc);
+    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc, clocks.sysclk().raw());
     condition_inputs();
 
     Board {

@@ -58,17 +58,20 @@ pub fn motors_off_at_reset(rcc: &pac::RCC, gpioe: &pac::GPIOE) {
     drive_motor_pins_safe(gpioe);
 }
 
-/// The motor pins back in the safe state right after the HAL's `GPIOE.split()`, which resets
-/// the whole port (RCC_AHB1RSTR.GPIOERST): the reset makes them floating inputs and clears the
-/// pull-downs. Called on the next instructions, so the pins float for a few core cycles (tens
-/// of nanoseconds at 168 MHz, with the PWM timer not yet started), not until the H-bridge
-/// driver configures them; the pull-downs stay on from here (the HAL's mode changes do not
-/// touch PUPDR). `fil/safe_boot_test.py` checks the order on the shipped image.
-pub fn motor_pins_safe_after_port_reset() {
-    // SAFETY: only the address of GPIOE's register block; `init` owns the port (its HAL parts
-    // were just created and not used yet), and nothing else runs.
-    let gpioe = unsafe { &*pac::GPIOE::ptr() };
-    drive_motor_pins_safe(gpioe);
+/// Port E's pin tokens without the HAL's `GPIOE.split()`, which would reset the whole port
+/// (RCC_AHB1RSTR.GPIOERST) and leave the motor pins floating, pull-downs cleared, until their
+/// drivers take them. Here they keep the state [`motors_off_at_reset`] gave them (which also
+/// enabled the port's clock); the HAL's mode changes then set each pin's mode, type and
+/// alternate function and never touch PUPDR, so the pull-downs stay on. `fil/safe_boot_test.py`
+/// lists every GPIOE write of the shipped image's boot and rejects a port reset.
+pub fn port_e_without_reset(port: pac::GPIOE) -> stm32f4xx_hal::gpio::gpioe::Parts {
+    const { assert!(core::mem::size_of::<stm32f4xx_hal::gpio::gpioe::Parts>() == 0) };
+    // The port's only handle: no other pin tokens of port E can be made after this.
+    let _ = port;
+    // SAFETY: `Parts` is zero-sized (a zero-sized token per pin, checked above): no bytes are
+    // made up. `port`, consumed here, was the only way to get port E's tokens, so these are
+    // the only ones, as `split` would have returned them.
+    unsafe { core::mem::zeroed() }
 }
 
 fn drive_motor_pins_safe(gpioe: &pac::gpioi::RegisterBlock) {

@@ -304,7 +304,7 @@ impl Controller {
     /// geometry and rate (only while idle: nothing is accumulated): the glitch limit (a speed in
     /// counts per period), the speed loops, the stall, deadman and following-error bounds, the
     /// at-rest travel and velocity mode's scales.
-    fn rederive(&mut self) {
+    pub(super) fn rederive(&mut self) {
         let c = &mut self.config;
         c.right_encoder.max_step =
             glitch_limit(c.right_encoder.width, &c.geometry, &c.limits, c.rate_hz);

@@ -162,17 +162,28 @@ pub struct Controller {
     wheel_scales: (WheelScale, WheelScale),
     /// Control periods the board missed while the robot moved, since boot (saturating).
     missed_periods: u32,
-    /// Periods missed while idle just before the next step (a flash erase): that step's counts
-    /// span them all, and its glitch limit is widened to match.
+    /// Periods missed just before the next step (a flash erase while idle, a late period while
+    /// moving): that step's counts span them all, its glitch limit is widened and the speed
+    /// loops' counts are scaled to match.
     catch_up: u32,
-    /// The pose may be wrong: after a stall the right wheel (32-bit counter, exact) moved so far
-    /// that the left one's 16-bit counter may have wrapped. Cleared when a run starts from a
-    /// new pose.
+    /// Missed periods while moving, [`MISS_WEIGHT`] each, less one per period stepped while
+    /// moving: above [`MISS_WEIGHT`] × the periods of [`OVERRUN_FAULT_MS`] latches
+    /// [`Fault::Overrun`].
+    miss_debt: u32,
+    /// The pose may be wrong: after a stall either wheel moved so far that the left one's
+    /// 16-bit counter may have wrapped. Cleared when a run starts from a new pose.
     pose_lost: bool,
 }
 
 /// A gap this long (in control periods' time) while moving latches [`Fault::Overrun`], ms.
 pub const OVERRUN_FAULT_MS: u32 = 5;
+
+/// Missed periods are weighed against on-time ones 1 : `MISS_WEIGHT`: a sustained miss rate
+/// above 1 period in 20 (5 %) latches [`Fault::Overrun`] as one gap of [`OVERRUN_FAULT_MS`]
+/// does, a rate below it never does. Beyond 5 % the control task no longer fits its period
+/// (a run of misses, not one interrupt held up once): the speed loop runs on a sample time it
+/// was not tuned for and the profile falls behind real time by a period at each miss.
+pub const MISS_WEIGHT: u32 = 20;
 
 /// A wheel's speed in ticks/s is `v·ticks_per_m + ω·ticks_per_rad` for the robot's centre
 /// speed `v` and turn rate `ω` (derived in `f64` when the geometry changes, used in `f32`).
@@ -216,6 +227,12 @@ fn still_limits(g: &Geometry) -> (u64, u64) {
 
 impl Controller {
     /// A controller for `config`; idle, encoders synchronised at the first [`Controller::step`].
+    /// The rules of the setters apply: the limits must be countable on the geometry's encoders
+    /// ([`MotionLimits::validate_for`], as [`Controller::set_limits`]), and everything kept in
+    /// counts or periods (the glitch limit included) is derived from the geometry, limits and
+    /// rate by the setters' own `rederive`, whatever `config` held.
+    ///
+    /// [`MotionLimits::validate_for`]: crate::motion::profile::MotionLimits::validate_for
     ///
     /// # Errors
     /// [`ConfigError`] for the first invalid setting.
@@ -223,7 +240,7 @@ impl Controller {
         if !rate_supported(config.rate_hz) {
             return Err(ConfigError::Rate);
         }
-        config.limits.validate()?;
+        config.limits.validate_for(&config.geometry)?;
         config.speed.validate()?;
         let s = &config.stall;
         if !(s.min_duty > 0.0 && s.min_duty <= 1.0 && (1..=10_000).contains(&s.time_ms)) {
@@ -238,7 +255,7 @@ impl Controller {
         }
         let odometry = Odometry::new(&config.geometry, config.integration)?;
         let per_ms = |ms: u32| periods_of_ms(ms, config.rate_hz);
-        Ok(Controller {
+        let mut c = Controller {
             config,
             odometry,
             odo_state: OdometryState::default(),
@@ -263,8 +280,11 @@ impl Controller {
             wheel_scales: wheel_scales(&config.geometry),
             missed_periods: 0,
             catch_up: 0,
+            miss_debt: 0,
             pose_lost: false,
-        })
+        };
+        c.rederive();
+        Ok(c)
     }
 
     fn speed_pis(c: &ControllerConfig) -> (SpeedPi, SpeedPi) {
@@ -299,20 +319,23 @@ impl Controller {
             wheel: w,
             delta: e.delta,
         };
+        // The counts of every missed period arrive at once: motion (a robot rolled back to its
+        // mark during an erase, or a late period while moving), not a glitch, as far as the
+        // counters can tell.
+        let periods = self.catch_up.saturating_add(1);
         let (res_r, res_l) = if self.catch_up > 0 {
-            // The counts of every missed period arrive at once: motion (a robot rolled back to
-            // its mark during an erase), not a glitch, as far as the counters can tell.
-            let periods = self.catch_up.saturating_add(1);
             self.catch_up = 0;
             let (r, l) = (
                 enc_r.update_over(raw_right, periods),
                 enc_l.update_over(raw_left, periods),
             );
-            // Half of what the left counter tells apart, judged on the right wheel's exact count.
-            let left_range = enc_l.config().width.max_unambiguous_step() / 2;
-            if let Ok(dr) = r
-                && dr.unsigned_abs() > u64::from(left_range)
-            {
+            // Half of what the left counter tells apart, on either wheel (the right one's count
+            // is exact, the left one's may already be a wrapped reading).
+            let left_range = u64::from(enc_l.config().width.max_unambiguous_step() / 2);
+            let beyond = |d: &Result<i64, EncoderGlitch>| {
+                d.as_ref().is_ok_and(|d| d.unsigned_abs() > left_range)
+            };
+            if beyond(&r) || beyond(&l) {
                 self.pose_lost = true;
             }
             (r, l)
@@ -349,6 +372,16 @@ impl Controller {
         if self.fault.is_some() {
             return self.output(stop, None);
         }
+        if self.is_idle() {
+            self.miss_debt = 0;
+        } else {
+            self.miss_debt = self.miss_debt.saturating_sub(1);
+        }
+        // The speed loops and checks see one period's share of counts that took `periods`
+        // (a count passed the glitch check, so it fits an i32: the core's 32-bit divide).
+        let p = i32::try_from(periods).unwrap_or(i32::MAX);
+        let share = |d: i64| i64::from(i32::try_from(d).unwrap_or(0) / p);
+        let (dr, dl) = (share(dr), share(dl));
         let (command, tracking) = if self.driving_run() {
             self.step_run(dr, dl)
         } else if self.drive.is_some() {
@@ -469,19 +502,25 @@ impl Controller {
     }
 
     /// The board missed `missed` control periods before this one (the app core's
-    /// `MissedPeriods` counts them). While the robot moves they are counted, and a gap
-    /// of [`OVERRUN_FAULT_MS`] or more latches [`Fault::Overrun`] (motors stop at the next
-    /// step); while idle (a flash erase with the motors stopped) nothing depends on the period.
+    /// `MissedPeriods` counts them): the next step takes its counts as spanning them all.
+    /// While the robot moves they are counted, and a gap of [`OVERRUN_FAULT_MS`] or more, or a
+    /// miss rate above 1 in [`MISS_WEIGHT`] periods kept up, latches [`Fault::Overrun`] (motors
+    /// stop at the next step); while idle (a flash erase with the motors stopped) nothing
+    /// depends on the period.
     pub fn note_missed_periods(&mut self, missed: u32) {
         if missed == 0 {
             return;
         }
+        self.catch_up = self.catch_up.saturating_add(missed);
         if self.is_idle() {
-            self.catch_up = self.catch_up.saturating_add(missed);
             return;
         }
         self.missed_periods = self.missed_periods.saturating_add(missed);
-        if missed >= config::periods_of_ms(OVERRUN_FAULT_MS, self.config.rate_hz) {
+        self.miss_debt = self
+            .miss_debt
+            .saturating_add(missed.saturating_mul(MISS_WEIGHT));
+        let limit = config::periods_of_ms(OVERRUN_FAULT_MS, self.config.rate_hz);
+        if self.miss_debt >= limit.saturating_mul(MISS_WEIGHT) {
             self.latch(Fault::Overrun { missed });
         }
     }

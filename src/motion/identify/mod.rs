@@ -90,8 +90,18 @@ pub const PROBE_STAIR_MS: u32 = 300;
 pub const PROBE_END_FRACTION: f64 = 0.25;
 /// Margin over the speed cap before the routine stops with [`IdentifyProblem::TooFast`].
 pub const SPEED_MARGIN: f64 = 0.1;
-/// Largest distance from the start on the floor, m (the reply asks for about 1 m free).
+/// Largest distance from the start on the floor, m (the reply asks for about 1 m free): a
+/// bound, stopping distance included.
 pub const TRAVEL_LIMIT_M: f64 = 1.0;
+/// Time a wheel rolls on at most, at the speed it had, once its motor is stopped, s: the
+/// slowest motor time constant the routine is sized for (150 ms, see [`PROBE_STAIR_MS`]); a
+/// stopped first-order motor travels `v·τ` more. On the floor the routine stops when the
+/// distance from the start plus this much would pass [`TRAVEL_LIMIT_M`].
+pub const STOP_TIME_S: f64 = 0.15;
+/// Distance from the start after which the floor probe ends at the next stair that moved (its
+/// line then comes from lower speeds), m: a weak motor's probe would otherwise use the whole
+/// travel budget before it reaches [`PROBE_END_FRACTION`] of the cap.
+pub const PROBE_TRAVEL_M: f64 = 0.25;
 /// Largest deviation of a step's speed from what the probe predicted, as a fraction: beyond it
 /// the load changed (a wheel touched or left the ground, something blocks it).
 pub const RESPONSE_TOLERANCE: f64 = 0.5;

@@ -9,8 +9,8 @@ use super::report::{IdentifyFailure, IdentifyProblem};
 use super::stats::WheelLog;
 use super::{
     BLOCK_MS, BRAKE_MS, COAST_MS, IdentifyMode, LEVEL_FRACTIONS, LEVEL_MS, MAX_SPEED_MPS,
-    PROBE_END_FRACTION, PROBE_STAIR_MS, PROBE_START_DUTY, PROBE_STEP_DUTY, RESPONSE_TOLERANCE,
-    SPEED_MARGIN, TRAVEL_LIMIT_M,
+    PROBE_END_FRACTION, PROBE_STAIR_MS, PROBE_START_DUTY, PROBE_STEP_DUTY, PROBE_TRAVEL_M,
+    RESPONSE_TOLERANCE, SPEED_MARGIN, STOP_TIME_S, TRAVEL_LIMIT_M,
 };
 use crate::motion::motor::StopMode;
 use crate::motion::wheel::{MIN_MOTION_M, Wheel};
@@ -303,7 +303,9 @@ impl Identify {
         if self.mode == IdentifyMode::Floor {
             let right = self.travel.0 as f64 * self.m_per_tick.0;
             let left = self.travel.1 as f64 * self.m_per_tick.1;
-            if libm::fabs(0.5 * (right + left)) > TRAVEL_LIMIT_M {
+            // Where it would come to rest if stopped now: a bound, not a trigger.
+            let speed = self.centre_speed(dr, dl);
+            if libm::fabs(0.5 * (right + left)) + libm::fabs(speed) * STOP_TIME_S > TRAVEL_LIMIT_M {
                 let wheel = if libm::fabs(right) >= libm::fabs(left) {
                     Wheel::Right
                 } else {
@@ -316,6 +318,17 @@ impl Identify {
             }
         }
         None
+    }
+
+    /// The robot's speed from one period's counts, m/s.
+    fn centre_speed(&self, dr: i64, dl: i64) -> f64 {
+        0.5 * (dr as f64 * self.m_per_tick.0 + dl as f64 * self.m_per_tick.1)
+            * f64::from(self.rate_hz)
+    }
+
+    /// The robot's distance from the start (signed, forward positive), m.
+    fn position_m(&self) -> f64 {
+        0.5 * (self.travel.0 as f64 * self.m_per_tick.0 + self.travel.1 as f64 * self.m_per_tick.1)
     }
 
     /// A whole block's counts faster than the cap (plus its margin) on a driven wheel.
@@ -403,7 +416,13 @@ impl Identify {
                 slowest = (wheel, own);
             }
         }
-        if reached && let Some((d1, b1)) = probe.moving {
+        // On the floor a probe that used its share of the travel ends at a stair that moved.
+        let far = self.mode == IdentifyMode::Floor
+            && moving
+            && libm::fabs(self.position_m()) >= PROBE_TRAVEL_M;
+        if (reached || far)
+            && let Some((d1, b1)) = probe.moving
+        {
             let v1 = (
                 speed(b1.0, self.m_per_tick.0),
                 speed(b1.1, self.m_per_tick.1),
@@ -431,9 +450,25 @@ impl Identify {
         Some(drive(probe.duty))
     }
 
+    /// The speed the steps take [`LEVEL_FRACTIONS`] of, m/s: the cap, and on the floor at most
+    /// what keeps a pass within the travel left (from where the probe's brake ends, at most
+    /// [`STOP_TIME_S`] at the probe's speed away): the steps of [`LEVEL_MS`] each, then the
+    /// coast with no deceleration counted and a stop from the top step's speed.
+    fn step_cap_mps(&self, probe_speed: f64) -> f64 {
+        if self.mode != IdentifyMode::Floor {
+            return self.cap_mps;
+        }
+        let left =
+            TRAVEL_LIMIT_M - libm::fabs(self.position_m()) - libm::fabs(probe_speed) * STOP_TIME_S;
+        let level_s = f64::from(LEVEL_MS) / 1000.0;
+        let stop_s = f64::from(COAST_MS) / 1000.0 + STOP_TIME_S;
+        let per_mps = LEVEL_FRACTIONS.iter().sum::<f64>() * level_s + LEVEL_FRACTIONS[2] * stop_s;
+        self.cap_mps.min(left.max(0.0) / per_mps)
+    }
+
     /// The probe's line per driven wheel through its last two stairs, and the duty steps that
-    /// give [`LEVEL_FRACTIONS`] of the cap on it (on the floor one duty for both wheels: the
-    /// smaller, so the faster wheel stays within the cap).
+    /// give [`LEVEL_FRACTIONS`] of the step cap on it ([`Self::step_cap_mps`]; on the floor one
+    /// duty for both wheels: the smaller, so the faster wheel stays within the cap).
     fn choose_levels(
         &mut self,
         (on_r, on_l): (bool, bool),
@@ -441,6 +476,7 @@ impl Identify {
         (d2, v2): (f32, (f64, f64)),
     ) -> Result<(), IdentifyFailure> {
         let mut levels = [1.0f32; 3];
+        let cap = self.step_cap_mps(0.5 * (v2.0 + v2.1));
         for (w, wheel, on, a, b) in [
             (0usize, Wheel::Right, on_r, v1.0, v2.0),
             (1, Wheel::Left, on_l, v1.1, v2.1),
@@ -461,7 +497,7 @@ impl Identify {
             };
             self.lines[w] = line;
             for (level, f) in levels.iter_mut().zip(LEVEL_FRACTIONS) {
-                let d = (line.deadband + f * self.cap_mps / gain) as f32;
+                let d = (line.deadband + f * cap / gain) as f32;
                 *level = level.min(d);
             }
         }

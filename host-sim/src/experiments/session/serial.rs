@@ -122,7 +122,7 @@ pub(super) fn drive_and_measure(
         .ok_or("the board did not record the run start")?;
     let sigma = args.meas_mm * 1e-3;
     let line = format!(
-        "measure {:.6} {:.6} {:.4}",
+        "measure {:.6}m {:.6}m {:.4}deg",
         p.x_m + sigma * rng.normal(),
         p.y_m + sigma * rng.normal(),
         wrap_angle(p.theta_rad).to_degrees() + args.meas_deg * rng.normal()

@@ -1,0 +1,805 @@
+//! `cargo console ros2 --port PORT`: the board on a robot's ROS 2 network.
+//!
+//! A ROS 2 node in pure Rust (`ros2-client` over RustDDS: no ROS installation, the standard DDS
+//! topic and type names and CDR, so any ROS 2 node on any DDS vendor talks to it). It turns the
+//! board's pose stream into `nav_msgs/Odometry` on `odom`, the `odom → base_link` transform on
+//! `/tf`, the wheels on `joint_states` and the board's state and faults on `/diagnostics`, and
+//! forwards `cmd_vel` to the board's `drive` command, whose own 500 ms deadman stops the robot
+//! when commands stop (nothing here repeats a command). Lines typed on the bridge's stdin go to
+//! the board as commands (`line 1`, `pose`, `stop`), their replies to stdout.
+//!
+//! The stream line is the board's existing one (`stream t x y θ v_R v_L`, up to 100 Hz): the
+//! wheels' joint positions are the sums of the mean wheel speeds times the line intervals
+//! (exact up to the speeds' 4 printed decimals, 0.5 µm a line at 100 Hz).
+
+pub mod clock;
+pub mod msgs;
+
+use std::io::BufRead;
+use std::path::PathBuf;
+use std::sync::mpsc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use odocal::protocol::token;
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
+use ros2_client::{
+    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
+};
+
+use crate::covariance::{self, PoseCovariance, Uncertainty};
+use crate::link::{Link, LinkError};
+use crate::log::{SessionLog, calibration_of, nominal_of, param};
+use clock::ClockMap;
+use msgs::builtin_interfaces::Time;
+use msgs::diagnostic_msgs::{self, DiagnosticArray, DiagnosticStatus, KeyValue};
+use msgs::geometry_msgs::{
+    self, Pose, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistStamped,
+    TwistWithCovariance, Vector3,
+};
+use msgs::nav_msgs::{self, Odometry};
+use msgs::sensor_msgs::{self, JointState};
+use msgs::std_msgs::Header;
+use msgs::tf2_msgs::{self, TFMessage};
+use msgs::{Covariance, TypeName};
+
+/// The board's deadman: it stops the motors when no `drive` came for this long
+/// (docs/protocol.md).
+const DEADMAN_S: f64 = 0.5;
+
+/// Options of `ros2`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Options {
+    /// Serial port of the board (its USB-UART, or the pty `cargo sim serial --pty` prints).
+    #[arg(long)]
+    pub port: String,
+    /// Pose stream rate, Hz (the board's `stream on`, 1..100): odometry, tf and joint states
+    /// are published at this rate.
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub rate_hz: u32,
+    /// Frame of the odometry (Odometry.header.frame_id, the transform's parent).
+    #[arg(long, default_value = "odom")]
+    pub odom_frame: String,
+    /// Frame of the robot (Odometry.child_frame_id, the transform's child).
+    #[arg(long, default_value = "base_link")]
+    pub base_frame: String,
+    /// Name of the left wheel's joint in `joint_states`.
+    #[arg(long, default_value = "left_wheel_joint")]
+    pub left_joint: String,
+    /// Name of the right wheel's joint in `joint_states`.
+    #[arg(long, default_value = "right_wheel_joint")]
+    pub right_joint: String,
+    /// The node's name.
+    #[arg(long, default_value = "odocal_bridge")]
+    pub node_name: String,
+    /// Subscribe `cmd_vel` as `geometry_msgs/TwistStamped` (Jazzy's diff_drive_controller
+    /// default) instead of `geometry_msgs/Twist`.
+    #[arg(long)]
+    pub stamped: bool,
+    /// Odometry out only: no `cmd_vel` subscription, nothing on the network can drive the robot.
+    #[arg(long)]
+    pub read_only: bool,
+    /// Do not publish `/tf` (when another node, e.g. an EKF, publishes odom → base_link).
+    #[arg(long)]
+    pub no_tf: bool,
+    /// Session log of the calibration the board holds: the 1σ of E_d and E_b in the pose
+    /// covariance come from it (without it: stated defaults, see docs/operator.md).
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Random travel error of each wheel after one metre (1σ, m) in the pose covariance.
+    #[arg(long, default_value_t = covariance::DEFAULT_SLIP_M)]
+    pub slip: f64,
+    /// Log every line to and from the board to this file (JSON lines, as the guided session).
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+}
+
+/// Seconds since the Unix epoch on the PC's clock.
+fn now_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// One parsed `stream t x y θ v_R v_L` line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamLine {
+    pub t_s: f64,
+    pub x_m: f64,
+    pub y_m: f64,
+    pub theta_rad: f64,
+    pub v_right: f64,
+    pub v_left: f64,
+}
+
+impl StreamLine {
+    /// Parses a `stream …` line (`None` for anything else).
+    pub fn parse(line: &str) -> Option<StreamLine> {
+        let mut w = line.strip_prefix(token::STREAM)?.split_whitespace();
+        let mut next = || w.next()?.parse::<f64>().ok();
+        Some(StreamLine {
+            t_s: next()?,
+            x_m: next()?,
+            y_m: next()?,
+            theta_rad: next()?.to_radians(),
+            v_right: next()?,
+            v_left: next()?,
+        })
+    }
+}
+
+/// Which peers discovery reaches: `ROS_AUTOMATIC_DISCOVERY_RANGE` (Jazzy) or, without it,
+/// `ROS_LOCALHOST_ONLY=1` (Humble).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Range {
+    /// Every interface (the ROS 2 default).
+    Subnet,
+    /// This machine only.
+    Localhost,
+    /// No discovery at all.
+    Off,
+}
+
+/// The discovery range and domain the environment asks for.
+///
+/// # Errors
+/// A value ROS 2 does not define, as text.
+pub fn ros_environment(get: impl Fn(&str) -> Option<String>) -> Result<(u16, Range), String> {
+    let domain = match get("ROS_DOMAIN_ID").filter(|v| !v.trim().is_empty()) {
+        None => 0,
+        Some(v) => v
+            .trim()
+            .parse::<u16>()
+            .ok()
+            .filter(|d| *d <= 232)
+            .ok_or_else(|| format!("ROS_DOMAIN_ID={v}: a number 0..232 (ROS 2 uses 0..101)"))?,
+    };
+    let range = match get("ROS_AUTOMATIC_DISCOVERY_RANGE")
+        .filter(|v| !v.trim().is_empty())
+        .map(|v| v.trim().to_ascii_uppercase())
+    {
+        Some(v) => match v.as_str() {
+            "SUBNET" | "SYSTEM_DEFAULT" => Range::Subnet,
+            "LOCALHOST" => Range::Localhost,
+            "OFF" => Range::Off,
+            other => {
+                return Err(format!(
+                    "ROS_AUTOMATIC_DISCOVERY_RANGE={other}: one of SUBNET, LOCALHOST, OFF, \
+                     SYSTEM_DEFAULT"
+                ));
+            }
+        },
+        None if get("ROS_LOCALHOST_ONLY").is_some_and(|v| v.trim() == "1") => Range::Localhost,
+        None => Range::Subnet,
+    };
+    Ok((domain, range))
+}
+
+/// ROS 2's default QoS (`rmw_qos_profile_default`): reliable, volatile, keep last `depth`.
+fn default_qos(depth: usize) -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::DEFAULT,
+        })
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth })
+}
+
+/// A topic of the root namespace, where the node lives (`odom` and `/odom` are one topic,
+/// `rt/odom` in DDS).
+fn topic_name(name: &str) -> Result<Name, String> {
+    let base = name.trim_start_matches('/');
+    Name::new("/", base).map_err(|e| format!("topic `{name}`: {e:?}"))
+}
+
+fn publisher<M: serde::Serialize>(
+    node: &mut Node,
+    name: &str,
+    ty: TypeName,
+    qos: &QosProfile,
+) -> Result<Publisher<M>, String> {
+    let topic = node
+        .create_topic(&topic_name(name)?, MessageTypeName::new(ty.0, ty.1), qos)
+        .map_err(|e| format!("topic {name}: {e:?}"))?;
+    node.create_publisher::<M>(&topic, Some(qos.clone()))
+        .map_err(|e| format!("publisher {name}: {e:?}"))
+}
+
+/// The subscription to `cmd_vel` in either message type.
+enum CmdVel {
+    Plain(Subscription<Twist>),
+    Stamped(Subscription<TwistStamped>),
+}
+
+impl CmdVel {
+    /// The latest command received since the last call, if any.
+    fn latest(&self) -> Option<Twist> {
+        let mut last = None;
+        loop {
+            let next = match self {
+                CmdVel::Plain(s) => s.take().ok().flatten().map(|(t, _)| t),
+                CmdVel::Stamped(s) => s.take().ok().flatten().map(|(t, _)| t.twist),
+            };
+            match next {
+                Some(t) => last = Some(t),
+                None => return last,
+            }
+        }
+    }
+}
+
+/// Percentile `q` of sorted values (0 when empty).
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+/// The board's geometry and limits from its `params` reply.
+struct Board {
+    d_right: f64,
+    d_left: f64,
+    wheelbase: f64,
+    counts_per_rev: u32,
+    max_accel: f64,
+    calibration: String,
+}
+
+fn read_board(link: &mut Link) -> Result<Board, String> {
+    let reply = link
+        .command("params", Duration::from_secs(5))
+        .map_err(|e| e.to_string())?;
+    let nominal = nominal_of(&reply.data).ok_or("the board's `params` reply has no geometry")?;
+    let active = crate::export::active_of(&reply.data, nominal.counts_per_rev)
+        .ok_or("the board's `params` reply has no `active` line: update its firmware")?;
+    Ok(Board {
+        d_right: active.diameter_right_m,
+        d_left: active.diameter_left_m,
+        wheelbase: active.wheelbase_m,
+        counts_per_rev: nominal.counts_per_rev,
+        max_accel: param(&reply.data, "max_accel").unwrap_or(0.5),
+        calibration: calibration_of(&reply.data),
+    })
+}
+
+/// The relative 1σ of E_d and E_b for the pose covariance, and where they come from.
+fn uncertainty(opts: &Options, board: &Board) -> Result<((f64, f64), String), String> {
+    if let Some(log) = &opts.calibration {
+        let e = crate::export::Export::read(log)?;
+        let (sd_d, sd_b) = e.sd.ok_or_else(|| {
+            format!(
+                "{}: no 1-sigma of the calibration in it (no `calibrate` table, no runs)",
+                log.display()
+            )
+        })?;
+        let board_method = board
+            .calibration
+            .split_whitespace()
+            .next()
+            .unwrap_or("none");
+        if e.method.as_deref() != Some(board_method) {
+            return Err(format!(
+                "{}: its calibration ({}) is not the board's ({board_method})",
+                log.display(),
+                e.method.as_deref().unwrap_or("none")
+            ));
+        }
+        return Ok((
+            (sd_d / e.factors.0, sd_b / e.factors.1),
+            format!("the calibration's 1-sigma from {}", log.display()),
+        ));
+    }
+    if board.calibration.starts_with("none") {
+        Ok((
+            covariance::DEFAULT_SD_NOMINAL,
+            "defaults for an uncalibrated board".into(),
+        ))
+    } else {
+        Ok((
+            covariance::DEFAULT_SD_CALIBRATED,
+            "defaults for a calibrated board (no --calibration log)".into(),
+        ))
+    }
+}
+
+/// A `drive` line within the protocol's ranges for a command (non-finite values: none).
+fn drive_line(t: &Twist) -> Option<String> {
+    let (v, w) = (t.linear.x, t.angular.z);
+    if !(v.is_finite() && w.is_finite()) {
+        return None;
+    }
+    Some(format!(
+        "drive {:.6} {:.6}",
+        v.clamp(-2.0, 2.0),
+        w.clamp(-10.0, 10.0)
+    ))
+}
+
+/// The measured performance of a run of the bridge.
+#[derive(Default)]
+struct Stats {
+    first: Option<(f64, f64)>,
+    last: Option<(f64, f64)>,
+    lines: usize,
+    /// Seconds from a line's arrival to its odometry being published.
+    handling: Vec<f64>,
+    /// Seconds from the pose's instant (its stamp) to its odometry being published.
+    latency: Vec<f64>,
+    commands: usize,
+}
+
+impl Stats {
+    fn summary(&self, clock: &ClockMap) -> Vec<(String, String)> {
+        let mut out = Vec::new();
+        if let (Some((b0, p0)), Some((b1, p1))) = (self.first, self.last)
+            && self.lines > 1
+        {
+            let n = (self.lines - 1) as f64;
+            out.push(("rate_board_hz".into(), format!("{:.2}", n / (b1 - b0))));
+            out.push(("rate_pc_hz".into(), format!("{:.2}", n / (p1 - p0))));
+        }
+        out.push(("lines".into(), self.lines.to_string()));
+        for (key, v) in [("handling", &self.handling), ("latency", &self.latency)] {
+            let mut s = v.clone();
+            s.sort_by(f64::total_cmp);
+            out.push((
+                format!("{key}_ms_median_p99_max"),
+                format!(
+                    "{:.3} {:.3} {:.3}",
+                    1e3 * percentile(&s, 0.5),
+                    1e3 * percentile(&s, 0.99),
+                    1e3 * percentile(&s, 1.0)
+                ),
+            ));
+        }
+        if let Some(c) = clock.stats() {
+            out.push(("clock_offset_s".into(), format!("{:.6}", c.offset_s)));
+            out.push((
+                "clock_jitter_ms_median_p99_max".into(),
+                format!(
+                    "{:.3} {:.3} {:.3}",
+                    1e3 * c.jitter_median_s,
+                    1e3 * c.jitter_p99_s,
+                    1e3 * c.jitter_max_s
+                ),
+            ));
+        }
+        out.push(("cmd_vel_forwarded".into(), self.commands.to_string()));
+        out
+    }
+}
+
+/// Runs the bridge until Ctrl-C or a lost connection.
+///
+/// # Errors
+/// The port, the board or the DDS participant cannot be set up, or the board is lost, as text.
+pub fn run(opts: &Options) -> Result<(), String> {
+    let (domain, range) = ros_environment(|k| std::env::var(k).ok())?;
+    let log = match &opts.log {
+        Some(p) => SessionLog::open(p)?,
+        None => SessionLog::discard(),
+    };
+    let mut link = Link::open(&opts.port, log)?;
+    let version = link.handshake()?;
+    let board = read_board(&mut link)?;
+    let (sd, sd_source) = uncertainty(opts, &board)?;
+    let u = Uncertainty {
+        sd_d: sd.0,
+        sd_b: sd.1,
+        slip_m2_per_m: opts.slip * opts.slip,
+    };
+    let period = 1.0 / f64::from(opts.rate_hz);
+    let (var_v, var_w) = covariance::twist_variance(
+        0.5 * (board.d_right + board.d_left),
+        board.counts_per_rev,
+        board.wheelbase,
+        period,
+        board.max_accel,
+    );
+    let twist_cov = Covariance(covariance::twist_ros(var_v, var_w));
+
+    // DDS: the domain and discovery range of the environment.
+    let mut builder = DomainParticipantBuilder::new(domain);
+    builder = match range {
+        Range::Subnet => builder,
+        Range::Localhost => builder.with_only_networks([std::net::Ipv4Addr::LOCALHOST]),
+        Range::Off => builder
+            .with_only_networks(Vec::<std::net::IpAddr>::new())
+            .same_host_loopback(false),
+    };
+    let participant = builder
+        .build()
+        .map_err(|e| format!("DDS participant on domain {domain}: {e:?}"))?;
+    let context = Context::from_domain_participant(participant)
+        .map_err(|e| format!("ROS 2 context: {e:?}"))?;
+    let mut node = context
+        .new_node(
+            NodeName::new("/", &opts.node_name).map_err(|e| format!("node name: {e:?}"))?,
+            NodeOptions::new().enable_rosout(false),
+        )
+        .map_err(|e| format!("ROS 2 node: {e:?}"))?;
+    let odom_pub: Publisher<Odometry> =
+        publisher(&mut node, "odom", nav_msgs::ODOMETRY, &default_qos(10))?;
+    let tf_pub: Option<Publisher<TFMessage>> = if opts.no_tf {
+        None
+    } else {
+        Some(publisher(
+            &mut node,
+            "/tf",
+            tf2_msgs::TF_MESSAGE,
+            &default_qos(100),
+        )?)
+    };
+    let joints_pub: Publisher<JointState> = publisher(
+        &mut node,
+        "joint_states",
+        sensor_msgs::JOINT_STATE,
+        &default_qos(10),
+    )?;
+    let diag_pub: Publisher<DiagnosticArray> = publisher(
+        &mut node,
+        "/diagnostics",
+        diagnostic_msgs::DIAGNOSTIC_ARRAY,
+        &default_qos(10),
+    )?;
+    let cmd_vel = if opts.read_only {
+        None
+    } else {
+        let (ty, name) = if opts.stamped {
+            (geometry_msgs::TWIST_STAMPED, "TwistStamped")
+        } else {
+            (geometry_msgs::TWIST, "Twist")
+        };
+        let qos = default_qos(10);
+        let topic = node
+            .create_topic(
+                &topic_name("cmd_vel")?,
+                MessageTypeName::new(ty.0, ty.1),
+                &qos,
+            )
+            .map_err(|e| format!("topic cmd_vel: {e:?}"))?;
+        let sub = if opts.stamped {
+            CmdVel::Stamped(
+                node.create_subscription(&topic, Some(qos.clone()))
+                    .map_err(|e| format!("cmd_vel ({name}): {e:?}"))?,
+            )
+        } else {
+            CmdVel::Plain(
+                node.create_subscription(&topic, Some(qos.clone()))
+                    .map_err(|e| format!("cmd_vel ({name}): {e:?}"))?,
+            )
+        };
+        Some(sub)
+    };
+
+    let on = link
+        .command(
+            &format!("stream on {}", opts.rate_hz),
+            Duration::from_secs(5),
+        )
+        .map_err(|e| e.to_string())?;
+    if !on.ok() {
+        return Err(format!("the board refused `stream on`: {}", on.last));
+    }
+    println!(
+        "ros2: {version} on {}; node /{} on domain {domain}, discovery {range:?}; publishing odom \
+         ({} -> {}){}, joint_states ({}, {}), /diagnostics at {} Hz; {}; pose covariance from {}",
+        opts.port,
+        opts.node_name,
+        opts.odom_frame,
+        opts.base_frame,
+        if opts.no_tf { "" } else { ", /tf" },
+        opts.left_joint,
+        opts.right_joint,
+        opts.rate_hz,
+        if opts.read_only {
+            "read-only: no cmd_vel".to_string()
+        } else {
+            format!(
+                "cmd_vel ({}) drives the board",
+                if opts.stamped {
+                    "TwistStamped"
+                } else {
+                    "Twist"
+                }
+            )
+        },
+        sd_source
+    );
+
+    // Lines typed on stdin go to the board.
+    let (stdin_tx, stdin_rx) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lock().lines().map_while(Result::ok) {
+            if stdin_tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+
+    let wire_baud = (!std::fs::canonicalize(&opts.port).is_ok_and(|p| p.starts_with("/dev/pts")))
+        .then_some(crate::link::BAUD);
+    let mut clock = ClockMap::new(wire_baud, 10.0);
+    let mut cov = PoseCovariance::new(board.wheelbase, u);
+    let mut stats = Stats::default();
+    let mut prev: Option<StreamLine> = None;
+    let (mut wheel_right_rad, mut wheel_left_rad) = (0.0f64, 0.0f64);
+    let mut last_drive_reply = String::new();
+    // The stream line current when the latest command was sent, while commands come.
+    let mut commanding: Option<StreamLine> = None;
+    let mut next_status = Instant::now();
+    let result = 'bridge: loop {
+        if crate::interrupted() {
+            break Ok(());
+        }
+        // The board's lines, as they come (a stream line every period).
+        let line = match link.next_unsolicited(Duration::from_millis(5)) {
+            Ok(l) => l,
+            Err(e) => break Err(e),
+        };
+        if let Some(line) = line {
+            let arrived = now_s();
+            if let Some(s) = StreamLine::parse(&line) {
+                let stamp_s = clock.map(s.t_s, arrived, line.len() + 2);
+                let dt = prev.map_or(0.0, |p| (s.t_s - p.t_s).max(0.0));
+                prev = Some(s);
+                if let Some(c) = commanding
+                    && s.t_s - c.t_s >= DEADMAN_S
+                {
+                    commanding = None;
+                    println!(
+                        "ros2: cmd_vel: none since board t={:.6} at x={:.6} y={:.6} (the \
+                         board's deadman stops the robot {DEADMAN_S} s after it)",
+                        c.t_s, c.x_m, c.y_m
+                    );
+                }
+                let (dr, dl) = (s.v_right * dt, s.v_left * dt);
+                wheel_right_rad += dr / (0.5 * board.d_right);
+                wheel_left_rad += dl / (0.5 * board.d_left);
+                cov.step(dr, dl);
+                let stamp = Time::from_secs(stamp_s);
+                let header = |frame: &str| Header {
+                    stamp,
+                    frame_id: frame.to_string(),
+                };
+                let q = Quaternion::from_yaw(s.theta_rad);
+                let v = 0.5 * (s.v_right + s.v_left);
+                let w = (s.v_right - s.v_left) / board.wheelbase;
+                let odom = Odometry {
+                    header: header(&opts.odom_frame),
+                    child_frame_id: opts.base_frame.clone(),
+                    pose: PoseWithCovariance {
+                        pose: Pose {
+                            position: geometry_msgs::Point {
+                                x: s.x_m,
+                                y: s.y_m,
+                                z: 0.0,
+                            },
+                            orientation: q,
+                        },
+                        covariance: Covariance(cov.ros()),
+                    },
+                    twist: TwistWithCovariance {
+                        twist: Twist::planar(v, w),
+                        covariance: twist_cov,
+                    },
+                };
+                let _ = odom_pub.publish(odom);
+                if let Some(tf) = &tf_pub {
+                    let _ = tf.publish(TFMessage {
+                        transforms: vec![TransformStamped {
+                            header: header(&opts.odom_frame),
+                            child_frame_id: opts.base_frame.clone(),
+                            transform: Transform {
+                                translation: Vector3 {
+                                    x: s.x_m,
+                                    y: s.y_m,
+                                    z: 0.0,
+                                },
+                                rotation: q,
+                            },
+                        }],
+                    });
+                }
+                let _ = joints_pub.publish(JointState {
+                    header: header(""),
+                    name: vec![opts.left_joint.clone(), opts.right_joint.clone()],
+                    position: vec![wheel_left_rad, wheel_right_rad],
+                    velocity: vec![
+                        s.v_left / (0.5 * board.d_left),
+                        s.v_right / (0.5 * board.d_right),
+                    ],
+                    effort: Vec::new(),
+                });
+                let done = now_s();
+                stats.first.get_or_insert((s.t_s, arrived));
+                stats.last = Some((s.t_s, arrived));
+                stats.lines += 1;
+                stats.handling.push(done - arrived);
+                stats.latency.push(done - stamp_s);
+            } else {
+                // Events (a run finished, a fault, the button) for the operator.
+                println!("{line}");
+            }
+            continue;
+        }
+        // Commands from the network: the latest one, once.
+        if let Some(t) = cmd_vel.as_ref().and_then(CmdVel::latest)
+            && let Some(cmd) = drive_line(&t)
+        {
+            match link.command(&cmd, Duration::from_secs(2)) {
+                Ok(r) => {
+                    stats.commands += 1;
+                    if let Some(p) = prev {
+                        if commanding.is_none() {
+                            println!(
+                                "ros2: cmd_vel: driving from board t={:.6} at x={:.6} y={:.6}",
+                                p.t_s, p.x_m, p.y_m
+                            );
+                        }
+                        commanding = Some(p);
+                    }
+                    if r.last != last_drive_reply && r.last != "ok" {
+                        eprintln!("ros2: cmd_vel: `{cmd}`: {}", r.last);
+                    }
+                    last_drive_reply = r.last;
+                }
+                Err(e) => break Err(e),
+            }
+        }
+        // Commands typed on stdin.
+        while let Ok(cmd) = stdin_rx.try_recv() {
+            match link.command(cmd.trim(), Duration::from_secs(10)) {
+                Ok(r) => {
+                    for d in &r.data {
+                        println!("  {d}");
+                    }
+                    println!("{}", r.last);
+                }
+                Err(LinkError::Timeout(c)) => println!("no reply to `{c}`"),
+                Err(e) => break 'bridge Err(e),
+            }
+        }
+        // The board's state and faults, once a second.
+        if Instant::now() >= next_status {
+            next_status += Duration::from_secs(1);
+            let status = match link.command("status", Duration::from_secs(2)) {
+                Ok(r) => r,
+                Err(e) => break Err(e),
+            };
+            let field = |k: &str| {
+                status
+                    .text()
+                    .split_whitespace()
+                    .find_map(|w| w.strip_prefix(k)?.strip_prefix('='))
+                    .unwrap_or("?")
+                    .to_string()
+            };
+            let (state, fault) = (field("state"), field("fault"));
+            let (level, message) = if fault != "none" {
+                (diagnostic_msgs::ERROR, format!("fault latched: {fault}"))
+            } else if !last_drive_reply.is_empty() && !last_drive_reply.starts_with("ok") {
+                (
+                    diagnostic_msgs::WARN,
+                    format!("cmd_vel refused: {last_drive_reply}"),
+                )
+            } else {
+                (diagnostic_msgs::OK, format!("state {state}"))
+            };
+            let mut values = vec![
+                KeyValue {
+                    key: "state".into(),
+                    value: state,
+                },
+                KeyValue {
+                    key: "fault".into(),
+                    value: fault,
+                },
+                KeyValue {
+                    key: "calibration".into(),
+                    value: board.calibration.clone(),
+                },
+                KeyValue {
+                    key: "cmd_vel_last_reply".into(),
+                    value: last_drive_reply.clone(),
+                },
+                KeyValue {
+                    key: "distance_driven_m".into(),
+                    value: format!("{:.3}", cov.distance_m),
+                },
+                KeyValue {
+                    key: "rotation_driven_rad".into(),
+                    value: format!("{:.3}", cov.rotation_rad),
+                },
+            ];
+            values.extend(
+                stats
+                    .summary(&clock)
+                    .into_iter()
+                    .map(|(key, value)| KeyValue { key, value }),
+            );
+            let _ = diag_pub.publish(DiagnosticArray {
+                header: Header {
+                    stamp: Time::from_secs(now_s()),
+                    frame_id: String::new(),
+                },
+                status: vec![DiagnosticStatus {
+                    level,
+                    name: format!("{}: board", opts.node_name),
+                    message,
+                    hardware_id: format!("odocal {}", opts.port),
+                    values,
+                }],
+            });
+        }
+    };
+    // The board's own deadman stops a robot the bridge no longer commands; Ctrl-C stops it now.
+    let _ = link.stop_key();
+    let _ = link.send_line("stream off");
+    for (k, v) in stats.summary(&clock) {
+        println!("ros2: {k} {v}");
+    }
+    result.map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stream_lines_parse() {
+        let s = StreamLine::parse("stream 0.005000 +0.500000 +0.250000 +5.7296 +0.2500 -0.1250")
+            .unwrap();
+        assert_eq!((s.t_s, s.x_m, s.y_m), (0.005, 0.5, 0.25));
+        assert!((s.theta_rad - 0.1).abs() < 1e-5);
+        assert_eq!((s.v_right, s.v_left), (0.25, -0.125));
+        assert_eq!(StreamLine::parse("event run 1 finished"), None);
+        assert_eq!(StreamLine::parse("stream 1 2 3"), None);
+    }
+
+    #[test]
+    fn the_environment_sets_domain_and_range() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |k: &str| {
+                pairs
+                    .iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        assert_eq!(ros_environment(env(&[])), Ok((0, Range::Subnet)));
+        assert_eq!(
+            ros_environment(env(&[("ROS_DOMAIN_ID", "42")])),
+            Ok((42, Range::Subnet))
+        );
+        assert_eq!(
+            ros_environment(env(&[("ROS_LOCALHOST_ONLY", "1")])),
+            Ok((0, Range::Localhost))
+        );
+        // Jazzy's variable wins over Humble's.
+        assert_eq!(
+            ros_environment(env(&[
+                ("ROS_LOCALHOST_ONLY", "1"),
+                ("ROS_AUTOMATIC_DISCOVERY_RANGE", "off")
+            ])),
+            Ok((0, Range::Off))
+        );
+        assert!(ros_environment(env(&[("ROS_DOMAIN_ID", "300")])).is_err());
+        assert!(ros_environment(env(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "LAN")])).is_err());
+    }
+
+    #[test]
+    fn commands_stay_in_the_protocols_ranges() {
+        let t = Twist::planar;
+        assert_eq!(
+            drive_line(&t(0.2, -0.5)).as_deref(),
+            Some("drive 0.200000 -0.500000")
+        );
+        assert_eq!(
+            drive_line(&t(9.0, -40.0)).as_deref(),
+            Some("drive 2.000000 -10.000000")
+        );
+        assert_eq!(drive_line(&t(f64::NAN, 0.0)), None);
+    }
+}
