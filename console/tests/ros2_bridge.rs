@@ -336,6 +336,12 @@ fn ros2_bridge() {
         "{start:?} {after:?}"
     );
 
+    // The board moves again only once the finished run is measured (err 24 otherwise): its end
+    // as driven.
+    bridge.send("measure 1 m 0 m");
+    let measured = bridge.until(|l| l.starts_with("ok ") || l.starts_with("err "));
+    assert!(measured.starts_with("ok run 1 line"), "{measured}");
+
     // 2. cmd_vel from Cyclone: 0.2 m/s for 2 s at 20 Hz. Durations are the board's: the bridge
     // names the board time (and pose) of the stream line current at the first command after a
     // pause and at the last one before a pause of the deadman's length. On a loaded machine the
