@@ -98,9 +98,9 @@ mod app {
     use odocal::protocol::LineAssembler;
     use odocal::protocol::reply::ByteSink;
     use odocal::protocol::rx::{INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender};
-    use odocal::session::library::{LibraryCalibrator, Locked};
+    use odocal::session::library::{LibraryCalibrator, LockedController};
     use odocal::session::{Session, Settings, write_boot_event, write_fault_event};
-    use odocal::storage::ParamStore;
+    use odocal::storage::ParamAndRunStore;
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Channel, Receiver, Sender};
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
@@ -131,7 +131,7 @@ mod app {
         motors: BoardMotors,
         button_pin: ButtonInput,
         leds: Leds,
-        params_store: ParamStore<BoardFlash>,
+        params_store: ParamAndRunStore<BoardFlash>,
         session: Session<LibraryCalibrator>,
         usart_rx: ConsoleRx,
         usart_tx: ConsoleTx,
@@ -477,7 +477,7 @@ mod app {
                 watchdog: &mut cx.shared.watchdog,
             };
             let tx_in = &mut *cx.local.tx_in;
-            let mut robot = Locked(&mut cx.shared.controller);
+            let mut robot = LockedController(&mut cx.shared.controller);
             let mut dropped = 0;
             if room(tx_in) {
                 let mut out = ByteSink::new(|b| tx_in.enqueue(b).is_ok());

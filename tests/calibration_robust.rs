@@ -362,6 +362,7 @@ fn a_heading_noisier_than_its_a_priori_weight_is_weighted_down() {
 }
 
 #[test]
+#[cfg(feature = "mocap")]
 fn a_path_with_ground_truth_along_it_is_fitted_along_the_path() {
     // A line then a left arc, commanded from the nominal, driven by a robot whose mean
     // diameter is 1 % large: ground truth at every knot determines E_s as well.
@@ -443,6 +444,7 @@ fn the_robust_fit_settles_on_every_noisy_set() {
 }
 
 #[test]
+#[cfg(feature = "mocap")]
 fn a_factor_the_runs_do_not_determine_is_an_error_not_a_guess() {
     // Three 2 m straight lines with ground truth along them (5 mm of motion-capture noise) and
     // no end heading: the wheels differ by up to ±100 ticks (±1 mm) per 5 cm knot, so the
@@ -491,6 +493,34 @@ fn a_factor_the_runs_do_not_determine_is_an_error_not_a_guess() {
     assert_eq!(
         e.to_string(),
         "degenerate: the runs do not determine every factor"
+    );
+}
+
+#[test]
+#[cfg(not(feature = "mocap"))]
+fn a_truth_path_is_refused_without_the_mocap_feature() {
+    // The board's build carries no path fit: a run with ground truth along it is an invalid
+    // measurement there, never fitted by its end pose alone as if the path were not given.
+    let knots: Vec<WheelTicks> = (0..=4)
+        .map(|i| WheelTicks::new(i * 20_000, i * 20_000))
+        .collect();
+    let path = Robot::of(&NOMINAL).path(PoseF64::default(), &knots);
+    let end = path[path.len() - 1];
+    let obs = [RunObservation {
+        path: PathKind::Line { length_m: 5.0 },
+        geometry: NOMINAL,
+        knots: &knots,
+        odometry_end: end,
+        measured: Measurement {
+            x_m: end.x_m,
+            y_m: end.y_m,
+            theta_rad: Some(end.theta_rad),
+        },
+        truth_path: &path,
+    }];
+    assert_eq!(
+        calibrate(&obs, &NOMINAL, Method::Exact).unwrap_err(),
+        odocal::calibration::CalibrationError::InvalidMeasurement { index: 0 }
     );
 }
 

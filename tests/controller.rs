@@ -19,7 +19,7 @@ use odocal::motion::motor::StopMode;
 use odocal::motion::profile::{LimitsError, MotionLimits};
 use odocal::motion::routine::RunPlan;
 use odocal::motion::run::{Direction, MAX_KNOTS, PathKind};
-use odocal::session::library::{ControllerLock, Locked};
+use odocal::session::library::{ControllerLock, LockedController};
 
 /// Two lagged motors; positions and speeds in ticks and ticks/s.
 struct Plant {
@@ -755,7 +755,7 @@ fn identification_is_fitted_when_its_report_is_taken() {
 
     // The console task's way: the fit of a copy between two short locks, the same report.
     let mut locks = 0;
-    let mut robot = Locked(Counting {
+    let mut robot = LockedController(Counting {
         controller: &mut copy,
         locks: &mut locks,
     });

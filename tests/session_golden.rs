@@ -5,9 +5,11 @@
 //! closed-loop behaviour against the real controller and calibration is tested in host-sim.
 
 use odocal::motion::bringup::{CheckKind, CheckReport};
+use odocal::motion::controller::{Fault, Wheel};
 use odocal::motion::wiring::Wiring;
 use std::fmt;
 
+use odocal::calibration::CalibrationError;
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
@@ -15,16 +17,16 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Activity, Calibrator, Culprit, MAX_RUNS, ParamStorage, Robot, RobotError, RobotStatus, Session,
-    Settings, Solution, SolveError, StorageError,
+    Activity, Calibrator, Culprit, MAX_RUNS, Robot, RobotError, RobotStatus, Session, Settings,
+    SettingsAndRuns, Solution, SolveError, StoreError,
 };
-use odocal::storage::{RunsLoaded, StoredRun};
+use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
 #[derive(Default)]
 struct ScriptedRobot {
     running: Option<PathKind>,
     driving: bool,
-    fault: Option<&'static str>,
+    fault: Option<Fault>,
     pose: PoseF64,
     finished: Vec<RunRecord>,
     geometry: Option<Geometry>,
@@ -55,7 +57,7 @@ impl ScriptedRobot {
     }
     fn check_idle(&self) -> Result<(), RobotError> {
         if let Some(f) = self.fault {
-            return Err(RobotError::Fault(f));
+            return Err(RobotError::Fault(odocal::session::library::fault_name(&f)));
         }
         if self.running.is_some() || self.driving {
             return Err(RobotError::Busy);
@@ -108,7 +110,6 @@ impl Robot for ScriptedRobot {
                 (None, false) => Activity::Idle,
             },
             fault: self.fault,
-            fault_detail: None,
         }
     }
     fn pose(&mut self) -> PoseF64 {
@@ -170,17 +171,17 @@ struct MemoryStore {
     fail_runs: bool,
 }
 
-impl ParamStorage for MemoryStore {
-    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+impl SettingsAndRuns for MemoryStore {
+    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         if !motors_stopped {
-            return Err(StorageError::MotorsRunning);
+            return Err(StoreError::MotorsRunning);
         }
         self.saved = Some(s.clone());
         Ok(())
     }
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
         if !motors_stopped {
-            return Err(StorageError::MotorsRunning);
+            return Err(StoreError::MotorsRunning);
         }
         self.resets += 1;
         self.saved = Some(Settings::default());
@@ -191,12 +192,12 @@ impl ParamStorage for MemoryStore {
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         if !motors_stopped {
-            return Err(StorageError::MotorsRunning);
+            return Err(StoreError::MotorsRunning);
         }
         if self.fail_runs {
-            return Err(StorageError::Flash("flash driver error"));
+            return Err(StoreError::Flash(FlashFault::Other));
         }
         for id in ids.iter_mut().filter(|id| id.is_none()) {
             self.next_key = self.next_key.wrapping_add(1);
@@ -267,7 +268,7 @@ impl Calibrator for KnownCalibrator {
                 sd_e_b: None,
                 residuals: heapless::Vec::new(),
             }),
-            "beta" => Err(SolveError::Failed("degenerate")),
+            "beta" => Err(SolveError::Failed(CalibrationError::Degenerate)),
             "wild" => Ok(Solution {
                 e_d: 1.0,
                 e_b: 1.3,
@@ -739,10 +740,13 @@ fn stop_keys_and_garbled_stop_lines_stop() {
     // A fault ends the run too, and says so.
     b.send("run cw");
     b.robot.running = None;
-    b.robot.fault = Some("stall");
+    b.robot.fault = Some(Fault::Stall {
+        wheel: Wheel::Right,
+    });
     assert_eq!(
         b.poll(0),
-        "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n"
+        "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n\
+         event fault: Right wheel stalled\r\n"
     );
     // Echo is on at boot, for a person at a terminal.
     assert!(b.session.echo());
@@ -859,7 +863,7 @@ fn calibrate_apply_save_golden() {
                  E_max_mm  sd_E_d    sd_E_b\r\n\
                  \x20 alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   388.8500   \
                  1.200     2.500e-4  -\r\n\
-                 \x20 beta         failed: degenerate\r\n\
+                 \x20 beta         failed: degenerate: the runs do not determine every factor\r\n\
                  \x20 wild         1.000000000  1.300000000  1.000000000  150.0000   150.0000   500.5000   \
                  -         -         -\r\n\
                  \x20 advice all L=2.000 m is adequate\r\n\
@@ -885,7 +889,7 @@ fn calibrate_apply_save_golden() {
         b.send("calibrate beta"),
         "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
          E_max_mm  sd_E_d    sd_E_b\r\n\
-         \x20 beta         failed: degenerate\r\n\
+         \x20 beta         failed: degenerate: the runs do not determine every factor\r\n\
          err 16: no method succeeded (check the measurements: runs)\r\n"
     );
     // One rule for apply and save: what the record cannot store is not applied.
@@ -909,7 +913,10 @@ fn calibrate_apply_save_golden() {
         ),
         refused
     );
-    assert_eq!(b.send("apply beta"), "err 16: degenerate\r\n");
+    assert_eq!(
+        b.send("apply beta"),
+        "err 16: degenerate: the runs do not determine every factor\r\n"
+    );
     assert_eq!(
         b.send("apply ALPHA"),
         "ok applied alpha: E_d=0.995000000 E_b=1.010000000 E_s=1.000000000 (not saved; save to keep)\r\n"
@@ -1048,9 +1055,15 @@ fn button_starts_next_clears_faults_and_stops() {
     );
     assert_eq!(b.robot.aborts, 1);
     out.clear();
-    b.robot.fault = Some("stall");
+    b.robot.fault = Some(Fault::Stall {
+        wheel: Wheel::Right,
+    });
     b.session.button_short(&mut b.robot, &mut out).unwrap();
-    assert_eq!(out, "event button: ok fault cleared\r\n");
+    // The fault is announced in full once (as the controller reports it), then cleared.
+    assert_eq!(
+        out,
+        "event fault: Right wheel stalled\r\nevent button: ok fault cleared\r\n"
+    );
     assert_eq!(b.robot.fault, None);
 }
 
@@ -1092,11 +1105,14 @@ fn pose_odom_drive_golden() {
         b.send("drive 0.1 0"),
         "err 10: a run is in progress (square cw L=2.000 m): wait for it to finish\r\n"
     );
-    b.robot.fault = Some("stall");
+    b.robot.fault = Some(Fault::Stall {
+        wheel: Wheel::Right,
+    });
     b.robot.running = None;
     assert_eq!(
         b.send("run cw"),
         "event run 1 aborted, not stored: square cw L=2.000 m (fault: stall)\r\n\
+         event fault: Right wheel stalled\r\n\
          err 11: fault latched: stall\r\n"
     );
     assert_eq!(b.send("clear"), "ok fault cleared (stall)\r\n");
@@ -1334,7 +1350,6 @@ fn runs_and_measurements_are_stored_as_they_change_and_restored_after_a_reset() 
 /// applies (seen by the robot and in `params`), and the refusal of an implausible response.
 #[test]
 fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
-    use odocal::motion::controller::Wheel;
     use odocal::motion::identify::{
         IdentifyFailure, IdentifyMode, IdentifyProblem, IdentifyReport, MotorFit,
     };
@@ -1403,7 +1418,10 @@ fn identify_replies_are_exact_and_the_result_becomes_the_tuning() {
             wheel: Wheel::Left,
             problem: IdentifyProblem::Reversed,
         }));
-    b.robot.fault = Some("identify");
+    b.robot.fault = Some(Fault::Identify(IdentifyFailure {
+        wheel: Wheel::Left,
+        problem: IdentifyProblem::Reversed,
+    }));
     assert_eq!(
         b.poll(0),
         "event identify err 23: left motor: counts run against the duty: motor or encoder reversed (run bringup); motors stopped, tuning unchanged, fault latched (clear)\r\n"

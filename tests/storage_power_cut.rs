@@ -11,7 +11,7 @@ mod storage_support;
 
 use odocal::storage::ram_flash::RamFlash;
 use odocal::storage::{
-    FlashFault, LoadOutcome, LoadWarning, PARAMS_KEY, ParamRecord, ParamSectors, ParamStore,
+    FlashFault, LoadOutcome, LoadWarning, PARAMS_KEY, ParamAndRunStore, ParamRecord, ParamSectors,
     RunsLoaded, StoreError,
 };
 use std::sync::atomic::AtomicUsize;
@@ -27,8 +27,8 @@ const SWEEP_PARAMS: ParamSectors = ParamSectors::new(0..PAGE as u32, PAGE as u32
 const SWEEP_RUNS: core::ops::Range<u32> = 2 * PAGE as u32..4 * PAGE as u32;
 
 /// The store the parameter sweeps boot.
-fn param_store<const W: usize>(flash: &mut ParamFlash<W>) -> ParamStore<&mut ParamFlash<W>> {
-    ParamStore::new(flash, SWEEP_PARAMS, SWEEP_RUNS).unwrap()
+fn param_store<const W: usize>(flash: &mut ParamFlash<W>) -> ParamAndRunStore<&mut ParamFlash<W>> {
+    ParamAndRunStore::new(flash, SWEEP_PARAMS, SWEEP_RUNS).unwrap()
 }
 
 /// The warning of a boot before any record was stored: `Missing` on an erased region, or
@@ -334,7 +334,7 @@ fn every_cut_while_moving_an_old_record_keeps_it_and_the_runs() {
         // A stored session next to it: three runs, one measured.
         let (mut runs, mut ids) = (Runs::new(), Ids::new());
         {
-            let mut store = ParamStore::new(&mut base, RUN_PARAMS, RUN_RANGE).unwrap();
+            let mut store = ParamAndRunStore::new(&mut base, RUN_PARAMS, RUN_RANGE).unwrap();
             for u in [
                 Update::Finish(1),
                 Update::Finish(2),
@@ -467,13 +467,13 @@ fn apply(update: Update, runs: &mut Runs, ids: &mut Ids) {
 fn boot(
     flash: &mut RunFlash,
 ) -> (
-    ParamStore<&mut RunFlash>,
+    ParamAndRunStore<&mut RunFlash>,
     LoadOutcome,
     Runs,
     Ids,
     RunsLoaded,
 ) {
-    let mut store = ParamStore::new(flash, RUN_PARAMS, RUN_RANGE).unwrap();
+    let mut store = ParamAndRunStore::new(flash, RUN_PARAMS, RUN_RANGE).unwrap();
     let params = store.load_blocking();
     let (mut runs, mut ids) = (Runs::new(), Ids::new());
     let loaded = store.load_runs_blocking(&mut runs, &mut ids);
@@ -482,7 +482,7 @@ fn boot(
 
 /// Runs the update on a booted store.
 fn perform(
-    store: &mut ParamStore<&mut RunFlash>,
+    store: &mut ParamAndRunStore<&mut RunFlash>,
     update: Update,
     runs: &mut Runs,
     ids: &mut Ids,

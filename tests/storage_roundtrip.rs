@@ -9,7 +9,7 @@ use odocal::motion::wiring::Wiring;
 use odocal::storage::ram_flash::RamFlash;
 use odocal::storage::runs::{RUN_INDEX_KEY, decode_index, decode_run};
 use odocal::storage::{
-    FormatError, LoadWarning, PARAMS_KEY, ParamRecord, ParamSectors, ParamStore, RecordError,
+    FormatError, LoadWarning, PARAMS_KEY, ParamAndRunStore, ParamRecord, ParamSectors, RecordError,
     StoreError, StoredRun,
 };
 use storage_support::{
@@ -18,12 +18,12 @@ use storage_support::{
 };
 
 /// Writes raw bytes under the parameter key where older firmware kept the record (the map
-/// that is now the run region), bypassing `ParamStore`'s checks.
+/// that is now the run region), bypassing `ParamAndRunStore`'s checks.
 fn store_raw(flash: &mut BoardFlash, bytes: &[u8]) {
     store_raw_at(flash, PARAMS_KEY, bytes);
 }
 
-/// Writes raw bytes under `key` in the run region's map, bypassing `ParamStore`'s checks.
+/// Writes raw bytes under `key` in the run region's map, bypassing `ParamAndRunStore`'s checks.
 fn store_raw_at(flash: &mut BoardFlash, key: u8, bytes: &[u8]) {
     store_raw_in(flash, BOARD_RUNS, key, bytes);
 }
@@ -74,7 +74,7 @@ fn saved_record_survives_a_reboot_bit_exactly() {
 fn works_with_four_byte_words_and_small_pages() {
     let mut flash = RamFlash::<6, 1024, 4>::default();
     let sectors = ParamSectors::new(1024..2048, 2048..3072);
-    let mut store = ParamStore::new(&mut flash, sectors, 3072..6144).unwrap();
+    let mut store = ParamAndRunStore::new(&mut flash, sectors, 3072..6144).unwrap();
     for n in 0..40 {
         store.save_blocking(&calibrated(n), true).unwrap();
         assert_eq!(store.load_blocking().record, calibrated(n));
@@ -473,12 +473,12 @@ fn bad_layouts_are_refused() {
     let mut flash = Box::new(BoardFlash::default());
     let bad = |flash: &mut BoardFlash, params: ParamSectors, runs: core::ops::Range<u32>| {
         matches!(
-            ParamStore::new(flash, params, runs),
+            ParamAndRunStore::new(flash, params, runs),
             Err(StoreError::BadRange)
         )
     };
     // The board's layout is accepted.
-    assert!(ParamStore::new(&mut *flash, BOARD_PARAMS, BOARD_RUNS).is_ok());
+    assert!(ParamAndRunStore::new(&mut *flash, BOARD_PARAMS, BOARD_RUNS).is_ok());
     // A run region of one page only: sequential-storage needs two.
     assert!(bad(
         &mut flash,

@@ -8,7 +8,7 @@ mod storage_support;
 use odocal::motion::run::{MAX_KNOTS, MAX_RUNS, RunRecord};
 use odocal::session::write_runs_restored;
 use odocal::storage::runs::{RunFormatError, decode_run};
-use odocal::storage::{ParamStore, RunLoadProblem, StoredRun};
+use odocal::storage::{ParamAndRunStore, RunLoadProblem, StoredRun};
 use storage_support::{
     BOARD_PARAMS, BOARD_RUNS, BoardFlash, Rng, SECTOR, board_store, calibrated, measurement,
     run_record,
@@ -209,7 +209,7 @@ fn foreign_or_damaged_run_bytes_are_refused_by_the_decoder() {
 /// error; nothing panics.
 #[test]
 fn a_part_with_too_little_flash_refuses_storage_cleanly() {
-    use odocal::session::{ParamStorage, Settings, StorageError, write_boot_event};
+    use odocal::session::{Settings, SettingsAndRuns, write_boot_event};
     use odocal::storage::{FlashTooSmall, LoadWarning, MapConfig, ParamRecord, StoreError};
 
     let mut flash = Box::new(BoardFlash::default());
@@ -217,7 +217,7 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
         part_kib: 512,
         needed_kib: 1024,
     };
-    let mut store = ParamStore::without_flash(
+    let mut store = ParamAndRunStore::without_flash(
         &mut *flash,
         BOARD_PARAMS,
         MapConfig::try_new(BOARD_RUNS).unwrap(),
@@ -238,9 +238,9 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
         Err(StoreError::FlashTooSmall(too_small))
     );
     // Through the session's storage interface: the `err` text of `save`.
-    let e = ParamStorage::save(&mut store, &Settings::default(), true).unwrap_err();
+    let e = SettingsAndRuns::save(&mut store, &Settings::default(), true).unwrap_err();
     // The typed store error reaches the reply that names it.
-    assert_eq!(e, StorageError::Store(StoreError::FlashTooSmall(too_small)));
+    assert_eq!(e, StoreError::FlashTooSmall(too_small));
     assert_eq!(
         e.to_string(),
         "flash error: no storage: this part's flash is smaller than the storage map"

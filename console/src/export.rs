@@ -19,6 +19,7 @@ use std::path::Path;
 use odocal::calibration::synth;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::token;
 use odocal::session::Calibrator;
 use odocal::session::library::LibraryCalibrator;
 use serde_json::{Value, json};
@@ -136,7 +137,7 @@ fn scan<'a>(lines: impl Iterator<Item = &'a str>) -> Replies {
                 }
                 _ => {}
             }
-        } else if !(l.starts_with("event ") || l.starts_with("stream ")) {
+        } else if !(l.starts_with(token::EVENT) || l.starts_with(token::STREAM)) {
             current = None;
         }
     }

@@ -12,6 +12,8 @@ use std::io::{Read, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
+use odocal::protocol::token::{self, EventTag};
+
 use crate::log::SessionLog;
 
 /// Baud rate of the board's console (USART2, 115200 8N1).
@@ -296,7 +298,7 @@ impl Link {
                 reply.last = l;
                 return Ok(reply);
             }
-            if l.starts_with("event ") || l.starts_with("stream ") {
+            if l.starts_with(token::EVENT) || l.starts_with(token::STREAM) {
                 self.pending.push_back(l);
             } else if let Some(data) = l.strip_prefix("  ") {
                 reply.data.push(data.to_string());
@@ -317,7 +319,7 @@ impl Link {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.recv(left)? {
-                Some(l) if l.starts_with("event ") || l.starts_with("stream ") => {
+                Some(l) if l.starts_with(token::EVENT) || l.starts_with(token::STREAM) => {
                     return Ok(Some(l));
                 }
                 Some(_) => {}
@@ -329,10 +331,10 @@ impl Link {
         }
     }
 
-    /// Takes the first unsolicited line received so far (while waiting for replies) that starts
-    /// with `prefix`, if any; the others stay queued.
-    pub fn take_pending(&mut self, prefix: &str) -> Option<String> {
-        let i = self.pending.iter().position(|l| l.starts_with(prefix))?;
+    /// Takes the first unsolicited line received so far (while waiting for replies) that
+    /// `wanted` accepts, if any; the others stay queued.
+    pub fn take_pending(&mut self, wanted: impl Fn(&str) -> bool) -> Option<String> {
+        let i = self.pending.iter().position(|l| wanted(l))?;
         self.pending.remove(i)
     }
 
@@ -341,7 +343,7 @@ impl Link {
     pub fn drain(&mut self) -> Result<Option<String>, LinkError> {
         let mut boot = None;
         let mut keep = |l: String| {
-            if l.starts_with("event boot:") {
+            if matches!(EventTag::parse(&l), Some((EventTag::Boot, _))) {
                 boot = Some(l);
             }
         };

@@ -4,6 +4,7 @@
 //! longer holds.
 
 use odocal::protocol::ParamName;
+use odocal::protocol::token;
 
 /// A command after the last `params` reply that changed the board's geometry.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -79,7 +80,7 @@ pub fn stale_params<'a>(
             && (l == "ok" || l.starts_with("ok ") || l.starts_with("err "))
             && let Some((line, command)) = pending.take()
             && l.starts_with("ok")
-            && !l.ends_with("(unchanged)")
+            && !l.ends_with(token::UNCHANGED)
         {
             return Some(Stale {
                 line,

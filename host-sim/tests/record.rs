@@ -5,7 +5,9 @@
 use host_sim::sim::board::{Board, measure_line};
 use host_sim::sim::flash::SimParamFlash;
 use host_sim::sim::robot::sim_config;
-use odocal::protocol::record::{PROTOCOL_VERSION, RECORD_PAGE_KNOTS, RecordError, RecordReader};
+use odocal::protocol::record::{
+    PROTOCOL_VERSION, RECORD_PAGE_KNOTS, RecordReader, RecordReplyError,
+};
 
 /// Reads run `n` page by page with `record n [first]`; returns the pages' final lines too.
 fn read_record(b: &mut Board<'_>, n: usize) -> (odocal::motion::run::RunRecord, Vec<String>) {
@@ -81,10 +83,13 @@ fn record_pages_read_back_to_the_boards_run_record() {
     for l in page1.lines().take_while(|l| !l.contains("knot ")) {
         reader.feed(l).unwrap();
     }
-    assert_eq!(reader.feed(first), Err(RecordError::KnotOrder));
+    assert_eq!(reader.feed(first), Err(RecordReplyError::KnotOrder));
     let other = b.send("record 2");
     let header = other.lines().next().unwrap();
-    assert_eq!(reader.feed(header), Err(RecordError::Inconsistent));
-    assert_eq!(reader.feed("  knot x 1 2"), Err(RecordError::Malformed));
-    assert_eq!(reader.finish(), Err(RecordError::Incomplete));
+    assert_eq!(reader.feed(header), Err(RecordReplyError::Inconsistent));
+    assert_eq!(
+        reader.feed("  knot x 1 2"),
+        Err(RecordReplyError::Malformed)
+    );
+    assert_eq!(reader.finish(), Err(RecordReplyError::Incomplete));
 }

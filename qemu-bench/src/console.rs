@@ -12,8 +12,8 @@ use heapless::Vec;
 use odocal::motion::controller::Controller;
 use odocal::motion::run::{MAX_RUNS, RunRecord};
 use odocal::session::library::{ControllerLock, LibraryCalibrator};
-use odocal::session::{ParamStorage, Robot, Session, Settings, StorageError};
-use odocal::storage::{RunsLoaded, StoredRun};
+use odocal::session::{Robot, Session, Settings, SettingsAndRuns, StoreError};
+use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
 use crate::squares::SquareRuns;
 
@@ -24,7 +24,7 @@ pub const COMMANDS: [&str; 2] = ["calibrate", "apply exact"];
 /// (`status`, `params`, `runs`), every parameter group handed to the controller (limits,
 /// geometry, wiring, tuning, rate, and back), `calibrate` and `apply` (the solve outside any
 /// lock, the geometry under it), `reset-params`. The bench counts every controller lock the
-/// console takes on its way (the firmware's `Locked`): the longest is the most the console
+/// console takes on its way (the firmware's `LockedController`): the longest is the most the console
 /// task can delay a control period.
 pub const LOCK_SCRIPT: [&str; 17] = [
     "status",
@@ -82,14 +82,14 @@ impl ControllerLock for Bracketed<'_> {
 /// Storage that holds the fixture runs and nothing else.
 pub struct FixtureRuns<'a>(pub &'a SquareRuns);
 
-const NO_FLASH: StorageError = StorageError::Flash("the bench has no flash");
+const NO_FLASH: StoreError = StoreError::Flash(FlashFault::Other);
 
-impl ParamStorage for FixtureRuns<'_> {
-    fn save(&mut self, _: &Settings, _: bool) -> Result<(), StorageError> {
+impl SettingsAndRuns for FixtureRuns<'_> {
+    fn save(&mut self, _: &Settings, _: bool) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 
-    fn reset(&mut self, _: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, _: bool) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 
@@ -98,7 +98,7 @@ impl ParamStorage for FixtureRuns<'_> {
         _: &[RunRecord],
         _: &mut [Option<StoredRun>],
         _: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 

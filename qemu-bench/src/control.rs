@@ -16,7 +16,7 @@ use odocal::motion::controller::{Controller, ControllerConfig, StepOutput};
 use odocal::motion::identify::IdentifyMode;
 use odocal::motion::run::RunRecord;
 use odocal::motion::run::{Direction, PathKind};
-use odocal::plant::{Portable, Robot, RobotConfig};
+use odocal::plant::{Portable, RobotConfig, SimRobot};
 
 /// Control rate, Hz.
 pub const RATE_HZ: u32 = 1000;
@@ -33,13 +33,13 @@ pub const MAX_PERIODS: u32 = 120_000;
 pub const IDENTIFY_MODE: IdentifyMode = IdentifyMode::Lifted;
 
 /// The simulated robot of the workloads.
-pub type BenchRobot = Robot<Portable>;
+pub type BenchRobot = SimRobot<Portable>;
 
 /// The robot: the paper's nominal geometry, the model's default motors (1 m/s at full duty,
 /// 50 ms lag, the left one 2 % weaker) and counters (right 32-bit up, left 16-bit down, both
 /// starting just below a wrap), stepped at [`RATE_HZ`].
 pub fn robot() -> BenchRobot {
-    Robot::new(RobotConfig::new(Geometry::PAPER_NOMINAL, RATE_HZ))
+    SimRobot::new(RobotConfig::new(Geometry::PAPER_NOMINAL, RATE_HZ))
 }
 
 /// The controller of the workload: the board's defaults for the nominal geometry at 1 kHz.

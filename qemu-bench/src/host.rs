@@ -129,13 +129,13 @@ pub fn identify(out: &mut String) -> Result<(), String> {
 /// The console session of [`qemu_bench::console::LOCK_SCRIPT`] through a controller lock: the
 /// result line.
 pub fn console_locks(out: &mut String) -> Result<(), String> {
-    use odocal::session::library::Locked;
+    use odocal::session::library::LockedController;
     use qemu_bench::console::{self, Bracketed};
     use qemu_bench::squares::SquareRuns;
 
     let runs = SquareRuns::generate();
     let mut controller = qemu_bench::control::controller().map_err(|e| e.to_string())?;
-    let mut robot = Locked(Bracketed {
+    let mut robot = LockedController(Bracketed {
         controller: &mut controller,
         open: || {},
         close: || {},

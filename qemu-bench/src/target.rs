@@ -31,7 +31,7 @@ use odocal::kinematics::odometry::{Integration, Odometry, OdometryState, Pose};
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::bringup::CheckReport;
 use odocal::motion::controller::{Controller, StepOutput};
-use odocal::session::library::Locked;
+use odocal::session::library::LockedController;
 use qemu_bench::console;
 use qemu_bench::control::{self, BenchRobot};
 use qemu_bench::report;
@@ -351,14 +351,14 @@ fn main() -> ! {
         ));
     }
 
-    // The console task's controller locks (the firmware's `Locked`): one window per hold over
+    // The console task's controller locks (the firmware's `LockedController`): one window per hold over
     // a session touching every kind of access; the longest is the most a console command can
     // delay a control period.
     {
         let Ok(mut controller) = control::controller() else {
             fail("controller configuration rejected")
         };
-        let mut robot = Locked(console::Bracketed {
+        let mut robot = LockedController(console::Bracketed {
             controller: &mut controller,
             open: || bench_start(),
             close: || bench_end(),

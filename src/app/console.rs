@@ -9,7 +9,8 @@ use super::Handoff;
 use crate::motion::button::Press;
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::{InputReceiver, Received};
-use crate::session::{Calibrator, ParamStorage, Robot, Session};
+use crate::protocol::token::LinesDropped;
+use crate::session::{Calibrator, Robot, Session, SettingsAndRuns};
 
 /// Where the console task takes received lines and stop keys from.
 pub trait LineSource {
@@ -41,17 +42,13 @@ pub fn take_line<C: Calibrator>(
     session: &mut Session<C>,
     lines: &mut impl LineSource,
     robot: &mut dyn Robot,
-    storage: &mut dyn ParamStorage,
+    storage: &mut dyn SettingsAndRuns,
     out: &mut dyn Write,
 ) -> fmt::Result {
     if lines.is_empty() {
         let lost = handoff.lines_dropped.swap(0, Ordering::Relaxed);
         if lost > 0 {
-            return write_err(
-                out,
-                ErrorCode::Busy,
-                &format_args!("{lost} line(s) dropped: input queue full"),
-            );
+            return write_err(out, ErrorCode::Busy, &LinesDropped(lost));
         }
     }
     // Busy from before the line leaves the queue: a line starting after the take but before
@@ -99,7 +96,7 @@ pub fn poll<C: Calibrator>(
     session: &mut Session<C>,
     now_us: u64,
     robot: &mut dyn Robot,
-    storage: &mut dyn ParamStorage,
+    storage: &mut dyn SettingsAndRuns,
     out: &mut dyn Write,
 ) -> fmt::Result {
     session.set_typing(handoff.typing.load(Ordering::Relaxed));

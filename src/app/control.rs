@@ -61,7 +61,7 @@ pub struct Pacing {
 
 /// What [`Pacing::after_period`] asks of the board.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PacingNews {
+pub struct PacingActions {
     /// The control rate changed to this, Hz: retime the period source.
     pub retime_hz: Option<u32>,
     /// Toggle the heartbeat LED now.
@@ -88,7 +88,7 @@ impl Pacing {
     }
 
     /// Bookkeeping after a period in which the controller ran at `controller_rate_hz`.
-    pub fn after_period(&mut self, handoff: &Handoff, controller_rate_hz: u32) -> PacingNews {
+    pub fn after_period(&mut self, handoff: &Handoff, controller_rate_hz: u32) -> PacingActions {
         let mut retime_hz = None;
         if controller_rate_hz != self.rate_hz {
             self.rate_hz = controller_rate_hz;
@@ -115,7 +115,7 @@ impl Pacing {
                 false
             }
         };
-        PacingNews {
+        PacingActions {
             retime_hz,
             toggle_heartbeat,
             refusal_lit,

@@ -1,7 +1,7 @@
 //! The board's peripherals and RTIC resources behind the portable traits the app core and the
 //! session use: the console USART as [`TxPort`] and a receive read, an RTIC lock on the
 //! controller as [`ControllerLock`], and the parameter store with the watchdog relaxed around
-//! flash writes as [`ParamStorage`].
+//! flash writes as [`SettingsAndRuns`].
 
 use stm32f4xx_hal::serial::{TxISR, TxListen};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
@@ -13,8 +13,8 @@ use crate::motion::controller::Controller;
 use crate::motion::run::{MAX_RUNS, RunRecord};
 use crate::protocol::rx::RxRead;
 use crate::session::library::ControllerLock;
-use crate::session::{ParamStorage, Settings, StorageError};
-use crate::storage::{ParamStore, RunsLoaded, StoredRun};
+use crate::session::{Settings, SettingsAndRuns, StoreError};
+use crate::storage::{ParamAndRunStore, RunsLoaded, StoredRun};
 
 impl<M: rtic::Mutex<T = Controller>> ControllerLock for M {
     fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
@@ -55,7 +55,7 @@ impl TxPort for ConsoleTx {
 /// are stopped, so nothing moves while the control task is stalled.
 pub struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
     /// The parameter and run store.
-    pub store: &'a mut ParamStore<BoardFlash>,
+    pub store: &'a mut ParamAndRunStore<BoardFlash>,
     /// The watchdog, shared with the control task.
     pub watchdog: W,
 }
@@ -64,7 +64,7 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
     fn relaxed<R>(
         &mut self,
         motors_stopped: bool,
-        f: impl FnOnce(&mut ParamStore<BoardFlash>) -> R,
+        f: impl FnOnce(&mut ParamAndRunStore<BoardFlash>) -> R,
     ) -> R {
         if !motors_stopped {
             // The store refuses without touching the flash: nothing to relax.
@@ -86,15 +86,17 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
     }
 }
 
-impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'_, W> {
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+impl<W: rtic::Mutex<T = IndependentWatchdog>> SettingsAndRuns for RelaxedWatchdog<'_, W> {
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         self.relaxed(motors_stopped, |s| {
-            ParamStorage::save(s, settings, motors_stopped)
+            SettingsAndRuns::save(s, settings, motors_stopped)
         })
     }
 
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
-        self.relaxed(motors_stopped, |s| ParamStorage::reset(s, motors_stopped))
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
+        self.relaxed(motors_stopped, |s| {
+            SettingsAndRuns::reset(s, motors_stopped)
+        })
     }
 
     fn save_runs(
@@ -102,9 +104,9 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         self.relaxed(motors_stopped, |s| {
-            ParamStorage::save_runs(s, runs, ids, motors_stopped)
+            SettingsAndRuns::save_runs(s, runs, ids, motors_stopped)
         })
     }
 
@@ -114,6 +116,6 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> ParamStorage for RelaxedWatchdog<'
         ids: &mut heapless::Vec<Option<StoredRun>, MAX_RUNS>,
     ) -> RunsLoaded {
         // Only at boot, motors stopped: a repair may erase a sector.
-        self.relaxed(true, |s| ParamStorage::load_runs(s, runs, ids))
+        self.relaxed(true, |s| SettingsAndRuns::load_runs(s, runs, ids))
     }
 }

@@ -65,7 +65,8 @@ pub struct RunObservation<'a> {
     pub measured: Measurement,
     /// Ground truth along the path (e.g. a motion-capture log): the true pose in the start frame
     /// at every knot, as long as `knots`; empty when only the end pose was measured. The exact
-    /// method then fits the whole path, not only its end (see [`exact`]).
+    /// method then fits the whole path, not only its end (see [`exact`]); only with the
+    /// host-only `mocap` feature (without it a non-empty path is an invalid measurement).
     pub truth_path: &'a [PoseF64],
 }
 
@@ -93,15 +94,6 @@ impl<'a> RunObservation<'a> {
         )
     }
 
-    /// Total commanded path length, metres (4L for a square).
-    pub fn path_length_m(&self) -> f64 {
-        match self.path {
-            PathKind::Square { side_m, .. } => 4.0 * side_m,
-            PathKind::Line { length_m } => length_m,
-            PathKind::Circle { radius_m, .. } => 2.0 * core::f64::consts::PI * radius_m,
-        }
-    }
-
     /// Characteristic length of the path, metres: the side of a square, the length of a line,
     /// the radius of a circle. The exact method weights heading residuals by it.
     pub fn characteristic_length_m(&self) -> f64 {
@@ -123,7 +115,7 @@ impl<'a> RunObservation<'a> {
             && o.x_m.is_finite()
             && o.y_m.is_finite()
             && o.theta_rad.is_finite();
-        let len = self.path_length_m();
+        let len = self.path.length_m();
         if !finite || !len.is_finite() || len <= 0.0 {
             return Err(CalibrationError::InvalidMeasurement { index });
         }
@@ -132,7 +124,8 @@ impl<'a> RunObservation<'a> {
             return Err(CalibrationError::InvalidMeasurement { index });
         }
         let path_ok = self.truth_path.is_empty()
-            || (self.truth_path.len() == self.knots.len()
+            || (cfg!(feature = "mocap")
+                && self.truth_path.len() == self.knots.len()
                 && self
                     .truth_path
                     .iter()
@@ -289,7 +282,7 @@ impl fmt::Display for Calibration {
 }
 
 /// Why a calibration failed.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum CalibrationError {

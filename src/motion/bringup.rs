@@ -28,8 +28,6 @@ pub const PULSE_MS: u32 = 250;
 pub const PUSH_MS: u32 = 5_000;
 /// Distance the push check waits for on either wheel, m (it ends early when reached).
 pub const PUSH_DISTANCE_M: f64 = 0.05;
-/// Smallest wheel travel that counts as motion, m (1 mm).
-pub const MIN_MOTION_M: f64 = 0.001;
 
 /// Counts of both encoders during one pulse (forward positive, with the wiring in force).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

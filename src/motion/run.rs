@@ -84,6 +84,17 @@ pub enum PathKind {
     },
 }
 
+impl PathKind {
+    /// Length of the commanded path, metres (4L for a square, 2πr for a circle).
+    pub fn length_m(&self) -> f64 {
+        match *self {
+            PathKind::Square { side_m, .. } => 4.0 * side_m,
+            PathKind::Line { length_m } => length_m,
+            PathKind::Circle { radius_m, .. } => 2.0 * core::f64::consts::PI * radius_m,
+        }
+    }
+}
+
 /// A measured true end pose, in the start frame of the run.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]

@@ -16,7 +16,7 @@
 //!   travel over it; the speeds change only smoothly within a period).
 //! - **Disturbances** a test or a simulated operator applies: a blocked wheel, a counter jump,
 //!   a hand pushing the robot, and per-period slip factors of the wheels' ground travel
-//!   ([`Robot::advance_slipping`]; host-sim draws them from its noise model).
+//!   ([`SimRobot::advance_slipping`]; host-sim draws them from its noise model).
 //!
 //! It is portable `no_std` code like the rest of the library, generic over its arithmetic
 //! ([`Numerics`]): [`Portable`] gives the same bits on the host and the Cortex-M4.
@@ -27,7 +27,7 @@ mod robot;
 
 pub use motor::{BRAKE_TAU_RATIO, COAST_TAU_RATIO, MotorModel};
 pub use numerics::{Lanes, Numerics, Portable, ScalarPair};
-pub use robot::{Robot, RobotConfig, floor_i64};
+pub use robot::{RobotConfig, SimRobot, floor_i64};
 
 #[cfg(test)]
 mod tests;

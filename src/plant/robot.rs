@@ -20,7 +20,7 @@ pub struct RobotConfig {
     pub true_geometry: Geometry,
     /// Motors.
     pub motor: MotorModel,
-    /// Control rate, Hz (one [`Robot::advance`] is one period).
+    /// Control rate, Hz (one [`SimRobot::advance`] is one period).
     pub rate_hz: u32,
     /// Sub-steps per control period of the wheels' lag and the encoder counts (each one exact;
     /// they set the counts' rounding). The true pose moves on one exact arc per period.
@@ -179,7 +179,7 @@ fn turn<N: Numerics>(d: f64) -> (f64, f64) {
 /// The simulated robot: motors, wheels, encoders and the true pose, in `f64` through the
 /// arithmetic of `N` ([`Portable`] unless a host build brings faster lanes).
 #[derive(Clone, Debug)]
-pub struct Robot<N: Numerics = Portable> {
+pub struct SimRobot<N: Numerics = Portable> {
     config: RobotConfig,
     right: WheelState,
     left: WheelState,
@@ -198,10 +198,10 @@ pub struct Robot<N: Numerics = Portable> {
     numerics: PhantomData<N>,
 }
 
-impl<N: Numerics> Robot<N> {
+impl<N: Numerics> SimRobot<N> {
     /// A robot at rest at the origin, heading +x, motors braked.
     pub fn new(config: RobotConfig) -> Self {
-        Robot {
+        SimRobot {
             config,
             right: WheelState::default(),
             left: WheelState::default(),
@@ -225,7 +225,7 @@ impl<N: Numerics> Robot<N> {
         &self.config
     }
 
-    /// Steps one control period of `rate_hz` per [`Robot::advance`] from now on (the board's
+    /// Steps one control period of `rate_hz` per [`SimRobot::advance`] from now on (the board's
     /// controller was retimed).
     pub fn set_rate_hz(&mut self, rate_hz: u32) {
         self.config.rate_hz = rate_hz;
@@ -481,7 +481,7 @@ impl<N: Numerics> Robot<N> {
 
 /// The robot's motors as the board's motor driver: the command is held for the following
 /// periods, as PWM registers hold it.
-impl<N: Numerics> MotorDriver for Robot<N> {
+impl<N: Numerics> MotorDriver for SimRobot<N> {
     fn set_duty(&mut self, right: f32, left: f32) {
         self.apply(MotorCommand::Duty { right, left });
     }

@@ -37,7 +37,7 @@ fn floor_i64_is_floor() {
 #[test]
 fn open_loop_motor_reaches_its_gain_and_counts_wrap() {
     let g = Geometry::PAPER_NOMINAL;
-    let mut robot: Robot = Robot::new(RobotConfig::new(g, 1000));
+    let mut robot: SimRobot = SimRobot::new(RobotConfig::new(g, 1000));
     robot.apply(MotorCommand::Duty {
         right: 0.3,
         left: 0.3,
@@ -62,7 +62,7 @@ fn open_loop_motor_reaches_its_gain_and_counts_wrap() {
 fn brake_stops_faster_than_coast() {
     let g = Geometry::PAPER_NOMINAL;
     let speed_after_stop = |mode| {
-        let mut robot: Robot = Robot::new(RobotConfig::new(g, 1000));
+        let mut robot: SimRobot = SimRobot::new(RobotConfig::new(g, 1000));
         robot.apply(MotorCommand::Duty {
             right: 0.5,
             left: 0.5,
@@ -93,7 +93,7 @@ fn a_reversed_motor_and_encoder_cancel_in_the_counts() {
         ..Wiring::STANDARD
     };
     let run = |cfg: RobotConfig| {
-        let mut robot: Robot = Robot::new(cfg);
+        let mut robot: SimRobot = SimRobot::new(cfg);
         robot.apply(MotorCommand::Duty {
             right: 0.3,
             left: 0.3,
@@ -124,7 +124,7 @@ fn true_pose_of_a_constant_arc_is_exact() {
     // Instant speed: a single constant-curvature arc.
     cfg.motor.time_constant_s = 0.0;
     cfg.motor.time_constant_left_s = 0.0;
-    let mut robot: Robot = Robot::new(cfg);
+    let mut robot: SimRobot = SimRobot::new(cfg);
     robot.apply(MotorCommand::Duty {
         right: 0.3,
         left: 0.1,
@@ -154,7 +154,7 @@ fn true_pose_of_a_fast_turn_is_exact() {
     let mut cfg = RobotConfig::new(g, 100);
     cfg.motor.time_constant_s = 0.0;
     cfg.motor.time_constant_left_s = 0.0;
-    let mut robot: Robot = Robot::new(cfg);
+    let mut robot: SimRobot = SimRobot::new(cfg);
     robot.apply(MotorCommand::Duty {
         right: 1.0,
         left: -0.5,
@@ -231,7 +231,7 @@ fn the_period_quadrature_is_the_fine_solution() {
         .iter()
         .flat_map(|&d| core::iter::repeat_n(d, 200))
         .collect();
-    let mut robot: Robot = Robot::new(cfg);
+    let mut robot: SimRobot = SimRobot::new(cfg);
     for &(right, left) in &duties {
         robot.apply(MotorCommand::Duty { right, left });
         robot.advance();

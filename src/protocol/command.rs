@@ -18,6 +18,7 @@ use super::unit::{
 use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
+use crate::storage::record::METHOD_NAME_MAX;
 use crate::util::decimal::Plain;
 pub use crate::util::text::keyword_eq;
 
@@ -36,8 +37,6 @@ pub const STREAM_RANGE_HZ: (u32, u32) = (1, 100);
 /// Largest run number: runs keep the number they started with for the whole session (a dropped
 /// run leaves a gap), so numbers go beyond the store's size.
 pub const RUN_NUMBER_MAX: u32 = u16::MAX as u32;
-/// Longest accepted calibration method name, bytes.
-pub const METHOD_NAME_MAX: usize = 16;
 
 /// A parsed command. Optional arguments are `None` when omitted (the session fills defaults).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -541,7 +540,8 @@ fn direction(word: &str) -> Result<Direction, ParseError> {
     }
 }
 
-/// A method name: 1..=16 bytes of `[a-z0-9_-]` (any case).
+/// A method name: 1..=[`METHOD_NAME_MAX`] bytes of `[a-z0-9_-]` (any case): no longer than the
+/// parameter record stores (every method's name is shorter).
 fn method_name(word: &str) -> Result<&str, ParseError> {
     let ok = word.len() <= METHOD_NAME_MAX
         && word

@@ -14,6 +14,8 @@
 //! - [`refusal`] words the session's refusals (typed [`refusal::Refusal`] values, one error code
 //!   each);
 //! - [`reply`] writes `ok …` / `err <code>: <message>` lines with `core::fmt::Write`;
+//! - [`token`] writes and reads what a program relies on in the board's lines (event tags, the
+//!   wiring verdict, the `calibrate` table's rows), for the board and the PC console alike;
 //! - [`record`] writes a run's full record (`record`) losslessly and reads it back on a host, and
 //!   the `version` reply.
 //!
@@ -29,6 +31,7 @@ pub mod record;
 pub mod refusal;
 pub mod reply;
 pub mod rx;
+pub mod token;
 pub mod unit;
 
 pub use command::{Command, ParseError};

@@ -9,6 +9,7 @@ use super::command::UnitSetting;
 use super::param::ParamName;
 use super::refusal::write_path;
 use super::reply::EOL;
+use super::token;
 use crate::motion::run::{Measurement, PathKind};
 use crate::util::decimal::Decimal;
 
@@ -90,7 +91,7 @@ pub fn write_measurement(out: &mut dyn Write, m: &Measurement) -> fmt::Result {
 pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
     match *outcome {
         Outcome::Started { run, path } => {
-            write!(out, "ok run {run} started: ")?;
+            super::token::write_run_started(out, run)?;
             write_path(out, &path)?;
         }
         Outcome::Stopped { aborted: None } => out.write_str("ok stopped")?,
@@ -229,7 +230,7 @@ pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> f
             write!(out, "ok {} = ", name.as_str())?;
             write_param_value(out, name, value)?;
             match change {
-                SetChange::Unchanged => return write!(out, " (unchanged)\r\n"),
+                SetChange::Unchanged => return write!(out, "{}\r\n", token::UNCHANGED),
                 SetChange::Changed => {}
                 SetChange::CalibrationRestored(m) => write!(out, " (calibration {m} restored)")?,
                 SetChange::CalibrationDropped(m) => write!(

@@ -129,7 +129,7 @@ pub fn write_record_page(
 /// Why the data lines of a `record` reply could not be read back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]
-pub enum RecordError {
+pub enum RecordReplyError {
     /// A line is not one of the record's data lines, or a value in it is malformed.
     Malformed,
     /// A page disagrees with an earlier one (another run, path, geometry or knot count).
@@ -142,14 +142,14 @@ pub enum RecordError {
     TooManyKnots,
 }
 
-impl fmt::Display for RecordError {
+impl fmt::Display for RecordReplyError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            RecordError::Malformed => "malformed record line",
-            RecordError::Inconsistent => "record pages disagree",
-            RecordError::KnotOrder => "record knots out of order",
-            RecordError::Incomplete => "record incomplete",
-            RecordError::TooManyKnots => "more knots than a run record holds",
+            RecordReplyError::Malformed => "malformed record line",
+            RecordReplyError::Inconsistent => "record pages disagree",
+            RecordReplyError::KnotOrder => "record knots out of order",
+            RecordReplyError::Incomplete => "record incomplete",
+            RecordReplyError::TooManyKnots => "more knots than a run record holds",
         })
     }
 }
@@ -170,34 +170,34 @@ pub struct RecordReader {
     knots: heapless::Vec<WheelTicks, MAX_KNOTS>,
 }
 
-fn bits(word: Option<&str>) -> Result<f64, RecordError> {
-    let w = word.ok_or(RecordError::Malformed)?;
+fn bits(word: Option<&str>) -> Result<f64, RecordReplyError> {
+    let w = word.ok_or(RecordReplyError::Malformed)?;
     if w.len() != 16 {
-        return Err(RecordError::Malformed);
+        return Err(RecordReplyError::Malformed);
     }
     u64::from_str_radix(w, 16)
         .map(f64::from_bits)
-        .map_err(|_| RecordError::Malformed)
+        .map_err(|_| RecordReplyError::Malformed)
 }
 
-fn int<T: core::str::FromStr>(word: Option<&str>) -> Result<T, RecordError> {
-    word.ok_or(RecordError::Malformed)?
+fn int<T: core::str::FromStr>(word: Option<&str>) -> Result<T, RecordReplyError> {
+    word.ok_or(RecordReplyError::Malformed)?
         .parse()
-        .map_err(|_| RecordError::Malformed)
+        .map_err(|_| RecordReplyError::Malformed)
 }
 
-fn direction(word: Option<&str>) -> Result<Direction, RecordError> {
+fn direction(word: Option<&str>) -> Result<Direction, RecordReplyError> {
     match word {
         Some("cw") => Ok(Direction::Cw),
         Some("ccw") => Ok(Direction::Ccw),
-        _ => Err(RecordError::Malformed),
+        _ => Err(RecordReplyError::Malformed),
     }
 }
 
 /// Sets `slot` to `value`, or checks that a previous page gave the same.
-fn same<T: PartialEq>(slot: &mut Option<T>, value: T) -> Result<(), RecordError> {
+fn same<T: PartialEq>(slot: &mut Option<T>, value: T) -> Result<(), RecordReplyError> {
     match slot {
-        Some(old) if *old != value => Err(RecordError::Inconsistent),
+        Some(old) if *old != value => Err(RecordReplyError::Inconsistent),
         Some(_) => Ok(()),
         None => {
             *slot = Some(value);
@@ -215,18 +215,18 @@ impl RecordReader {
     /// Reads one data line of a `record` reply (leading spaces and the line end are ignored).
     ///
     /// # Errors
-    /// [`RecordError`]: a malformed line, a page that disagrees with an earlier one, or a knot
+    /// [`RecordReplyError`]: a malformed line, a page that disagrees with an earlier one, or a knot
     /// out of order.
-    pub fn feed(&mut self, line: &str) -> Result<(), RecordError> {
+    pub fn feed(&mut self, line: &str) -> Result<(), RecordReplyError> {
         let mut w = line.split_ascii_whitespace();
         let end = |mut w: core::str::SplitAsciiWhitespace<'_>| match w.next() {
             None => Ok(()),
-            Some(_) => Err(RecordError::Malformed),
+            Some(_) => Err(RecordReplyError::Malformed),
         };
         match w.next() {
             Some("record") => {
                 if w.next() != Some("run") {
-                    return Err(RecordError::Malformed);
+                    return Err(RecordReplyError::Malformed);
                 }
                 same(&mut self.number, int::<usize>(w.next())?)?;
                 let path = match w.next() {
@@ -247,7 +247,7 @@ impl RecordReader {
                             radius_m: bits(w.next())?,
                         }
                     }
-                    _ => return Err(RecordError::Malformed),
+                    _ => return Err(RecordReplyError::Malformed),
                 };
                 same(&mut self.path, path)?;
             }
@@ -290,7 +290,7 @@ impl RecordReader {
             Some("knots") => {
                 let n: usize = int(w.next())?;
                 if n > MAX_KNOTS {
-                    return Err(RecordError::TooManyKnots);
+                    return Err(RecordReplyError::TooManyKnots);
                 }
                 same(&mut self.total, n)?;
             }
@@ -301,11 +301,13 @@ impl RecordReader {
                     left: int(w.next())?,
                 };
                 if i != self.knots.len() || self.total.is_none_or(|t| i >= t) {
-                    return Err(RecordError::KnotOrder);
+                    return Err(RecordReplyError::KnotOrder);
                 }
-                self.knots.push(k).map_err(|_| RecordError::TooManyKnots)?;
+                self.knots
+                    .push(k)
+                    .map_err(|_| RecordReplyError::TooManyKnots)?;
             }
-            _ => return Err(RecordError::Malformed),
+            _ => return Err(RecordReplyError::Malformed),
         }
         end(w)
     }
@@ -326,8 +328,8 @@ impl RecordReader {
     /// The record.
     ///
     /// # Errors
-    /// [`RecordError::Incomplete`] if a header line or a knot is missing.
-    pub fn finish(self) -> Result<RunRecord, RecordError> {
+    /// [`RecordReplyError::Incomplete`] if a header line or a knot is missing.
+    pub fn finish(self) -> Result<RunRecord, RecordReplyError> {
         let (Some(path), Some(geometry), Some(odometry_end), Some(measured), Some(total)) = (
             self.path,
             self.geometry,
@@ -335,10 +337,10 @@ impl RecordReader {
             self.measured,
             self.total,
         ) else {
-            return Err(RecordError::Incomplete);
+            return Err(RecordReplyError::Incomplete);
         };
         if self.knots.len() != total {
-            return Err(RecordError::Incomplete);
+            return Err(RecordReplyError::Incomplete);
         }
         Ok(RunRecord {
             path,

@@ -133,18 +133,9 @@ pub enum Refusal<'a> {
         /// Why.
         why: &'a dyn fmt::Display,
     },
-    /// `err 18`: the motors run: flash is not written.
-    MotorsRunning,
-    /// `err 19`: the flash failed, as `why` says.
-    FlashFailed {
-        /// What failed.
-        why: &'a dyn fmt::Display,
-    },
-    /// `err 17`: the settings are not storable (the parameter record's reason `why`).
-    NotStorable {
-        /// The record's reason.
-        why: &'a dyn fmt::Display,
-    },
+    /// A store operation failed, worded by [`StoreError`]'s one `Display`: `err 18` while the
+    /// motors run, `err 17` for settings the parameter record refuses, `err 19` for the flash.
+    Store(StoreError),
     /// `err 22`: an implausible measurement of run `run`, for the reason `why`.
     Implausible {
         /// The run.
@@ -180,9 +171,10 @@ impl Refusal<'_> {
                 ErrorCode::CalibrationFailed
             }
             Refusal::Fault { .. } => ErrorCode::Fault,
-            Refusal::InvalidParams { .. } | Refusal::NotStorable { .. } => ErrorCode::InvalidParams,
-            Refusal::MotorsRunning => ErrorCode::MotorsRunning,
-            Refusal::FlashFailed { .. } => ErrorCode::Storage,
+            Refusal::InvalidParams { .. } => ErrorCode::InvalidParams,
+            Refusal::Store(StoreError::MotorsRunning) => ErrorCode::MotorsRunning,
+            Refusal::Store(StoreError::InvalidRecord(_)) => ErrorCode::InvalidParams,
+            Refusal::Store(_) => ErrorCode::Storage,
             Refusal::NothingToMeasure
             | Refusal::AlreadyMeasured { .. }
             | Refusal::Aborted { .. } => ErrorCode::NoRun,
@@ -199,25 +191,6 @@ impl Refusal<'_> {
             Refusal::UnknownMethod { .. } => ErrorCode::BadKeyword,
             Refusal::Implausible { .. } => ErrorCode::Implausible,
         }
-    }
-}
-
-/// What a reply says of a failed store operation (after `flash error: `).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct StoreErrorText(pub StoreError);
-
-impl fmt::Display for StoreErrorText {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self.0 {
-            StoreError::BadRange => "bad flash range",
-            StoreError::Flash(_) => "flash driver error",
-            StoreError::Corrupted => "flash contents corrupted",
-            StoreError::Full => "run flash full",
-            StoreError::FlashTooSmall(_) => {
-                "no storage: this part's flash is smaller than the storage map"
-            }
-            _ => "storage error",
-        })
     }
 }
 
@@ -372,11 +345,7 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
             }
         }
         Refusal::MethodFailed { why } | Refusal::InvalidParams { why } => write!(out, "{why}")?,
-        Refusal::MotorsRunning => out.write_str(
-            "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
-        )?,
-        Refusal::FlashFailed { why } => write!(out, "flash error: {why}")?,
-        Refusal::NotStorable { why } => write!(out, "parameters not storable: {why}")?,
+        Refusal::Store(e) => write!(out, "{e}")?,
         Refusal::NoMethodSucceeded => {
             out.write_str("no method succeeded (check the measurements: runs)")?
         }
@@ -438,13 +407,11 @@ mod tests {
         );
         // A store's typed error keeps its kind up to the reply that names it.
         assert_eq!(
-            text(&Refusal::FlashFailed {
-                why: &StoreErrorText(StoreError::Full)
-            }),
+            text(&Refusal::Store(StoreError::Full)),
             "err 19: flash error: run flash full\r\n"
         );
         assert_eq!(
-            text(&Refusal::MotorsRunning),
+            text(&Refusal::Store(StoreError::MotorsRunning)),
             "err 18: motors not confirmed stopped (running, or the control loop has not run yet), flash not written\r\n"
         );
     }

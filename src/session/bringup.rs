@@ -13,11 +13,13 @@ use crate::protocol::refusal::write_refusal;
 use super::traits::{Calibrator, Robot};
 use super::{Session, robot_err};
 use crate::motion::bringup::{
-    CheckKind, CheckReport, MIN_MOTION_M, PULSE_DUTY, PUSH_DISTANCE_M, PUSH_MS, PulseReport,
-    PushReport, PushVerdict, WheelVerdict,
+    CheckKind, CheckReport, PULSE_DUTY, PUSH_DISTANCE_M, PUSH_MS, PulseReport, PushReport,
+    PushVerdict, WheelVerdict,
 };
 use crate::motion::controller::Wheel;
+use crate::motion::wheel::MIN_MOTION_M;
 use crate::protocol::ParamName;
+use crate::protocol::token::{EventTag, WIRING_OK};
 use crate::util::num::ceil_i64;
 
 fn wheel_name(w: Wheel) -> &'static str {
@@ -103,11 +105,8 @@ impl<C: Calibrator> Session<C> {
         } else {
             "-1"
         };
-        write!(
-            out,
-            "event bringup propose: set {} {flipped}\r\n",
-            name.as_str()
-        )
+        EventTag::BringupPropose.write(out)?;
+        write!(out, "set {} {flipped}\r\n", name.as_str())
     }
 
     fn report_push(&self, p: &PushReport, out: &mut dyn Write) -> fmt::Result {
@@ -221,7 +220,7 @@ impl Findings {
     /// push checks the encoders alone), and announces proposals only when some were made.
     fn write_done(self, kind: CheckKind, out: &mut dyn Write) -> fmt::Result {
         let (p, u) = (self.proposed, self.unfixed);
-        out.write_str("event bringup done: ")?;
+        EventTag::BringupDone.write(out)?;
         if p + u == 0 {
             return match kind {
                 CheckKind::Push => write!(
@@ -229,7 +228,7 @@ impl Findings {
                     "encoders count forward (the push checks the encoders only; bringup motors \
                      checks the motors)\r\n"
                 ),
-                _ => write!(out, "wiring ok\r\n"),
+                _ => write!(out, "{WIRING_OK}\r\n"),
             };
         }
         let finding = |n: u32| if n == 1 { "finding" } else { "findings" };

@@ -9,6 +9,7 @@ use core::fmt::{self, Write};
 use super::Session;
 use super::traits::{Activity, Calibrator, Robot};
 use crate::protocol::StopKey;
+use crate::protocol::token::EventTag;
 
 impl<C: Calibrator> Session<C> {
     /// The button's short press: clears a latched fault, otherwise starts the next planned run
@@ -19,7 +20,7 @@ impl<C: Calibrator> Session<C> {
     /// Only if `out` refuses the text.
     pub fn button_short(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         self.collect_finished(robot, out)?;
-        write!(out, "event button: ")?;
+        EventTag::Button.write(out)?;
         if robot.status().fault.is_some() {
             robot.clear_fault();
             return write!(out, "ok fault cleared\r\n");
@@ -42,7 +43,8 @@ impl<C: Calibrator> Session<C> {
     pub fn button_long(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         robot.abort();
         self.collect_finished(robot, out)?;
-        write!(out, "event button: ok stopped\r\n")
+        EventTag::Button.write(out)?;
+        write!(out, "ok stopped\r\n")
     }
 
     /// Ctrl-C or Esc: stops any motion (the board's receive interrupt has already told the
@@ -65,7 +67,8 @@ impl<C: Calibrator> Session<C> {
                 StopKey::CtrlC => "Ctrl-C",
                 StopKey::Escape => "Esc",
             };
-            write!(out, "event stopped ({name})\r\n")?;
+            EventTag::Stopped.write(out)?;
+            write!(out, "({name})\r\n")?;
         }
         self.collect_finished(robot, out)
     }

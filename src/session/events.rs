@@ -9,6 +9,7 @@
 use core::fmt::{self, Write};
 
 use super::Session;
+use super::library::fault_name;
 use super::report;
 use super::settings::BootRefusal;
 use super::traits::{Activity, Calibrator, Robot};
@@ -16,6 +17,7 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::controller::Fault;
 use crate::motion::run::PathKind;
 use crate::protocol::reply::EOL;
+use crate::protocol::token::EventTag;
 use crate::storage::{LoadOutcome, RunsLoaded};
 use crate::util::decimal::Decimal;
 
@@ -36,9 +38,10 @@ pub fn write_boot_event(
     reset_cause: Option<&str>,
     board_note: Option<&str>,
 ) -> fmt::Result {
+    EventTag::Boot.write(out)?;
     match &loaded.warning {
-        None => write!(out, "event boot: parameters loaded")?,
-        Some(w) => write!(out, "event boot: default parameters ({w})")?,
+        None => out.write_str("parameters loaded")?,
+        Some(w) => write!(out, "default parameters ({w})")?,
     }
     if let Some(w) = &loaded.older {
         write!(out, " (previous record; newest: {w})")?;
@@ -67,7 +70,8 @@ pub fn write_boot_event(
 /// # Errors
 /// Only those of `out`.
 pub fn write_fault_event(out: &mut dyn Write, text: impl fmt::Display) -> fmt::Result {
-    write!(out, "event fault: {text}\r\n")
+    EventTag::Fault.write(out)?;
+    write!(out, "{text}\r\n")
 }
 
 /// The line that tells the operator which runs survived a reset:
@@ -102,7 +106,7 @@ fn write_run_finished(
     path: &PathKind,
     end: &PoseF64,
 ) -> fmt::Result {
-    write!(out, "event run {n} finished: ")?;
+    EventTag::RunFinished(n).write(out)?;
     report::write_path(out, path)?;
     write!(
         out,
@@ -123,7 +127,7 @@ fn write_run_aborted(
     path: &PathKind,
     fault: Option<&str>,
 ) -> fmt::Result {
-    write!(out, "event run {n} aborted, not stored: ")?;
+    EventTag::RunAborted(n).write(out)?;
     report::write_path(out, path)?;
     if let Some(fault) = fault {
         write!(out, " (fault: {fault})")?;
@@ -166,9 +170,14 @@ impl<C: Calibrator> Session<C> {
         {
             self.active = None;
             self.last_aborted = Some(a);
-            write_run_aborted(out, a.number, &a.path, status.fault)?;
+            write_run_aborted(
+                out,
+                a.number,
+                &a.path,
+                status.fault.as_ref().map(fault_name),
+            )?;
         }
-        self.announce_fault(status.fault_detail, out)
+        self.announce_fault(status.fault, out)
     }
 
     /// Announces a newly latched fault in full, once: `event fault: <what>` (which wheel, its

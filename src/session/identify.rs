@@ -17,6 +17,7 @@ use crate::motion::identify::{
 };
 use crate::motion::speed::SpeedTuning;
 use crate::protocol::reply::ErrorCode;
+use crate::protocol::token::EventTag;
 use crate::util::decimal::Decimal;
 
 fn mode_name(mode: IdentifyMode) -> &'static str {
@@ -90,23 +91,20 @@ impl<C: Calibrator> Session<C> {
         ));
         let code = ErrorCode::IdentifyRefused.code();
         if let Err(e) = storable(&candidate) {
-            return write!(
-                out,
-                "event identify err {code}: result not applied: {e}; tuning unchanged\r\n"
-            );
+            EventTag::IdentifyErr.write(out)?;
+            return write!(out, "{code}: result not applied: {e}; tuning unchanged\r\n");
         }
         if let Err(e) = robot.set_tuning(&candidate.tuning) {
-            return write!(
-                out,
-                "event identify err {code}: result not applied: {e}; tuning unchanged\r\n"
-            );
+            EventTag::IdentifyErr.write(out)?;
+            return write!(out, "{code}: result not applied: {e}; tuning unchanged\r\n");
         }
         let bandwidth = candidate.tuning.bandwidth_radps;
         self.settings = candidate;
+        EventTag::IdentifyDone.write(out)?;
         self.unsaved = true;
         write!(
             out,
-            "event identify done ({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep)\r\n",
+            "({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep)\r\n",
             mode_name(r.mode),
             Decimal::fixed(f64::from(bandwidth), 1)
         )
@@ -122,9 +120,10 @@ impl<C: Calibrator> Session<C> {
             crate::motion::controller::Wheel::Right => "right",
             crate::motion::controller::Wheel::Left => "left",
         };
+        EventTag::IdentifyErr.write(out)?;
         write!(
             out,
-            "event identify err {}: {side} motor: {}; motors stopped, tuning unchanged, fault latched (clear)\r\n",
+            "{}: {side} motor: {}; motors stopped, tuning unchanged, fault latched (clear)\r\n",
             ErrorCode::IdentifyRefused.code(),
             f.problem.describe()
         )

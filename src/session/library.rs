@@ -1,10 +1,10 @@
 //! The session traits implemented for the library's own types.
 //!
-//! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`Locked`], which wraps
+//! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`LockedController`], which wraps
 //!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
 //!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
 //!   short operation at a time and never during a calibration solve;
-//! - [`ParamStorage`] for [`ParamStore`] (blocking; the motors must be stopped);
+//! - [`SettingsAndRuns`] for [`ParamAndRunStore`] (blocking; the motors must be stopped);
 //! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`].
 
 use core::fmt::{self, Write};
@@ -15,8 +15,8 @@ use heapless::Vec;
 use super::MAX_RUNS;
 use super::Settings;
 use super::traits::{
-    Activity, Calibrator, Culprit, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
-    RunResidual, Solution, SolveError, StorageError,
+    Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    SettingsAndRuns, Solution, SolveError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
@@ -30,8 +30,9 @@ use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
+use crate::protocol::token::ADVICE;
 
-use crate::storage::{ParamStore, RunsLoaded, StoredRun};
+use crate::storage::{ParamAndRunStore, RunsLoaded, StoreError, StoredRun};
 use crate::util::decimal::Decimal;
 
 /// Short name of a fault as the protocol shows it.
@@ -93,33 +94,14 @@ impl Robot for Controller {
     }
 
     fn status(&mut self) -> RobotStatus {
-        match Controller::status(self) {
-            Status::Idle => RobotStatus {
-                activity: Activity::Idle,
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Running { path, .. } => RobotStatus {
-                activity: Activity::Running(path),
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Driving => RobotStatus {
-                activity: Activity::Driving,
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Checking(kind) => RobotStatus {
-                activity: Activity::Checking(kind),
-                fault: None,
-                fault_detail: None,
-            },
-            Status::Faulted(f) => RobotStatus {
-                activity: Activity::Idle,
-                fault: Some(fault_name(&f)),
-                fault_detail: Some(f),
-            },
-        }
+        let (activity, fault) = match Controller::status(self) {
+            Status::Idle => (Activity::Idle, None),
+            Status::Running { path, .. } => (Activity::Running(path), None),
+            Status::Driving => (Activity::Driving, None),
+            Status::Checking(kind) => (Activity::Checking(kind), None),
+            Status::Faulted(f) => (Activity::Idle, Some(f)),
+        };
+        RobotStatus { activity, fault }
     }
 
     fn pose(&mut self) -> PoseF64 {
@@ -192,11 +174,11 @@ pub trait ControllerLock {
 
 /// A [`Robot`] that locks the controller for each call separately.
 #[derive(Debug)]
-pub struct Locked<L>(pub L);
+pub struct LockedController<L>(pub L);
 
 // Each method out of line: the session calls most of them from several places, and an
 // inlined lock (interrupt-priority raise and restore) at every call site costs flash.
-impl<L: ControllerLock> Robot for Locked<L> {
+impl<L: ControllerLock> Robot for LockedController<L> {
     #[inline(never)]
     fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
         self.0.with_controller(|c| Robot::start(c, path))
@@ -287,26 +269,13 @@ impl<L: ControllerLock> Robot for Locked<L> {
     }
 }
 
-/// A store error as the session's [`StorageError`]: refusals keep their own kinds, every flash
-/// failure stays the typed [`crate::storage::StoreError`] up to the reply that names it.
-fn store_error(e: crate::storage::StoreError) -> StorageError {
-    use crate::storage::StoreError as E;
-    match e {
-        E::MotorsRunning => StorageError::MotorsRunning,
-        E::InvalidRecord(e) => StorageError::Record(e),
-        e => StorageError::Store(e),
-    }
-}
-
-impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError> {
+impl<F: MultiwriteNorFlash> SettingsAndRuns for ParamAndRunStore<F> {
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
         self.save_blocking(settings, motors_stopped)
-            .map_err(store_error)
     }
 
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError> {
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
         self.reset_to_defaults_blocking(motors_stopped)
-            .map_err(store_error)
     }
 
     fn save_runs(
@@ -314,9 +283,8 @@ impl<F: MultiwriteNorFlash> ParamStorage for ParamStore<F> {
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError> {
+    ) -> Result<(), StoreError> {
         self.save_runs_blocking(runs, ids, motors_stopped)
-            .map_err(store_error)
     }
 
     fn load_runs(
@@ -472,20 +440,13 @@ fn observations(runs: &[RunRecord]) -> Vec<RunObservation<'_>, MAX_RUNS> {
         .collect()
 }
 
+/// Missing runs are the session's own refusal (`NotEnoughRuns`); every other calibration error
+/// stays typed up to the reply.
 fn solve_error(e: CalibrationError) -> SolveError {
     use CalibrationError as E;
     match e {
         E::NoRuns | E::NoSquareRuns | E::NoCwRun | E::NoCcwRun => SolveError::NotEnoughRuns,
-        E::NoHeading => SolveError::Failed("needs measured headings (measure x y theta)"),
-        E::InvalidMeasurement { .. } => SolveError::Failed("a measurement is invalid or absurd"),
-        E::MixedSide => SolveError::Failed("squares differ in side (drop some runs)"),
-        E::MixedGeometry => {
-            SolveError::Failed("runs driven with different geometries (drop the older ones)")
-        }
-        E::InvalidGeometry => SolveError::Failed("invalid geometry"),
-        E::Degenerate => SolveError::Failed("the runs do not determine every factor"),
-        E::NotConverged => SolveError::Failed("did not converge"),
-        E::OutOfRange => SolveError::Failed("factor outside 0.5..2"),
+        e => SolveError::Failed(e),
     }
 }
 
@@ -582,7 +543,7 @@ impl Calibrator for LibraryCalibrator {
             }
             let now = track::evaluate(&input, method, side);
             let best = track::advise(&input, method);
-            write!(out, "  advice {:<12}", method.as_str())?;
+            write!(out, "  {ADVICE}{:<12}", method.as_str())?;
             match now {
                 Some(a) => write!(
                     out,

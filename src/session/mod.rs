@@ -6,7 +6,7 @@
 //! The session owns the run store (up to [`MAX_RUNS`] [`RunRecord`]s, measured or not), the
 //! [`Settings`] and the pose-stream schedule. It never owns the hardware: every call takes the
 //! [`Robot`] (one short controller operation per method) and, where needed, the
-//! [`ParamStorage`], so the firmware can lock its control task's controller per call and never
+//! [`SettingsAndRuns`], so the firmware can lock its control task's controller per call and never
 //! holds that lock during a calibration solve.
 //!
 //! Workflow: the plan is `runs_per_direction` squares per direction with side `square_side`;
@@ -53,7 +53,7 @@ use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::command::UnitSetting;
 use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::record;
-use crate::protocol::refusal::{InProgress, Refusal, StoreErrorText, write_refusal};
+use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
 use crate::protocol::rx::Received;
 use crate::protocol::unit::{AngleUnit, LengthUnit};
@@ -68,10 +68,11 @@ pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
 /// struct (its row of [`crate::protocol::PARAMS`] names the field).
 pub type Settings = crate::storage::record::ParamRecord;
+pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, Culprit, Health, ParamStorage, Rejection, Robot, RobotError, RobotStatus,
-    RunResidual, Solution, SolveError, StorageError,
+    Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
+    SettingsAndRuns, Solution, SolveError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -162,19 +163,9 @@ fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
     write_refusal(out, &Refusal::Busy(what))
 }
 
-/// The `err` reply for a failed parameter store, with the code of its cause.
-fn storage_err(out: &mut dyn Write, e: StorageError) -> fmt::Result {
-    let store_text;
-    let refusal = match &e {
-        StorageError::MotorsRunning => Refusal::MotorsRunning,
-        StorageError::Record(why) => Refusal::NotStorable { why },
-        StorageError::Store(store) => {
-            store_text = StoreErrorText(*store);
-            Refusal::FlashFailed { why: &store_text }
-        }
-        StorageError::Flash(why) => Refusal::FlashFailed { why },
-    };
-    write_refusal(out, &refusal)
+/// The `err` reply for a failed store operation: its code and text are the error's own.
+fn storage_err(out: &mut dyn Write, e: StoreError) -> fmt::Result {
+    write_refusal(out, &Refusal::Store(e))
 }
 
 /// Counts of square runs per direction: `(stored, measured)` for CW and CCW.
@@ -226,7 +217,7 @@ impl<C: Calibrator> Session<C> {
     /// Only those of `out`.
     pub fn restore_runs(
         &mut self,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         let loaded = storage.load_runs(&mut self.runs, &mut self.run_ids);
@@ -293,7 +284,7 @@ impl<C: Calibrator> Session<C> {
     fn store_runs(
         &mut self,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         if !self.runs_dirty || self.runs_store_failed || !robot.motors_stopped() {
@@ -371,7 +362,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         input: &Received,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         if self.echo {
@@ -389,7 +380,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         event: LineEvent<'_>,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         match event {
@@ -412,7 +403,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         line: &str,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         match Command::parse(line) {
@@ -441,7 +432,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         cmd: Command<'_>,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         self.execute_command(cmd, robot, storage, out)?;
@@ -451,7 +442,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         cmd: Command<'_>,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         self.collect_finished(robot, out)?;
@@ -497,9 +488,13 @@ impl<C: Calibrator> Session<C> {
                 // The last reset's crash is acknowledged with the fault.
                 let crash = self.last_crash.take();
                 match robot.status().fault {
-                    Some(name) => {
+                    Some(fault) => {
                         robot.clear_fault();
-                        write!(out, "ok fault cleared ({name})\r\n")
+                        write!(
+                            out,
+                            "ok fault cleared ({})\r\n",
+                            library::fault_name(&fault)
+                        )
                     }
                     None if crash.is_some() => write!(out, "ok reset cause cleared\r\n"),
                     None => write!(out, "ok no fault latched\r\n"),
@@ -544,9 +539,9 @@ impl<C: Calibrator> Session<C> {
 /// that validates.
 ///
 /// # Errors
-/// [`StorageError::Record`] with the record's reason.
-pub fn storable(settings: &Settings) -> Result<(), StorageError> {
-    settings.validate().map_err(StorageError::Record)
+/// [`StoreError::InvalidRecord`] with the record's reason.
+pub fn storable(settings: &Settings) -> Result<(), StoreError> {
+    settings.validate().map_err(StoreError::InvalidRecord)
 }
 
 /// Square runs per direction, stored and measured, of `runs`.

@@ -7,7 +7,7 @@
 
 use core::fmt::{self, Write};
 
-use super::traits::{Activity, Calibrator, ParamStorage, Robot, RobotError};
+use super::traits::{Activity, Calibrator, Robot, RobotError, SettingsAndRuns};
 use super::{Dropped, Session, Settings, robot_err, storable, storage_err};
 use crate::protocol::ParamGroup;
 use crate::protocol::ParamName;
@@ -108,7 +108,7 @@ impl<C: Calibrator> Session<C> {
     pub(super) fn save(
         &mut self,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         if let Err(e) = storable(&self.settings) {

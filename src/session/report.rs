@@ -12,8 +12,10 @@ use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
+use crate::protocol::token::{self, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, STREAM, WITH_FLAGGED};
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
+use crate::util::trig::wrap_deg;
 
 /// `<n> <noun>` with the noun in the plural unless `n` is 1 (`1 run`, `2 runs`).
 pub(crate) struct Count(pub usize, pub &'static str);
@@ -73,24 +75,13 @@ pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
     write!(out, "ok {} commands\r\n", HELP.len())
 }
 
-/// Heading in degrees wrapped into (-180, 180].
-fn wrapped_deg(theta_rad: f64) -> f64 {
-    let mut d = crate::util::trig::fmod(theta_rad.to_degrees(), 360.0);
-    if d > 180.0 {
-        d -= 360.0;
-    } else if d <= -180.0 {
-        d += 360.0;
-    }
-    d
-}
-
 pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
     write!(
         out,
         "x={} y={} theta_deg={}",
         Decimal::signed(p.x_m, 6),
         Decimal::signed(p.y_m, 6),
-        Decimal::signed(wrapped_deg(p.theta_rad), 4)
+        Decimal::signed(wrap_deg(p.theta_rad.to_degrees()), 4)
     )
 }
 
@@ -103,14 +94,14 @@ pub(super) fn write_stream_line(
 ) -> fmt::Result {
     write!(
         out,
-        "stream {}.{:06} {} {} {} {} {}\r\n",
+        "{STREAM}{}.{:06} {} {} {} {} {}\r\n",
         // Both casts are exact (the quotient is below 2^64 / 10^6 < 2^63, the remainder below
         // 10^6): the replies print integers through the `i64` and `u32` formatters only.
         (now_us / 1_000_000) as i64,
         (now_us % 1_000_000) as u32,
         Decimal::signed(p.x_m, 6),
         Decimal::signed(p.y_m, 6),
-        Decimal::signed(wrapped_deg(p.theta_rad), 4),
+        Decimal::signed(wrap_deg(p.theta_rad.to_degrees()), 4),
         Decimal::signed(v_right, 4),
         Decimal::signed(v_left, 4)
     )
@@ -140,7 +131,11 @@ pub(super) fn write_status<C: Calibrator>(
             write_path(out, &path)?;
         }
     }
-    write!(out, " fault={} ", status.fault.unwrap_or("none"))?;
+    let fault = status
+        .fault
+        .as_ref()
+        .map_or("none", super::library::fault_name);
+    write!(out, " fault={fault} ")?;
     write_pose(out, pose)?;
     let p = session.progress();
     // Widened: the replies print unsigned numbers through the `u32` formatter only.
@@ -299,22 +294,27 @@ pub(super) fn write_residuals(
         }
         write!(out, " weight={}", Decimal::fixed(r.weight, 2))?;
         if r.outlier {
-            out.write_str(" DISAGREES")?;
+            out.write_str(DISAGREES)?;
         }
         out.write_str(EOL)?;
     }
     if !residuals.iter().any(|r| r.outlier) {
         return Ok(());
     }
-    out.write_str(
-        "  the runs disagree by more than the robust scale (x/y swapped, a sign, a unit?)",
+    write!(
+        out,
+        "  {RUNS_DISAGREE}by more than the robust scale (x/y swapped, a sign, a unit?)"
     )?;
     match culprit {
-        Some(n) => write!(
-            out,
-            "; without run {n} the others agree (each run left out in turn): check run {n}, \
-             then measure #{n} x y or drop {n}, and calibrate again\r\n"
-        ),
+        Some(n) => {
+            out.write_str("; ")?;
+            token::write_culprit(out, n)?;
+            write!(
+                out,
+                " (each run left out in turn): check run {n}, then measure #{n} x y or drop {n}, \
+                 and calibrate again\r\n"
+            )
+        }
         None => write!(
             out,
             "; leaving out one run at a time does not tell which (none or several restore \
@@ -351,7 +351,7 @@ pub(super) fn write_solution_row(
 ) -> fmt::Result {
     write!(out, "  {name:<12}")?;
     match result {
-        Err(e) => write!(out, " failed: {e}")?,
+        Err(e) => write!(out, " {METHOD_FAILED}{e}")?,
         Ok(s) => {
             let g = &s.geometry;
             write!(
@@ -371,7 +371,7 @@ pub(super) fn write_solution_row(
             write_opt(out, s.sd_e_d, true)?;
             write_opt(out, s.sd_e_b, false)?;
             if !flagged.is_empty() {
-                out.write_str("  [with flagged run")?;
+                out.write_str(WITH_FLAGGED)?;
                 if flagged.len() > 1 {
                     out.write_str("s")?;
                 }

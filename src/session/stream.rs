@@ -8,7 +8,7 @@ use core::fmt::{self, Write};
 
 use super::Session;
 use super::report;
-use super::traits::{Calibrator, ParamStorage, Robot};
+use super::traits::{Calibrator, Robot, SettingsAndRuns};
 use crate::kinematics::encoder::WheelTicks;
 
 /// Default pose-stream rate, Hz.
@@ -36,7 +36,7 @@ impl<C: Calibrator> Session<C> {
         &mut self,
         now_us: u64,
         robot: &mut dyn Robot,
-        storage: &mut dyn ParamStorage,
+        storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
         // Unsolicited lines hold while a line is typed with live echo, as the stream does: they

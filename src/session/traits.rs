@@ -2,12 +2,13 @@
 //!
 //! The firmware implements [`Robot`] by locking the control task's controller for the duration
 //! of *one* call (never across a calibration solve); host-sim implements it on the simulated
-//! controller directly. [`ParamStorage`] persists [`Settings`]; [`Calibrator`] runs the
+//! controller directly. [`SettingsAndRuns`] persists [`Settings`] and the runs; [`Calibrator`] runs the
 //! calibration methods. All units SI (metres, seconds, radians) unless a name says otherwise.
 
 use core::fmt;
 
 use super::Settings;
+use crate::calibration::CalibrationError;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
@@ -17,8 +18,6 @@ use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
-use crate::protocol::refusal::StoreErrorText;
-use crate::storage::record::RecordError;
 use crate::storage::{RunsLoaded, StoreError, StoredRun};
 
 /// What the robot is doing.
@@ -39,10 +38,9 @@ pub enum Activity {
 pub struct RobotStatus {
     /// Current activity.
     pub activity: Activity,
-    /// The latched fault, if any (short lower-case name such as `stall`).
-    pub fault: Option<&'static str>,
-    /// The latched fault in full (which wheel, how far off), when the robot knows it.
-    pub fault_detail: Option<Fault>,
+    /// The latched fault, if any, in full (which wheel, how far off); replies name it by
+    /// [`super::library::fault_name`] (`stall`, `following-error`, …).
+    pub fault: Option<Fault>,
 }
 
 /// What the robot knows about the control loop's health (only what is worth telling).
@@ -186,59 +184,31 @@ pub trait Robot {
     fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError>;
 }
 
-/// Why a flash operation failed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum StorageError {
-    /// The motors are running; flash erases stall the CPU, so nothing was written.
-    MotorsRunning,
-    /// The library's parameter store failed: the typed error, named in the reply.
-    Store(StoreError),
-    /// Another store's flash layer failed (the message says how).
-    Flash(&'static str),
-    /// The settings fail the parameter record's validation (the one rule `apply` and `save`
-    /// share).
-    Record(RecordError),
-}
-
-impl fmt::Display for StorageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            StorageError::MotorsRunning => f.write_str(
-                "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
-            ),
-            StorageError::Store(e) => write!(f, "flash error: {}", StoreErrorText(*e)),
-            StorageError::Flash(why) => write!(f, "flash error: {why}"),
-            StorageError::Record(e) => write!(f, "parameters not storable: {e}"),
-        }
-    }
-}
-
-/// Persistent parameter storage.
-pub trait ParamStorage {
+/// Where the session keeps its settings and its runs across a power cut.
+pub trait SettingsAndRuns {
     /// Writes `settings`.
     ///
     /// # Errors
-    /// [`StorageError`]; the previously stored settings stay intact.
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StorageError>;
+    /// [`StoreError`]; the previously stored settings stay intact.
+    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError>;
     /// Stores the defaults.
     ///
     /// # Errors
-    /// [`StorageError`]; the previously stored settings stay intact.
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StorageError>;
+    /// [`StoreError`]; the previously stored settings stay intact.
+    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError>;
     /// Stores the run store: each run whose id is `None` is written and gets its id, then the
     /// list of runs with their measurements; runs no longer listed are forgotten. A power cut
     /// leaves the previously stored runs or these, never a mix, and never touches the
     /// parameters.
     ///
     /// # Errors
-    /// [`StorageError`]; the previously stored runs stay intact.
+    /// [`StoreError`]; the previously stored runs stay intact.
     fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
         motors_stopped: bool,
-    ) -> Result<(), StorageError>;
+    ) -> Result<(), StoreError>;
     /// Restores the stored runs (at boot) into `runs` and where each is stored into `ids`.
     /// Never fails: what cannot be restored is skipped and reported in the result.
     fn load_runs(
@@ -304,8 +274,8 @@ pub enum SolveError {
     UnknownMethod,
     /// The runs do not contain what this method needs.
     NotEnoughRuns,
-    /// The computation failed (degenerate data, no convergence); the message says how.
-    Failed(&'static str),
+    /// The computation failed (degenerate data, no convergence): the calibration's own error.
+    Failed(CalibrationError),
 }
 
 impl fmt::Display for SolveError {
@@ -313,7 +283,16 @@ impl fmt::Display for SolveError {
         match self {
             SolveError::UnknownMethod => f.write_str("unknown method"),
             SolveError::NotEnoughRuns => f.write_str("not enough suitable measured runs"),
-            SolveError::Failed(why) => f.write_str(why),
+            // The calibration's wording, and what the operator can do about it at the console.
+            SolveError::Failed(e) => {
+                write!(f, "{e}")?;
+                f.write_str(match e {
+                    CalibrationError::NoHeading => " (measure x y theta)",
+                    CalibrationError::MixedSide => " (drop some runs)",
+                    CalibrationError::MixedGeometry => " (drop the older ones)",
+                    _ => "",
+                })
+            }
         }
     }
 }

@@ -3,7 +3,7 @@
 //! Owns the stored parameter record and its flash map; may use [`crate::motion`]
 //! (motion limits), [`crate::kinematics`] (geometry) and [`crate::util`].
 //!
-//! [`ParamStore`] keeps the [`ParamRecord`] in the **parameter region**, two erase sectors used
+//! [`ParamAndRunStore`] keeps the [`ParamRecord`] in the **parameter region**, two erase sectors used
 //! A/B ([`params`]: each save appends a copy; the sector holding the newest valid copy is never
 //! erased), and the session's runs in the **run region**, a `sequential-storage` map over any
 //! [`MultiwriteNorFlash`] range of at least two erase pages ([`runs`]). Nothing done to the run
@@ -12,7 +12,7 @@
 //! contents readable (see `tests/storage_power_cut.rs`, `docs/storage.md`).
 //!
 //! Older firmware kept the record in the run region's map (key [`PARAMS_KEY`]); loading moves
-//! it to the parameter region ([`ParamStore::load`]).
+//! it to the parameter region ([`ParamAndRunStore::load`]).
 //!
 //! Loading never fails: a missing, unreadable, corrupt, unknown-version or invalid record gives
 //! [`ParamRecord::DEFAULT`] plus a [`LoadWarning`] (also logged with `warn!`). Writing refuses
@@ -171,20 +171,25 @@ impl fmt::Display for FlashTooSmall {
     }
 }
 
+/// The one wording of a store error: what the `err` replies and the boot line say.
 impl fmt::Display for StoreError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            StoreError::BadRange => {
-                f.write_str("storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)")
-            }
-            StoreError::MotorsRunning => f.write_str("stop the motors before writing flash"),
-            StoreError::InvalidRecord(e) => write!(f, "invalid parameters: {e}"),
-            StoreError::Flash(e) => write!(f, "flash: {e}"),
-            StoreError::Corrupted => f.write_str("flash contents corrupted"),
-            StoreError::Full => f.write_str("run region full"),
-            StoreError::Encoding => f.write_str("parameter record could not be encoded"),
-            StoreError::Internal => f.write_str("storage internal error"),
-            StoreError::FlashTooSmall(t) => write!(f, "{t}"),
+            StoreError::BadRange => f.write_str(
+                "flash error: storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)",
+            ),
+            StoreError::MotorsRunning => f.write_str(
+                "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
+            ),
+            StoreError::InvalidRecord(e) => write!(f, "parameters not storable: {e}"),
+            StoreError::Flash(e) => write!(f, "flash error: {e}"),
+            StoreError::Corrupted => f.write_str("flash error: flash contents corrupted"),
+            StoreError::Full => f.write_str("flash error: run flash full"),
+            StoreError::Encoding => f.write_str("flash error: parameter record could not be encoded"),
+            StoreError::Internal => f.write_str("flash error: storage internal error"),
+            StoreError::FlashTooSmall(_) => f.write_str(
+                "flash error: no storage: this part's flash is smaller than the storage map",
+            ),
         }
     }
 }
@@ -205,7 +210,7 @@ impl<E: NorFlashError> From<sequential_storage::Error<E>> for StoreError {
     }
 }
 
-/// Why [`ParamStore::load`] fell back to defaults.
+/// Why [`ParamAndRunStore::load`] fell back to defaults.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
@@ -261,7 +266,7 @@ pub struct LoadOutcome {
 
 /// The parameter and run store over one NOR flash: the parameter region's two sectors and
 /// the run region's range (see the module docs).
-pub struct ParamStore<F: MultiwriteNorFlash> {
+pub struct ParamAndRunStore<F: MultiwriteNorFlash> {
     map: Map<F>,
     params: ParamSectors,
     buf: AlignedBuf,
@@ -294,7 +299,7 @@ fn decode_record(bytes: &[u8]) -> Result<ParamRecord, LoadWarning> {
     }
 }
 
-impl<F: MultiwriteNorFlash> ParamStore<F> {
+impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     /// A store with the parameter region on `params` and the run region on `runs` (byte
     /// offsets in `flash`; the run range page aligned, at least two pages; the parameter
     /// sectors whole erase units of `flash`, word aligned, apart from each other and the runs).
@@ -314,14 +319,14 @@ impl<F: MultiwriteNorFlash> ParamStore<F> {
     }
 
     /// A store with a run map configuration checked at compile time, e.g.
-    /// `ParamStore::from_config(flash, SECTORS, const { MapConfig::new(RANGE) })` (an invalid
+    /// `ParamAndRunStore::from_config(flash, SECTORS, const { MapConfig::new(RANGE) })` (an invalid
     /// range is then a build error). Parameter sectors that [`Self::new`] would refuse give a
     /// store that never touches the flash (loads the defaults, refuses to write, with
     /// [`StoreError::BadRange`]); check them at compile time with [`ParamSectors::valid`].
     pub fn from_config(flash: F, params: ParamSectors, runs: MapConfig<F>) -> Self {
         let map = MapStorage::new(flash, runs, Cache::new_uncached());
         let bad_layout = !Self::layout_ok(&params, &map.flash_range());
-        ParamStore {
+        ParamAndRunStore {
             map,
             params,
             buf: AlignedBuf([0; BUF_LEN]),

@@ -48,7 +48,7 @@ pub struct ParamSectors {
 }
 
 impl ParamSectors {
-    /// Two sectors; checked when the store is built (`ParamStore::new`) or, for a `const`
+    /// Two sectors; checked when the store is built (`ParamAndRunStore::new`) or, for a `const`
     /// layout, when the firmware is built.
     pub const fn new(a: Range<u32>, b: Range<u32>) -> Self {
         ParamSectors { sectors: [a, b] }

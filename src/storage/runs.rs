@@ -44,7 +44,7 @@ use heapless::Vec;
 use sequential_storage::map::{SerializationError, Value};
 
 use super::record::{Reader, Writer};
-use super::{ParamStore, StoreError};
+use super::{ParamAndRunStore, StoreError};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::{Direction, MAX_KNOTS, MAX_RUNS, Measurement, PathKind, RunRecord};
@@ -451,7 +451,7 @@ pub struct RunsLoaded {
     pub problem: Option<RunLoadProblem>,
 }
 
-impl<F: MultiwriteNorFlash> ParamStore<F> {
+impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     /// Restores the stored runs into `runs` (with their measurements) and where each is stored
     /// into `ids`, both emptied first. Never fails: an unreadable or foreign run is skipped and
     /// reported in [`RunsLoaded::problem`] (also logged); an unreadable list restores nothing.

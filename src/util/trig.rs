@@ -136,6 +136,17 @@ pub fn sincos_f32(x: f32) -> (f32, f32) {
     }
 }
 
+/// An angle in degrees wrapped into (-180, 180].
+pub fn wrap_deg(d: f64) -> f64 {
+    let mut d = fmod(d, 360.0);
+    if d > 180.0 {
+        d -= 360.0;
+    } else if d <= -180.0 {
+        d += 360.0;
+    }
+    d
+}
+
 /// `x − n·y` with `n = trunc(x/y)`, exact; the sign of `x`. NaN for a NaN or infinite `x`, a
 /// NaN or zero `y`; `x` itself for an infinite `y`.
 pub fn fmod(x: f64, y: f64) -> f64 {

@@ -5,7 +5,7 @@ use embedded_storage_async::nor_flash::MultiwriteNorFlash;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::profile::MotionLimits;
 use odocal::storage::ram_flash::RamFlash;
-use odocal::storage::{AppliedCalibration, ParamRecord, ParamSectors, ParamStore};
+use odocal::storage::{AppliedCalibration, ParamAndRunStore, ParamRecord, ParamSectors};
 
 /// Sector size of the STM32F407's sectors 1 and 2 (the parameter region), bytes, and the page
 /// of [`BoardFlash`].
@@ -23,8 +23,8 @@ pub const BOARD_PARAMS: ParamSectors =
 pub const BOARD_RUNS: core::ops::Range<u32> = (2 * SECTOR) as u32..(18 * SECTOR) as u32;
 
 /// The store over a [`BoardFlash`] (or anything laid out as one), as the board builds it.
-pub fn board_store<F: MultiwriteNorFlash>(flash: F) -> ParamStore<F> {
-    ParamStore::new(flash, BOARD_PARAMS, BOARD_RUNS).unwrap()
+pub fn board_store<F: MultiwriteNorFlash>(flash: F) -> ParamAndRunStore<F> {
+    ParamAndRunStore::new(flash, BOARD_PARAMS, BOARD_RUNS).unwrap()
 }
 
 /// The parameter record bytes of the newest valid slot of the parameter region, read raw.
@@ -49,7 +49,7 @@ pub fn newest_param_bytes<F: MultiwriteNorFlash>(
 }
 
 /// Writes raw bytes under `key` into the map at `range` (the old shared map, or the run
-/// region), bypassing `ParamStore`'s checks.
+/// region), bypassing `ParamAndRunStore`'s checks.
 pub fn store_raw_in<F: MultiwriteNorFlash>(
     flash: &mut F,
     range: core::ops::Range<u32>,

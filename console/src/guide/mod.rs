@@ -20,6 +20,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{PathKind, RunRecord};
 use odocal::protocol::ParamName;
+use odocal::protocol::token::{self, EventTag, LinesDropped};
 use odocal::protocol::unit::{AngleUnit, LengthUnit, parse_length};
 use serde_json::json;
 
@@ -277,6 +278,23 @@ pub fn run(opts: &Options) -> Result<(), String> {
     }
 }
 
+/// The tag of an event line (`None`: not an event, or one the console does not read).
+fn event_tag(line: &str) -> Option<EventTag> {
+    EventTag::parse(line).map(|(tag, _)| tag)
+}
+
+/// Whether two tags name the same event, whatever the run's number.
+fn same_event(a: EventTag, b: EventTag) -> bool {
+    std::mem::discriminant(&a) == std::mem::discriminant(&b)
+}
+
+/// `event <tag>` as the board writes it, for a message.
+fn event_head(tag: EventTag) -> String {
+    let mut head = String::new();
+    let _ = tag.write(&mut head);
+    head.trim_end_matches([' ', ':']).to_string()
+}
+
 /// The value after `key=` in a reply text.
 fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
     text.split_whitespace()
@@ -359,7 +377,11 @@ impl Guide {
             let r = self.link.command(line, timeout)?;
             // `err 10` is something in progress (wait for it), or lines the board's input queue
             // dropped (not a reply to wait out).
-            if r.err_code() == Some(10) && !r.last.contains("input queue full") {
+            let dropped = r
+                .text()
+                .split_once(": ")
+                .and_then(|(_, text)| LinesDropped::parse(text));
+            if r.err_code() == Some(10) && dropped.is_none() {
                 if !waited {
                     self.ui.say(&format!(
                         "  the board is busy ({}): waiting for the robot to stop",
@@ -374,23 +396,28 @@ impl Guide {
         }
     }
 
-    fn wait_event(&mut self, prefix: &str, seconds: u64) -> Result<String, Stop> {
-        self.wait_event_of(&[prefix], seconds)
+    fn wait_event(&mut self, want: EventTag, seconds: u64) -> Result<String, Stop> {
+        self.wait_event_of(&[want], seconds)
     }
 
-    /// The first unsolicited line that starts with one of `prefixes`, within `seconds`.
-    fn wait_event_of(&mut self, prefixes: &[&str], seconds: u64) -> Result<String, Stop> {
+    /// The first unsolicited event with one of the tags `wants`, within `seconds` (a run event
+    /// of any run number when its tag in `wants` is one of a run).
+    fn wait_event_of(&mut self, wants: &[EventTag], seconds: u64) -> Result<String, Stop> {
         let deadline = std::time::Instant::now() + Duration::from_secs(seconds);
         while std::time::Instant::now() < deadline {
             if let Some(l) = self.link.next_unsolicited(Duration::from_millis(200))?
-                && prefixes.iter().any(|p| l.starts_with(p))
+                && event_tag(&l).is_some_and(|t| wants.iter().any(|w| same_event(*w, t)))
             {
                 return Ok(l);
             }
         }
         Err(Stop::Failed(format!(
             "no `{}` from the board",
-            prefixes.join("` or `")
+            wants
+                .iter()
+                .map(|w| event_head(*w))
+                .collect::<Vec<_>>()
+                .join("` or `")
         )))
     }
 
@@ -428,9 +455,12 @@ impl Guide {
     /// Sends the stop key (the board stops any motion within one control period) and shows the
     /// run it aborted; whether the board confirmed the stop.
     fn stop_robot(&mut self) -> bool {
-        let stopped = self.link.stop_key().is_ok() && self.wait_event("event stopped", 2).is_ok();
+        let stopped = self.link.stop_key().is_ok() && self.wait_event(EventTag::Stopped, 2).is_ok();
         // A run in progress is reported aborted right after.
-        if stopped && let Ok(l) = self.wait_event("event run ", 1) {
+        if stopped
+            && let Ok(l) =
+                self.wait_event_of(&[EventTag::RunAborted(0), EventTag::RunFinished(0)], 1)
+        {
             self.ui.say(&l);
         }
         stopped
@@ -448,7 +478,7 @@ impl Guide {
             }
         }
         while let Some(l) = self.link.next_unsolicited(Duration::ZERO)? {
-            if l.starts_with("event ") {
+            if l.starts_with(token::EVENT) {
                 self.ui.say(&format!("  {l}"));
             }
         }

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::token::{self, TableRow};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, Numbered, write_calibration};
 use serde_json::json;
@@ -63,26 +64,34 @@ impl Guide {
     pub(super) fn show_table(&mut self, table: &[String]) {
         self.ui
             .say("  method        E_d          E_b          E_max_mm   sd_E_d     sd_E_b");
+        let known = |method: &str| LibraryCalibrator::default().methods().contains(&method);
         for l in table {
-            let w: Vec<&str> = l.split_whitespace().collect();
-            let method = w.first().copied().unwrap_or("");
-            if LibraryCalibrator::default().methods().contains(&method) && l.len() > 14 {
-                if w.get(1) == Some(&"failed:") {
+            match TableRow::parse(l) {
+                Some(TableRow::Failed { method, why }) if known(method) => {
+                    let why = why.split_whitespace().collect::<Vec<_>>().join(" ");
                     self.ui
-                        .say(&format!("  {method:<12}  {}", w[1..].join(" ")));
-                } else if w.len() >= 10 {
-                    let flagged = l.find("  [with flagged").map_or("", |i| &l[i..]);
-                    self.ui.say(&format!(
-                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {}{flagged}",
-                        w[1], w[2], w[7], w[8], w[9]
-                    ));
+                        .say(&format!("  {method:<12}  {}{why}", token::METHOD_FAILED));
                 }
-            } else if l.starts_with("run ")
-                || l.starts_with("the runs disagree")
-                || l.starts_with("advice")
-            {
-                self.ui.say(&format!("  {l}"));
-            } else if l.starts_with("ok ") || l.starts_with("err ") {
+                Some(TableRow::Solved {
+                    method, columns, ..
+                }) if known(method) => {
+                    let w: Vec<&str> = columns.split_whitespace().collect();
+                    if w.len() >= 9 {
+                        let flagged = l.find(token::WITH_FLAGGED).map_or("", |i| &l[i..]);
+                        self.ui.say(&format!(
+                            "  {method:<12}  {}  {}  {:<9}  {:<9}  {}{flagged}",
+                            w[0], w[1], w[6], w[7], w[8]
+                        ));
+                    }
+                }
+                Some(
+                    TableRow::Residual { .. } | TableRow::Disagree { .. } | TableRow::Advice(_),
+                ) => {
+                    self.ui.say(&format!("  {l}"));
+                }
+                _ => {}
+            }
+            if l.starts_with("ok ") || l.starts_with("err ") {
                 self.ui.say(&format!("  ({l})"));
             }
         }
@@ -504,19 +513,18 @@ enum Declined {
 /// The runs a `calibrate` table flags (`run <n> … DISAGREES`) and the one whose removal makes
 /// the others agree (`… without run <n> the others agree …`), if the board could tell.
 fn flagged_and_culprit(table: &[String]) -> (Vec<usize>, Option<usize>) {
-    let number = |l: &str, after: &str| -> Option<usize> {
-        let rest = &l[l.find(after)? + after.len()..];
-        rest.split_whitespace().next()?.parse().ok()
-    };
-    let flagged = table
-        .iter()
-        .filter(|l| l.trim_end().ends_with("DISAGREES"))
-        .filter_map(|l| number(l.trim_start(), "run "))
-        .collect();
-    let culprit = table.iter().find_map(|l| {
-        l.contains("the others agree")
-            .then(|| number(l, "without run "))?
-    });
+    let mut flagged = Vec::new();
+    let mut culprit = None;
+    for l in table {
+        match TableRow::parse(l) {
+            Some(TableRow::Residual {
+                run,
+                disagrees: true,
+            }) => flagged.push(run),
+            Some(TableRow::Disagree { culprit: Some(n) }) => culprit = Some(n),
+            _ => {}
+        }
+    }
     (flagged, culprit)
 }
 

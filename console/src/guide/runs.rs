@@ -6,9 +6,10 @@ use odocal::protocol::unit::{parse_angle, parse_length};
 use std::time::Duration;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::token::{self, EventTag};
 use serde_json::json;
 
-use super::{Guide, RUN_TIMEOUT, Slot, Stop, field, path_text};
+use super::{Guide, RUN_TIMEOUT, Slot, Stop, event_tag, field, path_text};
 
 /// What became of a measurement question.
 pub(super) enum Measured {
@@ -126,8 +127,9 @@ impl Guide {
             };
             if button {
                 self.ui.say("  waiting for the button (short press)");
-                let l = self.wait_event_of(&["event button: ", "event boot:"], 3600)?;
-                if l.starts_with("event boot:") {
+                let l = self.wait_event_of(&[EventTag::Button, EventTag::Boot], 3600)?;
+                let event = EventTag::parse(&l);
+                if matches!(event, Some((EventTag::Boot, _))) {
                     // A reset while waiting: the new boot has the echo on and the stream off.
                     self.ui.warn(&format!(
                         "the board was reset while waiting for the button ({l})"
@@ -135,7 +137,7 @@ impl Guide {
                     self.after_reset()?;
                     continue;
                 }
-                if l.contains("ok run") {
+                if event.is_some_and(|(_, text)| token::parse_run_started(text).is_some()) {
                     break start;
                 }
                 self.ui.say(&format!("  {l}"));
@@ -202,7 +204,7 @@ impl Guide {
             let Some(l) = self.link.next_unsolicited(Duration::from_millis(100))? else {
                 continue;
             };
-            if let Some(rest) = l.strip_prefix("stream ") {
+            if let Some(rest) = l.strip_prefix(token::STREAM) {
                 let v: Vec<f64> = rest
                     .split_whitespace()
                     .filter_map(|w| w.parse().ok())
@@ -223,12 +225,12 @@ impl Guide {
                         odocal::calibration::wrap_angle(th - t0).to_degrees(),
                     );
                 }
-            } else if l.starts_with("event run ") && l.contains(" finished: ") {
+            } else if matches!(event_tag(&l), Some(EventTag::RunFinished(_))) {
                 break true;
-            } else if l.starts_with("event run ") && l.contains(" aborted") {
+            } else if matches!(event_tag(&l), Some(EventTag::RunAborted(_))) {
                 self.ui.warn(&l);
                 break false;
-            } else if l.starts_with("event boot:") {
+            } else if event_tag(&l) == Some(EventTag::Boot) {
                 // A reset (the reset button, a power dip, the watchdog): the run had not
                 // finished, so the board did not store it; the new boot has the echo on and
                 // the stream off.
@@ -237,7 +239,7 @@ impl Guide {
                 ));
                 self.after_reset()?;
                 break false;
-            } else if l.starts_with("event ") {
+            } else if l.starts_with(token::EVENT) {
                 self.ui.say(&format!("  {l}"));
             }
         };
@@ -250,8 +252,12 @@ impl Guide {
                 ));
                 // The board's own account of it (which wheel, how far off), sent right after
                 // the aborted run.
-                if let Some(detail) = self.link.take_pending("event fault: ") {
-                    self.ui.say(&format!("  {}", &detail["event ".len()..]));
+                if let Some(detail) = self
+                    .link
+                    .take_pending(|l| event_tag(l) == Some(EventTag::Fault))
+                {
+                    let detail = detail.strip_prefix(token::EVENT).unwrap_or(&detail);
+                    self.ui.say(&format!("  {detail}"));
                 }
                 if let Some(cause) = fault_cause(f) {
                     self.ui.say(&format!("  likely cause: {cause}"));

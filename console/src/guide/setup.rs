@@ -7,8 +7,9 @@ use std::time::Duration;
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::speed::MotorParams;
+use odocal::protocol::token::{self, EventTag};
 
-use super::{Guide, REPLY, Stop};
+use super::{Guide, REPLY, Stop, event_head, event_tag};
 use crate::log::{calibration_of, param};
 
 /// How to measure the nominal geometry, and how precisely it needs to be known.
@@ -271,24 +272,27 @@ impl Guide {
     }
 
     /// The events of a check until one starting with one of `ends`; each is shown.
-    fn check_events(&mut self, ends: &[&str], seconds: u64) -> Result<Vec<String>, Stop> {
+    fn check_events(&mut self, ends: &[EventTag], seconds: u64) -> Result<Vec<String>, Stop> {
         let mut seen = Vec::new();
         let deadline = std::time::Instant::now() + Duration::from_secs(seconds);
         loop {
             if std::time::Instant::now() > deadline {
                 return Err(Stop::Failed(format!(
                     "no `{}` from the board",
-                    ends.join("` or `")
+                    ends.iter()
+                        .map(|e| event_head(*e))
+                        .collect::<Vec<_>>()
+                        .join("` or `")
                 )));
             }
             let Some(l) = self.link.next_unsolicited(Duration::from_millis(200))? else {
                 continue;
             };
-            if !l.starts_with("event ") {
+            if !l.starts_with(token::EVENT) {
                 continue;
             }
             self.ui.say(&format!("  {l}"));
-            let end = ends.iter().any(|e| l.starts_with(e));
+            let end = event_tag(&l).is_some_and(|t| ends.contains(&t));
             seen.push(l);
             if end {
                 return Ok(seen);
@@ -324,7 +328,7 @@ impl Guide {
         if !r.ok() {
             return self.check_refused(&r.last);
         }
-        self.check_events(&["event bringup done"], 60)?;
+        self.check_events(&[EventTag::BringupDone], 60)?;
         for attempt in 0..3 {
             self.ui.say(
                 "  now lift the wheels off the ground (robot on a box): each motor gets a short \
@@ -336,13 +340,17 @@ impl Guide {
             if !r.ok() {
                 return self.check_refused(&r.last);
             }
-            let events = self.check_events(&["event bringup done"], 60)?;
+            let events = self.check_events(&[EventTag::BringupDone], 60)?;
             let proposals: Vec<String> = events
                 .iter()
-                .filter_map(|l| l.strip_prefix("event bringup propose: "))
-                .map(str::to_string)
+                .filter_map(|l| match EventTag::parse(l) {
+                    Some((EventTag::BringupPropose, set)) => Some(set.to_string()),
+                    _ => None,
+                })
                 .collect();
-            if events.last().is_some_and(|l| l.contains("wiring ok")) {
+            if events.last().is_some_and(|l| {
+                matches!(EventTag::parse(l), Some((EventTag::BringupDone, verdict)) if token::is_wiring_ok(verdict))
+            }) {
                 self.ui.say("  wiring ok");
                 return Ok(());
             }
@@ -429,10 +437,11 @@ impl Guide {
                 self.check_refused(&r.last)?;
                 continue;
             }
-            let events = self.check_events(&["event identify done", "event identify err"], 120)?;
+            let events =
+                self.check_events(&[EventTag::IdentifyDone, EventTag::IdentifyErr], 120)?;
             if events
                 .last()
-                .is_some_and(|l| l.starts_with("event identify done"))
+                .is_some_and(|l| event_tag(l) == Some(EventTag::IdentifyDone))
             {
                 if !self.pending.contains(&"speed-loop tuning") {
                     self.pending.push("speed-loop tuning");

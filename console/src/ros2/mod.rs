@@ -20,6 +20,7 @@ use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use odocal::protocol::token;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 use ros2_client::{
@@ -114,7 +115,7 @@ pub struct StreamLine {
 impl StreamLine {
     /// Parses a `stream …` line (`None` for anything else).
     pub fn parse(line: &str) -> Option<StreamLine> {
-        let mut w = line.strip_prefix("stream ")?.split_whitespace();
+        let mut w = line.strip_prefix(token::STREAM)?.split_whitespace();
         let mut next = || w.next()?.parse::<f64>().ok();
         Some(StreamLine {
             t_s: next()?,

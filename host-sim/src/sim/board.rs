@@ -3,7 +3,7 @@
 //! [`Board`] is the simulated board: the library's [`Controller`] stepping the simulated robot
 //! at the control rate through the app core's control period (`app::control::period`, retimed
 //! by `app::control::Pacing` after `set control_hz`, as the firmware's control task), the library's [`Session`] executing protocol lines, and the library's
-//! [`ParamStore`] on the simulated storage flash ([`SimParamFlash`], sectors 1–2 and 10–11), which
+//! [`ParamAndRunStore`] on the simulated storage flash ([`SimParamFlash`], sectors 1–2 and 10–11), which
 //! outlives the board: dropping a `Board` and booting a new one over the same flash is a
 //! simulated reboot. Bytes go through the library's receive loop and [`LineAssembler`], exactly
 //! as the USART2 RX interrupt feeds them on the board: a stop key (Ctrl-C, Esc) stops the
@@ -29,7 +29,7 @@ use odocal::protocol::line::LineEvent;
 use odocal::protocol::rx::{InputItem, Received, RxRead};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Session, write_boot_event};
-use odocal::storage::ParamStore;
+use odocal::storage::ParamAndRunStore;
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
 use crate::sim::robot::{Sim, SimConfig};
@@ -49,7 +49,7 @@ pub struct Board<'f> {
     /// The protocol session.
     pub session: Session<LibraryCalibrator>,
     /// Parameter storage on the simulated flash.
-    pub store: ParamStore<&'f mut SimFlash>,
+    pub store: ParamAndRunStore<&'f mut SimFlash>,
     /// What the receive, the control period and the console tell each other, as on the board.
     handoff: Handoff,
     /// The control period's bookkeeping (retiming after `set control_hz`), as on the board.

@@ -2,7 +2,7 @@
 //! [`RamFlash`] that outlives boots.
 //!
 //! [`SimParamFlash`] is the simulator's flash chip. Each simulated boot builds a fresh
-//! [`ParamStore`] over it (as the firmware's `init` does) and loads the parameters; the contents
+//! [`ParamAndRunStore`] over it (as the firmware's `init` does) and loads the parameters; the contents
 //! stay in the `SimParamFlash` between boots, and can be kept in an image file between runs of
 //! the simulator (`--image`).
 //!
@@ -21,7 +21,7 @@
 use std::path::Path;
 
 use odocal::storage::ram_flash::RamFlash;
-use odocal::storage::{LoadOutcome, ParamSectors, ParamStore};
+use odocal::storage::{LoadOutcome, ParamAndRunStore, ParamSectors};
 
 /// Size of one parameter sector (STM32F407 sectors 1 and 2), bytes, and the simulated flash's
 /// page.
@@ -89,9 +89,9 @@ impl SimParamFlash {
     }
 
     /// A store over the flash, as built by the firmware at boot.
-    pub fn store(&mut self) -> ParamStore<&mut SimFlash> {
+    pub fn store(&mut self) -> ParamAndRunStore<&mut SimFlash> {
         // Whole pages of SimFlash, apart: a layout the store always accepts.
-        match ParamStore::new(&mut *self.flash, SIM_PARAMS, SIM_RUNS) {
+        match ParamAndRunStore::new(&mut *self.flash, SIM_PARAMS, SIM_RUNS) {
             Ok(store) => store,
             Err(e) => unreachable!("SIM_PARAMS and SIM_RUNS are valid for SimFlash: {e}"),
         }

@@ -17,7 +17,7 @@ use crate::board::f407::flash::{
     PARAM_A, PARAM_B, PARAM_SECTORS, RUNS_END, RUNS_RANGE, RUNS_START, SECTOR_BYTES, in_regions,
     whole_sectors,
 };
-use crate::storage::{MapConfig, ParamStore};
+use crate::storage::{MapConfig, ParamAndRunStore};
 
 /// The flash image on the host, relative to the emulator's working directory.
 pub const IMAGE: &core::ffi::CStr = c"odocal-params.img";
@@ -84,8 +84,8 @@ impl BoardFlash {
 }
 
 /// The parameter and run store on the emulated sectors (the board's layout and configuration).
-pub fn param_store() -> ParamStore<BoardFlash> {
-    ParamStore::from_config(
+pub fn param_store() -> ParamAndRunStore<BoardFlash> {
+    ParamAndRunStore::from_config(
         BoardFlash::open(),
         PARAM_SECTORS,
         const { MapConfig::<BoardFlash>::new(RUNS_RANGE) },

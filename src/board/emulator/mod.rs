@@ -46,7 +46,7 @@ use plant::Plant;
 
 use crate::motion::controller::{DEFAULT_RATE_HZ, MotorCommand};
 use crate::motion::motor::{MotorDriver, StopMode};
-use crate::storage::ParamStore;
+use crate::storage::ParamAndRunStore;
 
 /// SysTick's clock in QEMU's STM32F405 model, Hz (fixed, independent of RCC).
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -169,7 +169,7 @@ pub struct Board {
     /// Independent watchdog, not started yet.
     pub watchdog: IndependentWatchdog,
     /// The parameter and run store on the emulated sectors 1–2 and 10–11 (not loaded yet).
-    pub params: ParamStore<BoardFlash>,
+    pub params: ParamAndRunStore<BoardFlash>,
     /// Why the MCU last reset (QEMU models no reset flags: `Unknown`).
     pub reset_cause: ResetCause,
     /// The clock source: QEMU models no oscillators, so there is no crystal to miss and

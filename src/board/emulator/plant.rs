@@ -18,7 +18,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use crate::kinematics::geometry::Geometry;
 use crate::motion::controller::MotorCommand;
-use crate::plant::{Portable, Robot, RobotConfig};
+use crate::plant::{Portable, RobotConfig, SimRobot};
 
 /// True `E_d = D_R / D_L` of the simulated robot.
 pub const TRUE_E_D: f64 = 0.995;
@@ -34,7 +34,7 @@ pub static EMULATOR_TRUTH: [AtomicU32; 12] = [const { AtomicU32::new(0) }; 12];
 
 /// The simulated motors, wheels and encoders.
 pub struct Plant {
-    robot: Robot<Portable>,
+    robot: SimRobot<Portable>,
 }
 
 impl Plant {
@@ -42,7 +42,7 @@ impl Plant {
     pub fn new(rate_hz: u32) -> Self {
         let geometry = Geometry::PAPER_NOMINAL.with_factors(TRUE_E_D, TRUE_E_B, 1.0);
         let plant = Plant {
-            robot: Robot::new(RobotConfig::new(geometry, rate_hz)),
+            robot: SimRobot::new(RobotConfig::new(geometry, rate_hz)),
         };
         plant.publish();
         plant

@@ -31,7 +31,7 @@ use stm32f4xx_hal::serial::{self, Serial, Tx};
 use stm32f4xx_hal::timer::Event;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use crate::storage::ParamStore;
+use crate::storage::ParamAndRunStore;
 
 pub use super::stm32f4::clock::{ClockSource, ClockTexts};
 pub use super::stm32f4::{console_rx, watchdog};
@@ -160,7 +160,7 @@ pub struct Board {
     /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
     pub watchdog: IndependentWatchdog,
     /// The parameter and run store on flash sectors 1–2 and 10–11 (not loaded yet).
-    pub params: ParamStore<BoardFlash>,
+    pub params: ParamAndRunStore<BoardFlash>,
     /// Why the MCU last reset.
     pub reset_cause: ResetCause,
     /// Where the core clock comes from (the internal oscillator if the crystal did not start).

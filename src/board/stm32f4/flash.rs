@@ -24,7 +24,7 @@ use crate::board::flash_map::{
     FLASH_BYTES, PARAM_A, PARAM_B, PARAM_SECTORS, PROGRAM_END, RUNS_END, RUNS_RANGE, RUNS_START,
     SECTOR_BYTES, SECTORS, SMALL_SECTOR_BYTES, TEXT_START,
 };
-use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamStore};
+use crate::storage::{FlashTooSmall, MapConfig, PARAM_DATA_MAX, ParamAndRunStore};
 
 /// Base address of the internal flash in the memory map.
 pub const FLASH_BASE: u32 = 0x0800_0000;
@@ -124,7 +124,7 @@ pub fn whole_sectors(
 /// fail at run time. On a part whose flash ends before the run region does (its flash size register
 /// says so), the store never touches the flash: boot uses the defaults and says why, `save`
 /// answers with an error.
-pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
+pub fn param_store(flash: FLASH) -> ParamAndRunStore<BoardFlash> {
     let runs = const { MapConfig::<BoardFlash>::new(RUNS_RANGE) };
     let part_kib = u32::from(flash_size_kib());
     let needed_kib = RUNS_END / 1024;
@@ -133,7 +133,7 @@ pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
             "this part has {} KiB of flash, the storage map needs {} KiB: storage disabled",
             part_kib, needed_kib
         );
-        return ParamStore::without_flash(
+        return ParamAndRunStore::without_flash(
             BoardFlash::new(flash),
             PARAM_SECTORS,
             runs,
@@ -143,7 +143,7 @@ pub fn param_store(flash: FLASH) -> ParamStore<BoardFlash> {
             },
         );
     }
-    ParamStore::from_config(BoardFlash::new(flash), PARAM_SECTORS, runs)
+    ParamAndRunStore::from_config(BoardFlash::new(flash), PARAM_SECTORS, runs)
 }
 
 /// Why a [`BoardFlash`] access failed.

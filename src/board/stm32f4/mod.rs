@@ -32,7 +32,7 @@ use stm32f4xx_hal::serial::{self, Serial, Tx};
 use stm32f4xx_hal::timer::{CounterHz, Event, Instance};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use crate::storage::ParamStore;
+use crate::storage::ParamAndRunStore;
 
 /// Everything a board gives the application (see [`crate::board`]), over the board's motors
 /// `M`, control tick `T`, button `B` and LEDs `L`.
@@ -56,7 +56,7 @@ pub struct Board<M, T, B, L> {
     /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
     pub watchdog: IndependentWatchdog,
     /// The parameter and run store on the board's flash map (not loaded yet).
-    pub params: ParamStore<flash::BoardFlash>,
+    pub params: ParamAndRunStore<flash::BoardFlash>,
     /// Why the MCU last reset.
     pub reset_cause: reset::ResetCause,
     /// Where the core clock comes from (the internal oscillator if the external clock did not

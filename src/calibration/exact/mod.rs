@@ -281,18 +281,8 @@ pub const UNCHECKED_DECREASE: f64 = 1e-9;
 
 /// Default multiplier `k` of a run's characteristic length `L` in its heading residual's length
 /// scale `ℓ = k·L` ([`ExactOptions::heading_weight`]): 1.5, a heading error counts like the
-/// lateral error it makes over one and a half legs. Chosen by transfer in the board's context
-/// (leave one shared OptiOdom session out, calibrated on the 1.7 m squares, the end poses
-/// measured as by hand, 2 mm and 14 mrad, 20 draws; `bash host-sim/crossval-hand.sh`;
-/// docs/calibration.md, *Transfer*, *Heading weight and end offset*), with the end offset
-/// ([`ExactOptions::end_offset`]): the mean final position error on the sessions of other kinds
-/// is 16.91, 16.61, 16.52, 16.47 mm at k = 1, 1.5, 2, 3 (17.63 at k = 1 without the offset;
-/// Jung & Chung 16.75), and 17.02, 16.77, 16.71 at 3 mm and 17 mrad (17.71; 16.98). Beyond 1.5
-/// the gain is within the spread over the draws (0.4–0.6 mm), and a heavier heading costs the
-/// robust fit part of its hold on a random slipping start (Monte Carlo, 5 % slipping starts,
-/// 1 mrad headings: `E_b` spread 4.3e-4, 4.6e-4, 4.8e-4 at k = 1, 1.5, 2 with the offset,
-/// 3.9e-4 at k = 1 without it, 7.4e-4 for the plain fit). `host-sim replay`'s default for
-/// motion-capture logs (`exact-mocap`) takes k = 3.
+/// lateral error it makes over one and a half legs. Chosen by leave-one-session-out transfer
+/// with end poses measured as by hand (the table: docs/calibration.md, *Transfer*, *Heading weight and end offset*).
 pub const HEADING_WEIGHT: f64 = 1.5;
 
 /// Cauchy constant `c` of the robust weights (95 % efficiency at the normal model).

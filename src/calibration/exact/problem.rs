@@ -89,8 +89,9 @@ impl Problem<'_, '_> {
         run.knots.len() >= 2
     }
 
+    /// Whether the run is fitted along its whole path (never without the `mocap` feature).
     pub(super) fn is_path(run: &RunObservation<'_>) -> bool {
-        !run.truth_path.is_empty()
+        cfg!(feature = "mocap") && !run.truth_path.is_empty()
     }
 
     /// The measured end heading, when it is used: with ground truth along the path only when a

@@ -117,8 +117,6 @@ pub const BLOCK_MS: u32 = 10;
 /// Fastest wheel speed the routine ever allows, m/s (the encoder glitch limit is 3 m/s); the
 /// cap is the operator's `max_speed` below it.
 pub const MAX_SPEED_MPS: f64 = 2.0;
-/// Smallest wheel travel in the last quarter of a step that counts as motion, m.
-pub const MIN_MOTION_M: f64 = 0.001;
 /// Largest fit residual (RMS of the one-period prediction) against the top step's speed.
 pub const MAX_RELATIVE_RESIDUAL: f64 = 0.05;
 /// Smallest gain of the top step against the lower steps' slope (below: saturation).

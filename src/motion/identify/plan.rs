@@ -9,11 +9,11 @@ use super::report::{IdentifyFailure, IdentifyProblem};
 use super::stats::WheelLog;
 use super::{
     BLOCK_MS, BRAKE_MS, COAST_MS, IdentifyMode, LEVEL_FRACTIONS, LEVEL_MS, MAX_SPEED_MPS,
-    MIN_MOTION_M, PROBE_END_FRACTION, PROBE_STAIR_MS, PROBE_START_DUTY, PROBE_STEP_DUTY,
-    PROBE_TRAVEL_M, RESPONSE_TOLERANCE, SPEED_MARGIN, STOP_TIME_S, TRAVEL_LIMIT_M,
+    PROBE_END_FRACTION, PROBE_STAIR_MS, PROBE_START_DUTY, PROBE_STEP_DUTY, PROBE_TRAVEL_M,
+    RESPONSE_TOLERANCE, SPEED_MARGIN, STOP_TIME_S, TRAVEL_LIMIT_M,
 };
 use crate::motion::motor::StopMode;
-use crate::motion::wheel::Wheel;
+use crate::motion::wheel::{MIN_MOTION_M, Wheel};
 use crate::util::num::{ceil_i64, round_u32};
 
 /// The segments of a pass.

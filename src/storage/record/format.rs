@@ -10,16 +10,9 @@ use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 
 impl ParamRecord {
-    /// Format version written by this firmware (byte 0 of the stored record).
-    ///
-    /// Version history: 1 = first format; 2 = version 1 + one wiring byte at the end; 3 =
-    /// version 2 + the speed-loop tuning (right motor, left motor: forward gain, backward gain,
-    /// time constant, dead-band; bandwidth; nine `f32`). A version-1 record is read with the
-    /// standard wiring and a version-1 or -2 record with the default tuning
-    /// ([`SpeedTuning::DEFAULT`], what those firmwares used); the calibration, geometry and
-    /// motion settings carry over unchanged (see [`ParamRecord::decode`]). 4 = version 3 + the
-    /// control rate (`u32`, Hz); a version-1..3 record is read with [`DEFAULT_RATE_HZ`], the
-    /// fixed rate of those firmwares. Any other version is rejected.
+    /// Format version written by this firmware (byte 0 of the stored record). Every older
+    /// version is read and migrated by [`ParamRecord::decode`]; what each version added and how
+    /// it migrates: docs/storage.md, *Versions*.
     pub const FORMAT_VERSION: u8 = 4;
 
     /// Length of a version-1 record, bytes: version 1 + nominal geometry 28 + `E_d, E_b, E_s`

@@ -7,7 +7,7 @@
 //! 2. **Track size**: a short pilot (slip only, nominal belief) gives the end-position scatter;
 //!    [`odocal::calibration::track::advise`] picks the side `L` for the chosen method (or `--side`).
 //! 3. **Calibration runs**: the simulated board ([`crate::sim::board::Board`]: the library's
-//!    `Controller`, `Session` and `ParamStore` on simulated flash) receives protocol lines —
+//!    `Controller`, `Session` and `ParamAndRunStore` on simulated flash) receives protocol lines —
 //!    `set square_side`, `set runs_per_direction`, then `next` and `measure x y θ` for each of
 //!    the `runs` CW and `runs` CCW squares. Measurements are the simulator's true end pose in the
 //!    run's start frame plus noise. Every reply is checked (`ok …`) and parsed.

@@ -19,7 +19,7 @@ use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
 use odocal::motion::motor::{MotorDriver, StopMode};
 use odocal::motion::routine::SegmentKind;
-use odocal::plant::{Robot, RobotConfig};
+use odocal::plant::{RobotConfig, SimRobot};
 
 use crate::sim::pair::Host;
 
@@ -88,7 +88,7 @@ pub struct RunStats {
 #[derive(Clone, Debug)]
 pub struct Sim {
     config: SimConfig,
-    robot: Robot<Host>,
+    robot: SimRobot<Host>,
     rng: Pcg64,
     /// True pose when the counters were last read by [`Sim::step`].
     pose_at_read: PoseF64,
@@ -99,7 +99,7 @@ impl Sim {
     pub fn new(config: SimConfig) -> Self {
         Sim {
             config,
-            robot: Robot::new(config.robot),
+            robot: SimRobot::new(config.robot),
             rng: Pcg64::seed_from_u64(config.seed),
             pose_at_read: PoseF64::default(),
         }

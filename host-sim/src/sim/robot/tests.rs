@@ -29,11 +29,11 @@ fn host_arithmetic_follows_the_portable_model() {
     // The same robot on SSE2 lanes with the platform's exp/sin_cos and on plain pairs with
     // libm: a closed square with turns (the general pass included) ends within an ulp-level
     // difference of the transcendental functions.
-    use odocal::plant::{Portable, Robot};
+    use odocal::plant::{Portable, SimRobot};
     let mut cfg = SimConfig::new(Geometry::PAPER_NOMINAL.with_factors(0.995, 1.01, 1.0), 100);
     cfg.robot.motor.time_constant_s = 0.03;
     let mut host = Sim::new(cfg);
-    let mut portable: Robot<Portable> = Robot::new(cfg.robot);
+    let mut portable: SimRobot<Portable> = SimRobot::new(cfg.robot);
     for (i, duty) in [(0.5f32, 0.45f32), (1.0, -0.5), (-0.2, 0.3)]
         .iter()
         .enumerate()
