@@ -41,7 +41,7 @@ pub const LOCK_SCRIPT: [&str; 17] = [
     "calibrate",
     "apply exact",
     "status",
-    "reset-params",
+    "reset-params yes",
     "params",
     "status",
 ];
@@ -54,7 +54,7 @@ pub fn changes_settings(line: &str) -> bool {
         odocal::protocol::Command::parse(line),
         Ok(odocal::protocol::Command::Set { .. }
             | odocal::protocol::Command::Apply { .. }
-            | odocal::protocol::Command::ResetParams)
+            | odocal::protocol::Command::ResetParams { .. })
     )
 }
 
