@@ -19,24 +19,13 @@
 
 use core::ops::Range;
 
-use crate::storage::ParamSectors;
-
 pub use crate::board::stm32f4::flash::{BoardFlash, in_regions, param_store, whole_sectors};
+pub use crate::board::stm32f4::param_sectors::{
+    PARAM_A, PARAM_B, PARAM_SECTORS, SECTOR_BYTES, SMALL_SECTOR_BYTES, TEXT_START,
+};
 
 /// Total internal flash of the STM32F407VG, bytes.
 pub const FLASH_BYTES: u32 = 1024 * 1024;
-/// Size of sectors 0–3, bytes (the parameter region's erase unit).
-pub const SMALL_SECTOR_BYTES: u32 = 16 * 1024;
-/// Size of sectors 5–11, bytes (the run region's erase unit, `BoardFlash::ERASE_SIZE`).
-pub const SECTOR_BYTES: u32 = 128 * 1024;
-/// Parameter sector A (sector 1), offsets from the flash base.
-pub const PARAM_A: Range<u32> = 0x0000_4000..0x0000_8000;
-/// Parameter sector B (sector 2), offsets from the flash base.
-pub const PARAM_B: Range<u32> = 0x0000_8000..0x0000_C000;
-/// The parameter region: sectors 1 and 2, used A/B.
-pub const PARAM_SECTORS: ParamSectors = ParamSectors::new(PARAM_A, PARAM_B);
-/// Start of the program's code (`_stext` in `memory.x`): sector 3.
-pub const TEXT_START: u32 = PARAM_B.end;
 /// End of the program region (start of sector 10), offset from the flash base.
 pub const PROGRAM_END: u32 = 0x000C_0000;
 /// Start of the run region (sector 10), offset from the flash base.

@@ -19,6 +19,7 @@ pub mod console_rx;
 pub mod flash;
 pub mod map_512k;
 pub mod motors;
+pub mod param_sectors;
 pub mod reset;
 pub mod safe_state;
 pub mod timers;
