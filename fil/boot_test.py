@@ -32,7 +32,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console, ConsoleError  # noqa: E402
-from boards import BOARDS, board as board_profile  # noqa: E402
+from boards import BOARDS, board as board_profile, boot_tail  # noqa: E402
 from emulator import Emulator, defmt_log, rtt_up_bytes, watchdog_feeds  # noqa: E402
 
 GOLDEN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "golden", "console.txt")
@@ -389,9 +389,10 @@ def main():
             f.write(text)
         print(f"golden file rewritten: {GOLDEN}")
     golden = parse(open(GOLDEN).read())
-    # The board's boot line names its own clock.
-    f407_note = "; " + BOARDS["f407"]["clock_note"]
-    golden = [(sent, [g.replace(f407_note, "; " + profile["clock_note"]) if sent == "(reset)"
+    # The board's boot line names its own clock and control timer.
+    f407_end = "; " + BOARDS["f407"]["clock_note"] + boot_tail(BOARDS["f407"])
+    board_end = "; " + profile["clock_note"] + boot_tail(profile)
+    golden = [(sent, [g.replace(f407_end, board_end) if sent == "(reset)"
                       else g for g in want]) for sent, want in golden]
     fail = 0
     good = 0

@@ -23,7 +23,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console  # noqa: E402
-from boards import BOARDS, board as board_profile  # noqa: E402
+from boards import BOARDS, board as board_profile, boot_tail  # noqa: E402
 from emulator import Emulator  # noqa: E402
 
 # The board under test (main: --board).
@@ -49,8 +49,9 @@ def no_crystal(elf, workdir):
         emu.stop()
     print(f"no crystal: `{line}`, then `{fault}`; `status` → `{status[:40]}…`")
     problems = []
-    if not line.startswith("event boot: ") or not line.endswith("; " + PROFILE["internal_note"]):
-        problems.append(f"boot line `{line}` (should end with `{PROFILE['internal_note']}`)")
+    end = "; " + PROFILE["internal_note"] + boot_tail(PROFILE)
+    if not line.startswith("event boot: ") or not line.endswith(end):
+        problems.append(f"boot line `{line}` (should end with `{end}`)")
     if fault != "event fault: " + PROFILE["no_clock_fault"]:
         problems.append(f"fault event `{fault}`")
     if echo != "ok echo off" or not status.startswith("ok state=idle"):
@@ -72,7 +73,8 @@ def small_flash(elf, workdir):
     print(f"{small} KiB part: `{line}`; `save` → `{save}`; `status` → `{status[:40]}…`")
     problems = []
     want = (f"event boot: default parameters (no storage: this part has {small} KiB of flash, "
-            f"the storage map needs {full} KiB), reset: unknown; {PROFILE['clock_note']}")
+            f"the storage map needs {full} KiB), reset: unknown; {PROFILE['clock_note']}"
+            f"{boot_tail(PROFILE)}")
     if line != want:
         problems.append(f"boot line `{line}`")
     if save != SMALL_SAVE:

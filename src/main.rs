@@ -99,7 +99,9 @@ mod app {
     use odocal::protocol::reply::ByteSink;
     use odocal::protocol::rx::{INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender};
     use odocal::session::library::{LibraryCalibrator, LockedController};
-    use odocal::session::{Session, Settings, write_boot_event, write_fault_event};
+    use odocal::session::{
+        ControlTimerStopped, Session, Settings, write_boot_event, write_fault_event,
+    };
     use odocal::storage::ParamAndRunStore;
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Channel, Receiver, Sender};
@@ -203,6 +205,8 @@ mod app {
         let rate_hz = controller.config().rate_hz;
         let mut tick = board.tick;
         tick.set_rate_hz(rate_hz);
+        // A timer that does not count runs no control loop: the boot line says so.
+        let tick_counts = tick.counts(board.sysclk_hz);
         let pacing = Pacing::new(handoff, rate_hz);
         let missed = MissedPeriods::new(board.sysclk_hz, rate_hz);
         let mut session = Session::new(settings, LibraryCalibrator::default());
@@ -227,13 +231,22 @@ mod app {
                     let _ = cause.push_str(reset_cause.as_str());
                 }
             }
+            let mut note = heapless::String::<256>::new();
+            let _ = note.push_str(odocal::board::boot_note(board.clock));
+            if !tick_counts {
+                let _ = write!(
+                    note,
+                    "; {}",
+                    ControlTimerStopped(odocal::board::CONTROL_TIMER)
+                );
+            }
             let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
             let _ = write_boot_event(
                 &mut sink,
                 &loaded,
                 &refused,
                 Some(cause.as_str()),
-                Some(odocal::board::boot_note(board.clock)),
+                Some(note.as_str()),
             );
             if let Some(fault) = board.clock.fault(&odocal::board::CLOCK_TEXTS) {
                 let _ = write_fault_event(&mut sink, fault);
@@ -244,6 +257,12 @@ mod app {
             reset_cause,
             odocal::board::boot_note(board.clock)
         );
+        if !tick_counts {
+            defmt::warn!(
+                "control timer {} not counting: no control loop",
+                odocal::board::CONTROL_TIMER
+            );
+        }
         let (press_in, press_out) = cx.local.presses.split();
 
         report::spawn().ok();

@@ -66,7 +66,8 @@ use nucleo_f446re as active;
 
 pub use active::flash as flash_map;
 pub use active::{
-    BUTTON_INTERRUPT, CLOCK_TEXTS, CONTROL_INTERRUPT, ClockSource, ResetCause, safety,
+    BUTTON_INTERRUPT, CLOCK_TEXTS, CONTROL_INTERRUPT, CONTROL_TIMER, ClockSource, ResetCause,
+    safety,
 };
 
 #[cfg(not(feature = "emulator"))]

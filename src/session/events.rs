@@ -27,7 +27,8 @@ use crate::util::decimal::Decimal;
 /// followed by `, reset: <cause>` when the board knows why it reset (`watchdog`, `brown-out`,
 /// `pin`, `software`, `power-on`, …), by `; <name> <value> refused (<why>), default used` for
 /// each stored value the settings' rules refused ([`BootRefusal`]), then by the board's note
-/// after `; ` (which clock runs; on the emulated board, what QEMU lacks).
+/// after `; ` (which clock runs, and [`ControlTimerStopped`] when the control timer does not
+/// count; on the emulated board, what QEMU lacks).
 ///
 /// # Errors
 /// Only those of `out`.
@@ -62,6 +63,24 @@ pub fn write_boot_event(
         write!(out, "; {note}")?;
     }
     out.write_str(EOL)
+}
+
+/// The boot line's note when the board's control-period timer does not count (its name in
+/// the field): no control period runs, so the encoders are never read, nothing moves and
+/// nothing is written to flash. On silicon a part whose timer clock is off; under QEMU, whose
+/// STM32F405 models neither TIM7 nor TIM11, the shipped firmware's normal state.
+#[derive(Clone, Copy, Debug)]
+pub struct ControlTimerStopped(pub &'static str);
+
+impl fmt::Display for ControlTimerStopped {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "control timer {} not counting (an emulator such as QEMU does not model it): \
+             no control loop, so no motion, no odometry and no flash writes",
+            self.0
+        )
+    }
 }
 
 /// `event fault: <text>`: a fault found at boot that the board works around (e.g. a missing

@@ -62,7 +62,7 @@ use crate::storage::StoredRun;
 pub use crate::storage::record::AppliedCalibration;
 use crate::util::text::keyword_eq;
 pub use calibrate_commands::{Numbered, write_calibration};
-pub use events::{write_boot_event, write_fault_event, write_runs_restored};
+pub use events::{ControlTimerStopped, write_boot_event, write_fault_event, write_runs_restored};
 pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 
 /// The session's settings: the stored parameter record itself, so a parameter lives in one

@@ -73,6 +73,9 @@ const _: () = assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <
 /// TIM1's trigger and commutation interrupts (never enabled: TIM1 only makes the PWM)
 /// (`binds = TIM1_TRG_COM_TIM11` in `src/main.rs`).
 pub const CONTROL_INTERRUPT: pac::Interrupt = pac::Interrupt::TIM1_TRG_COM_TIM11;
+
+/// The control-period timer's name, as the boot line names it when it does not count.
+pub const CONTROL_TIMER: &str = "TIM11";
 /// The button's EXTI interrupt (PA0: EXTI0; `binds = EXTI0` in `src/main.rs`).
 pub const BUTTON_INTERRUPT: pac::Interrupt = pac::Interrupt::EXTI0;
 /// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic: no, TIM11 raises it.

@@ -123,6 +123,11 @@ impl ControlTick {
         RATE_HZ.load(Ordering::Relaxed)
     }
 
+    /// Whether the control periods come: always (the app pends them from the monotonic).
+    pub fn counts(&mut self, _sysclk_hz: u32) -> bool {
+        true
+    }
+
     /// Sets the control rate: the plant advances `1 / rate_hz` of robot time per period from
     /// the next encoder read on (the app keeps pacing one period per monotonic tick).
     pub fn set_rate_hz(&mut self, rate_hz: u32) {

@@ -43,6 +43,9 @@ pub type BoardMotors = super::stm32f4::motors::Tim1Motors<PE7<Output>, PE8<Outpu
 
 /// The interrupt the control task is bound to: TIM7's update (`binds = TIM7` in `src/main.rs`).
 pub const CONTROL_INTERRUPT: pac::Interrupt = pac::Interrupt::TIM7;
+
+/// The control-period timer's name, as the boot line names it when it does not count.
+pub const CONTROL_TIMER: &str = "TIM7";
 /// The interrupt of the button's EXTI line (PA0: EXTI0; `binds = EXTI0` in `src/main.rs`).
 pub const BUTTON_INTERRUPT: pac::Interrupt = pac::Interrupt::EXTI0;
 /// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic: no, TIM7 raises it.

@@ -71,6 +71,9 @@ const _: () = assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <
 
 /// The interrupt the control task is bound to: TIM7's update (`binds = TIM7` in `src/main.rs`).
 pub const CONTROL_INTERRUPT: pac::Interrupt = pac::Interrupt::TIM7;
+
+/// The control-period timer's name, as the boot line names it when it does not count.
+pub const CONTROL_TIMER: &str = "TIM7";
 /// The button's EXTI interrupt (PC13: EXTI15_10; `binds = EXTI15_10` in `src/main.rs`).
 pub const BUTTON_INTERRUPT: pac::Interrupt = pac::Interrupt::EXTI15_10;
 /// Whether the app pends [`CONTROL_INTERRUPT`] from the monotonic: no, TIM7 raises it.

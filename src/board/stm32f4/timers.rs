@@ -43,6 +43,24 @@ impl<TIM: Instance> ControlTick<TIM> {
         self.rate_hz
     }
 
+    /// Whether the timer counts: its update flag rises within two control periods of
+    /// [`set_rate_hz`](Self::set_rate_hz) (polled, `sysclk_hz` cycles a second; called once in
+    /// `init`, interrupts off, so the flag stays for the first period's interrupt). A timer
+    /// that never rises (a part whose timer clock is off, or an emulator that does not model
+    /// it, as QEMU's STM32F405 models neither TIM7 nor TIM11) means no control loop.
+    pub fn counts(&mut self, sysclk_hz: u32) -> bool {
+        use stm32f4xx_hal::ReadFlags as _;
+        // Twenty polls a period for two periods; the delay counts core cycles on silicon.
+        let poll_cycles = (sysclk_hz / self.rate_hz.max(1) / 20).max(1);
+        for _ in 0..40 {
+            if self.timer.flags().contains(Flag::Update) {
+                return true;
+            }
+            cortex_m::asm::delay(poll_cycles);
+        }
+        self.timer.flags().contains(Flag::Update)
+    }
+
     /// Retimes the timer to `rate_hz`: the counter restarts, so the next update comes one new
     /// period after the call (the update interrupt stays enabled).
     pub fn set_rate_hz(&mut self, rate_hz: u32) {
