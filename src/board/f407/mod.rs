@@ -22,18 +22,20 @@
 pub mod flash;
 pub mod safety;
 
-use stm32f4xx_hal::gpio::{Edge, Input, Output, PA0, PD12, PD14, PE7, PE8, PE13, Pull};
-use stm32f4xx_hal::pac::{self, TIM7, USART2};
+use stm32f4xx_hal::gpio::{Edge, Output, PD12, PD14, PE7, PE8, PE13, Pull};
+use stm32f4xx_hal::pac::{self, TIM7};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
 use stm32f4xx_hal::rcc::Config;
-use stm32f4xx_hal::serial::{self, Serial, Tx};
-use stm32f4xx_hal::timer::Event;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use crate::storage::ParamAndRunStore;
-
+use super::stm32f4::clock::start_external;
 pub use super::stm32f4::clock::{ClockSource, ClockTexts};
+pub use super::stm32f4::console_rx::ConsoleRx;
+pub use super::stm32f4::timers::Encoders;
+use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
+pub use super::stm32f4::{CONSOLE_INTERRUPT, CONSOLE_RX_POLLED, ConsoleTx};
+use super::stm32f4::{check_clocks, start_console, start_tick};
 pub use super::stm32f4::{console_rx, watchdog};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
@@ -62,28 +64,12 @@ pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 /// (core / 2), doubled for the same reason.
 pub const TIMCLK2_HZ: u32 = SYSCLK_HZ;
 
-// The periods the board programs are exact at these clocks: TIM7 (16-bit prescaler and
-// auto-reload, HAL `CounterHz::start`) at every control rate, TIM1's PWM period (ARR + 1 =
-// 8,400 timer ticks, the duty resolution).
-const _: () = {
-    let rates = crate::motion::controller::RATES_HZ;
-    let mut i = 0;
-    while i < rates.len() {
-        let ticks = TIMCLK1_HZ / rates[i];
-        assert!(
-            TIMCLK1_HZ.is_multiple_of(rates[i]),
-            "a control rate does not divide TIM7's clock"
-        );
-        // The HAL's split: prescaler (ticks - 1) / 2^16 + 1, then ARR = ticks / prescaler - 1.
-        let psc = (ticks - 1) / (1 << 16);
-        assert!(
-            ticks.is_multiple_of(psc + 1),
-            "a control period is not a whole number of prescaled ticks"
-        );
-        i += 1;
-    }
-    assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <= 1 << 16);
-};
+const _: () = assert!(
+    rates_exact(TIMCLK1_HZ),
+    "a control rate does not divide TIM7's clock"
+);
+// TIM1's PWM period (ARR + 1 = 8,400 timer ticks, the duty resolution) is exact.
+const _: () = assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <= 1 << 16);
 /// External crystal, Hz.
 pub const HSE_HZ: u32 = 8_000_000;
 /// Motor PWM frequency, Hz (above hearing, within the H-bridge's switching limit).
@@ -109,120 +95,31 @@ pub fn boot_note(clock: ClockSource) -> &'static str {
     clock.describe(&CLOCK_TEXTS)
 }
 
-pub use super::stm32f4::timers::Encoders;
 /// The control-period interrupt source: TIM7's update at the control rate (84 MHz timer clock,
 /// so every rate of [`crate::motion::controller::RATES_HZ`] divides exactly).
 pub type ControlTick = super::stm32f4::timers::ControlTick<TIM7>;
 
 /// The user button on PA0 (EXTI0, both edges, pressed = high).
-pub struct ButtonInput(PA0<Input>);
-
-impl ButtonInput {
-    /// The button on `pin`, already an interrupt source.
-    pub(crate) fn new(pin: PA0<Input>) -> Self {
-        ButtonInput(pin)
-    }
-
-    /// Acknowledges the edge interrupt and reads the level (true = pressed).
-    pub fn edge(&mut self) -> bool {
-        self.0.clear_interrupt_pending_bit();
-        crate::app::io::button_pressed(&mut self.0, true)
-    }
-}
+pub type ButtonInput = super::stm32f4::ButtonInput<'A', 0, true>;
 
 /// Heartbeat (green PD12) and fault (red PD14) LEDs.
 pub type Leds = crate::app::io::Leds<PD12<Output>, PD14<Output>>;
 
-pub use console_rx::ConsoleRx;
-/// The console's receive half is read from its DMA ring: the app pends the console interrupt
-/// every millisecond to drain it (no RX interrupt).
-pub const CONSOLE_RX_POLLED: bool = true;
-/// The console port's transmit half (USART2 TXE interrupt).
-pub type ConsoleTx = Tx<USART2>;
-/// The interrupt that serves the console port; the console task pends it to start sending.
-pub const CONSOLE_INTERRUPT: pac::Interrupt = pac::Interrupt::USART2;
-
 /// Everything the board gives the application (see [`crate::board`]).
-pub struct Board {
-    /// Core clock the monotonic timer runs at, Hz.
-    pub sysclk_hz: u32,
-    /// Wheel encoders.
-    pub encoders: Encoders,
-    /// Motor outputs (zero duty, bridge disabled until the controller's first command).
-    pub motors: BoardMotors,
-    /// Control-period interrupt, already running.
-    pub tick: ControlTick,
-    /// User button.
-    pub button: ButtonInput,
-    /// Status LEDs.
-    pub leds: Leds,
-    /// Console receive half, RX interrupt enabled.
-    pub console_rx: ConsoleRx,
-    /// Console transmit half.
-    pub console_tx: ConsoleTx,
-    /// Independent watchdog, not started yet ([`watchdog::set_timeout`] starts it).
-    pub watchdog: IndependentWatchdog,
-    /// The parameter and run store on flash sectors 1–2 and 10–11 (not loaded yet).
-    pub params: ParamAndRunStore<BoardFlash>,
-    /// Why the MCU last reset.
-    pub reset_cause: ResetCause,
-    /// Where the core clock comes from (the internal oscillator if the crystal did not start).
-    pub clock: ClockSource,
-}
-
-/// Encoder input filter (TIMx_CCMR1 IC1F/IC2F = 0b0110: f_DTS/4, 6 samples): an edge must be
-/// stable for 6 × 4 / 84 MHz = 286 ns. The fastest edges (200,000 counts/rev, 150 mm wheels at
-/// 2 m/s: 850,000 counts/s) come every 1.18 µs, so no real edge is lost; spikes shorter than
-/// the filter are.
-const ENCODER_FILTER: u32 = 0b0110;
-
-/// Explicit pulls and the encoder input filter (see [`ENCODER_FILTER`]): pull-ups on the four
-/// encoder pins (PA15 and PB4 keep their JTAG pull-ups out of reset, PB3 and PB5 would float)
-/// and on the console's RX pin (PA3), so an unconnected input is quiet, not noise.
-fn condition_inputs() {
-    // SAFETY: read-modify-writes of the pull configuration of PA3, PA15, PB3, PB4, PB5 and of
-    // the input-filter fields of TIM2/TIM3 CCMR1, after the HAL configured those pins and
-    // timers in `init` (nothing else runs yet); no other bits change.
-    unsafe {
-        let pull_up = |pins: &[u32]| {
-            let (mut mask, mut up) = (0u32, 0u32);
-            for &p in pins {
-                mask |= 0b11 << (2 * p);
-                up |= 0b01 << (2 * p);
-            }
-            (mask, up)
-        };
-        let (mask, up) = pull_up(&[3, 15]);
-        (*pac::GPIOA::ptr())
-            .pupdr()
-            .modify(|r, w| w.bits((r.bits() & !mask) | up));
-        let (mask, up) = pull_up(&[3, 4, 5]);
-        (*pac::GPIOB::ptr())
-            .pupdr()
-            .modify(|r, w| w.bits((r.bits() & !mask) | up));
-        let filter_mask = (0xF << 4) | (0xF << 12);
-        let filter = (ENCODER_FILTER << 4) | (ENCODER_FILTER << 12);
-        (*pac::TIM2::ptr())
-            .ccmr1_input()
-            .modify(|r, w| w.bits((r.bits() & !filter_mask) | filter));
-        (*pac::TIM3::ptr())
-            .ccmr1_input()
-            .modify(|r, w| w.bits((r.bits() & !filter_mask) | filter));
-    }
-}
+pub type Board = super::stm32f4::Board<BoardMotors, ControlTick, ButtonInput, Leds>;
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
     // Before anything else: the motor pins to their safe state, the reset cause, and TIM1
     // frozen while a debugger halts the core.
-    safety::motors_off_at_reset(&dp.RCC, &dp.GPIOE);
+    safety::motors_off_at_reset(&dp.RCC);
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
     // The crystal, if it starts within the timeout; otherwise the internal oscillator, with
     // the PLL derived from it for the same 168 MHz core and 42/84 MHz buses, so timers, PWM
     // and baud rates stay as configured (a missing crystal must not hang the boot before the
     // watchdog runs).
-    let clock = super::stm32f4::clock::start_external(&dp.RCC, false);
+    let clock = start_external(&dp.RCC, false);
     let source = match clock {
         ClockSource::External => Config::hse(HSE_HZ.Hz()),
         ClockSource::Internal => {
@@ -237,23 +134,11 @@ pub fn init(dp: pac::Peripherals) -> Board {
     // APB1 / 4, APB2 / 2; 5 flash wait states for 168 MHz at 2.7–3.6 V, RM0090 Table 10): the
     // timer periods, the PWM and the baud rate below assume exactly these clocks.
     let clocks = rcc.clocks;
-    if clocks.sysclk().raw() != SYSCLK_HZ
-        || clocks.pclk1().raw() != PCLK1_HZ
-        || clocks.timclk1().raw() != TIMCLK1_HZ
-        || clocks.timclk2().raw() != TIMCLK2_HZ
-    {
-        error!(
-            "clocks differ from the board's: sysclk {} pclk1 {} timers {} / {} Hz",
-            clocks.sysclk().raw(),
-            clocks.pclk1().raw(),
-            clocks.timclk1().raw(),
-            clocks.timclk2().raw()
-        );
-    }
+    check_clocks(&clocks, SYSCLK_HZ, PCLK1_HZ, TIMCLK1_HZ, TIMCLK2_HZ);
     let params = flash::param_store(dp.FLASH);
 
     // Port E without the HAL's port reset: the motor pins stay in their safe state.
-    let gpioe = safety::port_e_without_reset(dp.GPIOE);
+    let gpioe = safety::motor_port_without_reset(dp.GPIOE);
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpiod = dp.GPIOD.split(&mut rcc);
@@ -287,39 +172,36 @@ pub fn init(dp: pac::Peripherals) -> Board {
     button_pin.enable_interrupt(&mut exti);
 
     // At the default rate until the app has loaded the stored one.
-    let rate_hz = crate::motion::controller::DEFAULT_RATE_HZ;
-    let mut tick = dp.TIM7.counter_hz(&mut rcc);
-    if tick.start(rate_hz.Hz()).is_err() {
-        error!("control timer did not start");
-    }
-    tick.listen(Event::Update);
+    let tick = start_tick(dp.TIM7.counter_hz(&mut rcc));
 
     // Not started here: the app starts it once the parameters are loaded (a load may repair
     // an interrupted save, which erases a sector for seconds).
     let watchdog = IndependentWatchdog::new(dp.IWDG);
 
-    // Serial console: USART2 on PA2/PA3, RX by DMA into a ring, TX from a queue.
-    let usart = Serial::new(
+    // Serial console: USART2 on PA2/PA3 (a USB-UART adapter), RX by DMA into a ring.
+    let (console_tx, console_rx) = start_console(
         dp.USART2,
         (gpioa.pa2, gpioa.pa3),
-        serial::Config::default().baudrate(console_rx::CONSOLE_BAUD.bps()),
+        dp.DMA1,
         &mut rcc,
+        clocks.sysclk().raw(),
     );
-    let (console_tx, console_rx) = match usart {
-        Ok(s) => s.split(),
-        Err(_) => defmt::panic!("USART2 configuration rejected"),
-    };
-    let console_rx = ConsoleRx::start(console_rx, dp.DMA1, &mut rcc, clocks.sysclk().raw());
-    condition_inputs();
+    // Pull-ups on the four encoder pins (PA15 and PB4 keep their JTAG pull-ups out of reset,
+    // PB3 and PB5 would float) and on the console's RX pin (PA3), so an unconnected input is
+    // quiet, not noise.
+    // SAFETY: the ports' clocks are on (their splits above); `init` owns them and nothing else
+    // runs.
+    unsafe {
+        pull_up(pac::GPIOA::ptr(), &[3, 15]);
+        pull_up(pac::GPIOB::ptr().cast(), &[3, 4, 5]);
+    }
+    filter_encoder_inputs();
 
     Board {
         sysclk_hz: clocks.sysclk().raw(),
         encoders: Encoders { right, left },
         motors,
-        tick: ControlTick {
-            timer: tick,
-            rate_hz,
-        },
+        tick,
         button: ButtonInput::new(button_pin),
         leds: Leds::new(
             gpiod.pd12.into_push_pull_output(),

@@ -83,9 +83,7 @@ pub unsafe fn emergency_stop(port: *const RegisterBlock, pins: &[u32]) {
 /// fixed symbol name, so the firmware-in-the-loop check can see the handlers call it first).
 ///
 /// `motor_safety!(GPIOA, gpioa, gpioaen, [8, 9, 10])`: the port, its HAL module, its
-/// RCC_AHB1ENR enable field, and the pins (the PWM pins and the bridge enable). (Unused on the
-/// F407, whose `safety` module has its own.)
-#[allow(unused_macros)]
+/// RCC_AHB1ENR enable field, and the pins (the PWM pins and the bridge enable).
 macro_rules! motor_safety {
     ($port:ident, $module:ident, $enable:ident, $pins:expr) => {
         /// The PWM and bridge-enable pins of the motor port.
@@ -139,5 +137,4 @@ macro_rules! motor_safety {
         }
     };
 }
-#[allow(unused_imports)]
 pub(crate) use motor_safety;
