@@ -712,7 +712,7 @@ mod size_probe {
 
     /// The routine's state stays within the sizes it was trimmed to (the controller's bound is
     /// checked beside it, in [`crate::motion::controller`]) so that the firmware's static RAM
-    /// stays within its 32 KiB goal (docs/performance.md, Firmware footprint, has the margin).
+    /// stays within its 48 KiB budget (docs/performance.md, Firmware footprint, has the margin).
     /// The bounds are the host's sizes (64-bit `usize`; the board's are no larger): a type that
     /// grows fails here, and raising its bound is a change to check against the footprint.
     #[test]
