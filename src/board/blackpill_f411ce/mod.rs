@@ -25,7 +25,7 @@
 pub mod flash;
 pub mod safety;
 
-use stm32f4xx_hal::gpio::{Edge, Output, PA10, PB0, PB12, PB13, PC13, Pull};
+use stm32f4xx_hal::gpio::{Output, PA10, PB0, PB12, PB13, PC13, Pull};
 use stm32f4xx_hal::pac::{self, TIM11};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
@@ -39,7 +39,7 @@ use super::stm32f4::motors::Tim1Motors;
 pub use super::stm32f4::timers::Encoders;
 use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
 pub use super::stm32f4::watchdog;
-use super::stm32f4::{check_clocks, start_console, start_tick};
+use super::stm32f4::{ClockTree, button_edges, freeze_clocks, start_console, start_tick};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
 
@@ -53,6 +53,14 @@ pub const PCLK2_HZ: u32 = 100_000_000;
 pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 /// Clock of the APB2 timers (TIM1, TIM11), Hz: PCLK2 (the APB2 prescaler is 1).
 pub const TIMCLK2_HZ: u32 = PCLK2_HZ;
+/// The clock tree `init` sets and checks.
+const CLOCK_TREE: ClockTree = ClockTree {
+    sysclk: SYSCLK_HZ,
+    pclk1: PCLK1_HZ,
+    pclk2: PCLK2_HZ,
+    timclk1: TIMCLK1_HZ,
+    timclk2: TIMCLK2_HZ,
+};
 /// The external clock: the board's 25 MHz crystal on PH0/PH1.
 pub const HSE_HZ: u32 = 25_000_000;
 /// Motor PWM frequency, Hz.
@@ -121,21 +129,14 @@ pub fn init(dp: pac::Peripherals) -> Board {
     safety::freeze_when_halted(&dp.DBGMCU);
     // The crystal if it starts; otherwise the HSI with the PLL set for the same clocks.
     let clock = start_external(&dp.RCC, false);
-    let source = match clock {
-        ClockSource::External => Config::hse(HSE_HZ.Hz()),
-        ClockSource::Internal => {
-            error!("the crystal (HSE) did not start: running on the internal oscillator (HSI)");
-            Config::hsi()
-        }
-    };
-    let mut rcc = dp.RCC.freeze(
-        source
-            .sysclk(SYSCLK_HZ.Hz())
-            .pclk1(PCLK1_HZ.Hz())
-            .pclk2(PCLK2_HZ.Hz()),
+    let mut rcc = freeze_clocks(
+        dp.RCC,
+        clock,
+        Config::hse(HSE_HZ.Hz()),
+        &CLOCK_TREE,
+        &CLOCK_TEXTS,
     );
     let clocks = rcc.clocks;
-    check_clocks(&clocks, SYSCLK_HZ, PCLK1_HZ, TIMCLK1_HZ, TIMCLK2_HZ);
     let params = flash::param_store(dp.FLASH);
 
     // Port A without the HAL's port reset: the motor pins stay in their safe state.
@@ -163,12 +164,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
     );
 
     // The KEY: both edges, pressed = low (it connects PA0 to ground).
-    let mut exti = dp.EXTI;
-    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
     let mut button_pin = gpioa.pa0.into_input().internal_resistor(Pull::Up);
-    button_pin.make_interrupt_source(&mut syscfg);
-    button_pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
-    button_pin.enable_interrupt(&mut exti);
+    button_edges(&mut button_pin, dp.SYSCFG, dp.EXTI, &mut rcc);
 
     // At the default rate until the app has loaded the stored one.
     let tick = start_tick(dp.TIM11.counter_hz(&mut rcc));

@@ -22,7 +22,7 @@
 pub mod flash;
 pub mod safety;
 
-use stm32f4xx_hal::gpio::{Edge, Output, PD12, PD14, PE7, PE8, PE13, Pull};
+use stm32f4xx_hal::gpio::{Output, PD12, PD14, PE7, PE8, PE13, Pull};
 use stm32f4xx_hal::pac::{self, TIM7};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
@@ -35,7 +35,7 @@ pub use super::stm32f4::console_rx::ConsoleRx;
 pub use super::stm32f4::timers::Encoders;
 use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
 pub use super::stm32f4::{CONSOLE_INTERRUPT, CONSOLE_RX_POLLED, ConsoleTx};
-use super::stm32f4::{check_clocks, start_console, start_tick};
+use super::stm32f4::{ClockTree, button_edges, freeze_clocks, start_console, start_tick};
 pub use super::stm32f4::{console_rx, watchdog};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
@@ -60,9 +60,18 @@ pub const PCLK1_HZ: u32 = 42_000_000;
 /// Clock of the APB1 timers (TIM2, TIM3, TIM7), Hz: twice PCLK1, because the APB1 prescaler is
 /// not 1 (RM0090 §6.2, "timer clock frequencies").
 pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
-/// Clock of the APB2 timers (TIM1), Hz: PCLK2 is the HAL's default, the 84 MHz bus maximum
-/// (core / 2), doubled for the same reason.
-pub const TIMCLK2_HZ: u32 = SYSCLK_HZ;
+/// APB2 clock (the 84 MHz bus maximum), Hz: core / 2.
+pub const PCLK2_HZ: u32 = 84_000_000;
+/// Clock of the APB2 timers (TIM1), Hz: twice PCLK2, for the same reason.
+pub const TIMCLK2_HZ: u32 = 2 * PCLK2_HZ;
+/// The clock tree `init` sets and checks.
+const CLOCK_TREE: ClockTree = ClockTree {
+    sysclk: SYSCLK_HZ,
+    pclk1: PCLK1_HZ,
+    pclk2: PCLK2_HZ,
+    timclk1: TIMCLK1_HZ,
+    timclk2: TIMCLK2_HZ,
+};
 
 const _: () = assert!(
     rates_exact(TIMCLK1_HZ),
@@ -120,21 +129,16 @@ pub fn init(dp: pac::Peripherals) -> Board {
     // and baud rates stay as configured (a missing crystal must not hang the boot before the
     // watchdog runs).
     let clock = start_external(&dp.RCC, false);
-    let source = match clock {
-        ClockSource::External => Config::hse(HSE_HZ.Hz()),
-        ClockSource::Internal => {
-            error!("the crystal (HSE) did not start: running on the internal oscillator (HSI)");
-            Config::hsi()
-        }
-    };
-    let mut rcc = dp
-        .RCC
-        .freeze(source.sysclk(SYSCLK_HZ.Hz()).pclk1(PCLK1_HZ.Hz()));
     // The HAL picks the PLL factors and bus prescalers (8 or 16 MHz / M = 2 MHz, × 168, / 2;
-    // APB1 / 4, APB2 / 2; 5 flash wait states for 168 MHz at 2.7–3.6 V, RM0090 Table 10): the
-    // timer periods, the PWM and the baud rate below assume exactly these clocks.
+    // APB1 / 4, APB2 / 2; 5 flash wait states for 168 MHz at 2.7–3.6 V, RM0090 Table 10).
+    let mut rcc = freeze_clocks(
+        dp.RCC,
+        clock,
+        Config::hse(HSE_HZ.Hz()),
+        &CLOCK_TREE,
+        &CLOCK_TEXTS,
+    );
     let clocks = rcc.clocks;
-    check_clocks(&clocks, SYSCLK_HZ, PCLK1_HZ, TIMCLK1_HZ, TIMCLK2_HZ);
     let params = flash::param_store(dp.FLASH);
 
     // Port E without the HAL's port reset: the motor pins stay in their safe state.
@@ -164,12 +168,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
     );
 
     // User button: both edges, pressed = high.
-    let mut exti = dp.EXTI;
-    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
     let mut button_pin = gpioa.pa0.into_input().internal_resistor(Pull::Down);
-    button_pin.make_interrupt_source(&mut syscfg);
-    button_pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
-    button_pin.enable_interrupt(&mut exti);
+    button_edges(&mut button_pin, dp.SYSCFG, dp.EXTI, &mut rcc);
 
     // At the default rate until the app has loaded the stored one.
     let tick = start_tick(dp.TIM7.counter_hz(&mut rcc));

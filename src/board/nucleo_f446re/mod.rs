@@ -24,7 +24,7 @@
 pub mod flash;
 pub mod safety;
 
-use stm32f4xx_hal::gpio::{Edge, Output, PA5, PA10, PB0, PB12, PB13, Pull};
+use stm32f4xx_hal::gpio::{Output, PA5, PA10, PB0, PB12, PB13, Pull};
 use stm32f4xx_hal::pac::{self, TIM7};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
@@ -38,7 +38,7 @@ use super::stm32f4::motors::Tim1Motors;
 pub use super::stm32f4::timers::Encoders;
 use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
 pub use super::stm32f4::watchdog;
-use super::stm32f4::{check_clocks, start_console, start_tick};
+use super::stm32f4::{ClockTree, button_edges, freeze_clocks, start_console, start_tick};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
 
@@ -52,6 +52,14 @@ pub const PCLK2_HZ: u32 = 90_000_000;
 pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 /// Clock of the APB2 timers (TIM1), Hz: twice PCLK2.
 pub const TIMCLK2_HZ: u32 = 2 * PCLK2_HZ;
+/// The clock tree `init` sets and checks.
+const CLOCK_TREE: ClockTree = ClockTree {
+    sysclk: SYSCLK_HZ,
+    pclk1: PCLK1_HZ,
+    pclk2: PCLK2_HZ,
+    timclk1: TIMCLK1_HZ,
+    timclk2: TIMCLK2_HZ,
+};
 /// The external clock: the ST-LINK's 8 MHz MCO output on PH0, in bypass mode (the board as
 /// shipped has no crystal at X3).
 pub const HSE_HZ: u32 = 8_000_000;
@@ -119,21 +127,14 @@ pub fn init(dp: pac::Peripherals) -> Board {
     safety::freeze_when_halted(&dp.DBGMCU);
     // The ST-LINK's clock if it runs; otherwise the HSI with the PLL set for the same clocks.
     let clock = start_external(&dp.RCC, true);
-    let source = match clock {
-        ClockSource::External => Config::hse(HSE_HZ.Hz()).bypass_hse_oscillator(),
-        ClockSource::Internal => {
-            error!("the ST-LINK's clock (HSE bypass) did not start: running on the HSI");
-            Config::hsi()
-        }
-    };
-    let mut rcc = dp.RCC.freeze(
-        source
-            .sysclk(SYSCLK_HZ.Hz())
-            .pclk1(PCLK1_HZ.Hz())
-            .pclk2(PCLK2_HZ.Hz()),
+    let mut rcc = freeze_clocks(
+        dp.RCC,
+        clock,
+        Config::hse(HSE_HZ.Hz()).bypass_hse_oscillator(),
+        &CLOCK_TREE,
+        &CLOCK_TEXTS,
     );
     let clocks = rcc.clocks;
-    check_clocks(&clocks, SYSCLK_HZ, PCLK1_HZ, TIMCLK1_HZ, TIMCLK2_HZ);
     let params = flash::param_store(dp.FLASH);
 
     // Port A without the HAL's port reset: the motor pins stay in their safe state.
@@ -157,12 +158,8 @@ pub fn init(dp: pac::Peripherals) -> Board {
     );
 
     // User button B1: both edges, pressed = low.
-    let mut exti = dp.EXTI;
-    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
     let mut button_pin = gpioc.pc13.into_input().internal_resistor(Pull::Up);
-    button_pin.make_interrupt_source(&mut syscfg);
-    button_pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
-    button_pin.enable_interrupt(&mut exti);
+    button_edges(&mut button_pin, dp.SYSCFG, dp.EXTI, &mut rcc);
 
     // At the default rate until the app has loaded the stored one.
     let tick = start_tick(dp.TIM7.counter_hz(&mut rcc));

@@ -25,10 +25,10 @@ pub mod safe_state;
 pub mod timers;
 pub mod watchdog;
 
-use stm32f4xx_hal::gpio::{PA2, PA3};
-use stm32f4xx_hal::pac::{DMA1, USART2};
+use stm32f4xx_hal::gpio::{Edge, ExtiPin, PA2, PA3};
+use stm32f4xx_hal::pac::{DMA1, EXTI, RCC, SYSCFG, USART2};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::{Clocks, Rcc};
+use stm32f4xx_hal::rcc::{Config, Rcc};
 use stm32f4xx_hal::serial::{self, Serial, Tx};
 use stm32f4xx_hal::timer::{CounterHz, Event, Instance};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
@@ -65,22 +65,70 @@ pub struct Board<M, T, B, L> {
     pub clock: clock::ClockSource,
 }
 
-/// Logs an error if the HAL's clocks differ from the board's (`sysclk`, `pclk1` and the two
-/// timer clocks, Hz): the timer periods, the PWM and the baud rate assume exactly those.
-pub fn check_clocks(clocks: &Clocks, sysclk: u32, pclk1: u32, timclk1: u32, timclk2: u32) {
-    if clocks.sysclk().raw() != sysclk
-        || clocks.pclk1().raw() != pclk1
-        || clocks.timclk1().raw() != timclk1
-        || clocks.timclk2().raw() != timclk2
+/// A board's clock tree, Hz: what the HAL is asked for (core and the two buses) and the timer
+/// clocks that follow from it (twice a bus clock whose prescaler is not 1).
+pub struct ClockTree {
+    /// Core clock.
+    pub sysclk: u32,
+    /// APB1 clock (USART2, TIM2, TIM3, TIM7).
+    pub pclk1: u32,
+    /// APB2 clock (TIM1, TIM11).
+    pub pclk2: u32,
+    /// Clock of the APB1 timers.
+    pub timclk1: u32,
+    /// Clock of the APB2 timers.
+    pub timclk2: u32,
+}
+
+/// The clocks from the source that started (`external`, the board's external-clock set-up,
+/// or the HSI with the PLL set for the same tree, logging `texts.fault`); logs an error if the
+/// HAL's clocks differ from `tree`: the timer periods, the PWM and the baud rate assume
+/// exactly those.
+pub fn freeze_clocks(
+    rcc: RCC,
+    clock: clock::ClockSource,
+    external: Config,
+    tree: &ClockTree,
+    texts: &clock::ClockTexts,
+) -> Rcc {
+    let source = match clock {
+        clock::ClockSource::External => external,
+        clock::ClockSource::Internal => {
+            error!("{}", texts.fault);
+            Config::hsi()
+        }
+    };
+    let rcc = rcc.freeze(
+        source
+            .sysclk(tree.sysclk.Hz())
+            .pclk1(tree.pclk1.Hz())
+            .pclk2(tree.pclk2.Hz()),
+    );
+    let clocks = &rcc.clocks;
+    if clocks.sysclk().raw() != tree.sysclk
+        || clocks.pclk1().raw() != tree.pclk1
+        || clocks.pclk2().raw() != tree.pclk2
+        || clocks.timclk1().raw() != tree.timclk1
+        || clocks.timclk2().raw() != tree.timclk2
     {
         error!(
-            "clocks differ from the board's: sysclk {} pclk1 {} timers {} / {} Hz",
+            "clocks differ from the board's: sysclk {} pclk1 {} pclk2 {} timers {} / {} Hz",
             clocks.sysclk().raw(),
             clocks.pclk1().raw(),
+            clocks.pclk2().raw(),
             clocks.timclk1().raw(),
             clocks.timclk2().raw()
         );
     }
+    rcc
+}
+
+/// The user button's pin as an interrupt source on both edges (its EXTI line through SYSCFG).
+pub fn button_edges(pin: &mut impl ExtiPin, syscfg: SYSCFG, mut exti: EXTI, rcc: &mut Rcc) {
+    let mut syscfg = syscfg.constrain(rcc);
+    pin.make_interrupt_source(&mut syscfg);
+    pin.trigger_on_edge(&mut exti, Edge::RisingFalling);
+    pin.enable_interrupt(&mut exti);
 }
 
 /// The serial console: USART2 on PA2 (TX) / PA3 (RX) at 115,200 Bd, the receive half by DMA into
