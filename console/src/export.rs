@@ -19,7 +19,8 @@ use std::path::Path;
 use odocal::calibration::synth;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
-use odocal::protocol::token;
+use odocal::protocol::reply::{self, FinalLine};
+use odocal::protocol::{ParamName, token};
 use odocal::session::Calibrator;
 use odocal::session::library::LibraryCalibrator;
 use serde_json::{Value, json};
@@ -115,12 +116,12 @@ fn scan<'a>(lines: impl Iterator<Item = &'a str>) -> Replies {
     let mut current: Option<(Block, Vec<String>)> = None;
     for raw in lines {
         let l = raw.trim_end_matches(['\r', '\n']);
-        if let Some(data) = l.strip_prefix("  ") {
+        if let Some(data) = reply::data(l) {
             let data = data.trim_start().to_string();
             let (_, lines) = current.get_or_insert_with(|| {
-                let kind = if data.starts_with("d_right ") {
+                let kind = if token::is_params_start(&data) {
                     Block::Params
-                } else if data.starts_with("method ") {
+                } else if data.starts_with(token::TABLE_HEADER) {
                     Block::Table
                 } else {
                     Block::Other
@@ -128,9 +129,11 @@ fn scan<'a>(lines: impl Iterator<Item = &'a str>) -> Replies {
                 (kind, Vec::new())
             });
             lines.push(data);
-        } else if l == "ok" || l.starts_with("ok ") || l.starts_with("err ") {
+        } else if let Some(last) = FinalLine::parse(l) {
             match current.take() {
-                Some((Block::Params, lines)) if l == "ok" => found.params = Some(lines),
+                Some((Block::Params, lines)) if last == FinalLine::Ok("") => {
+                    found.params = Some(lines)
+                }
                 Some((Block::Table, mut lines)) => {
                     lines.push(l.to_string());
                     found.table = Some(lines);
@@ -153,11 +156,11 @@ fn number_after(text: &str, key: &str) -> Option<f64> {
 
 /// The `active d_right=… d_left=… wheelbase=… m` line of a `params` reply.
 pub(crate) fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geometry> {
-    let line = params.iter().find_map(|l| l.strip_prefix("active "))?;
+    let line = params.iter().find_map(|l| l.strip_prefix(token::ACTIVE))?;
     Some(Geometry {
-        diameter_right_m: number_after(line, "d_right")?,
-        diameter_left_m: number_after(line, "d_left")?,
-        wheelbase_m: number_after(line, "wheelbase")?,
+        diameter_right_m: number_after(line, ParamName::DiameterRight.as_str())?,
+        diameter_left_m: number_after(line, ParamName::DiameterLeft.as_str())?,
+        wheelbase_m: number_after(line, ParamName::Wheelbase.as_str())?,
         counts_per_rev,
     })
 }

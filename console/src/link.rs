@@ -12,6 +12,8 @@ use std::io::{Read, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
+use odocal::protocol::ErrorCode;
+use odocal::protocol::reply::{self, FinalLine};
 use odocal::protocol::token::{self, EventTag};
 
 use crate::log::SessionLog;
@@ -50,21 +52,28 @@ pub struct Reply {
 }
 
 impl Reply {
+    /// The final line as the protocol reads it (`None` never happens for a reply [`Link`] made).
+    pub fn last(&self) -> Option<FinalLine<'_>> {
+        FinalLine::parse(&self.last)
+    }
     /// Whether the final line is `ok …`.
     pub fn ok(&self) -> bool {
-        self.last == "ok" || self.last.starts_with("ok ")
+        self.last().is_some_and(FinalLine::is_ok)
     }
     /// The error code of an `err <code>: …` line.
     pub fn err_code(&self) -> Option<u32> {
-        let rest = self.last.strip_prefix("err ")?;
-        rest.split(':').next()?.trim().parse().ok()
+        match self.last()? {
+            FinalLine::Err { code, .. } => Some(code),
+            FinalLine::Ok(_) => None,
+        }
     }
-    /// The text after `ok ` (empty for a bare `ok`).
+    /// Whether the final line is the error `code`.
+    pub fn is_err(&self, code: ErrorCode) -> bool {
+        self.last().is_some_and(|l| l.is_err(code))
+    }
+    /// The text after `ok ` (empty for a bare `ok`), or the message after `err <code>: `.
     pub fn text(&self) -> &str {
-        self.last
-            .strip_prefix("ok ")
-            .or_else(|| self.last.strip_prefix("err "))
-            .unwrap_or("")
+        self.last().map_or("", FinalLine::text)
     }
 }
 
@@ -294,13 +303,13 @@ impl Link {
             let Some(l) = self.recv(left.min(Duration::from_millis(100)))? else {
                 continue;
             };
-            if l == "ok" || l.starts_with("ok ") || l.starts_with("err ") {
+            if FinalLine::parse(&l).is_some() {
                 reply.last = l;
                 return Ok(reply);
             }
             if l.starts_with(token::EVENT) || l.starts_with(token::STREAM) {
                 self.pending.push_back(l);
-            } else if let Some(data) = l.strip_prefix("  ") {
+            } else if let Some(data) = reply::data(&l) {
                 reply.data.push(data.to_string());
             }
         }

@@ -150,7 +150,12 @@ fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
     write_calibration(&mut calibrator, numbered, &nominal, method, &mut out)
         .map_err(|e| e.to_string())?;
     print!("{}", out.replace("\r\n", "\n"));
-    if out.lines().last().is_some_and(|l| l.starts_with("err ")) {
+    if out
+        .lines()
+        .last()
+        .and_then(odocal::protocol::FinalLine::parse)
+        .is_some_and(|l| !l.is_ok())
+    {
         return Err("no calibration from this log".into());
     }
     Ok(())

@@ -3,8 +3,8 @@
 //! with, so an export from that reply would hand a robot stack a calibration the board no
 //! longer holds.
 
-use odocal::protocol::ParamName;
-use odocal::protocol::token;
+use odocal::protocol::reply::{self, FinalLine};
+use odocal::protocol::{ParamName, token};
 
 /// A command after the last `params` reply that changed the board's geometry.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -53,14 +53,12 @@ pub fn stale_params<'a>(
             continue;
         }
         let l = l.trim_end_matches(['\r', '\n']);
-        if l.strip_prefix("  ")
-            .is_some_and(|d| d.trim_start().starts_with("d_right "))
-        {
+        if reply::data(l).is_some_and(token::is_params_start) {
             in_params = true;
-        } else if in_params && l == "ok" {
-            params_end = Some(i);
-            in_params = false;
-        } else if l.starts_with("ok ") || l.starts_with("err ") {
+        } else if let Some(last) = FinalLine::parse(l) {
+            if in_params && last == FinalLine::Ok("") {
+                params_end = Some(i);
+            }
             in_params = false;
         }
     }
@@ -77,9 +75,9 @@ pub fn stale_params<'a>(
         }
         // The command's reply: its accepted change makes the last `params` stale.
         if *tx != Some(true)
-            && (l == "ok" || l.starts_with("ok ") || l.starts_with("err "))
+            && let Some(last) = FinalLine::parse(l)
             && let Some((line, command)) = pending.take()
-            && l.starts_with("ok")
+            && last.is_ok()
             && !l.ends_with(token::UNCHANGED)
         {
             return Some(Stale {

@@ -37,4 +37,4 @@ pub mod unit;
 pub use command::{Command, ParseError};
 pub use line::{Echo, LINE_MAX, LineAssembler, LineError, LineEvent, StopKey};
 pub use param::{PARAMS, ParamGroup, ParamName, ParamSpec, ValueKind};
-pub use reply::{EOL, ErrorCode, ReplyLine};
+pub use reply::{EOL, ErrorCode, FinalLine, ReplyLine};

@@ -123,6 +123,69 @@ impl From<&LineError> for ErrorCode {
     }
 }
 
+/// The first word of a success reply's final line (alone: `ok`).
+const OK: &str = "ok";
+/// The first word of an error reply's final line, before its code.
+const ERR: &str = "err ";
+/// The indent of a data line (a reply's lines before its final line).
+pub const DATA_INDENT: &str = "  ";
+
+/// A reply's final line as a program reads it (terminator removed): `ok[ <text>]` or
+/// `err <code>: <message>`, written by [`write_ok`] and [`write_err`]. Data lines ([`data`]),
+/// events and stream lines are not final lines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FinalLine<'a> {
+    /// `ok` (empty text) or `ok <text>`.
+    Ok(&'a str),
+    /// `err <code>: <message>`.
+    Err {
+        /// The error code ([`ErrorCode::code`]).
+        code: u32,
+        /// The message after `: `.
+        message: &'a str,
+    },
+}
+
+impl<'a> FinalLine<'a> {
+    /// `line` as a final line, or `None` for any other line.
+    pub fn parse(line: &'a str) -> Option<Self> {
+        if let Some(rest) = line.strip_prefix(OK) {
+            return match rest.strip_prefix(' ') {
+                Some(text) => Some(FinalLine::Ok(text)),
+                None if rest.is_empty() => Some(FinalLine::Ok("")),
+                None => None,
+            };
+        }
+        let (code, message) = line.strip_prefix(ERR)?.split_once(':')?;
+        Some(FinalLine::Err {
+            code: code.parse().ok()?,
+            message: message.strip_prefix(' ').unwrap_or(message),
+        })
+    }
+
+    /// Whether this is an `ok` line.
+    pub fn is_ok(self) -> bool {
+        matches!(self, FinalLine::Ok(_))
+    }
+
+    /// Whether this is the error `code`.
+    pub fn is_err(self, code: ErrorCode) -> bool {
+        matches!(self, FinalLine::Err { code: c, .. } if c == code.code())
+    }
+
+    /// The text after `ok ` or the message after `err <code>: `.
+    pub fn text(self) -> &'a str {
+        match self {
+            FinalLine::Ok(text) | FinalLine::Err { message: text, .. } => text,
+        }
+    }
+}
+
+/// A data line's content (its indent removed), or `None` for any other line.
+pub fn data(line: &str) -> Option<&str> {
+    line.strip_prefix(DATA_INDENT)
+}
+
 /// Writes `err <code>: <message>\r\n`.
 ///
 /// # Errors
@@ -130,7 +193,7 @@ impl From<&LineError> for ErrorCode {
 // Out of line: a dozen reply paths share one copy of the formatting call.
 #[inline(never)]
 pub fn write_err(out: &mut dyn Write, code: ErrorCode, message: &dyn fmt::Display) -> fmt::Result {
-    write!(out, "err {}: {}\r\n", code.code(), message)
+    write!(out, "{ERR}{}: {}\r\n", code.code(), message)
 }
 
 /// Writes `ok\r\n` or `ok <text>\r\n`.
@@ -142,9 +205,9 @@ pub fn write_ok(out: &mut dyn Write, text: fmt::Arguments<'_>) -> fmt::Result {
     // A too-long text is cut at the line capacity rather than lost.
     let _ = line.write_fmt(text);
     if line.is_empty() {
-        write!(out, "ok\r\n")
+        write!(out, "{OK}\r\n")
     } else {
-        write!(out, "ok {line}\r\n")
+        write!(out, "{OK} {line}\r\n")
     }
 }
 
@@ -193,6 +256,37 @@ impl<F: FnMut(u8) -> bool> Write for ByteSink<F> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What [`write_ok`] and [`write_err`] write, [`FinalLine::parse`] reads back; data,
+    /// event and stream lines are not final lines.
+    #[test]
+    fn final_lines_round_trip() {
+        let mut s = heapless::String::<64>::new();
+        write_ok(&mut s, format_args!("")).unwrap();
+        assert_eq!(FinalLine::parse(s.trim_end()), Some(FinalLine::Ok("")));
+        s.clear();
+        write_ok(&mut s, format_args!("run 3 started")).unwrap();
+        let ok = FinalLine::parse(s.trim_end()).unwrap();
+        assert!(ok.is_ok());
+        assert_eq!(ok.text(), "run 3 started");
+        s.clear();
+        write_err(&mut s, ErrorCode::Fault, &"fault latched: stall").unwrap();
+        let err = FinalLine::parse(s.trim_end()).unwrap();
+        assert!(err.is_err(ErrorCode::Fault) && !err.is_err(ErrorCode::Busy) && !err.is_ok());
+        assert_eq!(err.text(), "fault latched: stall");
+        for other in [
+            "  d_right 0.15",
+            "event run 1 finished: cw",
+            "stream 1 0 0 0 0 0",
+            "okay",
+            "err x: y",
+            "err 4",
+        ] {
+            assert_eq!(FinalLine::parse(other), None, "{other}");
+        }
+        assert_eq!(data("  d_right 0.15"), Some("d_right 0.15"));
+        assert_eq!(data("ok"), None);
+    }
 
     #[test]
     fn byte_sink_counts_refused_bytes_and_never_fails() {

@@ -7,6 +7,8 @@
 
 use core::fmt::{self, Write};
 
+use super::param::ParamName;
+
 /// The first word of every unsolicited event line.
 pub const EVENT: &str = "event ";
 /// The first word of every pose-stream line: `stream <t> <x> <y> <theta_deg> <v_r> <v_l>`.
@@ -185,6 +187,21 @@ pub fn write_culprit(out: &mut dyn Write, run: usize) -> fmt::Result {
     write!(out, "{WITHOUT_RUN}{run}{OTHERS_AGREE}")
 }
 
+/// The first data line of a `params` reply starts with the first parameter's name
+/// ([`ParamName::ALL`]) and a space; a program tells a `params` reply by it.
+pub fn is_params_start(data: &str) -> bool {
+    data.trim_start()
+        .strip_prefix(ParamName::ALL[0].as_str())
+        .is_some_and(|rest| rest.starts_with(' '))
+}
+
+/// The `params` reply's line of the geometry in force: `active d_right=… d_left=… wheelbase=…
+/// m` (each value after its parameter's name and `=`).
+pub const ACTIVE: &str = "active ";
+
+/// The header line of the `calibrate` table: `method  E_d  E_b …`.
+pub const TABLE_HEADER: &str = "method ";
+
 /// A track-size advice line of `calibrate` and `advice`: `advice <method> …`.
 pub const ADVICE: &str = "advice ";
 /// A per-run residual line of `calibrate`: `run <n> dx=… dy=…`.
@@ -317,6 +334,11 @@ mod tests {
         ] {
             assert_eq!(EventTag::parse(line), None, "{line}");
         }
+
+        // A `params` listing starts with the first parameter's name.
+        assert!(is_params_start("d_right 0.150000000 m"));
+        assert!(is_params_start("    d_right 0.15 m"));
+        assert!(!is_params_start("d_right_x 1") && !is_params_start("method  E_d"));
 
         let done = written(EventTag::BringupDone, WIRING_OK);
         let Some((EventTag::BringupDone, verdict)) = EventTag::parse(&done) else {

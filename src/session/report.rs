@@ -12,7 +12,9 @@ use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
-use crate::protocol::token::{self, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, STREAM, WITH_FLAGGED};
+use crate::protocol::token::{
+    self, ACTIVE, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, STREAM, TABLE_HEADER, WITH_FLAGGED,
+};
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
 use crate::util::trig::wrap_deg;
@@ -208,9 +210,12 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
     let a = &s.active;
     write!(
         out,
-        "  active d_right={} d_left={} wheelbase={} m\r\n",
+        "  {ACTIVE}{}={} {}={} {}={} m\r\n",
+        ParamName::DiameterRight.as_str(),
         Decimal::fixed(a.diameter_right_m, 9),
+        ParamName::DiameterLeft.as_str(),
         Decimal::fixed(a.diameter_left_m, 9),
+        ParamName::Wheelbase.as_str(),
         Decimal::fixed(a.wheelbase_m, 9)
     )?;
     match &s.calibration {
@@ -326,8 +331,8 @@ pub(super) fn write_residuals(
 pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
     write!(
         out,
-        "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
-         E_max_mm  sd_E_d    sd_E_b\r\n"
+        "  {TABLE_HEADER}      E_d          E_b          E_s          D_R_mm     D_L_mm     \
+         b_mm       E_max_mm  sd_E_d    sd_E_b\r\n"
     )
 }
 

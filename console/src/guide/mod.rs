@@ -19,9 +19,9 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{PathKind, RunRecord};
-use odocal::protocol::ParamName;
 use odocal::protocol::token::{self, EventTag, LinesDropped};
 use odocal::protocol::unit::{AngleUnit, LengthUnit, parse_length};
+use odocal::protocol::{ErrorCode, ParamName};
 use serde_json::json;
 
 use crate::link::{Link, LinkError, Reply};
@@ -377,11 +377,8 @@ impl Guide {
             let r = self.link.command(line, timeout)?;
             // `err 10` is something in progress (wait for it), or lines the board's input queue
             // dropped (not a reply to wait out).
-            let dropped = r
-                .text()
-                .split_once(": ")
-                .and_then(|(_, text)| LinesDropped::parse(text));
-            if r.err_code() == Some(10) && dropped.is_none() {
+            let dropped = LinesDropped::parse(r.text());
+            if r.is_err(ErrorCode::Busy) && dropped.is_none() {
                 if !waited {
                     self.ui.say(&format!(
                         "  the board is busy ({}): waiting for the robot to stop",

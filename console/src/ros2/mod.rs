@@ -20,6 +20,7 @@ use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use odocal::protocol::FinalLine;
 use odocal::protocol::token;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -640,7 +641,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
                         }
                         commanding = Some(p);
                     }
-                    if r.last != last_drive_reply && r.last != "ok" {
+                    if r.last != last_drive_reply && !(r.ok() && r.text().is_empty()) {
                         eprintln!("ros2: cmd_vel: `{cmd}`: {}", r.last);
                     }
                     last_drive_reply = r.last;
@@ -679,7 +680,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
             let (state, fault) = (field("state"), field("fault"));
             let (level, message) = if fault != "none" {
                 (diagnostic_msgs::ERROR, format!("fault latched: {fault}"))
-            } else if !last_drive_reply.is_empty() && !last_drive_reply.starts_with("ok") {
+            } else if FinalLine::parse(&last_drive_reply).is_some_and(|l| !l.is_ok()) {
                 (
                     diagnostic_msgs::WARN,
                     format!("cmd_vel refused: {last_drive_reply}"),

@@ -8,7 +8,7 @@
 
 use odocal::motion::controller::Status;
 
-use crate::sim::board::{Board, measure_line};
+use crate::sim::board::{Board, accepted, measure_line};
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::{WiringOption, sim_config};
 
@@ -72,7 +72,7 @@ pub fn bringup_session(args: &BringupArgs) -> Result<BringupOutcome, String> {
         t.extend(boot.lines().map(|l| format!("< {l}")));
         for check in ["bringup push", "bringup"] {
             let reply = exchange(&mut board, check, &mut t);
-            if !reply.starts_with("ok") {
+            if !accepted(&reply) {
                 return Err(format!("`{check}` refused: {reply}"));
             }
             let events = settle(&mut board, 10, args.rate, &mut t);
@@ -86,12 +86,12 @@ pub fn bringup_session(args: &BringupArgs) -> Result<BringupOutcome, String> {
         }
         for set in &proposals {
             let reply = exchange(&mut board, set, &mut t);
-            if !reply.starts_with("ok") {
+            if !accepted(&reply) {
                 return Err(format!("`{set}` refused: {reply}"));
             }
         }
         let reply = exchange(&mut board, "save", &mut t);
-        if !reply.starts_with("ok") {
+        if !accepted(&reply) {
             return Err(format!("save refused: {reply}"));
         }
     }

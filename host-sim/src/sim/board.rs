@@ -24,9 +24,9 @@ use odocal::kinematics::reference::PoseF64;
 use odocal::motion::bringup::CheckKind;
 use odocal::motion::button::Press;
 use odocal::motion::controller::{Controller, Status, StepOutput};
-use odocal::protocol::LineAssembler;
 use odocal::protocol::line::LineEvent;
 use odocal::protocol::rx::{InputItem, Received, RxRead};
+use odocal::protocol::{FinalLine, LineAssembler};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Session, write_boot_event};
 use odocal::storage::ParamAndRunStore;
@@ -68,6 +68,16 @@ pub struct Board<'f> {
     running: bool,
 }
 
+/// Whether a reply (as [`Board::send`] returns it) ends in `ok`: its final line read by the
+/// protocol's own grammar.
+pub fn accepted(reply: &str) -> bool {
+    reply
+        .lines()
+        .rev()
+        .find_map(FinalLine::parse)
+        .is_some_and(FinalLine::is_ok)
+}
+
 impl<'f> Board<'f> {
     /// Boots: loads the parameters from `flash` (defaults and a warning if there are none),
     /// configures the controller with them, restores the stored runs and measurements, and
@@ -89,7 +99,7 @@ impl<'f> Board<'f> {
         let mut board = Board::boot_at_stored_rate(config, flash, out)?;
         if wanted_hz != board.controller.config().rate_hz {
             let reply = board.send(&format!("set control_hz {wanted_hz}"));
-            if !reply.starts_with("ok") {
+            if !accepted(&reply) {
                 return Err(format!("set control_hz {wanted_hz}: {reply}"));
             }
             out.push_str(&reply);
@@ -326,7 +336,7 @@ impl<'f> Board<'f> {
     /// does not end within a minute of robot time.
     pub fn identify(&mut self, mode: &str) -> Result<String, String> {
         let mut out = self.send(&format!("identify {mode}"));
-        if !out.starts_with("ok") {
+        if !accepted(&out) {
             return Err(out);
         }
         // 60 s at the controller's rate (the simulated robot follows it from the first period).

@@ -177,7 +177,7 @@ pub fn reply_block(transcript: &str, command: &str) -> Option<String> {
     for l in lines {
         out.push_str(l);
         out.push('\n');
-        if l.starts_with("ok") || l.starts_with("err") {
+        if odocal::protocol::FinalLine::parse(l).is_some() {
             break;
         }
     }

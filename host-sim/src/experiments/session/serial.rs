@@ -12,6 +12,7 @@ use crate::experiments::montecarlo::Rng;
 use crate::experiments::rectangle::RectangleSpec;
 use crate::experiments::square::{drive_path_tuned, e_max_and_scatter};
 use crate::sim::board::Board;
+use crate::sim::board::accepted;
 use crate::sim::robot::SimConfig;
 
 use super::{CalibrationRow, RunTrace, SessionArgs, Verification};
@@ -24,7 +25,7 @@ pub(super) fn send(board: &mut Board, line: &str, log: &mut String) -> Result<St
     let reply = board.send(line);
     log.push_str(&reply.replace("\r\n", "\n"));
     let last = reply.lines().last().unwrap_or("");
-    if last.starts_with("ok") {
+    if accepted(&reply) {
         Ok(reply)
     } else {
         Err(format!("`{line}` was refused: {last}"))
