@@ -226,7 +226,7 @@ impl Guide {
         ] {
             let r = self.cmd(&format!("set {name} {value}"))?;
             self.ui.say(&format!("  {}", r.last));
-            if r.last.contains("(not saved") && !self.pending.contains(&"nominal geometry") {
+            if token::is_not_saved(&r.last) && !self.pending.contains(&"nominal geometry") {
                 self.pending.push("nominal geometry");
             }
             if !r.ok() {
