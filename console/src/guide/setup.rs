@@ -388,8 +388,8 @@ impl Guide {
             match self.ui.ask("Enter starts the motor check", Some("go")) {
                 Err(crate::ui::AskError::Back) if attempt > 0 => {
                     self.ui.say(
-                        "  back: the correction is applied; the motor check starts again (s \
-                         at the bring-up question skips it)",
+                        "  back: the correction is applied (and offered for save); the motor \
+                         check that confirms it comes next",
                     );
                     continue;
                 }
