@@ -10,6 +10,7 @@ mod arcs;
 mod rng;
 
 use arcs::Robot;
+use odocal::calibration::track::{self, TrackAdviceInput};
 use odocal::calibration::{
     Calibration, ExactOptions, Method, RunObservation, calibrate, calibrate_with,
 };
@@ -598,5 +599,102 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
     assert!(
         !out.contains("DISAGREES") && !out.contains("left out"),
         "{out}"
+    );
+}
+
+/// The `advice` lines of a `calibrate` reply.
+fn advice_lines(
+    calibrator: &mut LibraryCalibrator,
+    runs: &[RunRecord],
+    numbers: &[u16],
+) -> Vec<String> {
+    let numbered = Numbered { runs, numbers };
+    let mut out = String::new();
+    write_calibration(calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    out.lines()
+        .map(str::trim)
+        .filter(|l| l.starts_with("advice "))
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn the_track_advice_leaves_a_flagged_run_out() {
+    // 3 + 3 squares of 2 m (E_d = 0.995, E_b = 1.010), measured to 1 mm and 0.2°; run 4's
+    // x was misread by 250 mm (a gross error). The robust fit flags run 4; the advice is the one
+    // the five other runs give alone, and says that run 4 was left out.
+    let truth = Robot::paper(0.995, 1.010, 1.0);
+    let mut rng = Rng(7);
+    let mut all: Vec<Run> = (0..6)
+        .map(|i| {
+            let d = if i % 2 == 0 {
+                Direction::Cw
+            } else {
+                Direction::Ccw
+            };
+            Run::square(&truth, d, 0.0, 1e-3, 0.2f64.to_radians(), &mut rng)
+        })
+        .collect();
+    all[3].measured.x_m += 0.25;
+    let stored = records(&all);
+    let with = advice_lines(&mut LibraryCalibrator::default(), &stored, &[]);
+    let mut rest = stored.clone();
+    rest.remove(3);
+    let without = advice_lines(&mut LibraryCalibrator::default(), &rest, &[]);
+    assert_eq!(with.len(), 6, "{with:#?}");
+    for (w, o) in with.iter().zip(&without) {
+        let stripped = w
+            .strip_suffix(" (run 4 flagged, left out)")
+            .unwrap_or_else(|| panic!("run 4 not said left out: {w}"));
+        assert_eq!(stripped, o);
+        assert!(!o.contains("left out"), "{o}");
+    }
+    assert_eq!(
+        with[5],
+        "advice exact        L=2.000 m: expected error 0.0078 %; best L=3.000 m (<= 4.0 m): \
+         0.0072 % (run 4 flagged, left out)"
+    );
+    // Run 4 counted, its 250 mm would be scatter (and a run more): the advice would differ.
+    let obs: Vec<RunObservation<'_>> = all.iter().map(Run::obs).collect();
+    let (scatter_all, _) = track::observed(&obs);
+    let kept: Vec<RunObservation<'_>> = [0, 1, 2, 4, 5].map(|i| all[i].obs()).to_vec();
+    let (scatter_kept, per_direction) = track::observed(&kept);
+    let (scatter_all, scatter_kept) = (scatter_all.unwrap(), scatter_kept.unwrap());
+    println!("scatter with run 4 {scatter_all} m, without {scatter_kept} m");
+    assert!(
+        scatter_all > 0.1 && scatter_kept < 0.01,
+        "{scatter_all} {scatter_kept}"
+    );
+    assert_eq!(per_direction, 2);
+    let input = |scatter: f64, runs_per_direction: u32| TrackAdviceInput {
+        belief: NOMINAL,
+        estimate: NOMINAL.with_factors(0.995, 1.010, 1.0),
+        measurement_sigma_m: 1e-3,
+        measurement_sigma_rad: 0.2f64.to_radians(),
+        observed_scatter: Some((scatter, SIDE_M)),
+        runs_per_direction,
+        max_side_m: 4.0,
+    };
+    let error = |i: &TrackAdviceInput| {
+        track::evaluate(i, Method::Exact, SIDE_M)
+            .unwrap()
+            .expected_error
+    };
+    let (counted, left_out) = (
+        error(&input(scatter_all, 3)),
+        error(&input(scatter_kept, 2)),
+    );
+    println!(
+        "exact at 2 m: {:.4} % with run 4 counted, {:.4} % left out",
+        counted * 100.0,
+        left_out * 100.0
+    );
+    assert!(counted > 10.0 * left_out, "{counted} {left_out}");
+    // The session's numbers (run 1 dropped earlier: runs 2..7): run 4 in store order is run 5.
+    let numbers: Vec<u16> = (2..8).collect();
+    let renumbered = advice_lines(&mut LibraryCalibrator::default(), &stored, &numbers);
+    assert!(
+        renumbered[0].ends_with(" (run 5 flagged, left out)"),
+        "{renumbered:#?}"
     );
 }

@@ -17,8 +17,8 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Activity, Calibrator, Culprit, MAX_RUNS, Robot, RobotError, RobotStatus, Session, Settings,
-    SettingsAndRuns, Solution, SolveError, StoreError,
+    Activity, Calibrator, Culprit, MAX_RUNS, Numbered, Robot, RobotError, RobotStatus, Session,
+    Settings, SettingsAndRuns, Solution, SolveError, StoreError,
 };
 use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
@@ -288,7 +288,7 @@ impl Calibrator for KnownCalibrator {
     }
     fn advice(
         &mut self,
-        _: &[RunRecord],
+        _: Numbered<'_>,
         _: &Geometry,
         only: Option<&str>,
         out: &mut dyn fmt::Write,

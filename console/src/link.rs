@@ -60,13 +60,6 @@ impl Reply {
     pub fn ok(&self) -> bool {
         self.last().is_some_and(FinalLine::is_ok)
     }
-    /// The error code of an `err <code>: …` line.
-    pub fn err_code(&self) -> Option<u32> {
-        match self.last()? {
-            FinalLine::Err { code, .. } => Some(code),
-            FinalLine::Ok(_) => None,
-        }
-    }
     /// Whether the final line is the error `code`.
     pub fn is_err(&self, code: ErrorCode) -> bool {
         self.last().is_some_and(|l| l.is_err(code))

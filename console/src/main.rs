@@ -7,11 +7,12 @@
 //! starts each run, shows its progress from the pose stream, forwards the measured end pose as
 //! typed (units included) to the board's `measure`, shows `calibrate`'s table, applies and
 //! saves the chosen method only on a typed yes, reads `params` back, drives a check square and
-//! sums up. Everything goes to a JSON-lines session log (`--log`), which `--resume LOG`
-//! continues after a crash, a disconnect or a board reset, which
-//! `cargo console recalibrate LOG [--method M]` recalibrates on the PC with the same library, and
-//! which `cargo console export LOG --format ros2|urdf|json [-o FILE]` turns into files a robot
-//! stack loads. An SVG of the runs is written next to the log.
+//! sums up. `back` at every question returns to the previous one. Everything goes to a
+//! JSON-lines session log (`--log`), which `--resume LOG` continues after a crash, a disconnect
+//! or a board reset, which `cargo console recalibrate LOG [--method M]` recalibrates on the PC
+//! with the same library, and which `cargo console export LOG --format ros2|urdf|json
+//! [-o FILE]` turns into files a robot stack loads. An SVG of the runs is written next to the
+//! log.
 
 mod covariance;
 mod export;
@@ -56,7 +57,12 @@ fn catch_ctrl_c() {
 #[derive(Parser, Debug)]
 #[command(
     name = "odocal-console",
-    about = "Guided odometry calibration on an odocal board over its serial port"
+    about = "Guided odometry calibration on an odocal board over its serial port",
+    after_help = "At every question of the guided session, `back` returns to the previous \
+                  question (from a step's first question, to the step before: geometry, \
+                  bring-up, identification, plan, runs, calibration, check square); `help` \
+                  explains the question; Ctrl-C stops the robot. Nothing done is undone by \
+                  `back`, and nothing moves without its Enter or typed yes."
 )]
 struct Cli {
     #[command(subcommand)]

@@ -8,6 +8,10 @@
 //! was shown (an Enter pressed twice, text typed while the robot drove) is not taken as its
 //! answer: it is shown as ignored, so a stray Enter cannot start the next run before the robot
 //! is back on its marks.
+//!
+//! `back` is read at every question, before anything else: [`AskError::Back`], for the caller to
+//! return to the previous question (or to say why there is none). The first question of a
+//! session says so once.
 
 use std::io::{BufRead, BufReader, IsTerminal, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -29,7 +33,15 @@ pub struct Ui {
     /// Progress quarter last printed (no-TTY mode).
     quarter: Option<u32>,
     bar_shown: bool,
+    /// The one-time hint that `back` works at every question is still to be shown.
+    back_hint: bool,
 }
+
+/// The answer that returns to the previous question, at every question.
+pub const BACK: &str = "back";
+
+/// The one-time hint shown before the first question.
+pub const BACK_HINT: &str = "  (at every question, back returns to the previous one)";
 
 /// Why a question got no answer.
 #[derive(Debug)]
@@ -38,6 +50,8 @@ pub enum AskError {
     Interrupted,
     /// stdin ended and nothing else had an answer.
     NoAnswer(String),
+    /// `back` was answered: return to the previous question.
+    Back,
 }
 
 impl std::fmt::Display for AskError {
@@ -48,6 +62,7 @@ impl std::fmt::Display for AskError {
                 f,
                 "no answer for `{q}` (stdin ended; give it in --answers or run interactively)"
             ),
+            AskError::Back => f.write_str("back to the previous question"),
         }
     }
 }
@@ -67,6 +82,7 @@ impl Ui {
             stdin_ended: false,
             quarter: None,
             bar_shown: false,
+            back_hint: true,
         }
     }
 
@@ -143,9 +159,21 @@ impl Ui {
     /// Asks `question`; an empty answer takes `default`.
     ///
     /// # Errors
-    /// [`AskError`].
+    /// [`AskError`]; [`AskError::Back`] for the answer [`BACK`] (any case).
     pub fn ask(&mut self, question: &str, default: Option<&str>) -> Result<String, AskError> {
+        let a = self.answer(question, default)?;
+        if a.eq_ignore_ascii_case(BACK) {
+            return Err(AskError::Back);
+        }
+        Ok(a)
+    }
+
+    /// The answer to `question`, `back` included.
+    fn answer(&mut self, question: &str, default: Option<&str>) -> Result<String, AskError> {
         self.end_bar();
+        if std::mem::take(&mut self.back_hint) {
+            println!("{BACK_HINT}");
+        }
         let prompt = match default {
             Some(d) => format!("? {question} [{d}]: "),
             None => format!("? {question}: "),
@@ -318,6 +346,31 @@ mod tests {
         let mut ui = ui_with_stdin(&["", "", "", "y"], false);
         assert!(!ui.confirm_explicit("Save it").unwrap());
         assert_eq!(ui.ask("next", None).unwrap(), "y");
+    }
+
+    #[test]
+    fn back_is_read_at_every_question() {
+        let mut ui = ui_with_stdin(&["BACK", " back ", "back", "n"], false);
+        assert!(matches!(
+            ui.ask("Wheelbase b", Some("0.385m")),
+            Err(AskError::Back)
+        ));
+        assert!(matches!(
+            ui.confirm("Clear the fault now", true),
+            Err(AskError::Back)
+        ));
+        // A question that needs a typed yes: `back` is no answer to it, and `--yes` is still
+        // set afterwards.
+        ui.yes = true;
+        assert!(matches!(
+            ui.confirm_explicit("Apply exact"),
+            Err(AskError::Back)
+        ));
+        assert!(ui.yes);
+        ui.yes = false;
+        assert!(!ui.confirm("Save it", true).unwrap());
+        // The hint was shown once, before the first question.
+        assert!(!ui.back_hint);
     }
 
     #[test]

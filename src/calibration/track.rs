@@ -27,11 +27,12 @@
 
 use super::exact::solve;
 use super::quality::propagate;
+use super::stats::SquareStats;
 use super::synth::{end_poses, square_knots};
-use super::{Method, closed_form, wrap_angle};
+use super::{Method, RunObservation, closed_form, wrap_angle};
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
-use crate::motion::run::Direction;
+use crate::motion::run::{Direction, PathKind};
 use crate::util::num::fmax;
 
 /// Sides the advice chooses from, metres.
@@ -51,9 +52,10 @@ pub struct TrackAdviceInput {
     /// 1σ of a measured heading, radians.
     pub measurement_sigma_rad: f64,
     /// Observed scatter (metres) of the end positions around their centre of gravity and the
-    /// side (metres) it was observed at; `None` if unknown (measurement error only).
+    /// side (metres) it was observed at; `None` if unknown (measurement error only). Of the runs
+    /// the advice trusts: a run the robust fit flagged is left out ([`observed`]).
     pub observed_scatter: Option<(f64, f64)>,
-    /// Runs per direction.
+    /// Runs per direction (the flagged runs left out, as for the scatter).
     pub runs_per_direction: u32,
     /// Largest side that fits the floor, metres.
     pub max_side_m: f64,
@@ -76,6 +78,24 @@ pub struct TrackAdvice {
     pub sigma_e_d: f64,
     /// `sqrt(bias_b² + σ_b² + bias_d² + σ_d²)`.
     pub expected_error: f64,
+}
+
+/// What the advice reads from the measured runs it is given: the scatter of the squares' end
+/// errors around each direction's centre of gravity ([`SquareStats::scatter_m`], `None` with
+/// fewer than three squares or without one in each direction) and the runs per direction (the
+/// fewer of CW and CCW, at least 1). The caller passes only the runs it trusts: a run the
+/// robust fit flagged (a typing mistake, a bumped robot) would count as scatter and as a run.
+pub fn observed(runs: &[RunObservation<'_>]) -> (Option<f64>, u32) {
+    let scatter = SquareStats::from_runs(runs, false)
+        .ok()
+        .and_then(|s| s.scatter_m());
+    let count = |d: Direction| {
+        runs.iter()
+            .filter(|o| matches!(o.path, PathKind::Square { direction, .. } if direction == d))
+            .count()
+    };
+    let per_direction = count(Direction::Cw).min(count(Direction::Ccw)).max(1);
+    (scatter, u32::try_from(per_direction).unwrap_or(u32::MAX))
 }
 
 impl TrackAdviceInput {

@@ -220,7 +220,6 @@ pub fn write_param_value(out: &mut dyn Write, name: ParamName, value: f64) -> fm
 /// # Errors
 /// Only if `out` refuses the text.
 pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> fmt::Result {
-    const NOT_SAVED: &str = " (not saved; save to keep)";
     match *outcome {
         ParamOutcome::Set {
             name,
@@ -239,11 +238,11 @@ pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> f
                      value back to restore it)"
                 )?,
             }
-            out.write_str(NOT_SAVED)?;
+            out.write_str(token::NOT_SAVED)?;
         }
         ParamOutcome::Reset => {
             out.write_str("ok parameters reset to defaults")?;
-            out.write_str(NOT_SAVED)?;
+            out.write_str(token::NOT_SAVED)?;
         }
         ParamOutcome::Saved => out.write_str("ok saved")?,
         ParamOutcome::Applied {
@@ -257,7 +256,7 @@ pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> f
                 Decimal::fixed(e_b, 9),
                 Decimal::fixed(e_s, 9)
             )?;
-            out.write_str(NOT_SAVED)?;
+            out.write_str(token::NOT_SAVED)?;
         }
     }
     out.write_str(EOL)

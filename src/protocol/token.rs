@@ -163,6 +163,16 @@ impl fmt::Display for LinesDropped {
 /// The end of a `set` reply that changed nothing: `ok <name>=<value> (unchanged)`.
 pub const UNCHANGED: &str = " (unchanged)";
 
+/// The end of the reply of a change held in RAM only (`set`, `reset-params`, `apply`):
+/// `ok d_right = 0.150000000 m (not saved; save to keep)`; `save` writes it to flash.
+pub const NOT_SAVED: &str = " (not saved; save to keep)";
+
+/// Whether a reply line ends with [`NOT_SAVED`] (its change is not in flash yet); the line's
+/// `\r\n` or trailing spaces do not count.
+pub fn is_not_saved(reply: &str) -> bool {
+    reply.trim_end().ends_with(NOT_SAVED)
+}
+
 /// A method that failed, in its `calibrate` row: `<method> failed: <why>`.
 pub const METHOD_FAILED: &str = "failed: ";
 /// The end of a `calibrate` row computed with runs the robust fit flagged:
@@ -352,6 +362,23 @@ mod tests {
         started.push_str("square ccw L=1.500 m");
         assert_eq!(parse_run_started(&started), Some(7));
         assert_eq!(parse_run_started("ok run 7 measured"), None);
+
+        let mut set = String::from("ok d_right = 0.150000000 m");
+        set.push_str(NOT_SAVED);
+        assert!(is_not_saved(&set));
+        assert!(is_not_saved(&format!("{set}\r\n")));
+        assert!(!is_not_saved("ok saved"));
+        // As the board writes it (`reset-params`, `set`, `apply`), and not after `save`.
+        use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
+        let mut reset = String::new();
+        write_param_outcome(&mut reset, &ParamOutcome::Reset).unwrap();
+        assert!(is_not_saved(&reset), "{reset}");
+        let mut saved = String::new();
+        write_param_outcome(&mut saved, &ParamOutcome::Saved).unwrap();
+        assert!(!is_not_saved(&saved), "{saved}");
+        assert!(!is_not_saved(&format!(
+            "ok d_right = 0.150000000 m{UNCHANGED}"
+        )));
 
         let notice = LinesDropped(5).to_string();
         assert_eq!(notice, "5 line(s) dropped: input queue full");

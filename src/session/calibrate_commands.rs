@@ -215,7 +215,7 @@ pub fn write_calibration<C: Calibrator>(
         // Advice from a failed fit would be meaningless.
         return write_refusal(out, &Refusal::NoMethodSucceeded);
     }
-    calibrator.advice(runs, nominal, method, out)?;
+    calibrator.advice(numbered, nominal, method, out)?;
     write!(
         out,
         "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one\r\n",

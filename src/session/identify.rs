@@ -17,7 +17,7 @@ use crate::motion::identify::{
 };
 use crate::motion::speed::SpeedTuning;
 use crate::protocol::reply::ErrorCode;
-use crate::protocol::token::EventTag;
+use crate::protocol::token::{self, EventTag};
 use crate::util::decimal::Decimal;
 
 fn mode_name(mode: IdentifyMode) -> &'static str {
@@ -104,9 +104,10 @@ impl<C: Calibrator> Session<C> {
         self.unsaved = true;
         write!(
             out,
-            "({}): speed-loop tuning applied, bandwidth {} rad/s (not saved; save to keep)\r\n",
+            "({}): speed-loop tuning applied, bandwidth {} rad/s{}\r\n",
             mode_name(r.mode),
-            Decimal::fixed(f64::from(bandwidth), 1)
+            Decimal::fixed(f64::from(bandwidth), 1),
+            token::NOT_SAVED
         )
     }
 

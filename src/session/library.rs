@@ -14,6 +14,7 @@ use heapless::Vec;
 
 use super::MAX_RUNS;
 use super::Settings;
+use super::calibrate_commands::Numbered;
 use super::traits::{
     Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
     SettingsAndRuns, Solution, SolveError,
@@ -26,7 +27,7 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
 use crate::motion::profile::MotionLimits;
-use crate::motion::run::{Direction, PathKind, RunRecord};
+use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
@@ -326,12 +327,11 @@ pub struct LibraryCalibrator {
     exact_solves: u32,
 }
 
-/// What is kept of an exact fit: the solution as `calibrate` shows it, and the run scatter the
-/// track advice uses.
+/// What is kept of an exact fit: the solution as `calibrate` shows it (its residuals say which
+/// runs the robust fit flagged, which the track advice leaves out).
 #[derive(Clone, Debug, PartialEq)]
 struct KeptExact {
     solution: Solution,
-    scatter_m: Option<f64>,
 }
 
 impl LibraryCalibrator {
@@ -365,7 +365,6 @@ impl LibraryCalibrator {
                 calibration::calibrate(&obs, nominal, Method::Exact)
                     .map(|c| KeptExact {
                         solution: solution(&c, runs),
-                        scatter_m: c.quality.scatter_m,
                     })
                     .map_err(solve_error)
             }
@@ -506,11 +505,12 @@ impl Calibrator for LibraryCalibrator {
 
     fn advice(
         &mut self,
-        runs: &[RunRecord],
+        numbered: Numbered<'_>,
         nominal: &Geometry,
         only: Option<&str>,
         out: &mut dyn Write,
     ) -> fmt::Result {
+        let runs = numbered.runs;
         let obs = observations(runs);
         // The side and driving geometry of the last measured square.
         let Some((side, belief)) = obs.iter().rev().find_map(|o| match o.path {
@@ -519,22 +519,43 @@ impl Calibrator for LibraryCalibrator {
         }) else {
             return Ok(());
         };
-        let exact = self
-            .exact_fit(runs, nominal)
-            .ok()
-            .map(|k| (k.solution.geometry, k.scatter_m));
-        let per_direction = [Direction::Cw, Direction::Ccw].map(|d| {
-            obs.iter()
-                .filter(|o| matches!(o.path, PathKind::Square { direction, .. } if direction == d))
-                .count()
+        // The runs the robust fit flagged (1-based store positions) are left out of the
+        // scatter, the runs per direction and the estimate: the advice is the one the other
+        // runs alone give.
+        let fit = self.exact_fit(runs, nominal).ok().map(|k| {
+            let flagged: Vec<usize, MAX_RUNS> = k
+                .solution
+                .residuals
+                .iter()
+                .filter(|r| r.outlier)
+                .map(|r| r.run)
+                .collect();
+            (k.solution.geometry, flagged)
         });
+        let flagged = fit.as_ref().map(|(_, f)| f.clone()).unwrap_or_default();
+        let kept: Vec<RunObservation<'_>, MAX_RUNS> = runs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !flagged.contains(&(i + 1)))
+            .filter_map(|(_, r)| RunObservation::from_record(r))
+            .take(MAX_RUNS)
+            .collect();
+        let estimate = match fit {
+            None => belief,
+            Some((geometry, f)) if f.is_empty() => geometry,
+            // The exact fit of the runs kept (one more solve, only with runs flagged; naming
+            // the culprit solved once per run).
+            Some((geometry, _)) => calibration::calibrate(&kept, nominal, Method::Exact)
+                .map_or(geometry, |c| c.geometry),
+        };
+        let (scatter, runs_per_direction) = track::observed(&kept);
         let input = TrackAdviceInput {
             belief,
-            estimate: exact.map_or(belief, |(geometry, _)| geometry),
+            estimate,
             measurement_sigma_m: self.measurement_sigma_m,
             measurement_sigma_rad: self.measurement_sigma_rad,
-            observed_scatter: exact.and_then(|(_, scatter)| scatter).map(|s| (s, side)),
-            runs_per_direction: per_direction[0].min(per_direction[1]).max(1) as u32,
+            observed_scatter: scatter.map(|s| (s, side)),
+            runs_per_direction,
             max_side_m: self.max_side_m,
         };
         for method in Method::ALL {
@@ -563,10 +584,29 @@ impl Calibrator for LibraryCalibrator {
                 )?,
                 None => write!(out, "; no usable side")?,
             }
+            write_left_out(out, numbered, &flagged)?;
             out.write_str(EOL)?;
         }
         Ok(())
     }
+}
+
+/// The end of an advice line computed without the runs the robust fit flagged (1-based store
+/// `positions`), by their numbers: ` (run 3 flagged, left out)`, ` (runs 3 5 flagged, left
+/// out)`; nothing without one.
+fn write_left_out(out: &mut dyn Write, numbered: Numbered<'_>, positions: &[usize]) -> fmt::Result {
+    if positions.is_empty() {
+        return Ok(());
+    }
+    out.write_str(if positions.len() == 1 {
+        " (run"
+    } else {
+        " (runs"
+    })?;
+    for &p in positions {
+        write!(out, " {}", numbered.number(p))?;
+    }
+    out.write_str(" flagged, left out)")
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@
 
 use core::fmt;
 
-use super::Settings;
+use super::{Numbered, Settings};
 use crate::calibration::CalibrationError;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
@@ -319,13 +319,14 @@ pub trait Calibrator {
     /// makes the others agree, or says it cannot tell.
     fn culprit(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Culprit;
     /// Writes track-size advice for these runs as data lines (each ending in `\r\n`), for
-    /// every method or only for `only`.
+    /// every method or only for `only`. Runs the robust fit flagged are left out of it, and
+    /// each line then says so by their numbers in `numbered`.
     ///
     /// # Errors
     /// Only if `out` refuses the text.
     fn advice(
         &mut self,
-        runs: &[RunRecord],
+        numbered: Numbered<'_>,
         nominal: &Geometry,
         only: Option<&str>,
         out: &mut dyn fmt::Write,

@@ -65,19 +65,27 @@ impl Guide {
             );
             return Ok(());
         }
-        let choice = self.choose(
-            "Check square",
-            &[("r", "run it"), ("s", "skip it")],
-            "r",
-            "  r drives one more square with the calibration and shows its end error against \
-             the runs' before; it is not used for the calibration. s skips it.",
-        )?;
-        if choice == "s" {
-            return Ok(());
-        }
         let slots = self.slots.len();
-        self.stop_runs = false;
-        self.drive_one(direction, "check square")?;
+        loop {
+            // `back` here: the step before (the results).
+            let choice = self.choose(
+                "Check square",
+                &[("r", "run it"), ("s", "skip it")],
+                "r",
+                "  r drives one more square with the calibration and shows its end error \
+                 against the runs' before; it is not used for the calibration. s skips it.",
+            )?;
+            if choice == "s" {
+                return Ok(());
+            }
+            self.stop_runs = false;
+            match self.drive_one(direction, "check square") {
+                // Back at its start: the check square question again.
+                Err(Stop::Back) => continue,
+                r => r?,
+            }
+            break;
+        }
         let Some(slot) = (slots..self.slots.len()).find(|&i| self.slots[i].record.is_some()) else {
             self.ui.say("  no check square measured");
             return Ok(());
@@ -129,22 +137,21 @@ impl Guide {
         Ok(choice == "c")
     }
 
-    /// The check square alone with the board's calibration, then the summary.
+    /// The check square alone with the board's calibration (the summary follows). `back` at its
+    /// first question returns to the choice of [`Guide::keep_calibration`].
     pub(super) fn check_only(&mut self) -> Result<(), Stop> {
         // Runs on the board from before: dropped or used, so the check square's number is
         // known.
         let runs = self.cmd("runs")?;
-        if !runs.data.is_empty() {
+        if !runs.data.is_empty() && !self.done.runs_from_before {
             self.runs_from_before(runs.data.len())?;
+            self.done.runs_from_before = true;
         }
         let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
         if !r.ok() {
             return Err(Stop::Failed(format!("stream on: {}", r.last)));
         }
-        self.check_square()?;
-        self.summary()?;
-        let _ = self.cmd("stream off")?;
-        Ok(())
+        self.check_square()
     }
 
     /// What the session leaves on the board, and what to do with it.

@@ -64,6 +64,9 @@ enum Stop {
     Failed(String),
     Interrupted,
     Disconnected(String),
+    /// `back` at a question whose step has no earlier question: the step before it is asked
+    /// again (see [`Step`]).
+    Back,
 }
 
 impl From<LinkError> for Stop {
@@ -81,6 +84,7 @@ impl From<AskError> for Stop {
         match e {
             AskError::Interrupted => Stop::Interrupted,
             AskError::NoAnswer(_) => Stop::Failed(e.to_string()),
+            AskError::Back => Stop::Back,
         }
     }
 }
@@ -89,6 +93,67 @@ impl From<String> for Stop {
     fn from(e: String) -> Self {
         Stop::Failed(e)
     }
+}
+
+/// The steps of a guided session, in order. `back` at a step's first question returns to the
+/// step before (a step's later questions return to its earlier ones); nothing done is undone by
+/// it: a value entered stays until it is entered again, a driven run stays measured, and every
+/// change not saved stays offered for `save`. A step entered again by `back` proposes to keep
+/// what was done (`k`, `s`), so Enter moves nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Step {
+    /// The nominal geometry (entered or kept).
+    Geometry,
+    /// The bring-up check (run or skipped).
+    Bringup,
+    /// The motor identification (run or skipped).
+    Identify,
+    /// On a board that holds a calibration: new runs, or a check square with it only.
+    Keep,
+    /// The square side and the runs per direction (and the board's runs from before).
+    Plan,
+    /// Driving and measuring the runs; `back` at a run's start asks the last run's measurement
+    /// again.
+    Runs,
+    /// `calibrate`, flagged runs, apply and save.
+    Results,
+    /// The check square with the applied calibration.
+    Check,
+}
+
+impl Step {
+    fn name(self) -> &'static str {
+        match self {
+            Step::Geometry => "nominal geometry",
+            Step::Bringup => "bring-up check",
+            Step::Identify => "motor identification",
+            Step::Keep => "the board's calibration",
+            Step::Plan => "plan",
+            Step::Runs => "runs",
+            Step::Results => "calibration",
+            Step::Check => "check square",
+        }
+    }
+}
+
+/// Where the session goes after a step.
+enum Next {
+    /// The next step.
+    Forward,
+    /// This step (the runs changed: drive what is missing, calibrate again).
+    To(Step),
+    /// The session's end (the summary).
+    End,
+}
+
+/// What the session has done, so that a step asked again by `back` defaults to keeping it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Done {
+    geometry: bool,
+    bringup: bool,
+    identify: bool,
+    /// The board's runs from before this session were dropped or taken.
+    runs_from_before: bool,
 }
 
 /// One run of the session.
@@ -125,6 +190,8 @@ struct Guide {
     flagged: Vec<usize>,
     /// The check square's end error and the runs' mean end error before (if any), metres.
     check: Option<(f64, Option<f64>)>,
+    /// What the session has done (the defaults of a step asked again).
+    done: Done,
 }
 
 fn log_default() -> PathBuf {
@@ -223,6 +290,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         pending: Vec::new(),
         flagged: Vec::new(),
         check: None,
+        done: Done::default(),
     };
     let result = g.session(resumed);
     // Ctrl-C: the robot first.
@@ -273,6 +341,11 @@ pub fn run(opts: &Options) -> Result<(), String> {
         }
         Err(Stop::Failed(e)) => Err(format!(
             "{e}\n(session log: {}; `--resume` continues it)",
+            log_path.display()
+        )),
+        // The session's steps answer every `back`; none ends it.
+        Err(Stop::Back) => Err(format!(
+            "back past the session's first question\n(session log: {}; `--resume` continues it)",
             log_path.display()
         )),
     }
@@ -420,33 +493,106 @@ impl Guide {
 
     fn session(&mut self, resumed: Option<LogContents>) -> Result<(), Stop> {
         self.show_board()?;
-        match resumed {
-            Some(c) => self.resume(c)?,
+        let steps: Vec<Step> = match resumed {
+            Some(c) => {
+                self.resume(c)?;
+                vec![Step::Runs, Step::Results, Step::Check]
+            }
             None => {
-                self.setup(self.holds)?;
-                if self.keep_calibration()? {
-                    return self.check_only();
+                self.setup_intro(self.holds);
+                let mut steps = vec![Step::Geometry, Step::Bringup, Step::Identify];
+                if self.holds.calibration {
+                    steps.push(Step::Keep);
                 }
-                self.plan()?;
+                steps.extend([Step::Plan, Step::Runs, Step::Results, Step::Check]);
+                steps
             }
-        }
-        let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
-        if !r.ok() {
-            return Err(Stop::Failed(format!("stream on: {}", r.last)));
-        }
-        loop {
-            self.drive_missing_runs()?;
-            let table = self.calibrate()?;
-            if !self.review_flagged_runs(&table)? && !self.apply_save_verify(&table)? {
-                break;
+        };
+        let mut i = 0;
+        // The step is asked again by `back` from the next one.
+        let mut back = false;
+        while let Some(&step) = steps.get(i) {
+            match self.step(step, back) {
+                Ok(Next::Forward) => (i, back) = (i + 1, false),
+                Ok(Next::To(s)) => {
+                    i = steps.iter().position(|&t| t == s).unwrap_or(i + 1);
+                    back = false;
+                }
+                Ok(Next::End) => break,
+                Err(Stop::Back) if i == 0 => {
+                    self.ui
+                        .say("  back: there is no question before this one; asked again");
+                    back = false;
+                }
+                Err(Stop::Back) => {
+                    i -= 1;
+                    back = true;
+                    self.ui.say(&format!("  back to: {}", steps[i].name()));
+                }
+                Err(e) => return Err(e),
             }
-        }
-        if self.applied.is_some() {
-            self.check_square()?;
         }
         self.summary()?;
         let _ = self.cmd("stream off")?;
         Ok(())
+    }
+
+    /// One step of the session; `back`: asked again by `back` from the next step.
+    fn step(&mut self, step: Step, back: bool) -> Result<Next, Stop> {
+        match step {
+            Step::Geometry => self.geometry_step(self.holds.geometry || self.done.geometry)?,
+            Step::Bringup => self.bringup_step(self.holds.factory() && !self.done.bringup)?,
+            Step::Identify => self.identify_step(self.holds.tuning || self.done.identify)?,
+            Step::Keep => {
+                // `c`: the check square with the board's calibration, then the summary; `back`
+                // from its first question asks this one again.
+                while self.keep_calibration()? {
+                    match self.check_only() {
+                        Err(Stop::Back) => continue,
+                        r => return r.map(|()| Next::End),
+                    }
+                }
+            }
+            Step::Plan => self.plan()?,
+            Step::Runs => {
+                if back {
+                    // The question before the results: the last run's measurement.
+                    self.measure_last_again()?;
+                }
+                let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+                if !r.ok() {
+                    return Err(Stop::Failed(format!("stream on: {}", r.last)));
+                }
+                self.drive_missing_runs()?;
+            }
+            Step::Results => {
+                let table = self.calibrate()?;
+                if self.review_flagged_runs(&table)? || self.apply_save_verify(&table)? {
+                    return Ok(Next::To(Step::Runs));
+                }
+            }
+            Step::Check => {
+                if self.applied.is_some() {
+                    self.check_square()?;
+                }
+            }
+        }
+        Ok(Next::Forward)
+    }
+
+    /// Asks with `ask` until it gives something other than `back`, saying `why` there is no
+    /// question to go back to.
+    fn no_back<T>(
+        &mut self,
+        why: &str,
+        mut ask: impl FnMut(&mut Self) -> Result<T, Stop>,
+    ) -> Result<T, Stop> {
+        loop {
+            match ask(self) {
+                Err(Stop::Back) => self.ui.say(&format!("  back: {why}")),
+                r => return r,
+            }
+        }
     }
 
     /// Sends the stop key (the board stops any motion within one control period) and shows the
@@ -514,7 +660,10 @@ impl Guide {
                 runs::fault_cause(&fault)
                     .unwrap_or("a blocked wheel, a loose encoder, a miswired motor")
             ));
-            if self.ui.confirm("Clear the fault now", true)? {
+            let clear = self.no_back("there is no question before this one", |g| {
+                Ok(g.ui.confirm("Clear the fault now", true)?)
+            })?;
+            if clear {
                 let r = self.cmd("clear")?;
                 self.ui.say(&format!("  {}", r.last));
             } else {
@@ -540,6 +689,48 @@ impl Guide {
              error larger against the tape measure's error; after `calibrate` the board \
              advises the best L for your robot's scatter.",
         );
+        // The questions in turn: `back` goes to the one before (from the first: the step
+        // before).
+        let mut question = 0;
+        loop {
+            match question {
+                0 => {
+                    self.plan_side()?;
+                    question = 1;
+                }
+                1 => match self.plan_runs() {
+                    Err(Stop::Back) => question = 0,
+                    r => {
+                        r?;
+                        question = 2;
+                    }
+                },
+                _ => {
+                    self.send_plan()?;
+                    if self.done.runs_from_before {
+                        return Ok(());
+                    }
+                    // Runs left on the board from before belong to another session.
+                    let runs = self.cmd("runs")?;
+                    let stored = runs.data.len();
+                    if stored > 0 {
+                        match self.runs_from_before(stored) {
+                            Err(Stop::Back) => {
+                                question = 1;
+                                continue;
+                            }
+                            r => r?,
+                        }
+                    }
+                    self.done.runs_from_before = true;
+                    return Ok(());
+                }
+            }
+        }
+    }
+
+    /// The square side L; a session with measured squares keeps theirs.
+    fn plan_side(&mut self) -> Result<(), Stop> {
         loop {
             let a = self.ui.ask(
                 "Square side L (with its unit: 2m, 150cm)",
@@ -556,13 +747,28 @@ impl Guide {
             }
             match length(&a) {
                 Ok(v) if (0.1..=10.0).contains(&v) => {
+                    let (cw, ccw) = self.counts();
+                    if cw + ccw > 0 && (v - self.side_m).abs() > 1e-9 * self.side_m {
+                        self.ui.say(&format!(
+                            "  the session's {} measured square(s) have L = {:.3} m: squares of \
+                             another side do not calibrate together (the closed forms need one \
+                             side); keep L",
+                            cw + ccw,
+                            self.side_m
+                        ));
+                        continue;
+                    }
                     self.side_m = v;
-                    break;
+                    return Ok(());
                 }
                 Ok(_) => self.ui.say("  L must be within 0.1..10 m"),
                 Err(e) => self.ui.say(&format!("  {e}")),
             }
         }
+    }
+
+    /// The runs per direction.
+    fn plan_runs(&mut self) -> Result<(), Stop> {
         loop {
             let a = self
                 .ui
@@ -570,7 +776,7 @@ impl Guide {
             match a.parse::<u32>() {
                 Ok(n) if (1..=6).contains(&n) => {
                     self.per_direction = n;
-                    break;
+                    return Ok(());
                 }
                 _ => self.ui.say(
                     "  a whole number within 1..6: squares per direction (UMBmark: 5 + 5; more \
@@ -578,14 +784,6 @@ impl Guide {
                 ),
             }
         }
-        self.send_plan()?;
-        // Runs left on the board from before belong to another session.
-        let runs = self.cmd("runs")?;
-        let stored = runs.data.len();
-        if stored > 0 {
-            self.runs_from_before(stored)?;
-        }
-        Ok(())
     }
 
     fn send_plan(&mut self) -> Result<(), Stop> {

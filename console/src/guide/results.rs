@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::protocol::token::{self, TableRow};
+use odocal::protocol::{ErrorCode, FinalLine};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, Numbered, write_calibration};
 use serde_json::json;
@@ -13,6 +14,7 @@ use super::runs::Measured;
 use super::{CALIBRATE, Guide, Stop, field};
 use crate::log::calibration_of;
 use crate::plot::{self, PlotRun};
+use crate::ui::AskError;
 
 impl Guide {
     /// `calibrate` on the board (or on the PC when the board lost runs); shows the table.
@@ -91,7 +93,7 @@ impl Guide {
                 }
                 _ => {}
             }
-            if l.starts_with("ok ") || l.starts_with("err ") {
+            if FinalLine::parse(l).is_some_and(|f| f != FinalLine::Ok("")) {
                 self.ui.say(&format!("  ({l})"));
             }
         }
@@ -115,6 +117,9 @@ impl Guide {
 
     /// Offers each run of `review` (its number in the table) to be measured again, dropped,
     /// driven again or kept; `why` says why it is asked. Returns whether any run changed.
+    ///
+    /// # Errors
+    /// [`Stop::Back`] for `back` at the question (a run changed before it stays changed).
     fn review_runs(&mut self, review: &[usize], why: &str) -> Result<bool, Stop> {
         let mut changed = false;
         // The board's numbers stay valid when a run is dropped; the table computed on the PC
@@ -142,18 +147,24 @@ impl Guide {
                 }
             );
             loop {
+                // `back` here: to the caller (the step before, or the choice after a declined
+                // apply).
                 let a = self.ui.ask(&question, Some("r"))?.to_ascii_lowercase();
                 match a.as_str() {
                     "m" | "measure" if on_board => {
                         let Some(old) = self.slots[slot].record.clone() else {
                             continue 'runs;
                         };
-                        if let Measured::Taken(record, lines) =
-                            self.send_measurement(n, &old, false)?
-                        {
-                            // The same slot again: a log reader keeps the newer record.
-                            self.log_run(slot, n, &lines);
-                            self.slots[slot].record = Some(*record);
+                        match self.send_measurement(n, &old, false) {
+                            Ok(Measured::Taken(record, lines)) => {
+                                // The same slot again: a log reader keeps the newer record.
+                                self.log_run(slot, n, &lines);
+                                self.slots[slot].record = Some(*record);
+                            }
+                            // Back to this question; kept: nothing changed.
+                            Err(Stop::Back) => continue,
+                            Ok(_) => continue 'runs,
+                            Err(e) => return Err(e),
                         }
                         break;
                     }
@@ -227,14 +238,17 @@ impl Guide {
             .ok_or_else(|| Stop::Failed("no method solved".into()))?;
         'choice: loop {
             let method = loop {
+                // `back` here: the step before (the last run's measurement).
                 let a = self.ui.ask(
                     "Apply which method (none: keep the current parameters)",
                     Some(&recommended),
                 )?;
                 if a.eq_ignore_ascii_case("none") {
-                    self.ui
-                        .say("nothing applied; the board keeps its parameters");
-                    self.offer_pending_save()?;
+                    self.say_nothing_applied();
+                    match self.offer_pending_save() {
+                        Err(Stop::Back) => continue 'choice,
+                        r => r?,
+                    }
                     return Ok(false);
                 }
                 if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
@@ -252,10 +266,14 @@ impl Guide {
                     self.board.len(),
                     self.live().len()
                 ));
-                if !self
+                let anyway = match self
                     .ui
-                    .confirm("Apply the board's result from its runs anyway", false)?
+                    .confirm("Apply the board's result from its runs anyway", false)
                 {
+                    Err(AskError::Back) => continue 'choice,
+                    r => r?,
+                };
+                if !anyway {
                     match self.after_decline(table)? {
                         Declined::Again => continue 'choice,
                         Declined::Changed => return Ok(true),
@@ -270,10 +288,14 @@ impl Guide {
                 .filter(|w| w.len() == 3)
                 .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
                 .unwrap_or_default();
-            if !self
+            let apply = match self
                 .ui
-                .confirm_explicit(&format!("Apply {method}{row} to the board"))?
+                .confirm_explicit(&format!("Apply {method}{row} to the board"))
             {
+                Err(AskError::Back) => continue 'choice,
+                r => r?,
+            };
+            if !apply {
                 match self.after_decline(table)? {
                     Declined::Again => continue 'choice,
                     Declined::Changed => return Ok(true),
@@ -281,12 +303,16 @@ impl Guide {
                 }
             }
             let mut applied = self.cmd(&format!("apply {method}"))?;
-            if applied.err_code() == Some(25) {
+            if applied.is_err(ErrorCode::NotConfirmed) {
                 // A run is flagged (the board's own check): applied only on a second yes.
                 self.ui.say(&format!("  {}", applied.last));
-                if !self.ui.confirm_explicit(&format!(
+                let anyway = match self.ui.confirm_explicit(&format!(
                     "Apply {method} anyway, with the flagged run in it"
-                ))? {
+                )) {
+                    Err(AskError::Back) => continue 'choice,
+                    r => r?,
+                };
+                if !anyway {
                     match self.after_decline(table)? {
                         Declined::Again => continue 'choice,
                         Declined::Changed => return Ok(true),
@@ -295,7 +321,12 @@ impl Guide {
                 }
                 applied = self.cmd(&format!("apply {method} yes"))?;
             }
-            return self.save_and_verify(method, applied).map(|()| false);
+            match self.save_and_verify(method, applied) {
+                // Back from the save question: the method question (the calibration stays
+                // applied, and offered for save).
+                Err(Stop::Back) => continue 'choice,
+                r => return r.map(|()| false),
+            }
         }
     }
 
@@ -304,7 +335,8 @@ impl Guide {
     fn after_decline(&mut self, table: &[String]) -> Result<Declined, Stop> {
         let on_board = self.board_has_all();
         loop {
-            let choice = self.choose(
+            // `back` here: the method question.
+            let choice = match self.choose(
                 "Not applied. Now",
                 &[
                     ("m", "measure a run again"),
@@ -319,23 +351,29 @@ impl Guide {
                 "  m, d or r ask which run (its number in the table) and then what to do with \
                  it; o returns to the method question; s applies nothing (changes made this \
                  session are still offered for save)",
-            )?;
+            ) {
+                Err(Stop::Back) => return Ok(Declined::Again),
+                r => r?,
+            };
             match choice.as_str() {
                 "o" => return Ok(Declined::Again),
                 "s" => {
-                    self.ui
-                        .say("nothing applied; the board keeps its parameters");
-                    self.offer_pending_save()?;
+                    self.say_nothing_applied();
+                    match self.offer_pending_save() {
+                        Err(Stop::Back) => continue,
+                        r => r?,
+                    }
                     return Ok(Declined::Skip);
                 }
                 _ => {}
             }
-            let a = self
+            let a = match self
                 .ui
-                .ask("Which run (its number in the table; back)", None)?;
-            if a.eq_ignore_ascii_case("back") {
-                continue;
-            }
+                .ask("Which run (its number in the table; back)", None)
+            {
+                Err(AskError::Back) => continue,
+                r => r?,
+            };
             let Ok(n) = a.trim().parse::<usize>() else {
                 self.ui.say("  a run number as the table lists it");
                 continue;
@@ -347,15 +385,34 @@ impl Guide {
             {
                 self.ui.say(&format!("  the table lists no run {n}"));
             }
-            if self.review_runs(&[n], "chosen")? {
-                return Ok(Declined::Changed);
+            match self.review_runs(&[n], "chosen") {
+                Ok(true) => return Ok(Declined::Changed),
+                // Back (or kept): the choice again.
+                Ok(false) | Err(Stop::Back) => {}
+                Err(e) => return Err(e),
             }
         }
     }
 
+    /// Says that nothing (more) is applied: the board keeps its parameters, with the method
+    /// applied earlier in the session if any (`back` from a later question led here).
+    fn say_nothing_applied(&mut self) {
+        match &self.applied {
+            Some(m) => self.ui.say(&format!(
+                "nothing more applied; the board keeps {m}, applied earlier in this session"
+            )),
+            None => self
+                .ui
+                .say("nothing applied; the board keeps its parameters"),
+        }
+    }
+
     /// Offers `save` for the changes made on the board this session when nothing is applied.
+    ///
+    /// # Errors
+    /// [`Stop::Back`] for `back` at the question (nothing saved, the changes still pending).
     fn offer_pending_save(&mut self) -> Result<(), Stop> {
-        if self.pending.is_empty() || self.saved {
+        if self.pending.is_empty() {
             return Ok(());
         }
         let what = self.pending.join(", ");
@@ -383,6 +440,10 @@ impl Guide {
     }
 
     /// Logs the apply, saves on a yes, and reads `params` back.
+    ///
+    /// # Errors
+    /// [`Stop::Back`] for `back` at the save question (the calibration stays applied, and
+    /// pending for `save`).
     fn save_and_verify(&mut self, method: String, applied: crate::link::Reply) -> Result<(), Stop> {
         self.link.log.entry(
             "apply",
@@ -394,6 +455,12 @@ impl Guide {
         }
         self.ui.say(&format!("  {}", applied.last));
         self.applied = Some(method.clone());
+        // Applied in RAM: not saved until `save` (offered again when `back` leaves this
+        // question).
+        self.saved = false;
+        if !self.pending.contains(&"calibration") {
+            self.pending.push("calibration");
+        }
         if self.ui.confirm_explicit(
             "Save it to the board's flash (kept at every boot, with the geometry, wiring and \
              motor tuning)",

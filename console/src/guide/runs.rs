@@ -6,6 +6,7 @@ use odocal::protocol::unit::{parse_angle, parse_length};
 use std::time::Duration;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::ErrorCode;
 use odocal::protocol::token::{self, EventTag};
 use serde_json::json;
 
@@ -19,6 +20,8 @@ pub(super) enum Measured {
     Dropped,
     /// The run was dropped, and no more runs are driven.
     Skip,
+    /// A measurement asked again was kept as it was (`keep`).
+    Kept,
 }
 
 impl Guide {
@@ -54,8 +57,47 @@ impl Guide {
                 return Ok(());
             };
             let title = format!("run {}/{}", cw + ccw + 1, n_cw + n_ccw);
-            self.drive_one(direction, &title)?;
+            match self.drive_one(direction, &title) {
+                // The question before a run's start: the last run's measurement (`back` there:
+                // the step before the runs).
+                Err(Stop::Back) => self.measure_last_again()?,
+                r => r?,
+            }
         }
+    }
+
+    /// The session's last measured run's measurement, asked again (after `back` at the next
+    /// run's start, or from the results): typed again it replaces the board's (`measure #n`),
+    /// `keep` leaves it as it is.
+    ///
+    /// # Errors
+    /// [`Stop::Back`] for `back` there, or when there is no run to ask about: the step before the
+    /// runs comes next.
+    pub(super) fn measure_last_again(&mut self) -> Result<(), Stop> {
+        let Some(slot) = (0..self.slots.len())
+            .rev()
+            .find(|&i| self.slots[i].record.is_some())
+        else {
+            return Err(Stop::Back);
+        };
+        let (Some(n), Some(old)) = (self.board_number(slot), self.slots[slot].record.clone())
+        else {
+            self.ui.say(
+                "  the last run's measurement is in the log only (the board lost it in its \
+                 reset): it stays as it is",
+            );
+            return Err(Stop::Back);
+        };
+        self.ui.say(&format!(
+            "  back: run {n}'s measurement again (keep leaves it as it is; back goes to the \
+             step before the runs)"
+        ));
+        if let Measured::Taken(record, lines) = self.send_measurement(n, &old, false)? {
+            // The same slot again: a log reader keeps the newer record.
+            self.log_run(slot, n, &lines);
+            self.slots[slot].record = Some(*record);
+        }
+        Ok(())
     }
 
     /// Drives one square and measures it; a run that is aborted is offered again.
@@ -152,7 +194,7 @@ impl Guide {
             if r.ok() {
                 break start;
             }
-            if r.err_code() == Some(10) {
+            if r.is_err(ErrorCode::Busy) {
                 let status = self.cmd("status")?;
                 if field(status.text(), "state") == Some("running") {
                     self.ui.say(&format!(
@@ -164,16 +206,16 @@ impl Guide {
             }
             self.ui
                 .warn(&format!("the board refused the run: {}", r.last));
-            if r.err_code() == Some(11) {
+            if r.is_err(ErrorCode::Fault) {
                 self.ui
                     .say("  a fault is latched: `clear` is sent, then try again");
                 let c = self.cmd("clear")?;
                 self.ui.say(&format!("  {}", c.last));
-            } else if r.err_code() == Some(15) {
+            } else if r.is_err(ErrorCode::StoreFull) {
                 return Err(Stop::Failed(
                     "the board's run store is full: calibrate or drop runs".into(),
                 ));
-            } else if r.err_code() == Some(24) {
+            } else if r.is_err(ErrorCode::Unmeasured) {
                 // A run on the board that this session does not know is unmeasured.
                 return Err(Stop::Failed(format!(
                     "the board holds an unmeasured run this session did not drive: measure or \
@@ -262,10 +304,14 @@ impl Guide {
                 if let Some(cause) = fault_cause(f) {
                     self.ui.say(&format!("  likely cause: {cause}"));
                 }
-                if self
-                    .ui
-                    .confirm("Clear the fault and drive the run again", true)?
-                {
+                let again = self.no_back(
+                    "the run was aborted: clear the fault and drive it again (y), or end the \
+                     session (n)",
+                    |g| {
+                        Ok(g.ui.confirm("Clear the fault and drive the run again", true)?)
+                    },
+                )?;
+                if again {
                     let _ = self.cmd("clear")?;
                 } else {
                     return Err(Stop::Failed(format!("fault {f}")));
@@ -299,7 +345,7 @@ impl Guide {
     ) -> Result<(), Stop> {
         match self.send_measurement(n, record, true)? {
             Measured::Taken(record, lines) => self.adopt(n, *record, lines, path),
-            Measured::Dropped => {}
+            Measured::Dropped | Measured::Kept => {}
             Measured::Skip => self.stop_runs = true,
         }
         Ok(())
@@ -324,14 +370,22 @@ impl Guide {
                      skip: forget it and drive no more runs (calibrate with those measured)."
                 )
             } else {
-                String::new()
+                format!(
+                    "\n  keep: leave run {n}'s measurement as the board holds it; back: the \
+                     question before."
+                )
             }
         ));
     }
 
     /// Asks for board run `n`'s measured end pose until the board takes it (`measure #n …`
     /// with the words as typed, units included: the board reads them; it also replaces an
-    /// earlier measurement). With `may_drop`, `drop` and `skip` drop the run instead.
+    /// earlier measurement). With `may_drop` (a run just driven), `drop` and `skip` drop the run
+    /// instead, and `back` is answered here (the run is driven: its end is measured or it is
+    /// dropped); without it (a measurement asked again), `keep` leaves the one the board holds.
+    ///
+    /// # Errors
+    /// [`Stop::Back`] for `back` without `may_drop`.
     pub(super) fn send_measurement(
         &mut self,
         n: usize,
@@ -343,12 +397,27 @@ impl Guide {
                 &format!(
                     "Measured end pose of run {n}: x y [theta], each with its unit (41.8mm \
                      -39.5mm -2.3deg; y to the left; help{})",
-                    if may_drop { ", drop, skip" } else { "" }
+                    if may_drop { ", drop, skip" } else { ", keep" }
                 ),
                 None,
-            )?;
+            );
+            let a = match a {
+                Err(crate::ui::AskError::Back) if may_drop => {
+                    self.ui.say(&format!(
+                        "  back: run {n} is driven and stays where it stopped: measure its end \
+                         now, or drop it (drop forgets it and drives it again)"
+                    ));
+                    continue;
+                }
+                r => r?,
+            };
             let word = a.trim().to_ascii_lowercase();
             match word.as_str() {
+                "keep" if !may_drop => {
+                    self.ui
+                        .say(&format!("  run {n}'s measurement kept as it was"));
+                    return Ok(Measured::Kept);
+                }
                 "" | "help" | "?" => {
                     self.measure_help(n, record, may_drop);
                     continue;
@@ -392,12 +461,17 @@ impl Guide {
             }
             let mut line = format!("measure #{n} {}", words.join(" "));
             let mut r = self.cmd(&line)?;
-            if r.err_code() == Some(22) {
+            if r.is_err(ErrorCode::Implausible) {
                 // Beyond what the nominal geometry's tolerance allows: kept only on a yes.
                 self.ui.say(&format!("  {}", r.last));
-                if !self.ui.confirm_explicit(
+                let keep = match self.ui.confirm_explicit(
                     "Keep this measurement anyway (check the values, units and signs first)",
-                )? {
+                ) {
+                    // Back to the measurement question: nothing stored.
+                    Err(crate::ui::AskError::Back) => false,
+                    r => r?,
+                };
+                if !keep {
                     self.ui.say("  nothing stored; type it again");
                     continue;
                 }

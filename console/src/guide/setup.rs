@@ -8,6 +8,7 @@ use std::time::Duration;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::speed::MotorParams;
 use odocal::protocol::token::{self, EventTag};
+use odocal::protocol::{ErrorCode, FinalLine};
 
 use super::{Guide, REPLY, Stop, event_head, event_tag};
 use crate::log::{calibration_of, param};
@@ -98,8 +99,9 @@ impl Holds {
 }
 
 impl Guide {
-    /// The setup steps, in order.
-    pub(super) fn setup(&mut self, holds: Holds) -> Result<(), Stop> {
+    /// What the board holds, before the setup steps ([`super::Step`]: geometry, bring-up,
+    /// identification).
+    pub(super) fn setup_intro(&mut self, holds: Holds) {
         if holds.factory() {
             self.ui.say(
                 "the board holds the factory defaults (nothing entered, or not saved): the \
@@ -124,9 +126,6 @@ impl Guide {
                 if holds.calibration { "applied" } else { "none" }
             ));
         }
-        self.geometry_step(holds.geometry)?;
-        self.bringup_step(holds.factory())?;
-        self.identify_step(holds.tuning)
     }
 
     /// Asks `question` with `choices` (`key: meaning`); `help` and `?` show `help`, an empty
@@ -157,65 +156,35 @@ impl Guide {
         }
     }
 
-    fn geometry_step(&mut self, held: bool) -> Result<(), Stop> {
-        let n = self.nominal;
-        let now = format!(
-            "D_R={} m D_L={} m b={} m, {} counts/rev",
-            n.diameter_right_m, n.diameter_left_m, n.wheelbase_m, n.counts_per_rev
-        );
-        self.ui.say(&format!(
-            "step: nominal geometry ({} on the board: {now})",
-            if held { "entered" } else { "factory default" }
-        ));
-        let help = format!(
-            "  e enters the robot's measured wheel diameters, wheelbase and encoder counts; k \
-             keeps the board's ({now}).\n{HOW_TO_MEASURE}"
-        );
-        let choice = self.choose(
-            "Nominal geometry",
-            &[("e", "enter it"), ("k", "keep the board's")],
-            if held { "k" } else { "e" },
-            &help,
-        )?;
-        if choice == "k" {
-            return Ok(());
-        }
-        self.ui.say(HOW_TO_MEASURE);
-        self.ui.say("  (back returns to the previous question)");
-        // Each question in turn; `back` goes to the one before (from the first: the choice).
-        let (mut d_right, mut d_left, mut b) =
-            (n.diameter_right_m, n.diameter_left_m, n.wheelbase_m);
-        let mut step = 0;
-        let counts = loop {
-            let answer = match step {
-                0 => self.ask_length("Right wheel diameter D_R", d_right)?,
-                1 => self.ask_length("Left wheel diameter D_L", d_right)?,
-                2 => self.ask_length("Wheelbase b", b)?,
-                _ => {
-                    let a = self.ui.ask(
-                        "Encoder counts per wheel revolution",
-                        Some(&n.counts_per_rev.to_string()),
-                    )?;
-                    if a.eq_ignore_ascii_case("back") {
-                        step = 2;
-                        continue;
-                    }
-                    match a.parse::<u32>() {
-                        Ok(c) if c > 0 => break c,
-                        _ => {
-                            self.ui
-                                .say("  a whole number of counts (lines x 4 x gear ratio)");
-                            continue;
-                        }
-                    }
-                }
-            };
-            match (answer, step) {
-                (None, 0) => return self.geometry_step(held),
-                (None, _) => step -= 1,
-                (Some(v), 0) => (d_right, step) = (v, 1),
-                (Some(v), 1) => (d_left, step) = (v, 2),
-                (Some(v), _) => (b, step) = (v, 3),
+    /// The nominal geometry: kept, or entered question by question (`back` returns to the
+    /// question before; from the first, to the choice; from the choice, to the step before).
+    pub(super) fn geometry_step(&mut self, held: bool) -> Result<(), Stop> {
+        let (d_right, d_left, b, counts) = loop {
+            let n = self.nominal;
+            let now = format!(
+                "D_R={} m D_L={} m b={} m, {} counts/rev",
+                n.diameter_right_m, n.diameter_left_m, n.wheelbase_m, n.counts_per_rev
+            );
+            self.ui.say(&format!(
+                "step: nominal geometry ({} on the board: {now})",
+                if held { "entered" } else { "factory default" }
+            ));
+            let help = format!(
+                "  e enters the robot's measured wheel diameters, wheelbase and encoder counts; k \
+                 keeps the board's ({now}).\n{HOW_TO_MEASURE}"
+            );
+            let choice = self.choose(
+                "Nominal geometry",
+                &[("e", "enter it"), ("k", "keep the board's")],
+                if held { "k" } else { "e" },
+                &help,
+            )?;
+            if choice == "k" {
+                return Ok(());
+            }
+            self.ui.say(HOW_TO_MEASURE);
+            if let Some(entered) = self.ask_geometry()? {
+                break entered;
             }
         };
         for (name, value) in [
@@ -226,7 +195,7 @@ impl Guide {
         ] {
             let r = self.cmd(&format!("set {name} {value}"))?;
             self.ui.say(&format!("  {}", r.last));
-            if r.last.contains("(not saved") && !self.pending.contains(&"nominal geometry") {
+            if token::is_not_saved(&r.last) && !self.pending.contains(&"nominal geometry") {
                 self.pending.push("nominal geometry");
             }
             if !r.ok() {
@@ -235,6 +204,7 @@ impl Guide {
                 ));
             }
         }
+        self.done.geometry = true;
         let params = self.cmd("params")?;
         if let Some(g) = crate::log::nominal_of(&params.data) {
             self.nominal = g;
@@ -247,8 +217,55 @@ impl Guide {
         Ok(())
     }
 
-    /// A length in metres, typed with its unit, within the board's range; `None` for `back`.
-    fn ask_length(&mut self, what: &str, default: f64) -> Result<Option<f64>, Stop> {
+    /// D_R, D_L, b and the counts per revolution, each question in turn (defaults: the board's);
+    /// `back` goes to the one before, and from the first `None` (to the choice).
+    fn ask_geometry(&mut self) -> Result<Option<(f64, f64, f64, u32)>, Stop> {
+        let n = self.nominal;
+        let (mut d_right, mut d_left, mut b) =
+            (n.diameter_right_m, n.diameter_left_m, n.wheelbase_m);
+        let mut step = 0;
+        loop {
+            let answer = match step {
+                0 => self.ask_length("Right wheel diameter D_R", d_right),
+                1 => self.ask_length("Left wheel diameter D_L", d_right),
+                2 => self.ask_length("Wheelbase b", b),
+                _ => {
+                    let a = match self.ui.ask(
+                        "Encoder counts per wheel revolution",
+                        Some(&n.counts_per_rev.to_string()),
+                    ) {
+                        Err(crate::ui::AskError::Back) => {
+                            step = 2;
+                            continue;
+                        }
+                        r => r?,
+                    };
+                    match a.parse::<u32>() {
+                        Ok(c) if c > 0 => return Ok(Some((d_right, d_left, b, c))),
+                        _ => {
+                            self.ui
+                                .say("  a whole number of counts (lines x 4 x gear ratio)");
+                            continue;
+                        }
+                    }
+                }
+            };
+            match (answer, step) {
+                (Err(Stop::Back), 0) => return Ok(None),
+                (Err(Stop::Back), _) => step -= 1,
+                (Err(e), _) => return Err(e),
+                (Ok(v), 0) => (d_right, step) = (v, 1),
+                (Ok(v), 1) => (d_left, step) = (v, 2),
+                (Ok(v), _) => (b, step) = (v, 3),
+            }
+        }
+    }
+
+    /// A length in metres, typed with its unit, within the board's range.
+    ///
+    /// # Errors
+    /// [`Stop::Back`] for `back`.
+    fn ask_length(&mut self, what: &str, default: f64) -> Result<f64, Stop> {
         loop {
             let a = self.ui.ask(
                 &format!("{what} (with its unit: 150mm, 15cm, 0.15m)"),
@@ -258,11 +275,8 @@ impl Guide {
                 self.ui.say(HOW_TO_MEASURE);
                 continue;
             }
-            if a.eq_ignore_ascii_case("back") {
-                return Ok(None);
-            }
             match super::length(&a) {
-                Ok(v) if v > 0.0 && v <= 5.0 => return Ok(Some(v)),
+                Ok(v) if v > 0.0 && v <= 5.0 => return Ok(v),
                 Ok(v) => self.ui.say(&format!(
                     "  {v} m is not a plausible {what} (check the unit: 150mm, 0.15m)"
                 )),
@@ -300,7 +314,9 @@ impl Guide {
         }
     }
 
-    fn bringup_step(&mut self, factory: bool) -> Result<(), Stop> {
+    /// The bring-up check: the choice, the push check, the motor check (`back` returns to the
+    /// question before; from the choice, to the step before). `run`: the default is to run it.
+    pub(super) fn bringup_step(&mut self, run: bool) -> Result<(), Stop> {
         self.ui.say(
             "step: bring-up check: which way each encoder counts (you push the robot) and each \
              motor turns (short pulses, wheels off the ground)",
@@ -309,15 +325,42 @@ impl Guide {
                     the wheels off the ground); s skips it (the wiring was checked before). A \
                     reversed motor or encoder makes the first square stop with a \
                     following-error fault.";
-        let choice = self.choose(
-            "Bring-up check",
-            &[("r", "run it"), ("s", "skip it")],
-            if factory { "r" } else { "s" },
-            help,
-        )?;
-        if choice == "s" {
-            return Ok(());
+        let mut question = 0;
+        loop {
+            question = match question {
+                0 => {
+                    let choice = self.choose(
+                        "Bring-up check",
+                        &[("r", "run it"), ("s", "skip it")],
+                        if run { "r" } else { "s" },
+                        help,
+                    )?;
+                    if choice == "s" {
+                        return Ok(());
+                    }
+                    1
+                }
+                1 => match self.push_check() {
+                    Err(Stop::Back) => 0,
+                    Ok(false) => return Ok(()),
+                    r => {
+                        r?;
+                        2
+                    }
+                },
+                _ => match self.motor_check() {
+                    Err(Stop::Back) => 1,
+                    r => {
+                        self.done.bringup = true;
+                        return r;
+                    }
+                },
+            };
         }
+    }
+
+    /// The push check after Enter; whether the board ran it.
+    fn push_check(&mut self) -> Result<bool, Stop> {
         self.ui.say(
             "  wheels on the ground, motors powered: after Enter, push the robot straight \
              forward by hand about 5 cm within 5 s",
@@ -326,15 +369,33 @@ impl Guide {
         let r = self.cmd("bringup push")?;
         self.ui.say(&format!("  {}", r.last));
         if !r.ok() {
-            return self.check_refused(&r.last);
+            self.check_refused(&r.last)?;
+            return Ok(false);
         }
         self.check_events(&[EventTag::BringupDone], 60)?;
-        for attempt in 0..3 {
+        Ok(true)
+    }
+
+    /// The motor check after Enter, its proposals applied on a typed yes and checked again;
+    /// `back` at its first question returns to the push check (at a later one, to the motor
+    /// check's start).
+    fn motor_check(&mut self) -> Result<(), Stop> {
+        let mut attempt = 0;
+        while attempt < 3 {
             self.ui.say(
                 "  now lift the wheels off the ground (robot on a box): each motor gets a short \
                  pulse forward and back",
             );
-            self.ui.ask("Enter starts the motor check", Some("go"))?;
+            match self.ui.ask("Enter starts the motor check", Some("go")) {
+                Err(crate::ui::AskError::Back) if attempt > 0 => {
+                    self.ui.say(
+                        "  back: the correction is applied (and offered for save); the motor \
+                         check that confirms it comes next",
+                    );
+                    continue;
+                }
+                r => r?,
+            };
             let r = self.cmd("bringup")?;
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
@@ -361,12 +422,14 @@ impl Guide {
                 );
                 return Err(Stop::Failed("bring-up check: wiring not ok".into()));
             }
-            if attempt == 2
-                || !self.ui.confirm_explicit(&format!(
-                    "Apply the proposed correction ({})",
-                    proposals.join("; ")
-                ))?
-            {
+            let question = format!("Apply the proposed correction ({})", proposals.join("; "));
+            let apply = attempt < 2
+                && match self.ui.confirm_explicit(&question) {
+                    // Back to the motor check's start: the pulses again, on Enter.
+                    Err(crate::ui::AskError::Back) => continue,
+                    r => r?,
+                };
+            if !apply {
                 self.ui
                     .say("  nothing applied: the wiring is as it was (the squares need it right)");
                 return Ok(());
@@ -382,6 +445,7 @@ impl Guide {
                 }
             }
             self.ui.say("  checking again with the correction");
+            attempt += 1;
         }
         Ok(())
     }
@@ -389,7 +453,7 @@ impl Guide {
     fn check_refused(&mut self, reply: &str) -> Result<(), Stop> {
         self.ui
             .warn(&format!("the board refused the check: {reply}"));
-        if reply.starts_with("err 11") {
+        if FinalLine::parse(reply).is_some_and(|f| f.is_err(ErrorCode::Fault)) {
             let c = self.cmd("clear")?;
             self.ui.say(&format!(
                 "  {} (run the step again from a terminal, or restart)",
@@ -399,7 +463,9 @@ impl Guide {
         Ok(())
     }
 
-    fn identify_step(&mut self, tuned: bool) -> Result<(), Stop> {
+    /// The motor identification (`back` at the choice returns to the step before; at the start,
+    /// to the choice).
+    pub(super) fn identify_step(&mut self, tuned: bool) -> Result<(), Stop> {
         self.ui.say(
             "step: motor identification: the speed loops are tuned from each motor's gain, time \
              constant and dead-band (the factory tuning fits few robots)",
@@ -420,7 +486,7 @@ impl Guide {
                 "l" => "lifted",
                 _ => return Ok(()),
             };
-            self.ui.ask(
+            let start = self.ui.ask(
                 &format!(
                     "Robot {}; Enter starts the identification",
                     if mode == "floor" {
@@ -430,7 +496,11 @@ impl Guide {
                     }
                 ),
                 Some("go"),
-            )?;
+            );
+            match start {
+                Err(crate::ui::AskError::Back) => continue,
+                r => r?,
+            };
             let r = self.cmd_timeout(&format!("identify {mode}"), REPLY)?;
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
@@ -446,6 +516,7 @@ impl Guide {
                 if !self.pending.contains(&"speed-loop tuning") {
                     self.pending.push("speed-loop tuning");
                 }
+                self.done.identify = true;
                 return Ok(());
             }
             self.ui.warn(
