@@ -17,8 +17,8 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Activity, Calibrator, Culprit, MAX_RUNS, Robot, RobotError, RobotStatus, Session, Settings,
-    SettingsAndRuns, Solution, SolveError, StoreError,
+    Calibrator, Culprit, MAX_RUNS, MotorsRunning, MotorsStopped, Robot, RobotError, Session,
+    Settings, SettingsAndRuns, Solution, SolveError, Status, StoreError,
 };
 use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
@@ -102,14 +102,12 @@ impl Robot for ScriptedRobot {
         self.limits = Some(*l);
         Ok(())
     }
-    fn status(&mut self) -> RobotStatus {
-        RobotStatus {
-            activity: match (self.running, self.driving) {
-                (Some(p), _) => Activity::Running(p),
-                (None, true) => Activity::Driving,
-                (None, false) => Activity::Idle,
-            },
-            fault: self.fault,
+    fn status(&mut self) -> Status {
+        match (self.fault, self.running, self.driving) {
+            (Some(f), _, _) => Status::Faulted(f),
+            (None, Some(path), _) => Status::Running { path, segment: 0 },
+            (None, None, true) => Status::Driving,
+            (None, None, false) => Status::Idle,
         }
     }
     fn pose(&mut self) -> PoseF64 {
@@ -126,8 +124,12 @@ impl Robot for ScriptedRobot {
         self.pose = PoseF64::default();
         Ok(())
     }
-    fn motors_stopped(&mut self) -> bool {
-        self.running.is_none() && !self.driving
+    fn motors_stopped(&mut self) -> Result<MotorsStopped, MotorsRunning> {
+        if self.running.is_none() && !self.driving {
+            Ok(MotorsStopped::without_controller())
+        } else {
+            Err(MotorsRunning)
+        }
     }
     fn set_wiring(&mut self, w: Wiring) -> Result<(), RobotError> {
         self.check_idle()?;
@@ -162,7 +164,6 @@ impl Robot for ScriptedRobot {
 #[derive(Default)]
 struct MemoryStore {
     saved: Option<Settings>,
-    resets: usize,
     /// The committed runs, as a flash store keeps them.
     runs: Vec<RunRecord>,
     run_saves: usize,
@@ -172,30 +173,16 @@ struct MemoryStore {
 }
 
 impl SettingsAndRuns for MemoryStore {
-    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
+    fn save(&mut self, s: &Settings, _: MotorsStopped) -> Result<(), StoreError> {
         self.saved = Some(s.clone());
-        Ok(())
-    }
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
-        self.resets += 1;
-        self.saved = Some(Settings::default());
         Ok(())
     }
     fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        _: MotorsStopped,
     ) -> Result<(), StoreError> {
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
         if self.fail_runs {
             return Err(StoreError::Flash(FlashFault::Other));
         }
@@ -983,7 +970,6 @@ fn calibrate_apply_save_golden() {
     );
     assert_eq!(b.session.settings(), &Settings::default());
     // RAM only: the flash keeps what was saved until `save`.
-    assert_eq!(b.store.resets, 0);
     assert_eq!(b.store.saved, saved);
     assert_eq!(b.send("save"), "ok saved\r\n");
     assert_eq!(b.store.saved.as_ref(), Some(&Settings::default()));
