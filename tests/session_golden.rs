@@ -20,7 +20,7 @@ use odocal::session::{
     Calibrator, Culprit, MAX_RUNS, MotorsRunning, MotorsStopped, Robot, RobotError, Session,
     Settings, SettingsAndRuns, Solution, SolveError, Status, StoreError,
 };
-use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
+use odocal::storage::{FlashFault, FlashTooSmall, RunsLoaded, StoredRun};
 
 #[derive(Default)]
 struct ScriptedRobot {
@@ -170,9 +170,14 @@ struct MemoryStore {
     next_key: u8,
     /// Run saves fail (a flash driver error).
     fail_runs: bool,
+    /// Nothing can be written (e.g. the part's flash is smaller than the storage map).
+    unusable: Option<StoreError>,
 }
 
 impl SettingsAndRuns for MemoryStore {
+    fn usable(&self) -> Result<(), StoreError> {
+        self.unusable.map_or(Ok(()), Err)
+    }
     fn save(&mut self, s: &Settings, _: MotorsStopped) -> Result<(), StoreError> {
         self.saved = Some(s.clone());
         Ok(())
@@ -1446,4 +1451,24 @@ fn tuning_parameters_are_validated_like_the_geometry() {
         "ok speed_bandwidth = 20.0000 rad/s (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.tuning.map(|t| t.bandwidth_radps), Some(20.0));
+}
+
+/// A store that can never write (a part's flash smaller than the storage map) says so before
+/// the motors are asked about: `save` names the store even while the robot drives, as the board
+/// does on a 512 KiB part before its control loop has run (fil/degraded_boot_test.py).
+#[test]
+fn save_names_a_store_that_cannot_write_before_the_motors() {
+    let mut b = Bench::new();
+    b.store.unusable = Some(StoreError::FlashTooSmall(FlashTooSmall {
+        part_kib: 512,
+        needed_kib: 1024,
+    }));
+    b.send("drive 0.1 0");
+    assert_eq!(
+        b.send("save"),
+        "err 19: flash error: no storage: this part's flash is smaller than the storage map\r\n"
+    );
+    assert!(b.store.saved.is_none());
+    b.store.unusable = None;
+    assert!(b.send("save").starts_with("err 18: "));
 }

@@ -85,6 +85,10 @@ pub struct FixtureRuns<'a>(pub &'a SquareRuns);
 const NO_FLASH: StoreError = StoreError::Flash(FlashFault::Other);
 
 impl SettingsAndRuns for FixtureRuns<'_> {
+    fn usable(&self) -> Result<(), StoreError> {
+        Err(NO_FLASH)
+    }
+
     fn save(&mut self, _: &Settings, _: MotorsStopped) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }

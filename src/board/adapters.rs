@@ -82,6 +82,10 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
 }
 
 impl<W: rtic::Mutex<T = IndependentWatchdog>> SettingsAndRuns for RelaxedWatchdog<'_, W> {
+    fn usable(&self) -> Result<(), StoreError> {
+        self.store.usable()
+    }
+
     fn save(&mut self, settings: &Settings, stopped: MotorsStopped) -> Result<(), StoreError> {
         self.relaxed(|s| SettingsAndRuns::save(s, settings, stopped))
     }

@@ -214,6 +214,10 @@ impl<L: ControllerLock> Robot for LockedController<L> {
 }
 
 impl<F: MultiwriteNorFlash> SettingsAndRuns for ParamAndRunStore<F> {
+    fn usable(&self) -> Result<(), StoreError> {
+        ParamAndRunStore::usable(self)
+    }
+
     fn save(&mut self, settings: &Settings, stopped: MotorsStopped) -> Result<(), StoreError> {
         self.save_blocking(settings, stopped)
     }

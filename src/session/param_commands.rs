@@ -115,6 +115,10 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = storable(&self.settings) {
             return storage_err(out, e);
         }
+        // A store that can never write says so before the motors are asked about.
+        if let Err(e) = storage.usable() {
+            return storage_err(out, e);
+        }
         let stopped = match robot.motors_stopped() {
             Ok(stopped) => stopped,
             Err(e) => return write_refusal(out, &Refusal::MotorsRunning(e)),

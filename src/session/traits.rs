@@ -167,6 +167,12 @@ pub trait Robot {
 
 /// Where the session keeps its settings and its runs across a power cut.
 pub trait SettingsAndRuns {
+    /// Whether anything can be written at all (the part's flash holds the storage map, its
+    /// layout is valid): asked before the motors, so that a store that can never write says so.
+    ///
+    /// # Errors
+    /// [`StoreError`]: why nothing can be written.
+    fn usable(&self) -> Result<(), StoreError>;
     /// Writes `settings`, with the motors `stopped`.
     ///
     /// # Errors

@@ -352,8 +352,11 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         store
     }
 
-    /// Why the store may not use the flash at all, if it may not.
-    fn unusable(&self) -> Result<(), StoreError> {
+    /// Whether the store may use the flash at all.
+    ///
+    /// # Errors
+    /// Why not: [`StoreError::FlashTooSmall`] or [`StoreError::BadRange`].
+    pub fn usable(&self) -> Result<(), StoreError> {
         if let Some(t) = self.too_small {
             return Err(StoreError::FlashTooSmall(t));
         }
@@ -379,7 +382,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     /// from the run region. A power cut in between leaves it in one place or both; with a
     /// record in the parameter region, a copy left in the run region is removed at boot.
     pub async fn load(&mut self) -> LoadOutcome {
-        if let Err(e) = self.unusable() {
+        if let Err(e) = self.usable() {
             let warning = match e {
                 StoreError::FlashTooSmall(t) => LoadWarning::FlashTooSmall(t),
                 e => LoadWarning::Unreadable(e),
@@ -519,7 +522,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         record: &ParamRecord,
         _stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        self.unusable()?;
+        self.usable()?;
         record.validate().map_err(StoreError::InvalidRecord)?;
         let len = record
             .encode(&mut self.buf.0[params::HEADER..])

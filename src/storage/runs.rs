@@ -467,7 +467,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         self.live_run_keys = 0;
         self.runs_wipes = self.wipes;
         let mut loaded = RunsLoaded::default();
-        if self.unusable().is_err() {
+        if self.usable().is_err() {
             // Nothing can have been stored (the boot event already says why).
             return loaded;
         }
@@ -543,7 +543,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         ids: &mut [Option<StoredRun>],
         _stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        self.unusable()?;
+        self.usable()?;
         if runs.len() != ids.len() || runs.len() > MAX_RUNS {
             return Err(StoreError::Encoding);
         }
