@@ -12,7 +12,7 @@ use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::button::Press;
 use odocal::motion::controller::{
     ButtonAction, ConfigError, Controller, ControllerConfig, DriveError, Fault, MotorCommand,
-    SetError, StartError, Status, Wheel,
+    MotorsRunning, SetError, StartError, Status, Wheel,
 };
 use odocal::motion::identify::{IdentifyFailure, IdentifyMode, IdentifyProblem};
 use odocal::motion::motor::StopMode;
@@ -355,11 +355,12 @@ fn motors_stopped_after_a_tenth_of_a_second_at_rest() {
     for _ in 0..100 {
         plant.step(&mut c);
     }
-    assert!(!c.motors_stopped());
+    assert!(c.motors_stopped().is_err());
     plant.step(&mut c);
-    assert!(c.motors_stopped());
+    assert!(c.motors_stopped().is_ok());
     c.drive(0.2, 0.0).unwrap();
-    assert!(!c.motors_stopped());
+    // The refusal every flash write gets while anything moves (`err 18`).
+    assert_eq!(c.motors_stopped(), Err(MotorsRunning));
 }
 
 /// An encoder edge jittering by a count at rest (2.4 µm) does not block a save; a wheel rolling
@@ -374,13 +375,16 @@ fn encoder_jitter_is_still_but_a_slow_roll_is_motion() {
         plant.pos[1] = if k % 3 == 0 { -0.5 } else { 0.5 };
         plant.step(&mut c);
     }
-    assert!(c.motors_stopped(), "jitter of one count counted as motion");
+    assert!(
+        c.motors_stopped().is_ok(),
+        "jitter of one count counted as motion"
+    );
     let per_period = 0.020 / Geometry::PAPER_NOMINAL.meters_per_tick_right() / 1000.0;
     let mut stopped_after_roll = 0;
     for _ in 0..500 {
         plant.pos[0] += per_period;
         plant.step(&mut c);
-        if c.motors_stopped() {
+        if c.motors_stopped().is_ok() {
             stopped_after_roll += 1;
         }
     }
@@ -389,7 +393,7 @@ fn encoder_jitter_is_still_but_a_slow_roll_is_motion() {
         stopped_after_roll <= 51,
         "{stopped_after_roll} periods looked still"
     );
-    assert!(!c.motors_stopped());
+    assert!(c.motors_stopped().is_err());
 }
 
 #[test]

@@ -17,10 +17,10 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Activity, Calibrator, Culprit, MAX_RUNS, Numbered, Robot, RobotError, RobotStatus, Session,
-    Settings, SettingsAndRuns, Solution, SolveError, StoreError,
+    Calibrator, Culprit, MAX_RUNS, MotorsRunning, MotorsStopped, Numbered, Robot, RobotError,
+    Session, Settings, SettingsAndRuns, Solution, SolveError, Status, StoreError,
 };
-use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
+use odocal::storage::{FlashFault, FlashTooSmall, RunsLoaded, StoredRun};
 
 #[derive(Default)]
 struct ScriptedRobot {
@@ -102,14 +102,12 @@ impl Robot for ScriptedRobot {
         self.limits = Some(*l);
         Ok(())
     }
-    fn status(&mut self) -> RobotStatus {
-        RobotStatus {
-            activity: match (self.running, self.driving) {
-                (Some(p), _) => Activity::Running(p),
-                (None, true) => Activity::Driving,
-                (None, false) => Activity::Idle,
-            },
-            fault: self.fault,
+    fn status(&mut self) -> Status {
+        match (self.fault, self.running, self.driving) {
+            (Some(f), _, _) => Status::Faulted(f),
+            (None, Some(path), _) => Status::Running { path, segment: 0 },
+            (None, None, true) => Status::Driving,
+            (None, None, false) => Status::Idle,
         }
     }
     fn pose(&mut self) -> PoseF64 {
@@ -126,8 +124,12 @@ impl Robot for ScriptedRobot {
         self.pose = PoseF64::default();
         Ok(())
     }
-    fn motors_stopped(&mut self) -> bool {
-        self.running.is_none() && !self.driving
+    fn motors_stopped(&mut self) -> Result<MotorsStopped, MotorsRunning> {
+        if self.running.is_none() && !self.driving {
+            Ok(MotorsStopped::without_controller())
+        } else {
+            Err(MotorsRunning)
+        }
     }
     fn set_wiring(&mut self, w: Wiring) -> Result<(), RobotError> {
         self.check_idle()?;
@@ -162,40 +164,30 @@ impl Robot for ScriptedRobot {
 #[derive(Default)]
 struct MemoryStore {
     saved: Option<Settings>,
-    resets: usize,
     /// The committed runs, as a flash store keeps them.
     runs: Vec<RunRecord>,
     run_saves: usize,
     next_key: u8,
     /// Run saves fail (a flash driver error).
     fail_runs: bool,
+    /// Nothing can be written (e.g. the part's flash is smaller than the storage map).
+    unusable: Option<StoreError>,
 }
 
 impl SettingsAndRuns for MemoryStore {
-    fn save(&mut self, s: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
-        self.saved = Some(s.clone());
-        Ok(())
+    fn usable(&self) -> Result<(), StoreError> {
+        self.unusable.map_or(Ok(()), Err)
     }
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
-        self.resets += 1;
-        self.saved = Some(Settings::default());
+    fn save(&mut self, s: &Settings, _: MotorsStopped) -> Result<(), StoreError> {
+        self.saved = Some(s.clone());
         Ok(())
     }
     fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        _: MotorsStopped,
     ) -> Result<(), StoreError> {
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
-        }
         if self.fail_runs {
             return Err(StoreError::Flash(FlashFault::Other));
         }
@@ -983,7 +975,6 @@ fn calibrate_apply_save_golden() {
     );
     assert_eq!(b.session.settings(), &Settings::default());
     // RAM only: the flash keeps what was saved until `save`.
-    assert_eq!(b.store.resets, 0);
     assert_eq!(b.store.saved, saved);
     assert_eq!(b.send("save"), "ok saved\r\n");
     assert_eq!(b.store.saved.as_ref(), Some(&Settings::default()));
@@ -1460,4 +1451,24 @@ fn tuning_parameters_are_validated_like_the_geometry() {
         "ok speed_bandwidth = 20.0000 rad/s (not saved; save to keep)\r\n"
     );
     assert_eq!(b.robot.tuning.map(|t| t.bandwidth_radps), Some(20.0));
+}
+
+/// A store that can never write (a part's flash smaller than the storage map) says so before
+/// the motors are asked about: `save` names the store even while the robot drives, as the board
+/// does on a 512 KiB part before its control loop has run (fil/degraded_boot_test.py).
+#[test]
+fn save_names_a_store_that_cannot_write_before_the_motors() {
+    let mut b = Bench::new();
+    b.store.unusable = Some(StoreError::FlashTooSmall(FlashTooSmall {
+        part_kib: 512,
+        needed_kib: 1024,
+    }));
+    b.send("drive 0.1 0");
+    assert_eq!(
+        b.send("save"),
+        "err 19: flash error: no storage: this part's flash is smaller than the storage map\r\n"
+    );
+    assert!(b.store.saved.is_none());
+    b.store.unusable = None;
+    assert!(b.send("save").starts_with("err 18: "));
 }

@@ -3,7 +3,7 @@
 mod storage_support;
 
 use odocal::storage::ParamRecord;
-use storage_support::{BoardFlash, Rng, board_store, calibrated};
+use storage_support::{BoardFlash, Rng, STOPPED, board_store, calibrated};
 
 /// Saves `rec`, checks it loads, then the flash is damaged by `damage`; the next boot must give
 /// defaults with a warning (never a panic, never garbage) and a new save must load back.
@@ -13,7 +13,7 @@ fn damaged_boot(seed: u64, damage: impl Fn(&mut BoardFlash, &mut Rng)) {
     let rec = calibrated(seed as u32);
     {
         let mut store = board_store(&mut *flash);
-        store.save_blocking(&rec, true).unwrap();
+        store.save_blocking(&rec, STOPPED).unwrap();
         assert_eq!(store.load_blocking().record, rec);
     }
     damage(&mut flash, &mut rng);
@@ -25,7 +25,7 @@ fn damaged_boot(seed: u64, damage: impl Fn(&mut BoardFlash, &mut Rng)) {
 
     let next = calibrated(seed as u32 + 1);
     store
-        .save_blocking(&next, true)
+        .save_blocking(&next, STOPPED)
         .unwrap_or_else(|e| panic!("seed {seed}: save after damage failed: {e}"));
     // The parameter region is repaired without wiping anything.
     assert_eq!(store.wipes(), 0, "seed {seed}");
@@ -91,7 +91,7 @@ fn load_falls_back_to_the_older_valid_record() {
     let mut flash = Box::new(BoardFlash::default());
     let older = calibrated(1);
     board_store(&mut *flash)
-        .save_blocking(&older, true)
+        .save_blocking(&older, STOPPED)
         .unwrap();
     // A record whose motion limit is out of range, appended as the newest slot (checksum ok).
     let mut bad = calibrated(2);
@@ -124,7 +124,7 @@ fn load_falls_back_to_the_older_valid_record() {
     );
 
     let next = calibrated(3);
-    store.save_blocking(&next, true).unwrap();
+    store.save_blocking(&next, STOPPED).unwrap();
     let loaded = store.load_blocking();
     assert_eq!(
         (loaded.record, loaded.warning, loaded.older),

@@ -11,7 +11,7 @@ use embedded_storage_async::nor_flash::{
 };
 use odocal::storage::StoreError;
 use odocal::storage::ram_flash::RamFlashError;
-use storage_support::{BoardFlash, board_store, calibrated};
+use storage_support::{BoardFlash, STOPPED, board_store, calibrated};
 
 /// A flash with the STM32's sticky error flags: `fail_write` makes the next write fail and
 /// latches the flag; while latched, every erase and write fails. `clears_flags` models a driver
@@ -108,12 +108,12 @@ fn a_driver_error_keeps_the_last_record_and_erases_nothing() {
     let mut flash = StickyFlash::new();
     {
         let mut store = board_store(&mut *flash);
-        store.save_blocking(&calibrated(1), true).unwrap();
+        store.save_blocking(&calibrated(1), STOPPED).unwrap();
     }
     let erases_before = flash.erases;
     flash.fail_write = true;
     let mut store = board_store(&mut *flash);
-    let err = store.save_blocking(&calibrated(2), true).unwrap_err();
+    let err = store.save_blocking(&calibrated(2), STOPPED).unwrap_err();
     assert!(matches!(err, StoreError::Flash(_)), "{err:?}");
     assert_eq!(store.wipes(), 0, "a driver error must not wipe anything");
     let out = store.load_blocking();
@@ -122,7 +122,7 @@ fn a_driver_error_keeps_the_last_record_and_erases_nothing() {
     assert_eq!(flash.erases, erases_before, "nothing was erased");
     // With the flags latched and nobody clearing them, every later save fails as well.
     let mut store = board_store(&mut *flash);
-    assert!(store.save_blocking(&calibrated(3), true).is_err());
+    assert!(store.save_blocking(&calibrated(3), STOPPED).is_err());
     assert_eq!(store.load_blocking().record, calibrated(1));
 }
 
@@ -132,13 +132,13 @@ fn a_driver_that_clears_the_flags_saves_again_after_an_error() {
     flash.clears_flags = true;
     {
         let mut store = board_store(&mut *flash);
-        store.save_blocking(&calibrated(1), true).unwrap();
+        store.save_blocking(&calibrated(1), STOPPED).unwrap();
     }
     flash.fail_write = true;
     let mut store = board_store(&mut *flash);
-    assert!(store.save_blocking(&calibrated(2), true).is_err());
+    assert!(store.save_blocking(&calibrated(2), STOPPED).is_err());
     assert_eq!(store.load_blocking().record, calibrated(1));
-    store.save_blocking(&calibrated(3), true).unwrap();
+    store.save_blocking(&calibrated(3), STOPPED).unwrap();
     let out = store.load_blocking();
     assert_eq!(out.warning, None);
     assert_eq!(out.record, calibrated(3));

@@ -16,7 +16,7 @@ use odocal::storage::{
 };
 use std::sync::atomic::AtomicUsize;
 use std::sync::atomic::Ordering::Relaxed;
-use storage_support::{calibrated, fetch_raw_in, store_raw_in};
+use storage_support::{STOPPED, calibrated, fetch_raw_in, store_raw_in};
 
 const PAGE: usize = 1024;
 
@@ -69,14 +69,16 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
         let mut probe = base.clone();
         let before = probe.bytes_touched();
         let erases_before: u32 = probe.erase_counts().iter().sum();
-        param_store(&mut probe).save_blocking(&new, true).unwrap();
+        param_store(&mut probe)
+            .save_blocking(&new, STOPPED)
+            .unwrap();
         let len = probe.bytes_touched() - before;
         let with_erase = probe.erase_counts().iter().sum::<u32>() > erases_before;
 
         for cut in 0..len {
             let mut flash = base.clone();
             flash.cut_power_after(Some(cut as u32));
-            let res = param_store(&mut flash).save_blocking(&new, true);
+            let res = param_store(&mut flash).save_blocking(&new, STOPPED);
             if res.is_ok() || flash.is_powered() {
                 eprintln!("p={p} cut={cut}/{len}: save returned {res:?}");
                 tally.other_failures += 1;
@@ -110,7 +112,7 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
             }
             // The flash must stay usable after the cut.
             let again = calibrated(5000 + p);
-            let r2 = store.save_blocking(&again, true);
+            let r2 = store.save_blocking(&again, STOPPED);
             let l2 = store.load_blocking();
             if r2.is_err() || l2.record != again || store.wipes() != 0 {
                 eprintln!(
@@ -122,7 +124,7 @@ fn sweep<const WORD: usize>(prefills: u32) -> Tally {
         }
 
         // Advance the base state by one completed save.
-        param_store(&mut base).save_blocking(&new, true).unwrap();
+        param_store(&mut base).save_blocking(&new, STOPPED).unwrap();
         old = Some(new);
     }
     // The run region was never touched.
@@ -177,7 +179,7 @@ fn a_second_cut_at_every_byte_of_the_next_save_still_leaves_old_or_new() {
     for p in 0..8u32 {
         let new = calibrated(2000 + p);
         saves.push((p, base.clone(), old.clone(), new.clone()));
-        param_store(&mut base).save_blocking(&new, true).unwrap();
+        param_store(&mut base).save_blocking(&new, STOPPED).unwrap();
         old = Some(new);
     }
     let next = AtomicUsize::new(0);
@@ -260,13 +262,15 @@ fn double_cut(
     let newer = calibrated(3000 + p);
     let mut probe = base.clone();
     let before = probe.bytes_touched();
-    param_store(&mut probe).save_blocking(&new, true).unwrap();
+    param_store(&mut probe)
+        .save_blocking(&new, STOPPED)
+        .unwrap();
     let len = probe.bytes_touched() - before;
     for cut in 0..len {
         tally.first_cuts += 1;
         let mut cut_once = base.clone();
         cut_once.cut_power_after(Some(cut as u32));
-        let res = param_store(&mut cut_once).save_blocking(&new, true);
+        let res = param_store(&mut cut_once).save_blocking(&new, STOPPED);
         // The cut falls inside the save: the save fails with the driver's power-cut error.
         if res != Err(StoreError::Flash(FlashFault::Other)) || cut_once.is_powered() {
             eprintln!("p={p} cut={cut}/{len}: save returned {res:?}");
@@ -282,7 +286,9 @@ fn double_cut(
         // The next save, cut at every byte.
         let mut probe = cut_once.clone();
         let (before, erases) = (probe.bytes_touched(), probe.erase_counts());
-        param_store(&mut probe).save_blocking(&newer, true).unwrap();
+        param_store(&mut probe)
+            .save_blocking(&newer, STOPPED)
+            .unwrap();
         let len2 = probe.bytes_touched() - before;
         let erasing = probe.erase_counts() != erases;
         for cut2 in 0..len2 {
@@ -292,7 +298,7 @@ fn double_cut(
             }
             let mut flash = cut_once.clone();
             flash.cut_power_after(Some(cut2 as u32));
-            let _ = param_store(&mut flash).save_blocking(&newer, true);
+            let _ = param_store(&mut flash).save_blocking(&newer, STOPPED);
             flash.restore_power();
             let out = param_store(&mut flash).load_blocking();
             // With nothing stored before, either torn write leaves nothing stored: defaults,
@@ -343,7 +349,7 @@ fn every_cut_while_moving_an_old_record_keeps_it_and_the_runs() {
             ] {
                 apply(u, &mut runs, &mut ids);
             }
-            store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+            store.save_runs_blocking(&runs, &mut ids, STOPPED).unwrap();
         }
         // The key-1 item must still be the old record (a run update does not touch it).
         assert_eq!(
@@ -489,8 +495,8 @@ fn perform(
 ) -> Result<(), odocal::storage::StoreError> {
     apply(update, runs, ids);
     match update {
-        Update::SaveParams(n) => store.save_blocking(&calibrated(n), true),
-        _ => store.save_runs_blocking(runs, ids, true),
+        Update::SaveParams(n) => store.save_blocking(&calibrated(n), STOPPED),
+        _ => store.save_runs_blocking(runs, ids, STOPPED),
     }
 }
 

@@ -3,6 +3,7 @@
 
 mod storage_support;
 
+use odocal::motion::controller::{Controller, MotorsRunning};
 use odocal::motion::run::{MAX_RUNS, RunRecord};
 use odocal::motion::speed::SpeedTuning;
 use odocal::motion::wiring::Wiring;
@@ -13,7 +14,7 @@ use odocal::storage::{
     StoreError, StoredRun,
 };
 use storage_support::{
-    BOARD_PARAMS, BOARD_RUNS, BoardFlash, board_store, calibrated, fetch_raw_in, fixtures,
+    BOARD_PARAMS, BOARD_RUNS, BoardFlash, STOPPED, board_store, calibrated, fetch_raw_in, fixtures,
     newest_param_bytes, store_raw_in,
 };
 
@@ -48,7 +49,7 @@ fn saved_record_survives_a_reboot_bit_exactly() {
     let rec = calibrated(42);
     {
         let mut store = board_store(&mut *flash);
-        store.save_blocking(&rec, true).unwrap();
+        store.save_blocking(&rec, STOPPED).unwrap();
     }
     // Reboot: a fresh store (no cached state) over the same flash contents.
     let mut store = board_store(&mut *flash);
@@ -59,12 +60,12 @@ fn saved_record_survives_a_reboot_bit_exactly() {
 
     // The latest of several saves wins.
     for n in 0..5 {
-        store.save_blocking(&calibrated(100 + n), true).unwrap();
+        store.save_blocking(&calibrated(100 + n), STOPPED).unwrap();
     }
     assert_eq!(store.load_blocking().record, calibrated(104));
 
     // Reset: defaults, and no warning because a (default) record is stored.
-    store.reset_to_defaults_blocking(true).unwrap();
+    store.reset_to_defaults_blocking(STOPPED).unwrap();
     let out = store.load_blocking();
     assert_eq!(out.record, ParamRecord::DEFAULT);
     assert_eq!(out.warning, None);
@@ -76,7 +77,7 @@ fn works_with_four_byte_words_and_small_pages() {
     let sectors = ParamSectors::new(1024..2048, 2048..3072);
     let mut store = ParamAndRunStore::new(&mut flash, sectors, 3072..6144).unwrap();
     for n in 0..40 {
-        store.save_blocking(&calibrated(n), true).unwrap();
+        store.save_blocking(&calibrated(n), STOPPED).unwrap();
         assert_eq!(store.load_blocking().record, calibrated(n));
     }
     // 40 saves of 180-byte slots change sectors several times.
@@ -87,18 +88,22 @@ fn works_with_four_byte_words_and_small_pages() {
     assert!((3072..6144).all(|i| store.flash().byte(i) == Some(0xFF)));
 }
 
+/// A write takes the controller's proof that the motors are stopped: a controller that has not
+/// confirmed them stopped (no control period has run) gives the refusal instead, and the store
+/// is never asked.
 #[test]
 fn refuses_to_write_while_the_motors_run() {
+    let controller = Controller::new(ParamRecord::DEFAULT.controller_config()).unwrap();
     let mut flash = Box::new(BoardFlash::default());
     let mut store = board_store(&mut *flash);
-    assert_eq!(
-        store.save_blocking(&calibrated(1), false),
-        Err(StoreError::MotorsRunning)
-    );
-    assert_eq!(
-        store.reset_to_defaults_blocking(false),
-        Err(StoreError::MotorsRunning)
-    );
+    let saved = controller
+        .motors_stopped()
+        .map(|stopped| store.save_blocking(&calibrated(1), stopped));
+    assert_eq!(saved, Err(MotorsRunning));
+    let reset = controller
+        .motors_stopped()
+        .map(|stopped| store.reset_to_defaults_blocking(stopped));
+    assert_eq!(reset, Err(MotorsRunning));
     // Nothing was written.
     assert_eq!(store.flash().bytes_touched(), 0);
 }
@@ -110,7 +115,7 @@ fn refuses_to_save_an_invalid_record() {
     let mut bad = calibrated(1);
     bad.calibration.as_mut().unwrap().e_b = f64::NAN;
     assert_eq!(
-        store.save_blocking(&bad, true),
+        store.save_blocking(&bad, STOPPED),
         Err(StoreError::InvalidRecord(RecordError::Factor))
     );
     assert_eq!(store.flash().bytes_touched(), 0);
@@ -132,7 +137,7 @@ fn stored_nan_record_is_rejected_at_load() {
         Some(LoadWarning::Invalid(RecordError::CalibratedGeometry(_)))
     ));
     // The next save replaces it.
-    store.save_blocking(&calibrated(8), true).unwrap();
+    store.save_blocking(&calibrated(8), STOPPED).unwrap();
     assert_eq!(store.load_blocking().warning, None);
 }
 
@@ -295,7 +300,7 @@ fn records_of_every_older_version_survive_the_upgrade() {
         // The operator raises the rate and saves: version 4 on flash, read back exactly.
         let mut faster = out.record;
         faster.control_hz = 10_000;
-        store.save_blocking(&faster, true).unwrap();
+        store.save_blocking(&faster, STOPPED).unwrap();
         let again = store.load_blocking();
         assert_eq!(again.warning, None);
         assert_eq!(again.record, faster);
@@ -338,7 +343,7 @@ fn records_in_the_old_shared_map_move_to_the_parameter_region() {
 fn a_leftover_old_record_is_removed_and_never_wins() {
     let mut flash = Box::new(BoardFlash::default());
     board_store(&mut *flash)
-        .save_blocking(&calibrated(5), true)
+        .save_blocking(&calibrated(5), STOPPED)
         .unwrap();
     let mut old = [0u8; ParamRecord::ENCODED_LEN];
     calibrated(4).encode(&mut old).unwrap();
@@ -369,7 +374,7 @@ fn old_program_code_in_the_parameter_sectors_is_no_record_and_the_first_save_cle
             (out.warning, out.record),
             (Some(LoadWarning::Missing), ParamRecord::DEFAULT)
         );
-        store.save_blocking(&calibrated(8), true).unwrap();
+        store.save_blocking(&calibrated(8), STOPPED).unwrap();
     }
     let out = board_store(&mut *flash).load_blocking();
     assert_eq!((out.warning, out.record), (None, calibrated(8)));
@@ -377,7 +382,7 @@ fn old_program_code_in_the_parameter_sectors_is_no_record_and_the_first_save_cle
     // Every slot damaged (its CRC no longer matches): a corrupted store, said so.
     let mut flash = Box::new(BoardFlash::default());
     board_store(&mut *flash)
-        .save_blocking(&calibrated(9), true)
+        .save_blocking(&calibrated(9), STOPPED)
         .unwrap();
     let slot_data = BOARD_PARAMS.sectors[0].start as usize + 20;
     flash.corrupt_byte(slot_data, 0x55);

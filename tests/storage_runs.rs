@@ -10,8 +10,8 @@ use odocal::session::write_runs_restored;
 use odocal::storage::runs::{RunFormatError, decode_run};
 use odocal::storage::{ParamAndRunStore, RunLoadProblem, StoredRun};
 use storage_support::{
-    BOARD_PARAMS, BOARD_RUNS, BoardFlash, Rng, SECTOR, board_store, calibrated, measurement,
-    run_record,
+    BOARD_PARAMS, BOARD_RUNS, BoardFlash, Rng, SECTOR, STOPPED, board_store, calibrated,
+    measurement, run_record,
 };
 
 type Runs = heapless::Vec<RunRecord, MAX_RUNS>;
@@ -47,9 +47,9 @@ fn event(loaded: &odocal::storage::RunsLoaded) -> String {
 fn stored(runs: &Runs) -> (Box<BoardFlash>, Ids) {
     let mut flash = Box::new(BoardFlash::default());
     let mut store = board_store(&mut *flash);
-    store.save_blocking(&calibrated(7), true).unwrap();
+    store.save_blocking(&calibrated(7), STOPPED).unwrap();
     let mut ids: Ids = runs.iter().map(|_| None).collect();
-    store.save_runs_blocking(runs, &mut ids, true).unwrap();
+    store.save_runs_blocking(runs, &mut ids, STOPPED).unwrap();
     (flash, ids)
 }
 
@@ -58,16 +58,18 @@ fn a_full_run_store_survives_a_reset_bit_for_bit() {
     let runs = full_store();
     let mut flash = Box::new(BoardFlash::default());
     let mut store = board_store(&mut *flash);
-    store.save_blocking(&calibrated(7), true).unwrap();
+    store.save_blocking(&calibrated(7), STOPPED).unwrap();
     let mut ids: Ids = runs.iter().map(|_| None).collect();
     let before = store.flash().bytes_touched();
-    store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+    store.save_runs_blocking(&runs, &mut ids, STOPPED).unwrap();
     let written = store.flash().bytes_touched() - before;
     // A measurement alone rewrites only the index.
     let mut measured = runs.clone();
     measured[1].measured = Some(measurement(99));
     let before = store.flash().bytes_touched();
-    store.save_runs_blocking(&measured, &mut ids, true).unwrap();
+    store
+        .save_runs_blocking(&measured, &mut ids, STOPPED)
+        .unwrap();
     let index_only = store.flash().bytes_touched() - before;
     println!(
         "{MAX_RUNS} runs x {MAX_KNOTS} knots: {written} bytes written; one measurement: \
@@ -128,7 +130,9 @@ fn a_corrupted_run_record_is_reported_and_skipped_and_the_parameters_stay() {
     // The store keeps working: the next update stores the 11 runs, and they come back.
     let mut store = board_store(&mut *flash);
     store.load_runs_blocking(&mut Runs::new(), &mut Ids::new());
-    store.save_runs_blocking(&restored, &mut ids, true).unwrap();
+    store
+        .save_runs_blocking(&restored, &mut ids, STOPPED)
+        .unwrap();
     let (again, _, loaded) = boot(&mut flash);
     assert_eq!(again, expected);
     assert_eq!(loaded.skipped, 0);
@@ -142,7 +146,7 @@ fn a_foreign_run_record_is_reported_and_skipped() {
     // the index means (as after a mix-up of keys), so it must not be restored.
     let mut store = board_store(&mut *flash);
     ids[4].as_mut().unwrap().serial += 1000;
-    store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+    store.save_runs_blocking(&runs, &mut ids, STOPPED).unwrap();
     let (restored, _, loaded) = boot(&mut flash);
     assert_eq!(restored.len(), 11);
     assert_eq!(loaded.problem, Some(RunLoadProblem::Foreign { run: 5 }));
@@ -234,11 +238,11 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
          storage map needs 1024 KiB), reset: power-on\r\n"
     );
     assert_eq!(
-        store.save_blocking(&calibrated(1), true),
+        store.save_blocking(&calibrated(1), STOPPED),
         Err(StoreError::FlashTooSmall(too_small))
     );
     // Through the session's storage interface: the `err` text of `save`.
-    let e = SettingsAndRuns::save(&mut store, &Settings::default(), true).unwrap_err();
+    let e = SettingsAndRuns::save(&mut store, &Settings::default(), STOPPED).unwrap_err();
     // The typed store error reaches the reply that names it.
     assert_eq!(e, StoreError::FlashTooSmall(too_small));
     assert_eq!(
@@ -247,7 +251,7 @@ fn a_part_with_too_little_flash_refuses_storage_cleanly() {
     );
     let runs = full_store();
     let mut ids: Ids = runs.iter().map(|_| None).collect();
-    assert!(store.save_runs_blocking(&runs, &mut ids, true).is_err());
+    assert!(store.save_runs_blocking(&runs, &mut ids, STOPPED).is_err());
     let (mut r, mut i) = (Runs::new(), Ids::new());
     assert!(!store.load_runs_blocking(&mut r, &mut i).found);
     assert!(r.is_empty());
@@ -290,7 +294,7 @@ fn rebuilt_alone(mut damage: impl FnMut(usize) -> u8, wipes: u32) {
     assert!(restored.is_empty());
     // The session still holds its runs in RAM and stores them again.
     let mut ids: Ids = runs.iter().map(|_| None).collect();
-    store.save_runs_blocking(&runs, &mut ids, true).unwrap();
+    store.save_runs_blocking(&runs, &mut ids, STOPPED).unwrap();
     // sequential-storage's own repair or, failing that, a wipe of the run region.
     assert_eq!(store.wipes(), wipes);
     assert_eq!(param_region(store.flash()), before);

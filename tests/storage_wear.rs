@@ -5,7 +5,7 @@ mod storage_support;
 
 use odocal::storage::ParamRecord;
 use odocal::storage::params::slot_len;
-use storage_support::{BoardFlash, SECTOR, board_store, calibrated};
+use storage_support::{BoardFlash, SECTOR, STOPPED, board_store, calibrated};
 
 const SAVES: u32 = 10_000;
 
@@ -15,7 +15,7 @@ fn ten_thousand_saves_level_wear_over_both_sectors() {
     let mut store = board_store(&mut *flash);
     for n in 0..SAVES {
         store
-            .save_blocking(&calibrated(n), true)
+            .save_blocking(&calibrated(n), STOPPED)
             .unwrap_or_else(|e| panic!("save {n} failed: {e}"));
     }
     let out = store.load_blocking();

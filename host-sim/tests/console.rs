@@ -28,7 +28,7 @@ fn ctrl_c_and_esc_stop_the_motors_in_the_same_period() {
         for _ in 0..2_000 {
             b.step(&mut out);
         }
-        assert!(!b.controller.motors_stopped());
+        assert!(b.controller.motors_stopped().is_err());
         // Lines queued before the key (not yet executed) do not delay it.
         b.receive(b"params\rstatus\r", &mut out);
         b.receive(key, &mut out);

@@ -7,7 +7,7 @@ use host_sim::sim::board::Board;
 use host_sim::sim::flash::SimParamFlash;
 use host_sim::sim::robot::sim_config;
 use odocal::protocol::ParamName;
-use odocal::session::Settings;
+use odocal::session::{MotorsStopped, Settings};
 
 /// Boots at the flash's stored control rate, as a board does after a reset.
 fn boot(flash: &mut SimParamFlash) -> Board<'_> {
@@ -52,7 +52,7 @@ fn params_line(board: &mut Board, name: ParamName) -> String {
 fn save(board: &mut Board) -> String {
     let mut out = String::new();
     for _ in 0..20_000 {
-        if board.controller.motors_stopped() {
+        if board.controller.motors_stopped().is_ok() {
             break;
         }
         board.step(&mut out);
@@ -181,7 +181,7 @@ fn stored_limits_are_rederived_at_boot() {
     stored.motion.max_accel_mps2 = 0.5;
     flash
         .store()
-        .save_blocking(&stored, true)
+        .save_blocking(&stored, MotorsStopped::without_controller())
         .expect("store the record");
     let mut out = String::new();
     let mut board =

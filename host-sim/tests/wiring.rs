@@ -69,7 +69,7 @@ fn a_reversed_motor_or_encoder_ends_in_a_following_error_not_a_runaway() {
             fault.moved_m
         );
         assert!(
-            controller.motors_stopped(),
+            controller.motors_stopped().is_ok(),
             "{wiring:?}: motors still running"
         );
     }

@@ -12,7 +12,7 @@ use heapless::Vec;
 use odocal::motion::controller::Controller;
 use odocal::motion::run::{MAX_RUNS, RunRecord};
 use odocal::session::library::{ControllerLock, LibraryCalibrator};
-use odocal::session::{Robot, Session, Settings, SettingsAndRuns, StoreError};
+use odocal::session::{MotorsStopped, Robot, Session, Settings, SettingsAndRuns, StoreError};
 use odocal::storage::{FlashFault, RunsLoaded, StoredRun};
 
 use crate::squares::SquareRuns;
@@ -85,11 +85,11 @@ pub struct FixtureRuns<'a>(pub &'a SquareRuns);
 const NO_FLASH: StoreError = StoreError::Flash(FlashFault::Other);
 
 impl SettingsAndRuns for FixtureRuns<'_> {
-    fn save(&mut self, _: &Settings, _: bool) -> Result<(), StoreError> {
+    fn usable(&self) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 
-    fn reset(&mut self, _: bool) -> Result<(), StoreError> {
+    fn save(&mut self, _: &Settings, _: MotorsStopped) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }
 
@@ -97,7 +97,7 @@ impl SettingsAndRuns for FixtureRuns<'_> {
         &mut self,
         _: &[RunRecord],
         _: &mut [Option<StoredRun>],
-        _: bool,
+        _: MotorsStopped,
     ) -> Result<(), StoreError> {
         Err(NO_FLASH)
     }

@@ -159,7 +159,8 @@ pub fn console(out: &mut String) -> Result<(), String> {
     use qemu_bench::squares::SquareRuns;
 
     let runs = SquareRuns::generate();
-    let mut robot = qemu_bench::control::controller().map_err(|e| e.to_string())?;
+    let mut controller = qemu_bench::control::controller().map_err(|e| e.to_string())?;
+    let mut robot = odocal::session::library::LockedController(&mut controller);
     let mut session = console::session(&runs);
     let mut reply = console::ReplyHash::default();
     for line in console::COMMANDS {

@@ -315,9 +315,10 @@ fn main() -> ! {
     // The console's `calibrate` and `apply exact` on the same runs, as the console task runs
     // them (the whole command: every method, the residual listing, the advice).
     {
-        let Ok(mut robot) = control::controller() else {
+        let Ok(mut controller) = control::controller() else {
             fail("controller configuration rejected")
         };
+        let mut robot = LockedController(&mut controller);
         let mut session = console::session(&runs);
         let mut reply = console::ReplyHash::default();
         let caller = paint_stack();

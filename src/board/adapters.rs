@@ -9,7 +9,7 @@ use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use super::watchdog::{wait_for_update, write_timeout};
 use super::{BoardFlash, ConsoleRx, ConsoleTx, FLASH_WATCHDOG_MS, WATCHDOG_MS};
 use crate::app::serial::TxPort;
-use crate::motion::controller::Controller;
+use crate::motion::controller::{Controller, MotorsStopped};
 use crate::motion::run::{MAX_RUNS, RunRecord};
 use crate::protocol::rx::RxRead;
 use crate::session::library::ControllerLock;
@@ -51,8 +51,8 @@ impl TxPort for ConsoleTx {
 /// Parameter storage with the watchdog relaxed while the flash is written: a sector erase
 /// stalls every instruction fetch (the control task included) for up to 0.8 s (a parameter
 /// sector) or 4 s (a run sector), so the timeout is
-/// lengthened for the operation and restored right after. Saves are refused unless the motors
-/// are stopped, so nothing moves while the control task is stalled.
+/// lengthened for the operation and restored right after. A save takes the controller's proof
+/// that the motors are stopped, so nothing moves while the control task is stalled.
 pub struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
     /// The parameter and run store.
     pub store: &'a mut ParamAndRunStore<BoardFlash>,
@@ -61,15 +61,10 @@ pub struct RelaxedWatchdog<'a, W: rtic::Mutex<T = IndependentWatchdog>> {
 }
 
 impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
-    fn relaxed<R>(
-        &mut self,
-        motors_stopped: bool,
-        f: impl FnOnce(&mut ParamAndRunStore<BoardFlash>) -> R,
-    ) -> R {
-        if !motors_stopped {
-            // The store refuses without touching the flash: nothing to relax.
-            return f(self.store);
-        }
+    // Out of line: inlined into the session's command dispatch, the parameter save alone cost
+    // about 0.8 KiB more flash.
+    #[inline(never)]
+    fn relaxed<R>(&mut self, f: impl FnOnce(&mut ParamAndRunStore<BoardFlash>) -> R) -> R {
         // The waits for the low-power register domain stay outside the lock, so the control
         // task is never held up by them. The reload comes after the update has crossed over:
         // an earlier one would load the old 50 ms reload value, counted at the new divider
@@ -87,27 +82,21 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
 }
 
 impl<W: rtic::Mutex<T = IndependentWatchdog>> SettingsAndRuns for RelaxedWatchdog<'_, W> {
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
-        self.relaxed(motors_stopped, |s| {
-            SettingsAndRuns::save(s, settings, motors_stopped)
-        })
+    fn usable(&self) -> Result<(), StoreError> {
+        self.store.usable()
     }
 
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
-        self.relaxed(motors_stopped, |s| {
-            SettingsAndRuns::reset(s, motors_stopped)
-        })
+    fn save(&mut self, settings: &Settings, stopped: MotorsStopped) -> Result<(), StoreError> {
+        self.relaxed(|s| SettingsAndRuns::save(s, settings, stopped))
     }
 
     fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        self.relaxed(motors_stopped, |s| {
-            SettingsAndRuns::save_runs(s, runs, ids, motors_stopped)
-        })
+        self.relaxed(|s| SettingsAndRuns::save_runs(s, runs, ids, stopped))
     }
 
     fn load_runs(
@@ -116,6 +105,6 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> SettingsAndRuns for RelaxedWatchdo
         ids: &mut heapless::Vec<Option<StoredRun>, MAX_RUNS>,
     ) -> RunsLoaded {
         // Only at boot, motors stopped: a repair may erase a sector.
-        self.relaxed(true, |s| SettingsAndRuns::load_runs(s, runs, ids))
+        self.relaxed(|s| SettingsAndRuns::load_runs(s, runs, ids))
     }
 }

@@ -9,6 +9,7 @@
 use core::fmt::{self, Write};
 
 use super::reply::{EOL, ErrorCode};
+use crate::motion::controller::MotorsRunning;
 use crate::motion::run::PathKind;
 use crate::storage::StoreError;
 use crate::util::decimal::{Decimal, Plain};
@@ -133,8 +134,11 @@ pub enum Refusal<'a> {
         /// Why.
         why: &'a dyn fmt::Display,
     },
-    /// A store operation failed, worded by [`StoreError`]'s one `Display`: `err 18` while the
-    /// motors run, `err 17` for settings the parameter record refuses, `err 19` for the flash.
+    /// `err 18`: a flash write refused because the motors are not confirmed stopped (worded by
+    /// [`MotorsRunning`]).
+    MotorsRunning(MotorsRunning),
+    /// A store operation failed, worded by [`StoreError`]'s one `Display`: `err 17` for
+    /// settings the parameter record refuses, `err 19` for the flash.
     Store(StoreError),
     /// `err 22`: an implausible measurement of run `run`, for the reason `why`.
     Implausible {
@@ -172,7 +176,7 @@ impl Refusal<'_> {
             }
             Refusal::Fault { .. } => ErrorCode::Fault,
             Refusal::InvalidParams { .. } => ErrorCode::InvalidParams,
-            Refusal::Store(StoreError::MotorsRunning) => ErrorCode::MotorsRunning,
+            Refusal::MotorsRunning(_) => ErrorCode::MotorsRunning,
             Refusal::Store(StoreError::InvalidRecord(_)) => ErrorCode::InvalidParams,
             Refusal::Store(_) => ErrorCode::Storage,
             Refusal::NothingToMeasure
@@ -346,6 +350,7 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
         }
         Refusal::MethodFailed { why } | Refusal::InvalidParams { why } => write!(out, "{why}")?,
         Refusal::Store(e) => write!(out, "{e}")?,
+        Refusal::MotorsRunning(e) => write!(out, "{e}")?,
         Refusal::NoMethodSucceeded => {
             out.write_str("no method succeeded (check the measurements: runs)")?
         }
@@ -411,7 +416,7 @@ mod tests {
             "err 19: flash error: run flash full\r\n"
         );
         assert_eq!(
-            text(&Refusal::Store(StoreError::MotorsRunning)),
+            text(&Refusal::MotorsRunning(MotorsRunning)),
             "err 18: motors not confirmed stopped (running, or the control loop has not run yet), flash not written\r\n"
         );
     }

@@ -7,7 +7,7 @@
 use core::fmt::{self, Write};
 
 use super::Session;
-use super::traits::{Activity, Calibrator, Robot};
+use super::traits::{Calibrator, Robot};
 use crate::protocol::StopKey;
 use crate::protocol::token::EventTag;
 
@@ -21,7 +21,7 @@ impl<C: Calibrator> Session<C> {
     pub fn button_short(&mut self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         self.collect_finished(robot, out)?;
         EventTag::Button.write(out)?;
-        if robot.status().fault.is_some() {
+        if robot.status().fault().is_some() {
             robot.clear_fault();
             return write!(out, "ok fault cleared\r\n");
         }
@@ -60,7 +60,7 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        let moving = robot.status().activity != Activity::Idle || self.active.is_some();
+        let moving = robot.status().is_busy() || self.active.is_some();
         robot.abort();
         if moving || key == StopKey::CtrlC {
             let name = match key {

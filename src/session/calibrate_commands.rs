@@ -11,7 +11,7 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use super::AppliedCalibration;
-use super::traits::{Activity, Calibrator, Culprit, Robot, RobotError, RunResidual};
+use super::traits::{Calibrator, Culprit, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::run::RunRecord;
@@ -36,7 +36,7 @@ impl<C: Calibrator> Session<C> {
     ) -> fmt::Result {
         // The exact solve takes seconds on the target; the console must stay responsive (`stop`)
         // while anything moves.
-        if robot.status().activity != Activity::Idle {
+        if robot.status().is_busy() {
             return robot_err(out, RobotError::Busy, robot);
         }
         if let Some(m) = method
@@ -67,7 +67,7 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        if robot.status().activity != Activity::Idle {
+        if robot.status().is_busy() {
             return robot_err(out, RobotError::Busy, robot);
         }
         let Some(name) = self

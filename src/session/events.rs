@@ -12,9 +12,9 @@ use super::Session;
 use super::library::fault_name;
 use super::report;
 use super::settings::BootRefusal;
-use super::traits::{Activity, Calibrator, Robot};
+use super::traits::{Calibrator, Robot};
 use crate::kinematics::reference::PoseF64;
-use crate::motion::controller::Fault;
+use crate::motion::controller::{Fault, Status};
 use crate::motion::run::PathKind;
 use crate::protocol::reply::EOL;
 use crate::protocol::token::EventTag;
@@ -185,7 +185,7 @@ impl<C: Calibrator> Session<C> {
             write_run_finished(out, usize::from(number), &path, &end)?;
         }
         if let Some(a) = self.active
-            && !matches!(status.activity, Activity::Running(_))
+            && !matches!(status, Status::Running { .. })
         {
             self.active = None;
             self.last_aborted = Some(a);
@@ -193,10 +193,10 @@ impl<C: Calibrator> Session<C> {
                 out,
                 a.number,
                 &a.path,
-                status.fault.as_ref().map(fault_name),
+                status.fault().as_ref().map(fault_name),
             )?;
         }
-        self.announce_fault(status.fault, out)
+        self.announce_fault(status.fault(), out)
     }
 
     /// Announces a newly latched fault in full, once: `event fault: <what>` (which wheel, its

@@ -1,10 +1,11 @@
 //! The session traits implemented for the library's own types.
 //!
-//! - [`Robot`] for [`Controller`] (host-sim calls it directly) and for [`LockedController`], which wraps
-//!   anything that can lend the controller for one call ([`ControllerLock`]; on the target every
-//!   RTIC `Mutex<T = Controller>` is one, see `board::adapters`), so the serial task holds the controller's lock for one
-//!   short operation at a time and never during a calibration solve;
-//! - [`SettingsAndRuns`] for [`ParamAndRunStore`] (blocking; the motors must be stopped);
+//! - [`Robot`] for [`LockedController`], which wraps anything that can lend the controller for
+//!   one call ([`ControllerLock`]: on the target every RTIC `Mutex<T = Controller>`, see
+//!   `board::adapters`; in host-sim and the tests `&mut Controller`), so the serial task holds
+//!   the controller's lock for one short operation at a time and never during a calibration
+//!   solve;
+//! - [`SettingsAndRuns`] for [`ParamAndRunStore`] (blocking; with the motors stopped);
 //! - [`Calibrator`] for [`LibraryCalibrator`], which runs [`crate::calibration`].
 
 use core::fmt::{self, Write};
@@ -16,8 +17,8 @@ use super::MAX_RUNS;
 use super::Settings;
 use super::calibrate_commands::Numbered;
 use super::traits::{
-    Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
-    SettingsAndRuns, Solution, SolveError,
+    Calibrator, Culprit, Health, Rejection, Robot, RobotError, RunResidual, SettingsAndRuns,
+    Solution, SolveError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
@@ -25,7 +26,9 @@ use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
-use crate::motion::controller::{Controller, DriveError, Fault, SetError, StartError, Status};
+use crate::motion::controller::{
+    Controller, DriveError, Fault, MotorsRunning, MotorsStopped, SetError, StartError, Status,
+};
 use crate::motion::profile::MotionLimits;
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
@@ -52,111 +55,18 @@ fn fault_error(c: &Controller) -> RobotError {
     RobotError::Fault(c.fault().as_ref().map_or("fault", fault_name))
 }
 
-impl Robot for Controller {
-    fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
-        Controller::start(self, path).map_err(|e| match e {
-            StartError::Busy => RobotError::Busy,
-            StartError::Faulted => fault_error(self),
-            StartError::NotReady => RobotError::Rejected(Rejection::NotReady),
-            StartError::Path(_) => RobotError::Rejected(Rejection::Path),
-        })
-    }
-
-    fn abort(&mut self) {
-        Controller::abort(self);
-    }
-
-    fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError> {
-        Controller::drive(self, v_mps, w_radps).map_err(|e| match e {
-            DriveError::Busy => RobotError::Busy,
-            DriveError::Faulted => fault_error(self),
-            DriveError::NotReady => RobotError::Rejected(Rejection::NotReady),
-            DriveError::NotFinite => RobotError::Rejected(Rejection::NotFinite),
-        })
-    }
-
-    fn take_finished_run(&mut self) -> Option<RunRecord> {
-        Controller::take_finished_run(self)
-    }
-
-    fn set_geometry(&mut self, geometry: Geometry) -> Result<(), RobotError> {
-        Controller::set_geometry(self, geometry).map_err(set_error)
-    }
-
-    fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError> {
-        Controller::set_limits(self, *limits).map_err(set_error)
-    }
-
-    fn health(&mut self) -> Health {
-        Health {
-            missed_periods: self.missed_periods(),
-            pose_lost: self.pose_lost(),
-        }
-    }
-
-    fn status(&mut self) -> RobotStatus {
-        let (activity, fault) = match Controller::status(self) {
-            Status::Idle => (Activity::Idle, None),
-            Status::Running { path, .. } => (Activity::Running(path), None),
-            Status::Driving => (Activity::Driving, None),
-            Status::Checking(kind) => (Activity::Checking(kind), None),
-            Status::Faulted(f) => (Activity::Idle, Some(f)),
-        };
-        RobotStatus { activity, fault }
-    }
-
-    fn pose(&mut self) -> PoseF64 {
-        Controller::pose(self).to_f64()
-    }
-
-    fn totals(&mut self) -> WheelTicks {
-        Controller::totals(self)
-    }
-
-    fn clear_fault(&mut self) {
-        Controller::clear_fault(self);
-    }
-
-    fn reset_odometry(&mut self) -> Result<(), RobotError> {
-        match Controller::status(self) {
-            Status::Idle | Status::Faulted(_) => {
-                Controller::reset_odometry(self);
-                Ok(())
-            }
-            _ => Err(RobotError::Busy),
-        }
-    }
-
-    fn motors_stopped(&mut self) -> bool {
-        Controller::motors_stopped(self)
-    }
-
-    fn set_wiring(&mut self, wiring: Wiring) -> Result<(), RobotError> {
-        Controller::set_wiring(self, wiring).map_err(set_error)
-    }
-
-    fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError> {
-        Controller::start_check(self, kind).map_err(|e| match e {
-            StartError::Busy => RobotError::Busy,
-            StartError::Faulted => fault_error(self),
-            StartError::NotReady => RobotError::Rejected(Rejection::NotReady),
-            StartError::Path(_) => RobotError::Rejected(Rejection::Check),
-        })
-    }
-
-    fn take_check_report(&mut self) -> Option<CheckReport> {
-        Controller::take_check_report(self)
-    }
-
-    fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {
-        Controller::set_tuning(self, *tuning).map_err(set_error)
-    }
-
-    fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError> {
-        Controller::set_rate(self, rate_hz).map_err(set_error)
+/// A refused start of a run or a check as a [`RobotError`]; `not_accepted` says which one the
+/// controller did not accept.
+fn start_error(e: StartError, c: &Controller, not_accepted: Rejection) -> RobotError {
+    match e {
+        StartError::Busy => RobotError::Busy,
+        StartError::Faulted => fault_error(c),
+        StartError::NotReady => RobotError::Rejected(Rejection::NotReady),
+        StartError::Path(_) => RobotError::Rejected(not_accepted),
     }
 }
 
+/// A refused settings change as a [`RobotError`].
 fn set_error(e: SetError) -> RobotError {
     match e {
         SetError::Busy => RobotError::Busy,
@@ -173,7 +83,14 @@ pub trait ControllerLock {
     fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R;
 }
 
-/// A [`Robot`] that locks the controller for each call separately.
+/// The controller itself, for a caller that owns it (host-sim, the tests): nothing to lock.
+impl ControllerLock for &mut Controller {
+    fn with_controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
+        f(self)
+    }
+}
+
+/// The [`Robot`]: the controller behind a [`ControllerLock`], locked for each call separately.
 #[derive(Debug)]
 pub struct LockedController<L>(pub L);
 
@@ -182,63 +99,88 @@ pub struct LockedController<L>(pub L);
 impl<L: ControllerLock> Robot for LockedController<L> {
     #[inline(never)]
     fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::start(c, path))
+        self.0.with_controller(|c| {
+            c.start(path)
+                .map_err(|e| start_error(e, c, Rejection::Path))
+        })
     }
     #[inline(never)]
     fn abort(&mut self) {
-        self.0.with_controller(Robot::abort);
+        self.0.with_controller(Controller::abort);
     }
     #[inline(never)]
     fn drive(&mut self, v_mps: f32, w_radps: f32) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::drive(c, v_mps, w_radps))
+        self.0.with_controller(|c| {
+            c.drive(v_mps, w_radps).map_err(|e| match e {
+                DriveError::Busy => RobotError::Busy,
+                DriveError::Faulted => fault_error(c),
+                DriveError::NotReady => RobotError::Rejected(Rejection::NotReady),
+                DriveError::NotFinite => RobotError::Rejected(Rejection::NotFinite),
+            })
+        })
     }
     #[inline(never)]
     fn take_finished_run(&mut self) -> Option<RunRecord> {
-        self.0.with_controller(Robot::take_finished_run)
+        self.0.with_controller(Controller::take_finished_run)
     }
     #[inline(never)]
     fn set_geometry(&mut self, geometry: Geometry) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::set_geometry(c, geometry))
+        self.0
+            .with_controller(|c| c.set_geometry(geometry).map_err(set_error))
     }
     #[inline(never)]
     fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::set_limits(c, limits))
+        self.0
+            .with_controller(|c| c.set_limits(*limits).map_err(set_error))
     }
     #[inline(never)]
-    fn status(&mut self) -> RobotStatus {
-        self.0.with_controller(Robot::status)
+    fn status(&mut self) -> Status {
+        self.0.with_controller(|c| c.status())
     }
     #[inline(never)]
     fn health(&mut self) -> Health {
-        self.0.with_controller(Robot::health)
+        self.0.with_controller(|c| Health {
+            missed_periods: c.missed_periods(),
+            pose_lost: c.pose_lost(),
+        })
     }
     #[inline(never)]
     fn pose(&mut self) -> PoseF64 {
-        self.0.with_controller(Robot::pose)
+        self.0.with_controller(|c| c.pose().to_f64())
     }
     #[inline(never)]
     fn totals(&mut self) -> WheelTicks {
-        self.0.with_controller(Robot::totals)
+        self.0.with_controller(|c| c.totals())
     }
     #[inline(never)]
     fn clear_fault(&mut self) {
-        self.0.with_controller(Robot::clear_fault);
+        self.0.with_controller(Controller::clear_fault);
     }
     #[inline(never)]
     fn reset_odometry(&mut self) -> Result<(), RobotError> {
-        self.0.with_controller(Robot::reset_odometry)
+        self.0.with_controller(|c| match c.status() {
+            Status::Idle | Status::Faulted(_) => {
+                c.reset_odometry();
+                Ok(())
+            }
+            _ => Err(RobotError::Busy),
+        })
     }
     #[inline(never)]
-    fn motors_stopped(&mut self) -> bool {
-        self.0.with_controller(Robot::motors_stopped)
+    fn motors_stopped(&mut self) -> Result<MotorsStopped, MotorsRunning> {
+        self.0.with_controller(|c| c.motors_stopped())
     }
     #[inline(never)]
     fn set_wiring(&mut self, wiring: Wiring) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::set_wiring(c, wiring))
+        self.0
+            .with_controller(|c| c.set_wiring(wiring).map_err(set_error))
     }
     #[inline(never)]
     fn start_check(&mut self, kind: CheckKind) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::start_check(c, kind))
+        self.0.with_controller(|c| {
+            c.start_check(kind)
+                .map_err(|e| start_error(e, c, Rejection::Check))
+        })
     }
     /// A finished motor identification's fit (soft-float `f64` on the board, tens of thousands
     /// of instructions) runs between two locks, on a copy of its statistics on this task's
@@ -250,7 +192,7 @@ impl<L: ControllerLock> Robot for LockedController<L> {
             .with_controller(|c| match c.finished_identification() {
                 Some(identify) => (None, Some(*identify)),
                 // Nothing to fit: a report (or none) as it is.
-                None => (Robot::take_check_report(c), None),
+                None => (c.take_check_report(), None),
             });
         match finished {
             None => report,
@@ -262,30 +204,32 @@ impl<L: ControllerLock> Robot for LockedController<L> {
     }
     #[inline(never)]
     fn set_tuning(&mut self, tuning: &SpeedTuning) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::set_tuning(c, tuning))
+        self.0
+            .with_controller(|c| c.set_tuning(*tuning).map_err(set_error))
     }
     #[inline(never)]
     fn set_rate(&mut self, rate_hz: u32) -> Result<(), RobotError> {
-        self.0.with_controller(|c| Robot::set_rate(c, rate_hz))
+        self.0
+            .with_controller(|c| c.set_rate(rate_hz).map_err(set_error))
     }
 }
 
 impl<F: MultiwriteNorFlash> SettingsAndRuns for ParamAndRunStore<F> {
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError> {
-        self.save_blocking(settings, motors_stopped)
+    fn usable(&self) -> Result<(), StoreError> {
+        ParamAndRunStore::usable(self)
     }
 
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
-        self.reset_to_defaults_blocking(motors_stopped)
+    fn save(&mut self, settings: &Settings, stopped: MotorsStopped) -> Result<(), StoreError> {
+        self.save_blocking(settings, stopped)
     }
 
     fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        self.save_runs_blocking(runs, ids, motors_stopped)
+        self.save_runs_blocking(runs, ids, stopped)
     }
 
     fn load_runs(

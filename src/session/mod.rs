@@ -68,11 +68,13 @@ pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
 /// struct (its row of [`crate::protocol::PARAMS`] names the field).
 pub type Settings = crate::storage::record::ParamRecord;
+/// What [`Robot::status`] and [`Robot::motors_stopped`] answer: the controller's own types.
+pub use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
 pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Activity, Calibrator, Culprit, Health, Rejection, Robot, RobotError, RobotStatus, RunResidual,
-    SettingsAndRuns, Solution, SolveError,
+    Calibrator, Culprit, Health, Rejection, Robot, RobotError, RunResidual, SettingsAndRuns,
+    Solution, SolveError,
 };
 
 pub use crate::motion::run::MAX_RUNS;
@@ -146,19 +148,19 @@ pub struct Session<C> {
 fn robot_err(out: &mut dyn Write, e: RobotError, robot: &mut dyn Robot) -> fmt::Result {
     match e {
         RobotError::Fault(name) => write_refusal(out, &Refusal::Fault { name }),
-        RobotError::Busy => busy_err(out, robot.status().activity),
+        RobotError::Busy => busy_err(out, robot.status()),
         RobotError::Rejected(why) => write_refusal(out, &Refusal::ControllerRefused { why: &why }),
     }
 }
 
 /// `err 10: <what> is in progress: wait for …`, for a command refused while the robot is busy.
-fn busy_err(out: &mut dyn Write, activity: Activity) -> fmt::Result {
-    let what = match activity {
-        Activity::Running(path) => InProgress::Run(path),
-        Activity::Driving => InProgress::Drive,
-        Activity::Checking(CheckKind::Identify(_)) => InProgress::Identify,
-        Activity::Checking(_) => InProgress::Bringup,
-        Activity::Idle => InProgress::Ending,
+fn busy_err(out: &mut dyn Write, status: Status) -> fmt::Result {
+    let what = match status {
+        Status::Running { path, .. } => InProgress::Run(path),
+        Status::Driving => InProgress::Drive,
+        Status::Checking(CheckKind::Identify(_)) => InProgress::Identify,
+        Status::Checking(_) => InProgress::Bringup,
+        Status::Idle | Status::Faulted(_) => InProgress::Ending,
     };
     write_refusal(out, &Refusal::Busy(what))
 }
@@ -287,10 +289,13 @@ impl<C: Calibrator> Session<C> {
         storage: &mut dyn SettingsAndRuns,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        if !self.runs_dirty || self.runs_store_failed || !robot.motors_stopped() {
+        if !self.runs_dirty || self.runs_store_failed {
             return Ok(());
         }
-        match storage.save_runs(&self.runs, &mut self.run_ids, true) {
+        let Ok(stopped) = robot.motors_stopped() else {
+            return Ok(());
+        };
+        match storage.save_runs(&self.runs, &mut self.run_ids, stopped) {
             Ok(()) => {
                 self.runs_dirty = false;
                 Ok(())
@@ -487,7 +492,7 @@ impl<C: Calibrator> Session<C> {
             Command::Clear => {
                 // The last reset's crash is acknowledged with the fault.
                 let crash = self.last_crash.take();
-                match robot.status().fault {
+                match robot.status().fault() {
                     Some(fault) => {
                         robot.clear_fault();
                         write!(

@@ -7,7 +7,7 @@
 
 use core::fmt::{self, Write};
 
-use super::traits::{Activity, Calibrator, Robot, RobotError, SettingsAndRuns};
+use super::traits::{Calibrator, Robot, RobotError, SettingsAndRuns};
 use super::{Dropped, Session, Settings, robot_err, storable, storage_err};
 use crate::protocol::ParamGroup;
 use crate::protocol::ParamName;
@@ -38,7 +38,7 @@ impl<C: Calibrator> Session<C> {
         robot: &mut dyn Robot,
         out: &mut dyn Write,
     ) -> fmt::Result {
-        if robot.status().activity != Activity::Idle {
+        if robot.status().is_busy() {
             return robot_err(out, RobotError::Busy, robot);
         }
         let (mut new, changed) = match self.settings.with_value(name, value) {
@@ -104,7 +104,8 @@ impl<C: Calibrator> Session<C> {
         write_param_outcome(out, &outcome)
     }
 
-    /// `save`: stores the settings, refused when they do not make a valid record.
+    /// `save`: stores the settings, refused when they do not make a valid record or the motors
+    /// are not confirmed stopped.
     pub(super) fn save(
         &mut self,
         robot: &mut dyn Robot,
@@ -114,8 +115,16 @@ impl<C: Calibrator> Session<C> {
         if let Err(e) = storable(&self.settings) {
             return storage_err(out, e);
         }
+        // A store that can never write says so before the motors are asked about.
+        if let Err(e) = storage.usable() {
+            return storage_err(out, e);
+        }
+        let stopped = match robot.motors_stopped() {
+            Ok(stopped) => stopped,
+            Err(e) => return write_refusal(out, &Refusal::MotorsRunning(e)),
+        };
         // The parameter region is apart from the runs': a save leaves the run region alone.
-        match storage.save(&self.settings, robot.motors_stopped()) {
+        match storage.save(&self.settings, stopped) {
             Ok(()) => {
                 self.unsaved = false;
                 write_param_outcome(out, &ParamOutcome::Saved)
@@ -135,7 +144,7 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         let defaults = Settings::default();
-        if robot.status().activity != Activity::Idle {
+        if robot.status().is_busy() {
             return robot_err(out, RobotError::Busy, robot);
         }
         let calibration = self

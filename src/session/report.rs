@@ -7,9 +7,10 @@ use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
 use core::fmt::{self, Write};
 
-use super::traits::{Activity, Health, RobotStatus, Solution, SolveError};
+use super::traits::{Health, Solution, SolveError};
 use super::{Calibrator, Session, Settings};
 use crate::kinematics::reference::PoseF64;
+use crate::motion::controller::Status;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
 use crate::protocol::token::{
@@ -111,30 +112,30 @@ pub(super) fn write_stream_line(
 
 pub(super) fn write_status<C: Calibrator>(
     out: &mut dyn Write,
-    status: &RobotStatus,
+    status: &Status,
     health: &Health,
     pose: &PoseF64,
     session: &Session<C>,
 ) -> fmt::Result {
     write!(out, "ok state=")?;
-    match status.activity {
-        Activity::Idle => out.write_str("idle")?,
-        Activity::Driving => out.write_str("driving")?,
-        Activity::Checking(CheckKind::Pulses) => out.write_str("bringup-motors")?,
-        Activity::Checking(CheckKind::Push) => out.write_str("bringup-push")?,
-        Activity::Checking(CheckKind::Identify(IdentifyMode::Lifted)) => {
+    match *status {
+        Status::Idle | Status::Faulted(_) => out.write_str("idle")?,
+        Status::Driving => out.write_str("driving")?,
+        Status::Checking(CheckKind::Pulses) => out.write_str("bringup-motors")?,
+        Status::Checking(CheckKind::Push) => out.write_str("bringup-push")?,
+        Status::Checking(CheckKind::Identify(IdentifyMode::Lifted)) => {
             out.write_str("identify-lifted")?
         }
-        Activity::Checking(CheckKind::Identify(IdentifyMode::Floor)) => {
+        Status::Checking(CheckKind::Identify(IdentifyMode::Floor)) => {
             out.write_str("identify-floor")?
         }
-        Activity::Running(path) => {
+        Status::Running { path, .. } => {
             out.write_str("running ")?;
             write_path(out, &path)?;
         }
     }
     let fault = status
-        .fault
+        .fault()
         .as_ref()
         .map_or("none", super::library::fault_name);
     write!(out, " fault={fault} ")?;

@@ -11,7 +11,7 @@ use core::fmt::{self, Write};
 
 use heapless::Vec;
 
-use super::traits::{Activity, Calibrator, Robot, RobotError};
+use super::traits::{Calibrator, Robot, RobotError};
 use super::{ActiveRun, Session, measure, robot_err};
 use crate::motion::run::{Measurement, PathKind};
 use crate::protocol::command::check_measure_range;
@@ -202,7 +202,7 @@ impl<C: Calibrator> Session<C> {
         confirmed: bool,
         robot: &mut dyn Robot,
     ) -> Result<Outcome, RunError> {
-        if self.active.is_some() || robot.status().activity != Activity::Idle {
+        if self.active.is_some() || robot.status().is_busy() {
             return Err(RunError::Robot(RobotError::Busy));
         }
         let runs = self.runs.len();
@@ -260,7 +260,7 @@ impl<C: Calibrator> Session<C> {
         confirmed: bool,
         robot: &mut dyn Robot,
     ) -> Result<Outcome, RunError> {
-        if robot.status().activity != Activity::Idle {
+        if robot.status().is_busy() {
             return Err(Refusal::MeasureWhileDriving.into());
         }
         let stored = self.runs.len();

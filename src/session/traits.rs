@@ -1,8 +1,8 @@
 //! What the session needs from the rest of the system, as small traits.
 //!
-//! The firmware implements [`Robot`] by locking the control task's controller for the duration
-//! of *one* call (never across a calibration solve); host-sim implements it on the simulated
-//! controller directly. [`SettingsAndRuns`] persists [`Settings`] and the runs; [`Calibrator`] runs the
+//! [`Robot`] is implemented once, by [`super::library::LockedController`], which locks the
+//! controller for the duration of *one* call (never across a calibration solve): on the board
+//! an RTIC lock, in host-sim and the tests the controller itself. [`SettingsAndRuns`] persists [`Settings`] and the runs; [`Calibrator`] runs the
 //! calibration methods. All units SI (metres, seconds, radians) unless a name says otherwise.
 
 use core::fmt;
@@ -13,35 +13,12 @@ use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
-use crate::motion::controller::Fault;
+use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
 use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::storage::{RunsLoaded, StoreError, StoredRun};
-
-/// What the robot is doing.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Activity {
-    /// Motors stopped, ready for a command.
-    Idle,
-    /// Driving a path routine.
-    Running(PathKind),
-    /// Following `drive` velocity commands.
-    Driving,
-    /// Running a bring-up check.
-    Checking(CheckKind),
-}
-
-/// A snapshot of the controller's state.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RobotStatus {
-    /// Current activity.
-    pub activity: Activity,
-    /// The latched fault, if any, in full (which wheel, how far off); replies name it by
-    /// [`super::library::fault_name`] (`stall`, `following-error`, …).
-    pub fault: Option<Fault>,
-}
 
 /// What the robot knows about the control loop's health (only what is worth telling).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -58,7 +35,7 @@ pub struct Health {
 pub enum RobotError {
     /// A run or drive is in progress.
     Busy,
-    /// A fault is latched (name as in [`RobotStatus::fault`]).
+    /// A fault is latched (its short name, [`super::library::fault_name`]).
     Fault(&'static str),
     /// The request itself is invalid for the controller (e.g. a limit it cannot honour).
     Rejected(Rejection),
@@ -139,8 +116,9 @@ pub trait Robot {
     /// # Errors
     /// [`RobotError::Busy`] unless idle; [`RobotError::Rejected`] if the controller cannot use them.
     fn set_limits(&mut self, limits: &MotionLimits) -> Result<(), RobotError>;
-    /// Current state.
-    fn status(&mut self) -> RobotStatus;
+    /// Current state, the latched fault in full (which wheel, how far off); replies name a
+    /// fault by [`super::library::fault_name`] (`stall`, `following-error`, …).
+    fn status(&mut self) -> Status;
     /// The control loop's health (a robot without the bookkeeping: all well).
     fn health(&mut self) -> Health {
         Health::default()
@@ -156,8 +134,11 @@ pub trait Robot {
     /// # Errors
     /// [`RobotError::Busy`] unless idle.
     fn reset_odometry(&mut self) -> Result<(), RobotError>;
-    /// Whether both motors are stopped (flash writes are allowed).
-    fn motors_stopped(&mut self) -> bool;
+    /// The proof that both motors are stopped, which flash writes take.
+    ///
+    /// # Errors
+    /// [`MotorsRunning`] (`err 18`) while they are not confirmed stopped.
+    fn motors_stopped(&mut self) -> Result<MotorsStopped, MotorsRunning>;
     /// Uses `wiring` for the motor and encoder signs from now on.
     ///
     /// # Errors
@@ -186,18 +167,20 @@ pub trait Robot {
 
 /// Where the session keeps its settings and its runs across a power cut.
 pub trait SettingsAndRuns {
-    /// Writes `settings`.
+    /// Whether anything can be written at all (the part's flash holds the storage map, its
+    /// layout is valid): asked before the motors, so that a store that can never write says so.
+    ///
+    /// # Errors
+    /// [`StoreError`]: why nothing can be written.
+    fn usable(&self) -> Result<(), StoreError>;
+    /// Writes `settings`, with the motors `stopped`.
     ///
     /// # Errors
     /// [`StoreError`]; the previously stored settings stay intact.
-    fn save(&mut self, settings: &Settings, motors_stopped: bool) -> Result<(), StoreError>;
-    /// Stores the defaults.
-    ///
-    /// # Errors
-    /// [`StoreError`]; the previously stored settings stay intact.
-    fn reset(&mut self, motors_stopped: bool) -> Result<(), StoreError>;
+    fn save(&mut self, settings: &Settings, stopped: MotorsStopped) -> Result<(), StoreError>;
     /// Stores the run store: each run whose id is `None` is written and gets its id, then the
-    /// list of runs with their measurements; runs no longer listed are forgotten. A power cut
+    /// list of runs with their measurements; runs no longer listed are forgotten; the motors are
+    /// `stopped`. A power cut
     /// leaves the previously stored runs or these, never a mix, and never touches the
     /// parameters.
     ///
@@ -207,7 +190,7 @@ pub trait SettingsAndRuns {
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        stopped: MotorsStopped,
     ) -> Result<(), StoreError>;
     /// Restores the stored runs (at boot) into `runs` and where each is stored into `ids`.
     /// Never fails: what cannot be restored is skipped and reported in the result.

@@ -1,7 +1,8 @@
 //! Persistent parameters and the session's runs in NOR flash, in two regions apart.
 //!
 //! Owns the stored parameter record and its flash map; may use [`crate::motion`]
-//! (motion limits), [`crate::kinematics`] (geometry) and [`crate::util`].
+//! (motion limits, the proof that the motors are stopped), [`crate::kinematics`] (geometry) and
+//! [`crate::util`].
 //!
 //! [`ParamAndRunStore`] keeps the [`ParamRecord`] in the **parameter region**, two erase sectors used
 //! A/B ([`params`]: each save appends a copy; the sector holding the newest valid copy is never
@@ -15,8 +16,9 @@
 //! it to the parameter region ([`ParamAndRunStore::load`]).
 //!
 //! Loading never fails: a missing, unreadable, corrupt, unknown-version or invalid record gives
-//! [`ParamRecord::DEFAULT`] plus a [`LoadWarning`] (also logged with `warn!`). Writing refuses
-//! while the motors run, because a flash erase stalls the CPU.
+//! [`ParamRecord::DEFAULT`] plus a [`LoadWarning`] (also logged with `warn!`). Writing takes the
+//! controller's proof that the motors are stopped ([`MotorsStopped`]), because a flash erase
+//! stalls the CPU.
 //!
 //! `sequential-storage` is async-only; the `*_blocking` methods run the same futures to
 //! completion with `embassy_futures::block_on`, for the firmware's `init` and for `host-sim`.
@@ -42,6 +44,7 @@ pub use self::record::{
     AppliedCalibration, FormatError, METHOD_NAME_MAX, MethodName, ParamRecord, RecordError,
 };
 pub use self::runs::{RunFormatError, RunLoadProblem, RunsLoaded, StoredRun};
+use crate::motion::controller::MotorsStopped;
 
 /// Map key under which older firmware stored the parameter record in the (then shared) map
 /// that is now the run region.
@@ -132,8 +135,6 @@ pub enum StoreError {
     /// The run range is not page aligned or shorter than two erase pages, or the parameter
     /// sectors are misaligned, too small or overlap each other or the run range.
     BadRange,
-    /// Refused: the motors are running (a flash erase would stall the control loop).
-    MotorsRunning,
     /// Refused: the record does not validate.
     InvalidRecord(RecordError),
     /// The flash driver failed.
@@ -177,9 +178,6 @@ impl fmt::Display for StoreError {
         match self {
             StoreError::BadRange => f.write_str(
                 "flash error: storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)",
-            ),
-            StoreError::MotorsRunning => f.write_str(
-                "motors not confirmed stopped (running, or the control loop has not run yet), flash not written",
             ),
             StoreError::InvalidRecord(e) => write!(f, "parameters not storable: {e}"),
             StoreError::Flash(e) => write!(f, "flash error: {e}"),
@@ -354,23 +352,16 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         store
     }
 
-    /// Why the store may not use the flash at all, if it may not.
-    fn unusable(&self) -> Result<(), StoreError> {
+    /// Whether the store may use the flash at all.
+    ///
+    /// # Errors
+    /// Why not: [`StoreError::FlashTooSmall`] or [`StoreError::BadRange`].
+    pub fn usable(&self) -> Result<(), StoreError> {
         if let Some(t) = self.too_small {
             return Err(StoreError::FlashTooSmall(t));
         }
         if self.bad_layout {
             return Err(StoreError::BadRange);
-        }
-        Ok(())
-    }
-
-    /// Whether a write may go ahead: the part's flash holds the map and the motors are stopped
-    /// (an erase stalls the bus).
-    fn writable(&self, motors_stopped: bool) -> Result<(), StoreError> {
-        self.unusable()?;
-        if !motors_stopped {
-            return Err(StoreError::MotorsRunning);
         }
         Ok(())
     }
@@ -391,7 +382,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     /// from the run region. A power cut in between leaves it in one place or both; with a
     /// record in the parameter region, a copy left in the run region is removed at boot.
     pub async fn load(&mut self) -> LoadOutcome {
-        if let Err(e) = self.unusable() {
+        if let Err(e) = self.usable() {
             let warning = match e {
                 StoreError::FlashTooSmall(t) => LoadWarning::FlashTooSmall(t),
                 e => LoadWarning::Unreadable(e),
@@ -519,20 +510,19 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         }
     }
 
-    /// Saves `record` (validated first) as the newest copy in the parameter region. Refuses
-    /// while the motors run. Never erases the sector holding the newest valid record, never
+    /// Saves `record` (validated first) as the newest copy in the parameter region, with the
+    /// motors `stopped`. Never erases the sector holding the newest valid record, never
     /// touches the run region. A power cut at any byte leaves the old or the new record.
     ///
     /// # Errors
-    /// [`StoreError::MotorsRunning`] if `motors_stopped` is false, [`StoreError::InvalidRecord`]
-    /// if the record does not validate, otherwise the flash failure (the stored record is then
+    /// [`StoreError::InvalidRecord`] if the record does not validate, otherwise the flash failure (the stored record is then
     /// unchanged).
     pub async fn save(
         &mut self,
         record: &ParamRecord,
-        motors_stopped: bool,
+        _stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        self.writable(motors_stopped)?;
+        self.usable()?;
         record.validate().map_err(StoreError::InvalidRecord)?;
         let len = record
             .encode(&mut self.buf.0[params::HEADER..])
@@ -555,8 +545,8 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     ///
     /// # Errors
     /// As [`Self::save`].
-    pub async fn reset_to_defaults(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
-        self.save(&ParamRecord::DEFAULT, motors_stopped).await
+    pub async fn reset_to_defaults(&mut self, stopped: MotorsStopped) -> Result<(), StoreError> {
+        self.save(&ParamRecord::DEFAULT, stopped).await
     }
 
     /// [`Self::load`], run to completion (busy-polls; for `init` and the host).
@@ -571,17 +561,17 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     pub fn save_blocking(
         &mut self,
         record: &ParamRecord,
-        motors_stopped: bool,
+        stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        embassy_futures::block_on(self.save(record, motors_stopped))
+        embassy_futures::block_on(self.save(record, stopped))
     }
 
     /// [`Self::reset_to_defaults`], run to completion.
     ///
     /// # Errors
     /// As [`Self::save`].
-    pub fn reset_to_defaults_blocking(&mut self, motors_stopped: bool) -> Result<(), StoreError> {
-        embassy_futures::block_on(self.reset_to_defaults(motors_stopped))
+    pub fn reset_to_defaults_blocking(&mut self, stopped: MotorsStopped) -> Result<(), StoreError> {
+        embassy_futures::block_on(self.reset_to_defaults(stopped))
     }
 
     /// How many run saves had to erase the run region to recover from damaged contents (the

@@ -47,6 +47,7 @@ use super::record::{Reader, Writer};
 use super::{ParamAndRunStore, StoreError};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::reference::PoseF64;
+use crate::motion::controller::MotorsStopped;
 use crate::motion::run::{Direction, MAX_KNOTS, MAX_RUNS, Measurement, PathKind, RunRecord};
 
 /// Map key of the run index.
@@ -466,7 +467,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         self.live_run_keys = 0;
         self.runs_wipes = self.wipes;
         let mut loaded = RunsLoaded::default();
-        if self.unusable().is_err() {
+        if self.usable().is_err() {
             // Nothing can have been stored (the boot event already says why).
             return loaded;
         }
@@ -525,7 +526,7 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
 
     /// Stores the session's runs: every run whose id is `None` as a new item (its id is filled
     /// in), then the index with every run's measurement (the commit point), then removes the
-    /// items of runs no longer listed. Refuses while the motors run (a page change erases a
+    /// items of runs no longer listed, with the motors `stopped` (a page change erases a
     /// sector). A power cut at any byte leaves the previously committed runs or these.
     ///
     /// If the run region's contents are proven bad (corrupted beyond `sequential-storage`'s
@@ -534,15 +535,15 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
     /// region is never touched. A flash *driver* error is returned as it is, nothing erased.
     ///
     /// # Errors
-    /// [`StoreError::MotorsRunning`], [`StoreError::Encoding`] if `runs` and `ids` differ in
-    /// length, otherwise the flash or storage failure (the committed runs stay as they were).
+    /// [`StoreError::Encoding`] if `runs` and `ids` differ in length, otherwise the flash or
+    /// storage failure (the committed runs stay as they were).
     pub async fn save_runs(
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        _stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        self.writable(motors_stopped)?;
+        self.usable()?;
         if runs.len() != ids.len() || runs.len() > MAX_RUNS {
             return Err(StoreError::Encoding);
         }
@@ -632,8 +633,8 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
         &mut self,
         runs: &[RunRecord],
         ids: &mut [Option<StoredRun>],
-        motors_stopped: bool,
+        stopped: MotorsStopped,
     ) -> Result<(), StoreError> {
-        embassy_futures::block_on(self.save_runs(runs, ids, motors_stopped))
+        embassy_futures::block_on(self.save_runs(runs, ids, stopped))
     }
 }

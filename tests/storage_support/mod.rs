@@ -3,6 +3,7 @@
 
 use embedded_storage_async::nor_flash::MultiwriteNorFlash;
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::controller::MotorsStopped;
 use odocal::motion::profile::MotionLimits;
 use odocal::storage::ram_flash::RamFlash;
 use odocal::storage::{AppliedCalibration, ParamAndRunStore, ParamRecord, ParamSectors};
@@ -10,6 +11,9 @@ use odocal::storage::{AppliedCalibration, ParamAndRunStore, ParamRecord, ParamSe
 /// Sector size of the STM32F407's sectors 1 and 2 (the parameter region), bytes, and the page
 /// of [`BoardFlash`].
 pub const SECTOR: usize = 16 * 1024;
+
+/// The proof every write takes that the motors are stopped: these tests drive no motors.
+pub const STOPPED: MotorsStopped = MotorsStopped::without_controller();
 
 /// The board's storage: the two 16 KiB parameter sectors, then the 256 KiB run region (paged by
 /// 16 KiB here), byte-programmable (as the HAL drives it); host-sim's `SimFlash`.

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::controller::{Controller, MotorsStopped};
 use odocal::storage::{AppliedCalibration, LoadOutcome, MethodName, ParamRecord};
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
@@ -85,14 +86,16 @@ pub fn run(args: FlashArgs) -> Result<(), Box<dyn std::error::Error>> {
                 runs_used: 0,
                 e_max_m: 0.0,
             });
-            sim.store().save_blocking(&record, true)?;
+            sim.store()
+                .save_blocking(&record, MotorsStopped::without_controller())?;
             sim.write_image(&image)?;
             print_boot("saved; next boot", &sim.boot());
             Ok(())
         }
         FlashAction::Reset { image } => {
             let mut sim = SimParamFlash::open(&image)?;
-            sim.store().reset_to_defaults_blocking(true)?;
+            sim.store()
+                .reset_to_defaults_blocking(MotorsStopped::without_controller())?;
             sim.write_image(&image)?;
             print_boot("reset; next boot", &sim.boot());
             Ok(())
@@ -124,22 +127,27 @@ fn demo(saves: u32) -> Result<(), Box<dyn std::error::Error>> {
     print_boot("boot 1 (erased flash)", &sim.boot());
 
     let record = demo_record(0);
-    sim.store().save_blocking(&record, true)?;
+    sim.store()
+        .save_blocking(&record, MotorsStopped::without_controller())?;
     let out = sim.boot();
     print_boot("boot 2 (after save)", &out);
     if out.record != record {
         return Err("reboot did not load the saved record".into());
     }
 
-    match sim.store().save_blocking(&record, false) {
+    // A save takes the controller's proof that the motors are stopped; a controller that has
+    // not run a control period yet gives none.
+    let controller = Controller::new(record.controller_config())
+        .map_err(|e| format!("controller config: {e}"))?;
+    match controller.motors_stopped() {
         Err(e) => println!("save while the motors run: refused ({e})"),
-        Ok(()) => return Err("a save while the motors run was accepted".into()),
+        Ok(_) => return Err("a controller that never ran confirmed the motors stopped".into()),
     }
 
     {
         let mut store = sim.store();
         for n in 1..=saves {
-            store.save_blocking(&demo_record(n), true)?;
+            store.save_blocking(&demo_record(n), MotorsStopped::without_controller())?;
         }
     }
     let out = sim.boot();
@@ -158,7 +166,8 @@ fn demo(saves: u32) -> Result<(), Box<dyn std::error::Error>> {
         sim.chip().corrupt_byte(i, x as u8);
     }
     print_boot("boot 4 (flash overwritten with noise)", &sim.boot());
-    sim.store().save_blocking(&record, true)?;
+    sim.store()
+        .save_blocking(&record, MotorsStopped::without_controller())?;
     print_boot("boot 5 (after a save over the noise)", &sim.boot());
     Ok(())
 }

@@ -27,7 +27,7 @@ use odocal::motion::controller::{Controller, Status, StepOutput};
 use odocal::protocol::line::LineEvent;
 use odocal::protocol::rx::{InputItem, Received, RxRead};
 use odocal::protocol::{FinalLine, LineAssembler};
-use odocal::session::library::LibraryCalibrator;
+use odocal::session::library::{LibraryCalibrator, LockedController};
 use odocal::session::{Session, write_boot_event};
 use odocal::storage::ParamAndRunStore;
 
@@ -197,7 +197,7 @@ impl<'f> Board<'f> {
                 &self.handoff,
                 &mut self.session,
                 &mut self.input,
-                &mut self.controller,
+                &mut LockedController(&mut self.controller),
                 &mut self.store,
                 out,
             );
@@ -224,7 +224,12 @@ impl<'f> Board<'f> {
     /// The button: a short press (next planned run, or clear a fault) or a long one (stop).
     pub fn press_button(&mut self, long: bool, out: &mut String) {
         let press = if long { Press::Long } else { Press::Short };
-        let _ = console::press(&mut self.session, press, &mut self.controller, out);
+        let _ = console::press(
+            &mut self.session,
+            press,
+            &mut LockedController(&mut self.controller),
+            out,
+        );
         self.note_run_start();
     }
 
@@ -289,7 +294,7 @@ impl<'f> Board<'f> {
             &self.handoff,
             &mut self.session,
             self.now_us,
-            &mut self.controller,
+            &mut LockedController(&mut self.controller),
             &mut self.store,
             out,
         );
@@ -306,7 +311,7 @@ impl<'f> Board<'f> {
         !matches!(
             status,
             Status::Running { .. } | Status::Driving | Status::Checking(_)
-        ) && self.controller.motors_stopped()
+        ) && self.controller.motors_stopped().is_ok()
     }
 
     /// Steps until [`Board::at_rest`] or `max_periods`; returns the periods stepped.

@@ -17,11 +17,13 @@
 //!
 //! Parts: `config` (what the controller is built from, validated once, and the settings that
 //! change while idle), `mode` (the idle / run / drive state machine and its commands),
-//! `fault` (stall detection and the latched faults).
+//! `fault` (stall detection and the latched faults), `stopped` (the proof that the motors are
+//! stopped, which every flash write takes).
 
 mod config;
 mod fault;
 mod mode;
+mod stopped;
 
 pub use config::{
     ConfigError, ControllerConfig, DEFAULT_RATE_HZ, FollowingConfig, RATE_RULE, RATES_HZ, SetError,
@@ -31,6 +33,7 @@ pub use fault::Fault;
 use fault::FollowingState;
 use mode::{ActiveCheck, ActiveRun, DriveState};
 pub use mode::{ButtonAction, DriveError, StartError};
+pub use stopped::{MotorsRunning, MotorsStopped};
 
 use crate::kinematics::encoder::{Encoder, EncoderGlitch, WheelTicks};
 use crate::kinematics::geometry::Geometry;
@@ -94,6 +97,21 @@ pub enum Status {
     Checking(CheckKind),
     /// A fault is latched; motors stopped.
     Faulted(Fault),
+}
+
+impl Status {
+    /// Whether a run, a drive or a check is in progress (neither idle nor faulted).
+    pub fn is_busy(&self) -> bool {
+        !matches!(self, Status::Idle | Status::Faulted(_))
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        match self {
+            Status::Faulted(f) => Some(*f),
+            _ => None,
+        }
+    }
 }
 
 /// Routine tracking information for one step (for diagnostics and tests).
@@ -470,11 +488,18 @@ impl Controller {
             .reset(&mut self.odo_state, self.totals, Pose::default());
     }
 
-    /// True when no motion is commanded and neither wheel has moved more than 1 mm for 0.1 s
-    /// (below 10 mm/s; encoder jitter of a few counts does not count): safe for flash erases
-    /// that stall the CPU.
-    pub fn motors_stopped(&self) -> bool {
-        self.is_idle() && self.still_periods >= self.config.rate_hz / STILL_SECONDS_INV
+    /// The motors are stopped when no motion is commanded and neither wheel has moved more than
+    /// 1 mm for 0.1 s (below 10 mm/s; encoder jitter of a few counts does not count): then the
+    /// proof that flash erases, which stall the CPU, may go ahead.
+    ///
+    /// # Errors
+    /// [`MotorsRunning`] while anything moves or may move, and before the first control period.
+    pub fn motors_stopped(&self) -> Result<MotorsStopped, MotorsRunning> {
+        if self.is_idle() && self.still_periods >= self.config.rate_hz / STILL_SECONDS_INV {
+            Ok(MotorsStopped::confirmed())
+        } else {
+            Err(MotorsRunning)
+        }
     }
 
     /// The latched fault.
