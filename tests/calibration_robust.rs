@@ -538,15 +538,12 @@ fn records(runs: &[Run]) -> Vec<RunRecord> {
         .collect()
 }
 
-#[test]
-fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
-    // 3 + 3 squares of 2 m on the robot of the unit slip that went unnoticed (E_d = 0.995,
-    // E_b = 1.010), measured to 1 mm and 0.2°. Run 4's end was read in centimetres and typed
-    // with `mm`: its x and y are a tenth of the truth, which lies well inside the plausibility
-    // bound, so nothing refused it at `measure`.
+/// 3 + 3 squares of 2 m, CW and CCW alternating, on the robot of the unit slip that went
+/// unnoticed (E_d = 0.995, E_b = 1.010), measured to 1 mm and 0.2° (noise seed `seed`).
+fn six_squares(seed: u64) -> Vec<Run> {
     let truth = Robot::paper(0.995, 1.010, 1.0);
-    let mut rng = Rng(42);
-    let mut all: Vec<Run> = (0..6)
+    let mut rng = Rng(seed);
+    (0..6)
         .map(|i| {
             let d = if i % 2 == 0 {
                 Direction::Cw
@@ -555,7 +552,16 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
             };
             Run::square(&truth, d, 0.0, 1e-3, 0.2f64.to_radians(), &mut rng)
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
+    // 3 + 3 squares of 2 m on the robot of the unit slip that went unnoticed (E_d = 0.995,
+    // E_b = 1.010), measured to 1 mm and 0.2°. Run 4's end was read in centimetres and typed
+    // with `mm`: its x and y are a tenth of the truth, which lies well inside the plausibility
+    // bound, so nothing refused it at `measure`.
+    let mut all = six_squares(42);
     let wrong = 3;
     all[wrong].measured.x_m *= 0.1;
     all[wrong].measured.y_m *= 0.1;
@@ -623,18 +629,7 @@ fn the_track_advice_leaves_a_flagged_run_out() {
     // 3 + 3 squares of 2 m (E_d = 0.995, E_b = 1.010), measured to 1 mm and 0.2°; run 4's
     // x was misread by 250 mm (a gross error). The robust fit flags run 4; the advice is the one
     // the five other runs give alone, and says that run 4 was left out.
-    let truth = Robot::paper(0.995, 1.010, 1.0);
-    let mut rng = Rng(7);
-    let mut all: Vec<Run> = (0..6)
-        .map(|i| {
-            let d = if i % 2 == 0 {
-                Direction::Cw
-            } else {
-                Direction::Ccw
-            };
-            Run::square(&truth, d, 0.0, 1e-3, 0.2f64.to_radians(), &mut rng)
-        })
-        .collect();
+    let mut all = six_squares(7);
     all[3].measured.x_m += 0.25;
     let stored = records(&all);
     let with = advice_lines(&mut LibraryCalibrator::default(), &stored, &[]);
