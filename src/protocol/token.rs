@@ -129,10 +129,10 @@ pub fn write_run_started(out: &mut dyn Write, run: usize) -> fmt::Result {
 
 /// The run number of an `ok run <n> started: …` text.
 pub fn parse_run_started(text: &str) -> Option<usize> {
-    let (number, after) = text
-        .strip_prefix("ok ")?
-        .strip_prefix(RUN)?
-        .split_once(' ')?;
+    let super::reply::FinalLine::Ok(ok) = super::reply::FinalLine::parse(text)? else {
+        return None;
+    };
+    let (number, after) = ok.strip_prefix(RUN)?.split_once(' ')?;
     after.starts_with("started: ").then_some(())?;
     number.parse().ok()
 }

@@ -18,10 +18,14 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
+use odocal::calibration::Method;
+use odocal::protocol::reply;
+use odocal::protocol::token::{self, TableRow};
+
 use crate::commands::montecarlo;
 use crate::experiments::montecarlo::MonteCarloArgs;
 use crate::experiments::paper::Format;
-use crate::sim::board::{Board, measure_line};
+use crate::sim::board::{Board, accepted, measure_line};
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::sim_config;
 
@@ -89,18 +93,20 @@ fn session(args: &BenchArgs) -> Result<SessionTiming, String> {
         &mut log,
     )?;
     timing.commands += t.elapsed();
-    let expect = |reply: &str, prefix: &str| -> Result<(), String> {
-        if reply.starts_with(prefix) {
+    let expect = |reply: &str, command: &str| -> Result<(), String> {
+        if accepted(reply) {
             Ok(())
         } else {
-            Err(format!("expected `{prefix}…`, got `{reply}`"))
+            Err(format!("`{command}` refused: `{reply}`"))
         }
     };
     for run in 1..=10 {
         let t = Instant::now();
         let reply = board.send("next");
         timing.commands += t.elapsed();
-        expect(&reply, &format!("ok run {run} started"))?;
+        if token::parse_run_started(reply.trim_end()) != Some(run) {
+            return Err(format!("`next` did not start run {run}: `{reply}`"));
+        }
         let t = Instant::now();
         let max = MAX_RUN_SECONDS * u64::from(args.rate);
         let periods = board.run_until_rest(max, &mut log);
@@ -113,18 +119,24 @@ fn session(args: &BenchArgs) -> Result<SessionTiming, String> {
         let t = Instant::now();
         let reply = board.send(&line);
         timing.commands += t.elapsed();
-        expect(&reply, &format!("ok run {run}"))?;
+        expect(&reply, &line)?;
     }
     let t = Instant::now();
     let table = board.send("calibrate");
     let applied = board.send("apply exact");
     let saved = board.send("save");
     timing.commands += t.elapsed();
-    if !table.contains("ok 6 solved") {
-        return Err(format!("calibrate: {table}"));
+    let solved = table
+        .lines()
+        .filter_map(reply::data)
+        .filter_map(TableRow::parse)
+        .filter(|r| matches!(r, TableRow::Solved { method, .. } if Method::parse(method).is_some()))
+        .count();
+    if !accepted(&table) || solved != Method::ALL.len() {
+        return Err(format!("calibrate: {solved} methods solved: {table}"));
     }
-    expect(&applied, "ok applied exact")?;
-    expect(&saved, "ok saved")?;
+    expect(&applied, "apply exact")?;
+    expect(&saved, "save")?;
     timing.cpu = thread_cpu_time()
         .zip(cpu0)
         .map(|(b, a)| b.saturating_sub(a));

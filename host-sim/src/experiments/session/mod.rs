@@ -37,6 +37,7 @@ use odocal::calibration::Method;
 use odocal::calibration::track::{TrackAdviceInput, advise};
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, PathKind};
+use odocal::protocol::ErrorCode;
 use rayon::prelude::*;
 
 use crate::experiments::montecarlo::Rng;
@@ -327,7 +328,9 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     // confirmation an operator would give after looking at it: the log shows both replies.
     let apply = format!("apply {}", method.as_str());
     let reply = match send(&mut board, &apply, &mut log) {
-        Err(e) if e.contains("err 25:") => send(&mut board, &format!("{apply} yes"), &mut log)?,
+        Err(e) if serial::refused_with(&e, ErrorCode::NotConfirmed) => {
+            send(&mut board, &format!("{apply} yes"), &mut log)?
+        }
         other => other?,
     };
     let applied = match (

@@ -14,6 +14,7 @@ use crate::experiments::square::{drive_path_tuned, e_max_and_scatter};
 use crate::sim::board::Board;
 use crate::sim::board::accepted;
 use crate::sim::robot::SimConfig;
+use odocal::protocol::{ErrorCode, FinalLine};
 
 use super::{CalibrationRow, RunTrace, SessionArgs, Verification};
 
@@ -28,9 +29,20 @@ pub(super) fn send(board: &mut Board, line: &str, log: &mut String) -> Result<St
     if accepted(&reply) {
         Ok(reply)
     } else {
-        Err(format!("`{line}` was refused: {last}"))
+        Err(format!("`{line}{REFUSED}{last}"))
     }
 }
+
+/// Whether `send`'s error is the board's refusal with `code`.
+pub(super) fn refused_with(error: &str, code: ErrorCode) -> bool {
+    error
+        .rsplit_once(REFUSED)
+        .and_then(|(_, last)| FinalLine::parse(last))
+        .is_some_and(|l| l.is_err(code))
+}
+
+/// Between the command and the board's final line in `send`'s error.
+const REFUSED: &str = "` was refused: ";
 
 /// A number following `key` (e.g. `dx=`) in `text`.
 pub fn field(text: &str, key: &str) -> Option<f64> {
