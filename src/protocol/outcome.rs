@@ -261,3 +261,21 @@ pub fn write_param_outcome(out: &mut dyn Write, outcome: &ParamOutcome<'_>) -> f
     }
     out.write_str(EOL)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::token::is_not_saved;
+
+    /// The not-saved token as the board writes it: after `reset-params` (as after `set` and
+    /// `apply`), never after `save`.
+    #[test]
+    fn not_saved_token_as_the_board_writes_it() {
+        let mut reset = String::new();
+        write_param_outcome(&mut reset, &ParamOutcome::Reset).unwrap();
+        assert!(is_not_saved(&reset), "{reset}");
+        let mut saved = String::new();
+        write_param_outcome(&mut saved, &ParamOutcome::Saved).unwrap();
+        assert!(!is_not_saved(&saved), "{saved}");
+    }
+}

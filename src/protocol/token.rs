@@ -368,14 +368,6 @@ mod tests {
         assert!(is_not_saved(&set));
         assert!(is_not_saved(&format!("{set}\r\n")));
         assert!(!is_not_saved("ok saved"));
-        // As the board writes it (`reset-params`, `set`, `apply`), and not after `save`.
-        use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
-        let mut reset = String::new();
-        write_param_outcome(&mut reset, &ParamOutcome::Reset).unwrap();
-        assert!(is_not_saved(&reset), "{reset}");
-        let mut saved = String::new();
-        write_param_outcome(&mut saved, &ParamOutcome::Saved).unwrap();
-        assert!(!is_not_saved(&saved), "{saved}");
         assert!(!is_not_saved(&format!(
             "ok d_right = 0.150000000 m{UNCHANGED}"
         )));

@@ -11,10 +11,9 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use super::AppliedCalibration;
-use super::traits::{Calibrator, Culprit, Robot, RobotError, RunResidual};
+use super::traits::{Calibrator, Culprit, Numbered, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
-use crate::motion::run::RunRecord;
 use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
 use crate::storage::record::METHOD_NAME_MAX;
@@ -135,26 +134,6 @@ impl<C: Calibrator> Session<C> {
             factors: (sol.e_d, sol.e_b, sol.e_s),
         };
         write_param_outcome(out, &outcome)
-    }
-}
-
-/// Stored runs with the numbers they keep for the session (`numbers` empty: numbered by
-/// position, 1, 2, …, as a host numbers the runs it kept).
-#[derive(Clone, Copy, Debug)]
-pub struct Numbered<'a> {
-    /// The runs, in store order.
-    pub runs: &'a [RunRecord],
-    /// Their numbers, in the same order.
-    pub numbers: &'a [u16],
-}
-
-impl Numbered<'_> {
-    /// The number of the run at 1-based store `position`.
-    pub fn number(&self, position: usize) -> usize {
-        position
-            .checked_sub(1)
-            .and_then(|i| self.numbers.get(i))
-            .map_or(position, |&n| usize::from(n))
     }
 }
 

@@ -15,10 +15,9 @@ use heapless::Vec;
 
 use super::MAX_RUNS;
 use super::Settings;
-use super::calibrate_commands::Numbered;
 use super::traits::{
-    Calibrator, Culprit, Health, Rejection, Robot, RobotError, RunResidual, SettingsAndRuns,
-    Solution, SolveError,
+    Calibrator, Culprit, Health, Numbered, Rejection, Robot, RobotError, RunResidual,
+    SettingsAndRuns, Solution, SolveError,
 };
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};

@@ -61,7 +61,7 @@ use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
 pub use crate::storage::record::AppliedCalibration;
 use crate::util::text::keyword_eq;
-pub use calibrate_commands::{Numbered, write_calibration};
+pub use calibrate_commands::write_calibration;
 pub use events::{ControlTimerStopped, write_boot_event, write_fault_event, write_runs_restored};
 pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 
@@ -73,8 +73,8 @@ pub use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
 pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Calibrator, Culprit, Health, Rejection, Robot, RobotError, RunResidual, SettingsAndRuns,
-    Solution, SolveError,
+    Calibrator, Culprit, Health, Numbered, Rejection, Robot, RobotError, RunResidual,
+    SettingsAndRuns, Solution, SolveError,
 };
 
 pub use crate::motion::run::MAX_RUNS;

@@ -7,7 +7,7 @@
 
 use core::fmt;
 
-use super::{Numbered, Settings};
+use super::Settings;
 use crate::calibration::CalibrationError;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
@@ -19,6 +19,26 @@ use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::storage::{RunsLoaded, StoreError, StoredRun};
+
+/// Stored runs with the numbers they keep for the session (`numbers` empty: numbered by
+/// position, 1, 2, …, as a host numbers the runs it kept).
+#[derive(Clone, Copy, Debug)]
+pub struct Numbered<'a> {
+    /// The runs, in store order.
+    pub runs: &'a [RunRecord],
+    /// Their numbers, in the same order.
+    pub numbers: &'a [u16],
+}
+
+impl Numbered<'_> {
+    /// The number of the run at 1-based store `position`.
+    pub fn number(&self, position: usize) -> usize {
+        position
+            .checked_sub(1)
+            .and_then(|i| self.numbers.get(i))
+            .map_or(position, |&n| usize::from(n))
+    }
+}
 
 /// What the robot knows about the control loop's health (only what is worth telling).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
