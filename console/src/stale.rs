@@ -4,7 +4,7 @@
 //! longer holds.
 
 use odocal::protocol::reply::{self, FinalLine};
-use odocal::protocol::{ParamName, token};
+use odocal::protocol::{Command, ParamGroup, token};
 
 /// A command after the last `params` reply that changed the board's geometry.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -19,20 +19,9 @@ pub struct Stale {
 
 /// Whether `command` (as typed, without a prompt) may change the geometry `params` reports.
 fn changes_geometry(command: &str) -> bool {
-    let mut w = command.split_whitespace();
-    match w.next() {
-        Some("reset-params") => true,
-        Some("apply") => w.next().is_some(),
-        Some("set") => w.next().is_some_and(|name| {
-            [
-                ParamName::DiameterRight,
-                ParamName::DiameterLeft,
-                ParamName::Wheelbase,
-                ParamName::CountsPerRev,
-            ]
-            .iter()
-            .any(|p| p.as_str() == name)
-        }),
+    match Command::parse(command) {
+        Ok(Command::ResetParams { .. } | Command::Apply { .. }) => true,
+        Ok(Command::Set { name, .. }) => name.spec().group == ParamGroup::Geometry,
         _ => false,
     }
 }

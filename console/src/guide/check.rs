@@ -92,15 +92,7 @@ impl Guide {
         };
         let after = self.slots[slot].record.as_ref().and_then(end_error);
         // Not a calibration run: off the board's store and out of the session's runs.
-        if let Some(n) = self.board_number(slot) {
-            let r = self.cmd(&format!("drop {n}"))?;
-            if !r.ok() {
-                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
-            }
-            self.board.retain(|&(_, s)| s != slot);
-        }
-        self.slots[slot].record = None;
-        self.link.log.entry("drop", json!({ "slot": slot }), true);
+        self.drop_slot(slot, false)?;
         if let Some(after) = after {
             self.link.log.entry(
                 "check",

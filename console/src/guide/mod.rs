@@ -19,6 +19,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{PathKind, RunRecord};
+use odocal::protocol::command::PATH_RANGE_M;
 use odocal::protocol::token::{self, EventTag, LinesDropped};
 use odocal::protocol::unit::{AngleUnit, LengthUnit, parse_length};
 use odocal::protocol::{ErrorCode, ParamName};
@@ -746,7 +747,7 @@ impl Guide {
                 continue;
             }
             match length(&a) {
-                Ok(v) if (0.1..=10.0).contains(&v) => {
+                Ok(v) if (PATH_RANGE_M.0..=PATH_RANGE_M.1).contains(&v) => {
                     let (cw, ccw) = self.counts();
                     if cw + ccw > 0 && (v - self.side_m).abs() > 1e-9 * self.side_m {
                         self.ui.say(&format!(
@@ -809,7 +810,6 @@ impl Guide {
         Ok(())
     }
 
-    /// Fetches the record of board run `n` (all pages).
     /// The numbers of the runs the board holds, in its store order (from `runs`).
     fn board_numbers(&mut self) -> Result<Vec<usize>, Stop> {
         let r = self.cmd("runs")?;
@@ -832,6 +832,30 @@ impl Guide {
             .map(|&(n, _)| n)
     }
 
+    /// Drops slot `slot`'s run: from the board when it holds it (its reply shown when `say`),
+    /// and from the session.
+    pub(super) fn drop_slot(&mut self, slot: usize, say: bool) -> Result<(), Stop> {
+        if let Some(n) = self.board_number(slot) {
+            let r = self.cmd(&format!("drop {n}"))?;
+            if say {
+                self.ui.say(&format!("  {}", r.last));
+            }
+            if !r.ok() {
+                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
+            }
+            self.board.retain(|&(_, s)| s != slot);
+        }
+        self.forget_slot(slot);
+        Ok(())
+    }
+
+    /// Takes slot `slot`'s run out of the session (not from the board), logged.
+    pub(super) fn forget_slot(&mut self, slot: usize) {
+        self.slots[slot].record = None;
+        self.link.log.entry("drop", json!({ "slot": slot }), true);
+    }
+
+    /// Fetches the record of board run `n` (all pages).
     fn fetch_record(&mut self, n: usize) -> Result<(RunRecord, Vec<String>), Stop> {
         let mut lines = Vec::new();
         let mut reader = odocal::protocol::record::RecordReader::new();

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use odocal::calibration::Method;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::protocol::token::{self, TableRow};
 use odocal::protocol::{ErrorCode, FinalLine};
@@ -173,16 +174,13 @@ impl Guide {
                             Some(PathKind::Square { direction, .. }) => Some(direction),
                             _ => None,
                         };
+                        // Run `n` is the board's own when it holds them all (slot from its
+                        // number); otherwise the table's, computed on the PC.
                         if on_board {
-                            let r = self.cmd(&format!("drop {n}"))?;
-                            self.ui.say(&format!("  {}", r.last));
-                            if !r.ok() {
-                                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
-                            }
-                            self.board.retain(|&(_, s)| s != slot);
+                            self.drop_slot(slot, true)?;
+                        } else {
+                            self.forget_slot(slot);
                         }
-                        self.slots[slot].record = None;
-                        self.link.log.entry("drop", json!({ "slot": slot }), true);
                         if a.starts_with('d') {
                             // Not driven again: one run less in its direction.
                             match direction {
@@ -217,24 +215,18 @@ impl Guide {
     /// the choice (a run measured again, dropped or driven again, another method, or nothing
     /// applied); returns whether the runs changed (`calibrate` again).
     pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<bool, Stop> {
-        let solved: Vec<(String, f64)> = table
-            .iter()
-            .filter_map(|l| {
-                let w: Vec<&str> = l.split_whitespace().collect();
-                let m = *w.first()?;
-                if !LibraryCalibrator::default().methods().contains(&m) || w.len() < 10 {
-                    return None;
-                }
-                Some((m.to_string(), w[7].parse().unwrap_or(f64::INFINITY)))
-            })
-            .collect();
+        let solved = solved_rows(table);
         // The recommended method: exact (no small-angle approximation, robust), else the
         // smallest predicted E_max.
         let recommended = solved
             .iter()
-            .find(|(m, _)| m == "exact")
-            .or_else(|| solved.iter().min_by(|a, b| a.1.total_cmp(&b.1)))
-            .map(|(m, _)| m.clone())
+            .find(|r| r.method == Method::Exact.as_str())
+            .or_else(|| {
+                solved
+                    .iter()
+                    .min_by(|a, b| a.e_max_mm.total_cmp(&b.e_max_mm))
+            })
+            .map(|r| r.method.clone())
             .ok_or_else(|| Stop::Failed("no method solved".into()))?;
         'choice: loop {
             let method = loop {
@@ -251,10 +243,10 @@ impl Guide {
                     }
                     return Ok(false);
                 }
-                if let Some((m, _)) = solved.iter().find(|(m, _)| m.eq_ignore_ascii_case(&a)) {
-                    break m.clone();
+                if let Some(r) = solved.iter().find(|r| r.method.eq_ignore_ascii_case(&a)) {
+                    break r.method.as_str();
                 }
-                let names: Vec<&str> = solved.iter().map(|(m, _)| m.as_str()).collect();
+                let names: Vec<&str> = solved.iter().map(|r| r.method.as_str()).collect();
                 self.ui
                     .say(&format!("  one of {}, or none", names.join(", ")));
             };
@@ -266,68 +258,66 @@ impl Guide {
                     self.board.len(),
                     self.live().len()
                 ));
-                let anyway = match self
+                let anyway = self
                     .ui
-                    .confirm("Apply the board's result from its runs anyway", false)
-                {
-                    Err(AskError::Back) => continue 'choice,
-                    r => r?,
-                };
-                if !anyway {
-                    match self.after_decline(table)? {
-                        Declined::Again => continue 'choice,
-                        Declined::Changed => return Ok(true),
-                        Declined::Skip => return Ok(false),
-                    }
+                    .confirm("Apply the board's result from its runs anyway", false);
+                match self.go_on(anyway, table)? {
+                    Proceed::Go => {}
+                    Proceed::Choice => continue 'choice,
+                    Proceed::Return(changed) => return Ok(changed),
                 }
             }
-            let row = table
+            let row = solved
                 .iter()
-                .find(|l| l.split_whitespace().next() == Some(method.as_str()))
-                .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>())
-                .filter(|w| w.len() == 3)
-                .map(|w| format!(" (E_d={} E_b={})", w[1], w[2]))
+                .find(|r| r.method == method)
+                .map(|r| format!(" (E_d={} E_b={})", r.e_d, r.e_b))
                 .unwrap_or_default();
-            let apply = match self
+            let apply = self
                 .ui
-                .confirm_explicit(&format!("Apply {method}{row} to the board"))
-            {
-                Err(AskError::Back) => continue 'choice,
-                r => r?,
-            };
-            if !apply {
-                match self.after_decline(table)? {
-                    Declined::Again => continue 'choice,
-                    Declined::Changed => return Ok(true),
-                    Declined::Skip => return Ok(false),
-                }
+                .confirm_explicit(&format!("Apply {method}{row} to the board"));
+            match self.go_on(apply, table)? {
+                Proceed::Go => {}
+                Proceed::Choice => continue 'choice,
+                Proceed::Return(changed) => return Ok(changed),
             }
             let mut applied = self.cmd(&format!("apply {method}"))?;
             if applied.is_err(ErrorCode::NotConfirmed) {
                 // A run is flagged (the board's own check): applied only on a second yes.
                 self.ui.say(&format!("  {}", applied.last));
-                let anyway = match self.ui.confirm_explicit(&format!(
+                let anyway = self.ui.confirm_explicit(&format!(
                     "Apply {method} anyway, with the flagged run in it"
-                )) {
-                    Err(AskError::Back) => continue 'choice,
-                    r => r?,
-                };
-                if !anyway {
-                    match self.after_decline(table)? {
-                        Declined::Again => continue 'choice,
-                        Declined::Changed => return Ok(true),
-                        Declined::Skip => return Ok(false),
-                    }
+                ));
+                match self.go_on(anyway, table)? {
+                    Proceed::Go => {}
+                    Proceed::Choice => continue 'choice,
+                    Proceed::Return(changed) => return Ok(changed),
                 }
                 applied = self.cmd(&format!("apply {method} yes"))?;
             }
-            match self.save_and_verify(method, applied) {
+            match self.save_and_verify(method.to_string(), applied) {
                 // Back from the save question: the method question (the calibration stays
                 // applied, and offered for save).
                 Err(Stop::Back) => continue 'choice,
                 r => return r.map(|()| false),
             }
         }
+    }
+
+    /// Where a yes/no of the method choice leads: on with a yes; to the method question for
+    /// `back`; after a no, wherever [`Self::after_decline`] leads.
+    fn go_on(&mut self, answer: Result<bool, AskError>, table: &[String]) -> Result<Proceed, Stop> {
+        let yes = match answer {
+            Err(AskError::Back) => return Ok(Proceed::Choice),
+            r => r?,
+        };
+        if yes {
+            return Ok(Proceed::Go);
+        }
+        Ok(match self.after_decline(table)? {
+            Declined::Again => Proceed::Choice,
+            Declined::Changed => Proceed::Return(true),
+            Declined::Skip => Proceed::Return(false),
+        })
     }
 
     /// After an apply was declined: measure a run again, drop it, drive it again, pick another
@@ -378,10 +368,9 @@ impl Guide {
                 self.ui.say("  a run number as the table lists it");
                 continue;
             };
-            if !table
-                .iter()
-                .any(|l| l.trim_start().starts_with(&format!("run {n} ")))
-                && on_board
+            if !table.iter().any(
+                |l| matches!(TableRow::parse(l), Some(TableRow::Residual { run, .. }) if run == n),
+            ) && on_board
             {
                 self.ui.say(&format!("  the table lists no run {n}"));
             }
@@ -568,6 +557,49 @@ impl Guide {
 }
 
 /// What the operator chose after declining an apply.
+/// Where the method choice goes after a yes/no ([`Guide::go_on`]).
+enum Proceed {
+    /// Yes: on with the apply.
+    Go,
+    /// Back to the method question.
+    Choice,
+    /// Leave the choice: whether the runs changed.
+    Return(bool),
+}
+
+/// A solved row of the `calibrate` table, as the method choice needs it.
+struct SolvedRow {
+    /// The method's name.
+    method: String,
+    /// Its E_d and E_b columns as the board printed them.
+    e_d: String,
+    e_b: String,
+    /// Its predicted E_max, mm (infinite when the board printed none).
+    e_max_mm: f64,
+}
+
+/// The methods a `calibrate` table solved, read by the protocol's table grammar.
+fn solved_rows(table: &[String]) -> Vec<SolvedRow> {
+    table
+        .iter()
+        .filter_map(|l| match TableRow::parse(l)? {
+            TableRow::Solved {
+                method, columns, ..
+            } if Method::parse(method).is_some() => {
+                // E_d E_b E_s D_R_mm D_L_mm b_mm E_max_mm sd_E_d sd_E_b
+                let c: Vec<&str> = columns.split_whitespace().collect();
+                (c.len() >= 9).then(|| SolvedRow {
+                    method: method.to_string(),
+                    e_d: c[0].to_string(),
+                    e_b: c[1].to_string(),
+                    e_max_mm: c[6].parse().unwrap_or(f64::INFINITY),
+                })
+            }
+            _ => None,
+        })
+        .collect()
+}
+
 enum Declined {
     /// Ask for the method again.
     Again,

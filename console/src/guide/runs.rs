@@ -552,16 +552,7 @@ impl Guide {
             self.ui.say("  there is no run to drop yet");
             return Ok(());
         };
-        if let Some(n) = self.board_number(slot) {
-            let r = self.cmd(&format!("drop {n}"))?;
-            self.ui.say(&format!("  {}", r.last));
-            if !r.ok() {
-                return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
-            }
-            self.board.retain(|&(_, s)| s != slot);
-        }
-        self.slots[slot].record = None;
-        self.link.log.entry("drop", json!({ "slot": slot }), true);
+        self.drop_slot(slot, true)?;
         self.ui
             .say("  the previous run is dropped: it is driven again");
         Ok(())
