@@ -51,6 +51,9 @@ impl FollowingConfig {
     };
 }
 
+/// The velocity deadman by default, ms: the motors stop when no `drive` came for this long.
+pub const DEFAULT_DEADMAN_MS: u32 = 500;
+
 /// Everything the controller needs; validated once by [`Controller::new`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ControllerConfig {
@@ -177,7 +180,7 @@ impl ControllerConfig {
             },
             following: FollowingConfig::DEFAULT,
             wiring: Wiring::STANDARD,
-            deadman_ms: 500,
+            deadman_ms: DEFAULT_DEADMAN_MS,
             stop_mode: StopMode::Brake,
             integration: Integration::ExactArc,
         }
@@ -305,6 +308,18 @@ impl Controller {
     /// counts per period), the speed loops, the stall, deadman and following-error bounds, the
     /// at-rest travel and velocity mode's scales.
     pub(super) fn rederive(&mut self) {
+        self.derive_glitch_limits();
+        self.pi = Self::speed_pis(&self.config);
+        self.stall_periods = periods_of_ms(self.config.stall.time_ms, self.config.rate_hz);
+        self.deadman_periods = periods_of_ms(self.config.deadman_ms, self.config.rate_hz);
+        self.following = FollowingState::for_config(&self.config);
+        self.still_limit_ticks = still_limits(&self.config.geometry);
+        self.wheel_scales = wheel_scales(&self.config.geometry);
+    }
+
+    /// The encoders' glitch limit (a speed in counts per period) from the configuration's
+    /// geometry, limits and rate.
+    pub(super) fn derive_glitch_limits(&mut self) {
         let c = &mut self.config;
         c.right_encoder.max_step =
             glitch_limit(c.right_encoder.width, &c.geometry, &c.limits, c.rate_hz);
@@ -314,12 +329,6 @@ impl Controller {
             r.set_max_step(self.config.right_encoder.max_step);
             l.set_max_step(self.config.left_encoder.max_step);
         }
-        self.pi = Self::speed_pis(&self.config);
-        self.stall_periods = periods_of_ms(self.config.stall.time_ms, self.config.rate_hz);
-        self.deadman_periods = periods_of_ms(self.config.deadman_ms, self.config.rate_hz);
-        self.following = FollowingState::for_config(&self.config);
-        self.still_limit_ticks = still_limits(&self.config.geometry);
-        self.wheel_scales = wheel_scales(&self.config.geometry);
     }
 
     /// Applies new motion limits; only while idle. The encoder glitch limit follows them.

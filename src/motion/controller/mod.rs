@@ -26,8 +26,8 @@ mod mode;
 mod stopped;
 
 pub use config::{
-    ConfigError, ControllerConfig, DEFAULT_RATE_HZ, FollowingConfig, RATE_RULE, RATES_HZ, SetError,
-    StallConfig, periods_of_ms, rate_supported,
+    ConfigError, ControllerConfig, DEFAULT_DEADMAN_MS, DEFAULT_RATE_HZ, FollowingConfig, RATE_RULE,
+    RATES_HZ, SetError, StallConfig, periods_of_ms, rate_supported,
 };
 pub use fault::Fault;
 use fault::FollowingState;
@@ -248,7 +248,7 @@ impl Controller {
     /// The rules of the setters apply: the limits must be countable on the geometry's encoders
     /// ([`MotionLimits::validate_for`], as [`Controller::set_limits`]), and everything kept in
     /// counts or periods (the glitch limit included) is derived from the geometry, limits and
-    /// rate by the setters' own `rederive`, whatever `config` held.
+    /// rate by the setters' own functions, whatever `config` held.
     ///
     /// [`MotionLimits::validate_for`]: crate::motion::profile::MotionLimits::validate_for
     ///
@@ -301,7 +301,8 @@ impl Controller {
             miss_debt: 0,
             pose_lost: false,
         };
-        c.rederive();
+        // The rest is derived in the fields above by the functions `rederive` uses.
+        c.derive_glitch_limits();
         Ok(c)
     }
 
