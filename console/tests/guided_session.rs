@@ -26,6 +26,9 @@ use std::sync::mpsc::{self, Receiver};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+mod support;
+use support::{host_sim, lines_of};
+
 /// Generous limit for any one wait (only to avoid a hang; nothing is timed).
 const WAIT: Duration = Duration::from_secs(120);
 
@@ -33,31 +36,6 @@ fn target_dir() -> PathBuf {
     // target/<profile>/deps/guided_session-… → target/<profile>
     let exe = std::env::current_exe().unwrap();
     exe.parent().unwrap().parent().unwrap().to_path_buf()
-}
-
-/// The simulated board's binary, built if needed (a no-op when it is up to date). Its path is
-/// the one cargo reports for the build, so it is found wherever the build writes it: any
-/// `--target`, any target directory.
-fn host_sim() -> PathBuf {
-    let out = Command::new(env!("CARGO"))
-        .args(["build", "-q", "-p", "host-sim", "--bin", "host-sim"])
-        .args(["--message-format", "json"])
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .stderr(Stdio::inherit())
-        .output()
-        .expect("cargo runs");
-    assert!(out.status.success(), "building host-sim failed");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let path = stdout
-        .lines()
-        .filter(|l| l.contains(r#""reason":"compiler-artifact""#))
-        .find_map(|l| {
-            let rest = &l[l.find(r#""executable":""#)? + r#""executable":""#.len()..];
-            Some(PathBuf::from(&rest[..rest.find('"')?]))
-        })
-        .unwrap_or_else(|| panic!("cargo reported no host-sim executable:\n{stdout}"));
-    assert!(path.exists(), "{} missing", path.display());
-    path
 }
 
 struct Sim {
@@ -211,15 +189,7 @@ impl Tool {
                 sink.lock().unwrap().push_str(&format!("{l}\n"));
             }
         });
-        let out = child.stdout.take().unwrap();
-        let (tx, lines) = mpsc::channel();
-        std::thread::spawn(move || {
-            for l in BufReader::new(out).lines().map_while(Result::ok) {
-                if tx.send(l).is_err() {
-                    return;
-                }
-            }
-        });
+        let lines = lines_of(child.stdout.take().unwrap());
         let stdin = child.stdin.take().unwrap();
         Tool {
             child,

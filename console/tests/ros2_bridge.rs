@@ -15,38 +15,21 @@
 //!    (the bridge names the board time of the first and the last command it forwarded), so a
 //!    simulator slowed by a loaded machine changes nothing.
 
-use std::io::{BufRead, BufReader, Write};
-use std::path::{Path, PathBuf};
+use std::io::Write;
+use std::path::Path;
 use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{self, Receiver};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
+
+mod support;
+use support::{host_sim, lines_of};
 
 use serde_json::Value;
 
 /// Generous limit for any one wait (only to avoid a hang; nothing is timed by it).
 const WAIT: Duration = Duration::from_secs(60);
 /// The board's deadman: the motors stop when no `drive` came for this long (docs/protocol.md).
-const DEADMAN_S: f64 = 0.5;
-
-/// The simulated board's binary, built if needed; its path as cargo reports it.
-fn host_sim() -> PathBuf {
-    let out = Command::new(env!("CARGO"))
-        .args(["build", "-q", "-p", "host-sim", "--bin", "host-sim"])
-        .args(["--message-format", "json"])
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .stderr(Stdio::inherit())
-        .output()
-        .expect("cargo runs");
-    assert!(out.status.success(), "building host-sim failed");
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .filter(|l| l.contains(r#""reason":"compiler-artifact""#))
-        .find_map(|l| {
-            let v: Value = serde_json::from_str(l).ok()?;
-            v["executable"].as_str().map(PathBuf::from)
-        })
-        .expect("cargo reported no host-sim executable")
-}
+const DEADMAN_S: f64 = odocal::motion::controller::DEFAULT_DEADMAN_MS as f64 / 1000.0;
 
 /// Moves this test's thread (and so every process it starts) into a new network namespace and
 /// brings up its loopback with multicast, the only interface there.
@@ -117,15 +100,7 @@ impl Proc {
             .stdout(Stdio::piped())
             .spawn()
             .unwrap_or_else(|e| panic!("{name} does not start: {e}"));
-        let out = BufReader::new(child.stdout.take().unwrap());
-        let (tx, lines) = mpsc::channel();
-        std::thread::spawn(move || {
-            for l in out.lines().map_while(Result::ok) {
-                if tx.send(l).is_err() {
-                    return;
-                }
-            }
-        });
+        let lines = lines_of(child.stdout.take().unwrap());
         let stdin = child.stdin.take().unwrap();
         Proc {
             child,

@@ -20,7 +20,9 @@ use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use odocal::motion::controller::DEFAULT_DEADMAN_MS;
 use odocal::protocol::FinalLine;
+use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
 use odocal::protocol::token;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -46,7 +48,7 @@ use msgs::{Covariance, TypeName};
 
 /// The board's deadman: it stops the motors when no `drive` came for this long
 /// (docs/protocol.md).
-const DEADMAN_S: f64 = 0.5;
+const DEADMAN_S: f64 = DEFAULT_DEADMAN_MS as f64 / 1000.0;
 
 /// Options of `ros2`.
 #[derive(clap::Args, Debug, Clone)]
@@ -56,7 +58,8 @@ pub struct Options {
     pub port: String,
     /// Pose stream rate, Hz (the board's `stream on`, 1..100): odometry, tf and joint states
     /// are published at this rate.
-    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=100))]
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32)
+        .range(i64::from(STREAM_RANGE_HZ.0)..=i64::from(STREAM_RANGE_HZ.1)))]
     pub rate_hz: u32,
     /// Frame of the odometry (Odometry.header.frame_id, the transform's parent).
     #[arg(long, default_value = "odom")]
@@ -312,8 +315,8 @@ fn drive_line(t: &Twist) -> Option<String> {
     }
     Some(format!(
         "drive {:.6} {:.6}",
-        v.clamp(-2.0, 2.0),
-        w.clamp(-10.0, 10.0)
+        v.clamp(-DRIVE_LIMIT_MPS, DRIVE_LIMIT_MPS),
+        w.clamp(-DRIVE_LIMIT_RADPS, DRIVE_LIMIT_RADPS)
     ))
 }
 
