@@ -227,11 +227,17 @@ pub fn write_path(out: &mut dyn Write, path: &PathKind) -> fmt::Result {
 
 /// `run 2 is` / `runs 2 5 are`.
 fn write_run_list(out: &mut dyn Write, runs: &[usize]) -> fmt::Result {
+    write_run_numbers(out, runs)?;
+    out.write_str(if runs.len() == 1 { " is" } else { " are" })
+}
+
+/// `run <n>` / `runs <n> <m> …`.
+pub(crate) fn write_run_numbers(out: &mut dyn Write, runs: &[usize]) -> fmt::Result {
     out.write_str(if runs.len() == 1 { "run" } else { "runs" })?;
     for n in runs {
         write!(out, " {n}")?;
     }
-    out.write_str(if runs.len() == 1 { " is" } else { " are" })
+    Ok(())
 }
 
 /// `<n> run` / `<n> runs`.

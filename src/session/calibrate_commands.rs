@@ -220,12 +220,7 @@ pub fn flagged_runs<C: Calibrator>(
         if let Ok(s) = calibrator.solve(runs, nominal, name)
             && !s.residuals.is_empty()
         {
-            return s
-                .residuals
-                .iter()
-                .filter(|r| r.outlier)
-                .map(|r| numbered.number(r.run))
-                .collect();
+            return s.flagged().map(|p| numbered.number(p)).collect();
         }
     }
     Vec::new()

@@ -33,6 +33,7 @@ use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 use crate::protocol::EOL;
+use crate::protocol::refusal::write_run_numbers;
 use crate::protocol::token::ADVICE;
 
 use crate::storage::{ParamAndRunStore, RunsLoaded, StoreError, StoredRun};
@@ -466,13 +467,7 @@ impl Calibrator for LibraryCalibrator {
         // scatter, the runs per direction and the estimate: the advice is the one the other
         // runs alone give.
         let fit = self.exact_fit(runs, nominal).ok().map(|k| {
-            let flagged: Vec<usize, MAX_RUNS> = k
-                .solution
-                .residuals
-                .iter()
-                .filter(|r| r.outlier)
-                .map(|r| r.run)
-                .collect();
+            let flagged: Vec<usize, MAX_RUNS> = k.solution.flagged().collect();
             (k.solution.geometry, flagged)
         });
         let flagged = fit.as_ref().map(|(_, f)| f.clone()).unwrap_or_default();
@@ -541,14 +536,9 @@ fn write_left_out(out: &mut dyn Write, numbered: Numbered<'_>, positions: &[usiz
     if positions.is_empty() {
         return Ok(());
     }
-    out.write_str(if positions.len() == 1 {
-        " (run"
-    } else {
-        " (runs"
-    })?;
-    for &p in positions {
-        write!(out, " {}", numbered.number(p))?;
-    }
+    let numbers: Vec<usize, MAX_RUNS> = positions.iter().map(|&p| numbered.number(p)).collect();
+    out.write_str(" (")?;
+    write_run_numbers(out, &numbers)?;
     out.write_str(" flagged, left out)")
 }
 

@@ -244,16 +244,17 @@ impl<C: Calibrator> Session<C> {
         self.numbers.iter().position(|&n| usize::from(n) == number)
     }
 
-    /// The number of the run at store position `index` (0-based).
-    fn number_at(&self, index: usize) -> usize {
-        self.numbers
-            .get(index)
-            .map_or(index + 1, |&n| usize::from(n))
+    /// The stored runs with their session numbers.
+    fn numbered(&self) -> Numbered<'_> {
+        Numbered {
+            runs: &self.runs,
+            numbers: &self.numbers,
+        }
     }
 
-    /// The number of each stored run, in store order (as `runs` lists them).
-    pub fn run_numbers(&self) -> &[u16] {
-        &self.numbers
+    /// The number of the run at store position `index` (0-based).
+    fn number_at(&self, index: usize) -> usize {
+        self.numbered().number(index + 1)
     }
 
     /// Refuses motion while the last finished run is unmeasured: the robot must not leave the

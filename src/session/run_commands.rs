@@ -227,11 +227,12 @@ impl<C: Calibrator> Session<C> {
         out: &mut dyn Write,
     ) -> fmt::Result {
         let no_unit = |what, value| Refusal::NoUnit { what, value };
-        let (Some(x_m), Some(y_m)) = (x.metres(self.measure_unit), y.metres(self.measure_unit))
-        else {
-            let (what, value) = match x.metres(self.measure_unit) {
-                None => ("x", x.value),
-                Some(_) => ("y", y.value),
+        let (x_m, y_m) = (x.metres(self.measure_unit), y.metres(self.measure_unit));
+        let (Some(x_m), Some(y_m)) = (x_m, y_m) else {
+            let (what, value) = if x_m.is_none() {
+                ("x", x.value)
+            } else {
+                ("y", y.value)
             };
             return write_refusal(out, &no_unit(what, value));
         };

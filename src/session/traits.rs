@@ -269,6 +269,13 @@ pub struct Solution {
     pub residuals: heapless::Vec<RunResidual, { crate::motion::run::MAX_RUNS }>,
 }
 
+impl Solution {
+    /// The runs the robust fit flagged, by 1-based store position.
+    pub fn flagged(&self) -> impl Iterator<Item = usize> + '_ {
+        self.residuals.iter().filter(|r| r.outlier).map(|r| r.run)
+    }
+}
+
 /// Why a calibration method produced no result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[non_exhaustive]

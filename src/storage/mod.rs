@@ -175,19 +175,23 @@ impl fmt::Display for FlashTooSmall {
 /// The one wording of a store error: what the `err` replies and the boot line say.
 impl fmt::Display for StoreError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let StoreError::InvalidRecord(e) = self {
+            return write!(f, "parameters not storable: {e}");
+        }
+        f.write_str("flash error: ")?;
         match self {
             StoreError::BadRange => f.write_str(
-                "flash error: storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)",
+                "storage layout invalid (run range: page aligned, at least 2 pages; parameter sectors apart from it)",
             ),
-            StoreError::InvalidRecord(e) => write!(f, "parameters not storable: {e}"),
-            StoreError::Flash(e) => write!(f, "flash error: {e}"),
-            StoreError::Corrupted => f.write_str("flash error: flash contents corrupted"),
-            StoreError::Full => f.write_str("flash error: run flash full"),
-            StoreError::Encoding => f.write_str("flash error: parameter record could not be encoded"),
-            StoreError::Internal => f.write_str("flash error: storage internal error"),
-            StoreError::FlashTooSmall(_) => f.write_str(
-                "flash error: no storage: this part's flash is smaller than the storage map",
-            ),
+            StoreError::Flash(e) => write!(f, "{e}"),
+            StoreError::Corrupted => f.write_str("flash contents corrupted"),
+            StoreError::Full => f.write_str("run flash full"),
+            StoreError::Encoding => f.write_str("parameter record could not be encoded"),
+            StoreError::Internal => f.write_str("storage internal error"),
+            StoreError::FlashTooSmall(_) => {
+                f.write_str("no storage: this part's flash is smaller than the storage map")
+            }
+            StoreError::InvalidRecord(_) => Ok(()),
         }
     }
 }
@@ -364,11 +368,6 @@ impl<F: MultiwriteNorFlash> ParamAndRunStore<F> {
             return Err(StoreError::BadRange);
         }
         Ok(())
-    }
-
-    /// Why the store cannot use the flash, if it cannot.
-    pub fn flash_too_small(&self) -> Option<FlashTooSmall> {
-        self.too_small
     }
 
     /// Loads the newest valid record of the parameter region; falls back to
