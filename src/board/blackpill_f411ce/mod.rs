@@ -29,17 +29,15 @@ use stm32f4xx_hal::gpio::{Output, PA10, PB0, PB12, PB13, PC13, Pull};
 use stm32f4xx_hal::pac::{self, TIM11};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
-use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use super::stm32f4::clock::start_external;
 pub use super::stm32f4::clock::{ClockSource, ClockTexts};
 pub use super::stm32f4::console_rx::ConsoleRx;
 use super::stm32f4::motors::Tim1Motors;
 pub use super::stm32f4::timers::Encoders;
 use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
 pub use super::stm32f4::watchdog;
-use super::stm32f4::{ClockTree, button_edges, freeze_clocks, start_console, start_tick};
+use super::stm32f4::{ClockTree, button_edges, start_clocks, start_console, start_tick};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
 
@@ -55,6 +53,8 @@ pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 pub const TIMCLK2_HZ: u32 = PCLK2_HZ;
 /// The clock tree `init` sets and checks.
 const CLOCK_TREE: ClockTree = ClockTree {
+    hse: HSE_HZ,
+    hse_bypass: false,
     sysclk: SYSCLK_HZ,
     pclk1: PCLK1_HZ,
     pclk2: PCLK2_HZ,
@@ -128,14 +128,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
     // The crystal if it starts; otherwise the HSI with the PLL set for the same clocks.
-    let clock = start_external(&dp.RCC, false);
-    let mut rcc = freeze_clocks(
-        dp.RCC,
-        clock,
-        Config::hse(HSE_HZ.Hz()),
-        &CLOCK_TREE,
-        &CLOCK_TEXTS,
-    );
+    let (mut rcc, clock) = start_clocks(dp.RCC, &CLOCK_TREE, &CLOCK_TEXTS);
     let clocks = rcc.clocks;
     let params = flash::param_store(dp.FLASH);
 

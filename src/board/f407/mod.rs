@@ -26,16 +26,14 @@ use stm32f4xx_hal::gpio::{Output, PD12, PD14, PE7, PE8, PE13, Pull};
 use stm32f4xx_hal::pac::{self, TIM7};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
-use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use super::stm32f4::clock::start_external;
 pub use super::stm32f4::clock::{ClockSource, ClockTexts};
 pub use super::stm32f4::console_rx::ConsoleRx;
 pub use super::stm32f4::timers::Encoders;
 use super::stm32f4::timers::{filter_encoder_inputs, pull_up, rates_exact};
 pub use super::stm32f4::{CONSOLE_INTERRUPT, CONSOLE_RX_POLLED, ConsoleTx};
-use super::stm32f4::{ClockTree, button_edges, freeze_clocks, start_console, start_tick};
+use super::stm32f4::{ClockTree, button_edges, start_clocks, start_console, start_tick};
 pub use super::stm32f4::{console_rx, watchdog};
 pub use flash::BoardFlash;
 pub use safety::ResetCause;
@@ -66,6 +64,8 @@ pub const PCLK2_HZ: u32 = 84_000_000;
 pub const TIMCLK2_HZ: u32 = 2 * PCLK2_HZ;
 /// The clock tree `init` sets and checks.
 const CLOCK_TREE: ClockTree = ClockTree {
+    hse: HSE_HZ,
+    hse_bypass: false,
     sysclk: SYSCLK_HZ,
     pclk1: PCLK1_HZ,
     pclk2: PCLK2_HZ,
@@ -128,16 +128,9 @@ pub fn init(dp: pac::Peripherals) -> Board {
     // the PLL derived from it for the same 168 MHz core and 42/84 MHz buses, so timers, PWM
     // and baud rates stay as configured (a missing crystal must not hang the boot before the
     // watchdog runs).
-    let clock = start_external(&dp.RCC, false);
     // The HAL picks the PLL factors and bus prescalers (8 or 16 MHz / M = 2 MHz, × 168, / 2;
     // APB1 / 4, APB2 / 2; 5 flash wait states for 168 MHz at 2.7–3.6 V, RM0090 Table 10).
-    let mut rcc = freeze_clocks(
-        dp.RCC,
-        clock,
-        Config::hse(HSE_HZ.Hz()),
-        &CLOCK_TREE,
-        &CLOCK_TEXTS,
-    );
+    let (mut rcc, clock) = start_clocks(dp.RCC, &CLOCK_TREE, &CLOCK_TEXTS);
     let clocks = rcc.clocks;
     let params = flash::param_store(dp.FLASH);
 

@@ -65,9 +65,13 @@ pub struct Board<M, T, B, L> {
     pub clock: clock::ClockSource,
 }
 
-/// A board's clock tree, Hz: what the HAL is asked for (core and the two buses) and the timer
-/// clocks that follow from it (twice a bus clock whose prescaler is not 1).
+/// A board's clock tree, Hz: its external clock, what the HAL is asked for (core and the two
+/// buses) and the timer clocks that follow from it (twice a bus clock whose prescaler is not 1).
 pub struct ClockTree {
+    /// The external clock's frequency.
+    pub hse: u32,
+    /// Whether the external clock is a clock input (HSE bypass) rather than a crystal.
+    pub hse_bypass: bool,
     /// Core clock.
     pub sysclk: u32,
     /// APB1 clock (USART2, TIM2, TIM3, TIM7).
@@ -80,19 +84,21 @@ pub struct ClockTree {
     pub timclk2: u32,
 }
 
-/// The clocks from the source that started (`external`, the board's external-clock set-up,
-/// or the HSI with the PLL set for the same tree, logging `texts.fault`); logs an error if the
-/// HAL's clocks differ from `tree`: the timer periods, the PWM and the baud rate assume
-/// exactly those.
-pub fn freeze_clocks(
+/// Starts the external clock (bounded wait, [`clock::start_external`]) and the clocks from the
+/// source that started: the external clock, or the HSI with the PLL set for the same tree,
+/// logging `texts.fault`. Logs an error if the HAL's clocks differ from `tree`: the timer
+/// periods, the PWM and the baud rate assume exactly those.
+pub fn start_clocks(
     rcc: RCC,
-    clock: clock::ClockSource,
-    external: Config,
     tree: &ClockTree,
     texts: &clock::ClockTexts,
-) -> Rcc {
-    let source = match clock {
-        clock::ClockSource::External => external,
+) -> (Rcc, clock::ClockSource) {
+    let started = clock::start_external(&rcc, tree.hse_bypass);
+    let source = match started {
+        clock::ClockSource::External if tree.hse_bypass => {
+            Config::hse(tree.hse.Hz()).bypass_hse_oscillator()
+        }
+        clock::ClockSource::External => Config::hse(tree.hse.Hz()),
         clock::ClockSource::Internal => {
             error!("{}", texts.fault);
             Config::hsi()
@@ -120,7 +126,7 @@ pub fn freeze_clocks(
             clocks.timclk2().raw()
         );
     }
-    rcc
+    (rcc, started)
 }
 
 /// The user button's pin as an interrupt source on both edges (its EXTI line through SYSCFG).
