@@ -328,7 +328,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     // confirmation an operator would give after looking at it: the log shows both replies.
     let apply = format!("apply {}", method.as_str());
     let reply = match send(&mut board, &apply, &mut log) {
-        Err(e) if serial::refused_with(&e, ErrorCode::NotConfirmed) => {
+        Err(e) if e.is(ErrorCode::NotConfirmed) => {
             send(&mut board, &format!("{apply} yes"), &mut log)?
         }
         other => other?,

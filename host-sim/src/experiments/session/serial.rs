@@ -18,31 +18,42 @@ use odocal::protocol::{ErrorCode, FinalLine};
 
 use super::{CalibrationRow, RunTrace, SessionArgs, Verification};
 
+/// A line the board refused: the line and the reply's final line.
+#[derive(Debug)]
+pub(super) struct Refused {
+    line: String,
+    last: String,
+}
+
+impl Refused {
+    /// Whether the board refused with `code`.
+    pub(super) fn is(&self, code: ErrorCode) -> bool {
+        FinalLine::parse(&self.last).is_some_and(|l| l.is_err(code))
+    }
+}
+
+impl From<Refused> for String {
+    fn from(r: Refused) -> String {
+        format!("`{}` was refused: {}", r.line, r.last)
+    }
+}
+
 /// Sends one line, logs it and its reply; `Err` unless the final reply line is `ok …`.
-pub(super) fn send(board: &mut Board, line: &str, log: &mut String) -> Result<String, String> {
+pub(super) fn send(board: &mut Board, line: &str, log: &mut String) -> Result<String, Refused> {
     log.push_str("> ");
     log.push_str(line);
     log.push('\n');
     let reply = board.send(line);
     log.push_str(&reply.replace("\r\n", "\n"));
-    let last = reply.lines().last().unwrap_or("");
     if accepted(&reply) {
         Ok(reply)
     } else {
-        Err(format!("`{line}{REFUSED}{last}"))
+        Err(Refused {
+            line: line.to_string(),
+            last: reply.lines().last().unwrap_or("").to_string(),
+        })
     }
 }
-
-/// Whether `send`'s error is the board's refusal with `code`.
-pub(super) fn refused_with(error: &str, code: ErrorCode) -> bool {
-    error
-        .rsplit_once(REFUSED)
-        .and_then(|(_, last)| FinalLine::parse(last))
-        .is_some_and(|l| l.is_err(code))
-}
-
-/// Between the command and the board's final line in `send`'s error.
-const REFUSED: &str = "` was refused: ";
 
 /// A number following `key` (e.g. `dx=`) in `text`.
 pub fn field(text: &str, key: &str) -> Option<f64> {
