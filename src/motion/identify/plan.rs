@@ -305,7 +305,7 @@ impl Identify {
             let left = self.travel.1 as f64 * self.m_per_tick.1;
             // Where it would come to rest if stopped now: a bound, not a trigger.
             let speed = self.centre_speed(dr, dl);
-            if libm::fabs(self.position_m()) + libm::fabs(speed) * STOP_TIME_S > TRAVEL_LIMIT_M {
+            if libm::fabs(0.5 * (right + left)) + libm::fabs(speed) * STOP_TIME_S > TRAVEL_LIMIT_M {
                 let wheel = if libm::fabs(right) >= libm::fabs(left) {
                     Wheel::Right
                 } else {
