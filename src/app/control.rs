@@ -124,14 +124,21 @@ impl Pacing {
 }
 
 /// Counts the control periods the board missed, from a free-running cycle counter read at the
-/// start of each period (the Cortex-M's DWT.CYCCNT at the core clock). A period's interrupt that
-/// comes late by more than half a period means whole periods went by without a control step:
-/// a flash erase stalls every fetch, or something at a higher priority or in a critical section
-/// ran too long. The controller is told ([`Controller::note_missed_periods`]) and latches an
-/// `overrun` fault if it was moving.
+/// start of each period (the Cortex-M's DWT.CYCCNT at the core clock). The period's timer
+/// updates on a fixed schedule; its interrupt starts some time after the update. An interrupt
+/// held up by less than a period (something at a higher priority or in a critical section ran
+/// long) still serves the update that is pending: nothing was missed. Only when a whole period
+/// went by on top (a flash erase stalls every fetch, or a hold of more than a period) did an
+/// update come and go without a control step. The controller is told
+/// ([`Controller::note_missed_periods`]) and latches an `overrun` fault if it was moving.
+///
+/// The schedule is anchored at the earliest interrupt start seen for it: a start is never
+/// before its update, so an interrupt that arrives less than a period after the last
+/// anchored update is on time and moves the anchor back to itself.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MissedPeriods {
-    last: Option<u32>,
+    /// The cycle at which the last period's update is taken to have come.
+    last_update: Option<u32>,
     core_hz: u32,
     cycles_per_period: u32,
 }
@@ -150,23 +157,29 @@ impl MissedPeriods {
     /// The period changed (`set control_hz`): the next period starts the count afresh.
     pub fn set_rate(&mut self, rate_hz: u32) {
         self.cycles_per_period = self.core_hz / rate_hz.max(1);
-        self.last = None;
+        self.last_update = None;
     }
 
     /// The period that starts at cycle `now`: how many periods were missed since the last one
-    /// (0 when on time). A counter that does not run (an emulator without the DWT) misses
-    /// nothing. The counter wraps (every 25.6 s at 168 MHz): a gap longer than that is counted
-    /// modulo it.
+    /// (0 when its update was only pending). A counter that does not run (an emulator without
+    /// the DWT) misses nothing. The counter wraps (every 25.6 s at 168 MHz): a gap longer than
+    /// that is counted modulo it.
     pub fn observe(&mut self, now: u32) -> u32 {
-        let Some(last) = self.last.replace(now) else {
+        let period = self.cycles_per_period;
+        let Some(last) = self.last_update else {
+            self.last_update = Some(now);
             return 0;
         };
-        let period = u64::from(self.cycles_per_period);
-        let gap = u64::from(now.wrapping_sub(last));
-        if period == 0 || 2 * gap < 3 * period {
+        let since = now.wrapping_sub(last);
+        if period == 0 || since < period {
+            // Earlier than the anchored schedule allows: the anchor was a late start.
+            self.last_update = Some(now);
             return 0;
         }
-        u32::try_from((gap + period / 2) / period - 1).unwrap_or(u32::MAX)
+        // The updates since the last one served: the last of them is this period's.
+        let updates = since / period;
+        self.last_update = Some(last.wrapping_add(updates.wrapping_mul(period)));
+        updates - 1
     }
 }
 
@@ -188,13 +201,38 @@ mod tests {
         // A 2 s erase stall: 1,999 periods never ran.
         t = t.wrapping_add(2 * 168_000_000);
         assert_eq!(m.observe(t), 1_999);
-        // 1.5 periods late: one missed.
-        t = t.wrapping_add(252_000);
+        // That start was 83,999 cycles after its update; the next update's interrupt starts 1.5
+        // periods late (2.5 periods after that update): the update after it came and went.
+        t = t.wrapping_add(420_000 - 83_999);
         assert_eq!(m.observe(t), 1);
         // At 10 kHz (16,800 cycles) after a retime, the first period only starts the count.
         m.set_rate(10_000);
         assert_eq!(m.observe(t.wrapping_add(999_999)), 0);
         assert_eq!(m.observe(t.wrapping_add(999_999 + 3 * 16_800)), 2);
+    }
+
+    /// A control interrupt held up by less than a period (a console lock, a higher-priority
+    /// interrupt) serves the update that was pending: no period is missed, and the next one,
+    /// back on the timer's schedule a fraction of a period later, is on time too. Held up by
+    /// more than a period, the update after it came and went: one missed.
+    #[test]
+    fn late_interrupt_is_not_a_missed_period() {
+        // The F411 at 100 MHz, 10 kHz: 10,000 cycles a period; the longest console lock
+        // (13,055 instructions) can hold a period up by more than one.
+        let p = 10_000u32;
+        let mut m = MissedPeriods::new(100_000_000, 10_000);
+        let mut update = 7u32;
+        assert_eq!(m.observe(update), 0);
+        for late in [0, 9_000, 0, 9_999, 2_000, 0] {
+            update += p;
+            assert_eq!(m.observe(update + late), 0, "{late} cycles late");
+        }
+        // Held up by 1.3 periods: the update after the pending one was missed.
+        update += p;
+        assert_eq!(m.observe(update + 13_055), 1);
+        // The next start is 0.7 periods later, on the schedule again.
+        update += 2 * p;
+        assert_eq!(m.observe(update), 0);
     }
 
     #[test]

@@ -16,6 +16,36 @@
 //! a path (more than half the ring arrived since the previous read, over a stall long enough
 //! for a lap) can be reported as an overrun without one.
 
+/// How much slower than nominal the core clock can run, percent. On the internal RC oscillator
+/// (the boot's fallback when the external clock does not start) the STM32F4 datasheets give the
+/// factory-calibrated HSI −8 % to +4.5 % over −40…105 °C (±1 % at 25 °C); a crystal is far
+/// inside that. A cycle counter on a slow clock counts fewer cycles in the same time, so a
+/// bound on arrivals must take the byte time in the slowest clock's cycles.
+pub const CORE_CLOCK_SLOW_PERCENT: u32 = 8;
+
+/// The core clock's cycles per byte at `baud` (10 bits a byte, 8N1) that [`arrivable`] divides
+/// by: a byte time counted by a core clock of nominal `core_hz` running
+/// [`CORE_CLOCK_SLOW_PERCENT`] slow (at least 1). On a crystal the bound is then 8.7 % above
+/// what can arrive: it only makes the lap test of a stall long enough for a lap a little earlier.
+pub const fn cycles_per_byte_bound(core_hz: u32, baud: u32) -> u32 {
+    let nominal = core_hz as u64 * 10 / if baud == 0 { 1 } else { baud as u64 };
+    let slowest = nominal * (100 - CORE_CLOCK_SLOW_PERCENT as u64) / 100;
+    if slowest == 0 {
+        1
+    } else if slowest > u32::MAX as u64 {
+        u32::MAX
+    } else {
+        slowest as u32
+    }
+}
+
+/// At least the bytes the line can have delivered in `cycles` of the core clock
+/// ([`cycles_per_byte_bound`]'s `per_byte`): whole byte times, plus the ones under way at
+/// either end.
+pub fn arrivable(cycles: u32, per_byte: u32) -> usize {
+    (cycles / per_byte.max(1)) as usize + 2
+}
+
 /// What the next read of the ring gives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RingRead {
@@ -202,6 +232,46 @@ mod tests {
         }
         // Behind by nothing: every arrival was followed by one read.
         assert_eq!(got, b"the quick brown fox");
+    }
+
+    /// A stall on the internal oscillator at its slowest (8 % below nominal: the cycle counter
+    /// runs slow against the line) while the PC sends without a pause at 115,200 Bd: for every
+    /// byte count up to 4 laps of the board's 512-byte ring, from every start, the board's
+    /// bound ([`arrivable`] of the cycles counted, with [`cycles_per_byte_bound`]) is at least
+    /// what arrived, and every lap is an overrun, never a byte. On the nominal byte time the
+    /// slow counter's bound falls 8 % short of what arrived: at 100 MHz a stall of 1,017 bytes
+    /// (a lap and 505, the path crossing both flags) was handed over as 505 bytes.
+    #[test]
+    fn rx_ring_reports_every_lap_on_a_slow_clock() {
+        const N: usize = 512;
+        const BAUD: u32 = 115_200;
+        for core_hz in [100_000_000u32, 168_000_000, 180_000_000] {
+            let per_byte = cycles_per_byte_bound(core_hz, BAUD);
+            // The datasheets' slowest HSI: 8 % below nominal.
+            let slow_hz = f64::from(core_hz) * 0.92;
+            for start in (0..N).step_by(7) {
+                for count in 0..=4 * N {
+                    // `count` bytes take count × 10 / BAUD s; the slow counter counts these.
+                    let cycles = (count as f64 * 10.0 / f64::from(BAUD) * slow_hz) as u32;
+                    let bound = arrivable(cycles, per_byte);
+                    assert!(bound >= count, "{core_hz} Hz: {count} bytes, bound {bound}");
+                    let crosses = |at: usize| {
+                        let first = start + 1 + (at % N + N - (start + 1) % N) % N;
+                        first <= start + count
+                    };
+                    let mut c = RingCursor::<N> {
+                        read: start,
+                        seen_write: start,
+                    };
+                    let got = c.next((start + count) % N, crosses(N / 2), crosses(N), bound);
+                    if count >= N {
+                        assert_eq!(got, RingRead::Overrun, "{core_hz} Hz: {count} bytes");
+                    } else if count > 0 {
+                        assert_eq!(got, RingRead::Byte(start), "{core_hz} Hz: {count} bytes");
+                    }
+                }
+            }
+        }
     }
 
     /// Every start position of a ring of the board's length (512) × every byte count from 0 to

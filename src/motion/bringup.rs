@@ -283,6 +283,13 @@ impl PushCheck {
         }
     }
 
+    /// The counts of periods the board missed beyond the share the next [`Self::step`] is
+    /// given: part of the push.
+    pub fn catch_up(&mut self, dr: i64, dl: i64) {
+        self.report.right += dr;
+        self.report.left += dl;
+    }
+
     /// One period with the counts `dr`, `dl`; the report once the watch is over.
     pub fn step(&mut self, dr: i64, dl: i64) -> Option<PushReport> {
         self.report.right += dr;

@@ -9,6 +9,15 @@
 //! disables the bridge (outputs high-impedance). An IN1/IN2 bridge such as the DRV8871 needs
 //! another driver (docs/hardware.md).
 //!
+//! A reversal passes through zero duty: the STM32's compare registers are preloaded (a new
+//! duty takes effect at the next PWM period) while a DIR pin changes at once, so flipping DIR with
+//! the new duty would drive up to one PWM period of the old magnitude in the new direction (50 µs
+//! at 20 kHz: a current spike into a motor still turning the other way). A channel that is to
+//! reverse while it drives gets zero duty in that control period, its DIR unchanged; the next
+//! control period flips DIR and sets the new duty. A control period is at least two PWM periods
+//! ([`reversal_holds_zero`]), so the zero runs for at least one whole PWM period in between: a
+//! reversal costs one control period (0.1–1 ms).
+//!
 //! Pin and PWM errors are ignored: the STM32 HAL's are `Infallible`, and a driver that could
 //! fail has no better action in a control period than to try again in the next one.
 
@@ -16,6 +25,14 @@ use embedded_hal::digital::{OutputPin, PinState};
 use embedded_hal::pwm::SetDutyCycle;
 
 use super::motor::{MotorDriver, StopMode, clamp_duty};
+
+/// Whether a zero duty written in one control period at `control_hz` has run for a whole PWM
+/// period at `pwm_hz` before the next control period flips DIR: the zero is latched at the next
+/// PWM update (within one PWM period) and must then last one more, so a control period must be
+/// at least two PWM periods. Each board asserts it for its PWM and the fastest control rate.
+pub const fn reversal_holds_zero(pwm_hz: u32, control_hz: u32) -> bool {
+    pwm_hz >= 2 * control_hz
+}
 
 /// Two motors' PWM channels and direction pins and the shared enable pin.
 pub struct HBridge<PR, PL, DR, DL, EN> {
@@ -25,6 +42,8 @@ pub struct HBridge<PR, PL, DR, DL, EN> {
     dir_left: DL,
     enable: EN,
     invert_left: bool,
+    /// What each channel (right, left) was last given: forward (wheel frame), and its compare.
+    applied: [(bool, u16); 2],
 }
 
 impl<PR, PL, DR, DL, EN> HBridge<PR, PL, DR, DL, EN>
@@ -55,6 +74,7 @@ where
             dir_left,
             enable,
             invert_left,
+            applied: [(true, 0); 2],
         };
         bridge.stop(StopMode::Coast);
         bridge
@@ -64,6 +84,18 @@ where
     fn compare(duty: f32, max: u16) -> u16 {
         let magnitude = if duty < 0.0 { -duty } else { duty };
         (magnitude * f32::from(max)) as u16
+    }
+
+    /// What a channel that was last given `applied` (forward, compare) gets for `duty` of full
+    /// scale `max` this period: its direction and compare, or zero in its old direction while
+    /// it reverses from a nonzero duty.
+    fn next(applied: (bool, u16), duty: f32, max: u16) -> (bool, u16) {
+        let forward = duty >= 0.0;
+        if forward != applied.0 && applied.1 != 0 {
+            (applied.0, 0)
+        } else {
+            (forward, Self::compare(duty, max))
+        }
     }
 }
 
@@ -77,18 +109,21 @@ where
 {
     fn set_duty(&mut self, right: f32, left: f32) {
         let (right, left) = (clamp_duty(right), clamp_duty(left));
-        let _ = self.dir_right.set_state(PinState::from(right >= 0.0));
+        let (fr, cr) = Self::next(self.applied[0], right, self.right.max_duty_cycle());
+        let (fl, cl) = Self::next(self.applied[1], left, self.left.max_duty_cycle());
+        self.applied = [(fr, cr), (fl, cl)];
+        let _ = self.dir_right.set_state(PinState::from(fr));
         let _ = self
             .dir_left
-            .set_state(PinState::from((left >= 0.0) != self.invert_left));
-        let cr = Self::compare(right, self.right.max_duty_cycle());
-        let cl = Self::compare(left, self.left.max_duty_cycle());
+            .set_state(PinState::from(fl != self.invert_left));
         let _ = self.right.set_duty_cycle(cr);
         let _ = self.left.set_duty_cycle(cl);
         let _ = self.enable.set_high();
     }
 
     fn stop(&mut self, mode: StopMode) {
+        self.applied[0].1 = 0;
+        self.applied[1].1 = 0;
         let _ = self.right.set_duty_cycle(0);
         let _ = self.left.set_duty_cycle(0);
         let _ = match mode {
@@ -173,8 +208,10 @@ mod tests {
                 ("en", 1)
             ]
         );
+        // Backward, beyond full scale (clamped) and NaN (zero), from a stop (a reversal while
+        // driving passes through zero duty first: `reversal_passes_through_zero_duty`).
+        b.stop(StopMode::Brake);
         log.borrow_mut().clear();
-        // Backward, beyond full scale (clamped) and NaN (zero).
         b.set_duty(-2.0, f32::NAN);
         assert_eq!(
             *log.borrow(),
@@ -186,6 +223,41 @@ mod tests {
                 ("en", 1)
             ]
         );
+    }
+
+    /// Each control period's writes, as (DIR level, compare) per channel after the period: a
+    /// channel that reverses while driving gets zero duty with its DIR unchanged for one
+    /// control period, then the new DIR and duty; from zero (or after a stop) it reverses at
+    /// once; a channel that keeps its direction is never held.
+    #[test]
+    fn reversal_passes_through_zero_duty() {
+        let log = Log::default();
+        let mut b = bridge(&log);
+        let period = |b: &mut HBridge<Pwm, Pwm, Pin, Pin, Pin>, r: f32, l: f32| {
+            log.borrow_mut().clear();
+            b.set_duty(r, l);
+            let log = log.borrow();
+            let last = |name| log.iter().rev().find(|(n, _)| *n == name).unwrap().1;
+            (last("dir_r"), last("pwm_r"), last("dir_l"), last("pwm_l"))
+        };
+        // Right forward 50 %, left forward 25 % (its DIR mirrored: low).
+        assert_eq!(period(&mut b, 0.5, 0.25), (1, 4_200, 0, 2_100));
+        // Right reverses; left goes on: right held at zero, DIR still forward.
+        assert_eq!(period(&mut b, -0.5, 0.3), (1, 0, 0, 2_520));
+        // Next period: right's DIR flips with its duty.
+        assert_eq!(period(&mut b, -0.5, 0.3), (0, 4_200, 0, 2_520));
+        // Both reverse at once: both held, then both flip.
+        assert_eq!(period(&mut b, 0.25, -0.5), (0, 0, 0, 0));
+        assert_eq!(period(&mut b, 0.25, -0.5), (1, 2_100, 1, 4_200));
+        // Through a zero duty the direction changes at once.
+        assert_eq!(period(&mut b, 0.0, 0.0), (1, 0, 1, 0));
+        assert_eq!(period(&mut b, -0.25, 0.5), (0, 2_100, 0, 4_200));
+        // After a stop (both compares zero) too.
+        b.stop(StopMode::Brake);
+        assert_eq!(period(&mut b, 0.25, -0.5), (1, 2_100, 1, 4_200));
+        // The boards' PWM against the fastest control rate.
+        assert!(reversal_holds_zero(20_000, 10_000));
+        assert!(!reversal_holds_zero(15_000, 10_000));
     }
 
     #[test]

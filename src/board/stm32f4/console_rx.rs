@@ -19,7 +19,7 @@ use stm32f4xx_hal::pac::{self, DMA1, USART2};
 use stm32f4xx_hal::rcc::{Enable, Rcc};
 use stm32f4xx_hal::serial::{Rx, RxListen};
 
-use crate::app::rx_ring::{RingCursor, RingRead};
+use crate::app::rx_ring::{self, RingCursor, RingRead};
 
 /// Bytes of the receive ring (even: the DMA's half-transfer flag marks its middle).
 pub const RX_RING_BYTES: usize = 512;
@@ -127,7 +127,7 @@ impl ConsoleRx {
             mode: Mode::Dma {
                 cursor: RingCursor::new(),
                 dma,
-                cycles_per_byte: (sysclk_hz / (CONSOLE_BAUD / 10)).max(1),
+                cycles_per_byte: rx_ring::cycles_per_byte_bound(sysclk_hz, CONSOLE_BAUD),
                 last_cycles: cortex_m::peripheral::DWT::cycle_count(),
             },
             rx,
@@ -171,11 +171,11 @@ impl serial::Read<u8> for ConsoleRx {
             });
         }
         let write = RX_RING_BYTES - after.min(RX_RING_BYTES);
-        // Whole bytes in the time since the previous read, plus the ones under way at either
-        // end (CYCCNT wraps after 23 s at 180 MHz, the fastest of these parts; reads come every
+        // The bytes the time since the previous read can hold on the slowest core clock
+        // (CYCCNT wraps after 23 s at 180 MHz, the fastest of these parts; reads come every
         // millisecond).
         let now = cortex_m::peripheral::DWT::cycle_count();
-        let arrivable = (now.wrapping_sub(*last_cycles) / *cycles_per_byte) as usize + 2;
+        let arrivable = rx_ring::arrivable(now.wrapping_sub(*last_cycles), *cycles_per_byte);
         *last_cycles = now;
         match cursor.next(write, half, full, arrivable) {
             RingRead::Byte(i) => {

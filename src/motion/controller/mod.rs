@@ -400,7 +400,12 @@ impl Controller {
         // (a count passed the glitch check, so it fits an i32: the core's 32-bit divide).
         let p = i32::try_from(periods).unwrap_or(i32::MAX);
         let share = |d: i64| i64::from(i32::try_from(d).unwrap_or(0) / p);
+        let (full_r, full_l) = (dr, dl);
         let (dr, dl) = (share(dr), share(dl));
+        if periods > 1 {
+            // What sums the motion (identification's travel bound) takes the rest whole.
+            self.check_catch_up(full_r - dr, full_l - dl);
+        }
         let (command, tracking) = if self.driving_run() {
             self.step_run(dr, dl)
         } else if self.drive.is_some() {

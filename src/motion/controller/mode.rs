@@ -528,6 +528,17 @@ impl Controller {
         }
     }
 
+    /// The counts of missed periods beyond the one period's share [`Self::step_check`] is
+    /// given: the checks that sum the motion take them whole (identification's travel bound,
+    /// the push check's distance).
+    pub(super) fn check_catch_up(&mut self, dr: i64, dl: i64) {
+        match self.check.as_mut() {
+            Some(ActiveCheck::Identify(i)) => i.catch_up(dr, dl),
+            Some(ActiveCheck::Push(p)) => p.catch_up(dr, dl),
+            Some(ActiveCheck::Pulses(_)) | None => {}
+        }
+    }
+
     /// One period of the bring-up check (open loop: no speed loop, no following error).
     pub(super) fn step_check(&mut self, dr: i64, dl: i64) -> MotorCommand {
         let coast = MotorCommand::Stop(StopMode::Coast);

@@ -283,6 +283,16 @@ impl Identify {
         }
     }
 
+    /// The counts of periods the board missed beyond the share the next [`Self::step`] is
+    /// given (the controller hands each step one period's share of a catch-up): they count
+    /// toward the travel bound, which the next step checks.
+    pub fn catch_up(&mut self, dr: i64, dl: i64) {
+        if self.started {
+            self.travel.0 += dr;
+            self.travel.1 += dl;
+        }
+    }
+
     /// The checks of every period, probe and steps alike: no wheel faster than the encoder
     /// can follow ([`MAX_SPEED_MPS`] per period), and on the floor the robot no farther than
     /// [`TRAVEL_LIMIT_M`] from where it started.
