@@ -2,6 +2,7 @@
 //! before, and the session's summary.
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::Command;
 use serde_json::json;
 
 use super::{Guide, Stop};
@@ -134,12 +135,14 @@ impl Guide {
     pub(super) fn check_only(&mut self) -> Result<(), Stop> {
         // Runs on the board from before: dropped or used, so the check square's number is
         // known.
-        let runs = self.cmd("runs")?;
+        let runs = self.cmd(Command::Runs)?;
         if !runs.data.is_empty() && !self.done.runs_from_before {
             self.runs_from_before(runs.data.len())?;
             self.done.runs_from_before = true;
         }
-        let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+        let r = self.cmd(Command::Stream {
+            on: Some(Some(self.opts.stream_hz)),
+        })?;
         if !r.ok() {
             return Err(Stop::Failed(format!("stream on: {}", r.last)));
         }
@@ -148,7 +151,7 @@ impl Guide {
 
     /// What the session leaves on the board, and what to do with it.
     pub(super) fn summary(&mut self) -> Result<(), Stop> {
-        let params = self.cmd("params")?;
+        let params = self.cmd(Command::Params)?;
         let n = crate::log::nominal_of(&params.data).unwrap_or(self.nominal);
         let (cw, ccw) = self.counts();
         self.ui.say("summary:");

@@ -22,7 +22,7 @@ use odocal::motion::run::{PathKind, RunRecord};
 use odocal::protocol::command::PATH_RANGE_M;
 use odocal::protocol::token::{self, EventTag, LinesDropped};
 use odocal::protocol::unit::{AngleUnit, LengthUnit, parse_length};
-use odocal::protocol::{ErrorCode, ParamName};
+use odocal::protocol::{Command, ErrorCode, ParamName};
 use serde_json::json;
 
 use crate::link::{Link, LinkError, Reply};
@@ -299,12 +299,16 @@ pub fn run(opts: &Options) -> Result<(), String> {
     if matches!(result, Err(Stop::Interrupted | Stop::Failed(_))) {
         // The pose stream the session turned on: a terminal opened on the port afterwards is
         // not flooded with it.
-        let _ = g.link.command("stream off", REPLY);
+        let _ = g
+            .link
+            .command(&Command::Stream { on: None }.to_string(), REPLY);
     }
     if !matches!(result, Err(Stop::Disconnected(_))) {
         // The echo the handshake turned off, on again (as after a boot): a terminal opened on
         // the port afterwards shows what is typed.
-        let _ = g.link.command("echo on", REPLY);
+        let _ = g
+            .link
+            .command(&Command::Echo { on: true }.to_string(), REPLY);
     }
     let svg = g.plot();
     match result {
@@ -440,12 +444,13 @@ fn path_text(p: &PathKind) -> String {
 }
 
 impl Guide {
-    fn cmd(&mut self, line: &str) -> Result<Reply, Stop> {
-        self.cmd_timeout(line, REPLY)
+    fn cmd(&mut self, command: Command<'_>) -> Result<Reply, Stop> {
+        self.cmd_timeout(command, REPLY)
     }
 
     /// A command; `err 10` (busy) is waited out with a message, a fault is reported.
-    fn cmd_timeout(&mut self, line: &str, timeout: Duration) -> Result<Reply, Stop> {
+    fn cmd_timeout(&mut self, command: Command<'_>, timeout: Duration) -> Result<Reply, Stop> {
+        let line = &command.to_string();
         let mut waited = false;
         loop {
             let r = self.link.command(line, timeout)?;
@@ -534,7 +539,7 @@ impl Guide {
             }
         }
         self.summary()?;
-        let _ = self.cmd("stream off")?;
+        let _ = self.cmd(Command::Stream { on: None })?;
         Ok(())
     }
 
@@ -560,7 +565,9 @@ impl Guide {
                     // The question before the results: the last run's measurement.
                     self.measure_last_again()?;
                 }
-                let r = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+                let r = self.cmd(Command::Stream {
+                    on: Some(Some(self.opts.stream_hz)),
+                })?;
                 if !r.ok() {
                     return Err(Stop::Failed(format!("stream on: {}", r.last)));
                 }
@@ -614,8 +621,10 @@ impl Guide {
     /// stream on (a boot turns the echo on and the stream off); shows what the boot said (the
     /// runs it restored).
     pub(super) fn after_reset(&mut self) -> Result<(), Stop> {
-        let echo = self.cmd("echo off")?;
-        let stream = self.cmd(&format!("stream on {}", self.opts.stream_hz))?;
+        let echo = self.cmd(Command::Echo { on: false })?;
+        let stream = self.cmd(Command::Stream {
+            on: Some(Some(self.opts.stream_hz)),
+        })?;
         for r in [echo, stream] {
             if !r.ok() {
                 return Err(Stop::Failed(format!("after the reset: {}", r.last)));
@@ -631,7 +640,7 @@ impl Guide {
 
     /// `status` and `params`: geometry, calibration, faults.
     fn show_board(&mut self) -> Result<(), Stop> {
-        let params = self.cmd("params")?;
+        let params = self.cmd(Command::Params)?;
         self.nominal = nominal_of(&params.data)
             .ok_or_else(|| Stop::Failed("`params` without the geometry".into()))?;
         self.link
@@ -651,7 +660,7 @@ impl Guide {
         if let Some(v) = param(&params.data, "runs_per_direction") {
             self.per_direction = v as u32;
         }
-        let status = self.cmd("status")?;
+        let status = self.cmd(Command::Status)?;
         let fault = field(status.text(), "fault").unwrap_or("none").to_string();
         self.ui.say(&format!("fault: {fault}"));
         if fault != "none" {
@@ -665,7 +674,7 @@ impl Guide {
                 Ok(g.ui.confirm("Clear the fault now", true)?)
             })?;
             if clear {
-                let r = self.cmd("clear")?;
+                let r = self.cmd(Command::Clear)?;
                 self.ui.say(&format!("  {}", r.last));
             } else {
                 return Err(Stop::Failed("a fault is latched".into()));
@@ -674,7 +683,7 @@ impl Guide {
         if field(status.text(), "state") != Some("idle") {
             self.ui.say("the robot is moving: waiting for it to stop");
             loop {
-                let s = self.cmd("status")?;
+                let s = self.cmd(Command::Status)?;
                 if field(s.text(), "state") == Some("idle") {
                     break;
                 }
@@ -712,7 +721,7 @@ impl Guide {
                         return Ok(());
                     }
                     // Runs left on the board from before belong to another session.
-                    let runs = self.cmd("runs")?;
+                    let runs = self.cmd(Command::Runs)?;
                     let stored = runs.data.len();
                     if stored > 0 {
                         match self.runs_from_before(stored) {
@@ -788,11 +797,18 @@ impl Guide {
     }
 
     fn send_plan(&mut self) -> Result<(), Stop> {
-        for line in [
-            format!("set square_side {}", setup::metres_text(self.side_m)),
-            format!("set runs_per_direction {}", self.per_direction),
+        for command in [
+            Command::Set {
+                name: ParamName::SquareSide,
+                value: self.side_m,
+            },
+            Command::Set {
+                name: ParamName::RunsPerDirection,
+                value: f64::from(self.per_direction),
+            },
         ] {
-            let r = self.cmd(&line)?;
+            let line = command.to_string();
+            let r = self.cmd(command)?;
             if !r.ok() {
                 return Err(Stop::Failed(format!("{line}: {}", r.last)));
             }
@@ -812,7 +828,7 @@ impl Guide {
 
     /// The numbers of the runs the board holds, in its store order (from `runs`).
     fn board_numbers(&mut self) -> Result<Vec<usize>, Stop> {
-        let r = self.cmd("runs")?;
+        let r = self.cmd(Command::Runs)?;
         if !r.ok() {
             return Err(Stop::Failed(format!("runs: {}", r.last)));
         }
@@ -836,7 +852,7 @@ impl Guide {
     /// and from the session.
     pub(super) fn drop_slot(&mut self, slot: usize, say: bool) -> Result<(), Stop> {
         if let Some(n) = self.board_number(slot) {
-            let r = self.cmd(&format!("drop {n}"))?;
+            let r = self.cmd(Command::Drop { index: n })?;
             if say {
                 self.ui.say(&format!("  {}", r.last));
             }
@@ -860,7 +876,10 @@ impl Guide {
         let mut lines = Vec::new();
         let mut reader = odocal::protocol::record::RecordReader::new();
         while let Some(first) = reader.next_first() {
-            let r = self.cmd(&format!("record {n} {first}"))?;
+            let r = self.cmd(Command::Record {
+                index: n,
+                first_knot: first,
+            })?;
             if !r.ok() {
                 return Err(Stop::Failed(format!("record {n}: {}", r.last)));
             }

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use odocal::calibration::Method;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::protocol::token::{self, TableRow};
-use odocal::protocol::{ErrorCode, FinalLine};
+use odocal::protocol::{Command, ErrorCode, FinalLine};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, Numbered, write_calibration};
 use serde_json::json;
@@ -23,7 +23,7 @@ impl Guide {
         let (table, source) = if self.board_has_all() {
             self.ui
                 .say("calibrate: the board computes every method (several seconds on the board)");
-            let r = self.cmd_timeout("calibrate", CALIBRATE)?;
+            let r = self.cmd_timeout(Command::Calibrate { method: None }, CALIBRATE)?;
             let mut t = r.data.clone();
             t.push(r.last.clone());
             if !r.ok() {
@@ -280,7 +280,10 @@ impl Guide {
                 Proceed::Choice => continue 'choice,
                 Proceed::Return(changed) => return Ok(changed),
             }
-            let mut applied = self.cmd(&format!("apply {method}"))?;
+            let mut applied = self.cmd(Command::Apply {
+                method,
+                confirmed: false,
+            })?;
             if applied.is_err(ErrorCode::NotConfirmed) {
                 // A run is flagged (the board's own check): applied only on a second yes.
                 self.ui.say(&format!("  {}", applied.last));
@@ -292,7 +295,10 @@ impl Guide {
                     Proceed::Choice => continue 'choice,
                     Proceed::Return(changed) => return Ok(changed),
                 }
-                applied = self.cmd(&format!("apply {method} yes"))?;
+                applied = self.cmd(Command::Apply {
+                    method,
+                    confirmed: true,
+                })?;
             }
             match self.save_and_verify(method.to_string(), applied) {
                 // Back from the save question: the method question (the calibration stays
@@ -408,7 +414,7 @@ impl Guide {
         if self.ui.confirm_explicit(&format!(
             "Save the changes made this session ({what}) to flash"
         ))? {
-            let saved = self.cmd("save")?;
+            let saved = self.cmd(Command::Save)?;
             self.link.log.entry(
                 "save",
                 json!({ "ok": saved.ok(), "reply": saved.last }),
@@ -454,7 +460,7 @@ impl Guide {
             "Save it to the board's flash (kept at every boot, with the geometry, wiring and \
              motor tuning)",
         )? {
-            let saved = self.cmd("save")?;
+            let saved = self.cmd(Command::Save)?;
             self.link.log.entry(
                 "save",
                 json!({ "ok": saved.ok(), "reply": saved.last }),
@@ -472,7 +478,7 @@ impl Guide {
                  a terminal to keep it)",
             );
         }
-        let params = self.cmd("params")?;
+        let params = self.cmd(Command::Params)?;
         let line = calibration_of(&params.data);
         let want = (field(applied.text(), "E_d"), field(applied.text(), "E_b"));
         let ok = line.starts_with(&format!("{method} "))

@@ -6,8 +6,8 @@ use odocal::protocol::unit::{parse_angle, parse_length};
 use std::time::Duration;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
-use odocal::protocol::ErrorCode;
 use odocal::protocol::token::{self, EventTag};
+use odocal::protocol::{Command, ErrorCode};
 use serde_json::json;
 
 use super::{Guide, RUN_TIMEOUT, Slot, Stop, event_tag, field, path_text};
@@ -157,7 +157,7 @@ impl Guide {
                 self.ui.say(&format!("  the board was reset: {boot}"));
                 self.after_reset()?;
             }
-            let pose = self.cmd("pose")?;
+            let pose = self.cmd(Command::Pose)?;
             let start = (
                 field(pose.text(), "x").and_then(|v| v.parse::<f64>().ok()),
                 field(pose.text(), "y").and_then(|v| v.parse::<f64>().ok()),
@@ -187,15 +187,16 @@ impl Guide {
             }
             // Not retried when busy: a run started meanwhile (the button) is followed instead
             // of starting another after it.
-            let r = self.link.command(
-                &format!("run {dir} {}", super::setup::metres_text(self.side_m)),
-                super::REPLY,
-            )?;
+            let run = Command::Run {
+                direction,
+                side_m: Some(self.side_m),
+            };
+            let r = self.link.command(&run.to_string(), super::REPLY)?;
             if r.ok() {
                 break start;
             }
             if r.is_err(ErrorCode::Busy) {
-                let status = self.cmd("status")?;
+                let status = self.cmd(Command::Status)?;
                 if field(status.text(), "state") == Some("running") {
                     self.ui.say(&format!(
                         "  the board is busy ({}): a run was started on the board; following it",
@@ -209,7 +210,7 @@ impl Guide {
             if r.is_err(ErrorCode::Fault) {
                 self.ui
                     .say("  a fault is latched: `clear` is sent, then try again");
-                let c = self.cmd("clear")?;
+                let c = self.cmd(Command::Clear)?;
                 self.ui.say(&format!("  {}", c.last));
             } else if r.is_err(ErrorCode::StoreFull) {
                 return Err(Stop::Failed(
@@ -286,7 +287,7 @@ impl Guide {
             }
         };
         if !finished {
-            let s = self.cmd("status")?;
+            let s = self.cmd(Command::Status)?;
             if let Some(f) = field(s.text(), "fault").filter(|f| *f != "none") {
                 self.ui.warn(&format!(
                     "fault: {f}: the motors are stopped. Fix the cause, then the fault is \
@@ -312,7 +313,7 @@ impl Guide {
                     },
                 )?;
                 if again {
-                    let _ = self.cmd("clear")?;
+                    let _ = self.cmd(Command::Clear)?;
                 } else {
                     return Err(Stop::Failed(format!("fault {f}")));
                 }
@@ -430,7 +431,7 @@ impl Guide {
                         );
                         continue;
                     }
-                    let r = self.cmd(&format!("drop {n}"))?;
+                    let r = self.cmd(Command::Drop { index: n })?;
                     self.ui.say(&format!("  {}", r.last));
                     if !r.ok() {
                         return Err(Stop::Failed(format!("drop {n}: {}", r.last)));
@@ -459,8 +460,18 @@ impl Guide {
                 ));
                 continue;
             }
-            let mut line = format!("measure #{n} {}", words.join(" "));
-            let mut r = self.cmd(&line)?;
+            // Read by the board's own grammar before it is sent: a value it would refuse is
+            // said here, as the board would say it.
+            let typed = format!("measure #{n} {}", words.join(" "));
+            let mut measure = match Command::parse(&typed) {
+                Ok(c @ Command::Measure { .. }) => c,
+                Ok(_) => return Err(Stop::Failed(format!("`{typed}` is not a measurement"))),
+                Err(e) => {
+                    self.ui.say(&format!("  `{a}`: {e}"));
+                    continue;
+                }
+            };
+            let mut r = self.cmd(measure)?;
             if r.is_err(ErrorCode::Implausible) {
                 // Beyond what the nominal geometry's tolerance allows: kept only on a yes.
                 self.ui.say(&format!("  {}", r.last));
@@ -475,9 +486,12 @@ impl Guide {
                     self.ui.say("  nothing stored; type it again");
                     continue;
                 }
-                line.push_str(" yes");
-                r = self.cmd(&line)?;
+                if let Command::Measure { confirmed, .. } = &mut measure {
+                    *confirmed = true;
+                }
+                r = self.cmd(measure)?;
             }
+            let line = measure.to_string();
             self.link.log.entry(
                 "measure",
                 json!({ "board": n, "line": line, "reply": r.last }),
@@ -516,7 +530,7 @@ impl Guide {
         )?;
         if choice == "d" {
             // The board asks for `drop all yes`: the operator chose to drop them just now.
-            let r = self.cmd("drop all yes")?;
+            let r = self.cmd(Command::DropAll { confirmed: true })?;
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
                 return Err(Stop::Failed(format!("drop all: {}", r.last)));

@@ -6,9 +6,11 @@
 use std::time::Duration;
 
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::bringup::CheckKind;
+use odocal::motion::identify::IdentifyMode;
 use odocal::motion::speed::MotorParams;
 use odocal::protocol::token::{self, EventTag};
-use odocal::protocol::{ErrorCode, FinalLine};
+use odocal::protocol::{Command, ErrorCode, FinalLine, ParamName};
 
 use super::{Guide, REPLY, Stop, event_head, event_tag};
 use crate::log::{calibration_of, param};
@@ -188,24 +190,25 @@ impl Guide {
             }
         };
         for (name, value) in [
-            ("d_right", metres_text(d_right)),
-            ("d_left", metres_text(d_left)),
-            ("wheelbase", metres_text(b)),
-            ("counts_per_rev", counts.to_string()),
+            (ParamName::DiameterRight, d_right),
+            (ParamName::DiameterLeft, d_left),
+            (ParamName::Wheelbase, b),
+            (ParamName::CountsPerRev, f64::from(counts)),
         ] {
-            let r = self.cmd(&format!("set {name} {value}"))?;
+            let r = self.cmd(Command::Set { name, value })?;
             self.ui.say(&format!("  {}", r.last));
             if token::is_not_saved(&r.last) && !self.pending.contains(&"nominal geometry") {
                 self.pending.push("nominal geometry");
             }
             if !r.ok() {
                 self.ui.warn(&format!(
-                    "the board refused {name} {value}: the geometry stays as it was for it"
+                    "the board refused {} {value}: the geometry stays as it was for it",
+                    name.as_str()
                 ));
             }
         }
         self.done.geometry = true;
-        let params = self.cmd("params")?;
+        let params = self.cmd(Command::Params)?;
         if let Some(g) = crate::log::nominal_of(&params.data) {
             self.nominal = g;
         }
@@ -366,7 +369,9 @@ impl Guide {
              forward by hand about 5 cm within 5 s",
         );
         self.ui.ask("Enter starts the push check", Some("go"))?;
-        let r = self.cmd("bringup push")?;
+        let r = self.cmd(Command::Bringup {
+            kind: CheckKind::Push,
+        })?;
         self.ui.say(&format!("  {}", r.last));
         if !r.ok() {
             self.check_refused(&r.last)?;
@@ -396,19 +401,23 @@ impl Guide {
                 }
                 r => r?,
             };
-            let r = self.cmd("bringup")?;
+            let r = self.cmd(Command::Bringup {
+                kind: CheckKind::Pulses,
+            })?;
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
                 return self.check_refused(&r.last);
             }
             let events = self.check_events(&[EventTag::BringupDone], 60)?;
-            let proposals: Vec<String> = events
-                .iter()
-                .filter_map(|l| match EventTag::parse(l) {
-                    Some((EventTag::BringupPropose, set)) => Some(set.to_string()),
-                    _ => None,
-                })
-                .collect();
+            // Each proposal is a `set` the board worded; read by its grammar, sent as read.
+            let mut proposals = Vec::new();
+            for l in &events {
+                if let Some((EventTag::BringupPropose, set)) = EventTag::parse(l) {
+                    let command = Command::parse(set)
+                        .map_err(|e| Stop::Failed(format!("the board proposed `{set}`: {e}")))?;
+                    proposals.push(command);
+                }
+            }
             if events.last().is_some_and(|l| {
                 matches!(EventTag::parse(l), Some((EventTag::BringupDone, verdict)) if token::is_wiring_ok(verdict))
             }) {
@@ -422,7 +431,8 @@ impl Guide {
                 );
                 return Err(Stop::Failed("bring-up check: wiring not ok".into()));
             }
-            let question = format!("Apply the proposed correction ({})", proposals.join("; "));
+            let proposed: Vec<String> = proposals.iter().map(ToString::to_string).collect();
+            let question = format!("Apply the proposed correction ({})", proposed.join("; "));
             let apply = attempt < 2
                 && match self.ui.confirm_explicit(&question) {
                     // Back to the motor check's start: the pulses again, on Enter.
@@ -434,7 +444,7 @@ impl Guide {
                     .say("  nothing applied: the wiring is as it was (the squares need it right)");
                 return Ok(());
             }
-            for p in &proposals {
+            for p in proposals {
                 let r = self.cmd(p)?;
                 self.ui.say(&format!("  {}", r.last));
                 if !r.ok() {
@@ -454,7 +464,7 @@ impl Guide {
         self.ui
             .warn(&format!("the board refused the check: {reply}"));
         if FinalLine::parse(reply).is_some_and(|f| f.is_err(ErrorCode::Fault)) {
-            let c = self.cmd("clear")?;
+            let c = self.cmd(Command::Clear)?;
             self.ui.say(&format!(
                 "  {} (run the step again from a terminal, or restart)",
                 c.last
@@ -482,14 +492,14 @@ impl Guide {
                 help,
             )?;
             let mode = match choice.as_str() {
-                "f" => "floor",
-                "l" => "lifted",
+                "f" => IdentifyMode::Floor,
+                "l" => IdentifyMode::Lifted,
                 _ => return Ok(()),
             };
             let start = self.ui.ask(
                 &format!(
                     "Robot {}; Enter starts the identification",
-                    if mode == "floor" {
+                    if mode == IdentifyMode::Floor {
                         "on the floor, 1 m free ahead and behind"
                     } else {
                         "on a box, wheels off the ground"
@@ -501,7 +511,7 @@ impl Guide {
                 Err(crate::ui::AskError::Back) => continue,
                 r => r?,
             };
-            let r = self.cmd_timeout(&format!("identify {mode}"), REPLY)?;
+            let r = self.cmd_timeout(Command::Identify { mode }, REPLY)?;
             self.ui.say(&format!("  {}", r.last));
             if !r.ok() {
                 self.check_refused(&r.last)?;
@@ -524,7 +534,7 @@ impl Guide {
                  `identify` is latched; it is cleared now (see the reason above: a reversed \
                  motor or encoder needs the bring-up check)",
             );
-            let c = self.cmd("clear")?;
+            let c = self.cmd(Command::Clear)?;
             self.ui.say(&format!("  {}", c.last));
         }
     }
