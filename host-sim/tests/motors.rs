@@ -4,6 +4,7 @@
 use clap::Parser;
 use host_sim::commands::drive::{DriveArgs, execute};
 use host_sim::experiments::motors::{CASES, identify, squares, worst_relative_error};
+use odocal::motion::identify::IdentifyMode;
 use odocal::motion::speed::SpeedTuning;
 
 /// Bound on every identified parameter's relative error (see the test below).
@@ -102,7 +103,7 @@ fn refusal_on_a_miswired_robot_and_the_tuning_survives_a_reboot() {
     let mut out = String::new();
     let mut board = Board::boot(cfg, &mut flash, &mut out).expect("boot");
     let text = board
-        .identify("floor")
+        .identify(IdentifyMode::Floor)
         .expect_err("a reversed motor is refused");
     assert!(
         text.contains("event identify err 23: left motor: counts run against the duty"),
@@ -116,7 +117,9 @@ fn refusal_on_a_miswired_robot_and_the_tuning_survives_a_reboot() {
     let mut flash = SimParamFlash::erased();
     let tuned = {
         let mut board = Board::boot(cfg, &mut flash, &mut out).expect("boot");
-        board.identify("floor").expect("identification succeeds");
+        board
+            .identify(IdentifyMode::Floor)
+            .expect("identification succeeds");
         assert_eq!(board.send("save"), "ok saved\r\n");
         board.session.settings().tuning
     };
@@ -143,7 +146,9 @@ fn identification_at_10_khz_finds_the_same_motors() {
         let mut out = String::new();
         let mut board = Board::boot(cfg, &mut flash, &mut out).expect("boot");
         assert_eq!(board.controller.config().rate_hz, 10_000);
-        board.identify("floor").expect("identification succeeds");
+        board
+            .identify(IdentifyMode::Floor)
+            .expect("identification succeeds");
         let tuning = board.session.settings().tuning;
         for (right, est) in [(true, tuning.right), (false, tuning.left)] {
             let truth = case.truth(right);

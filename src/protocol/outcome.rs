@@ -60,6 +60,36 @@ pub enum Outcome {
     },
     /// `set measure_unit` / `set heading_unit`: the unit of bare values for this session.
     UnitSet(UnitSetting),
+    /// `clear` (or a short press) cleared a latched fault; `clear` names it.
+    FaultCleared {
+        /// The fault's name, when the reply names it.
+        name: Option<&'static str>,
+    },
+    /// `clear` with no fault latched cleared the reset cause of the last boot.
+    ResetCauseCleared,
+    /// `clear` with nothing to clear.
+    NoFaultLatched,
+    /// `echo on|off`.
+    Echo {
+        /// Echo on.
+        on: bool,
+    },
+    /// `stream on` at `hz`, or `stream off` (`None`).
+    Stream {
+        /// The rate, Hz, while on.
+        hz: Option<u32>,
+    },
+    /// `odom reset`.
+    OdometryReset,
+    /// `drive` accepted as given.
+    Driving,
+    /// `drive` accepted at the motion limits: the speed and turn rate it was cut to.
+    DriveLimited {
+        /// Forward speed, m/s.
+        v_mps: f32,
+        /// Turn rate, rad/s.
+        w_radps: f32,
+    },
 }
 
 /// `<n> run` / `<n> runs`.
@@ -159,6 +189,21 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
                  not saved)"
             )?;
         }
+        Outcome::FaultCleared { name: None } => out.write_str("ok fault cleared")?,
+        Outcome::FaultCleared { name: Some(n) } => write!(out, "ok fault cleared ({n})")?,
+        Outcome::ResetCauseCleared => out.write_str("ok reset cause cleared")?,
+        Outcome::NoFaultLatched => out.write_str("ok no fault latched")?,
+        Outcome::Echo { on } => out.write_str(if on { "ok echo on" } else { "ok echo off" })?,
+        Outcome::Stream { hz: Some(hz) } => write!(out, "ok stream on {hz} Hz")?,
+        Outcome::Stream { hz: None } => out.write_str("ok stream off")?,
+        Outcome::OdometryReset => out.write_str("ok odometry reset")?,
+        Outcome::Driving => out.write_str("ok")?,
+        Outcome::DriveLimited { v_mps, w_radps } => write!(
+            out,
+            "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate)",
+            Decimal::signed(f64::from(v_mps), 3),
+            Decimal::signed(f64::from(w_radps), 3)
+        )?,
     }
     out.write_str(EOL)
 }

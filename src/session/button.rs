@@ -9,6 +9,7 @@ use core::fmt::{self, Write};
 use super::Session;
 use super::traits::{Calibrator, Robot};
 use crate::protocol::StopKey;
+use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::token::EventTag;
 
 impl<C: Calibrator> Session<C> {
@@ -23,7 +24,7 @@ impl<C: Calibrator> Session<C> {
         EventTag::Button.write(out)?;
         if robot.status().fault().is_some() {
             robot.clear_fault();
-            return write!(out, "ok fault cleared\r\n");
+            return write_outcome(out, &Outcome::FaultCleared { name: None });
         }
         // A refusal is said on the console and shown on the LEDs.
         let started = self.start_next(robot, out)?;
@@ -44,7 +45,7 @@ impl<C: Calibrator> Session<C> {
         robot.abort();
         self.collect_finished(robot, out)?;
         EventTag::Button.write(out)?;
-        write!(out, "ok stopped\r\n")
+        write_outcome(out, &Outcome::Stopped { aborted: None })
     }
 
     /// Ctrl-C or Esc: stops any motion (the board's receive interrupt has already told the

@@ -7,12 +7,12 @@
 
 use core::fmt::{self, Write};
 
+use crate::protocol::outcome::{Outcome, write_outcome};
 use crate::protocol::refusal::write_refusal;
 
 use super::traits::{Calibrator, Robot};
 use super::{Session, report, robot_err};
 use crate::protocol::reply::EOL;
-use crate::util::decimal::Decimal;
 use crate::util::num::clamp;
 
 impl<C: Calibrator> Session<C> {
@@ -36,16 +36,15 @@ impl<C: Calibrator> Session<C> {
                 let l = &self.settings.motion;
                 let v = clamp(v_mps, -l.max_speed_mps, l.max_speed_mps);
                 let w = clamp(w_radps, -l.max_turn_rate_radps, l.max_turn_rate_radps);
-                if v == v_mps && w == w_radps {
-                    write!(out, "ok\r\n")
+                let outcome = if v == v_mps && w == w_radps {
+                    Outcome::Driving
                 } else {
-                    write!(
-                        out,
-                        "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate)\r\n",
-                        Decimal::signed(f64::from(v), 3),
-                        Decimal::signed(f64::from(w), 3)
-                    )
-                }
+                    Outcome::DriveLimited {
+                        v_mps: v,
+                        w_radps: w,
+                    }
+                };
+                write_outcome(out, &outcome)
             }
             Err(e) => robot_err(out, e, robot),
         }
@@ -62,7 +61,7 @@ impl<C: Calibrator> Session<C> {
     /// `odom reset`: the odometry pose back to the origin.
     pub(super) fn odom_reset(&self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         match robot.reset_odometry() {
-            Ok(()) => write!(out, "ok odometry reset\r\n"),
+            Ok(()) => write_outcome(out, &Outcome::OdometryReset),
             Err(e) => robot_err(out, e, robot),
         }
     }

@@ -496,14 +496,11 @@ impl<C: Calibrator> Session<C> {
                 match robot.status().fault() {
                     Some(fault) => {
                         robot.clear_fault();
-                        write!(
-                            out,
-                            "ok fault cleared ({})\r\n",
-                            library::fault_name(&fault)
-                        )
+                        let name = Some(library::fault_name(&fault));
+                        write_outcome(out, &Outcome::FaultCleared { name })
                     }
-                    None if crash.is_some() => write!(out, "ok reset cause cleared\r\n"),
-                    None => write!(out, "ok no fault latched\r\n"),
+                    None if crash.is_some() => write_outcome(out, &Outcome::ResetCauseCleared),
+                    None => write_outcome(out, &Outcome::NoFaultLatched),
                 }
             }
             Command::Measure {
@@ -534,7 +531,7 @@ impl<C: Calibrator> Session<C> {
             Command::Stream { on } => self.set_stream(on, out),
             Command::Echo { on } => {
                 self.echo = on;
-                write!(out, "ok echo {}\r\n", if on { "on" } else { "off" })
+                write_outcome(out, &Outcome::Echo { on })
             }
             Command::Drive { v_mps, w_radps } => self.drive(v_mps, w_radps, robot, out),
         }

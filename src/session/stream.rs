@@ -10,6 +10,7 @@ use super::Session;
 use super::report;
 use super::traits::{Calibrator, Robot, SettingsAndRuns};
 use crate::kinematics::encoder::WheelTicks;
+use crate::protocol::outcome::{Outcome, write_outcome};
 
 /// Default pose-stream rate, Hz.
 pub const DEFAULT_STREAM_HZ: u32 = 10;
@@ -71,11 +72,11 @@ impl<C: Calibrator> Session<C> {
                     next_due_us: None,
                     last: None,
                 });
-                write!(out, "ok stream on {hz} Hz\r\n")
+                write_outcome(out, &Outcome::Stream { hz: Some(hz) })
             }
             None => {
                 self.stream = None;
-                write!(out, "ok stream off\r\n")
+                write_outcome(out, &Outcome::Stream { hz: None })
             }
         }
     }

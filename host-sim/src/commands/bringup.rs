@@ -7,6 +7,8 @@
 //! flash, `bringup` again, and a square. Every line sent and received is printed.
 
 use odocal::motion::controller::Status;
+use odocal::motion::run::Direction;
+use odocal::protocol::Command;
 
 use crate::sim::board::{Board, accepted, measure_line};
 use crate::sim::flash::SimParamFlash;
@@ -107,7 +109,11 @@ pub fn bringup_session(args: &BringupArgs) -> Result<BringupOutcome, String> {
         .unwrap_or("no verdict")
         .to_string();
     let start = board.sim.true_pose();
-    exchange(&mut board, &format!("run cw {}", args.side), &mut t);
+    let run = Command::Run {
+        direction: Direction::Cw,
+        side_m: Some(args.side),
+    };
+    exchange(&mut board, &run.to_string(), &mut t);
     settle(&mut board, 120, args.rate, &mut t);
     let square_ok = !matches!(board.controller.status(), Status::Faulted(_));
     let square_end_m = board.sim.true_pose().distance_to(&start);

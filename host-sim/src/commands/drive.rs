@@ -14,6 +14,7 @@
 use clap::ValueEnum;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, Fault};
+use odocal::motion::identify::IdentifyMode;
 
 use crate::sim::board::Board;
 use crate::sim::flash::SimParamFlash;
@@ -187,7 +188,7 @@ pub fn execute(args: &DriveArgs) -> Result<DriveOutcome, String> {
     let mut board = Board::boot(config, &mut flash, &mut boot)?;
     let identification = if args.identify {
         let events = board
-            .identify("lifted")
+            .identify(IdentifyMode::Lifted)
             .map_err(|e| format!("identify: {e}"))?;
         Some(events.replace("\r\n", "\n"))
     } else {

@@ -9,6 +9,7 @@
 //! side by side.
 
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::identify::IdentifyMode;
 use odocal::motion::run::{Direction, PathKind};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 
@@ -119,7 +120,7 @@ pub fn identify(case: &MotorCase) -> Result<SpeedTuning, String> {
     let mut flash = SimParamFlash::erased();
     let mut out = String::new();
     let mut board = Board::boot(case.sim_config(0.0, 1), &mut flash, &mut out)?;
-    board.identify("lifted")?;
+    board.identify(IdentifyMode::Lifted)?;
     Ok(board.session.settings().tuning)
 }
 

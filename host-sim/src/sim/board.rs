@@ -24,9 +24,10 @@ use odocal::kinematics::reference::PoseF64;
 use odocal::motion::bringup::CheckKind;
 use odocal::motion::button::Press;
 use odocal::motion::controller::{Controller, Status, StepOutput};
+use odocal::motion::identify::IdentifyMode;
 use odocal::protocol::line::LineEvent;
 use odocal::protocol::rx::{InputItem, Received, RxRead};
-use odocal::protocol::{FinalLine, LineAssembler};
+use odocal::protocol::{Command, FinalLine, LineAssembler, ParamName};
 use odocal::session::library::{LibraryCalibrator, LockedController};
 use odocal::session::{Session, write_boot_event};
 use odocal::storage::ParamAndRunStore;
@@ -98,9 +99,14 @@ impl<'f> Board<'f> {
         let wanted_hz = config.rate_hz;
         let mut board = Board::boot_at_stored_rate(config, flash, out)?;
         if wanted_hz != board.controller.config().rate_hz {
-            let reply = board.send(&format!("set control_hz {wanted_hz}"));
+            let set = Command::Set {
+                name: ParamName::ControlHz,
+                value: f64::from(wanted_hz),
+            }
+            .to_string();
+            let reply = board.send(&set);
             if !accepted(&reply) {
-                return Err(format!("set control_hz {wanted_hz}: {reply}"));
+                return Err(format!("{set}: {reply}"));
             }
             out.push_str(&reply);
         }
@@ -339,8 +345,8 @@ impl<'f> Board<'f> {
     /// # Errors
     /// The text so far when the command is refused, the identification reports an error, or it
     /// does not end within a minute of robot time.
-    pub fn identify(&mut self, mode: &str) -> Result<String, String> {
-        let mut out = self.send(&format!("identify {mode}"));
+    pub fn identify(&mut self, mode: IdentifyMode) -> Result<String, String> {
+        let mut out = self.send(&Command::Identify { mode }.to_string());
         if !accepted(&out) {
             return Err(out);
         }

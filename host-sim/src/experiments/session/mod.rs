@@ -36,8 +36,9 @@ use indicatif::ProgressBar;
 use odocal::calibration::Method;
 use odocal::calibration::track::{TrackAdviceInput, advise};
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::identify::IdentifyMode;
 use odocal::motion::run::{Direction, PathKind};
-use odocal::protocol::ErrorCode;
+use odocal::protocol::{Command, ErrorCode, ParamName};
 use rayon::prelude::*;
 
 use crate::experiments::montecarlo::Rng;
@@ -257,7 +258,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
         pb.set_message("identify");
         log.push_str("> identify floor\n");
         let events = board
-            .identify("floor")
+            .identify(IdentifyMode::Floor)
             .map_err(|e| format!("identify floor failed: {}", e.replace("\r\n", "\n")))?;
         log.push_str(&events.replace("\r\n", "\n"));
         Some(events.replace("\r\n", "\n"))
@@ -304,10 +305,10 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
 
     // Calibration runs through the serial path.
     pb.set_message("calibration runs");
-    send(&mut board, &format!("set square_side {side_m}"), &mut log)?;
+    send(&mut board, &set(ParamName::SquareSide, side_m), &mut log)?;
     send(
         &mut board,
-        &format!("set runs_per_direction {}", args.runs),
+        &set(ParamName::RunsPerDirection, f64::from(args.runs)),
         &mut log,
     )?;
     let t_runs = Instant::now();
@@ -326,11 +327,15 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     let calibration = parse_calibration(&reply);
     // A run the robust fit flags (measurement noise on few runs can make one) needs the
     // confirmation an operator would give after looking at it: the log shows both replies.
-    let apply = format!("apply {}", method.as_str());
-    let reply = match send(&mut board, &apply, &mut log) {
-        Err(e) if e.is(ErrorCode::NotConfirmed) => {
-            send(&mut board, &format!("{apply} yes"), &mut log)?
+    let apply = |confirmed| {
+        Command::Apply {
+            method: method.as_str(),
+            confirmed,
         }
+        .to_string()
+    };
+    let reply = match send(&mut board, &apply(false), &mut log) {
+        Err(e) if e.is(ErrorCode::NotConfirmed) => send(&mut board, &apply(true), &mut log)?,
         other => other?,
     };
     let applied = match (
@@ -365,7 +370,7 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     // set of squares is driven with the new parameters.
     pb.set_message("verification");
     send(&mut board, "drop all yes", &mut log)?;
-    send(&mut board, &format!("set square_side {side_m}"), &mut log)?;
+    send(&mut board, &set(ParamName::SquareSide, side_m), &mut log)?;
     let after_runs = planned_runs(&mut board, args, &mut rng, &mut log, pb)?;
     let after: Vec<_> = after_runs
         .iter()
@@ -459,4 +464,9 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
         total_wall_s: started.elapsed().as_secs_f64(),
         transcript: log,
     })
+}
+
+/// The `set` line of one parameter, as the protocol writes it.
+fn set(name: ParamName, value: f64) -> String {
+    Command::Set { name, value }.to_string()
 }
