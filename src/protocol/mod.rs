@@ -28,6 +28,7 @@ pub mod line;
 pub mod number;
 pub mod outcome;
 pub mod param;
+pub mod parse_error;
 pub mod record;
 pub mod refusal;
 pub mod reply;
