@@ -430,6 +430,163 @@ fn method_name(word: &str) -> Result<&str, ParseError> {
     }
 }
 
+/// `set <name> <value>`, `set measure_unit <unit>`, `set heading_unit <unit>`.
+fn set<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let name_word = words.required("name")?;
+    if keyword_eq(name_word, "measure_unit") {
+        let unit = length_unit(words.required("value")?).ok_or(ParseError::BadKeyword {
+            what: "value",
+            expected: "mm|cm|m",
+        })?;
+        words.end()?;
+        return Ok(Command::SetUnit(UnitSetting::Length(unit)));
+    }
+    if keyword_eq(name_word, "heading_unit") {
+        let unit = angle_unit(words.required("value")?).ok_or(ParseError::BadKeyword {
+            what: "value",
+            expected: "deg|rad",
+        })?;
+        words.end()?;
+        return Ok(Command::SetUnit(UnitSetting::Angle(unit)));
+    }
+    let name = ParamName::from_name(name_word).ok_or(ParseError::UnknownParam {
+        suggestion: ParamName::nearest(name_word),
+    })?;
+    let value_word = words.required("value")?;
+    let (min, max) = name.range();
+    let value = if name.is_sign() {
+        sign(value_word)
+    } else if name.is_integer() {
+        // Integer ranges are small enough to be exact in f64 and u32.
+        whole(value_word, "value", min as u32, max as u32).map(f64::from)
+    } else {
+        number(value_word, "value", min, max)
+    }
+    // `<value>` does not say its unit; the range does (`0.01..5 m` for 385 typed in mm).
+    .map_err(|e| match e {
+        ParseError::OutOfRange { what, min, max, .. } => ParseError::OutOfRange {
+            what,
+            min,
+            max,
+            unit: name.unit(),
+        },
+        e => e,
+    })?;
+    Ok(Command::Set { name, value })
+}
+
+/// `measure [#n] <x> <y> [theta] [yes]`.
+fn measure<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let mut first = words.required("x")?;
+    let run = match first.strip_prefix('#') {
+        Some(n) => {
+            let index = whole(n, "n", 1, RUN_NUMBER_MAX)? as usize;
+            first = words.required("x")?;
+            Some(index)
+        }
+        None => None,
+    };
+    let x = measured_length(words, first, "x")?;
+    let y_word = words.required("y")?;
+    let y = measured_length(words, y_word, "y")?;
+    let (theta, confirmed) = match words.next() {
+        None => (None, false),
+        Some(w) if keyword_eq(w, "yes") => (None, true),
+        Some(w) => (
+            Some(measured_angle(words, w, "theta")?),
+            confirmation(words)?,
+        ),
+    };
+    Ok(Command::Measure {
+        run,
+        x,
+        y,
+        theta,
+        confirmed,
+    })
+}
+
+/// `record <n> [first]`.
+fn record<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let index = whole(words.required("n")?, "n", 1, RUN_NUMBER_MAX)? as usize;
+    let last = crate::motion::run::MAX_KNOTS as u32 - 1;
+    let first_knot = words
+        .next()
+        .map(|w| whole(w, "first", 0, last))
+        .transpose()?
+        .unwrap_or(0) as usize;
+    Ok(Command::Record { index, first_knot })
+}
+
+/// `bringup [motors|push]`.
+fn bringup<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let kind = match words.next() {
+        None => CheckKind::Pulses,
+        Some(w) if keyword_eq(w, "motors") => CheckKind::Pulses,
+        Some(w) if keyword_eq(w, "push") => CheckKind::Push,
+        Some(_) => {
+            return Err(ParseError::BadKeyword {
+                what: "check",
+                expected: "motors|push",
+            });
+        }
+    };
+    Ok(Command::Bringup { kind })
+}
+
+/// `identify [lifted|floor]`.
+fn identify<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let mode = match words.next() {
+        None => IdentifyMode::Lifted,
+        Some(w) if keyword_eq(w, "lifted") => IdentifyMode::Lifted,
+        Some(w) if keyword_eq(w, "floor") => IdentifyMode::Floor,
+        Some(_) => {
+            return Err(ParseError::BadKeyword {
+                what: "mode",
+                expected: "lifted|floor",
+            });
+        }
+    };
+    Ok(Command::Identify { mode })
+}
+
+/// `stream on [hz]` / `stream off`.
+fn stream<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let mode = words.required("mode")?;
+    Ok(if keyword_eq(mode, "on") {
+        let (min, max) = STREAM_RANGE_HZ;
+        let hz = words.next().map(|w| whole(w, "hz", min, max)).transpose()?;
+        Command::Stream { on: Some(hz) }
+    } else if keyword_eq(mode, "off") {
+        Command::Stream { on: None }
+    } else {
+        return Err(ParseError::BadKeyword {
+            what: "mode",
+            expected: "on|off",
+        });
+    })
+}
+
+/// `drive <v_mps> <w_radps>`.
+fn drive<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let v = number(
+        words.required("v_mps")?,
+        "v_mps",
+        -DRIVE_LIMIT_MPS,
+        DRIVE_LIMIT_MPS,
+    )?;
+    let w = number(
+        words.required("w_radps")?,
+        "w_radps",
+        -DRIVE_LIMIT_RADPS,
+        DRIVE_LIMIT_RADPS,
+    )?;
+    Ok(Command::Drive {
+        v_mps: v as f32,
+        w_radps: w as f32,
+    })
+}
+
 impl<'a> Command<'a> {
     /// Parses one line (without its terminator).
     ///
@@ -450,47 +607,7 @@ impl<'a> Command<'a> {
         } else if is("params") {
             Command::Params
         } else if is("set") {
-            let name_word = words.required("name")?;
-            if keyword_eq(name_word, "measure_unit") {
-                let unit = length_unit(words.required("value")?).ok_or(ParseError::BadKeyword {
-                    what: "value",
-                    expected: "mm|cm|m",
-                })?;
-                words.end()?;
-                return Ok(Command::SetUnit(UnitSetting::Length(unit)));
-            }
-            if keyword_eq(name_word, "heading_unit") {
-                let unit = angle_unit(words.required("value")?).ok_or(ParseError::BadKeyword {
-                    what: "value",
-                    expected: "deg|rad",
-                })?;
-                words.end()?;
-                return Ok(Command::SetUnit(UnitSetting::Angle(unit)));
-            }
-            let name = ParamName::from_name(name_word).ok_or(ParseError::UnknownParam {
-                suggestion: ParamName::nearest(name_word),
-            })?;
-            let value_word = words.required("value")?;
-            let (min, max) = name.range();
-            let value = if name.is_sign() {
-                sign(value_word)
-            } else if name.is_integer() {
-                // Integer ranges are small enough to be exact in f64 and u32.
-                whole(value_word, "value", min as u32, max as u32).map(f64::from)
-            } else {
-                number(value_word, "value", min, max)
-            }
-            // `<value>` does not say its unit; the range does (`0.01..5 m` for 385 typed in mm).
-            .map_err(|e| match e {
-                ParseError::OutOfRange { what, min, max, .. } => ParseError::OutOfRange {
-                    what,
-                    min,
-                    max,
-                    unit: name.unit(),
-                },
-                e => e,
-            })?;
-            Command::Set { name, value }
+            set(&mut words)?
         } else if is("run") {
             let direction = direction(words.required("direction")?)?;
             let side_m = optional_number(&mut words, "side_m", PATH_RANGE_M)?;
@@ -513,44 +630,11 @@ impl<'a> Command<'a> {
         } else if is("clear") {
             Command::Clear
         } else if is("measure") {
-            let mut first = words.required("x")?;
-            let run = match first.strip_prefix('#') {
-                Some(n) => {
-                    let index = whole(n, "n", 1, RUN_NUMBER_MAX)? as usize;
-                    first = words.required("x")?;
-                    Some(index)
-                }
-                None => None,
-            };
-            let x = measured_length(&mut words, first, "x")?;
-            let y_word = words.required("y")?;
-            let y = measured_length(&mut words, y_word, "y")?;
-            let (theta, confirmed) = match words.next() {
-                None => (None, false),
-                Some(w) if keyword_eq(w, "yes") => (None, true),
-                Some(w) => (
-                    Some(measured_angle(&mut words, w, "theta")?),
-                    confirmation(&mut words)?,
-                ),
-            };
-            Command::Measure {
-                run,
-                x,
-                y,
-                theta,
-                confirmed,
-            }
+            measure(&mut words)?
         } else if is("runs") {
             Command::Runs
         } else if is("record") {
-            let index = whole(words.required("n")?, "n", 1, RUN_NUMBER_MAX)? as usize;
-            let last = crate::motion::run::MAX_KNOTS as u32 - 1;
-            let first_knot = words
-                .next()
-                .map(|w| whole(w, "first", 0, last))
-                .transpose()?
-                .unwrap_or(0) as usize;
-            Command::Record { index, first_knot }
+            record(&mut words)?
         } else if is("version") {
             Command::Version
         } else if is("drop") {
@@ -581,31 +665,9 @@ impl<'a> Command<'a> {
         } else if is("pose") {
             Command::Pose
         } else if is("bringup") {
-            let kind = match words.next() {
-                None => CheckKind::Pulses,
-                Some(w) if keyword_eq(w, "motors") => CheckKind::Pulses,
-                Some(w) if keyword_eq(w, "push") => CheckKind::Push,
-                Some(_) => {
-                    return Err(ParseError::BadKeyword {
-                        what: "check",
-                        expected: "motors|push",
-                    });
-                }
-            };
-            Command::Bringup { kind }
+            bringup(&mut words)?
         } else if is("identify") {
-            let mode = match words.next() {
-                None => IdentifyMode::Lifted,
-                Some(w) if keyword_eq(w, "lifted") => IdentifyMode::Lifted,
-                Some(w) if keyword_eq(w, "floor") => IdentifyMode::Floor,
-                Some(_) => {
-                    return Err(ParseError::BadKeyword {
-                        what: "mode",
-                        expected: "lifted|floor",
-                    });
-                }
-            };
-            Command::Identify { mode }
+            identify(&mut words)?
         } else if is("odom") {
             let what = words.required("action")?;
             if !keyword_eq(what, "reset") {
@@ -616,19 +678,7 @@ impl<'a> Command<'a> {
             }
             Command::OdomReset
         } else if is("stream") {
-            let mode = words.required("mode")?;
-            if keyword_eq(mode, "on") {
-                let (min, max) = STREAM_RANGE_HZ;
-                let hz = words.next().map(|w| whole(w, "hz", min, max)).transpose()?;
-                Command::Stream { on: Some(hz) }
-            } else if keyword_eq(mode, "off") {
-                Command::Stream { on: None }
-            } else {
-                return Err(ParseError::BadKeyword {
-                    what: "mode",
-                    expected: "on|off",
-                });
-            }
+            stream(&mut words)?
         } else if is("echo") {
             let mode = words.required("mode")?;
             let on = if keyword_eq(mode, "on") {
@@ -643,22 +693,7 @@ impl<'a> Command<'a> {
             };
             Command::Echo { on }
         } else if is("drive") {
-            let v = number(
-                words.required("v_mps")?,
-                "v_mps",
-                -DRIVE_LIMIT_MPS,
-                DRIVE_LIMIT_MPS,
-            )?;
-            let w = number(
-                words.required("w_radps")?,
-                "w_radps",
-                -DRIVE_LIMIT_RADPS,
-                DRIVE_LIMIT_RADPS,
-            )?;
-            Command::Drive {
-                v_mps: v as f32,
-                w_radps: w as f32,
-            }
+            drive(&mut words)?
         } else {
             return Err(ParseError::UnknownCommand);
         };
