@@ -60,6 +60,13 @@ pub enum Outcome {
     },
     /// `set measure_unit` / `set heading_unit`: the unit of bare values for this session.
     UnitSet(UnitSetting),
+}
+
+/// A command without a run or a parameter that succeeded (`clear`, `echo`, `stream`, `odom
+/// reset`, `drive`): a small value of its own, so the session's many call sites build only
+/// this, not an [`Outcome`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Ack {
     /// `clear` (or a short press) cleared a latched fault; `clear` names it.
     FaultCleared {
         /// The fault's name, when the reply names it.
@@ -118,6 +125,7 @@ pub fn write_measurement(out: &mut dyn Write, m: &Measurement) -> fmt::Result {
 ///
 /// # Errors
 /// Only if `out` refuses the text.
+#[inline(never)]
 pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
     match *outcome {
         Outcome::Started { run, path } => {
@@ -189,16 +197,27 @@ pub fn write_outcome(out: &mut dyn Write, outcome: &Outcome) -> fmt::Result {
                  not saved)"
             )?;
         }
-        Outcome::FaultCleared { name: None } => out.write_str("ok fault cleared")?,
-        Outcome::FaultCleared { name: Some(n) } => write!(out, "ok fault cleared ({n})")?,
-        Outcome::ResetCauseCleared => out.write_str("ok reset cause cleared")?,
-        Outcome::NoFaultLatched => out.write_str("ok no fault latched")?,
-        Outcome::Echo { on } => out.write_str(if on { "ok echo on" } else { "ok echo off" })?,
-        Outcome::Stream { hz: Some(hz) } => write!(out, "ok stream on {hz} Hz")?,
-        Outcome::Stream { hz: None } => out.write_str("ok stream off")?,
-        Outcome::OdometryReset => out.write_str("ok odometry reset")?,
-        Outcome::Driving => out.write_str("ok")?,
-        Outcome::DriveLimited { v_mps, w_radps } => write!(
+    }
+    out.write_str(EOL)
+}
+
+/// Writes the `ok …` line of `ack`.
+///
+/// # Errors
+/// Only if `out` refuses the text.
+#[inline(never)]
+pub fn write_ack(out: &mut dyn Write, ack: Ack) -> fmt::Result {
+    match ack {
+        Ack::FaultCleared { name: None } => out.write_str("ok fault cleared")?,
+        Ack::FaultCleared { name: Some(n) } => write!(out, "ok fault cleared ({n})")?,
+        Ack::ResetCauseCleared => out.write_str("ok reset cause cleared")?,
+        Ack::NoFaultLatched => out.write_str("ok no fault latched")?,
+        Ack::Echo { on } => out.write_str(if on { "ok echo on" } else { "ok echo off" })?,
+        Ack::Stream { hz: Some(hz) } => write!(out, "ok stream on {hz} Hz")?,
+        Ack::Stream { hz: None } => out.write_str("ok stream off")?,
+        Ack::OdometryReset => out.write_str("ok odometry reset")?,
+        Ack::Driving => out.write_str("ok")?,
+        Ack::DriveLimited { v_mps, w_radps } => write!(
             out,
             "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate)",
             Decimal::signed(f64::from(v_mps), 3),

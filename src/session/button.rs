@@ -9,7 +9,7 @@ use core::fmt::{self, Write};
 use super::Session;
 use super::traits::{Calibrator, Robot};
 use crate::protocol::StopKey;
-use crate::protocol::outcome::{Outcome, write_outcome};
+use crate::protocol::outcome::{Ack, Outcome, write_ack, write_outcome};
 use crate::protocol::token::EventTag;
 
 impl<C: Calibrator> Session<C> {
@@ -24,7 +24,7 @@ impl<C: Calibrator> Session<C> {
         EventTag::Button.write(out)?;
         if robot.status().fault().is_some() {
             robot.clear_fault();
-            return write_outcome(out, &Outcome::FaultCleared { name: None });
+            return write_ack(out, Ack::FaultCleared { name: None });
         }
         // A refusal is said on the console and shown on the LEDs.
         let started = self.start_next(robot, out)?;

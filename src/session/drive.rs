@@ -7,7 +7,7 @@
 
 use core::fmt::{self, Write};
 
-use crate::protocol::outcome::{Outcome, write_outcome};
+use crate::protocol::outcome::{Ack, write_ack};
 use crate::protocol::refusal::write_refusal;
 
 use super::traits::{Calibrator, Robot};
@@ -36,15 +36,15 @@ impl<C: Calibrator> Session<C> {
                 let l = &self.settings.motion;
                 let v = clamp(v_mps, -l.max_speed_mps, l.max_speed_mps);
                 let w = clamp(w_radps, -l.max_turn_rate_radps, l.max_turn_rate_radps);
-                let outcome = if v == v_mps && w == w_radps {
-                    Outcome::Driving
+                let ack = if v == v_mps && w == w_radps {
+                    Ack::Driving
                 } else {
-                    Outcome::DriveLimited {
+                    Ack::DriveLimited {
                         v_mps: v,
                         w_radps: w,
                     }
                 };
-                write_outcome(out, &outcome)
+                write_ack(out, ack)
             }
             Err(e) => robot_err(out, e, robot),
         }
@@ -61,7 +61,7 @@ impl<C: Calibrator> Session<C> {
     /// `odom reset`: the odometry pose back to the origin.
     pub(super) fn odom_reset(&self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         match robot.reset_odometry() {
-            Ok(()) => write_outcome(out, &Outcome::OdometryReset),
+            Ok(()) => write_ack(out, Ack::OdometryReset),
             Err(e) => robot_err(out, e, robot),
         }
     }

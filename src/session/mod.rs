@@ -51,7 +51,7 @@ use heapless::Vec;
 use crate::motion::bringup::{CheckKind, PushReport};
 use crate::motion::run::{Direction, PathKind, RunRecord};
 use crate::protocol::command::UnitSetting;
-use crate::protocol::outcome::{Outcome, write_outcome};
+use crate::protocol::outcome::{Ack, Outcome, write_ack, write_outcome};
 use crate::protocol::record;
 use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
 use crate::protocol::reply::{ErrorCode, write_err};
@@ -497,10 +497,10 @@ impl<C: Calibrator> Session<C> {
                     Some(fault) => {
                         robot.clear_fault();
                         let name = Some(library::fault_name(&fault));
-                        write_outcome(out, &Outcome::FaultCleared { name })
+                        write_ack(out, Ack::FaultCleared { name })
                     }
-                    None if crash.is_some() => write_outcome(out, &Outcome::ResetCauseCleared),
-                    None => write_outcome(out, &Outcome::NoFaultLatched),
+                    None if crash.is_some() => write_ack(out, Ack::ResetCauseCleared),
+                    None => write_ack(out, Ack::NoFaultLatched),
                 }
             }
             Command::Measure {
@@ -531,7 +531,7 @@ impl<C: Calibrator> Session<C> {
             Command::Stream { on } => self.set_stream(on, out),
             Command::Echo { on } => {
                 self.echo = on;
-                write_outcome(out, &Outcome::Echo { on })
+                write_ack(out, Ack::Echo { on })
             }
             Command::Drive { v_mps, w_radps } => self.drive(v_mps, w_radps, robot, out),
         }

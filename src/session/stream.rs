@@ -10,7 +10,7 @@ use super::Session;
 use super::report;
 use super::traits::{Calibrator, Robot, SettingsAndRuns};
 use crate::kinematics::encoder::WheelTicks;
-use crate::protocol::outcome::{Outcome, write_outcome};
+use crate::protocol::outcome::{Ack, write_ack};
 
 /// Default pose-stream rate, Hz.
 pub const DEFAULT_STREAM_HZ: u32 = 10;
@@ -72,11 +72,11 @@ impl<C: Calibrator> Session<C> {
                     next_due_us: None,
                     last: None,
                 });
-                write_outcome(out, &Outcome::Stream { hz: Some(hz) })
+                write_ack(out, Ack::Stream { hz: Some(hz) })
             }
             None => {
                 self.stream = None;
-                write_outcome(out, &Outcome::Stream { hz: None })
+                write_ack(out, Ack::Stream { hz: None })
             }
         }
     }
