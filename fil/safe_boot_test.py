@@ -252,7 +252,7 @@ def check_fault_path(elf, workdir):
     e = emulator.Emulator(elf, workdir, name="safe-fault", board=PROFILE["name"],
                           extra=["-no-reboot", "-qmp", f"unix:{qmp},server=on,wait=off"])
     qmp_sock, qmp_in = qmp_connect(qmp)
-    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib)
+    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib, e.crystal)
     # Drop the flash-size answers: the read then HardFaults as it would on a part without the
     # word mapped.
     kept, skip = [], False
@@ -306,7 +306,7 @@ def check_fault_path(elf, workdir):
 
 def check_crash_record(elf, workdir):
     e = emulator.Emulator(elf, workdir, name="safe-crash", board=PROFILE["name"])
-    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib)
+    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib, e.crystal)
     # The first flash-size read is left unanswered (it HardFaults); the later ones are answered.
     lines, in_size_block = [], False
     for line in script.splitlines():

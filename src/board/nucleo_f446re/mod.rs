@@ -52,8 +52,9 @@ pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 pub const TIMCLK2_HZ: u32 = 2 * PCLK2_HZ;
 /// The clock tree `init` sets and checks.
 const CLOCK_TREE: ClockTree = ClockTree {
-    hse: HSE_HZ,
+    crystals: CRYSTALS,
     hse_bypass: true,
+    scale1: false,
     sysclk: SYSCLK_HZ,
     pclk1: PCLK1_HZ,
     pclk2: PCLK2_HZ,
@@ -61,8 +62,8 @@ const CLOCK_TREE: ClockTree = ClockTree {
     timclk2: TIMCLK2_HZ,
 };
 /// The external clock: the ST-LINK's 8 MHz MCO output on PH0, in bypass mode (the board as
-/// shipped has no crystal at X3).
-pub const HSE_HZ: u32 = 8_000_000;
+/// shipped has no crystal at X3), Hz ([`crate::board::crystal`]).
+pub const CRYSTALS: &[u32] = crate::board::crystal::NUCLEO_F446RE_CRYSTALS;
 /// Motor PWM frequency, Hz.
 pub const PWM_HZ: u32 = 20_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
@@ -89,15 +90,15 @@ pub const CONTROL_FROM_MONOTONIC: bool = false;
 
 /// The clocks as the boot line and the fault event name them.
 pub const CLOCK_TEXTS: ClockTexts = ClockTexts {
-    external: "clock: ST-LINK MCO 8 MHz (HSE bypass), 180 MHz",
-    internal: "clock: internal oscillator (HSI 16 MHz), 180 MHz",
+    external: &["clock: ST-LINK MCO 8 MHz (HSE bypass), 180 MHz"],
+    internal: "clock: internal oscillator (HSI 16 MHz), 180 MHz, no ST-LINK MCO at power-up",
     fault: "no external clock: the ST-LINK's 8 MHz MCO (HSE bypass) did not start, running on \
             the internal oscillator (HSI, 180 MHz through the PLL; timing and baud rate within a \
             few %)",
 };
 
 /// What the boot line ends with: which clock runs.
-pub fn boot_note(clock: ClockSource) -> &'static str {
+pub fn boot_note(clock: ClockSource) -> super::stm32f4::clock::ClockNote {
     clock.describe(&CLOCK_TEXTS)
 }
 
@@ -120,9 +121,8 @@ pub type Board = super::stm32f4::Board<BoardMotors, ControlTick, ButtonInput, Le
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
-    // Before anything else: the motor pins to their safe state, the reset cause, and TIM1
-    // frozen while a debugger halts the core.
-    safety::motors_off_at_reset(&dp.RCC);
+    // Before anything else (the motor pins are safe since `__pre_init`): the reset cause, and
+    // TIM1 frozen while a debugger halts the core.
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
     // The ST-LINK's clock if it runs; otherwise the HSI with the PLL set for the same clocks.
@@ -168,7 +168,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         &mut rcc,
         clocks.sysclk().raw(),
     );
-    // SAFETY: the ports' clocks are on (port A's since `motors_off_at_reset`, port B's by its
+    // SAFETY: the ports' clocks are on (port A's since `__pre_init`, port B's by its
     // split above); `init` owns them and nothing else runs.
     unsafe {
         pull_up(pac::GPIOA::ptr(), &[0, 1, 3]);
