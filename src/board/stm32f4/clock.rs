@@ -72,10 +72,8 @@ impl ClockSource {
 pub use crate::board::crystal::ClockNote;
 
 /// The fault event's text when the external clock is none of the board's frequencies.
-pub const UNKNOWN_FAULT: &str = "unknown crystal: the external clock is none of the board's \
-                                 frequencies (the boot line says what it measured), running on \
-                                 the internal oscillator (HSI through the PLL; timing and baud \
-                                 rate within a few %)";
+pub const UNKNOWN_FAULT: &str =
+    "unknown crystal (the boot line says what it measured): running on the internal oscillator";
 
 /// The HSE ready flag (RCC_CR.HSERDY). Out of line and unmangled, so the emulator's boot assist
 /// can answer it (QEMU does not model the RCC).
