@@ -53,6 +53,8 @@ BOARDS = {
         param_addr=0x08004000, param_len=32 * 1024,
         run_addr=0x08040000, run_len=256 * 1024,
         crystal_hz=25_000_000, unknown_hz=12_000_000,
+        # The board's other documented crystals and the boot line's clock note with each.
+        more_crystals=((8_000_000, "clock: 8 MHz crystal (HSE), 100 MHz"),),
         clock_note="clock: 25 MHz crystal (HSE), 100 MHz",
         internal_note="clock: internal oscillator (HSI 16 MHz), 100 MHz",
         no_clock_fault=("no crystal: HSE did not start, running on the internal oscillator "

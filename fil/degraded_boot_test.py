@@ -15,6 +15,8 @@ flash for the storage map. Both must boot, say what is wrong, and keep answering
    oscillator, end the boot line with the internal oscillator's note and the frequency it
    measured (`; crystal measured at 12001 kHz, none of the board's: HSE off`, the count's
    rounding at the nominal HSI), say so in a fault event, and answer the console.
+   A board with more than one documented crystal (the Black Pill: 25 or 8 MHz) boots with each
+   and its boot line names the one measured (`more_crystals` in fil/boards.py).
 3. A part with half the flash (STM32F407VE for the F407's 1024 KiB, a 256 KiB STM32F446RC or
    STM32F411CC for the 512 KiB boards): the boot assist answers every flash-size read with it.
    The board must refuse its storage cleanly — the boot line names the reason and the defaults
@@ -92,6 +94,21 @@ def unknown_crystal(elf, workdir):
     return problems
 
 
+def other_crystals(elf, workdir):
+    problems = []
+    for hz, note in PROFILE.get("more_crystals", ()):
+        emu, con = boot(elf, workdir, f"crystal-{hz}", crystal=hz)
+        try:
+            line = con.wait_event("event boot", 60)
+        finally:
+            emu.stop()
+        print(f"{hz} Hz crystal: `{line}`")
+        end = f"; {note}{boot_tail(PROFILE)}"
+        if not line.startswith("event boot: ") or not line.endswith(end):
+            problems.append(f"boot line `{line}` (should end with `{end}`)")
+    return problems
+
+
 def small_flash(elf, workdir):
     small, full = PROFILE["small_kib"], PROFILE["flash_kib"]
     emu, con = boot(elf, workdir, "small-flash", flash_kib=small)
@@ -127,13 +144,15 @@ def main():
     PROFILE = board_profile(args.board)
     os.makedirs(args.workdir, exist_ok=True)
     problems = (no_crystal(args.elf, args.workdir) + unknown_crystal(args.elf, args.workdir)
-                + small_flash(args.elf, args.workdir))
+                + other_crystals(args.elf, args.workdir) + small_flash(args.elf, args.workdir))
     for p in problems:
         print(f"FAILED: {p}")
     if problems:
         print("degraded boot test FAILED")
         return 1
-    print(f"degraded boot ({args.board}): no crystal, an unknown crystal and a "
+    others = "".join(f", a {hz // 1_000_000} MHz crystal" for hz, _ in
+                     PROFILE.get("more_crystals", ()))
+    print(f"degraded boot ({args.board}): no crystal, an unknown crystal{others} and a "
           f"{PROFILE['small_kib']} KiB part all boot, report and answer")
     return 0
 

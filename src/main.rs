@@ -240,7 +240,7 @@ mod app {
                     let _ = cause.push_str(reset_cause.as_str());
                 }
             }
-            let mut note = heapless::String::<256>::new();
+            let mut note = heapless::String::<384>::new();
             let _ = write!(note, "{}", odocal::board::boot_note(board.clock));
             if !tick_counts {
                 let _ = write!(

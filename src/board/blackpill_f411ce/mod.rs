@@ -1,11 +1,19 @@
-//! The WeAct Black Pill F411CE board (STM32F411CE, 100 MHz, 512 KiB flash, 25 MHz crystal):
+//! The WeAct Black Pill F411CE board (STM32F411CE, 100 MHz, 512 KiB flash, 25 or 8 MHz crystal):
 //! pin map, clocks and HAL adapters. The parts every STM32F4 board shares are in
 //! [`crate::board::stm32f4`].
 //!
 //! Pin map (docs/hardware.md). What the board itself wires is left alone: the KEY (PA0) is the
-//! button, the LED (PC13) the heartbeat; PH0/PH1 carry the 25 MHz crystal, PC14/PC15 the 32 kHz
-//! one, PA11/PA12 the USB-C connector, PA13/PA14 the SWD header, PB2 BOOT1; PA4–PA7 (the
-//! optional SPI flash footprint) stay free. The part has no TIM6/TIM7: the control tick is TIM11.
+//! button, the LED (PC13) the heartbeat; PH0/PH1 carry the crystal (measured at boot: 25 or
+//! 8 MHz), PC14/PC15 the 32 kHz one, PA11/PA12 the USB-C connector, PA13/PA14 the SWD header,
+//! PB2 BOOT1; PA5–PA7 (the optional SPI flash footprint) stay free and its chip select PA4 is
+//! held high (on V2.0 boards the flash's MISO is PB4, the left encoder's A). The part has no
+//! TIM6/TIM7: the control tick is TIM11.
+//!
+//! The ROM bootloader (BOOT0, how a Black Pill is flashed over USB DFU) drives USART1's PA9 (the
+//! left PWM) high and pulls PA10 up (AN2606, STM32F411xx bootloader): TIM1 CH1/CH2 have no other
+//! pins on this package, so the bridge enable is on PA1, which no bootloader interface touches,
+//! and the board needs a 4.7 kΩ pull-down from PA1 to ground (docs/hardware.md, "The ROM
+//! bootloader's pins"): the bridge stays disabled whatever the PWM pins do before our code runs.
 //!
 //! | function                  | peripheral      | pins                 |
 //! |---------------------------|-----------------|----------------------|
@@ -14,7 +22,8 @@
 //! | right motor PWM           | TIM1 CH1 20 kHz | PA8 (AF1)            |
 //! | left motor PWM            | TIM1 CH2 20 kHz | PA9 (AF1)            |
 //! | right / left motor DIR    | GPIO            | PB12 / PB13          |
-//! | H-bridge enable (low = coast) | GPIO        | PA10                 |
+//! | H-bridge enable (low = coast) | GPIO        | PA1 (4.7 kΩ pull-down on the board) |
+//! | SPI flash CS (V2.0), held high | GPIO          | PA4                  |
 //! | control tick 1–10 kHz     | TIM11           | — (interrupt TIM1_TRG_COM_TIM11) |
 //! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (USB-UART adapter) |
 //! | user button               | EXTI0           | PA0 (KEY, active low) |

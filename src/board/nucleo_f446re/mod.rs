@@ -6,6 +6,14 @@
 //! heartbeat, B1 (PC13) the button; PH0 is the ST-LINK's 8 MHz clock, PC14/PC15 the 32 kHz
 //! crystal, PA13/PA14 the SWD and PB3 the SWO line, none of them used.
 //!
+//! The ROM bootloader (BOOT0, strapped low on the NUCLEO but exposed on CN7-7) drives USART1's
+//! PA9 (the left PWM) high and holds PA10 (the bridge enable) with its internal pull-up, 30–50 kΩ
+//! (AN2606, STM32F446xx bootloader). TIM1 CH1/CH2 have no other pins on this package and port A
+//! has no pin left that no bootloader interface or board function uses, so the hardware rule
+//! holds the bridge off: **a 4.7 kΩ pull-down from PA10 to ground** keeps the enable at 0.45 V
+//! against the weakest pull-up (3.3 V × 4.7 / (4.7 + 30)), under a driver's 0.8 V logic low; 10 kΩ
+//! would give 0.83 V (docs/hardware.md, "The ROM bootloader's pins").
+//!
 //! | function                  | peripheral      | pins                 |
 //! |---------------------------|-----------------|----------------------|
 //! | right encoder A/B         | TIM2 (32-bit)   | PA0 [A0] / PA1 [A1] (AF1) |
@@ -13,7 +21,7 @@
 //! | right motor PWM           | TIM1 CH1 20 kHz | PA8 [D7] (AF1)       |
 //! | left motor PWM            | TIM1 CH2 20 kHz | PA9 [D8] (AF1)       |
 //! | right / left motor DIR    | GPIO            | PB12 / PB13 (morpho CN10) |
-//! | H-bridge enable (low = coast) | GPIO        | PA10 [D2]            |
+//! | H-bridge enable (low = coast) | GPIO        | PA10 [D2], 4.7 kΩ pull-down on the board |
 //! | control tick 1–10 kHz     | TIM7            | —                    |
 //! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (ST-LINK virtual COM port, the USB cable) |
 //! | user button               | EXTI15_10       | PC13 (B1, active low) |
