@@ -91,10 +91,10 @@ const CAPTURE_POLLS: u32 = 10_000;
 
 /// The external clock measured against the internal oscillator before the PLL: HSI ticks in
 /// [`crate::board::crystal::HSE_PERIODS`] periods of the running HSE, counted by TIM11's input
-/// capture of HSE_RTC (RCC_CFGR.RTCPRE = 31, TIM11_OR.TI1_RMP = HSE_RTC, RM0090 §19.5.12,
-/// RM0383 and RM0390 the same); 0 if a capture did not come. TIM11 runs on the reset clock (the
-/// HSI, APB2 undivided) and is left stopped and disabled. Out of line and unmangled, so the
-/// emulator's boot assist can answer it (QEMU models neither RCC nor TIM11).
+/// capture of HSE_RTC (RCC_CFGR.RTCPRE = 31, TIM11_OR.TI1_RMP = HSE_RTC: RM0090's "TIM11 option
+/// register", the same in RM0383 and RM0390); 0 if a capture did not come. TIM11 runs on the
+/// reset clock (the HSI, APB2 undivided) and is left stopped and disabled. Out of line and
+/// unmangled, so the emulator's boot assist can answer it (QEMU models neither RCC nor TIM11).
 #[unsafe(no_mangle)]
 #[inline(never)]
 pub extern "C" fn odocal_hse_count() -> u32 {
@@ -146,7 +146,7 @@ pub extern "C" fn odocal_hse_count() -> u32 {
 const VOS_POLLS: u32 = 200_000;
 
 /// PWR_CR.VOS = 0b11: voltage scale 1, needed above 84 MHz on the STM32F411 (it resets to scale
-/// 2; RM0383 §5.4.1: written while the PLL is off, applied when it starts). The STM32F407 and
+/// 2; RM0383, PWR_CR: written while the PLL is off, applied when it starts). The STM32F407 and
 /// STM32F446 reset to scale 1 and need nothing (the F446's over-drive above 168 MHz is the
 /// HAL's).
 pub fn select_scale1(rcc: &pac::RCC) {
