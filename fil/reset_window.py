@@ -2,12 +2,13 @@
 executes from the reset vector to the first write to the motor port (the write that drives the
 PWM and enable pins low), single-stepped under QEMU with gdb-multiarch.
 
-    python3 fil/reset_window.py ELF [--board NAME] [--limit N]
+    python3 fil/reset_window.py ELF [--board NAME] [--max N] [--limit N]
 
 Until that write the pins are what the reset left them: floating inputs (docs/hardware.md,
 "Until the first instruction"). The count is the window in instructions; at the 16 MHz the core
 runs on out of reset, with the flash's reset wait states, it is at most a few cycles each.
-Prints `reset → first <port> write: N instructions (pc 0x…: <instruction>)`.
+Prints `reset → first <port> write: N instructions (pc 0x…: <instruction>)`; with `--max N`,
+fails (exit status 1) when the window is longer (the shipped boards' `__pre_init` makes it 9).
 """
 
 import argparse
@@ -55,7 +56,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("elf")
     ap.add_argument("--board", default="f407")
-    ap.add_argument("--limit", type=int, default=2_000_000)
+    ap.add_argument("--max", type=int, default=None, help="fail above this many instructions")
+    ap.add_argument("--limit", type=int, default=2_000_000, help="give up after this many")
     args = ap.parse_args()
     profile = board_profile(args.board)
     index = ord(profile["motor_port"][-1]) - ord("A")
@@ -81,6 +83,9 @@ def main():
     _, n, pc, insn = result[0].split(" ", 3)
     print(f"{os.path.basename(args.elf)} ({args.board}): reset → first {profile['motor_port']} "
           f"write: {n} instructions (pc {pc}: {insn})")
+    if args.max is not None and int(n) > args.max:
+        raise SystemExit(f"reset window: {n} instructions, more than {args.max}: the motor pins "
+                         "float longer than `__pre_init` allows")
 
 
 if __name__ == "__main__":
