@@ -52,6 +52,7 @@ fi
 python3 fil/boot_test.py "$OUT/firmware-shipped" --workdir "$OUT" | tee "$OUT/stage1.txt"
 # The motor outputs' safe state on the same ELF: boot order, HardFault path, panic handler.
 python3 fil/safe_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
+python3 fil/reset_window.py "$OUT/firmware-shipped" --max 16
 # The same ELF on a board whose crystal never starts, and on a 512 KiB part.
 python3 fil/degraded_boot_test.py "$OUT/firmware-shipped" --workdir "$OUT"
 # The other boards' shipped ELFs, the same three checks (fil/boards.py: their storage regions,
@@ -66,6 +67,7 @@ for board in nucleo-f446re blackpill-f411ce; do
     python3 fil/boot_test.py "$OUT/firmware-$board" --workdir "$OUT/$board" --board "$board" \
         | tee "$OUT/stage1-$board.txt"
     python3 fil/safe_boot_test.py "$OUT/firmware-$board" --workdir "$OUT/$board" --board "$board"
+    python3 fil/reset_window.py "$OUT/firmware-$board" --board "$board" --max 16
     python3 fil/degraded_boot_test.py "$OUT/firmware-$board" --workdir "$OUT/$board" --board "$board"
 done
 t1=$(date +%s.%N)

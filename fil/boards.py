@@ -13,6 +13,9 @@ BOARDS = {
         # The storage regions (the board's flash.rs and memory.x): parameters, runs.
         param_addr=0x08004000, param_len=32 * 1024,
         run_addr=0x080C0000, run_len=256 * 1024,
+        # The external clock the boot assist reports (Hz: the board's first documented one,
+        # src/board/crystal.rs), and one none of its documented ones is (unknown crystal).
+        crystal_hz=8_000_000, unknown_hz=12_000_000,
         # The end of the boot line with the external clock running (the board's CLOCK_TEXTS).
         clock_note="clock: 8 MHz crystal (HSE), 168 MHz",
         # ... and on the internal oscillator.
@@ -33,8 +36,10 @@ BOARDS = {
         flash_kib=512, small_kib=256,
         param_addr=0x08004000, param_len=32 * 1024,
         run_addr=0x08040000, run_len=256 * 1024,
+        crystal_hz=8_000_000, unknown_hz=12_000_000,
         clock_note="clock: ST-LINK MCO 8 MHz (HSE bypass), 180 MHz",
-        internal_note="clock: internal oscillator (HSI 16 MHz), 180 MHz",
+        internal_note=("clock: internal oscillator (HSI 16 MHz), 180 MHz, no ST-LINK MCO at "
+                       "power-up"),
         no_clock_fault=("no external clock: the ST-LINK's 8 MHz MCO (HSE bypass) did not start, "
                         "running on the internal oscillator (HSI, 180 MHz through the PLL; "
                         "timing and baud rate within a few %)"),
@@ -47,11 +52,14 @@ BOARDS = {
         flash_kib=512, small_kib=256,
         param_addr=0x08004000, param_len=32 * 1024,
         run_addr=0x08040000, run_len=256 * 1024,
+        crystal_hz=25_000_000, unknown_hz=12_000_000,
+        # The board's other documented crystals and the boot line's clock note with each.
+        more_crystals=((8_000_000, "clock: 8 MHz crystal (HSE), 100 MHz"),),
         clock_note="clock: 25 MHz crystal (HSE), 100 MHz",
         internal_note="clock: internal oscillator (HSI 16 MHz), 100 MHz",
         no_clock_fault=("no crystal: HSE did not start, running on the internal oscillator "
                         "(HSI, 100 MHz through the PLL; timing and baud rate within a few %)"),
-        motor_port="GPIOA", port_reset_bit=0, motor_pins=(8, 9, 10), enable_pin=10,
+        motor_port="GPIOA", port_reset_bit=0, motor_pins=(8, 9, 1), enable_pin=1,
         # PA15 (right encoder A, a JTAG alternate function out of reset) is made an input
         # before TIM2 takes it; PA0 (KEY) is an input from reset (its mode is not written).
         port_inputs=(15,),

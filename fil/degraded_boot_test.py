@@ -9,7 +9,15 @@ flash for the storage map. Both must boot, say what is wrong, and keep answering
    input) never starts. The bounded wait must end, the board must run on the internal oscillator
    (HSI, PLL re-derived for the same core clock), name it at the end of the boot line and say why
    right after it (`event fault: no crystal: …`, the board's text), then answer the console.
-2. A part with half the flash (STM32F407VE for the F407's 1024 KiB, a 256 KiB STM32F446RC or
+2. An unknown crystal: the boot assist answers the crystal measurement (`odocal_hse_count`) with
+   the count of a frequency none of the board's documented crystals is (`unknown_hz` in
+   fil/boards.py, 12 MHz). The board must switch the crystal off and run on the internal
+   oscillator, end the boot line with the internal oscillator's note and the frequency it
+   measured (`; crystal measured at 12001 kHz, none of the board's: HSE off`, the count's
+   rounding at the nominal HSI), say so in a fault event, and answer the console.
+   A board with more than one documented crystal (the Black Pill: 25 or 8 MHz) boots with each
+   and its boot line names the one measured (`more_crystals` in fil/boards.py).
+3. A part with half the flash (STM32F407VE for the F407's 1024 KiB, a 256 KiB STM32F446RC or
    STM32F411CC for the 512 KiB boards): the boot assist answers every flash-size read with it.
    The board must refuse its storage cleanly — the boot line names the reason and the defaults
    are used, `save` answers with an error naming it, nothing panics.
@@ -24,10 +32,12 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from console import Console  # noqa: E402
 from boards import BOARDS, board as board_profile, boot_tail  # noqa: E402
-from emulator import Emulator  # noqa: E402
+from emulator import Emulator, HSE_PERIODS, HSI_HZ, hse_count  # noqa: E402
 
 # The board under test (main: --board).
 PROFILE = board_profile("f407")
+UNKNOWN_FAULT = ("unknown crystal (the boot line says what it measured): running on the internal "
+                 "oscillator")
 SMALL_SAVE = "err 19: flash error: no storage: this part's flash is smaller than the storage map"
 
 
@@ -56,6 +66,46 @@ def no_crystal(elf, workdir):
         problems.append(f"fault event `{fault}`")
     if echo != "ok echo off" or not status.startswith("ok state=idle"):
         problems.append(f"console `{echo}` / `{status}`")
+    return problems
+
+
+def unknown_crystal(elf, workdir):
+    hz = PROFILE["unknown_hz"]
+    emu, con = boot(elf, workdir, "unknown-crystal", crystal=hz)
+    try:
+        line = con.wait_event("event boot", 60)
+        fault = con.wait_event("event fault", 30)
+        _, echo = con.command("echo off", 10)
+        _, status = con.command("status", 10)
+    finally:
+        emu.stop()
+    print(f"unknown crystal ({hz} Hz): `{line}`, then `{fault}`; `status` → `{status[:40]}…`")
+    count = hse_count(hz)
+    measured_khz = (HSI_HZ * HSE_PERIODS + count // 2) // count // 1000
+    problems = []
+    end = (f"; {PROFILE['internal_note']}; crystal measured at {measured_khz} kHz, none of the "
+           f"board's: HSE off{boot_tail(PROFILE)}")
+    if not line.startswith("event boot: ") or not line.endswith(end):
+        problems.append(f"boot line `{line}` (should end with `{end}`)")
+    if fault != "event fault: " + UNKNOWN_FAULT:
+        problems.append(f"fault event `{fault}`")
+    if echo != "ok echo off" or not status.startswith("ok state=idle"):
+        problems.append(f"console `{echo}` / `{status}`")
+    return problems
+
+
+def other_crystals(elf, workdir):
+    problems = []
+    for hz, note in PROFILE.get("more_crystals", ()):
+        emu, con = boot(elf, workdir, f"crystal-{hz}", crystal=hz)
+        try:
+            line = con.wait_event("event boot", 60)
+        finally:
+            emu.stop()
+        print(f"{hz} Hz crystal: `{line}`")
+        end = f"; {note}{boot_tail(PROFILE)}"
+        if not line.startswith("event boot: ") or not line.endswith(end):
+            problems.append(f"boot line `{line}` (should end with `{end}`)")
     return problems
 
 
@@ -93,14 +143,17 @@ def main():
     global PROFILE
     PROFILE = board_profile(args.board)
     os.makedirs(args.workdir, exist_ok=True)
-    problems = no_crystal(args.elf, args.workdir) + small_flash(args.elf, args.workdir)
+    problems = (no_crystal(args.elf, args.workdir) + unknown_crystal(args.elf, args.workdir)
+                + other_crystals(args.elf, args.workdir) + small_flash(args.elf, args.workdir))
     for p in problems:
         print(f"FAILED: {p}")
     if problems:
         print("degraded boot test FAILED")
         return 1
-    print(f"degraded boot ({args.board}): no crystal and a {PROFILE['small_kib']} KiB part both "
-          "boot, report and answer")
+    others = "".join(f", a {hz // 1_000_000} MHz crystal" for hz, _ in
+                     PROFILE.get("more_crystals", ()))
+    print(f"degraded boot ({args.board}): no crystal, an unknown crystal{others} and a "
+          f"{PROFILE['small_kib']} KiB part all boot, report and answer")
     return 0
 
 

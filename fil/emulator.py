@@ -21,6 +21,14 @@ What the emulator needs from outside the image, and why (QEMU 7.2 as shipped by 
   back to the internal oscillator without it. The boot assist returns true from that function
   (a crystal that starts at once); with `crystal=False` it leaves it alone, RCC reads 0, and the
   image boots as on a board whose crystal never starts.
+- The board then measures the crystal against the internal oscillator (`odocal_hse_count`:
+  TIM11 capturing HSE_RTC, neither modelled). The boot assist returns the count the board's
+  first documented crystal gives (`crystal_hz` in fil/boards.py; `crystal=<Hz>` another
+  frequency's, e.g. one the board does not document: it then boots on the internal
+  oscillator and its boot line says what was measured), computed as src/board/crystal.rs
+  counts (`hse_count`).
+- The Black Pill's regulator scale (`odocal_vos_ready`, PWR_CSR.VOSRDY; PWR is not modelled):
+  the boot assist returns true (the regulator reached scale 1).
 - The storage sectors of a freshly flashed board are erased (0xFF); QEMU's flash is ROM filled
   with zeros where the ELF has nothing. QEMU's generic loader puts 0xFF (or a given storage
   image) into the parameter sectors 1-2 (32 KiB at 0x08004000, between the vector table and
@@ -61,6 +69,16 @@ FLASH_SIZE_ADDR = 0x1FFF7A22
 # objdump's names of r9..r12 as gdb names them.
 GDB_REGISTER = {"sb": "r9", "sl": "r10", "fp": "r11", "ip": "r12"}
 FLASH_SIZE_KIB = 1024
+# The crystal measurement (src/board/crystal.rs): HSI ticks (16 MHz) in RTC_DIVIDER (31) x
+# EDGES_PER_CAPTURE (8) x CAPTURES (8) periods of the external clock.
+HSI_HZ = 16_000_000
+HSE_PERIODS = 31 * 8 * 8
+
+
+def hse_count(hz):
+    """The count `odocal_hse_count` returns for an external clock of `hz` at the nominal HSI
+    (src/board/crystal.rs, `expected_count`)."""
+    return (HSI_HZ * HSE_PERIODS + hz // 2) // hz
 
 
 def disassemble(elf):
@@ -128,10 +146,15 @@ def boot_assist_points(elf):
     return points
 
 
-def boot_assist_script(elf, port, flash_kib=FLASH_SIZE_KIB, crystal=True):
-    """The gdb-multiarch script that lets the ELF boot in QEMU (see the module docs)."""
+def boot_assist_script(elf, port, flash_kib=FLASH_SIZE_KIB, crystal=8_000_000):
+    """The gdb-multiarch script that lets the ELF boot in QEMU (see the module docs).
+    `crystal`: the external clock's frequency (Hz) the measurement finds, or False for none."""
     points = boot_assist_points(elf)
     hse_ready = optional_symbol_address(elf, "odocal_hse_ready")
+    answers = [(name, value) for name, value in
+               (("odocal_hse_count", hse_count(crystal) if crystal else None),
+                ("odocal_vos_ready", 1))
+               if value is not None and optional_symbol_address(elf, name) is not None]
     rcc = [p for p in points if p[0] == "rcc-ready"]
     size = [p for p in points if p[0] == "flash-size"]
     # The flash-size read is in every build that touches the flash; the ready loops may be
@@ -153,6 +176,17 @@ def boot_assist_script(elf, port, flash_kib=FLASH_SIZE_KIB, crystal=True):
             "commands",
             "silent",
             "set $r0 = 1",
+            "set $pc = $lr & 0xfffffffe",
+            "continue",
+            "end",
+        ]
+    for name, value in answers:
+        lines += [
+            f"# {name} (not modelled): returns {value}",
+            f"break *0x{optional_symbol_address(elf, name) & ~1:x}",
+            "commands",
+            "silent",
+            f"set $r0 = {value}",
             "set $pc = $lr & 0xfffffffe",
             "continue",
             "end",
@@ -212,7 +246,8 @@ class Emulator:
                  flash_kib=None, crystal=True, board="f407"):
         profile = board_profile(board)
         self.flash_kib = profile["flash_kib"] if flash_kib is None else flash_kib
-        self.crystal = crystal
+        # The external clock's frequency the boot assist reports (False: none starts).
+        self.crystal = profile["crystal_hz"] if crystal is True else crystal
         self.elf = elf
         self.workdir = workdir
         os.makedirs(workdir, exist_ok=True)

@@ -33,7 +33,8 @@ PA8, PA9 PWM, PA10 enable on GPIOA).
    as in step 2, the handler keeps the fault in the RAM the startup code leaves alone and
    resets; the boot assist answers the reads of the second boot, whose boot line must name the
    fault (`reset: hard fault at pc 0x…`), not RCC's `software`.
-4. Panic path (disassembly): the panic handler's and the HardFault handler's first call is
+4. Panic path (disassembly): the panic handler's, the HardFault handler's and the NMI handler's
+   (the clock security system's: the NUCLEO's external clock stopped) first call is
    `odocal_emergency_stop`, the function whose writes step 2 observed.
 """
 
@@ -252,7 +253,7 @@ def check_fault_path(elf, workdir):
     e = emulator.Emulator(elf, workdir, name="safe-fault", board=PROFILE["name"],
                           extra=["-no-reboot", "-qmp", f"unix:{qmp},server=on,wait=off"])
     qmp_sock, qmp_in = qmp_connect(qmp)
-    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib)
+    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib, e.crystal)
     # Drop the flash-size answers: the read then HardFaults as it would on a part without the
     # word mapped.
     kept, skip = [], False
@@ -306,7 +307,7 @@ def check_fault_path(elf, workdir):
 
 def check_crash_record(elf, workdir):
     e = emulator.Emulator(elf, workdir, name="safe-crash", board=PROFILE["name"])
-    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib)
+    script, _ = emulator.boot_assist_script(elf, e.port, e.flash_kib, e.crystal)
     # The first flash-size read is left unanswered (it HardFaults); the later ones are answered.
     lines, in_size_block = [], False
     for line in script.splitlines():
@@ -349,7 +350,8 @@ def check_handlers(elf):
     dis = subprocess.run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", elf], check=True,
                          capture_output=True, text=True).stdout
     found = {}
-    for name, pattern in (("panic", "rust_begin_unwind>:"), ("HardFault", "__cortex_m_rt_HardFault")):
+    for name, pattern in (("panic", "rust_begin_unwind>:"), ("HardFault", "__cortex_m_rt_HardFault"),
+                          ("NMI", "__cortex_m_rt_NonMaskableInt")):
         m = re.search(r"^[0-9a-f]+ <[^>]*" + re.escape(pattern.rstrip(">:")) + r"[^>]*>:\n(.*?)\n\n",
                       dis, re.S | re.M)
         if not m:
@@ -358,7 +360,8 @@ def check_handlers(elf):
         if not calls or calls[0] != "odocal_emergency_stop":
             return f"{name} handler's first call is {calls[:1]}, not odocal_emergency_stop"
         found[name] = calls[0]
-    print("handlers: panic and HardFault call odocal_emergency_stop first")
+    print("handlers: panic, HardFault and NMI (the clock security system's) call "
+          "odocal_emergency_stop first")
     return None
 
 

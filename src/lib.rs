@@ -65,3 +65,10 @@ pub mod app;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod board;
+
+/// On the host, the board layer's one portable part: which crystal a board has, decided from a
+/// measured count (`board::crystal`, tested by tests/crystal.rs).
+#[cfg(not(target_os = "none"))]
+pub mod board {
+    pub mod crystal;
+}

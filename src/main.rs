@@ -47,6 +47,15 @@ unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
     cortex_m::peripheral::SCB::sys_reset()
 }
 
+/// The clock security system's NMI (the NUCLEO's external clock, the ST-LINK's MCO, stopped):
+/// the motors stop first, then the board clears the flag, logs and resets.
+#[cfg(target_os = "none")]
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() -> ! {
+    odocal::board::safety::odocal_emergency_stop();
+    odocal::board::clock_lost()
+}
+
 #[cfg(target_os = "none")]
 rtic_monotonics::systick_monotonic!(Mono, 1000);
 
@@ -231,8 +240,8 @@ mod app {
                     let _ = cause.push_str(reset_cause.as_str());
                 }
             }
-            let mut note = heapless::String::<256>::new();
-            let _ = note.push_str(odocal::board::boot_note(board.clock));
+            let mut note = heapless::String::<384>::new();
+            let _ = write!(note, "{}", odocal::board::boot_note(board.clock));
             if !tick_counts {
                 let _ = write!(
                     note,

@@ -45,6 +45,7 @@
 compile_error!("more than one board feature: build with --no-default-features --features board-…");
 
 pub mod adapters;
+pub mod crystal;
 pub mod stm32f4;
 
 #[cfg(feature = "board-blackpill-f411ce")]
@@ -69,6 +70,7 @@ pub use active::{
     BUTTON_INTERRUPT, CLOCK_TEXTS, CONTROL_INTERRUPT, CONTROL_TIMER, ClockSource, ResetCause,
     safety,
 };
+pub use stm32f4::clock::clock_lost;
 
 #[cfg(not(feature = "emulator"))]
 pub use active::{

@@ -1,11 +1,19 @@
-//! The WeAct Black Pill F411CE board (STM32F411CE, 100 MHz, 512 KiB flash, 25 MHz crystal):
+//! The WeAct Black Pill F411CE board (STM32F411CE, 100 MHz, 512 KiB flash, 25 or 8 MHz crystal):
 //! pin map, clocks and HAL adapters. The parts every STM32F4 board shares are in
 //! [`crate::board::stm32f4`].
 //!
 //! Pin map (docs/hardware.md). What the board itself wires is left alone: the KEY (PA0) is the
-//! button, the LED (PC13) the heartbeat; PH0/PH1 carry the 25 MHz crystal, PC14/PC15 the 32 kHz
-//! one, PA11/PA12 the USB-C connector, PA13/PA14 the SWD header, PB2 BOOT1; PA4–PA7 (the
-//! optional SPI flash footprint) stay free. The part has no TIM6/TIM7: the control tick is TIM11.
+//! button, the LED (PC13) the heartbeat; PH0/PH1 carry the crystal (measured at boot: 25 or
+//! 8 MHz), PC14/PC15 the 32 kHz one, PA11/PA12 the USB-C connector, PA13/PA14 the SWD header,
+//! PB2 BOOT1; PA5–PA7 (the optional SPI flash footprint) stay free and its chip select PA4 is
+//! held high (on V2.0 boards the flash's MISO is PB4, the left encoder's A). The part has no
+//! TIM6/TIM7: the control tick is TIM11.
+//!
+//! The ROM bootloader (BOOT0, how a Black Pill is flashed over USB DFU) drives USART1's PA9 (the
+//! left PWM) high and pulls PA10 up (AN2606, STM32F411xx bootloader): TIM1 CH1/CH2 have no other
+//! pins on this package, so the bridge enable is on PA1, which no bootloader interface touches,
+//! and the board needs a 4.7 kΩ pull-down from PA1 to ground (docs/hardware.md, "The ROM
+//! bootloader's pins"): the bridge stays disabled whatever the PWM pins do before our code runs.
 //!
 //! | function                  | peripheral      | pins                 |
 //! |---------------------------|-----------------|----------------------|
@@ -14,7 +22,8 @@
 //! | right motor PWM           | TIM1 CH1 20 kHz | PA8 (AF1)            |
 //! | left motor PWM            | TIM1 CH2 20 kHz | PA9 (AF1)            |
 //! | right / left motor DIR    | GPIO            | PB12 / PB13          |
-//! | H-bridge enable (low = coast) | GPIO        | PA10                 |
+//! | H-bridge enable (low = coast) | GPIO        | PA1 (4.7 kΩ pull-down on the board) |
+//! | SPI flash CS (V2.0), held high | GPIO          | PA4                  |
 //! | control tick 1–10 kHz     | TIM11           | — (interrupt TIM1_TRG_COM_TIM11) |
 //! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (USB-UART adapter) |
 //! | user button               | EXTI0           | PA0 (KEY, active low) |
@@ -25,7 +34,7 @@
 pub mod flash;
 pub mod safety;
 
-use stm32f4xx_hal::gpio::{Output, PA10, PB0, PB12, PB13, PC13, Pull};
+use stm32f4xx_hal::gpio::{Output, PA1, PB0, PB12, PB13, PC13, PinState, Pull};
 use stm32f4xx_hal::pac::{self, TIM11};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
@@ -53,16 +62,18 @@ pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 pub const TIMCLK2_HZ: u32 = PCLK2_HZ;
 /// The clock tree `init` sets and checks.
 const CLOCK_TREE: ClockTree = ClockTree {
-    hse: HSE_HZ,
+    crystals: CRYSTALS,
     hse_bypass: false,
+    scale1: true,
     sysclk: SYSCLK_HZ,
     pclk1: PCLK1_HZ,
     pclk2: PCLK2_HZ,
     timclk1: TIMCLK1_HZ,
     timclk2: TIMCLK2_HZ,
 };
-/// The external clock: the board's 25 MHz crystal on PH0/PH1.
-pub const HSE_HZ: u32 = 25_000_000;
+/// The external clock: the board's crystal on PH0/PH1, 25 MHz or (some batches) 8 MHz, Hz
+/// ([`crate::board::crystal`]: measured at boot).
+pub const CRYSTALS: &[u32] = crate::board::crystal::BLACKPILL_F411CE_CRYSTALS;
 /// Motor PWM frequency, Hz.
 pub const PWM_HZ: u32 = 20_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
@@ -91,19 +102,22 @@ pub const CONTROL_FROM_MONOTONIC: bool = false;
 
 /// The clocks as the boot line and the fault event name them.
 pub const CLOCK_TEXTS: ClockTexts = ClockTexts {
-    external: "clock: 25 MHz crystal (HSE), 100 MHz",
+    external: &[
+        "clock: 25 MHz crystal (HSE), 100 MHz",
+        "clock: 8 MHz crystal (HSE), 100 MHz",
+    ],
     internal: "clock: internal oscillator (HSI 16 MHz), 100 MHz",
     fault: "no crystal: HSE did not start, running on the internal oscillator (HSI, 100 MHz \
             through the PLL; timing and baud rate within a few %)",
 };
 
 /// What the boot line ends with: which clock runs.
-pub fn boot_note(clock: ClockSource) -> &'static str {
+pub fn boot_note(clock: ClockSource) -> super::stm32f4::clock::ClockNote {
     clock.describe(&CLOCK_TEXTS)
 }
 
-/// The motors: TIM1 channels 1 and 2 (PA8, PA9), DIR on PB12/PB13, bridge enable on PA10.
-pub type BoardMotors = Tim1Motors<PB12<Output>, PB13<Output>, PA10<Output>>;
+/// The motors: TIM1 channels 1 and 2 (PA8, PA9), DIR on PB12/PB13, bridge enable on PA1.
+pub type BoardMotors = Tim1Motors<PB12<Output>, PB13<Output>, PA1<Output>>;
 
 /// The control-period interrupt source: TIM11's update at the control rate (100 MHz timer
 /// clock).
@@ -122,9 +136,8 @@ pub type Board = super::stm32f4::Board<BoardMotors, ControlTick, ButtonInput, Le
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
-    // Before anything else: the motor pins to their safe state, the reset cause, and TIM1
-    // frozen while a debugger halts the core.
-    safety::motors_off_at_reset(&dp.RCC);
+    // Before anything else (the motor pins are safe since `__pre_init`): the reset cause, and
+    // TIM1 frozen while a debugger halts the core.
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
     // The crystal if it starts; otherwise the HSI with the PLL set for the same clocks.
@@ -153,8 +166,11 @@ pub fn init(dp: pac::Peripherals) -> Board {
         ch2.with(gpioa.pa9),
         gpiob.pb12.into_push_pull_output(),
         gpiob.pb13.into_push_pull_output(),
-        gpioa.pa10.into_push_pull_output(),
+        gpioa.pa1.into_push_pull_output(),
     );
+    // V2.0 boards' optional SPI flash: its chip select (PA4) high, so the flash never drives
+    // its MISO, PB4, the left encoder's A input (V2.1 and later route it elsewhere).
+    let _ = gpioa.pa4.into_push_pull_output_in_state(PinState::High);
 
     // The KEY: both edges, pressed = low (it connects PA0 to ground).
     let mut button_pin = gpioa.pa0.into_input().internal_resistor(Pull::Up);
@@ -174,7 +190,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         &mut rcc,
         clocks.sysclk().raw(),
     );
-    // SAFETY: the ports' clocks are on (port A's since `motors_off_at_reset`, port B's by its
+    // SAFETY: the ports' clocks are on (port A's since `__pre_init`, port B's by its
     // split above); `init` owns them and nothing else runs.
     unsafe {
         pull_up(pac::GPIOA::ptr(), &[3, 15]);

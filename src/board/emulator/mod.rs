@@ -149,8 +149,11 @@ pub const CONTROL_FROM_MONOTONIC: bool = true;
 
 /// What the boot line ends with: what QEMU does not model, so nobody takes the emulated board's
 /// numbers for a robot's.
-pub fn boot_note(_clock: ClockSource) -> &'static str {
-    "emulated: QEMU has no motors, encoders, PWM or TIM7 (a simulated robot drives)"
+pub fn boot_note(_clock: ClockSource) -> super::stm32f4::clock::ClockNote {
+    super::stm32f4::clock::ClockNote {
+        text: "emulated: QEMU has no motors, encoders, PWM or TIM7 (a simulated robot drives)",
+        unknown_crystal_hz: None,
+    }
 }
 
 /// Everything the board gives the application (see [`crate::board`]).
@@ -228,6 +231,6 @@ pub fn init(dp: pac::Peripherals) -> Board {
         watchdog,
         params: flash::param_store(),
         reset_cause,
-        clock: ClockSource::External,
+        clock: ClockSource::External(0),
     }
 }

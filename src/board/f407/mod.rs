@@ -64,8 +64,9 @@ pub const PCLK2_HZ: u32 = 84_000_000;
 pub const TIMCLK2_HZ: u32 = 2 * PCLK2_HZ;
 /// The clock tree `init` sets and checks.
 const CLOCK_TREE: ClockTree = ClockTree {
-    hse: HSE_HZ,
+    crystals: CRYSTALS,
     hse_bypass: false,
+    scale1: false,
     sysclk: SYSCLK_HZ,
     pclk1: PCLK1_HZ,
     pclk2: PCLK2_HZ,
@@ -79,8 +80,8 @@ const _: () = assert!(
 );
 // TIM1's PWM period (ARR + 1 = 8,400 timer ticks, the duty resolution) is exact.
 const _: () = assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <= 1 << 16);
-/// External crystal, Hz.
-pub const HSE_HZ: u32 = 8_000_000;
+/// The documented external crystal, Hz ([`crate::board::crystal`]): 8 MHz.
+pub const CRYSTALS: &[u32] = crate::board::crystal::F407_CRYSTALS;
 /// Motor PWM frequency, Hz (above hearing, within the H-bridge's switching limit).
 pub const PWM_HZ: u32 = 20_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
@@ -93,14 +94,14 @@ pub const FLASH_WATCHDOG_MS: u32 = 10_000;
 
 /// The clocks as the boot line and the fault event name them.
 pub const CLOCK_TEXTS: ClockTexts = ClockTexts {
-    external: "clock: 8 MHz crystal (HSE), 168 MHz",
+    external: &["clock: 8 MHz crystal (HSE), 168 MHz"],
     internal: "clock: internal oscillator (HSI 16 MHz), 168 MHz",
     fault: "no crystal: HSE did not start, running on the internal oscillator (HSI, 168 MHz \
             through the PLL; timing and baud rate within a few %)",
 };
 
 /// What the boot line ends with: which clock runs.
-pub fn boot_note(clock: ClockSource) -> &'static str {
+pub fn boot_note(clock: ClockSource) -> super::stm32f4::clock::ClockNote {
     clock.describe(&CLOCK_TEXTS)
 }
 
@@ -119,9 +120,8 @@ pub type Board = super::stm32f4::Board<BoardMotors, ControlTick, ButtonInput, Le
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
-    // Before anything else: the motor pins to their safe state, the reset cause, and TIM1
-    // frozen while a debugger halts the core.
-    safety::motors_off_at_reset(&dp.RCC);
+    // Before anything else (the motor pins are safe since `__pre_init`): the reset cause, and
+    // TIM1 frozen while a debugger halts the core.
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
     // The crystal, if it starts within the timeout; otherwise the internal oscillator, with

@@ -3,9 +3,10 @@
 //! family's [`crate::board::stm32f4::safe_state`]). The reset cause, crash record and
 //! debug-halt freeze are the family's ([`crate::board::stm32f4::reset`]).
 //!
-//! - `motors_off_at_reset`: the first thing `init` does, before clocks and before the first
-//!   flash access (a parameter load may erase a sector for seconds). Out of reset the pins are
-//!   floating inputs, which some bridges read as "enabled".
+//! - `__pre_init`: the pins safe before the startup code initialises RAM (cortex-m-rt calls it
+//!   first), so before clocks, before `init` and before the first flash access (a parameter
+//!   load may erase a sector for seconds). Out of reset the pins are floating inputs, which
+//!   some bridges read as "enabled".
 //! - `odocal_emergency_stop`: from any context (panic, HardFault), whatever state the drivers are
 //!   in: the pins driven low as plain GPIO outputs, and TIM1's main output off with its
 //!   automatic re-enable cleared (BDTR.MOE and BDTR.AOE: the HAL's PWM sets AOE, which would set
@@ -29,4 +30,4 @@ pub use crate::board::stm32f4::reset::{
     ResetCause, first_fault, freeze_when_halted, record_crash, reset_cause, take_crash,
 };
 
-crate::board::stm32f4::safe_state::motor_safety!(GPIOE, gpioe, gpioeen, [9, 11, 13]);
+crate::board::stm32f4::safe_state::motor_safety!(GPIOE, gpioe, 4, [9, 11, 13]);

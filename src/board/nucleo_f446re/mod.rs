@@ -6,6 +6,14 @@
 //! heartbeat, B1 (PC13) the button; PH0 is the ST-LINK's 8 MHz clock, PC14/PC15 the 32 kHz
 //! crystal, PA13/PA14 the SWD and PB3 the SWO line, none of them used.
 //!
+//! The ROM bootloader (BOOT0, strapped low on the NUCLEO but exposed on CN7-7) drives USART1's
+//! PA9 (the left PWM) high and holds PA10 (the bridge enable) with its internal pull-up, 30–50 kΩ
+//! (AN2606, STM32F446xx bootloader). TIM1 CH1/CH2 have no other pins on this package and port A
+//! has no pin left that no bootloader interface or board function uses, so the hardware rule
+//! holds the bridge off: **a 4.7 kΩ pull-down from PA10 to ground** keeps the enable at 0.45 V
+//! against the weakest pull-up (3.3 V × 4.7 / (4.7 + 30)), under a driver's 0.8 V logic low; 10 kΩ
+//! would give 0.83 V (docs/hardware.md, "The ROM bootloader's pins").
+//!
 //! | function                  | peripheral      | pins                 |
 //! |---------------------------|-----------------|----------------------|
 //! | right encoder A/B         | TIM2 (32-bit)   | PA0 [A0] / PA1 [A1] (AF1) |
@@ -13,7 +21,7 @@
 //! | right motor PWM           | TIM1 CH1 20 kHz | PA8 [D7] (AF1)       |
 //! | left motor PWM            | TIM1 CH2 20 kHz | PA9 [D8] (AF1)       |
 //! | right / left motor DIR    | GPIO            | PB12 / PB13 (morpho CN10) |
-//! | H-bridge enable (low = coast) | GPIO        | PA10 [D2]            |
+//! | H-bridge enable (low = coast) | GPIO        | PA10 [D2], 4.7 kΩ pull-down on the board |
 //! | control tick 1–10 kHz     | TIM7            | —                    |
 //! | serial 115200 8N1         | USART2          | PA2 TX / PA3 RX (ST-LINK virtual COM port, the USB cable) |
 //! | user button               | EXTI15_10       | PC13 (B1, active low) |
@@ -52,8 +60,9 @@ pub const TIMCLK1_HZ: u32 = 2 * PCLK1_HZ;
 pub const TIMCLK2_HZ: u32 = 2 * PCLK2_HZ;
 /// The clock tree `init` sets and checks.
 const CLOCK_TREE: ClockTree = ClockTree {
-    hse: HSE_HZ,
+    crystals: CRYSTALS,
     hse_bypass: true,
+    scale1: false,
     sysclk: SYSCLK_HZ,
     pclk1: PCLK1_HZ,
     pclk2: PCLK2_HZ,
@@ -61,8 +70,8 @@ const CLOCK_TREE: ClockTree = ClockTree {
     timclk2: TIMCLK2_HZ,
 };
 /// The external clock: the ST-LINK's 8 MHz MCO output on PH0, in bypass mode (the board as
-/// shipped has no crystal at X3).
-pub const HSE_HZ: u32 = 8_000_000;
+/// shipped has no crystal at X3), Hz ([`crate::board::crystal`]).
+pub const CRYSTALS: &[u32] = crate::board::crystal::NUCLEO_F446RE_CRYSTALS;
 /// Motor PWM frequency, Hz.
 pub const PWM_HZ: u32 = 20_000;
 /// Independent watchdog timeout, ms: the control task feeds it every period.
@@ -89,15 +98,15 @@ pub const CONTROL_FROM_MONOTONIC: bool = false;
 
 /// The clocks as the boot line and the fault event name them.
 pub const CLOCK_TEXTS: ClockTexts = ClockTexts {
-    external: "clock: ST-LINK MCO 8 MHz (HSE bypass), 180 MHz",
-    internal: "clock: internal oscillator (HSI 16 MHz), 180 MHz",
+    external: &["clock: ST-LINK MCO 8 MHz (HSE bypass), 180 MHz"],
+    internal: "clock: internal oscillator (HSI 16 MHz), 180 MHz, no ST-LINK MCO at power-up",
     fault: "no external clock: the ST-LINK's 8 MHz MCO (HSE bypass) did not start, running on \
             the internal oscillator (HSI, 180 MHz through the PLL; timing and baud rate within a \
             few %)",
 };
 
 /// What the boot line ends with: which clock runs.
-pub fn boot_note(clock: ClockSource) -> &'static str {
+pub fn boot_note(clock: ClockSource) -> super::stm32f4::clock::ClockNote {
     clock.describe(&CLOCK_TEXTS)
 }
 
@@ -120,9 +129,8 @@ pub type Board = super::stm32f4::Board<BoardMotors, ControlTick, ButtonInput, Le
 
 /// Brings up clocks and every peripheral the application uses.
 pub fn init(dp: pac::Peripherals) -> Board {
-    // Before anything else: the motor pins to their safe state, the reset cause, and TIM1
-    // frozen while a debugger halts the core.
-    safety::motors_off_at_reset(&dp.RCC);
+    // Before anything else (the motor pins are safe since `__pre_init`): the reset cause, and
+    // TIM1 frozen while a debugger halts the core.
     let reset_cause = safety::reset_cause(&dp.RCC);
     safety::freeze_when_halted(&dp.DBGMCU);
     // The ST-LINK's clock if it runs; otherwise the HSI with the PLL set for the same clocks.
@@ -168,7 +176,7 @@ pub fn init(dp: pac::Peripherals) -> Board {
         &mut rcc,
         clocks.sysclk().raw(),
     );
-    // SAFETY: the ports' clocks are on (port A's since `motors_off_at_reset`, port B's by its
+    // SAFETY: the ports' clocks are on (port A's since `__pre_init`, port B's by its
     // split above); `init` owns them and nothing else runs.
     unsafe {
         pull_up(pac::GPIOA::ptr(), &[0, 1, 3]);

@@ -7,4 +7,4 @@ pub use crate::board::stm32f4::reset::{
     ResetCause, first_fault, freeze_when_halted, record_crash, reset_cause, take_crash,
 };
 
-crate::board::stm32f4::safe_state::motor_safety!(GPIOA, gpioa, gpioaen, [8, 9, 10]);
+crate::board::stm32f4::safe_state::motor_safety!(GPIOA, gpioa, 0, [8, 9, 10]);

@@ -65,13 +65,17 @@ pub struct Board<M, T, B, L> {
     pub clock: clock::ClockSource,
 }
 
-/// A board's clock tree, Hz: its external clock, what the HAL is asked for (core and the two
+/// A board's clock tree, Hz: its external clocks, what the HAL is asked for (core and the two
 /// buses) and the timer clocks that follow from it (twice a bus clock whose prescaler is not 1).
 pub struct ClockTree {
-    /// The external clock's frequency.
-    pub hse: u32,
-    /// Whether the external clock is a clock input (HSE bypass) rather than a crystal.
+    /// The external clock's documented frequencies ([`crate::board::crystal`]).
+    pub crystals: &'static [u32],
+    /// Whether the external clock is a clock input (HSE bypass) rather than a crystal: another
+    /// chip's output, which can stop, so the clock security system watches it.
     pub hse_bypass: bool,
+    /// Whether the core clock needs the regulator's voltage scale 1 selected before the PLL
+    /// starts (the STM32F411 resets to scale 2).
+    pub scale1: bool,
     /// Core clock.
     pub sysclk: u32,
     /// APB1 clock (USART2, TIM2, TIM3, TIM7).
@@ -84,23 +88,47 @@ pub struct ClockTree {
     pub timclk2: u32,
 }
 
-/// Starts the external clock (bounded wait, [`clock::start_external`]) and the clocks from the
-/// source that started: the external clock, or the HSI with the PLL set for the same tree,
-/// logging `texts.fault`. Logs an error if the HAL's clocks differ from `tree`: the timer
-/// periods, the PWM and the baud rate assume exactly those.
+/// Starts the clocks: the regulator's scale first where the tree needs it, then the external
+/// clock (bounded wait, [`clock::start_external`]) measured against the HSI
+/// ([`clock::odocal_hse_count`], [`crate::board::crystal::identify`]) and the PLL set for the
+/// crystal found; without an external clock, or with one that is none of the board's, the HSI
+/// with the PLL set for the same tree, logging the fault. Logs an error if the HAL's clocks
+/// differ from `tree` (the timer periods, the PWM and the baud rate assume exactly those) or
+/// the regulator did not reach its scale; turns on the clock security system for a clock input.
 pub fn start_clocks(
     rcc: RCC,
     tree: &ClockTree,
     texts: &clock::ClockTexts,
 ) -> (Rcc, clock::ClockSource) {
-    let started = clock::start_external(&rcc, tree.hse_bypass);
-    let source = match started {
-        clock::ClockSource::External if tree.hse_bypass => {
-            Config::hse(tree.hse.Hz()).bypass_hse_oscillator()
+    use crate::board::crystal::{Crystal, identify};
+    if tree.scale1 {
+        clock::select_scale1(&rcc);
+    }
+    let started = if clock::start_external(&rcc, tree.hse_bypass) {
+        match identify(clock::odocal_hse_count(), tree.crystals) {
+            Crystal::Documented { index, .. } => clock::ClockSource::External(index as u8),
+            Crystal::Unknown { measured_hz } => {
+                clock::stop_external(&rcc);
+                clock::ClockSource::Unknown(measured_hz)
+            }
         }
-        clock::ClockSource::External => Config::hse(tree.hse.Hz()),
-        clock::ClockSource::Internal => {
-            error!("{}", texts.fault);
+    } else {
+        clock::ClockSource::Internal
+    };
+    let source = match started {
+        clock::ClockSource::External(i) => {
+            let hz = tree.crystals.get(usize::from(i)).copied().unwrap_or(0);
+            let config = Config::hse(hz.Hz());
+            if tree.hse_bypass {
+                config.bypass_hse_oscillator()
+            } else {
+                config
+            }
+        }
+        clock::ClockSource::Internal | clock::ClockSource::Unknown(_) => {
+            if let Some(fault) = started.fault(texts) {
+                error!("{}", fault);
+            }
             Config::hsi()
         }
     };
@@ -110,6 +138,12 @@ pub fn start_clocks(
             .pclk1(tree.pclk1.Hz())
             .pclk2(tree.pclk2.Hz()),
     );
+    if tree.scale1 && !clock::scale1_ready() {
+        error!("regulator not at voltage scale 1 (PWR_CSR.VOSRDY clear) with the PLL running");
+    }
+    if tree.hse_bypass && matches!(started, clock::ClockSource::External(_)) {
+        clock::watch_external();
+    }
     let clocks = &rcc.clocks;
     if clocks.sysclk().raw() != tree.sysclk
         || clocks.pclk1().raw() != tree.pclk1

@@ -75,46 +75,86 @@ pub unsafe fn emergency_stop(port: *const RegisterBlock, pins: &[u32]) {
     }
 }
 
+/// RCC_AHB1ENR's address (the GPIO ports' clock enables; the same on the three parts).
+pub const RCC_AHB1ENR: u32 = 0x4002_3830;
+/// GPIO port A's address; port `n` is at `GPIO_BASE + n * GPIO_STRIDE`.
+pub const GPIO_BASE: u32 = 0x4002_0000;
+/// The distance between two GPIO ports' register blocks.
+pub const GPIO_STRIDE: u32 = 0x400;
+
 /// A board's motor-pin functions for TIM1 PWM and bridge enable pins on one GPIO port:
-/// `motors_off_at_reset` (the first thing `init` does: the port's clock on, the pins safe),
-/// `motor_port_without_reset` (the port's pin tokens without the HAL's `split`, which would reset
-/// the port and leave the motor pins floating, pull-downs cleared, until their drivers take them)
-/// and `odocal_emergency_stop` (from the panic and HardFault handlers; never inlined and with a
+/// `__pre_init` (the motor pins safe before RAM is initialised), `motor_port_without_reset`
+/// (the port's pin tokens without the HAL's `split`, which would reset the port and leave the
+/// motor pins floating, pull-downs cleared, until their drivers take them) and
+/// `odocal_emergency_stop` (from the panic and HardFault handlers; never inlined and with a
 /// fixed symbol name, so the firmware-in-the-loop check can see the handlers call it first).
 ///
-/// `motor_safety!(GPIOA, gpioa, gpioaen, [8, 9, 10])`: the port, its HAL module, its
-/// RCC_AHB1ENR enable field, and the pins (the PWM pins and the bridge enable).
+/// `motor_safety!(GPIOA, gpioa, 0, [8, 9, 10])`: the port, its HAL module, its index (A = 0,
+/// its RCC_AHB1ENR bit), and the pins (the PWM pins and the bridge enable).
 macro_rules! motor_safety {
-    ($port:ident, $module:ident, $enable:ident, $pins:expr) => {
+    ($port:ident, $module:ident, $index:literal, $pins:expr) => {
         /// The PWM and bridge-enable pins of the motor port.
         pub const MOTOR_PINS: [u32; 3] = $pins;
 
-        /// Drives the motor pins to the safe state: the first thing `init` does.
-        pub fn motors_off_at_reset(rcc: &stm32f4xx_hal::pac::RCC) {
-            rcc.ahb1enr().modify(|_, w| w.$enable().set_bit());
-            // Two peripheral-clock cycles must pass before the port responds: a read-back of
-            // the enable register provides them.
-            let _ = rcc.ahb1enr().read().bits();
-            // SAFETY: the port's clock is on; `init` owns the port (nothing else runs).
-            unsafe {
-                $crate::board::stm32f4::safe_state::drive_safe(
-                    stm32f4xx_hal::pac::$port::ptr().cast(),
-                    &MOTOR_PINS,
-                )
-            };
-        }
+        // The motor pins safe before anything else runs: cortex-m-rt's reset handler calls
+        // `__pre_init` before it zeroes .bss and copies .data (about 3 ms at the reset clock),
+        // so it is assembly that uses registers only (no stack, no RAM): the port's clock on
+        // (RCC_AHB1ENR, read back: two AHB cycles before the port responds), then BSRR drives
+        // the pins low, PUPDR gives them pull-downs and MODER makes them outputs
+        // (read-modify-writes of their bit pairs only). docs/hardware.md states the window
+        // that remains, measured in QEMU.
+        core::arch::global_asm!(
+            ".pushsection .text.__pre_init,\"ax\",%progbits",
+            ".global __pre_init",
+            ".type __pre_init,%function",
+            ".thumb_func",
+            "__pre_init:",
+            "ldr r0, ={ahb1enr}",
+            "ldr r1, [r0]",
+            "orr r1, r1, #{enable}",
+            "str r1, [r0]",
+            "ldr r1, [r0]",
+            "ldr r0, ={port}",
+            "ldr r1, ={low}",
+            "str r1, [r0, #0x18]",
+            "ldr r2, ={mask}",
+            "ldr r1, [r0, #0x0c]",
+            "bics r1, r2",
+            "ldr r3, ={pull_down}",
+            "orrs r1, r3",
+            "str r1, [r0, #0x0c]",
+            "ldr r1, [r0]",
+            "bics r1, r2",
+            "ldr r3, ={output}",
+            "orrs r1, r3",
+            "str r1, [r0]",
+            "bx lr",
+            ".ltorg",
+            ".size __pre_init, . - __pre_init",
+            ".popsection",
+            ahb1enr = const $crate::board::stm32f4::safe_state::RCC_AHB1ENR,
+            enable = const 1u32 << $index,
+            port = const $crate::board::stm32f4::safe_state::GPIO_BASE
+                + $index * $crate::board::stm32f4::safe_state::GPIO_STRIDE,
+            low = const $crate::board::stm32f4::safe_state::pin_fields(&$pins).0,
+            mask = const $crate::board::stm32f4::safe_state::pin_fields(&$pins).1,
+            output = const $crate::board::stm32f4::safe_state::pin_fields(&$pins).2,
+            pull_down = const $crate::board::stm32f4::safe_state::pin_fields(&$pins).3,
+        );
 
         /// The motor port's pin tokens without the HAL's `split`, which would reset the whole
         /// port (RCC_AHB1RSTR) and leave the motor pins floating, pull-downs cleared, until their
-        /// drivers take them. Here they keep the state [`motors_off_at_reset`] gave them (which
-        /// also enabled the port's clock); the HAL's mode changes then set each pin's mode, type
+        /// drivers take them. Here they keep the state `__pre_init` gave them (which also
+        /// enabled the port's clock); the HAL's mode changes then set each pin's mode, type
         /// and alternate function and never touch PUPDR, so the pull-downs stay on. The other
         /// pins of the port are as the chip's reset left them. `fil/safe_boot_test.py` lists
         /// every write to the port during the shipped image's boot and rejects a port reset.
         pub fn motor_port_without_reset(
             port: stm32f4xx_hal::pac::$port,
         ) -> stm32f4xx_hal::gpio::$module::Parts {
-            const { assert!(core::mem::size_of::<stm32f4xx_hal::gpio::$module::Parts>() == 0) };
+            const {
+                assert!(core::mem::size_of::<stm32f4xx_hal::gpio::$module::Parts>() == 0);
+            };
             // The port's only handle: no other pin tokens of the port can be made after this.
             let _ = port;
             // SAFETY: `Parts` is zero-sized (a zero-sized token per pin, checked above): no
