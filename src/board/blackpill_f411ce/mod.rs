@@ -87,6 +87,10 @@ const _: () = assert!(
     "a control rate does not divide TIM11's clock"
 );
 const _: () = assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <= 1 << 16);
+const _: () = assert!(
+    crate::motion::hbridge::reversal_holds_zero(PWM_HZ, crate::motion::controller::MAX_RATE_HZ),
+    "a reversal's zero duty does not last a PWM period at the fastest control rate"
+);
 
 /// The interrupt the control task is bound to: TIM11's update, which shares its vector with
 /// TIM1's trigger and commutation interrupts (never enabled: TIM1 only makes the PWM)

@@ -80,6 +80,10 @@ const _: () = assert!(
 );
 // TIM1's PWM period (ARR + 1 = 8,400 timer ticks, the duty resolution) is exact.
 const _: () = assert!(TIMCLK2_HZ.is_multiple_of(PWM_HZ) && TIMCLK2_HZ / PWM_HZ <= 1 << 16);
+const _: () = assert!(
+    crate::motion::hbridge::reversal_holds_zero(PWM_HZ, crate::motion::controller::MAX_RATE_HZ),
+    "a reversal's zero duty does not last a PWM period at the fastest control rate"
+);
 /// The documented external crystal, Hz ([`crate::board::crystal`]): 8 MHz.
 pub const CRYSTALS: &[u32] = crate::board::crystal::F407_CRYSTALS;
 /// Motor PWM frequency, Hz (above hearing, within the H-bridge's switching limit).

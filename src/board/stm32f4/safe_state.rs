@@ -97,8 +97,8 @@ macro_rules! motor_safety {
         pub const MOTOR_PINS: [u32; 3] = $pins;
 
         // The motor pins safe before anything else runs: cortex-m-rt's reset handler calls
-        // `__pre_init` before it zeroes .bss and copies .data (about 3 ms at the reset clock),
-        // so it is assembly that uses registers only (no stack, no RAM): the port's clock on
+        // `__pre_init` before it zeroes .bss and copies .data (about 0.3 ms at the reset
+        // clock, docs/hardware.md), so it is assembly that uses registers only (no stack, no RAM): the port's clock on
         // (RCC_AHB1ENR, read back: two AHB cycles before the port responds), then BSRR drives
         // the pins low, PUPDR gives them pull-downs and MODER makes them outputs
         // (read-modify-writes of their bit pairs only). docs/hardware.md states the window

@@ -94,6 +94,9 @@ pub const DEFAULT_RATE_HZ: u32 = 1_000;
 /// to each rate, and a simulated period is a whole number of microseconds.
 pub const RATES_HZ: [u32; 6] = [1_000, 2_000, 4_000, 5_000, 8_000, 10_000];
 
+/// The fastest control rate, Hz (the last of [`RATES_HZ`]).
+pub const MAX_RATE_HZ: u32 = RATES_HZ[RATES_HZ.len() - 1];
+
 /// Whether `rate_hz` is one of [`RATES_HZ`].
 pub fn rate_supported(rate_hz: u32) -> bool {
     RATES_HZ.contains(&rate_hz)

@@ -26,8 +26,8 @@ mod mode;
 mod stopped;
 
 pub use config::{
-    ConfigError, ControllerConfig, DEFAULT_DEADMAN_MS, DEFAULT_RATE_HZ, FollowingConfig, RATE_RULE,
-    RATES_HZ, SetError, StallConfig, periods_of_ms, rate_supported,
+    ConfigError, ControllerConfig, DEFAULT_DEADMAN_MS, DEFAULT_RATE_HZ, FollowingConfig,
+    MAX_RATE_HZ, RATE_RULE, RATES_HZ, SetError, StallConfig, periods_of_ms, rate_supported,
 };
 pub use fault::Fault;
 use fault::FollowingState;
