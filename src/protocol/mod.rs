@@ -33,6 +33,7 @@ pub mod record;
 pub mod refusal;
 pub mod reply;
 pub mod rx;
+pub mod stream;
 pub mod token;
 pub mod unit;
 

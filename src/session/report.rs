@@ -14,7 +14,7 @@ use crate::motion::controller::Status;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
 use crate::protocol::token::{
-    self, ACTIVE, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, STREAM, TABLE_HEADER, WITH_FLAGGED,
+    self, ACTIVE, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, TABLE_HEADER, WITH_FLAGGED,
 };
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
@@ -85,28 +85,6 @@ pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
         Decimal::signed(p.x_m, 6),
         Decimal::signed(p.y_m, 6),
         Decimal::signed(wrap_deg(p.theta_rad.to_degrees()), 4)
-    )
-}
-
-pub(super) fn write_stream_line(
-    out: &mut dyn Write,
-    now_us: u64,
-    p: &PoseF64,
-    v_right: f64,
-    v_left: f64,
-) -> fmt::Result {
-    write!(
-        out,
-        "{STREAM}{}.{:06} {} {} {} {} {}\r\n",
-        // Both casts are exact (the quotient is below 2^64 / 10^6 < 2^63, the remainder below
-        // 10^6): the replies print integers through the `i64` and `u32` formatters only.
-        (now_us / 1_000_000) as i64,
-        (now_us % 1_000_000) as u32,
-        Decimal::signed(p.x_m, 6),
-        Decimal::signed(p.y_m, 6),
-        Decimal::signed(wrap_deg(p.theta_rad.to_degrees()), 4),
-        Decimal::signed(v_right, 4),
-        Decimal::signed(v_left, 4)
     )
 }
 

@@ -7,10 +7,10 @@
 use core::fmt::{self, Write};
 
 use super::Session;
-use super::report;
 use super::traits::{Calibrator, Robot, SettingsAndRuns};
 use crate::kinematics::encoder::WheelTicks;
 use crate::protocol::outcome::{Ack, write_ack};
+use crate::protocol::stream::StreamSample;
 
 /// Default pose-stream rate, Hz.
 pub const DEFAULT_STREAM_HZ: u32 = 10;
@@ -53,7 +53,15 @@ impl<C: Calibrator> Session<C> {
             let pose = robot.pose();
             let totals = robot.totals();
             let (vr, vl) = self.wheel_speeds(now_us, totals);
-            report::write_stream_line(out, now_us, &pose, vr, vl)?;
+            let sample = StreamSample {
+                t_us: now_us,
+                x_m: pose.x_m,
+                y_m: pose.y_m,
+                theta_rad: pose.theta_rad,
+                v_right_mps: vr,
+                v_left_mps: vl,
+            };
+            sample.write(out)?;
         }
         Ok(())
     }

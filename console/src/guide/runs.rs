@@ -6,6 +6,7 @@ use odocal::protocol::unit::{parse_angle, parse_length};
 use std::time::Duration;
 
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::stream::StreamSample;
 use odocal::protocol::token::{self, EventTag};
 use odocal::protocol::{Command, ErrorCode};
 use serde_json::json;
@@ -108,7 +109,31 @@ impl Guide {
              midpoint on the origin mark, heading along the +x mark).",
             self.side_m
         ));
-        let start = loop {
+        let Some(start) = self.start_run(direction)? else {
+            return Ok(());
+        };
+        let Some(path) = self.follow_run(start)? else {
+            return self.after_aborted_run();
+        };
+        let Some(n) = self.board_numbers()?.last().copied() else {
+            return Err(Stop::Failed("the finished run is not in `runs`".into()));
+        };
+        let (record, _) = self.fetch_record(n)?;
+        self.ui.say(&format!(
+            "{title} finished: {} odometry end x={:+.6} y={:+.6} theta={:+.4} deg",
+            path_text(&record.path),
+            record.odometry_end.x_m,
+            record.odometry_end.y_m,
+            record.odometry_end.theta_rad.to_degrees()
+        ));
+        self.measure(n, &record, path)
+    }
+
+    /// Starts the run on Enter (or waits for the board's button): the odometry pose it starts
+    /// from (x, y, heading in radians), or `None` when the operator dropped the previous run or
+    /// ended the runs instead.
+    fn start_run(&mut self, direction: Direction) -> Result<Option<(f64, f64, f64)>, Stop> {
+        loop {
             let a = self.ui.ask(
                 "Enter starts the run (b: wait for the board's button; help, drop, skip)",
                 Some("go"),
@@ -130,12 +155,12 @@ impl Guide {
                 }
                 "drop" => {
                     self.drop_last_run()?;
-                    return Ok(());
+                    return Ok(None);
                 }
                 "skip" => {
                     if self.both_directions_measured() {
                         self.stop_runs = true;
-                        return Ok(());
+                        return Ok(None);
                     }
                     self.ui.say(
                         "  skip needs a measured run in each direction (CW and CCW) to \
@@ -180,7 +205,7 @@ impl Guide {
                     continue;
                 }
                 if event.is_some_and(|(_, text)| token::parse_run_started(text).is_some()) {
-                    break start;
+                    return Ok(Some(start));
                 }
                 self.ui.say(&format!("  {l}"));
                 continue;
@@ -193,7 +218,7 @@ impl Guide {
             };
             let r = self.link.command(&run.to_string(), super::REPLY)?;
             if r.ok() {
-                break start;
+                return Ok(Some(start));
             }
             if r.is_err(ErrorCode::Busy) {
                 let status = self.cmd(Command::Status)?;
@@ -202,7 +227,7 @@ impl Guide {
                         "  the board is busy ({}): a run was started on the board; following it",
                         r.text()
                     ));
-                    break start;
+                    return Ok(Some(start));
                 }
             }
             self.ui
@@ -224,7 +249,12 @@ impl Guide {
                     r.last
                 )));
             }
-        };
+        }
+    }
+
+    /// Follows the run on the pose stream with a progress line until it ends: the path in the
+    /// run's start frame when it finished, `None` when it was aborted or the board was reset.
+    fn follow_run(&mut self, start: (f64, f64, f64)) -> Result<Option<Vec<(f64, f64)>>, Stop> {
         // Live progress from the pose stream.
         let (x0, y0, t0) = start;
         let (c, s) = (t0.cos(), t0.sin());
@@ -234,7 +264,7 @@ impl Guide {
         let mut path = vec![(0.0, 0.0)];
         self.ui.progress_start();
         let deadline = std::time::Instant::now() + RUN_TIMEOUT;
-        let finished = loop {
+        loop {
             if crate::interrupted() {
                 return Err(Stop::Interrupted);
             }
@@ -247,32 +277,26 @@ impl Guide {
             let Some(l) = self.link.next_unsolicited(Duration::from_millis(100))? else {
                 continue;
             };
-            if let Some(rest) = l.strip_prefix(token::STREAM) {
-                let v: Vec<f64> = rest
-                    .split_whitespace()
-                    .filter_map(|w| w.parse().ok())
-                    .collect();
-                if let [_, x, y, th, ..] = v[..] {
-                    let th = th.to_radians();
-                    if let Some((px, py, pt)) = last {
-                        let dth = odocal::calibration::wrap_angle(th - pt).abs();
-                        done_m += (x - px).hypot(y - py) + dth * 0.2;
-                    }
-                    last = Some((x, y, th));
-                    let (dx, dy) = (x - x0, y - y0);
-                    path.push((c * dx + s * dy, -s * dx + c * dy));
-                    self.ui.progress(
-                        done_m / total_m,
-                        path.last().map_or(0.0, |p| p.0),
-                        path.last().map_or(0.0, |p| p.1),
-                        odocal::calibration::wrap_angle(th - t0).to_degrees(),
-                    );
+            if let Some(sample) = StreamSample::parse(&l) {
+                let (x, y, th) = (sample.x_m, sample.y_m, sample.theta_rad);
+                if let Some((px, py, pt)) = last {
+                    let dth = odocal::calibration::wrap_angle(th - pt).abs();
+                    done_m += (x - px).hypot(y - py) + dth * 0.2;
                 }
+                last = Some((x, y, th));
+                let (dx, dy) = (x - x0, y - y0);
+                path.push((c * dx + s * dy, -s * dx + c * dy));
+                self.ui.progress(
+                    done_m / total_m,
+                    path.last().map_or(0.0, |p| p.0),
+                    path.last().map_or(0.0, |p| p.1),
+                    odocal::calibration::wrap_angle(th - t0).to_degrees(),
+                );
             } else if matches!(event_tag(&l), Some(EventTag::RunFinished(_))) {
-                break true;
+                return Ok(Some(path));
             } else if matches!(event_tag(&l), Some(EventTag::RunAborted(_))) {
                 self.ui.warn(&l);
-                break false;
+                return Ok(None);
             } else if event_tag(&l) == Some(EventTag::Boot) {
                 // A reset (the reset button, a power dip, the watchdog): the run had not
                 // finished, so the board did not store it; the new boot has the echo on and
@@ -281,59 +305,50 @@ impl Guide {
                     "the board was reset during the run ({l}): the run was not stored"
                 ));
                 self.after_reset()?;
-                break false;
+                return Ok(None);
             } else if l.starts_with(token::EVENT) {
                 self.ui.say(&format!("  {l}"));
             }
-        };
-        if !finished {
-            let s = self.cmd(Command::Status)?;
-            if let Some(f) = field(s.text(), "fault").filter(|f| *f != "none") {
-                self.ui.warn(&format!(
-                    "fault: {f}: the motors are stopped. Fix the cause, then the fault is \
-                     cleared and the run driven again"
-                ));
-                // The board's own account of it (which wheel, how far off), sent right after
-                // the aborted run.
-                if let Some(detail) = self
-                    .link
-                    .take_pending(|l| event_tag(l) == Some(EventTag::Fault))
-                {
-                    let detail = detail.strip_prefix(token::EVENT).unwrap_or(&detail);
-                    self.ui.say(&format!("  {detail}"));
-                }
-                if let Some(cause) = fault_cause(f) {
-                    self.ui.say(&format!("  likely cause: {cause}"));
-                }
-                let again = self.no_back(
-                    "the run was aborted: clear the fault and drive it again (y), or end the \
-                     session (n)",
-                    |g| {
-                        Ok(g.ui.confirm("Clear the fault and drive the run again", true)?)
-                    },
-                )?;
-                if again {
-                    let _ = self.cmd(Command::Clear)?;
-                } else {
-                    return Err(Stop::Failed(format!("fault {f}")));
-                }
-            }
-            self.ui
-                .say("the run was aborted and not stored: it is driven again");
-            return Ok(());
         }
-        let Some(n) = self.board_numbers()?.last().copied() else {
-            return Err(Stop::Failed("the finished run is not in `runs`".into()));
-        };
-        let (record, _) = self.fetch_record(n)?;
-        self.ui.say(&format!(
-            "{title} finished: {} odometry end x={:+.6} y={:+.6} theta={:+.4} deg",
-            path_text(&record.path),
-            record.odometry_end.x_m,
-            record.odometry_end.y_m,
-            record.odometry_end.theta_rad.to_degrees()
-        ));
-        self.measure(n, &record, path)
+    }
+
+    /// After an aborted run: a latched fault explained and cleared on a yes (or the session
+    /// ends), and the run offered again.
+    fn after_aborted_run(&mut self) -> Result<(), Stop> {
+        let s = self.cmd(Command::Status)?;
+        if let Some(f) = field(s.text(), "fault").filter(|f| *f != "none") {
+            self.ui.warn(&format!(
+                "fault: {f}: the motors are stopped. Fix the cause, then the fault is \
+                 cleared and the run driven again"
+            ));
+            // The board's own account of it (which wheel, how far off), sent right after
+            // the aborted run.
+            if let Some(detail) = self
+                .link
+                .take_pending(|l| event_tag(l) == Some(EventTag::Fault))
+            {
+                let detail = detail.strip_prefix(token::EVENT).unwrap_or(&detail);
+                self.ui.say(&format!("  {detail}"));
+            }
+            if let Some(cause) = fault_cause(f) {
+                self.ui.say(&format!("  likely cause: {cause}"));
+            }
+            let again = self.no_back(
+                "the run was aborted: clear the fault and drive it again (y), or end the \
+                 session (n)",
+                |g| {
+                    Ok(g.ui.confirm("Clear the fault and drive the run again", true)?)
+                },
+            )?;
+            if again {
+                let _ = self.cmd(Command::Clear)?;
+            } else {
+                return Err(Stop::Failed(format!("fault {f}")));
+            }
+        }
+        self.ui
+            .say("the run was aborted and not stored: it is driven again");
+        Ok(())
     }
 
     /// Asks for the measured end pose and sends it (or drops the run), then logs the run's

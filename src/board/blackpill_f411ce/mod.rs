@@ -9,11 +9,13 @@
 //! held high (on V2.0 boards the flash's MISO is PB4, the left encoder's A). The part has no
 //! TIM6/TIM7: the control tick is TIM11.
 //!
-//! The ROM bootloader (BOOT0, how a Black Pill is flashed over USB DFU) drives USART1's PA9 (the
-//! left PWM) high and pulls PA10 up (AN2606, STM32F411xx bootloader): TIM1 CH1/CH2 have no other
-//! pins on this package, so the bridge enable is on PA1, which no bootloader interface touches,
-//! and the board needs a 4.7 kΩ pull-down from PA1 to ground (docs/hardware.md, "The ROM
-//! bootloader's pins"): the bridge stays disabled whatever the PWM pins do before our code runs.
+//! The ROM bootloader (BOOT0, how a Black Pill is flashed over USB DFU) takes USART1's PA9 (the
+//! left PWM) and PA10 as inputs without a pull, and drives PA9 once a host selects USART1
+//! (AN2606 Rev 70, table 83): TIM1 CH1/CH2 have no other pins on this package, so the bridge
+//! enable is on PA1, which no bootloader interface touches, and the board needs a 4.7 kΩ
+//! pull-down from PA1 to ground (and one on PA10, so the floating USART1 RX does not keep DFU
+//! from starting; docs/hardware.md, "The ROM bootloader's pins"): the bridge stays disabled
+//! whatever the PWM pins do before our code runs.
 //!
 //! | function                  | peripheral      | pins                 |
 //! |---------------------------|-----------------|----------------------|

@@ -6,13 +6,13 @@
 //! heartbeat, B1 (PC13) the button; PH0 is the ST-LINK's 8 MHz clock, PC14/PC15 the 32 kHz
 //! crystal, PA13/PA14 the SWD and PB3 the SWO line, none of them used.
 //!
-//! The ROM bootloader (BOOT0, strapped low on the NUCLEO but exposed on CN7-7) drives USART1's
-//! PA9 (the left PWM) high and holds PA10 (the bridge enable) with its internal pull-up, 30–50 kΩ
-//! (AN2606, STM32F446xx bootloader). TIM1 CH1/CH2 have no other pins on this package and port A
-//! has no pin left that no bootloader interface or board function uses, so the hardware rule
-//! holds the bridge off: **a 4.7 kΩ pull-down from PA10 to ground** keeps the enable at 0.45 V
-//! against the weakest pull-up (3.3 V × 4.7 / (4.7 + 30)), under a driver's 0.8 V logic low; 10 kΩ
-//! would give 0.83 V (docs/hardware.md, "The ROM bootloader's pins").
+//! The ROM bootloader (BOOT0, strapped low on the NUCLEO but exposed on CN7-7) takes USART1's PA9
+//! (the left PWM) and PA10 (the bridge enable) as inputs without a pull, and a host that selects
+//! USART1 drives PA10 (AN2606 Rev 70, table 93). TIM1 CH1/CH2 have no other pins on this package,
+//! so the hardware rule holds the bridge off: **a 4.7 kΩ pull-down from PA10 to ground** (it
+//! would hold 0.45 V even against a 30 kΩ pull-up, 3.3 V × 4.7 / (4.7 + 30), under a driver's
+//! 0.8 V logic low; 10 kΩ would give 0.83 V), and USART1 flashing only with the motor supply off
+//! (docs/hardware.md, "The ROM bootloader's pins").
 //!
 //! | function                  | peripheral      | pins                 |
 //! |---------------------------|-----------------|----------------------|
