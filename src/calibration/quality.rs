@@ -74,7 +74,7 @@ impl Quality {
 
 /// `E_max,syst` of the square runs re-integrated with `g`; `None` without knots or without a
 /// run in each direction. The end poses are the arc model's ([`ArcModel`]) to rounding, by
-/// [`end_pose`] (fewer `f64` operations: on the Cortex-M4F each is a soft-float call).
+/// `end_pose` (fewer `f64` operations: on the Cortex-M4F each is a soft-float call).
 pub fn predicted_e_max(runs: &[RunObservation<'_>], g: &Geometry) -> Option<f64> {
     let model = ArcModel::from_geometry(g);
     e_max_of(runs, |_, r| end_residual(&model, r))
