@@ -27,6 +27,9 @@
 //! stopped).
 
 pub mod params;
+// A test double (flash in RAM, with injected faults) for the host's tests and host-sim: never
+// compiled for the board.
+#[cfg(not(target_os = "none"))]
 pub mod ram_flash;
 pub mod record;
 pub mod runs;
