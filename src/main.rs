@@ -90,7 +90,6 @@ macro_rules! odocal_app {
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 #[allow(unsafe_op_in_unsafe_fn)]
 mod app {
-    use core::fmt::Write as _;
     use heapless::spsc::{Consumer, Producer, Queue};
     use odocal::app::Handoff;
     use odocal::app::control::{MissedPeriods, Pacing};
@@ -101,16 +100,13 @@ mod app {
         CONTROL_FROM_MONOTONIC, CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders,
         Leds, WATCHDOG_MS,
     };
-    use odocal::kinematics::geometry::Geometry;
     use odocal::motion::button::{Button, ButtonConfig, Press};
-    use odocal::motion::controller::{Controller, ControllerConfig, DEFAULT_RATE_HZ};
+    use odocal::motion::controller::Controller;
     use odocal::protocol::LineAssembler;
     use odocal::protocol::reply::ByteSink;
     use odocal::protocol::rx::{INPUT_QUEUE_BYTES, InputQueue, InputReceiver, InputSender};
     use odocal::session::library::{LibraryCalibrator, LockedController};
-    use odocal::session::{
-        ControlTimerStopped, Session, Settings, write_boot_event, write_fault_event,
-    };
+    use odocal::session::{Booted, ControlTimerStopped, Session, boot, write_fault_event};
     use odocal::storage::ParamAndRunStore;
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Channel, Receiver, Sender};
@@ -164,26 +160,6 @@ mod app {
         Mono::now().ticks()
     }
 
-    /// A controller for the stored settings (at the stored rate), or for the built-in defaults
-    /// when they are refused.
-    fn make_controller(settings: &Settings) -> Controller {
-        match Controller::new(settings.controller_config()) {
-            Ok(c) => c,
-            Err(e) => {
-                defmt::warn!(
-                    "stored parameters refused by the controller ({}), using defaults",
-                    e
-                );
-                // The built-in defaults are validated by the library's tests
-                // (`tests/controller.rs`), so this cannot fail at run time.
-                match Controller::new(ControllerConfig::new(Geometry::default(), DEFAULT_RATE_HZ)) {
-                    Ok(c) => c,
-                    Err(_) => defmt::panic!("built-in controller defaults rejected"),
-                }
-            }
-        }
-    }
-
     #[init(local = [
         handoff: Handoff = Handoff::new(),
         lines: InputQueue<INPUT_QUEUE_BYTES> = InputQueue::new(),
@@ -203,86 +179,62 @@ mod app {
         // Parameters first: loading may repair an interrupted save (motors are off here).
         let mut params_store = board.params;
         let loaded = params_store.load_blocking();
-        // The stored values the settings' rules refuse take their defaults (said at boot).
-        let (settings, refused) = loaded.record.for_boot();
-        let calibrated_with = settings.calibration.as_ref().map_or_else(
-            || "none".try_into().unwrap_or_default(),
-            |c| c.method.clone(),
-        );
-        let controller = make_controller(&settings);
-        // The control period from the stored rate on (the board started it at the default).
-        let rate_hz = controller.config().rate_hz;
-        let mut tick = board.tick;
-        tick.set_rate_hz(rate_hz);
-        // A timer that does not count runs no control loop: the boot line says so.
-        let tick_counts = tick.counts(board.sysclk_hz);
-        let pacing = Pacing::new(handoff, rate_hz);
-        let missed = MissedPeriods::new(board.sysclk_hz, rate_hz);
-        let mut session = Session::new(settings, LibraryCalibrator::default());
-        let mut watchdog = board.watchdog;
-        set_timeout(&mut watchdog, WATCHDOG_MS);
-
         let (line_in, line_out) = cx.local.lines.split();
         let (mut tx_in, tx_out) = cx.local.tx_bytes.split();
         let (ring_on_line, doorbell) = cx.local.wakes.split();
         let ring_on_press = ring_on_line.clone();
-        // The boot event is the first line on the console (sent once the USART2 task runs).
         let reset_cause = board.reset_cause;
-        {
-            // A fault handler's record names the reset better than RCC's `software`.
-            let mut cause = heapless::String::<{ 24 + odocal::session::crash::FILE_LEN }>::new();
-            match odocal::board::safety::take_crash() {
-                Some(crash) => {
-                    let _ = write!(cause, "{crash}");
-                    session.note_crash(crash);
+        let mut tick = board.tick;
+        let mut tick_counts = true;
+        // The boot event is the first line on the console (sent once the USART2 task runs).
+        let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
+        let booted = boot(
+            &loaded,
+            LibraryCalibrator::default(),
+            odocal::board::safety::take_crash(),
+            Some(reset_cause.as_str()),
+            |controller, note| {
+                // The control period from the stored rate on (the board started it at the
+                // default); a timer that does not count runs no control loop: the note says so.
+                tick.set_rate_hz(controller.config().rate_hz);
+                tick_counts = tick.counts(board.sysclk_hz);
+                write!(note, "{}", odocal::board::boot_note(board.clock))?;
+                if !tick_counts {
+                    write!(note, "; {}", ControlTimerStopped(odocal::board::CONTROL_TIMER))?;
                 }
-                None => {
-                    let _ = cause.push_str(reset_cause.as_str());
-                }
-            }
-            let mut note = heapless::String::<384>::new();
-            let _ = write!(note, "{}", odocal::board::boot_note(board.clock));
-            if !tick_counts {
-                let _ = write!(
-                    note,
-                    "; {}",
-                    ControlTimerStopped(odocal::board::CONTROL_TIMER)
-                );
-            }
-            let mut sink = ByteSink::new(|b| tx_in.enqueue(b).is_ok());
-            let _ = write_boot_event(
-                &mut sink,
-                &loaded,
-                &refused,
-                Some(cause.as_str()),
-                Some(note.as_str()),
-            );
-            if let Some(fault) = board.clock.fault(&odocal::board::CLOCK_TEXTS) {
-                let _ = write_fault_event(&mut sink, fault);
-            }
-        }
-        defmt::info!(
-            "reset cause: {}, {}",
-            reset_cause,
-            odocal::board::boot_note(board.clock)
+                Ok(())
+            },
+            &mut sink,
         );
-        if !tick_counts {
-            defmt::warn!(
-                "control timer {} not counting: no control loop",
-                odocal::board::CONTROL_TIMER
-            );
+        // The built-in defaults are validated by the library's tests (`tests/controller.rs`).
+        let Ok(Booted { controller, session, controller_refused }) = booted else {
+            defmt::panic!("built-in controller defaults rejected")
+        };
+        if let Some(fault) = board.clock.fault(&odocal::board::CLOCK_TEXTS) {
+            let _ = write_fault_event(&mut sink, fault);
         }
+        if let Some(e) = controller_refused {
+            defmt::warn!("stored parameters refused by the controller ({}), using defaults", e);
+        }
+        let rate_hz = controller.config().rate_hz;
+        let pacing = Pacing::new(handoff, rate_hz);
+        let missed = MissedPeriods::new(board.sysclk_hz, rate_hz);
+        let mut watchdog = board.watchdog;
+        set_timeout(&mut watchdog, WATCHDOG_MS);
+        let calibration = session.settings().calibration.as_ref();
+        defmt::info!(
+            "odocal up: reset cause {}, {}; control at {} Hz{}, calibration '{}'",
+            reset_cause,
+            odocal::board::boot_note(board.clock),
+            rate_hz,
+            if tick_counts { "" } else { " (control timer not counting: no control loop)" },
+            calibration.map_or("none", |c| c.method.as_str())
+        );
         let (press_in, press_out) = cx.local.presses.split();
-
         report::spawn().ok();
         console::spawn().ok();
         pace_control::spawn().ok();
         poll_console_rx::spawn().ok();
-        defmt::info!(
-            "odocal up: control at {} Hz, calibration '{}'",
-            rate_hz,
-            calibrated_with.as_str()
-        );
 
         (
             Shared {

@@ -28,6 +28,7 @@
 //! periodic poll and pose stream (`stream`) and the button and stop keys (`button`); `report`
 //! writes the longer replies.
 
+mod boot;
 mod bringup;
 mod button;
 mod calibrate_commands;
@@ -61,6 +62,7 @@ use crate::protocol::{Command, LineEvent, ParseError};
 use crate::storage::StoredRun;
 pub use crate::storage::record::AppliedCalibration;
 use crate::util::text::keyword_eq;
+pub use boot::{Booted, boot};
 pub use calibrate_commands::write_calibration;
 pub use events::{ControlTimerStopped, write_boot_event, write_fault_event, write_runs_restored};
 pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};

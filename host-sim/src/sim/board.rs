@@ -29,7 +29,7 @@ use odocal::protocol::line::LineEvent;
 use odocal::protocol::rx::{InputItem, Received, RxRead};
 use odocal::protocol::{Command, FinalLine, LineAssembler, ParamName};
 use odocal::session::library::{LibraryCalibrator, LockedController};
-use odocal::session::{Session, write_boot_event};
+use odocal::session::{Booted, Session, boot};
 use odocal::storage::ParamAndRunStore;
 
 use crate::sim::flash::{SimFlash, SimParamFlash};
@@ -125,12 +125,24 @@ impl<'f> Board<'f> {
     ) -> Result<Board<'f>, String> {
         let mut store = flash.store();
         let loaded = store.load_blocking();
-        let (settings, refused) = loaded.record.for_boot();
-        let controller = Controller::new(settings.controller_config())
-            .map_err(|e| format!("stored parameters: {e}"))?;
-        config.rate_hz = settings.control_hz;
-        write_boot_event(out, &loaded, &refused, None, None).map_err(|e| e.to_string())?;
-        let mut session = Session::new(settings, LibraryCalibrator::default());
+        // The firmware's boot: no fault record, no reset flags, no board note.
+        let Booted {
+            controller,
+            mut session,
+            controller_refused,
+        } = boot(
+            &loaded,
+            LibraryCalibrator::default(),
+            None,
+            None,
+            |_, _| Ok(()),
+            out,
+        )
+        .map_err(|e| format!("built-in defaults: {e}"))?;
+        if let Some(e) = controller_refused {
+            return Err(format!("stored parameters: {e}"));
+        }
+        config.rate_hz = controller.config().rate_hz;
         session
             .restore_runs(&mut store, out)
             .map_err(|e| e.to_string())?;
