@@ -38,6 +38,7 @@ use odocal::calibration::track::{TrackAdviceInput, advise};
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::identify::IdentifyMode;
 use odocal::motion::run::{Direction, PathKind};
+use odocal::motion::speed::SpeedTuning;
 use odocal::protocol::{Command, ErrorCode, ParamName};
 use rayon::prelude::*;
 
@@ -48,7 +49,7 @@ use crate::experiments::sweep::{SweepArgs, SweepResult, pilot_scatter, sweep};
 use crate::sim::board::Board;
 use crate::sim::flash::SimParamFlash;
 use crate::sim::robot::MotorArgs;
-use crate::sim::robot::sim_config;
+use crate::sim::robot::{SimConfig, sim_config};
 
 /// Arguments of the simulated session (also the defaults of `cargo sim` with no subcommand).
 #[derive(Args, Debug, Clone)]
@@ -269,38 +270,11 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
 
     // Track size: pilot scatter at 1 m (slip only, nominal belief), then the advice.
     pb.set_message("advice");
-    let mut pilot = Vec::new();
-    for (d, direction) in [Direction::Cw, Direction::Ccw].into_iter().enumerate() {
-        for i in 0..3u64 {
-            let mut c = cfg;
-            c.seed = args
-                .seed
-                .wrapping_mul(7919)
-                .wrapping_add(900 + 10 * d as u64 + i);
-            let path = PathKind::Square {
-                direction,
-                side_m: 1.0,
-            };
-            let r = drive_path_tuned(c, nominal, tuning, path)?;
-            let o = r.record.odometry_end;
-            pilot.push((direction, r.true_end.x_m - o.x_m, r.true_end.y_m - o.y_m));
-        }
-    }
-    let (_, pilot_scatter_m) = e_max_and_scatter(&pilot);
-    let input = TrackAdviceInput {
-        belief: nominal,
-        estimate: nominal,
-        measurement_sigma_m: args.meas_mm * 1e-3,
-        measurement_sigma_rad: args.meas_deg.to_radians(),
-        observed_scatter: Some((pilot_scatter_m, 1.0)),
-        runs_per_direction: u32::from(args.runs),
-        max_side_m: args.max_side,
-    };
-    let advice = advise(&input, method).map(|a| (a.side_m, a.expected_error));
-    let side_m = args
-        .side
-        .or(advice.map(|a| a.0))
-        .ok_or("no advice for this method; give --side")?;
+    let TrackPlan {
+        pilot_scatter_m,
+        advice,
+        side_m,
+    } = track_advice(args, &cfg, tuning, method)?;
     pb.inc(1);
 
     // Calibration runs through the serial path.
@@ -323,47 +297,14 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     let (e_max_before_m, scatter_m) = e_max_and_scatter(&before);
 
     pb.set_message("calibrate, save");
-    let reply = send(&mut board, "calibrate", &mut log)?;
-    let calibration = parse_calibration(&reply);
-    // A run the robust fit flags (measurement noise on few runs can make one) needs the
-    // confirmation an operator would give after looking at it: the log shows both replies.
-    let apply = |confirmed| {
-        Command::Apply {
-            method: method.as_str(),
-            confirmed,
-        }
-        .to_string()
-    };
-    let reply = match send(&mut board, &apply(false), &mut log) {
-        Err(e) if e.is(ErrorCode::NotConfirmed) => send(&mut board, &apply(true), &mut log)?,
-        other => other?,
-    };
-    let applied = match (
-        field(&reply, "E_d="),
-        field(&reply, "E_b="),
-        field(&reply, "E_s="),
-    ) {
-        (Some(d), Some(b), Some(s)) => nominal.with_factors(d, b, s),
-        _ => return Err(format!("unreadable apply reply: {reply}")),
-    };
-    send(&mut board, "save", &mut log)?;
+    let (calibration, applied) = calibrate_apply_save(&mut board, method, &mut log)?;
     pb.inc(1);
 
     // Reboot over the same flash.
     pb.set_message("reboot");
-    log.push_str("# power off, boot\n");
     drop(board); // power off: only the flash survives
-    let mut cfg2 = cfg;
-    cfg2.seed = cfg.seed.wrapping_add(1);
-    let mut board = Board::boot(cfg2, &mut flash, &mut log)?;
-    let params_after_reboot = send(&mut board, "params", &mut log)?;
-    let rebooted_geometry = board.controller_geometry();
-    // The `apply` reply prints the factors with 9 decimals: ~1e-9 relative.
-    let same = |a: f64, b: f64| ((a - b) / b).abs() < 5e-9;
-    let reboot_kept_calibration = same(rebooted_geometry.wheelbase_m, applied.wheelbase_m)
-        && same(rebooted_geometry.diameter_right_m, applied.diameter_right_m)
-        && same(rebooted_geometry.diameter_left_m, applied.diameter_left_m)
-        && params_after_reboot.contains(&format!("calibration {}", method.as_str()));
+    let (mut board, params_after_reboot, rebooted_geometry, reboot_kept_calibration) =
+        reboot(&cfg, &mut flash, &applied, method, &mut log)?;
     pb.inc(1);
 
     // Verification on the rebooted board: the calibration runs survived the reboot; a fresh
@@ -398,6 +339,100 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
 
     // Parameter error against side (Fig. 5), paper-mode slip scaled to the observed scatter.
     pb.set_message("sweep");
+    let (sweep_result, sweep_slip) = fig5_sweep(args, scatter_m, side_m)?;
+    pb.inc(1);
+
+    Ok(SessionReport {
+        identification,
+        args: args.clone(),
+        truth: cfg.true_geometry,
+        pilot_scatter_m,
+        advice,
+        side_m,
+        runs,
+        e_max_before_m,
+        scatter_m,
+        calibration,
+        applied,
+        params_after_reboot,
+        reboot_kept_calibration,
+        rebooted_geometry,
+        after_runs,
+        e_max_after_m,
+        verifications,
+        sweep: sweep_result,
+        sweep_slip,
+        calibration_runs_wall_s,
+        calibration_runs_sim_s,
+        total_wall_s: started.elapsed().as_secs_f64(),
+        transcript: log,
+    })
+}
+
+/// The pilot's scatter, the advice (side, expected error) and the side the session drives.
+struct TrackPlan {
+    pilot_scatter_m: f64,
+    advice: Option<(f64, f64)>,
+    side_m: f64,
+}
+
+/// The track-size advice from a pilot: three 1 m squares each way (slip only, nominal belief),
+/// their scatter, the method's advised side and its expected error; the side used (`--side`,
+/// else the advice).
+fn track_advice(
+    args: &SessionArgs,
+    cfg: &SimConfig,
+    tuning: SpeedTuning,
+    method: Method,
+) -> Result<TrackPlan, String> {
+    let nominal = Geometry::PAPER_NOMINAL;
+    let mut pilot = Vec::new();
+    for (d, direction) in [Direction::Cw, Direction::Ccw].into_iter().enumerate() {
+        for i in 0..3u64 {
+            let mut c = *cfg;
+            c.seed = args
+                .seed
+                .wrapping_mul(7919)
+                .wrapping_add(900 + 10 * d as u64 + i);
+            let path = PathKind::Square {
+                direction,
+                side_m: 1.0,
+            };
+            let r = drive_path_tuned(c, nominal, tuning, path)?;
+            let o = r.record.odometry_end;
+            pilot.push((direction, r.true_end.x_m - o.x_m, r.true_end.y_m - o.y_m));
+        }
+    }
+    let (_, pilot_scatter_m) = e_max_and_scatter(&pilot);
+    let input = TrackAdviceInput {
+        belief: nominal,
+        estimate: nominal,
+        measurement_sigma_m: args.meas_mm * 1e-3,
+        measurement_sigma_rad: args.meas_deg.to_radians(),
+        observed_scatter: Some((pilot_scatter_m, 1.0)),
+        runs_per_direction: u32::from(args.runs),
+        max_side_m: args.max_side,
+    };
+    let advice = advise(&input, method).map(|a| (a.side_m, a.expected_error));
+    let side_m = args
+        .side
+        .or(advice.map(|a| a.0))
+        .ok_or("no advice for this method; give --side")?;
+    Ok(TrackPlan {
+        pilot_scatter_m,
+        advice,
+        side_m,
+    })
+}
+
+/// Parameter error against side (Fig. 5) with paper-mode slip scaled to the observed scatter
+/// `scatter_m` of squares of `side_m`: the sweep (when asked for) and the slip it used.
+fn fig5_sweep(
+    args: &SessionArgs,
+    scatter_m: f64,
+    side_m: f64,
+) -> Result<(Option<SweepResult>, f64), String> {
+    let nominal = Geometry::PAPER_NOMINAL;
     let sigma = args.meas_mm * 1e-3;
     let ns = (scatter_m * scatter_m - 2.0 * sigma * sigma)
         .max(0.0)
@@ -437,33 +472,66 @@ pub fn run_session(args: &SessionArgs, pb: &ProgressBar) -> Result<SessionReport
     } else {
         None
     };
-    pb.inc(1);
+    Ok((sweep_result, sweep_slip))
+}
 
-    Ok(SessionReport {
-        identification,
-        args: args.clone(),
-        truth: cfg.true_geometry,
-        pilot_scatter_m,
-        advice,
-        side_m,
-        runs,
-        e_max_before_m,
-        scatter_m,
-        calibration,
-        applied,
-        params_after_reboot,
-        reboot_kept_calibration,
-        rebooted_geometry,
-        after_runs,
-        e_max_after_m,
-        verifications,
-        sweep: sweep_result,
-        sweep_slip,
-        calibration_runs_wall_s,
-        calibration_runs_sim_s,
-        total_wall_s: started.elapsed().as_secs_f64(),
-        transcript: log,
-    })
+/// `calibrate`, `apply <method>` (confirmed when a run is flagged) and `save` on `board`: the
+/// calibrate table's rows and the applied geometry.
+fn calibrate_apply_save(
+    board: &mut Board<'_>,
+    method: Method,
+    log: &mut String,
+) -> Result<(Vec<CalibrationRow>, Geometry), String> {
+    let nominal = Geometry::PAPER_NOMINAL;
+    let reply = send(board, "calibrate", log)?;
+    let calibration = parse_calibration(&reply);
+    // A run the robust fit flags (measurement noise on few runs can make one) needs the
+    // confirmation an operator would give after looking at it: the log shows both replies.
+    let apply = |confirmed| {
+        Command::Apply {
+            method: method.as_str(),
+            confirmed,
+        }
+        .to_string()
+    };
+    let reply = match send(board, &apply(false), log) {
+        Err(e) if e.is(ErrorCode::NotConfirmed) => send(board, &apply(true), log)?,
+        other => other?,
+    };
+    let applied = match (
+        field(&reply, "E_d="),
+        field(&reply, "E_b="),
+        field(&reply, "E_s="),
+    ) {
+        (Some(d), Some(b), Some(s)) => nominal.with_factors(d, b, s),
+        _ => return Err(format!("unreadable apply reply: {reply}")),
+    };
+    send(board, "save", log)?;
+    Ok((calibration, applied))
+}
+
+/// Boots a new board over `flash` (the calibrated board powered off): its `params` reply, the
+/// geometry its controller runs and whether that is the applied calibration of `method`.
+fn reboot<'f>(
+    cfg: &SimConfig,
+    flash: &'f mut SimParamFlash,
+    applied: &Geometry,
+    method: Method,
+    log: &mut String,
+) -> Result<(Board<'f>, String, Geometry, bool), String> {
+    log.push_str("# power off, boot\n");
+    let mut cfg2 = *cfg;
+    cfg2.seed = cfg.seed.wrapping_add(1);
+    let mut board = Board::boot(cfg2, flash, log)?;
+    let params_after_reboot = send(&mut board, "params", log)?;
+    let rebooted_geometry = board.controller_geometry();
+    // The `apply` reply prints the factors with 9 decimals: ~1e-9 relative.
+    let same = |a: f64, b: f64| ((a - b) / b).abs() < 5e-9;
+    let kept = same(rebooted_geometry.wheelbase_m, applied.wheelbase_m)
+        && same(rebooted_geometry.diameter_right_m, applied.diameter_right_m)
+        && same(rebooted_geometry.diameter_left_m, applied.diameter_left_m)
+        && params_after_reboot.contains(&format!("calibration {}", method.as_str()));
+    Ok((board, params_after_reboot, rebooted_geometry, kept))
 }
 
 /// The `set` line of one parameter, as the protocol writes it.
