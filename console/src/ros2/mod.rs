@@ -14,6 +14,7 @@
 
 pub mod clock;
 pub mod msgs;
+pub mod odometry;
 
 use std::io::BufRead;
 use std::path::PathBuf;
@@ -23,7 +24,6 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
 use odocal::protocol::FinalLine;
 use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
-use odocal::protocol::token;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 use ros2_client::{
@@ -36,15 +36,13 @@ use crate::log::{SessionLog, calibration_of, nominal_of, param};
 use clock::ClockMap;
 use msgs::builtin_interfaces::Time;
 use msgs::diagnostic_msgs::{self, DiagnosticArray, DiagnosticStatus, KeyValue};
-use msgs::geometry_msgs::{
-    self, Pose, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistStamped,
-    TwistWithCovariance, Vector3,
-};
+use msgs::geometry_msgs::{self, Twist, TwistStamped};
 use msgs::nav_msgs::{self, Odometry};
 use msgs::sensor_msgs::{self, JointState};
 use msgs::std_msgs::Header;
 use msgs::tf2_msgs::{self, TFMessage};
 use msgs::{Covariance, TypeName};
+use odometry::{Names, Odometer, StreamLine, Wheels};
 
 /// The board's deadman: it stops the motors when no `drive` came for this long
 /// (docs/protocol.md).
@@ -103,33 +101,6 @@ fn now_s() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())
-}
-
-/// One parsed `stream t x y θ v_R v_L` line.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StreamLine {
-    pub t_s: f64,
-    pub x_m: f64,
-    pub y_m: f64,
-    pub theta_rad: f64,
-    pub v_right: f64,
-    pub v_left: f64,
-}
-
-impl StreamLine {
-    /// Parses a `stream …` line (`None` for anything else).
-    pub fn parse(line: &str) -> Option<StreamLine> {
-        let mut w = line.strip_prefix(token::STREAM)?.split_whitespace();
-        let mut next = || w.next()?.parse::<f64>().ok();
-        Some(StreamLine {
-            t_s: next()?,
-            x_m: next()?,
-            y_m: next()?,
-            theta_rad: next()?.to_radians(),
-            v_right: next()?,
-            v_left: next()?,
-        })
-    }
 }
 
 /// Which peers discovery reaches: `ROS_AUTOMATIC_DISCOVERY_RANGE` (Jazzy) or, without it,
@@ -524,11 +495,24 @@ pub fn run(opts: &Options) -> Result<(), String> {
 
     let wire_baud = (!std::fs::canonicalize(&opts.port).is_ok_and(|p| p.starts_with("/dev/pts")))
         .then_some(crate::link::BAUD);
-    let mut clock = ClockMap::new(wire_baud, 10.0);
-    let mut cov = PoseCovariance::new(board.wheelbase, u);
+    let mut odometer = Odometer::new(
+        Names {
+            odom_frame: opts.odom_frame.clone(),
+            base_frame: opts.base_frame.clone(),
+            left_joint: opts.left_joint.clone(),
+            right_joint: opts.right_joint.clone(),
+        },
+        Wheels {
+            d_right: board.d_right,
+            d_left: board.d_left,
+            wheelbase: board.wheelbase,
+        },
+        ClockMap::new(wire_baud, 10.0),
+        PoseCovariance::new(board.wheelbase, u),
+        twist_cov,
+    );
     let mut stats = Stats::default();
     let mut prev: Option<StreamLine> = None;
-    let (mut wheel_right_rad, mut wheel_left_rad) = (0.0f64, 0.0f64);
     let mut last_drive_reply = String::new();
     // The stream line current when the latest command was sent, while commands come.
     let mut commanding: Option<StreamLine> = None;
@@ -544,9 +528,8 @@ pub fn run(opts: &Options) -> Result<(), String> {
         };
         if let Some(line) = line {
             let arrived = now_s();
-            if let Some(s) = StreamLine::parse(&line) {
-                let stamp_s = clock.map(s.t_s, arrived, line.len() + 2);
-                let dt = prev.map_or(0.0, |p| (s.t_s - p.t_s).max(0.0));
+            if let Some(m) = odometer.messages(&line, arrived) {
+                let s = m.line;
                 prev = Some(s);
                 if let Some(c) = commanding
                     && s.t_s - c.t_s >= DEADMAN_S
@@ -558,70 +541,19 @@ pub fn run(opts: &Options) -> Result<(), String> {
                         c.t_s, c.x_m, c.y_m
                     );
                 }
-                let (dr, dl) = (s.v_right * dt, s.v_left * dt);
-                wheel_right_rad += dr / (0.5 * board.d_right);
-                wheel_left_rad += dl / (0.5 * board.d_left);
-                cov.step(dr, dl);
-                let stamp = Time::from_secs(stamp_s);
-                let header = |frame: &str| Header {
-                    stamp,
-                    frame_id: frame.to_string(),
-                };
-                let q = Quaternion::from_yaw(s.theta_rad);
-                let v = 0.5 * (s.v_right + s.v_left);
-                let w = (s.v_right - s.v_left) / board.wheelbase;
-                let odom = Odometry {
-                    header: header(&opts.odom_frame),
-                    child_frame_id: opts.base_frame.clone(),
-                    pose: PoseWithCovariance {
-                        pose: Pose {
-                            position: geometry_msgs::Point {
-                                x: s.x_m,
-                                y: s.y_m,
-                                z: 0.0,
-                            },
-                            orientation: q,
-                        },
-                        covariance: Covariance(cov.ros()),
-                    },
-                    twist: TwistWithCovariance {
-                        twist: Twist::planar(v, w),
-                        covariance: twist_cov,
-                    },
-                };
-                let _ = odom_pub.publish(odom);
+                let _ = odom_pub.publish(m.odom);
                 if let Some(tf) = &tf_pub {
                     let _ = tf.publish(TFMessage {
-                        transforms: vec![TransformStamped {
-                            header: header(&opts.odom_frame),
-                            child_frame_id: opts.base_frame.clone(),
-                            transform: Transform {
-                                translation: Vector3 {
-                                    x: s.x_m,
-                                    y: s.y_m,
-                                    z: 0.0,
-                                },
-                                rotation: q,
-                            },
-                        }],
+                        transforms: vec![m.tf],
                     });
                 }
-                let _ = joints_pub.publish(JointState {
-                    header: header(""),
-                    name: vec![opts.left_joint.clone(), opts.right_joint.clone()],
-                    position: vec![wheel_left_rad, wheel_right_rad],
-                    velocity: vec![
-                        s.v_left / (0.5 * board.d_left),
-                        s.v_right / (0.5 * board.d_right),
-                    ],
-                    effort: Vec::new(),
-                });
+                let _ = joints_pub.publish(m.joints);
                 let done = now_s();
                 stats.first.get_or_insert((s.t_s, arrived));
                 stats.last = Some((s.t_s, arrived));
                 stats.lines += 1;
                 stats.handling.push(done - arrived);
-                stats.latency.push(done - stamp_s);
+                stats.latency.push(done - m.stamp_s);
             } else {
                 // Events (a run finished, a fault, the button) for the operator.
                 println!("{line}");
@@ -710,16 +642,16 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 },
                 KeyValue {
                     key: "distance_driven_m".into(),
-                    value: format!("{:.3}", cov.distance_m),
+                    value: format!("{:.3}", odometer.covariance().distance_m),
                 },
                 KeyValue {
                     key: "rotation_driven_rad".into(),
-                    value: format!("{:.3}", cov.rotation_rad),
+                    value: format!("{:.3}", odometer.covariance().rotation_rad),
                 },
             ];
             values.extend(
                 stats
-                    .summary(&clock)
+                    .summary(odometer.clock())
                     .into_iter()
                     .map(|(key, value)| KeyValue { key, value }),
             );
@@ -741,7 +673,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
     // The board's own deadman stops a robot the bridge no longer commands; Ctrl-C stops it now.
     let _ = link.stop_key();
     let _ = link.send_line("stream off");
-    for (k, v) in stats.summary(&clock) {
+    for (k, v) in stats.summary(odometer.clock()) {
         println!("ros2: {k} {v}");
     }
     result.map_err(|e| e.to_string())
@@ -750,17 +682,6 @@ pub fn run(opts: &Options) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn stream_lines_parse() {
-        let s = StreamLine::parse("stream 0.005000 +0.500000 +0.250000 +5.7296 +0.2500 -0.1250")
-            .unwrap();
-        assert_eq!((s.t_s, s.x_m, s.y_m), (0.005, 0.5, 0.25));
-        assert!((s.theta_rad - 0.1).abs() < 1e-5);
-        assert_eq!((s.v_right, s.v_left), (0.25, -0.125));
-        assert_eq!(StreamLine::parse("event run 1 finished"), None);
-        assert_eq!(StreamLine::parse("stream 1 2 3"), None);
-    }
 
     #[test]
     fn the_environment_sets_domain_and_range() {
