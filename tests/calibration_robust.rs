@@ -22,6 +22,8 @@ use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, Culprit, Numbered, write_calibration};
 use rng::Rng;
+#[cfg(feature = "mocap")]
+use squares::normal;
 use squares::{NOMINAL, Run, SIDE_M, records, six_squares};
 
 /// 5 CW + 5 CCW squares; run `slipped` (if any) starts turned by `slip_rad`.

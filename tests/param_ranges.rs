@@ -8,6 +8,7 @@
 //!   and one unit of the last decimal `params` prints (the step an operator types);
 //! - a whole number: one beyond the end;
 //! - a wiring sign (±1): 2 and -2 (and 0, inside the range but not a sign).
+//!
 //! Refused values are refused by the parser with the range and unit in the error, and through
 //! the session with `err 6` and the setting unchanged.
 

@@ -365,7 +365,7 @@ fn start_world() -> Option<(World, Odom)> {
     ))
 }
 
-/// 1. A 1 m line started on the bridge's console: once at rest, the odometry Cyclone receives is
+/// Step 1: a 1 m line started on the bridge's console: once at rest, the odometry Cyclone receives is
 /// the board's own `pose`. Returns the sample at rest.
 fn a_line_ends_at_the_boards_pose(w: &mut World, start: Odom) -> Odom {
     let World { bridge, peer, .. } = w;
@@ -428,7 +428,7 @@ fn a_line_ends_at_the_boards_pose(w: &mut World, start: Odom) -> Odom {
     after
 }
 
-/// 2. `cmd_vel` from Cyclone drives the robot, and the board's deadman stops it.
+/// Step 2: `cmd_vel` from Cyclone drives the robot, and the board's deadman stops it.
 fn cmd_vel_drives_until_the_deadman(w: &mut World, before: Odom) {
     let World { bridge, peer, .. } = w;
     // 2. cmd_vel from Cyclone: 0.2 m/s for 2 s at 20 Hz. Durations are the board's: the bridge
@@ -533,7 +533,7 @@ fn cmd_vel_drives_until_the_deadman(w: &mut World, before: Odom) {
     assert!(rest.w.abs() < 1e-9 && rest.y.abs() < 0.01, "{rest:?}");
 }
 
-/// 4. Rate and latency as Cyclone saw them, and the bridge's own summary (Ctrl-C).
+/// Step 4: rate and latency as Cyclone saw them, and the bridge's own summary (Ctrl-C).
 fn rates_and_the_bridges_summary(w: &mut World) {
     let World { bridge, peer, .. } = w;
     // Rate and latency seen by Cyclone.

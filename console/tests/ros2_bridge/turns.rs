@@ -1,4 +1,4 @@
-//! 3. Turns: a counter-clockwise pivot and a clockwise arc, driven by Cyclone's `cmd_vel`.
+//! Step 3, turns: a counter-clockwise pivot and a clockwise arc, driven by Cyclone's `cmd_vel`.
 //! Between two rests, the board's own `pose` says how far the robot turned (Δθ) and moved; the
 //! bridge's messages must say the same:
 //! - `odom`'s turn rate has the turn's sign, and summed over the samples' stamps it gives Δθ;
