@@ -8,6 +8,8 @@
 mod arcs;
 #[path = "support/rng.rs"]
 mod rng;
+#[path = "support/squares.rs"]
+mod squares;
 
 use arcs::Robot;
 use odocal::calibration::track::{self, TrackAdviceInput};
@@ -15,72 +17,14 @@ use odocal::calibration::{
     Calibration, ExactOptions, Method, RunObservation, calibrate, calibrate_with,
 };
 use odocal::kinematics::encoder::WheelTicks;
-use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use odocal::session::library::LibraryCalibrator;
 use odocal::session::{Calibrator, Culprit, Numbered, write_calibration};
 use rng::Rng;
-
-const NOMINAL: Geometry = Geometry::PAPER_NOMINAL;
-const SIDE_M: f64 = 2.0;
-
-/// A normal deviate (Box–Muller).
-fn normal(rng: &mut Rng) -> f64 {
-    let u1: f64 = ((rng.next() >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-    let u2 = (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
-
-struct Run {
-    direction: Direction,
-    knots: Vec<WheelTicks>,
-    odo: PoseF64,
-    measured: Measurement,
-}
-
-impl Run {
-    /// A square commanded from the nominal geometry, driven by `truth`; the true path starts
-    /// turned by `slip_rad` (the wheels spun in the first jerk), and the tape measure adds
-    /// `sigma_m` / `sigma_rad` of normal noise.
-    fn square(
-        truth: &Robot,
-        direction: Direction,
-        slip_rad: f64,
-        sigma_m: f64,
-        sigma_rad: f64,
-        rng: &mut Rng,
-    ) -> Self {
-        let nominal = Robot::of(&NOMINAL);
-        let knots = arcs::square_knots(&nominal, direction, SIDE_M);
-        let odo = nominal.drive(PoseF64::default(), &knots);
-        let t = truth.drive(PoseF64::new(0.0, 0.0, slip_rad), &knots);
-        Run {
-            direction,
-            knots,
-            odo,
-            measured: Measurement {
-                x_m: t.x_m + sigma_m * normal(rng),
-                y_m: t.y_m + sigma_m * normal(rng),
-                theta_rad: Some(t.theta_rad + sigma_rad * normal(rng)),
-            },
-        }
-    }
-
-    fn obs(&self) -> RunObservation<'_> {
-        RunObservation {
-            path: PathKind::Square {
-                direction: self.direction,
-                side_m: SIDE_M,
-            },
-            geometry: NOMINAL,
-            knots: &self.knots,
-            odometry_end: self.odo,
-            measured: self.measured,
-            truth_path: &[],
-        }
-    }
-}
+#[cfg(feature = "mocap")]
+use squares::normal;
+use squares::{NOMINAL, Run, SIDE_M, records, six_squares};
 
 /// 5 CW + 5 CCW squares; run `slipped` (if any) starts turned by `slip_rad`.
 fn runs(
@@ -523,36 +467,6 @@ fn a_truth_path_is_refused_without_the_mocap_feature() {
         calibrate(&obs, &NOMINAL, Method::Exact).unwrap_err(),
         odocal::calibration::CalibrationError::InvalidMeasurement { index: 0 }
     );
-}
-
-/// The runs as the board stores them, run `i` (0-based) as `runs` would number it `i + 1`.
-fn records(runs: &[Run]) -> Vec<RunRecord> {
-    runs.iter()
-        .map(|r| RunRecord {
-            path: r.obs().path,
-            geometry: NOMINAL,
-            knots: heapless::Vec::from_slice(&r.knots).unwrap(),
-            odometry_end: r.odo,
-            measured: Some(r.measured),
-        })
-        .collect()
-}
-
-/// 3 + 3 squares of 2 m, CW and CCW alternating, on the robot of the unit slip that went
-/// unnoticed (E_d = 0.995, E_b = 1.010), measured to 1 mm and 0.2° (noise seed `seed`).
-fn six_squares(seed: u64) -> Vec<Run> {
-    let truth = Robot::paper(0.995, 1.010, 1.0);
-    let mut rng = Rng(seed);
-    (0..6)
-        .map(|i| {
-            let d = if i % 2 == 0 {
-                Direction::Cw
-            } else {
-                Direction::Ccw
-            };
-            Run::square(&truth, d, 0.0, 1e-3, 0.2f64.to_radians(), &mut rng)
-        })
-        .collect()
 }
 
 #[test]

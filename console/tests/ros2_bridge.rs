@@ -13,7 +13,11 @@
 //!    with no further command, the board's deadman (500 ms) stops it: the distance it drove after
 //!    the last command is the deadman's at full speed. Durations are taken in the board's time
 //!    (the bridge names the board time of the first and the last command it forwarded), so a
-//!    simulator slowed by a loaded machine changes nothing.
+//!    simulator slowed by a loaded machine changes nothing;
+//! 3. Cyclone drives a counter-clockwise pivot and a clockwise arc: `odom`'s turn rate has the
+//!    turn's sign and sums to the heading change of the board's own `pose`, and the wheels'
+//!    joints of `joint_states` (Cyclone subscribes it too) turned by what that heading change
+//!    and the board's wheel radii and wheelbase say each wheel travelled (`ros2_bridge/turns.rs`).
 
 use std::io::Write;
 use std::path::Path;
@@ -23,6 +27,8 @@ use std::time::{Duration, Instant};
 
 mod support;
 use support::{host_sim, lines_of};
+#[path = "ros2_bridge/turns.rs"]
+mod turns;
 
 use serde_json::Value;
 
@@ -209,10 +215,21 @@ struct Odom {
     cvv: f64,
 }
 
-/// The peer's output: odometry samples, and the other messages.
+/// One `rt/joint_states` sample as Cyclone DDS received it: the wheels' joint positions (rad)
+/// and rates (rad/s), by the joint names the message gives them.
+#[derive(Clone, Copy, Debug)]
+struct Joints {
+    left: f64,
+    right: f64,
+    left_rate: f64,
+    right_rate: f64,
+}
+
+/// The peer's output: odometry and joint samples, and the other messages.
 struct Peer {
     proc: Proc,
     samples: Vec<Odom>,
+    joints: Vec<Joints>,
 }
 
 impl Peer {
@@ -235,6 +252,23 @@ impl Peer {
                 w: f("w"),
                 cxx: f("cxx"),
                 cvv: f("cvv"),
+            });
+        } else if v["k"] == "joints" {
+            let names: Vec<&str> = v["name"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|n| n.as_str().unwrap())
+                .collect();
+            let at = |key: &str, joint: &str| {
+                let i = names.iter().position(|n| *n == joint).unwrap();
+                v[key][i].as_f64().unwrap()
+            };
+            self.joints.push(Joints {
+                left: at("position", "left_wheel_joint"),
+                right: at("position", "right_wheel_joint"),
+                left_rate: at("velocity", "left_wheel_joint"),
+                right_rate: at("velocity", "right_wheel_joint"),
             });
         }
         v
@@ -263,15 +297,24 @@ fn percentile(v: &[f64], q: f64) -> f64 {
     s[((s.len() - 1) as f64 * q).round() as usize]
 }
 
-#[test]
-fn ros2_bridge() {
+/// The processes of the test's world: the simulated board, the bridge and the Cyclone peer
+/// (each killed when dropped).
+struct World {
+    _sim: Proc,
+    bridge: Proc,
+    peer: Peer,
+}
+
+/// Starts the simulated board, the bridge and the peer in a network namespace of the test's own,
+/// and waits for the first odometry sample (returned); `None` when the test is skipped.
+fn start_world() -> Option<(World, Odom)> {
     if !ready_or_skip("ros2_bridge", cyclone_available()) {
-        return;
+        return None;
     }
     let peer_script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ros2_peer.py");
     let sim_bin = host_sim();
     if !ready_or_skip("ros2_bridge", isolate_network()) {
-        return;
+        return None;
     }
 
     // The simulated board, in real time (the deadman counts board time).
@@ -306,12 +349,26 @@ fn ros2_bridge() {
                 .env("ROS_DOMAIN_ID", "0"),
         ),
         samples: Vec::new(),
+        joints: Vec::new(),
     };
     assert_eq!(peer.next()["k"], "ready");
     // Discovery done: Cyclone receives the bridge's odometry.
     let start = peer.odom();
     assert_eq!((start.x, start.y, start.v), (0.0, 0.0, 0.0), "{start:?}");
+    Some((
+        World {
+            _sim: sim,
+            bridge,
+            peer,
+        },
+        start,
+    ))
+}
 
+/// Step 1: a 1 m line started on the bridge's console: once at rest, the odometry Cyclone receives is
+/// the board's own `pose`. Returns the sample at rest.
+fn a_line_ends_at_the_boards_pose(w: &mut World, start: Odom) -> Odom {
+    let World { bridge, peer, .. } = w;
     // 1. A 1 m line, started on the bridge's console.
     bridge.send("line 1");
     let started = bridge.until(|l| l.starts_with("ok ") || l.starts_with("err "));
@@ -368,13 +425,18 @@ fn ros2_bridge() {
     let dropped = bridge.until(|l| l.starts_with("ok ") || l.starts_with("err "));
     assert!(dropped.starts_with("ok dropped run 1"), "{dropped}");
 
+    after
+}
+
+/// Step 2: `cmd_vel` from Cyclone drives the robot, and the board's deadman stops it.
+fn cmd_vel_drives_until_the_deadman(w: &mut World, before: Odom) {
+    let World { bridge, peer, .. } = w;
     // 2. cmd_vel from Cyclone: 0.2 m/s for 2 s at 20 Hz. Durations are the board's: the bridge
     // names the board time (and pose) of the stream line current at the first command after a
     // pause and at the last one before a pause of the deadman's length. On a loaded machine the
     // commands may pause that long midway (the publisher or the delivery stalled): the board's
     // deadman then stops the robot and the next command starts it again, a segment each.
     let (v_cmd, seconds, hz) = (0.2, 2.0, 20.0);
-    let before = after;
     peer.proc.send(&format!("cmd_vel {v_cmd} 0 {seconds} {hz}"));
     let done = loop {
         let m = peer.next();
@@ -469,7 +531,11 @@ fn ros2_bridge() {
         "{after_last} m after the last command"
     );
     assert!(rest.w.abs() < 1e-9 && rest.y.abs() < 0.01, "{rest:?}");
+}
 
+/// Step 4: rate and latency as Cyclone saw them, and the bridge's own summary (Ctrl-C).
+fn rates_and_the_bridges_summary(w: &mut World) {
+    let World { bridge, peer, .. } = w;
     // Rate and latency seen by Cyclone.
     let s = &peer.samples;
     let rate = (s.len() - 1) as f64 / (s[s.len() - 1].t - s[0].t);
@@ -508,4 +574,15 @@ fn ros2_bridge() {
     assert!(board_rate >= 50.0, "odometry at {board_rate} Hz");
     assert!(figure("lines") >= s.len() as f64, "{summary:?}");
     peer.proc.send("quit");
+}
+
+#[test]
+fn ros2_bridge() {
+    let Some((mut world, start)) = start_world() else {
+        return;
+    };
+    let after = a_line_ends_at_the_boards_pose(&mut world, start);
+    cmd_vel_drives_until_the_deadman(&mut world, after);
+    turns::a_ccw_pivot_and_a_cw_arc_match_the_boards_pose(&mut world);
+    rates_and_the_bridges_summary(&mut world);
 }

@@ -5,7 +5,9 @@ rmw_cyclonedds_cpp) through its Python binding, with the ROS 2 messages declared
 
 It subscribes `rt/odom` (nav_msgs/msg/Odometry) and prints every sample as a JSON line
 (`{"k": "odom", ...}`: the stamp, the receive time on this machine's clock, x, y, yaw, v, w
-and the x variance). Commands on stdin, one a line:
+and the x variance), and `rt/joint_states` (sensor_msgs/msg/JointState: `{"k": "joints", ...}`
+with the stamp, the joint names, positions and velocities in the message's order). Commands on
+stdin, one a line:
 - `cmd_vel V W SECONDS HZ`: publishes geometry_msgs/msg/Twist on `rt/cmd_vel` (V m/s, W rad/s)
   at HZ for SECONDS, once the bridge's subscription is matched; then prints
   `{"k": "cmd_vel_done", "first": t, "last": t, "n": n}` (times on this machine's clock);
@@ -92,6 +94,14 @@ class Odometry(IdlStruct, typename="nav_msgs::msg::dds_::Odometry_"):
     pose: PoseWithCovariance = field(default_factory=PoseWithCovariance)
     twist: TwistWithCovariance = field(default_factory=TwistWithCovariance)
 
+@dataclass
+class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header = field(default_factory=Header)
+    name: sequence[str] = field(default_factory=list)
+    position: sequence[float64] = field(default_factory=list)
+    velocity: sequence[float64] = field(default_factory=list)
+    effort: sequence[float64] = field(default_factory=list)
+
 # ROS 2's default QoS (reliable, volatile, keep last 10), XCDR1 as every ROS 2 middleware writes.
 QOS = Qos(
     Policy.Reliability.Reliable(duration(milliseconds=100)),
@@ -110,7 +120,20 @@ def emit(obj):
 def main():
     dp = DomainParticipant()
     odom = DataReader(dp, Topic(dp, "rt/odom", Odometry), qos=QOS)
+    joints = DataReader(dp, Topic(dp, "rt/joint_states", JointState), qos=QOS)
     cmd_vel = DataWriter(dp, Topic(dp, "rt/cmd_vel", Twist), qos=QOS)
+
+    def read_joints():
+        for s in joints.take_iter():
+            emit(
+                {
+                    "k": "joints",
+                    "t": s.header.stamp.sec + s.header.stamp.nanosec * 1e-9,
+                    "name": list(s.name),
+                    "position": list(s.position),
+                    "velocity": list(s.velocity),
+                }
+            )
 
     def read():
         for s in odom.take_iter():
@@ -138,6 +161,7 @@ def main():
 
     emit({"k": "ready"})
     threading.Thread(target=read, daemon=True).start()
+    threading.Thread(target=read_joints, daemon=True).start()
     for line in sys.stdin:
         w = line.split()
         if not w:

@@ -14,6 +14,8 @@
 
 pub mod clock;
 pub mod msgs;
+pub mod odometry;
+mod status;
 
 use std::io::BufRead;
 use std::path::PathBuf;
@@ -21,9 +23,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
-use odocal::protocol::FinalLine;
 use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
-use odocal::protocol::token;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 use ros2_client::{
@@ -34,17 +34,14 @@ use crate::covariance::{self, PoseCovariance, Uncertainty};
 use crate::link::{Link, LinkError};
 use crate::log::{SessionLog, calibration_of, nominal_of, param};
 use clock::ClockMap;
-use msgs::builtin_interfaces::Time;
-use msgs::diagnostic_msgs::{self, DiagnosticArray, DiagnosticStatus, KeyValue};
-use msgs::geometry_msgs::{
-    self, Pose, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistStamped,
-    TwistWithCovariance, Vector3,
-};
+use msgs::diagnostic_msgs::{self, DiagnosticArray};
+use msgs::geometry_msgs::{self, Twist, TwistStamped};
 use msgs::nav_msgs::{self, Odometry};
 use msgs::sensor_msgs::{self, JointState};
-use msgs::std_msgs::Header;
 use msgs::tf2_msgs::{self, TFMessage};
 use msgs::{Covariance, TypeName};
+use odometry::{Names, Odometer, StreamLine, Wheels};
+use status::Stats;
 
 /// The board's deadman: it stops the motors when no `drive` came for this long
 /// (docs/protocol.md).
@@ -103,33 +100,6 @@ fn now_s() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())
-}
-
-/// One parsed `stream t x y θ v_R v_L` line.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StreamLine {
-    pub t_s: f64,
-    pub x_m: f64,
-    pub y_m: f64,
-    pub theta_rad: f64,
-    pub v_right: f64,
-    pub v_left: f64,
-}
-
-impl StreamLine {
-    /// Parses a `stream …` line (`None` for anything else).
-    pub fn parse(line: &str) -> Option<StreamLine> {
-        let mut w = line.strip_prefix(token::STREAM)?.split_whitespace();
-        let mut next = || w.next()?.parse::<f64>().ok();
-        Some(StreamLine {
-            t_s: next()?,
-            x_m: next()?,
-            y_m: next()?,
-            theta_rad: next()?.to_radians(),
-            v_right: next()?,
-            v_left: next()?,
-        })
-    }
 }
 
 /// Which peers discovery reaches: `ROS_AUTOMATIC_DISCOVERY_RANGE` (Jazzy) or, without it,
@@ -232,14 +202,6 @@ impl CmdVel {
     }
 }
 
-/// Percentile `q` of sorted values (0 when empty).
-fn percentile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
-}
-
 /// The board's geometry and limits from its `params` reply.
 struct Board {
     d_right: f64,
@@ -320,89 +282,20 @@ fn drive_line(t: &Twist) -> Option<String> {
     ))
 }
 
-/// The measured performance of a run of the bridge.
-#[derive(Default)]
-struct Stats {
-    first: Option<(f64, f64)>,
-    last: Option<(f64, f64)>,
-    lines: usize,
-    /// Seconds from a line's arrival to its odometry being published.
-    handling: Vec<f64>,
-    /// Seconds from the pose's instant (its stamp) to its odometry being published.
-    latency: Vec<f64>,
-    commands: usize,
+/// The bridge's node on the ROS 2 network: its publishers and its `cmd_vel` subscription (the
+/// node and its context kept alive with them).
+struct Network {
+    odom: Publisher<Odometry>,
+    tf: Option<Publisher<TFMessage>>,
+    joints: Publisher<JointState>,
+    diag: Publisher<DiagnosticArray>,
+    cmd_vel: Option<CmdVel>,
+    _node: Node,
+    _context: Context,
 }
 
-impl Stats {
-    fn summary(&self, clock: &ClockMap) -> Vec<(String, String)> {
-        let mut out = Vec::new();
-        if let (Some((b0, p0)), Some((b1, p1))) = (self.first, self.last)
-            && self.lines > 1
-        {
-            let n = (self.lines - 1) as f64;
-            out.push(("rate_board_hz".into(), format!("{:.2}", n / (b1 - b0))));
-            out.push(("rate_pc_hz".into(), format!("{:.2}", n / (p1 - p0))));
-        }
-        out.push(("lines".into(), self.lines.to_string()));
-        for (key, v) in [("handling", &self.handling), ("latency", &self.latency)] {
-            let mut s = v.clone();
-            s.sort_by(f64::total_cmp);
-            out.push((
-                format!("{key}_ms_median_p99_max"),
-                format!(
-                    "{:.3} {:.3} {:.3}",
-                    1e3 * percentile(&s, 0.5),
-                    1e3 * percentile(&s, 0.99),
-                    1e3 * percentile(&s, 1.0)
-                ),
-            ));
-        }
-        if let Some(c) = clock.stats() {
-            out.push(("clock_offset_s".into(), format!("{:.6}", c.offset_s)));
-            out.push((
-                "clock_jitter_ms_median_p99_max".into(),
-                format!(
-                    "{:.3} {:.3} {:.3}",
-                    1e3 * c.jitter_median_s,
-                    1e3 * c.jitter_p99_s,
-                    1e3 * c.jitter_max_s
-                ),
-            ));
-        }
-        out.push(("cmd_vel_forwarded".into(), self.commands.to_string()));
-        out
-    }
-}
-
-/// Runs the bridge until Ctrl-C or a lost connection.
-///
-/// # Errors
-/// The port, the board or the DDS participant cannot be set up, or the board is lost, as text.
-pub fn run(opts: &Options) -> Result<(), String> {
-    let (domain, range) = ros_environment(|k| std::env::var(k).ok())?;
-    let log = match &opts.log {
-        Some(p) => SessionLog::open(p)?,
-        None => SessionLog::discard(),
-    };
-    let mut link = Link::open(&opts.port, log)?;
-    let version = link.handshake()?;
-    let board = read_board(&mut link)?;
-    let (sd, sd_source) = uncertainty(opts, &board)?;
-    let u = Uncertainty {
-        sd_d: sd.0,
-        sd_b: sd.1,
-        slip_m2_per_m: opts.slip * opts.slip,
-    };
-    let period = 1.0 / f64::from(opts.rate_hz);
-    let (var_v, var_w) = covariance::twist_variance(
-        0.5 * (board.d_right + board.d_left),
-        board.counts_per_rev,
-        board.wheelbase,
-        period,
-        board.max_accel,
-    );
-    let twist_cov = Covariance(covariance::twist_ros(var_v, var_w));
-
+/// Joins `domain` within `range` as the node `opts` names, with its topics.
+fn network(opts: &Options, domain: u16, range: Range) -> Result<Network, String> {
     // DDS: the domain and discovery range of the environment.
     let mut builder = DomainParticipantBuilder::new(domain);
     builder = match range {
@@ -476,17 +369,20 @@ pub fn run(opts: &Options) -> Result<(), String> {
         };
         Some(sub)
     };
+    Ok(Network {
+        odom: odom_pub,
+        tf: tf_pub,
+        joints: joints_pub,
+        diag: diag_pub,
+        cmd_vel,
+        _node: node,
+        _context: context,
+    })
+}
 
-    let on = link
-        .command(
-            &format!("stream on {}", opts.rate_hz),
-            Duration::from_secs(5),
-        )
-        .map_err(|e| e.to_string())?;
-    if !on.ok() {
-        return Err(format!("the board refused `stream on`: {}", on.last));
-    }
-    println!(
+/// The line that says what the bridge publishes and subscribes.
+fn banner(opts: &Options, version: &str, (domain, range): (u16, Range), sd_source: &str) -> String {
+    format!(
         "ros2: {version} on {}; node /{} on domain {domain}, discovery {range:?}; publishing odom \
          ({} -> {}){}, joint_states ({}, {}), /diagnostics at {} Hz; {}; pose covariance from {}",
         opts.port,
@@ -510,9 +406,50 @@ pub fn run(opts: &Options) -> Result<(), String> {
             )
         },
         sd_source
-    );
+    )
+}
 
-    // Lines typed on stdin go to the board.
+/// The odometer of the bridge's messages for `board`: its names from `opts`, the pose
+/// covariance from the relative 1σ `sd` of E_d and E_b and the slip, the twist covariance from
+/// the encoders and the speed loop's acceleration over one stream period, the clock map with
+/// the wire's time per byte (none on a pseudo-terminal).
+fn odometer(opts: &Options, board: &Board, sd: (f64, f64)) -> Odometer {
+    let u = Uncertainty {
+        sd_d: sd.0,
+        sd_b: sd.1,
+        slip_m2_per_m: opts.slip * opts.slip,
+    };
+    let period = 1.0 / f64::from(opts.rate_hz);
+    let (var_v, var_w) = covariance::twist_variance(
+        0.5 * (board.d_right + board.d_left),
+        board.counts_per_rev,
+        board.wheelbase,
+        period,
+        board.max_accel,
+    );
+    let twist_cov = Covariance(covariance::twist_ros(var_v, var_w));
+    let wire_baud = (!std::fs::canonicalize(&opts.port).is_ok_and(|p| p.starts_with("/dev/pts")))
+        .then_some(crate::link::BAUD);
+    Odometer::new(
+        Names {
+            odom_frame: opts.odom_frame.clone(),
+            base_frame: opts.base_frame.clone(),
+            left_joint: opts.left_joint.clone(),
+            right_joint: opts.right_joint.clone(),
+        },
+        Wheels {
+            d_right: board.d_right,
+            d_left: board.d_left,
+            wheelbase: board.wheelbase,
+        },
+        ClockMap::new(wire_baud, 10.0),
+        PoseCovariance::new(board.wheelbase, u),
+        twist_cov,
+    )
+}
+
+/// The lines typed on stdin, read on a thread of their own.
+fn stdin_lines() -> mpsc::Receiver<String> {
     let (stdin_tx, stdin_rx) = mpsc::channel::<String>();
     std::thread::spawn(move || {
         for line in std::io::stdin().lock().lines().map_while(Result::ok) {
@@ -521,14 +458,42 @@ pub fn run(opts: &Options) -> Result<(), String> {
             }
         }
     });
+    stdin_rx
+}
 
-    let wire_baud = (!std::fs::canonicalize(&opts.port).is_ok_and(|p| p.starts_with("/dev/pts")))
-        .then_some(crate::link::BAUD);
-    let mut clock = ClockMap::new(wire_baud, 10.0);
-    let mut cov = PoseCovariance::new(board.wheelbase, u);
+/// Runs the bridge until Ctrl-C or a lost connection.
+///
+/// # Errors
+/// The port, the board or the DDS participant cannot be set up, or the board is lost, as text.
+pub fn run(opts: &Options) -> Result<(), String> {
+    let (domain, range) = ros_environment(|k| std::env::var(k).ok())?;
+    let log = match &opts.log {
+        Some(p) => SessionLog::open(p)?,
+        None => SessionLog::discard(),
+    };
+    let mut link = Link::open(&opts.port, log)?;
+    let version = link.handshake()?;
+    let board = read_board(&mut link)?;
+    let (sd, sd_source) = uncertainty(opts, &board)?;
+    let net = network(opts, domain, range)?;
+
+    let on = link
+        .command(
+            &format!("stream on {}", opts.rate_hz),
+            Duration::from_secs(5),
+        )
+        .map_err(|e| e.to_string())?;
+    if !on.ok() {
+        return Err(format!("the board refused `stream on`: {}", on.last));
+    }
+    println!("{}", banner(opts, &version, (domain, range), &sd_source));
+
+    // Lines typed on stdin go to the board.
+    let stdin_rx = stdin_lines();
+
+    let mut odometer = odometer(opts, &board, sd);
     let mut stats = Stats::default();
     let mut prev: Option<StreamLine> = None;
-    let (mut wheel_right_rad, mut wheel_left_rad) = (0.0f64, 0.0f64);
     let mut last_drive_reply = String::new();
     // The stream line current when the latest command was sent, while commands come.
     let mut commanding: Option<StreamLine> = None;
@@ -544,9 +509,8 @@ pub fn run(opts: &Options) -> Result<(), String> {
         };
         if let Some(line) = line {
             let arrived = now_s();
-            if let Some(s) = StreamLine::parse(&line) {
-                let stamp_s = clock.map(s.t_s, arrived, line.len() + 2);
-                let dt = prev.map_or(0.0, |p| (s.t_s - p.t_s).max(0.0));
+            if let Some(m) = odometer.messages(&line, arrived) {
+                let s = m.line;
                 prev = Some(s);
                 if let Some(c) = commanding
                     && s.t_s - c.t_s >= DEADMAN_S
@@ -558,70 +522,19 @@ pub fn run(opts: &Options) -> Result<(), String> {
                         c.t_s, c.x_m, c.y_m
                     );
                 }
-                let (dr, dl) = (s.v_right * dt, s.v_left * dt);
-                wheel_right_rad += dr / (0.5 * board.d_right);
-                wheel_left_rad += dl / (0.5 * board.d_left);
-                cov.step(dr, dl);
-                let stamp = Time::from_secs(stamp_s);
-                let header = |frame: &str| Header {
-                    stamp,
-                    frame_id: frame.to_string(),
-                };
-                let q = Quaternion::from_yaw(s.theta_rad);
-                let v = 0.5 * (s.v_right + s.v_left);
-                let w = (s.v_right - s.v_left) / board.wheelbase;
-                let odom = Odometry {
-                    header: header(&opts.odom_frame),
-                    child_frame_id: opts.base_frame.clone(),
-                    pose: PoseWithCovariance {
-                        pose: Pose {
-                            position: geometry_msgs::Point {
-                                x: s.x_m,
-                                y: s.y_m,
-                                z: 0.0,
-                            },
-                            orientation: q,
-                        },
-                        covariance: Covariance(cov.ros()),
-                    },
-                    twist: TwistWithCovariance {
-                        twist: Twist::planar(v, w),
-                        covariance: twist_cov,
-                    },
-                };
-                let _ = odom_pub.publish(odom);
-                if let Some(tf) = &tf_pub {
+                let _ = net.odom.publish(m.odom);
+                if let Some(tf) = &net.tf {
                     let _ = tf.publish(TFMessage {
-                        transforms: vec![TransformStamped {
-                            header: header(&opts.odom_frame),
-                            child_frame_id: opts.base_frame.clone(),
-                            transform: Transform {
-                                translation: Vector3 {
-                                    x: s.x_m,
-                                    y: s.y_m,
-                                    z: 0.0,
-                                },
-                                rotation: q,
-                            },
-                        }],
+                        transforms: vec![m.tf],
                     });
                 }
-                let _ = joints_pub.publish(JointState {
-                    header: header(""),
-                    name: vec![opts.left_joint.clone(), opts.right_joint.clone()],
-                    position: vec![wheel_left_rad, wheel_right_rad],
-                    velocity: vec![
-                        s.v_left / (0.5 * board.d_left),
-                        s.v_right / (0.5 * board.d_right),
-                    ],
-                    effort: Vec::new(),
-                });
+                let _ = net.joints.publish(m.joints);
                 let done = now_s();
                 stats.first.get_or_insert((s.t_s, arrived));
                 stats.last = Some((s.t_s, arrived));
                 stats.lines += 1;
                 stats.handling.push(done - arrived);
-                stats.latency.push(done - stamp_s);
+                stats.latency.push(done - m.stamp_s);
             } else {
                 // Events (a run finished, a fault, the button) for the operator.
                 println!("{line}");
@@ -629,7 +542,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
             continue;
         }
         // Commands from the network: the latest one, once.
-        if let Some(t) = cmd_vel.as_ref().and_then(CmdVel::latest)
+        if let Some(t) = net.cmd_vel.as_ref().and_then(CmdVel::latest)
             && let Some(cmd) = drive_line(&t)
         {
             match link.command(&cmd, Duration::from_secs(2)) {
@@ -668,80 +581,28 @@ pub fn run(opts: &Options) -> Result<(), String> {
         // The board's state and faults, once a second.
         if Instant::now() >= next_status {
             next_status += Duration::from_secs(1);
-            let status = match link.command("status", Duration::from_secs(2)) {
+            let reply = match link.command("status", Duration::from_secs(2)) {
                 Ok(r) => r,
                 Err(e) => break Err(e),
             };
-            let field = |k: &str| {
-                status
-                    .text()
-                    .split_whitespace()
-                    .find_map(|w| w.strip_prefix(k)?.strip_prefix('='))
-                    .unwrap_or("?")
-                    .to_string()
-            };
-            let (state, fault) = (field("state"), field("fault"));
-            let (level, message) = if fault != "none" {
-                (diagnostic_msgs::ERROR, format!("fault latched: {fault}"))
-            } else if FinalLine::parse(&last_drive_reply).is_some_and(|l| !l.is_ok()) {
-                (
-                    diagnostic_msgs::WARN,
-                    format!("cmd_vel refused: {last_drive_reply}"),
-                )
-            } else {
-                (diagnostic_msgs::OK, format!("state {state}"))
-            };
-            let mut values = vec![
-                KeyValue {
-                    key: "state".into(),
-                    value: state,
+            let _ = net.diag.publish(status::diagnostics(
+                reply.text(),
+                &status::Context {
+                    node_name: &opts.node_name,
+                    port: &opts.port,
+                    calibration: &board.calibration,
+                    last_drive_reply: &last_drive_reply,
+                    odometer: &odometer,
+                    stats: &stats,
                 },
-                KeyValue {
-                    key: "fault".into(),
-                    value: fault,
-                },
-                KeyValue {
-                    key: "calibration".into(),
-                    value: board.calibration.clone(),
-                },
-                KeyValue {
-                    key: "cmd_vel_last_reply".into(),
-                    value: last_drive_reply.clone(),
-                },
-                KeyValue {
-                    key: "distance_driven_m".into(),
-                    value: format!("{:.3}", cov.distance_m),
-                },
-                KeyValue {
-                    key: "rotation_driven_rad".into(),
-                    value: format!("{:.3}", cov.rotation_rad),
-                },
-            ];
-            values.extend(
-                stats
-                    .summary(&clock)
-                    .into_iter()
-                    .map(|(key, value)| KeyValue { key, value }),
-            );
-            let _ = diag_pub.publish(DiagnosticArray {
-                header: Header {
-                    stamp: Time::from_secs(now_s()),
-                    frame_id: String::new(),
-                },
-                status: vec![DiagnosticStatus {
-                    level,
-                    name: format!("{}: board", opts.node_name),
-                    message,
-                    hardware_id: format!("odocal {}", opts.port),
-                    values,
-                }],
-            });
+                now_s(),
+            ));
         }
     };
     // The board's own deadman stops a robot the bridge no longer commands; Ctrl-C stops it now.
     let _ = link.stop_key();
     let _ = link.send_line("stream off");
-    for (k, v) in stats.summary(&clock) {
+    for (k, v) in stats.summary(odometer.clock()) {
         println!("ros2: {k} {v}");
     }
     result.map_err(|e| e.to_string())
@@ -750,17 +611,6 @@ pub fn run(opts: &Options) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn stream_lines_parse() {
-        let s = StreamLine::parse("stream 0.005000 +0.500000 +0.250000 +5.7296 +0.2500 -0.1250")
-            .unwrap();
-        assert_eq!((s.t_s, s.x_m, s.y_m), (0.005, 0.5, 0.25));
-        assert!((s.theta_rad - 0.1).abs() < 1e-5);
-        assert_eq!((s.v_right, s.v_left), (0.25, -0.125));
-        assert_eq!(StreamLine::parse("event run 1 finished"), None);
-        assert_eq!(StreamLine::parse("stream 1 2 3"), None);
-    }
 
     #[test]
     fn the_environment_sets_domain_and_range() {
