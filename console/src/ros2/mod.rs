@@ -23,6 +23,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
+use odocal::protocol::Command;
 use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -275,11 +276,11 @@ fn drive_line(t: &Twist) -> Option<String> {
     if !(v.is_finite() && w.is_finite()) {
         return None;
     }
-    Some(format!(
-        "drive {:.6} {:.6}",
-        v.clamp(-DRIVE_LIMIT_MPS, DRIVE_LIMIT_MPS),
-        w.clamp(-DRIVE_LIMIT_RADPS, DRIVE_LIMIT_RADPS)
-    ))
+    let drive = Command::Drive {
+        v_mps: v.clamp(-DRIVE_LIMIT_MPS, DRIVE_LIMIT_MPS) as f32,
+        w_radps: w.clamp(-DRIVE_LIMIT_RADPS, DRIVE_LIMIT_RADPS) as f32,
+    };
+    Some(drive.to_string())
 }
 
 /// The bridge's node on the ROS 2 network: its publishers and its `cmd_vel` subscription (the
@@ -479,7 +480,10 @@ pub fn run(opts: &Options) -> Result<(), String> {
 
     let on = link
         .command(
-            &format!("stream on {}", opts.rate_hz),
+            &Command::Stream {
+                on: Some(Some(opts.rate_hz)),
+            }
+            .to_string(),
             Duration::from_secs(5),
         )
         .map_err(|e| e.to_string())?;
@@ -646,14 +650,8 @@ mod tests {
     #[test]
     fn commands_stay_in_the_protocols_ranges() {
         let t = Twist::planar;
-        assert_eq!(
-            drive_line(&t(0.2, -0.5)).as_deref(),
-            Some("drive 0.200000 -0.500000")
-        );
-        assert_eq!(
-            drive_line(&t(9.0, -40.0)).as_deref(),
-            Some("drive 2.000000 -10.000000")
-        );
+        assert_eq!(drive_line(&t(0.2, -0.5)).as_deref(), Some("drive 0.2 -0.5"));
+        assert_eq!(drive_line(&t(9.0, -40.0)).as_deref(), Some("drive 2 -10"));
         assert_eq!(drive_line(&t(f64::NAN, 0.0)), None);
     }
 }

@@ -13,7 +13,7 @@
 //!   radius (the line's speeds are means over the interval before it), its velocity the line's
 //!   wheel speed divided by its radius.
 
-use odocal::protocol::token;
+use odocal::protocol::stream::StreamSample;
 
 use super::clock::ClockMap;
 use super::msgs::Covariance;
@@ -39,17 +39,17 @@ pub struct StreamLine {
 }
 
 impl StreamLine {
-    /// Parses a `stream …` line (`None` for anything else).
+    /// Reads a `stream …` line by the protocol's reader (`None` for anything else).
     pub fn parse(line: &str) -> Option<StreamLine> {
-        let mut w = line.strip_prefix(token::STREAM)?.split_whitespace();
-        let mut next = || w.next()?.parse::<f64>().ok();
+        let s = StreamSample::parse(line)?;
         Some(StreamLine {
-            t_s: next()?,
-            x_m: next()?,
-            y_m: next()?,
-            theta_rad: next()?.to_radians(),
-            v_right: next()?,
-            v_left: next()?,
+            // Exact µs over 1e6: the nearest double to the seconds the line wrote.
+            t_s: s.t_us as f64 / 1e6,
+            x_m: s.x_m,
+            y_m: s.y_m,
+            theta_rad: s.theta_rad,
+            v_right: s.v_right_mps,
+            v_left: s.v_left_mps,
         })
     }
 }
