@@ -27,6 +27,8 @@ use std::time::{Duration, Instant};
 
 mod support;
 use support::{host_sim, lines_of};
+#[path = "ros2_bridge/reset.rs"]
+mod reset;
 #[path = "ros2_bridge/turns.rs"]
 mod turns;
 
@@ -300,7 +302,7 @@ fn percentile(v: &[f64], q: f64) -> f64 {
 /// The processes of the test's world: the simulated board, the bridge and the Cyclone peer
 /// (each killed when dropped).
 struct World {
-    _sim: Proc,
+    sim: Proc,
     bridge: Proc,
     peer: Peer,
 }
@@ -355,14 +357,7 @@ fn start_world() -> Option<(World, Odom)> {
     // Discovery done: Cyclone receives the bridge's odometry.
     let start = peer.odom();
     assert_eq!((start.x, start.y, start.v), (0.0, 0.0, 0.0), "{start:?}");
-    Some((
-        World {
-            _sim: sim,
-            bridge,
-            peer,
-        },
-        start,
-    ))
+    Some((World { sim, bridge, peer }, start))
 }
 
 /// Step 1: a 1 m line started on the bridge's console: once at rest, the odometry Cyclone receives is
@@ -533,7 +528,7 @@ fn cmd_vel_drives_until_the_deadman(w: &mut World, before: Odom) {
     assert!(rest.w.abs() < 1e-9 && rest.y.abs() < 0.01, "{rest:?}");
 }
 
-/// Step 4: rate and latency as Cyclone saw them, and the bridge's own summary (Ctrl-C).
+/// Step 5: rate and latency as Cyclone saw them, and the bridge's own summary (Ctrl-C).
 fn rates_and_the_bridges_summary(w: &mut World) {
     let World { bridge, peer, .. } = w;
     // Rate and latency seen by Cyclone.
@@ -584,5 +579,6 @@ fn ros2_bridge() {
     let after = a_line_ends_at_the_boards_pose(&mut world, start);
     cmd_vel_drives_until_the_deadman(&mut world, after);
     turns::a_ccw_pivot_and_a_cw_arc_match_the_boards_pose(&mut world);
+    reset::a_board_reset_keeps_odom_continuous_and_driving_resumes(&mut world);
     rates_and_the_bridges_summary(&mut world);
 }

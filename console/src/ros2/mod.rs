@@ -13,6 +13,7 @@
 //! (exact up to the speeds' 4 printed decimals, 0.5 µm a line at 100 Hz).
 
 pub mod clock;
+mod guard;
 pub mod msgs;
 pub mod odometry;
 mod status;
@@ -25,6 +26,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
 use odocal::protocol::Command;
 use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
+use odocal::protocol::token::EventTag;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 use ros2_client::{
@@ -35,6 +37,7 @@ use crate::covariance::{self, PoseCovariance, Uncertainty};
 use crate::link::{Link, LinkError};
 use crate::log::{SessionLog, calibration_of, nominal_of, param};
 use clock::ClockMap;
+use guard::Guard;
 use msgs::diagnostic_msgs::{self, DiagnosticArray};
 use msgs::geometry_msgs::{self, Twist, TwistStamped};
 use msgs::nav_msgs::{self, Odometry};
@@ -270,17 +273,13 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<((f64, f64), String), St
     }
 }
 
-/// A `drive` line within the protocol's ranges for a command (non-finite values: none).
-fn drive_line(t: &Twist) -> Option<String> {
-    let (v, w) = (t.linear.x, t.angular.z);
-    if !(v.is_finite() && w.is_finite()) {
-        return None;
-    }
+/// The `drive` line of a finite command, within the protocol's ranges.
+fn drive_line(v: f64, w: f64) -> String {
     let drive = Command::Drive {
         v_mps: v.clamp(-DRIVE_LIMIT_MPS, DRIVE_LIMIT_MPS) as f32,
         w_radps: w.clamp(-DRIVE_LIMIT_RADPS, DRIVE_LIMIT_RADPS) as f32,
     };
-    Some(drive.to_string())
+    drive.to_string()
 }
 
 /// The bridge's node on the ROS 2 network: its publishers and its `cmd_vel` subscription (the
@@ -478,14 +477,11 @@ pub fn run(opts: &Options) -> Result<(), String> {
     let (sd, sd_source) = uncertainty(opts, &board)?;
     let net = network(opts, domain, range)?;
 
+    let stream_on = Command::Stream {
+        on: Some(Some(opts.rate_hz)),
+    };
     let on = link
-        .command(
-            &Command::Stream {
-                on: Some(Some(opts.rate_hz)),
-            }
-            .to_string(),
-            Duration::from_secs(5),
-        )
+        .command(&stream_on.to_string(), Duration::from_secs(5))
         .map_err(|e| e.to_string())?;
     if !on.ok() {
         return Err(format!("the board refused `stream on`: {}", on.last));
@@ -502,6 +498,9 @@ pub fn run(opts: &Options) -> Result<(), String> {
     // The stream line current when the latest command was sent, while commands come.
     let mut commanding: Option<StreamLine> = None;
     let mut next_status = Instant::now();
+    let mut guard = Guard::new(opts.rate_hz);
+    // The pose `odom` went on from at the last board reset.
+    let mut carried: Option<(f64, f64, f64)> = None;
     let result = 'bridge: loop {
         if crate::interrupted() {
             break Ok(());
@@ -514,6 +513,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         if let Some(line) = line {
             let arrived = now_s();
             if let Some(m) = odometer.messages(&line, arrived) {
+                guard.line(arrived);
                 let s = m.line;
                 prev = Some(s);
                 if let Some(c) = commanding
@@ -534,21 +534,55 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 }
                 let _ = net.joints.publish(m.joints);
                 let done = now_s();
-                stats.first.get_or_insert((s.t_s, arrived));
-                stats.last = Some((s.t_s, arrived));
-                stats.lines += 1;
+                stats.line(s.t_s, arrived);
                 stats.handling.push(done - arrived);
                 stats.latency.push(done - m.stamp_s);
             } else {
                 // Events (a run finished, a fault, the button) for the operator.
                 println!("{line}");
+                if matches!(EventTag::parse(&line), Some((EventTag::Boot, _))) {
+                    guard.board_reset();
+                    stats.board_reset();
+                    let (x, y, th) = odometer.board_reset();
+                    carried = Some((x, y, th));
+                    commanding = None;
+                    eprintln!(
+                        "ros2: the board was reset: no cmd_vel is forwarded until its odometry \
+                         flows again; odom goes on from x={x:.6} y={y:.6} theta={th:.6}"
+                    );
+                }
             }
             continue;
         }
+        // The stream again after a reset or a gap (the board's echo off first: a reset turns
+        // it on).
+        if guard.restart_stream(now_s()) {
+            eprintln!(
+                "ros2: no odometry ({}): turning the board's stream on again",
+                guard.stale().map_or("", guard::Stale::as_str)
+            );
+            for c in [Command::Echo { on: false }, stream_on] {
+                match link.command(&c.to_string(), Duration::from_secs(2)) {
+                    Ok(_) | Err(LinkError::Timeout(_)) => {}
+                    Err(e) => break 'bridge Err(e),
+                }
+            }
+        }
         // Commands from the network: the latest one, once.
-        if let Some(t) = net.cmd_vel.as_ref().and_then(CmdVel::latest)
-            && let Some(cmd) = drive_line(&t)
-        {
+        if let Some(t) = net.cmd_vel.as_ref().and_then(CmdVel::latest) {
+            let (v, w) = match guard.cmd_vel(t.linear.x, t.angular.z) {
+                guard::Verdict::Forward(v, w) => (v, w),
+                guard::Verdict::Refuse { say, stop } => {
+                    if let Some(say) = say {
+                        eprintln!("{say}");
+                    }
+                    if stop && let Err(e) = link.command("stop", Duration::from_secs(2)) {
+                        break 'bridge Err(e);
+                    }
+                    continue;
+                }
+            };
+            let cmd = drive_line(v, w);
             match link.command(&cmd, Duration::from_secs(2)) {
                 Ok(r) => {
                     stats.commands += 1;
@@ -598,6 +632,8 @@ pub fn run(opts: &Options) -> Result<(), String> {
                     last_drive_reply: &last_drive_reply,
                     odometer: &odometer,
                     stats: &stats,
+                    guard: &guard,
+                    carried,
                 },
                 now_s(),
             ));
@@ -649,9 +685,7 @@ mod tests {
 
     #[test]
     fn commands_stay_in_the_protocols_ranges() {
-        let t = Twist::planar;
-        assert_eq!(drive_line(&t(0.2, -0.5)).as_deref(), Some("drive 0.2 -0.5"));
-        assert_eq!(drive_line(&t(9.0, -40.0)).as_deref(), Some("drive 2 -10"));
-        assert_eq!(drive_line(&t(f64::NAN, 0.0)), None);
+        assert_eq!(drive_line(0.2, -0.5), "drive 0.2 -0.5");
+        assert_eq!(drive_line(9.0, -40.0), "drive 2 -10");
     }
 }

@@ -101,6 +101,11 @@ pub struct Odometer {
     prev: Option<StreamLine>,
     /// Right and left wheel angles so far, rad.
     wheel_rad: (f64, f64),
+    /// The pose the board's pose is composed onto (x, y, θ): where `odom` was when the board
+    /// last reset (REP 105: `odom` stays continuous).
+    carry: (f64, f64, f64),
+    /// The last published pose in `odom` (x, y, θ).
+    published: (f64, f64, f64),
 }
 
 impl Odometer {
@@ -121,13 +126,33 @@ impl Odometer {
             twist_cov,
             prev: None,
             wheel_rad: (0.0, 0.0),
+            carry: (0.0, 0.0, 0.0),
+            published: (0.0, 0.0, 0.0),
         }
+    }
+
+    /// The board reset (its pose restarts at the origin): from the next line on, its pose is
+    /// composed onto the last published one, which is returned (x, y, θ).
+    pub fn board_reset(&mut self) -> (f64, f64, f64) {
+        self.carry = self.published;
+        self.prev = None;
+        self.carry
     }
 
     /// The messages of `line` (without its line end), which arrived at `arrived_s` on the PC's
     /// clock; `None` when it is not a stream line.
     pub fn messages(&mut self, line: &str, arrived_s: f64) -> Option<Messages> {
-        let s = StreamLine::parse(line)?;
+        let board = StreamLine::parse(line)?;
+        // The board's pose after the pose carried over its resets.
+        let (cx, cy, ct) = self.carry;
+        let (sin, cos) = ct.sin_cos();
+        let s = StreamLine {
+            x_m: cx + cos * board.x_m - sin * board.y_m,
+            y_m: cy + sin * board.x_m + cos * board.y_m,
+            theta_rad: odocal::calibration::wrap_angle(ct + board.theta_rad),
+            ..board
+        };
+        self.published = (s.x_m, s.y_m, s.theta_rad);
         // The line's bytes on the wire include its CR LF.
         let stamp_s = self.clock.map(s.t_s, arrived_s, line.len() + 2);
         let dt = self.prev.map_or(0.0, |p| (s.t_s - p.t_s).max(0.0));
@@ -410,5 +435,25 @@ mod tests {
             }
             assert!((m.stamp_s - want).abs() < 1e-6);
         }
+    }
+
+    /// After a board reset `odom` goes on from where it was: the board's new pose (from its
+    /// origin) is composed onto the last published one, turned by its heading.
+    #[test]
+    fn odom_stays_continuous_across_a_board_reset() {
+        let mut o = odometer();
+        let at = |o: &mut Odometer, t: f64, pose: (f64, f64, f64)| {
+            let m = o.messages(&line(t, pose, 0.0, 0.0), OFFSET_S + t).unwrap();
+            (m.line.x_m, m.line.y_m, m.line.theta_rad)
+        };
+        let before = at(&mut o, 5.0, (1.0, 2.0, 90.0));
+        assert_eq!(o.board_reset(), before);
+        // The board restarts at its origin, then drives 0.5 m along its new x.
+        let start = at(&mut o, 0.01, (0.0, 0.0, 0.0));
+        let (x, y, th) = at(&mut o, 2.0, (0.5, 0.0, 10.0));
+        assert!((start.0 - 1.0).abs() < 1e-12 && (start.1 - 2.0).abs() < 1e-12);
+        assert!((x - 1.0).abs() < 1e-9, "{x}");
+        assert!((y - 2.5).abs() < 1e-9, "{y}");
+        assert!((th - 100f64.to_radians()).abs() < 1e-6, "{th}");
     }
 }

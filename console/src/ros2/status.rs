@@ -3,6 +3,7 @@
 //! figures (rates, handling time, latency, the clock map's offset and jitter).
 
 use super::clock::ClockMap;
+use super::guard::{Guard, Stale};
 use super::msgs::builtin_interfaces::Time;
 use super::msgs::diagnostic_msgs::{self, DiagnosticArray, DiagnosticStatus, KeyValue};
 use super::msgs::std_msgs::Header;
@@ -20,9 +21,14 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 /// The measured performance of a run of the bridge.
 #[derive(Default)]
 pub(super) struct Stats {
+    /// Board and PC times of the first and the last line since the board's last reset.
     pub first: Option<(f64, f64)>,
     pub last: Option<(f64, f64)>,
     pub lines: usize,
+    /// Lines since the board's last reset.
+    pub lines_since_reset: usize,
+    /// Line intervals and board seconds before the board's last reset (its time restarted).
+    pub before_reset: (usize, f64),
     /// Seconds from a line's arrival to its odometry being published.
     pub handling: Vec<f64>,
     /// Seconds from the pose's instant (its stamp) to its odometry being published.
@@ -31,14 +37,37 @@ pub(super) struct Stats {
 }
 
 impl Stats {
+    /// A stream line at board time `board_s` arrived at `pc_s`.
+    pub(super) fn line(&mut self, board_s: f64, pc_s: f64) {
+        self.first.get_or_insert((board_s, pc_s));
+        self.last = Some((board_s, pc_s));
+        self.lines += 1;
+        self.lines_since_reset += 1;
+    }
+
+    /// The board reset: its time restarts, so the rate in board time goes on from a new span.
+    pub(super) fn board_reset(&mut self) {
+        if let (Some((b0, _)), Some((b1, _))) = (self.first, self.last) {
+            self.before_reset.0 += self.lines_since_reset.saturating_sub(1);
+            self.before_reset.1 += b1 - b0;
+        }
+        self.first = None;
+        self.last = None;
+        self.lines_since_reset = 0;
+    }
+
     pub(super) fn summary(&self, clock: &ClockMap) -> Vec<(String, String)> {
         let mut out = Vec::new();
-        if let (Some((b0, p0)), Some((b1, p1))) = (self.first, self.last)
-            && self.lines > 1
-        {
-            let n = (self.lines - 1) as f64;
-            out.push(("rate_board_hz".into(), format!("{:.2}", n / (b1 - b0))));
-            out.push(("rate_pc_hz".into(), format!("{:.2}", n / (p1 - p0))));
+        if let (Some((b0, p0)), Some((b1, p1))) = (self.first, self.last) {
+            let n = self.before_reset.0 + self.lines_since_reset.saturating_sub(1);
+            let board_s = self.before_reset.1 + (b1 - b0);
+            if n > 0 && board_s > 0.0 {
+                out.push(("rate_board_hz".into(), format!("{:.2}", n as f64 / board_s)));
+            }
+            if self.lines_since_reset > 1 {
+                let n = (self.lines_since_reset - 1) as f64;
+                out.push(("rate_pc_hz".into(), format!("{:.2}", n / (p1 - p0))));
+            }
         }
         out.push(("lines".into(), self.lines.to_string()));
         for (key, v) in [("handling", &self.handling), ("latency", &self.latency)] {
@@ -80,6 +109,10 @@ pub(super) struct Context<'a> {
     pub last_drive_reply: &'a str,
     pub odometer: &'a Odometer,
     pub stats: &'a Stats,
+    /// The bridge's rules: whether odometry flows, the refused commands, the resets.
+    pub guard: &'a Guard,
+    /// The pose `odom` went on from at the last board reset (x, y, θ).
+    pub carried: Option<(f64, f64, f64)>,
 }
 
 /// The `/diagnostics` message for the board's `status` reply `status` at `now_s` (the PC's
@@ -95,6 +128,11 @@ pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> Diagnost
     let (state, fault) = (field("state"), field("fault"));
     let (level, message) = if fault != "none" {
         (diagnostic_msgs::ERROR, format!("fault latched: {fault}"))
+    } else if let Some(why) = c.guard.stale() {
+        (
+            diagnostic_msgs::WARN,
+            format!("no odometry ({}): cmd_vel not forwarded", why.as_str()),
+        )
     } else if FinalLine::parse(c.last_drive_reply).is_some_and(|l| !l.is_ok()) {
         (
             diagnostic_msgs::WARN,
@@ -119,6 +157,29 @@ pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> Diagnost
         KeyValue {
             key: "cmd_vel_last_reply".into(),
             value: c.last_drive_reply.to_string(),
+        },
+        KeyValue {
+            key: "odometry".into(),
+            value: c.guard.stale().map_or("flowing", Stale::as_str).to_string(),
+        },
+        KeyValue {
+            key: "board_resets".into(),
+            value: c.guard.resets.to_string(),
+        },
+        KeyValue {
+            key: "odom_carried_over".into(),
+            value: c.carried.map_or_else(
+                || "none".to_string(),
+                |(x, y, th)| format!("x={x:.6} y={y:.6} theta={th:.6}"),
+            ),
+        },
+        KeyValue {
+            key: "cmd_vel_refused_no_odometry".into(),
+            value: c.guard.refused_stale.to_string(),
+        },
+        KeyValue {
+            key: "cmd_vel_refused_not_finite".into(),
+            value: c.guard.refused_nonfinite.to_string(),
         },
         KeyValue {
             key: "distance_driven_m".into(),
@@ -147,5 +208,36 @@ pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> Diagnost
             hardware_id: format!("odocal {}", c.port),
             values,
         }],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 100 lines at 100 Hz, a board reset (its time restarts at 0), 51 more: the rate in board
+    /// time is still 100 Hz, not a negative or huge one from times that went backwards.
+    #[test]
+    fn the_board_rate_spans_a_board_reset() {
+        let mut s = Stats::default();
+        for i in 0..100 {
+            let t = 5.0 + f64::from(i) * 0.01;
+            s.line(t, 1000.0 + t);
+        }
+        s.board_reset();
+        for i in 0..51 {
+            let t = 0.02 + f64::from(i) * 0.01;
+            s.line(t, 1010.0 + t);
+        }
+        let summary = s.summary(&ClockMap::new(None, 10.0));
+        let rate = |k: &str| {
+            summary
+                .iter()
+                .find(|(key, _)| key == k)
+                .map(|(_, v)| v.parse::<f64>().unwrap())
+        };
+        assert_eq!(rate("rate_board_hz"), Some(100.0));
+        assert_eq!(rate("rate_pc_hz"), Some(100.0));
+        assert_eq!(rate("lines"), Some(151.0));
     }
 }
