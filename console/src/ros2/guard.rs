@@ -26,6 +26,8 @@ pub enum Stale {
     BoardReset,
     /// The stream stopped for longer than its gap.
     Gap,
+    /// The board's port went away (until it is reopened and its stream flows).
+    Disconnected,
 }
 
 impl Stale {
@@ -35,6 +37,7 @@ impl Stale {
             Stale::Starting => "no stream line yet",
             Stale::BoardReset => "the board was reset",
             Stale::Gap => "the stream stopped",
+            Stale::Disconnected => "the board is disconnected",
         }
     }
 }
@@ -101,6 +104,15 @@ impl Guard {
         self.said_stale = false;
         self.moving = false;
         self.resets += 1;
+        self.last_restart_s = None;
+    }
+
+    /// The board's port went away: stale until its stream flows again (the bridge turns it on
+    /// when it reopens the port).
+    pub fn disconnected(&mut self) {
+        self.stale = Some(Stale::Disconnected);
+        self.said_stale = false;
+        self.moving = false;
         self.last_restart_s = None;
     }
 

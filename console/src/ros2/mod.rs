@@ -12,6 +12,7 @@
 //! wheels' joint positions are the sums of the mean wheel speeds times the line intervals
 //! (exact up to the speeds' 4 printed decimals, 0.5 µm a line at 100 Hz).
 
+mod bridge;
 pub mod clock;
 mod guard;
 pub mod msgs;
@@ -26,7 +27,6 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
 use odocal::protocol::Command;
 use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
-use odocal::protocol::token::EventTag;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 use ros2_client::{
@@ -34,8 +34,9 @@ use ros2_client::{
 };
 
 use crate::covariance::{self, PoseCovariance, Uncertainty};
-use crate::link::{Link, LinkError};
+use crate::link::Link;
 use crate::log::{SessionLog, calibration_of, nominal_of, param};
+use bridge::Bridge;
 use clock::ClockMap;
 use guard::Guard;
 use msgs::diagnostic_msgs::{self, DiagnosticArray};
@@ -44,7 +45,7 @@ use msgs::nav_msgs::{self, Odometry};
 use msgs::sensor_msgs::{self, JointState};
 use msgs::tf2_msgs::{self, TFMessage};
 use msgs::{Covariance, TypeName};
-use odometry::{Names, Odometer, StreamLine, Wheels};
+use odometry::{Names, Odometer, Wheels};
 use status::Stats;
 
 /// The board's deadman: it stops the motors when no `drive` came for this long
@@ -97,6 +98,10 @@ pub struct Options {
     /// Log every line to and from the board to this file (JSON lines, as the guided session).
     #[arg(long)]
     pub log: Option<PathBuf>,
+    /// End (exit status 1) when the board's port goes away, for a launch file that respawns
+    /// the bridge; without it the bridge waits for the same port path to come back.
+    #[arg(long)]
+    pub exit_on_disconnect: bool,
 }
 
 /// Seconds since the Unix epoch on the PC's clock.
@@ -270,6 +275,14 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<((f64, f64), String), St
             covariance::DEFAULT_SD_CALIBRATED,
             "defaults for a calibrated board (no --calibration log)".into(),
         ))
+    }
+}
+
+/// The session log `--log` names (appended to), or none.
+fn session_log(opts: &Options) -> Result<SessionLog, String> {
+    match &opts.log {
+        Some(p) => SessionLog::open(p),
+        None => Ok(SessionLog::discard()),
     }
 }
 
@@ -467,11 +480,7 @@ fn stdin_lines() -> mpsc::Receiver<String> {
 /// The port, the board or the DDS participant cannot be set up, or the board is lost, as text.
 pub fn run(opts: &Options) -> Result<(), String> {
     let (domain, range) = ros_environment(|k| std::env::var(k).ok())?;
-    let log = match &opts.log {
-        Some(p) => SessionLog::open(p)?,
-        None => SessionLog::discard(),
-    };
-    let mut link = Link::open(&opts.port, log)?;
+    let mut link = Link::open(&opts.port, session_log(opts)?)?;
     let version = link.handshake()?;
     let board = read_board(&mut link)?;
     let (sd, sd_source) = uncertainty(opts, &board)?;
@@ -488,164 +497,23 @@ pub fn run(opts: &Options) -> Result<(), String> {
     }
     println!("{}", banner(opts, &version, (domain, range), &sd_source));
 
-    // Lines typed on stdin go to the board.
-    let stdin_rx = stdin_lines();
-
-    let mut odometer = odometer(opts, &board, sd);
-    let mut stats = Stats::default();
-    let mut prev: Option<StreamLine> = None;
-    let mut last_drive_reply = String::new();
-    // The stream line current when the latest command was sent, while commands come.
-    let mut commanding: Option<StreamLine> = None;
-    let mut next_status = Instant::now();
-    let mut guard = Guard::new(opts.rate_hz);
-    // The pose `odom` went on from at the last board reset.
-    let mut carried: Option<(f64, f64, f64)> = None;
-    let result = 'bridge: loop {
-        if crate::interrupted() {
-            break Ok(());
-        }
-        // The board's lines, as they come (a stream line every period).
-        let line = match link.next_unsolicited(Duration::from_millis(5)) {
-            Ok(l) => l,
-            Err(e) => break Err(e),
-        };
-        if let Some(line) = line {
-            let arrived = now_s();
-            if let Some(m) = odometer.messages(&line, arrived) {
-                guard.line(arrived);
-                let s = m.line;
-                prev = Some(s);
-                if let Some(c) = commanding
-                    && s.t_s - c.t_s >= DEADMAN_S
-                {
-                    commanding = None;
-                    println!(
-                        "ros2: cmd_vel: none since board t={:.6} at x={:.6} y={:.6} (the \
-                         board's deadman stops the robot {DEADMAN_S} s after it)",
-                        c.t_s, c.x_m, c.y_m
-                    );
-                }
-                let _ = net.odom.publish(m.odom);
-                if let Some(tf) = &net.tf {
-                    let _ = tf.publish(TFMessage {
-                        transforms: vec![m.tf],
-                    });
-                }
-                let _ = net.joints.publish(m.joints);
-                let done = now_s();
-                stats.line(s.t_s, arrived);
-                stats.handling.push(done - arrived);
-                stats.latency.push(done - m.stamp_s);
-            } else {
-                // Events (a run finished, a fault, the button) for the operator.
-                println!("{line}");
-                if matches!(EventTag::parse(&line), Some((EventTag::Boot, _))) {
-                    guard.board_reset();
-                    stats.board_reset();
-                    let (x, y, th) = odometer.board_reset();
-                    carried = Some((x, y, th));
-                    commanding = None;
-                    eprintln!(
-                        "ros2: the board was reset: no cmd_vel is forwarded until its odometry \
-                         flows again; odom goes on from x={x:.6} y={y:.6} theta={th:.6}"
-                    );
-                }
-            }
-            continue;
-        }
-        // The stream again after a reset or a gap (the board's echo off first: a reset turns
-        // it on).
-        if guard.restart_stream(now_s()) {
-            eprintln!(
-                "ros2: no odometry ({}): turning the board's stream on again",
-                guard.stale().map_or("", guard::Stale::as_str)
-            );
-            for c in [Command::Echo { on: false }, stream_on] {
-                match link.command(&c.to_string(), Duration::from_secs(2)) {
-                    Ok(_) | Err(LinkError::Timeout(_)) => {}
-                    Err(e) => break 'bridge Err(e),
-                }
-            }
-        }
-        // Commands from the network: the latest one, once.
-        if let Some(t) = net.cmd_vel.as_ref().and_then(CmdVel::latest) {
-            let (v, w) = match guard.cmd_vel(t.linear.x, t.angular.z) {
-                guard::Verdict::Forward(v, w) => (v, w),
-                guard::Verdict::Refuse { say, stop } => {
-                    if let Some(say) = say {
-                        eprintln!("{say}");
-                    }
-                    if stop && let Err(e) = link.command("stop", Duration::from_secs(2)) {
-                        break 'bridge Err(e);
-                    }
-                    continue;
-                }
-            };
-            let cmd = drive_line(v, w);
-            match link.command(&cmd, Duration::from_secs(2)) {
-                Ok(r) => {
-                    stats.commands += 1;
-                    if let Some(p) = prev {
-                        if commanding.is_none() {
-                            println!(
-                                "ros2: cmd_vel: driving from board t={:.6} at x={:.6} y={:.6}",
-                                p.t_s, p.x_m, p.y_m
-                            );
-                        }
-                        commanding = Some(p);
-                    }
-                    if r.last != last_drive_reply && !(r.ok() && r.text().is_empty()) {
-                        eprintln!("ros2: cmd_vel: `{cmd}`: {}", r.last);
-                    }
-                    last_drive_reply = r.last;
-                }
-                Err(e) => break Err(e),
-            }
-        }
-        // Commands typed on stdin.
-        while let Ok(cmd) = stdin_rx.try_recv() {
-            match link.command(cmd.trim(), Duration::from_secs(10)) {
-                Ok(r) => {
-                    for d in &r.data {
-                        println!("  {d}");
-                    }
-                    println!("{}", r.last);
-                }
-                Err(LinkError::Timeout(c)) => println!("no reply to `{c}`"),
-                Err(e) => break 'bridge Err(e),
-            }
-        }
-        // The board's state and faults, once a second.
-        if Instant::now() >= next_status {
-            next_status += Duration::from_secs(1);
-            let reply = match link.command("status", Duration::from_secs(2)) {
-                Ok(r) => r,
-                Err(e) => break Err(e),
-            };
-            let _ = net.diag.publish(status::diagnostics(
-                reply.text(),
-                &status::Context {
-                    node_name: &opts.node_name,
-                    port: &opts.port,
-                    calibration: &board.calibration,
-                    last_drive_reply: &last_drive_reply,
-                    odometer: &odometer,
-                    stats: &stats,
-                    guard: &guard,
-                    carried,
-                },
-                now_s(),
-            ));
-        }
+    let bridge = Bridge {
+        opts,
+        net: &net,
+        board: &board,
+        link,
+        stream_on,
+        odometer: odometer(opts, &board, sd),
+        stats: Stats::default(),
+        guard: Guard::new(opts.rate_hz),
+        prev: None,
+        commanding: None,
+        last_drive_reply: String::new(),
+        carried: None,
+        next_status: Instant::now(),
     };
-    // The board's own deadman stops a robot the bridge no longer commands; Ctrl-C stops it now.
-    let _ = link.stop_key();
-    let _ = link.send_line("stream off");
-    for (k, v) in stats.summary(odometer.clock()) {
-        println!("ros2: {k} {v}");
-    }
-    result.map_err(|e| e.to_string())
+    // Lines typed on stdin go to the board.
+    bridge.run(&stdin_lines()).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

@@ -143,6 +143,11 @@ impl Odometer {
     /// clock; `None` when it is not a stream line.
     pub fn messages(&mut self, line: &str, arrived_s: f64) -> Option<Messages> {
         let board = StreamLine::parse(line)?;
+        // A board time that went backwards is a reset the bridge did not see (its boot event
+        // was sent while the port was away): the same as `board_reset`.
+        if self.prev.is_some_and(|p| board.t_s < p.t_s) {
+            self.carry = self.published;
+        }
         // The board's pose after the pose carried over its resets.
         let (cx, cy, ct) = self.carry;
         let (sin, cos) = ct.sin_cos();
@@ -455,5 +460,25 @@ mod tests {
         assert!((x - 1.0).abs() < 1e-9, "{x}");
         assert!((y - 2.5).abs() < 1e-9, "{y}");
         assert!((th - 100f64.to_radians()).abs() < 1e-6, "{th}");
+    }
+
+    /// A reset whose boot event the bridge never saw (the port was away): the board's time
+    /// going backwards carries the pose over as the boot event does.
+    #[test]
+    fn a_board_time_that_goes_backwards_carries_the_pose_over() {
+        let mut o = odometer();
+        let at = |o: &mut Odometer, t: f64, pose: (f64, f64, f64)| {
+            let m = o.messages(&line(t, pose, 0.0, 0.0), OFFSET_S + t).unwrap();
+            (m.line.x_m, m.line.y_m, m.line.theta_rad)
+        };
+        let before = at(&mut o, 7.0, (-0.5, 0.25, -45.0));
+        let after = at(&mut o, 0.3, (0.0, 0.0, 0.0));
+        assert_eq!(after, before);
+        // And not again while the new board's time goes forward.
+        let (x, _, _) = at(&mut o, 0.4, (0.1, 0.0, 0.0));
+        assert!(
+            (x - (-0.5 + 0.1 * (-45f64).to_radians().cos())).abs() < 1e-9,
+            "{x}"
+        );
     }
 }

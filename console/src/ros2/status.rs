@@ -211,6 +211,27 @@ pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> Diagnost
     }
 }
 
+/// The `/diagnostics` message while the board's port is gone: ERROR, `board disconnected:
+/// PORT`.
+pub(super) fn disconnected(node_name: &str, port: &str, now_s: f64) -> DiagnosticArray {
+    DiagnosticArray {
+        header: Header {
+            stamp: Time::from_secs(now_s),
+            frame_id: String::new(),
+        },
+        status: vec![DiagnosticStatus {
+            level: diagnostic_msgs::ERROR,
+            name: format!("{node_name}: board"),
+            message: format!("board disconnected: {port}"),
+            hardware_id: format!("odocal {port}"),
+            values: vec![KeyValue {
+                key: "odometry".into(),
+                value: "none: the board is disconnected".into(),
+            }],
+        }],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,268 @@
+//! The bridge at work: the board's lines in (odometry out, events printed, a board reset
+//! followed), `cmd_vel` and typed commands out (through [`Guard`]'s rules), `/diagnostics` once
+//! a second, and the board's port reopened when it comes back after a disconnect.
+
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use odocal::protocol::Command;
+use odocal::protocol::token::EventTag;
+
+use super::guard::{self, Guard};
+use super::msgs::tf2_msgs::TFMessage;
+use super::odometry::{Odometer, StreamLine};
+use super::status::{self, Stats};
+use super::{Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log};
+use crate::link::{Link, LinkError};
+
+/// The bridge's state between the board's lines.
+pub(super) struct Bridge<'a> {
+    pub opts: &'a Options,
+    pub net: &'a Network,
+    pub board: &'a Board,
+    pub link: Link,
+    /// `stream on` at the bridge's rate.
+    pub stream_on: Command<'static>,
+    pub odometer: Odometer,
+    pub stats: Stats,
+    pub guard: Guard,
+    /// The last stream line published.
+    pub prev: Option<StreamLine>,
+    /// The stream line current when the latest command was sent, while commands come.
+    pub commanding: Option<StreamLine>,
+    pub last_drive_reply: String,
+    /// The pose `odom` went on from at the last board reset.
+    pub carried: Option<(f64, f64, f64)>,
+    pub next_status: Instant,
+}
+
+impl Bridge<'_> {
+    /// Runs until Ctrl-C (or a lost port with `--exit-on-disconnect`); then stops the robot,
+    /// turns the stream off and prints the summary.
+    ///
+    /// # Errors
+    /// A lost port with `--exit-on-disconnect`, or one that cannot be reopened.
+    pub fn run(mut self, typed: &mpsc::Receiver<String>) -> Result<(), LinkError> {
+        let result = loop {
+            match self.serve(typed) {
+                Err(LinkError::Disconnected(why)) if !self.opts.exit_on_disconnect => {
+                    eprintln!(
+                        "ros2: board disconnected: {} ({why}): no odometry; waiting for the port \
+                         to come back",
+                        self.opts.port
+                    );
+                    self.guard.disconnected();
+                    self.commanding = None;
+                    match reconnect(self.opts, self.net, self.stream_on) {
+                        Ok(Some(l)) => {
+                            eprintln!("ros2: {} is back: the stream is on again", self.opts.port);
+                            self.link = l;
+                        }
+                        Ok(None) => break Ok(()),
+                        Err(e) => break Err(LinkError::Disconnected(e)),
+                    }
+                }
+                other => break other,
+            }
+        };
+        // The board's own deadman stops a robot the bridge no longer commands; Ctrl-C stops it
+        // now.
+        let _ = self.link.stop_key();
+        let _ = self.link.send_line("stream off");
+        for (k, v) in self.stats.summary(self.odometer.clock()) {
+            println!("ros2: {k} {v}");
+        }
+        result
+    }
+
+    /// The bridge's loop on one open port, until Ctrl-C (`Ok`) or a link error.
+    fn serve(&mut self, typed: &mpsc::Receiver<String>) -> Result<(), LinkError> {
+        loop {
+            if crate::interrupted() {
+                return Ok(());
+            }
+            // The board's lines, as they come (a stream line every period).
+            if let Some(line) = self.link.next_unsolicited(Duration::from_millis(5))? {
+                self.board_line(&line);
+                continue;
+            }
+            self.restart_if_stale()?;
+            self.forward_cmd_vel()?;
+            // Commands typed on stdin.
+            while let Ok(cmd) = typed.try_recv() {
+                match self.link.command(cmd.trim(), Duration::from_secs(10)) {
+                    Ok(r) => {
+                        for d in &r.data {
+                            println!("  {d}");
+                        }
+                        println!("{}", r.last);
+                    }
+                    Err(LinkError::Timeout(c)) => println!("no reply to `{c}`"),
+                    Err(e) => return Err(e),
+                }
+            }
+            if Instant::now() >= self.next_status {
+                self.next_status += Duration::from_secs(1);
+                self.publish_status()?;
+            }
+        }
+    }
+
+    /// A line from the board: a stream line's odometry published, an event printed (a boot
+    /// event followed: see [`Guard`] and [`Odometer::board_reset`]).
+    fn board_line(&mut self, line: &str) {
+        let arrived = now_s();
+        let Some(m) = self.odometer.messages(line, arrived) else {
+            // Events (a run finished, a fault, the button) for the operator.
+            println!("{line}");
+            if matches!(EventTag::parse(line), Some((EventTag::Boot, _))) {
+                self.guard.board_reset();
+                self.stats.board_reset();
+                let (x, y, th) = self.odometer.board_reset();
+                self.carried = Some((x, y, th));
+                self.commanding = None;
+                eprintln!(
+                    "ros2: the board was reset: no cmd_vel is forwarded until its odometry flows \
+                     again; odom goes on from x={x:.6} y={y:.6} theta={th:.6}"
+                );
+            }
+            return;
+        };
+        self.guard.line(arrived);
+        let s = m.line;
+        self.prev = Some(s);
+        if let Some(c) = self.commanding
+            && s.t_s - c.t_s >= DEADMAN_S
+        {
+            self.commanding = None;
+            println!(
+                "ros2: cmd_vel: none since board t={:.6} at x={:.6} y={:.6} (the board's \
+                 deadman stops the robot {DEADMAN_S} s after it)",
+                c.t_s, c.x_m, c.y_m
+            );
+        }
+        let net = self.net;
+        let _ = net.odom.publish(m.odom);
+        if let Some(tf) = &net.tf {
+            let _ = tf.publish(TFMessage {
+                transforms: vec![m.tf],
+            });
+        }
+        let _ = net.joints.publish(m.joints);
+        let done = now_s();
+        self.stats.line(s.t_s, arrived);
+        self.stats.handling.push(done - arrived);
+        self.stats.latency.push(done - m.stamp_s);
+    }
+
+    /// The stream again after a reset or a gap (the board's echo off first: a reset turns it
+    /// on).
+    fn restart_if_stale(&mut self) -> Result<(), LinkError> {
+        if !self.guard.restart_stream(now_s()) {
+            return Ok(());
+        }
+        eprintln!(
+            "ros2: no odometry ({}): turning the board's stream on again",
+            self.guard.stale().map_or("", guard::Stale::as_str)
+        );
+        for c in [Command::Echo { on: false }, self.stream_on] {
+            match self.link.command(&c.to_string(), Duration::from_secs(2)) {
+                Ok(_) | Err(LinkError::Timeout(_)) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+
+    /// The latest `cmd_vel` from the network, once, by [`Guard`]'s rules.
+    fn forward_cmd_vel(&mut self) -> Result<(), LinkError> {
+        let Some(t) = self.net.cmd_vel.as_ref().and_then(CmdVel::latest) else {
+            return Ok(());
+        };
+        let (v, w) = match self.guard.cmd_vel(t.linear.x, t.angular.z) {
+            guard::Verdict::Forward(v, w) => (v, w),
+            guard::Verdict::Refuse { say, stop } => {
+                if let Some(say) = say {
+                    eprintln!("{say}");
+                }
+                if stop {
+                    self.link
+                        .command(&Command::Stop.to_string(), Duration::from_secs(2))?;
+                }
+                return Ok(());
+            }
+        };
+        let cmd = drive_line(v, w);
+        let r = self.link.command(&cmd, Duration::from_secs(2))?;
+        self.stats.commands += 1;
+        if let Some(p) = self.prev {
+            if self.commanding.is_none() {
+                println!(
+                    "ros2: cmd_vel: driving from board t={:.6} at x={:.6} y={:.6}",
+                    p.t_s, p.x_m, p.y_m
+                );
+            }
+            self.commanding = Some(p);
+        }
+        if r.last != self.last_drive_reply && !(r.ok() && r.text().is_empty()) {
+            eprintln!("ros2: cmd_vel: `{cmd}`: {}", r.last);
+        }
+        self.last_drive_reply = r.last;
+        Ok(())
+    }
+
+    /// The board's state and faults and the bridge's own figures on `/diagnostics`.
+    fn publish_status(&mut self) -> Result<(), LinkError> {
+        let reply = self
+            .link
+            .command(&Command::Status.to_string(), Duration::from_secs(2))?;
+        let _ = self.net.diag.publish(status::diagnostics(
+            reply.text(),
+            &status::Context {
+                node_name: &self.opts.node_name,
+                port: &self.opts.port,
+                calibration: &self.board.calibration,
+                last_drive_reply: &self.last_drive_reply,
+                odometer: &self.odometer,
+                stats: &self.stats,
+                guard: &self.guard,
+                carried: self.carried,
+            },
+            now_s(),
+        ));
+        Ok(())
+    }
+}
+
+/// Waits for the board's port to come back at the same path (a `/dev/serial/by-id/` path
+/// survives the adapter's re-enumeration) and reopens it with the echo off and the stream on;
+/// meanwhile `/diagnostics` says ERROR, `board disconnected: PORT`, once a second, and no
+/// odometry is published. `None` on Ctrl-C.
+fn reconnect(
+    opts: &Options,
+    net: &Network,
+    stream_on: Command<'_>,
+) -> Result<Option<Link>, String> {
+    let mut next_diag = Instant::now();
+    loop {
+        if crate::interrupted() {
+            return Ok(None);
+        }
+        if Instant::now() >= next_diag {
+            next_diag += Duration::from_secs(1);
+            let _ = net
+                .diag
+                .publish(status::disconnected(&opts.node_name, &opts.port, now_s()));
+        }
+        if std::path::Path::new(&opts.port).exists()
+            && let Ok(mut link) = Link::open(&opts.port, session_log(opts)?)
+            && link.handshake().is_ok()
+            && link
+                .command(&stream_on.to_string(), Duration::from_secs(5))
+                .is_ok_and(|r| r.ok())
+        {
+            return Ok(Some(link));
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
