@@ -27,8 +27,8 @@ use std::time::{Duration, Instant};
 
 mod support;
 use support::{host_sim, lines_of};
-#[path = "ros2_bridge/reset.rs"]
-mod reset;
+#[path = "ros2_bridge/robust.rs"]
+mod robust;
 #[path = "ros2_bridge/turns.rs"]
 mod turns;
 
@@ -232,6 +232,8 @@ struct Peer {
     proc: Proc,
     samples: Vec<Odom>,
     joints: Vec<Joints>,
+    /// `/diagnostics` statuses as received: (receive time, level, message, key-values).
+    diags: Vec<Value>,
 }
 
 impl Peer {
@@ -255,6 +257,8 @@ impl Peer {
                 cxx: f("cxx"),
                 cvv: f("cvv"),
             });
+        } else if v["k"] == "diag" {
+            self.diags.push(v.clone());
         } else if v["k"] == "joints" {
             let names: Vec<&str> = v["name"]
                 .as_array()
@@ -310,32 +314,35 @@ struct World {
 /// Starts the simulated board, the bridge and the peer in a network namespace of the test's own,
 /// and waits for the first odometry sample (returned); `None` when the test is skipped.
 fn start_world() -> Option<(World, Odom)> {
+    start_world_on(None)
+}
+
+/// [`start_world`], the bridge opening the board's pty through the symlink `link` when given
+/// (as a `/dev/serial/by-id/` path points at the adapter's device).
+fn start_world_on(link: Option<&Path>) -> Option<(World, Odom)> {
     if !ready_or_skip("ros2_bridge", cyclone_available()) {
         return None;
     }
     let peer_script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ros2_peer.py");
-    let sim_bin = host_sim();
+    host_sim();
     if !ready_or_skip("ros2_bridge", isolate_network()) {
         return None;
     }
 
     // The simulated board, in real time (the deadman counts board time).
-    let mut sim = Proc::start(
-        "host-sim",
-        Command::new(&sim_bin)
-            .args(["serial", "--pty"])
-            .stderr(Stdio::null()),
-    );
-    let first = sim.next();
-    let pty = first
-        .strip_prefix("pty ")
-        .unwrap_or_else(|| panic!("no pty line: {first:?}"))
-        .to_string();
+    let (sim, pty) = start_sim();
 
+    let port = match link {
+        Some(link) => {
+            point(link, &pty);
+            link.to_string_lossy().into_owned()
+        }
+        None => pty,
+    };
     let mut bridge = Proc::start(
         "odocal-console ros2",
         Command::new(env!("CARGO_BIN_EXE_odocal-console"))
-            .args(["ros2", "--port", &pty])
+            .args(["ros2", "--port", &port])
             .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
             .env_remove("ROS_LOCALHOST_ONLY")
             .env("ROS_DOMAIN_ID", "0"),
@@ -352,12 +359,35 @@ fn start_world() -> Option<(World, Odom)> {
         ),
         samples: Vec::new(),
         joints: Vec::new(),
+        diags: Vec::new(),
     };
     assert_eq!(peer.next()["k"], "ready");
     // Discovery done: Cyclone receives the bridge's odometry.
     let start = peer.odom();
     assert_eq!((start.x, start.y, start.v), (0.0, 0.0, 0.0), "{start:?}");
     Some((World { sim, bridge, peer }, start))
+}
+
+/// Points the symlink `link` at `target` (replacing what it pointed at).
+fn point(link: &Path, target: &str) {
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(target, link).unwrap();
+}
+
+/// The simulated board on a new pty: the process and the pty's path.
+fn start_sim() -> (Proc, String) {
+    let mut sim = Proc::start(
+        "host-sim",
+        Command::new(host_sim())
+            .args(["serial", "--pty"])
+            .stderr(Stdio::null()),
+    );
+    let first = sim.next();
+    let pty = first
+        .strip_prefix("pty ")
+        .unwrap_or_else(|| panic!("no pty line: {first:?}"))
+        .to_string();
+    (sim, pty)
 }
 
 /// Step 1: a 1 m line started on the bridge's console: once at rest, the odometry Cyclone receives is
@@ -579,6 +609,33 @@ fn ros2_bridge() {
     let after = a_line_ends_at_the_boards_pose(&mut world, start);
     cmd_vel_drives_until_the_deadman(&mut world, after);
     turns::a_ccw_pivot_and_a_cw_arc_match_the_boards_pose(&mut world);
-    reset::a_board_reset_keeps_odom_continuous_and_driving_resumes(&mut world);
     rates_and_the_bridges_summary(&mut world);
+}
+
+#[test]
+fn ros2_bridge_survives_board_reset() {
+    let Some((mut world, _)) = start_world() else {
+        return;
+    };
+    robust::a_reset_mid_drive_keeps_odom_and_forwards_nothing_blind(&mut world);
+}
+
+#[test]
+fn ros2_bridge_survives_unplug() {
+    let dir = std::env::temp_dir().join(format!("odocal-unplug-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("usb-odocal-if00");
+    let Some((mut world, _)) = start_world_on(Some(&link)) else {
+        return;
+    };
+    robust::an_unplugged_board_is_reopened_on_its_path(&mut world, &link);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn ros2_bridge_refuses_nan() {
+    let Some((mut world, _)) = start_world() else {
+        return;
+    };
+    robust::a_nan_cmd_vel_stops_the_robot_before_the_deadman(&mut world);
 }

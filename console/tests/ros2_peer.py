@@ -6,8 +6,9 @@ rmw_cyclonedds_cpp) through its Python binding, with the ROS 2 messages declared
 It subscribes `rt/odom` (nav_msgs/msg/Odometry) and prints every sample as a JSON line
 (`{"k": "odom", ...}`: the stamp, the receive time on this machine's clock, x, y, yaw, v, w
 and the x variance), and `rt/joint_states` (sensor_msgs/msg/JointState: `{"k": "joints", ...}`
-with the stamp, the joint names, positions and velocities in the message's order). Commands on
-stdin, one a line:
+with the stamp, the joint names, positions and velocities in the message's order), and
+`rt/diagnostics` (diagnostic_msgs/msg/DiagnosticArray: `{"k": "diag", ...}` with the receive time,
+the level, the message and the key-values of each status). Commands on stdin, one a line:
 - `cmd_vel V W SECONDS HZ`: publishes geometry_msgs/msg/Twist on `rt/cmd_vel` (V m/s, W rad/s)
   at HZ for SECONDS, once the bridge's subscription is matched; then prints
   `{"k": "cmd_vel_done", "first": t, "last": t, "n": n}` (times on this machine's clock);
@@ -26,7 +27,7 @@ try:
     from cyclonedds.core import Policy, Qos
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.idl import IdlStruct
-    from cyclonedds.idl.types import array, float64, int32, sequence, uint32
+    from cyclonedds.idl.types import array, byte, float64, int32, sequence, uint32
     from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
@@ -110,6 +111,24 @@ QOS = Qos(
     Policy.DataRepresentation(use_cdrv0_representation=True),
 )
 
+@dataclass
+class KeyValue(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
+    key: str = ""
+    value: str = ""
+
+@dataclass
+class DiagnosticStatus(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticStatus_"):
+    level: byte = 0
+    name: str = ""
+    message: str = ""
+    hardware_id: str = ""
+    values: sequence[KeyValue] = field(default_factory=list)
+
+@dataclass
+class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticArray_"):
+    header: Header = field(default_factory=Header)
+    status: sequence[DiagnosticStatus] = field(default_factory=list)
+
 out_lock = threading.Lock()
 
 def emit(obj):
@@ -122,6 +141,22 @@ def main():
     odom = DataReader(dp, Topic(dp, "rt/odom", Odometry), qos=QOS)
     joints = DataReader(dp, Topic(dp, "rt/joint_states", JointState), qos=QOS)
     cmd_vel = DataWriter(dp, Topic(dp, "rt/cmd_vel", Twist), qos=QOS)
+    diagnostics = DataReader(dp, Topic(dp, "rt/diagnostics", DiagnosticArray), qos=QOS)
+
+    def read_diagnostics():
+        for s in diagnostics.take_iter():
+            rx = time.time()
+            for st in s.status:
+                level = st.level if isinstance(st.level, int) else int.from_bytes(st.level, "little")
+                emit(
+                    {
+                        "k": "diag",
+                        "rx": rx,
+                        "level": level,
+                        "message": st.message,
+                        "values": {kv.key: kv.value for kv in st.values},
+                    }
+                )
 
     def read_joints():
         for s in joints.take_iter():
@@ -162,6 +197,7 @@ def main():
     emit({"k": "ready"})
     threading.Thread(target=read, daemon=True).start()
     threading.Thread(target=read_joints, daemon=True).start()
+    threading.Thread(target=read_diagnostics, daemon=True).start()
     for line in sys.stdin:
         w = line.split()
         if not w:

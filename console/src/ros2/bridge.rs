@@ -15,6 +15,11 @@ use super::status::{self, Stats};
 use super::{Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log};
 use crate::link::{Link, LinkError};
 
+/// How long the bridge waits for the board's reply to `drive`, `stop`, `status`: the board
+/// answers within milliseconds; a board that reset under a command never does, and the bridge
+/// must be back at its lines to see the boot event.
+const COMMAND_WAIT: Duration = Duration::from_millis(300);
+
 /// The bridge's state between the board's lines.
 pub(super) struct Bridge<'a> {
     pub opts: &'a Options,
@@ -121,6 +126,8 @@ impl Bridge<'_> {
                 let (x, y, th) = self.odometer.board_reset();
                 self.carried = Some((x, y, th));
                 self.commanding = None;
+                // `/diagnostics` says it now, not at the next second.
+                self.next_status = Instant::now();
                 eprintln!(
                     "ros2: the board was reset: no cmd_vel is forwarded until its odometry flows \
                      again; odom goes on from x={x:.6} y={y:.6} theta={th:.6}"
@@ -186,14 +193,28 @@ impl Bridge<'_> {
                     eprintln!("{say}");
                 }
                 if stop {
-                    self.link
-                        .command(&Command::Stop.to_string(), Duration::from_secs(2))?;
+                    match self
+                        .link
+                        .command(&Command::Stop.to_string(), Duration::from_secs(2))
+                    {
+                        Ok(_) | Err(LinkError::Timeout(_)) => {}
+                        Err(e) => return Err(e),
+                    }
                 }
                 return Ok(());
             }
         };
         let cmd = drive_line(v, w);
-        let r = self.link.command(&cmd, Duration::from_secs(2))?;
+        // No reply: the board may have reset under the command (its boot event follows). The
+        // board answers `drive` at once: a short wait keeps a reset from holding the odometry.
+        let r = match self.link.command(&cmd, COMMAND_WAIT) {
+            Ok(r) => r,
+            Err(LinkError::Timeout(c)) => {
+                eprintln!("ros2: cmd_vel: no reply to `{c}`");
+                return Ok(());
+            }
+            Err(e) => return Err(e),
+        };
         self.stats.commands += 1;
         if let Some(p) = self.prev {
             if self.commanding.is_none() {
@@ -213,9 +234,15 @@ impl Bridge<'_> {
 
     /// The board's state and faults and the bridge's own figures on `/diagnostics`.
     fn publish_status(&mut self) -> Result<(), LinkError> {
-        let reply = self
+        let reply = match self
             .link
-            .command(&Command::Status.to_string(), Duration::from_secs(2))?;
+            .command(&Command::Status.to_string(), COMMAND_WAIT)
+        {
+            Ok(r) => r,
+            // The board may have reset under it: the next second asks again.
+            Err(LinkError::Timeout(_)) => return Ok(()),
+            Err(e) => return Err(e),
+        };
         let _ = self.net.diag.publish(status::diagnostics(
             reply.text(),
             &status::Context {

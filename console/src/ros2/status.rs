@@ -129,8 +129,14 @@ pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> Diagnost
     let (level, message) = if fault != "none" {
         (diagnostic_msgs::ERROR, format!("fault latched: {fault}"))
     } else if let Some(why) = c.guard.stale() {
+        // A board that reset or went away: the robot's odometry is gone (ERROR); a stream that
+        // paused or has not started yet: WARN.
+        let level = match why {
+            Stale::BoardReset | Stale::Disconnected => diagnostic_msgs::ERROR,
+            Stale::Starting | Stale::Gap => diagnostic_msgs::WARN,
+        };
         (
-            diagnostic_msgs::WARN,
+            level,
             format!("no odometry ({}): cmd_vel not forwarded", why.as_str()),
         )
     } else if FinalLine::parse(c.last_drive_reply).is_some_and(|l| !l.is_ok()) {
