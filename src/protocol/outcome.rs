@@ -219,7 +219,8 @@ pub fn write_ack(out: &mut dyn Write, ack: Ack) -> fmt::Result {
         Ack::Driving => out.write_str("ok")?,
         Ack::DriveLimited { v_mps, w_radps } => write!(
             out,
-            "ok limited to v={} m/s w={} rad/s (max_speed, max_turn_rate)",
+            "ok {}v={} m/s w={} rad/s (max_speed, max_turn_rate)",
+            token::DRIVE_LIMITED,
             Decimal::signed(f64::from(v_mps), 3),
             Decimal::signed(f64::from(w_radps), 3)
         )?,
@@ -341,5 +342,28 @@ mod tests {
         let mut saved = String::new();
         write_param_outcome(&mut saved, &ParamOutcome::Saved).unwrap();
         assert!(!is_not_saved(&saved), "{saved}");
+    }
+
+    /// A `drive` cut to the limits is read back as such by the protocol's own reader; an
+    /// accepted one is not.
+    #[test]
+    fn a_limited_drive_reads_as_limited() {
+        let mut limited = String::new();
+        write_ack(
+            &mut limited,
+            Ack::DriveLimited {
+                v_mps: 0.3,
+                w_radps: -1.0,
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            limited,
+            "ok limited to v=+0.300 m/s w=-1.000 rad/s (max_speed, max_turn_rate)\r\n"
+        );
+        assert!(token::is_drive_limited(limited.trim_end()));
+        let mut driving = String::new();
+        write_ack(&mut driving, Ack::Driving).unwrap();
+        assert!(!token::is_drive_limited(driving.trim_end()));
     }
 }

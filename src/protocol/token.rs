@@ -163,6 +163,16 @@ impl fmt::Display for LinesDropped {
 /// The end of a `set` reply that changed nothing: `ok <name>=<value> (unchanged)`.
 pub const UNCHANGED: &str = " (unchanged)";
 
+/// The text of a `drive` reply whose command the board cut to its motion limits:
+/// `ok limited to v=… m/s w=… rad/s (max_speed, max_turn_rate)`.
+pub const DRIVE_LIMITED: &str = "limited to ";
+
+/// Whether `reply` is a `drive` the board cut to its limits.
+pub fn is_drive_limited(reply: &str) -> bool {
+    super::reply::FinalLine::parse(reply)
+        .is_some_and(|l| l.is_ok() && l.text().starts_with(DRIVE_LIMITED))
+}
+
 /// The end of the reply of a change held in RAM only (`set`, `reset-params`, `apply`):
 /// `ok d_right = 0.150000000 m (not saved; save to keep)`; `save` writes it to flash.
 pub const NOT_SAVED: &str = " (not saved; save to keep)";

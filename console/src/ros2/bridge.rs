@@ -216,7 +216,8 @@ impl Bridge<'_> {
             Err(e) => return Err(e),
         };
         self.stats.commands += 1;
-        if let Some(p) = self.prev {
+        // Driving only once the board accepted the command.
+        if let Some(p) = self.prev.filter(|_| r.ok()) {
             if self.commanding.is_none() {
                 println!(
                     "ros2: cmd_vel: driving from board t={:.6} at x={:.6} y={:.6}",

@@ -9,6 +9,7 @@ use super::msgs::diagnostic_msgs::{self, DiagnosticArray, DiagnosticStatus, KeyV
 use super::msgs::std_msgs::Header;
 use super::odometry::Odometer;
 use odocal::protocol::FinalLine;
+use odocal::protocol::token;
 
 /// Percentile `q` of sorted values (0 when empty).
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -143,6 +144,12 @@ pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> Diagnost
         (
             diagnostic_msgs::WARN,
             format!("cmd_vel refused: {}", c.last_drive_reply),
+        )
+    } else if token::is_drive_limited(c.last_drive_reply) {
+        // The board cut the command to its max_speed or max_turn_rate: the reply names both.
+        (
+            diagnostic_msgs::WARN,
+            format!("cmd_vel cut by the board's limits: {}", c.last_drive_reply),
         )
     } else {
         (diagnostic_msgs::OK, format!("state {state}"))
