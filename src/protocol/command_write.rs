@@ -53,9 +53,9 @@ impl fmt::Display for Command<'_> {
                 if let Some(n) = run {
                     write!(f, " #{n}")?;
                 }
-                write!(f, " {} {}", LengthText(x), LengthText(y))?;
+                write!(f, " {} {}", Typed::length(x), Typed::length(y))?;
                 if let Some(t) = theta {
-                    write!(f, " {}", AngleText(t))?;
+                    write!(f, " {}", Typed::angle(t))?;
                 }
                 yes(f, confirmed)
             }
@@ -130,29 +130,23 @@ fn yes(f: &mut fmt::Formatter<'_>, confirmed: bool) -> fmt::Result {
     }
 }
 
-/// A length as typed: the number and its unit against it (`-5.356mm`), or bare.
-struct LengthText(Length);
+/// A measured value as typed: the number and its unit's symbol against it (`-5.356mm`,
+/// `2.5deg`), or bare.
+struct Typed(f64, Option<&'static str>);
 
-impl fmt::Display for LengthText {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.0.value)?;
-        match self.0.unit {
-            Some(u) => f.write_str(u.symbol()),
-            None => Ok(()),
-        }
+impl Typed {
+    fn length(l: Length) -> Typed {
+        Typed(l.value, l.unit.map(|u| u.symbol()))
+    }
+
+    fn angle(a: Angle) -> Typed {
+        Typed(a.value, a.unit.map(|u| u.symbol()))
     }
 }
 
-/// An angle as typed: the number and its unit against it (`2.5deg`), or bare.
-struct AngleText(Angle);
-
-impl fmt::Display for AngleText {
+impl fmt::Display for Typed {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.0.value)?;
-        match self.0.unit {
-            Some(u) => f.write_str(u.symbol()),
-            None => Ok(()),
-        }
+        write!(f, "{}{}", self.0, self.1.unwrap_or(""))
     }
 }
 
