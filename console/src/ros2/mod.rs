@@ -98,6 +98,14 @@ pub struct Options {
     /// Log every line to and from the board to this file (JSON lines, as the guided session).
     #[arg(long)]
     pub log: Option<PathBuf>,
+    /// Put every topic (and the node) under this namespace, as multi-robot setups do:
+    /// `--namespace robot1` publishes `/robot1/odom`, `/robot1/tf`, `/robot1/joint_states`,
+    /// `/robot1/diagnostics` and takes `/robot1/cmd_vel`.
+    #[arg(long)]
+    pub namespace: Option<String>,
+    /// Prefix the frames (`robot1/` gives `robot1/odom` → `robot1/base_link`).
+    #[arg(long, default_value = "")]
+    pub frame_prefix: String,
     /// End (exit status 1) when the board's port goes away, for a launch file that respawns
     /// the bridge; without it the bridge waits for the same port path to come back.
     #[arg(long)]
@@ -168,21 +176,35 @@ fn default_qos(depth: usize) -> QosProfile {
         .history(History::KeepLast { depth })
 }
 
-/// A topic of the root namespace, where the node lives (`odom` and `/odom` are one topic,
-/// `rt/odom` in DDS).
-fn topic_name(name: &str) -> Result<Name, String> {
+/// The node's namespace: `/` or `/NS` (`--namespace NS`, leading and trailing slashes
+/// dropped).
+fn namespace(ns: Option<&str>) -> String {
+    match ns.map(|n| n.trim_matches('/')).filter(|n| !n.is_empty()) {
+        Some(n) => format!("/{n}"),
+        None => "/".to_string(),
+    }
+}
+
+/// A topic in the node's namespace `ns` (`namespace`): `odom` and `/odom` are one topic, `/odom`
+/// (`rt/odom` in DDS) at the root, `/robot1/odom` (`rt/robot1/odom`) under `--namespace robot1`.
+fn topic_name(ns: &str, name: &str) -> Result<Name, String> {
     let base = name.trim_start_matches('/');
-    Name::new("/", base).map_err(|e| format!("topic `{name}`: {e:?}"))
+    Name::new(ns, base).map_err(|e| format!("topic `{name}` in `{ns}`: {e:?}"))
 }
 
 fn publisher<M: serde::Serialize>(
     node: &mut Node,
+    ns: &str,
     name: &str,
     ty: TypeName,
     qos: &QosProfile,
 ) -> Result<Publisher<M>, String> {
     let topic = node
-        .create_topic(&topic_name(name)?, MessageTypeName::new(ty.0, ty.1), qos)
+        .create_topic(
+            &topic_name(ns, name)?,
+            MessageTypeName::new(ty.0, ty.1),
+            qos,
+        )
         .map_err(|e| format!("topic {name}: {e:?}"))?;
     node.create_publisher::<M>(&topic, Some(qos.clone()))
         .map_err(|e| format!("publisher {name}: {e:?}"))
@@ -323,19 +345,21 @@ fn network(opts: &Options, domain: u16, range: Range) -> Result<Network, String>
         .map_err(|e| format!("DDS participant on domain {domain}: {e:?}"))?;
     let context = Context::from_domain_participant(participant)
         .map_err(|e| format!("ROS 2 context: {e:?}"))?;
+    let ns = &namespace(opts.namespace.as_deref());
     let mut node = context
         .new_node(
-            NodeName::new("/", &opts.node_name).map_err(|e| format!("node name: {e:?}"))?,
+            NodeName::new(ns, &opts.node_name).map_err(|e| format!("node name: {e:?}"))?,
             NodeOptions::new().enable_rosout(false),
         )
         .map_err(|e| format!("ROS 2 node: {e:?}"))?;
     let odom_pub: Publisher<Odometry> =
-        publisher(&mut node, "odom", nav_msgs::ODOMETRY, &default_qos(10))?;
+        publisher(&mut node, ns, "odom", nav_msgs::ODOMETRY, &default_qos(10))?;
     let tf_pub: Option<Publisher<TFMessage>> = if opts.no_tf {
         None
     } else {
         Some(publisher(
             &mut node,
+            ns,
             "/tf",
             tf2_msgs::TF_MESSAGE,
             &default_qos(100),
@@ -343,12 +367,14 @@ fn network(opts: &Options, domain: u16, range: Range) -> Result<Network, String>
     };
     let joints_pub: Publisher<JointState> = publisher(
         &mut node,
+        ns,
         "joint_states",
         sensor_msgs::JOINT_STATE,
         &default_qos(10),
     )?;
     let diag_pub: Publisher<DiagnosticArray> = publisher(
         &mut node,
+        ns,
         "/diagnostics",
         diagnostic_msgs::DIAGNOSTIC_ARRAY,
         &default_qos(10),
@@ -364,7 +390,7 @@ fn network(opts: &Options, domain: u16, range: Range) -> Result<Network, String>
         let qos = default_qos(10);
         let topic = node
             .create_topic(
-                &topic_name("cmd_vel")?,
+                &topic_name(ns, "cmd_vel")?,
                 MessageTypeName::new(ty.0, ty.1),
                 &qos,
             )
@@ -396,11 +422,17 @@ fn network(opts: &Options, domain: u16, range: Range) -> Result<Network, String>
 /// The line that says what the bridge publishes and subscribes.
 fn banner(opts: &Options, version: &str, (domain, range): (u16, Range), sd_source: &str) -> String {
     format!(
-        "ros2: {version} on {}; node /{} on domain {domain}, discovery {range:?}; publishing odom \
-         ({} -> {}){}, joint_states ({}, {}), /diagnostics at {} Hz; {}; pose covariance from {}",
+        "ros2: {version} on {}; node {}{} on domain {domain}, discovery {range:?}; publishing odom \
+         ({}{} -> {}{}){}, joint_states ({}, {}), /diagnostics at {} Hz; {}; pose covariance from {}",
         opts.port,
+        match namespace(opts.namespace.as_deref()).as_str() {
+            "/" => "/".to_string(),
+            ns => format!("{ns}/"),
+        },
         opts.node_name,
+        opts.frame_prefix,
         opts.odom_frame,
+        opts.frame_prefix,
         opts.base_frame,
         if opts.no_tf { "" } else { ", /tf" },
         opts.left_joint,
@@ -445,8 +477,8 @@ fn odometer(opts: &Options, board: &Board, sd: (f64, f64)) -> Odometer {
         .then_some(crate::link::BAUD);
     Odometer::new(
         Names {
-            odom_frame: opts.odom_frame.clone(),
-            base_frame: opts.base_frame.clone(),
+            odom_frame: format!("{}{}", opts.frame_prefix, opts.odom_frame),
+            base_frame: format!("{}{}", opts.frame_prefix, opts.base_frame),
             left_joint: opts.left_joint.clone(),
             right_joint: opts.right_joint.clone(),
         },
@@ -549,6 +581,26 @@ mod tests {
         );
         assert!(ros_environment(env(&[("ROS_DOMAIN_ID", "300")])).is_err());
         assert!(ros_environment(env(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "LAN")])).is_err());
+    }
+
+    /// `--namespace` puts every topic under it, whatever slashes are typed; without it they
+    /// stay at the root (DDS names as Cyclone sees them: `rt/…`).
+    #[test]
+    fn the_namespace_prefixes_every_topic() {
+        let dds = |ns: Option<&str>, t: &str| {
+            topic_name(&namespace(ns), t).unwrap().to_dds_name(
+                "rt",
+                &NodeName::new("/", "n").unwrap(),
+                "",
+            )
+        };
+        assert_eq!(dds(None, "odom"), "rt/odom");
+        assert_eq!(dds(None, "/tf"), "rt/tf");
+        for ns in ["robot1", "/robot1", "/robot1/"] {
+            assert_eq!(dds(Some(ns), "odom"), "rt/robot1/odom");
+            assert_eq!(dds(Some(ns), "/tf"), "rt/robot1/tf");
+            assert_eq!(dds(Some(ns), "cmd_vel"), "rt/robot1/cmd_vel");
+        }
     }
 
     #[test]
