@@ -19,8 +19,9 @@ use std::path::Path;
 use odocal::calibration::synth;
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::run::{Direction, PathKind, RunRecord};
+use odocal::protocol::ParamName;
 use odocal::protocol::reply::{self, FinalLine};
-use odocal::protocol::{ParamName, token};
+use odocal::protocol::token::{self, TableRow};
 use odocal::session::Calibrator;
 use odocal::session::library::LibraryCalibrator;
 use serde_json::{Value, json};
@@ -165,16 +166,14 @@ pub(crate) fn active_of(params: &[String], counts_per_rev: u32) -> Option<Geomet
     })
 }
 
-/// `(sd_E_d, sd_E_b)` of `method`'s row in a `calibrate` table (its last two columns).
+/// `(sd_E_d, sd_E_b)` of `method`'s row in a `calibrate` table, read by the header's column
+/// names.
 fn sd_of(table: &[String], method: &str) -> Option<(f64, f64)> {
-    let row = table
-        .iter()
-        .find(|l| l.split_whitespace().next() == Some(method))?;
-    let w: Vec<&str> = row.split_whitespace().collect();
-    if w.len() < 10 {
-        return None;
-    }
-    Some((w[8].parse().ok()?, w[9].parse().ok()?))
+    let row = table.iter().find_map(|l| {
+        TableRow::parse(l)
+            .filter(|r| matches!(r, TableRow::Solved { method: m, .. } if *m == method))
+    })?;
+    Some((row.value("sd_E_d")?, row.value("sd_E_b")?))
 }
 
 /// `v` as a YAML float that YAML 1.1 readers (PyYAML) take as a number too: the shortest

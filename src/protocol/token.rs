@@ -221,6 +221,10 @@ pub const ACTIVE: &str = "active ";
 
 /// The header line of the `calibrate` table: `method  E_d  E_b …`.
 pub const TABLE_HEADER: &str = "method ";
+/// The calibrate table's columns after the method's name, in order, as its header names them.
+pub const TABLE_COLUMNS: [&str; 9] = [
+    "E_d", "E_b", "E_s", "D_R_mm", "D_L_mm", "b_mm", "E_max_mm", "sd_E_d", "sd_E_b",
+];
 
 /// A track-size advice line of `calibrate` and `advice`: `advice <method> …`.
 pub const ADVICE: &str = "advice ";
@@ -306,6 +310,18 @@ impl<'a> TableRow<'a> {
             columns,
             flagged,
         })
+    }
+}
+
+impl TableRow<'_> {
+    /// A solved row's value in the column the header names `name` ([`TABLE_COLUMNS`]);
+    /// `None` for another row, an unknown column, or a value the row does not have (`-`).
+    pub fn value(&self, name: &str) -> Option<f64> {
+        let TableRow::Solved { columns, .. } = self else {
+            return None;
+        };
+        let at = TABLE_COLUMNS.iter().position(|c| *c == name)?;
+        super::number::parse_f64(columns.split_ascii_whitespace().nth(at)?).ok()
     }
 }
 
@@ -450,5 +466,19 @@ mod tests {
             })
         );
         assert_eq!(TableRow::parse("   "), None);
+    }
+
+    /// A solved row's values read by the header's column names; the board's header names the
+    /// same columns in the same order.
+    #[test]
+    fn a_solved_rows_values_are_read_by_column_name() {
+        let line = "  alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   \
+                    388.8500   1.200     2.500e-4  -";
+        let row = TableRow::parse(line).unwrap();
+        assert_eq!(row.value("E_d"), Some(0.995));
+        assert_eq!(row.value("b_mm"), Some(388.85));
+        assert_eq!(row.value("sd_E_d"), Some(2.5e-4));
+        assert_eq!(row.value("sd_E_b"), None);
+        assert_eq!(row.value("no_such_column"), None);
     }
 }

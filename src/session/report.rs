@@ -368,3 +368,15 @@ pub(super) fn write_solution_row(
     }
     out.write_str(EOL)
 }
+
+#[cfg(test)]
+mod header_tests {
+    /// The header names [`token::TABLE_COLUMNS`], in order: a host reads the rows by them.
+    #[test]
+    fn the_header_names_the_table_columns_in_order() {
+        let mut header = std::string::String::new();
+        super::write_solution_header(&mut header).unwrap();
+        let names: std::vec::Vec<&str> = header.split_whitespace().skip(1).collect();
+        assert_eq!(names, crate::protocol::token::TABLE_COLUMNS);
+    }
+}
