@@ -79,3 +79,55 @@ fn set_heading_unit_rad_reads_a_bare_heading_in_radians() {
     // -0.0261799 rad as typed (7 significant digits): 1e-12 rad.
     assert!((theta + 0.0261799).abs() < 1e-12, "stored {theta} rad");
 }
+
+/// `set` takes the unit suffixes `measure` takes for every length parameter, and a bare number
+/// stays the parameter's listed unit (metres), where the range catches a factor of 1000. The
+/// stored value is the typed number times its unit (one multiplication: within 1e-16 m).
+#[test]
+fn set_takes_units() {
+    use odocal::protocol::{Command, ParamName, ParseError};
+    fn set(line: &str) -> Result<Command<'_>, ParseError> {
+        Command::parse(line)
+    }
+    for (typed, metres) in [
+        ("151mm", 0.151),
+        ("15.1cm", 0.151),
+        ("0.151m", 0.151),
+        ("0.151", 0.151),
+        ("151 ", 151.0),
+    ] {
+        let line = format!("set d_right {typed}");
+        let parsed = set(&line);
+        if metres > 5.0 {
+            assert!(
+                matches!(parsed, Err(ParseError::OutOfRange { unit: "m", .. })),
+                "`{typed}`: {parsed:?}"
+            );
+            continue;
+        }
+        let Ok(Command::Set { name, value }) = parsed else {
+            panic!("`{typed}`: {parsed:?}");
+        };
+        assert_eq!(name, ParamName::DiameterRight);
+        assert!((value - metres).abs() < 1e-16, "`{typed}`: {value}");
+    }
+    for name in ["d_left", "wheelbase", "square_side"] {
+        let line = format!("set {name} 385mm");
+        assert!(matches!(set(&line), Ok(Command::Set { .. })), "{name}");
+    }
+    // A length's unit only where the parameter is a length; an angle unit is not a length's.
+    assert!(matches!(
+        set("set d_right 151deg"),
+        Err(ParseError::BadNumber { .. })
+    ));
+    assert!(matches!(
+        set("set max_speed 0.3mm"),
+        Err(ParseError::BadNumber { .. })
+    ));
+    // Through the session: the stored nominal diameter.
+    let mut b = Bench::new();
+    let reply = b.send("set d_right 151mm");
+    assert!(reply.starts_with("ok d_right = 0.151"), "{reply}");
+    let d = b.session.settings().nominal.diameter_right_m;
+    assert!((d - 0.151).abs() < 1e-16, "{d}");
+}

@@ -459,6 +459,19 @@ fn set<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
     } else if name.is_integer() {
         // Integer ranges are small enough to be exact in f64 and u32.
         whole(value_word, "value", min as u32, max as u32).map(f64::from)
+    } else if name.unit() == "m" {
+        // A length takes the unit suffixes `measure` takes (`151mm`, `15.1cm`, `0.151m`); a
+        // bare number is in metres, the parameter's listed unit.
+        parse_length(value_word)
+            .map_err(|e| unit_error(e, value_word, "value", NumberHint::LengthUnit))
+            .and_then(|l| {
+                in_range(
+                    l.metres(Some(LengthUnit::Metre)).unwrap_or(l.value),
+                    "value",
+                    min,
+                    max,
+                )
+            })
     } else {
         number(value_word, "value", min, max)
     }
