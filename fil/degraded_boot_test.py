@@ -48,8 +48,10 @@ def boot(elf, workdir, name, **kw):
     return emu, con
 
 
-def no_crystal(elf, workdir):
-    emu, con = boot(elf, workdir, "no-crystal", crystal=False)
+def boot_with_fault(elf, workdir, name, crystal, label, end, fault_text):
+    """Boots with `crystal` (False: none, else its frequency): the boot line must end with
+    `end`, the fault event must be `fault_text`, and the console must answer."""
+    emu, con = boot(elf, workdir, name, crystal=crystal)
     try:
         line = con.wait_event("event boot", 60)
         fault = con.wait_event("event fault", 30)
@@ -57,41 +59,31 @@ def no_crystal(elf, workdir):
         _, status = con.command("status", 10)
     finally:
         emu.stop()
-    print(f"no crystal: `{line}`, then `{fault}`; `status` → `{status[:40]}…`")
+    print(f"{label}: `{line}`, then `{fault}`; `status` → `{status[:40]}…`")
     problems = []
-    end = "; " + PROFILE["internal_note"] + boot_tail(PROFILE)
     if not line.startswith("event boot: ") or not line.endswith(end):
         problems.append(f"boot line `{line}` (should end with `{end}`)")
-    if fault != "event fault: " + PROFILE["no_clock_fault"]:
+    if fault != "event fault: " + fault_text:
         problems.append(f"fault event `{fault}`")
     if echo != "ok echo off" or not status.startswith("ok state=idle"):
         problems.append(f"console `{echo}` / `{status}`")
     return problems
+
+
+def no_crystal(elf, workdir):
+    end = "; " + PROFILE["internal_note"] + boot_tail(PROFILE)
+    return boot_with_fault(elf, workdir, "no-crystal", False, "no crystal", end,
+                           PROFILE["no_clock_fault"])
 
 
 def unknown_crystal(elf, workdir):
     hz = PROFILE["unknown_hz"]
-    emu, con = boot(elf, workdir, "unknown-crystal", crystal=hz)
-    try:
-        line = con.wait_event("event boot", 60)
-        fault = con.wait_event("event fault", 30)
-        _, echo = con.command("echo off", 10)
-        _, status = con.command("status", 10)
-    finally:
-        emu.stop()
-    print(f"unknown crystal ({hz} Hz): `{line}`, then `{fault}`; `status` → `{status[:40]}…`")
     count = hse_count(hz)
     measured_khz = (HSI_HZ * HSE_PERIODS + count // 2) // count // 1000
-    problems = []
     end = (f"; {PROFILE['internal_note']}; crystal measured at {measured_khz} kHz, none of the "
            f"board's: HSE off{boot_tail(PROFILE)}")
-    if not line.startswith("event boot: ") or not line.endswith(end):
-        problems.append(f"boot line `{line}` (should end with `{end}`)")
-    if fault != "event fault: " + UNKNOWN_FAULT:
-        problems.append(f"fault event `{fault}`")
-    if echo != "ok echo off" or not status.startswith("ok state=idle"):
-        problems.append(f"console `{echo}` / `{status}`")
-    return problems
+    return boot_with_fault(elf, workdir, "unknown-crystal", hz, f"unknown crystal ({hz} Hz)", end,
+                           UNKNOWN_FAULT)
 
 
 def other_crystals(elf, workdir):

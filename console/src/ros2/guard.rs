@@ -100,20 +100,25 @@ impl Guard {
 
     /// The board's boot event arrived: its stream is off and the robot stopped.
     pub fn board_reset(&mut self) {
-        self.stale = Some(Stale::BoardReset);
-        self.said_stale = false;
-        self.moving = false;
         self.resets += 1;
-        self.last_restart_s = None;
+        self.lose(Stale::BoardReset);
     }
 
     /// The board's port went away: stale until its stream flows again (the bridge turns it on
     /// when it reopens the port).
     pub fn disconnected(&mut self) {
-        self.stale = Some(Stale::Disconnected);
+        self.lose(Stale::Disconnected);
+    }
+
+    /// The odometry stopped for `why`: stale, said again at the next refusal, the stream turned
+    /// on again at the next check; a board that reset or went away no longer moves the robot.
+    fn lose(&mut self, why: Stale) {
+        self.stale = Some(why);
         self.said_stale = false;
-        self.moving = false;
-        self.last_restart_s = None;
+        if why != Stale::Gap {
+            self.moving = false;
+            self.last_restart_s = None;
+        }
     }
 
     /// Why the odometry is stale, `None` while it flows.
@@ -125,8 +130,7 @@ impl Guard {
     /// stale; whether to send `stream on` now (stale, and the last attempt a second ago).
     pub fn restart_stream(&mut self, now_s: f64) -> bool {
         if self.stale.is_none() && self.last_line_s.is_some_and(|t| now_s - t > self.gap_s) {
-            self.stale = Some(Stale::Gap);
-            self.said_stale = false;
+            self.lose(Stale::Gap);
         }
         if self.stale.is_none() || self.stale == Some(Stale::Starting) {
             return false;
