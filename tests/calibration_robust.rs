@@ -20,7 +20,7 @@ use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, Culprit, Numbered, write_calibration};
+use odocal::session::{Calibrator, Culprit, Numbered, Reading, write_calibration};
 use rng::Rng;
 #[cfg(feature = "mocap")]
 use squares::normal;
@@ -491,7 +491,15 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         numbers: &[],
     };
     let mut out = String::new();
-    write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    write_calibration(
+        &mut calibrator,
+        numbered,
+        &NOMINAL,
+        None,
+        &Reading::DEFAULT,
+        &mut out,
+    )
+    .unwrap();
     assert!(
         out.contains("without run 4 the others agree (each run left out in turn): check run 4"),
         "{out}"
@@ -503,7 +511,15 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         runs: &stored,
         numbers: &numbers,
     };
-    write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    write_calibration(
+        &mut calibrator,
+        numbered,
+        &NOMINAL,
+        None,
+        &Reading::DEFAULT,
+        &mut out,
+    )
+    .unwrap();
     assert!(out.contains("without run 5 the others agree"), "{out}");
     // Measured right, no run disagrees and none is named.
     all[wrong].measured.x_m *= 10.0;
@@ -515,7 +531,15 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         runs: &stored,
         numbers: &[],
     };
-    write_calibration(&mut calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    write_calibration(
+        &mut calibrator,
+        numbered,
+        &NOMINAL,
+        None,
+        &Reading::DEFAULT,
+        &mut out,
+    )
+    .unwrap();
     assert!(
         !out.contains("DISAGREES") && !out.contains("left out"),
         "{out}"
@@ -530,7 +554,15 @@ fn advice_lines(
 ) -> Vec<String> {
     let numbered = Numbered { runs, numbers };
     let mut out = String::new();
-    write_calibration(calibrator, numbered, &NOMINAL, None, &mut out).unwrap();
+    write_calibration(
+        calibrator,
+        numbered,
+        &NOMINAL,
+        None,
+        &Reading::DEFAULT,
+        &mut out,
+    )
+    .unwrap();
     out.lines()
         .map(str::trim)
         .filter(|l| l.starts_with("advice "))

@@ -17,7 +17,7 @@ mod squares;
 
 use odocal::motion::run::RunRecord;
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, Culprit, Numbered, RunResidual, write_calibration};
+use odocal::session::{Calibrator, Culprit, Numbered, Reading, RunResidual, write_calibration};
 use squares::{NOMINAL, records, six_squares};
 
 /// The heading misread on runs 2 (+) and 4 (−), rad: 3°.
@@ -50,6 +50,7 @@ fn calibrate_reply(runs: &[RunRecord]) -> String {
         numbered,
         &NOMINAL,
         None,
+        &Reading::DEFAULT,
         &mut out,
     )
     .expect("a String takes the reply");

@@ -4,8 +4,10 @@
 //! The doubles here only record what the session asked for and return scripted values; the
 //! closed-loop behaviour against the real controller and calibration is tested in host-sim.
 
+use odocal::calibration::fit_check::{FitCheck, MeasuringNoise};
 use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::controller::{Fault, Wheel};
+use odocal::motion::convention::Convention;
 use odocal::motion::wiring::Wiring;
 use std::fmt;
 
@@ -272,6 +274,20 @@ impl Calibrator for KnownCalibrator {
                 residuals: heapless::Vec::new(),
             }),
             _ => Err(SolveError::UnknownMethod),
+        }
+    }
+    /// Its reading changes nothing of its known answers.
+    fn set_reading(&mut self, _: Convention, _: MeasuringNoise) {}
+    /// Its results carry no residuals to check.
+    fn fit_check(&mut self, _: &[RunRecord], _: &Geometry) -> Option<FitCheck> {
+        None
+    }
+    /// Known prediction errors: `alpha` 2 mm, `wild` 50 mm, `beta` none (it never solves).
+    fn prediction_error(&mut self, _: &[RunRecord], _: &Geometry, method: &str) -> Option<f64> {
+        match method {
+            "alpha" => Some(0.002),
+            "wild" => Some(0.05),
+            _ => None,
         }
     }
     /// Its results carry no per-run residuals: no run to name.

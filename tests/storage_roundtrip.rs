@@ -185,15 +185,22 @@ fn migrated(version: u8) -> ParamRecord {
     if version < 4 {
         want.control_hz = 1_000;
     }
+    if version < 5 {
+        let d = ParamRecord::DEFAULT;
+        want.measure_sd_m = d.measure_sd_m;
+        want.heading_sd_rad = d.heading_sd_rad;
+        want.convention = d.convention;
+    }
     want
 }
 
 /// The parameter-record fixtures with their version.
-const PARAM_FIXTURES: [(u8, &str); 4] = [
+const PARAM_FIXTURES: [(u8, &str); 5] = [
     (1, fixtures::PARAM_RECORD_V1),
     (2, fixtures::PARAM_RECORD_V2),
     (3, fixtures::PARAM_RECORD_V3),
     (4, fixtures::PARAM_RECORD_V4),
+    (5, fixtures::PARAM_RECORD_V5),
 ];
 
 /// Asserts that each listed field of `got` equals that of `want`, naming the first that does
@@ -251,6 +258,9 @@ fn stored_records_of_every_version_decode_to_their_values() {
             tuning.bandwidth_radps,
             tuning.output_limit,
             control_hz,
+            measure_sd_m,
+            heading_sd_rad,
+            convention,
         );
         let (got_c, want_c) = (got.calibration.clone(), want.calibration.clone());
         let (got_c, want_c) = (got_c.unwrap(), want_c.unwrap());
@@ -268,10 +278,10 @@ fn stored_records_of_every_version_decode_to_their_values() {
     }
 }
 
-/// The current format has not moved: today's encoder writes the version-4 fixture byte for
-/// byte, as the firmware that introduced version 4 did.
+/// The current format has not moved: today's encoder writes the version-5 fixture byte for
+/// byte, as the firmware that introduced version 5 did.
 #[test]
-fn todays_encoder_writes_the_version_4_fixture_byte_for_byte() {
+fn todays_encoder_writes_the_version_5_fixture_byte_for_byte() {
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     assert_eq!(
         fixtures::param_record().encode(&mut bytes),
@@ -279,7 +289,7 @@ fn todays_encoder_writes_the_version_4_fixture_byte_for_byte() {
     );
     assert_eq!(
         bytes.as_slice(),
-        fixtures::fixture_bytes(fixtures::PARAM_RECORD_V4).as_slice()
+        fixtures::fixture_bytes(fixtures::PARAM_RECORD_V5).as_slice()
     );
 }
 
@@ -287,7 +297,7 @@ fn todays_encoder_writes_the_version_4_fixture_byte_for_byte() {
 /// each version) loads through the real flash store with its calibration, geometry and motion
 /// settings intact, its wiring (v2 on) and tuning (v3 on), and for what a version did not
 /// store, the standard wiring, default speed-loop tuning and 1 kHz control rate that firmware
-/// used; the next save writes a version-4 record that loads back unchanged.
+/// used; the next save writes a version-5 record that loads back unchanged.
 #[test]
 fn records_of_every_older_version_survive_the_upgrade() {
     for (version, hex) in PARAM_FIXTURES {
@@ -297,7 +307,7 @@ fn records_of_every_older_version_survive_the_upgrade() {
         let out = store.load_blocking();
         assert_eq!(out.warning, None, "version {version}");
         assert_eq!(out.record, migrated(version), "version {version}");
-        // The operator raises the rate and saves: version 4 on flash, read back exactly.
+        // The operator raises the rate and saves: version 5 on flash, read back exactly.
         let mut faster = out.record;
         faster.control_hz = 10_000;
         store.save_blocking(&faster, STOPPED).unwrap();
@@ -305,7 +315,7 @@ fn records_of_every_older_version_survive_the_upgrade() {
         assert_eq!(again.warning, None);
         assert_eq!(again.record, faster);
         assert_eq!(store.moved(), 1, "version {version}");
-        assert_eq!(last_stored_version(&mut flash), Some(4));
+        assert_eq!(last_stored_version(&mut flash), Some(5));
     }
 }
 

@@ -30,7 +30,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, write_calibration};
+use odocal::session::{Calibrator, Reading, write_calibration};
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
@@ -153,8 +153,15 @@ fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
         runs: &runs,
         numbers: &[],
     };
-    write_calibration(&mut calibrator, numbered, &nominal, method, &mut out)
-        .map_err(|e| e.to_string())?;
+    write_calibration(
+        &mut calibrator,
+        numbered,
+        &nominal,
+        method,
+        &Reading::DEFAULT,
+        &mut out,
+    )
+    .map_err(|e| e.to_string())?;
     print!("{}", out.replace("\r\n", "\n"));
     if out
         .lines()

@@ -34,6 +34,7 @@ use crate::util::decimal::Decimal;
 use crate::util::trig;
 
 pub mod exact;
+pub mod fit_check;
 pub mod jung_chung;
 pub mod lee;
 pub mod quality;

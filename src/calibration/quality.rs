@@ -225,7 +225,8 @@ pub fn closed_form_sigma(
 }
 
 /// Propagates input variances through a closed-form method: `[σ_e_d, σ_e_b]` of the relative
-/// factors.
+/// factors; `None` when no input has a variance (one run per direction, or inputs the runs
+/// cannot scatter): a 1σ of 0 would claim an exact result.
 pub fn propagate(
     method: Method,
     inputs: &ClosedFormInputs,
@@ -235,10 +236,12 @@ pub fn propagate(
 ) -> Option<[f64; 2]> {
     let mut vd = 0.0;
     let mut vb = 0.0;
+    let mut any = false;
     for i in 0..4 {
         if variances[i] <= 0.0 {
             continue;
         }
+        any = true;
         let mut up = *inputs;
         let mut dn = *inputs;
         up[i] += INPUT_STEP;
@@ -250,7 +253,7 @@ pub fn propagate(
         vd += dd * dd * variances[i];
         vb += db * db * variances[i];
     }
-    Some([libm::sqrt(vd), libm::sqrt(vb)])
+    any.then(|| [libm::sqrt(vd), libm::sqrt(vb)])
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 pub mod bringup;
 pub mod button;
 pub mod controller;
+pub mod convention;
 pub mod hbridge;
 pub mod identify;
 pub mod motor;

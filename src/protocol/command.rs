@@ -15,6 +15,7 @@ use super::unit::{
     parse_length,
 };
 use crate::motion::bringup::CheckKind;
+use crate::motion::convention::Convention;
 use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
 use crate::storage::record::METHOD_NAME_MAX;
@@ -119,6 +120,12 @@ pub enum Command<'a> {
     DropAll {
         /// `yes` was typed after it.
         confirmed: bool,
+    },
+    /// `convention [name]`: how every measured run is read from now on (`None`: say which is
+    /// in force and the choices). The runs keep what was typed.
+    Convention {
+        /// The convention, `None` = ask.
+        name: Option<Convention>,
     },
     /// `calibrate [method]`: compute every method (or one) from the measured runs.
     Calibrate {
@@ -472,6 +479,19 @@ fn set<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
                     max,
                 )
             })
+    } else if name.unit() == "deg" {
+        // An angle takes `measure`'s angle suffixes (`0.2deg`, `0.0035rad`); a bare number is
+        // in degrees, the parameter's listed unit.
+        parse_angle(value_word)
+            .map_err(|e| unit_error(e, value_word, "value", NumberHint::AngleUnit))
+            .and_then(|a| {
+                in_range(
+                    a.degrees(Some(AngleUnit::Degree)).unwrap_or(a.value),
+                    "value",
+                    min,
+                    max,
+                )
+            })
     } else {
         number(value_word, "value", min, max)
     }
@@ -651,7 +671,7 @@ impl<'a> Command<'a> {
         } else if is("version") {
             Command::Version
         } else if is("drop") {
-            let which = words.required("n")?;
+            let which = words.next().ok_or(ParseError::DropWhich)?;
             if keyword_eq(which, "all") {
                 Command::DropAll {
                     confirmed: confirmation(&mut words)?,
@@ -660,6 +680,17 @@ impl<'a> Command<'a> {
                 let index = whole(which, "n", 1, RUN_NUMBER_MAX)? as usize;
                 Command::Drop { index }
             }
+        } else if is("convention") {
+            let name = words
+                .next()
+                .map(|w| {
+                    Convention::parse(w).ok_or(ParseError::BadKeyword {
+                        what: "convention",
+                        expected: Convention::NAMES,
+                    })
+                })
+                .transpose()?;
+            Command::Convention { name }
         } else if is("calibrate") {
             let method = words.next().map(method_name).transpose()?;
             Command::Calibrate { method }

@@ -71,6 +71,13 @@ impl fmt::Display for Command<'_> {
                 f.write_str("drop all")?;
                 yes(f, confirmed)
             }
+            Command::Convention { name } => {
+                f.write_str("convention")?;
+                match name {
+                    Some(c) => write!(f, " {}", c.as_str()),
+                    None => Ok(()),
+                }
+            }
             Command::Calibrate { method } => {
                 f.write_str("calibrate")?;
                 match method {
@@ -192,9 +199,10 @@ mod tests {
             Command::Stream { .. } => 25,
             Command::Echo { .. } => 26,
             Command::Drive { .. } => 27,
+            Command::Convention { .. } => 28,
         }
     }
-    const VARIANTS: usize = 28;
+    const VARIANTS: usize = 29;
 
     /// Every parameter at the ends and the middle of its range (signs at ±1, whole numbers
     /// whole), as `set` commands.
@@ -328,6 +336,7 @@ mod tests {
             Command::Calibrate {
                 method: Some("exact"),
             },
+            Command::Convention { name: None },
             Command::Apply {
                 method: "jung-chung",
                 confirmed: false,
@@ -377,6 +386,10 @@ mod tests {
         let mut commands = every_other();
         commands.extend(every_measure());
         commands.extend(every_set());
+        commands.extend(
+            crate::motion::convention::Convention::ALL
+                .map(|c| Command::Convention { name: Some(c) }),
+        );
         let mut covered = [false; VARIANTS];
         for c in &commands {
             let line = c.to_string();
@@ -387,7 +400,7 @@ mod tests {
             covered.iter().all(|&c| c),
             "a command without a case: {covered:?}"
         );
-        assert_eq!(commands.len(), 49 + 3 * ParamName::ALL.len());
+        assert_eq!(commands.len(), 56 + 3 * ParamName::ALL.len());
     }
 
     /// The lines a person types and the writer's agree on the spelling the docs use.

@@ -10,6 +10,7 @@ use super::param::ParamName;
 use super::refusal::write_path;
 use super::reply::EOL;
 use super::token;
+use crate::motion::convention::Convention;
 use crate::motion::run::{Measurement, PathKind};
 use crate::util::decimal::Decimal;
 
@@ -90,6 +91,13 @@ pub enum Ack {
     OdometryReset,
     /// `drive` accepted as given.
     Driving,
+    /// `convention [name]`: the convention in force (`changed`: just set).
+    Convention {
+        /// The convention in force.
+        name: Convention,
+        /// It was set by this command.
+        changed: bool,
+    },
     /// `drive` accepted at the motion limits: the speed and turn rate it was cut to.
     DriveLimited {
         /// Forward speed, m/s.
@@ -217,6 +225,14 @@ pub fn write_ack(out: &mut dyn Write, ack: Ack) -> fmt::Result {
         Ack::Stream { hz: None } => out.write_str("ok stream off")?,
         Ack::OdometryReset => out.write_str("ok odometry reset")?,
         Ack::Driving => out.write_str("ok")?,
+        Ack::Convention { name, changed } => {
+            write!(out, "ok convention {} ({})", name.as_str(), name.describe())?;
+            out.write_str(if changed {
+                ": every measured run is read so from now on, as typed in runs; calibrate again"
+            } else {
+                "; convention <name> to change it"
+            })?;
+        }
         Ack::DriveLimited { v_mps, w_radps } => write!(
             out,
             "ok {}v={} m/s w={} rad/s (max_speed, max_turn_rate)",

@@ -6,6 +6,7 @@
 //! are magnitudes (always positive). The ranges here are the protocol's hard bounds: a value
 //! outside them is rejected by the parser before anything else sees it.
 
+use crate::calibration::fit_check::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
 use crate::motion::speed::{MotorParams, SpeedTuning};
 use crate::storage::record::ParamRecord;
 use crate::util::text::keyword_eq;
@@ -69,11 +70,15 @@ pub enum ParamName {
     /// Control (and odometry) rate, Hz: one of
     /// [`crate::motion::controller::RATES_HZ`] (1 kHz to 10 kHz).
     ControlHz,
+    /// 1σ of a measured end position (each of x, y) that `calibrate`'s fit check assumes, metres.
+    MeasureSd,
+    /// 1σ of a measured end heading that the fit check assumes, degrees.
+    HeadingSd,
 }
 
 impl ParamName {
     /// Every parameter, in the order `params` lists them.
-    pub const ALL: [ParamName; 24] = [
+    pub const ALL: [ParamName; 26] = [
         ParamName::DiameterRight,
         ParamName::DiameterLeft,
         ParamName::Wheelbase,
@@ -98,6 +103,8 @@ impl ParamName {
         ParamName::MotorLeftDeadband,
         ParamName::SpeedBandwidth,
         ParamName::ControlHz,
+        ParamName::MeasureSd,
+        ParamName::HeadingSd,
     ];
 
     /// This parameter's row of [`PARAMS`].
@@ -291,7 +298,7 @@ const TAU: (f64, f64) = f32_range(MotorParams::TAU_RANGE);
 const DEADBAND: (f64, f64) = f32_range(MotorParams::DEADBAND_RANGE);
 
 /// Every parameter, in [`ParamName`]'s order (the order `params` lists them).
-pub const PARAMS: [ParamSpec; 24] = {
+pub const PARAMS: [ParamSpec; 26] = {
     use ParamGroup as G;
     use ParamName as P;
     use ValueKind::{Sign, Whole};
@@ -577,6 +584,30 @@ pub const PARAMS: [ParamSpec; 24] = {
             Whole,
             G::Rate,
             (|r| f64::from(r.control_hz), |r, v| r.control_hz = v as u32),
+        ),
+        row(
+            P::MeasureSd,
+            "measure_sd",
+            "m",
+            MEASURE_SD_RANGE_M,
+            ValueKind::Real { places: 4 },
+            G::Plan,
+            (
+                |r| f64::from(r.measure_sd_m),
+                |r, v| r.measure_sd_m = v as f32,
+            ),
+        ),
+        row(
+            P::HeadingSd,
+            "heading_sd",
+            "deg",
+            HEADING_SD_RANGE_DEG,
+            ValueKind::Real { places: 3 },
+            G::Plan,
+            (
+                |r| f64::from(r.heading_sd_rad).to_degrees(),
+                |r, v| r.heading_sd_rad = v.to_radians() as f32,
+            ),
         ),
     ]
 };

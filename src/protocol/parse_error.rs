@@ -20,6 +20,8 @@ pub enum ParseError {
         /// Name of the missing argument.
         what: &'static str,
     },
+    /// `drop` without saying which run.
+    DropWhich,
     /// More arguments than the command takes.
     TooManyArguments,
     /// A number could not be read.
@@ -65,6 +67,10 @@ impl fmt::Display for ParseError {
             ParseError::Empty => f.write_str("empty line"),
             ParseError::UnknownCommand => f.write_str("unknown command (try help)"),
             ParseError::MissingArgument { what } => write!(f, "missing argument <{what}>"),
+            ParseError::DropWhich => f.write_str(
+                "missing argument: drop <n> forgets run n (numbered as runs lists them), drop all \
+                 yes forgets every run",
+            ),
             ParseError::TooManyArguments => f.write_str("too many arguments"),
             ParseError::BadNumber { what, hint } => {
                 write!(f, "<{what}> ")?;

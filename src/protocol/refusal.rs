@@ -12,7 +12,7 @@ use super::reply::{EOL, ErrorCode};
 use crate::motion::controller::MotorsRunning;
 use crate::motion::run::PathKind;
 use crate::storage::StoreError;
-use crate::util::decimal::{Decimal, Plain};
+use crate::util::decimal::{Decimal, Plain, Scientific};
 
 /// What is in progress when a command is refused as busy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,6 +97,13 @@ pub enum Refusal<'a> {
     Flagged {
         /// The flagged runs' numbers.
         runs: &'a [usize],
+        /// The method as the calibrator names it.
+        method: &'a str,
+    },
+    /// `err 25`: the runs fit no geometry within the measuring noise; `apply` needs `yes`.
+    PoorFit {
+        /// The fit's χ² probability.
+        probability: f64,
         /// The method as the calibrator names it.
         method: &'a str,
     },
@@ -189,6 +196,7 @@ impl Refusal<'_> {
             Refusal::Unmeasured { .. } => ErrorCode::Unmeasured,
             Refusal::DropAllUnconfirmed { .. }
             | Refusal::Flagged { .. }
+            | Refusal::PoorFit { .. }
             | Refusal::ResetUnconfirmed { .. } => ErrorCode::NotConfirmed,
             Refusal::NoUnit { .. } => ErrorCode::NoUnit,
             Refusal::NotEnoughRuns { .. } => ErrorCode::NotEnoughRuns,
@@ -341,6 +349,16 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
                  drop <n>, or type apply {method} yes to apply anyway"
             )?;
         }
+        Refusal::PoorFit {
+            probability,
+            method,
+        } => write!(
+            out,
+            "the runs fit no geometry within the measuring noise (p={}, see calibrate's fit and \
+             mistake lines): convention <name> or measure again, declare the noise (set \
+             measure_sd, set heading_sd), or type apply {method} yes to apply anyway",
+            Scientific::new(probability, 2)
+        )?,
         Refusal::NotEnoughRuns { cw, ccw } => write!(
             out,
             "need measured square runs in both directions (measured: cw {cw}, ccw {ccw})"

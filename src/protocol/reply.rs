@@ -101,7 +101,9 @@ impl From<&ParseError> for ErrorCode {
     fn from(e: &ParseError) -> Self {
         match e {
             ParseError::Empty | ParseError::UnknownCommand => ErrorCode::UnknownCommand,
-            ParseError::MissingArgument { .. } => ErrorCode::MissingArgument,
+            ParseError::MissingArgument { .. } | ParseError::DropWhich => {
+                ErrorCode::MissingArgument
+            }
             ParseError::TooManyArguments => ErrorCode::TooManyArguments,
             ParseError::BadNumber { .. } => ErrorCode::BadNumber,
             ParseError::NotFinite { .. } => ErrorCode::NotFinite,

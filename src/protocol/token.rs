@@ -222,9 +222,23 @@ pub const ACTIVE: &str = "active ";
 /// The header line of the `calibrate` table: `method  E_d  E_b …`.
 pub const TABLE_HEADER: &str = "method ";
 /// The calibrate table's columns after the method's name, in order, as its header names them.
-pub const TABLE_COLUMNS: [&str; 9] = [
-    "E_d", "E_b", "E_s", "D_R_mm", "D_L_mm", "b_mm", "E_max_mm", "sd_E_d", "sd_E_b",
+pub const TABLE_COLUMNS: [&str; 10] = [
+    "E_d", "E_b", "E_s", "D_R_mm", "D_L_mm", "b_mm", "loo_mm", "E_max_mm", "sd_E_d", "sd_E_b",
 ];
+
+/// The end of the `calibrate` table's row of the method with the lowest leave-one-out error
+/// (`loo_mm`): the one the board recommends, and the guided console proposes.
+pub const LOWEST_LOO: &str = "  [lowest loo]";
+
+/// The goodness-of-fit line of `calibrate`: `fit exact chi2=… dof=… p=…: …`.
+pub const FIT: &str = "fit ";
+/// In a [`FIT`] line: the runs agree with no geometry within the noise assumed.
+pub const POOR_FIT: &str = "POOR FIT";
+/// The line after a poor [`FIT`]: `mistake <convention>: …` (the convention whose re-reading of
+/// every run fits) or `mistake none: …`.
+pub const MISTAKE: &str = "mistake ";
+/// The [`MISTAKE`] line's word when no consistent mistake explains the fit.
+pub const NO_MISTAKE: &str = "none";
 
 /// A track-size advice line of `calibrate` and `advice`: `advice <method> …`.
 pub const ADVICE: &str = "advice ";
@@ -235,13 +249,16 @@ const RESIDUAL: &str = RUN;
 /// data lines removed or not).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TableRow<'a> {
-    /// A method's solved row: its name, its columns (space-separated numbers and `-`) and the
-    /// runs it was computed with that the robust fit flagged (`None`: none).
+    /// A method's solved row: its name, its columns (space-separated numbers, `-` and `n/a`),
+    /// whether it has the lowest leave-one-out error, and the runs it was computed with that
+    /// the robust fit flagged (`None`: none).
     Solved {
         /// The method's name.
         method: &'a str,
-        /// The columns after the name: `E_d E_b E_s D_R_mm D_L_mm b_mm E_max_mm sd_E_d sd_E_b`.
+        /// The columns after the name, as [`TABLE_COLUMNS`] names them.
         columns: &'a str,
+        /// The row is marked [`LOWEST_LOO`].
+        lowest: bool,
         /// The numbers of the flagged runs, space-separated.
         flagged: Option<&'a str>,
     },
@@ -266,6 +283,14 @@ pub enum TableRow<'a> {
     },
     /// A track-size advice line (the text after `advice `).
     Advice(&'a str),
+    /// The goodness-of-fit line: whether the fit is poor ([`POOR_FIT`]).
+    Fit {
+        /// The runs agree with no geometry within the noise assumed.
+        poor: bool,
+    },
+    /// The measuring mistake a poor fit is explained by, by its convention's name (`None`:
+    /// none explains it).
+    Mistake(Option<&'a str>),
 }
 
 impl<'a> TableRow<'a> {
@@ -282,6 +307,15 @@ impl<'a> TableRow<'a> {
         }
         if let Some(rest) = line.strip_prefix(ADVICE) {
             return Some(TableRow::Advice(rest));
+        }
+        if let Some(rest) = line.strip_prefix(FIT) {
+            return Some(TableRow::Fit {
+                poor: rest.contains(POOR_FIT),
+            });
+        }
+        if let Some(rest) = line.strip_prefix(MISTAKE) {
+            let name = rest.split(':').next().unwrap_or("").trim();
+            return Some(TableRow::Mistake((name != NO_MISTAKE).then_some(name)));
         }
         if let Some(rest) = line.strip_prefix(RESIDUAL) {
             let run = rest.split_whitespace().next()?.parse().ok()?;
@@ -305,9 +339,14 @@ impl<'a> TableRow<'a> {
             }
             None => (rest.trim_end(), None),
         };
+        let (columns, lowest) = match columns.strip_suffix(LOWEST_LOO.trim_start()) {
+            Some(c) => (c.trim_end(), true),
+            None => (columns, false),
+        };
         Some(TableRow::Solved {
             method,
             columns,
+            lowest,
             flagged,
         })
     }

@@ -11,10 +11,12 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use super::AppliedCalibration;
+use super::fit_check::{self, Reading};
 use super::traits::{Calibrator, Culprit, Numbered, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
-use crate::protocol::outcome::{ParamOutcome, write_param_outcome};
+use crate::motion::convention::Convention;
+use crate::protocol::outcome::{Ack, ParamOutcome, write_ack, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
 use crate::storage::record::METHOD_NAME_MAX;
 use crate::util::text::keyword_eq;
@@ -48,7 +50,40 @@ impl<C: Calibrator> Session<C> {
             runs: &self.runs,
             numbers: &self.numbers,
         };
-        write_calibration(&mut self.calibrator, runs, &nominal, method, out)
+        let reading = self.reading();
+        write_calibration(&mut self.calibrator, runs, &nominal, method, &reading, out)
+    }
+
+    /// How the session reads its runs now.
+    pub(super) fn reading(&self) -> Reading {
+        Reading {
+            convention: self.settings.convention,
+            noise: self.settings.measuring_noise(),
+        }
+    }
+
+    /// `convention [name]`: re-reads every measured run under `name` from now on (kept with
+    /// the settings: `save` stores it), or says which is in force.
+    pub(super) fn convention(
+        &mut self,
+        name: Option<Convention>,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        let changed = name.is_some_and(|c| c != self.settings.convention);
+        if let Some(c) = name {
+            self.settings.convention = c;
+        }
+        if changed {
+            self.unsaved = true;
+            let reading = self.reading();
+            self.calibrator
+                .set_reading(reading.convention, reading.noise);
+        }
+        let ack = Ack::Convention {
+            name: self.settings.convention,
+            changed: name.is_some(),
+        };
+        write_ack(out, ack)
     }
 
     /// `err 7: unknown method; one of <m1>|<m2>|…`.
@@ -88,10 +123,23 @@ impl<C: Calibrator> Session<C> {
             runs: &self.runs,
             numbers: &self.numbers,
         };
+        let reading = self.reading();
+        self.calibrator
+            .set_reading(reading.convention, reading.noise);
         let flagged = flagged_runs(&mut self.calibrator, runs, &nominal);
         if !flagged.is_empty() && !confirmed {
             let refusal = Refusal::Flagged {
                 runs: &flagged,
+                method: name,
+            };
+            return write_refusal(out, &refusal);
+        }
+        // Runs that fit no geometry within the noise (a measuring mistake on every run?) make
+        // every result wrong alike: applying one takes `yes` too.
+        let check = self.calibrator.fit_check(&self.runs, &nominal);
+        if let Some(c) = check.filter(|c| c.poor() && !confirmed) {
+            let refusal = Refusal::PoorFit {
+                probability: c.probability,
                 method: name,
             };
             return write_refusal(out, &refusal);
@@ -149,6 +197,7 @@ pub fn write_calibration<C: Calibrator>(
     numbered: Numbered<'_>,
     nominal: &Geometry,
     method: Option<&str>,
+    reading: &Reading,
     out: &mut dyn Write,
 ) -> fmt::Result {
     let runs = numbered.runs;
@@ -156,16 +205,33 @@ pub fn write_calibration<C: Calibrator>(
     if let Some(refused) = refuse_calibration(&p, out) {
         return refused;
     }
+    calibrator.set_reading(reading.convention, reading.noise);
     let flagged = flagged_runs(calibrator, numbered, nominal);
+    let methods: Vec<&'static str, 16> = calibrator
+        .methods()
+        .iter()
+        .filter(|name| method.is_none_or(|m| keyword_eq(m, name)))
+        .take(16)
+        .copied()
+        .collect();
+    // Each method's leave-one-out error, and the lowest (marked when more than one is listed).
+    let loo: Vec<Option<f64>, 16> = methods
+        .iter()
+        .map(|name| calibrator.prediction_error(runs, nominal, name))
+        .collect();
+    let lowest = match methods.len() {
+        1 => None,
+        _ => (0..loo.len())
+            .filter_map(|i| Some((i, (*loo.get(i)?)?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i),
+    };
     report::write_solution_header(out)?;
     let mut solved = 0usize;
-    // The first result with per-run residuals (the exact fit) is listed after the table.
+    // The first result with per-run residuals (the exact fit) is listed after the table, with
+    // its fit check.
     let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
-    let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
-    for name in methods {
-        if method.is_some_and(|m| !keyword_eq(m, name)) {
-            continue;
-        }
+    for (i, name) in methods.into_iter().enumerate() {
         let result = calibrator.solve(runs, nominal, name);
         if let Ok(s) = &result {
             solved += 1;
@@ -177,7 +243,8 @@ pub fn write_calibration<C: Calibrator>(
                 residuals = Some((name, r));
             }
         }
-        report::write_solution_row(out, name, &result, &flagged)?;
+        let loo_i = (loo.get(i).copied().flatten(), lowest == Some(i));
+        report::write_solution_row(out, name, &result, loo_i, &flagged)?;
     }
     if let Some((name, r)) = &residuals {
         // Which run to look at: the one whose removal makes the others agree.
@@ -189,6 +256,22 @@ pub fn write_calibration<C: Calibrator>(
             false => None,
         };
         report::write_residuals(out, name, r, culprit)?;
+    }
+    if residuals.is_some()
+        && let Some(check) = calibrator.fit_check(runs, nominal)
+    {
+        // A poor fit: the consistent measuring mistake that explains it, if one does.
+        let mistake = match check.poor() {
+            true => fit_check::name_mistake(
+                calibrator,
+                runs,
+                nominal,
+                reading.convention,
+                &reading.noise,
+            ),
+            false => None,
+        };
+        fit_check::write_fit(out, &check, &reading.noise, mistake)?;
     }
     if solved == 0 {
         // Advice from a failed fit would be meaningless.

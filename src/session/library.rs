@@ -19,15 +19,20 @@ use super::traits::{
     Calibrator, Culprit, Health, Numbered, Rejection, Robot, RobotError, RunResidual,
     SettingsAndRuns, Solution, SolveError,
 };
+use crate::calibration::ExactOptions;
+use crate::calibration::fit_check::{
+    DEFAULT_HEADING_SD_DEG, EndResidual, FitCheck, MeasuringNoise,
+};
 use crate::calibration::track::{self, TrackAdviceInput};
 use crate::calibration::{self, Calibration, CalibrationError, Method, RunObservation};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
-use crate::kinematics::reference::PoseF64;
+use crate::kinematics::reference::{ArcModel, PoseF64};
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{
     Controller, DriveError, Fault, MotorsRunning, MotorsStopped, SetError, StartError, Status,
 };
+use crate::motion::convention::Convention;
 use crate::motion::profile::MotionLimits;
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
@@ -269,6 +274,8 @@ pub struct LibraryCalibrator {
     exact: Option<(Geometry, Result<KeptExact, SolveError>)>,
     /// Exact fits computed so far.
     exact_solves: u32,
+    /// How every measured run is read.
+    convention: Convention,
 }
 
 /// What is kept of an exact fit: the solution as `calibrate` shows it (its residuals say which
@@ -287,6 +294,7 @@ impl LibraryCalibrator {
             max_side_m,
             exact: None,
             exact_solves: 0,
+            convention: Convention::Standard,
         }
     }
 
@@ -305,7 +313,7 @@ impl LibraryCalibrator {
             Some((n, kept)) if n == *nominal => kept,
             _ => {
                 self.exact_solves = self.exact_solves.saturating_add(1);
-                let obs = observations(runs);
+                let obs = observations(runs, self.convention);
                 calibration::calibrate(&obs, nominal, Method::Exact)
                     .map(|c| KeptExact {
                         solution: solution(&c, runs),
@@ -327,7 +335,7 @@ fn solution(c: &Calibration, runs: &[RunRecord]) -> Solution {
     let numbers: Vec<usize, MAX_RUNS> = runs
         .iter()
         .enumerate()
-        .filter(|(_, r)| RunObservation::from_record(r).is_some())
+        .filter(|(_, r)| r.measured.is_some())
         .map(|(i, _)| i + 1)
         .take(MAX_RUNS)
         .collect();
@@ -359,10 +367,12 @@ fn solution(c: &Calibration, runs: &[RunRecord]) -> Solution {
     }
 }
 
-/// 1σ of a measured end position the procedure asks for (and the advice assumes), metres.
-pub const MEASURED_POSITION_SIGMA_M: f64 = 1e-3;
-/// 1σ of a measured end heading the procedure asks for (and the advice assumes), degrees.
-pub const MEASURED_HEADING_SIGMA_DEG: f64 = 0.2;
+/// 1σ of a measured end position the procedure asks for (and the advice assumes by default),
+/// metres.
+pub const MEASURED_POSITION_SIGMA_M: f64 = MeasuringNoise::DEFAULT.position_m;
+/// 1σ of a measured end heading the procedure asks for (and the advice assumes by default),
+/// degrees.
+pub const MEASURED_HEADING_SIGMA_DEG: f64 = DEFAULT_HEADING_SD_DEG;
 
 impl Default for LibraryCalibrator {
     /// [`MEASURED_POSITION_SIGMA_M`] and [`MEASURED_HEADING_SIGMA_DEG`] measurement error,
@@ -376,9 +386,14 @@ impl Default for LibraryCalibrator {
     }
 }
 
-fn observations(runs: &[RunRecord]) -> Vec<RunObservation<'_>, MAX_RUNS> {
+/// The measured runs as observations, each measurement re-read under `convention`.
+fn observations(runs: &[RunRecord], convention: Convention) -> Vec<RunObservation<'_>, MAX_RUNS> {
     runs.iter()
         .filter_map(RunObservation::from_record)
+        .map(|mut o| {
+            o.measured = convention.reread(o.measured);
+            o
+        })
         .take(MAX_RUNS)
         .collect()
 }
@@ -402,6 +417,90 @@ impl Calibrator for LibraryCalibrator {
         self.exact = None;
     }
 
+    fn set_reading(&mut self, convention: Convention, noise: MeasuringNoise) {
+        if convention != self.convention {
+            self.convention = convention;
+            self.exact = None;
+        }
+        self.measurement_sigma_m = noise.position_m;
+        self.measurement_sigma_rad = noise.heading_rad;
+    }
+
+    fn fit_check(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Option<FitCheck> {
+        let flagged: Vec<usize, MAX_RUNS> = self
+            .exact_fit(runs, nominal)
+            .ok()?
+            .solution
+            .flagged()
+            .collect();
+        let convention = self.convention;
+        let obs: Vec<RunObservation<'_>, MAX_RUNS> = runs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !flagged.contains(&(i + 1)))
+            .filter_map(|(_, r)| RunObservation::from_record(r))
+            .map(|mut o| {
+                o.measured = convention.reread(o.measured);
+                o
+            })
+            .collect();
+        let noise = MeasuringNoise {
+            position_m: self.measurement_sigma_m,
+            heading_rad: self.measurement_sigma_rad,
+        };
+        // Headings weighted against positions as the χ² weights them (at the longest path's
+        // noise): the least-squares fit is then the χ²'s minimum.
+        let longest = obs
+            .iter()
+            .map(RunObservation::characteristic_length_m)
+            .fold(0.0, f64::max);
+        let (sp, sh) = noise.end_sigma(longest);
+        let options = ExactOptions {
+            heading_length_m: Some(sp / sh),
+            ..ExactOptions::plain()
+        };
+        let c = calibration::calibrate_with(&obs, nominal, Method::Exact, &options).ok()?;
+        let fit = c.fit?;
+        let residuals = fit.runs().iter().filter_map(|r| {
+            Some(EndResidual {
+                path: obs.get(r.index)?.path,
+                dx_m: r.residual_x_m,
+                dy_m: r.residual_y_m,
+                dtheta_rad: r.residual_theta_rad,
+            })
+        });
+        FitCheck::of(residuals, fit.parameters, &noise)
+    }
+
+    fn prediction_error(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        method: &str,
+    ) -> Option<f64> {
+        let method = Method::parse(method)?;
+        let obs = observations(runs, self.convention);
+        let mut sum = 0.0;
+        for k in 0..obs.len() {
+            let rest: Vec<RunObservation<'_>, MAX_RUNS> = obs
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| i != k)
+                .map(|(_, o)| *o)
+                .collect();
+            let left_out = obs.get(k)?;
+            let c = calibration::calibrate(&rest, nominal, method).ok()?;
+            let end =
+                ArcModel::from_geometry(&c.geometry).integrate(PoseF64::default(), left_out.knots);
+            let (dx, dy) = (
+                left_out.measured.x_m - end.x_m,
+                left_out.measured.y_m - end.y_m,
+            );
+            sum += dx * dx + dy * dy;
+        }
+        (!obs.is_empty()).then(|| libm::sqrt(sum / obs.len() as f64))
+    }
+
     fn solve(
         &mut self,
         runs: &[RunRecord],
@@ -412,13 +511,13 @@ impl Calibrator for LibraryCalibrator {
         if method == Method::Exact {
             return self.exact_fit(runs, nominal).map(|k| k.solution.clone());
         }
-        let obs = observations(runs);
+        let obs = observations(runs, self.convention);
         let c = calibration::calibrate(&obs, nominal, method).map_err(solve_error)?;
         Ok(solution(&c, runs))
     }
 
     fn culprit(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Culprit {
-        let obs = observations(runs);
+        let obs = observations(runs, self.convention);
         let positions: Vec<usize, MAX_RUNS> = runs
             .iter()
             .enumerate()
@@ -455,7 +554,7 @@ impl Calibrator for LibraryCalibrator {
         out: &mut dyn Write,
     ) -> fmt::Result {
         let runs = numbered.runs;
-        let obs = observations(runs);
+        let obs = observations(runs, self.convention);
         // The side and driving geometry of the last measured square.
         let Some((side, belief)) = obs.iter().rev().find_map(|o| match o.path {
             PathKind::Square { side_m, .. } => Some((side_m, o.geometry)),
@@ -476,6 +575,10 @@ impl Calibrator for LibraryCalibrator {
             .enumerate()
             .filter(|(i, _)| !flagged.contains(&(i + 1)))
             .filter_map(|(_, r)| RunObservation::from_record(r))
+            .map(|mut o| {
+                o.measured = self.convention.reread(o.measured);
+                o
+            })
             .take(MAX_RUNS)
             .collect();
         let estimate = match fit {

@@ -35,6 +35,7 @@ mod calibrate_commands;
 pub mod crash;
 mod drive;
 mod events;
+mod fit_check;
 mod identify;
 pub mod library;
 pub mod measure;
@@ -65,6 +66,7 @@ use crate::util::text::keyword_eq;
 pub use boot::{Booted, boot};
 pub use calibrate_commands::write_calibration;
 pub use events::{ControlTimerStopped, write_boot_event, write_fault_event, write_runs_restored};
+pub use fit_check::Reading;
 pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
@@ -524,6 +526,7 @@ impl<C: Calibrator> Session<C> {
             Command::Version => record::write_version(out),
             Command::Drop { index } => self.drop_run(index, robot, out),
             Command::DropAll { confirmed } => self.drop_all(confirmed, robot, out),
+            Command::Convention { name } => self.convention(name, out),
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method, confirmed } => self.apply(method, confirmed, robot, out),
             Command::Save => self.save(robot, storage, out),

@@ -14,7 +14,7 @@ use crate::motion::controller::Status;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
 use crate::protocol::token::{
-    self, ACTIVE, DISAGREES, METHOD_FAILED, RUNS_DISAGREE, TABLE_HEADER, WITH_FLAGGED,
+    self, ACTIVE, DISAGREES, LOWEST_LOO, METHOD_FAILED, RUNS_DISAGREE, TABLE_HEADER, WITH_FLAGGED,
 };
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
@@ -51,8 +51,9 @@ const HELP: &[&str] = &[
     "runs\tlist stored runs",
     "record <n> [first]\trun n's full record with its tick knots (host tools)",
     "drop <n>|all yes\tdelete run n, or every run",
-    "calibrate [method]\tcompute all methods (or one) from measured runs",
-    "apply <method> [yes]\tuse a method's result (then save; yes: with a flagged run)",
+    "calibrate [method]\tcompute all methods (or one) from measured runs, check their fit",
+    "convention [name]\tread every measured run as standard, y-right, swapped, ...",
+    "apply <method> [yes]\tuse a method's result (then save; yes: flagged run or poor fit)",
     "save\tstore parameters in flash (motors stopped)",
     "reset-params [yes]\trestore the defaults (then save; yes: discard changes)",
     "pose\todometry pose",
@@ -311,26 +312,38 @@ pub(super) fn write_solution_header(out: &mut dyn Write) -> fmt::Result {
     write!(
         out,
         "  {TABLE_HEADER}      E_d          E_b          E_s          D_R_mm     D_L_mm     \
-         b_mm       E_max_mm  sd_E_d    sd_E_b\r\n"
+         b_mm       loo_mm    E_max_mm  sd_E_d    sd_E_b\r\n"
     )
 }
 
-/// One optional column, left-aligned to 9 characters (`pad`) or unpadded (last column).
+/// One optional 1σ column, left-aligned to 9 characters (`pad`) or unpadded (last column);
+/// `n/a` when the method cannot compute it (a closed form from one run per direction, or
+/// runs that agree exactly).
 fn write_opt(out: &mut dyn Write, v: Option<f64>, pad: bool) -> fmt::Result {
     match (v, pad) {
         (Some(v), true) => write!(out, " {:<9}", Scientific::new(v, 3)),
         (Some(v), false) => write!(out, " {}", Scientific::new(v, 3)),
-        (None, true) => write!(out, " {:<9}", "-"),
-        (None, false) => write!(out, " -"),
+        (None, true) => write!(out, " {:<9}", "n/a"),
+        (None, false) => write!(out, " n/a"),
     }
 }
 
-/// One method's row of the `calibrate` table; a result computed with flagged runs (`flagged`,
-/// non-empty) ends with `  [with flagged run <n>…]`.
+/// A millimetre column of `value` metres, 3 decimals, left-aligned to 9 characters (`-`: none).
+fn write_mm(out: &mut dyn Write, value: Option<f64>) -> fmt::Result {
+    match value {
+        Some(e) => write!(out, " {:<9}", Decimal::fixed(e * 1e3, 3)),
+        None => write!(out, " {:<9}", "-"),
+    }
+}
+
+/// One method's row of the `calibrate` table with its leave-one-out error `loo_m`; the row of
+/// the `lowest` leave-one-out error ends with [`LOWEST_LOO`], a result computed with flagged runs
+/// (`flagged`, non-empty) with `  [with flagged run <n>…]`.
 pub(super) fn write_solution_row(
     out: &mut dyn Write,
     name: &str,
     result: &Result<Solution, SolveError>,
+    (loo_m, lowest): (Option<f64>, bool),
     flagged: &[usize],
 ) -> fmt::Result {
     write!(out, "  {name:<12}")?;
@@ -348,12 +361,13 @@ pub(super) fn write_solution_row(
                 Decimal::fixed(g.diameter_left_m * 1e3, 4),
                 Decimal::fixed(g.wheelbase_m * 1e3, 4)
             )?;
-            match s.e_max_m {
-                Some(e) => write!(out, " {:<9}", Decimal::fixed(e * 1e3, 3))?,
-                None => write!(out, " {:<9}", "-")?,
-            }
+            write_mm(out, loo_m)?;
+            write_mm(out, s.e_max_m)?;
             write_opt(out, s.sd_e_d, true)?;
             write_opt(out, s.sd_e_b, false)?;
+            if lowest {
+                out.write_str(LOWEST_LOO)?;
+            }
             if !flagged.is_empty() {
                 out.write_str(WITH_FLAGGED)?;
                 if flagged.len() > 1 {

@@ -9,11 +9,13 @@ use core::fmt;
 
 use super::Settings;
 use crate::calibration::CalibrationError;
+use crate::calibration::fit_check::{FitCheck, MeasuringNoise};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
+use crate::motion::convention::Convention;
 use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
@@ -325,6 +327,24 @@ pub trait Calibrator {
         nominal: &Geometry,
         method: &str,
     ) -> Result<Solution, SolveError>;
+    /// Reads every measured run under `convention` and assumes `noise` for a measured end
+    /// from now on (results kept from earlier solves under another reading are stale).
+    fn set_reading(&mut self, convention: Convention, noise: MeasuringNoise);
+    /// Whether the runs the exact fit kept (those it did not flag) agree with one geometry
+    /// within the noise set by [`Calibrator::set_reading`] and the robot's own scatter: the χ²
+    /// of a least-squares exact fit weighted by that noise. `None` when the fit fails or leaves
+    /// no degree of freedom.
+    fn fit_check(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Option<FitCheck>;
+    /// The method's leave-one-out prediction error on the measured runs: each left out in turn,
+    /// the method fitted on the others, and the left-out run's end position predicted from its
+    /// ticks with that geometry; the RMS of the misses, metres. `None` when a fold cannot be
+    /// solved (too few runs in a direction without the one left out).
+    fn prediction_error(
+        &mut self,
+        runs: &[RunRecord],
+        nominal: &Geometry,
+        method: &str,
+    ) -> Option<f64>;
     /// Leaves each measured run out of the robust fit in turn and names the one whose removal
     /// makes the others agree, or says it cannot tell.
     fn culprit(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Culprit;

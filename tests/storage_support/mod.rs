@@ -116,6 +116,10 @@ pub fn calibrated(n: u32) -> ParamRecord {
         },
         control_hz: odocal::motion::controller::RATES_HZ
             [(n as usize) % odocal::motion::controller::RATES_HZ.len()],
+        measure_sd_m: 0.001 + 1e-5 * (n % 100) as f32,
+        heading_sd_rad: 0.0035 + 1e-5 * (n % 100) as f32,
+        convention: odocal::motion::convention::Convention::ALL
+            [(n as usize) % odocal::motion::convention::Convention::ALL.len()],
     }
 }
 

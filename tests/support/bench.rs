@@ -42,6 +42,16 @@ impl ObedientRobot {
     }
 }
 
+#[allow(dead_code)] // each test binary uses its own subset
+impl ObedientRobot {
+    /// Ends the run in progress as `record` (its path the one started).
+    pub fn finish_as(&mut self, record: RunRecord) {
+        let path = self.running.take().expect("a run is in progress");
+        assert_eq!(path, record.path, "the run driven is the one recorded");
+        self.finished = Some(record);
+    }
+}
+
 impl Robot for ObedientRobot {
     fn start(&mut self, path: PathKind) -> Result<(), RobotError> {
         self.running = Some(path);

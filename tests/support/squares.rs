@@ -25,6 +25,7 @@ pub fn normal(rng: &mut Rng) -> f64 {
 
 pub struct Run {
     pub direction: Direction,
+    pub side_m: f64,
     pub knots: Vec<WheelTicks>,
     pub odo: PoseF64,
     pub measured: Measurement,
@@ -42,12 +43,32 @@ impl Run {
         sigma_rad: f64,
         rng: &mut Rng,
     ) -> Self {
+        Run::square_of(
+            SIDE_M,
+            truth,
+            direction,
+            slip_rad,
+            (sigma_m, sigma_rad),
+            rng,
+        )
+    }
+
+    /// [`Run::square`] of side `side_m`, measured with `(sigma_m, sigma_rad)` of noise.
+    pub fn square_of(
+        side_m: f64,
+        truth: &Robot,
+        direction: Direction,
+        slip_rad: f64,
+        (sigma_m, sigma_rad): (f64, f64),
+        rng: &mut Rng,
+    ) -> Self {
         let nominal = Robot::of(&NOMINAL);
-        let knots = arcs::square_knots(&nominal, direction, SIDE_M);
+        let knots = arcs::square_knots(&nominal, direction, side_m);
         let odo = nominal.drive(PoseF64::default(), &knots);
         let t = truth.drive(PoseF64::new(0.0, 0.0, slip_rad), &knots);
         Run {
             direction,
+            side_m,
             knots,
             odo,
             measured: Measurement {
@@ -62,7 +83,7 @@ impl Run {
         RunObservation {
             path: PathKind::Square {
                 direction: self.direction,
-                side_m: SIDE_M,
+                side_m: self.side_m,
             },
             geometry: NOMINAL,
             knots: &self.knots,

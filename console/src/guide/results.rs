@@ -8,7 +8,7 @@ use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::protocol::token::{self, TableRow};
 use odocal::protocol::{Command, ErrorCode, FinalLine};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, Numbered, write_calibration};
+use odocal::session::{Calibrator, Numbered, Reading, write_calibration};
 use serde_json::json;
 
 use super::runs::Measured;
@@ -46,6 +46,7 @@ impl Guide {
                 numbered,
                 &self.nominal,
                 None,
+                &Reading::DEFAULT,
                 &mut out,
             )
             .map_err(|e| Stop::Failed(e.to_string()))?;

@@ -200,6 +200,7 @@ pub fn calibrate_exact(
         reweights,
         outliers: 0,
         run_count: 0,
+        parameters: fitted as u32,
         fits: [RunFit::EMPTY; MAX_RUN_FITS],
         end_offsets: [EndOffset::default(); MAX_GROUPS],
         end_offset_groups: 0,

@@ -74,6 +74,9 @@ pub struct ExactFit {
     pub outliers: u32,
     /// Runs in the fit (those with at least two knots).
     pub run_count: usize,
+    /// Numbers fitted: the factors and two per end offset (the degrees of freedom the fit
+    /// takes from the residuals).
+    pub parameters: u32,
     pub(super) fits: [RunFit; MAX_RUN_FITS],
     /// The end offset of every group of closed paths (see the module docs, *End offset*), in
     /// the order of each group's first run.

@@ -47,6 +47,8 @@ pub enum RecordError {
     Tuning(TuningError),
     /// The control rate is not one of [`crate::motion::controller::RATES_HZ`].
     ControlRate,
+    /// The declared measuring noise is not finite or outside the ranges `set` accepts.
+    MeasuringNoise,
 }
 
 impl fmt::Display for RecordError {
@@ -71,6 +73,9 @@ impl fmt::Display for RecordError {
             RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
             RecordError::Tuning(e) => write!(f, "speed tuning: {e}"),
             RecordError::ControlRate => f.write_str(crate::motion::controller::RATE_RULE),
+            RecordError::MeasuringNoise => {
+                f.write_str("measure_sd must be within 0.1..500 mm, heading_sd within 0.01..30 deg")
+            }
         }
     }
 }
@@ -100,6 +105,8 @@ pub enum FormatError {
     },
     /// The stored method name is not printable ASCII.
     MethodName,
+    /// The convention byte names no convention.
+    Convention,
 }
 
 impl fmt::Display for FormatError {
@@ -123,6 +130,7 @@ impl fmt::Display for FormatError {
             ),
             FormatError::MethodName => f.write_str("stored method name is not printable ASCII"),
             FormatError::Wiring => f.write_str("stored wiring byte has unknown bits"),
+            FormatError::Convention => f.write_str("stored convention byte names no convention"),
         }
     }
 }
@@ -139,9 +147,10 @@ impl From<FormatError> for SerializationError {
             FormatError::UnsupportedVersion { found } => {
                 SerializationError::Custom(CUSTOM_VERSION_BASE + i32::from(found))
             }
-            FormatError::Length { .. } | FormatError::MethodName | FormatError::Wiring => {
-                SerializationError::InvalidFormat
-            }
+            FormatError::Length { .. }
+            | FormatError::MethodName
+            | FormatError::Wiring
+            | FormatError::Convention => SerializationError::InvalidFormat,
         }
     }
 }

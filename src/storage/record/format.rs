@@ -5,6 +5,7 @@
 use super::codec::{Reader, Writer};
 use super::{AppliedCalibration, FormatError, METHOD_NAME_MAX, MethodName, ParamRecord};
 use crate::motion::controller::DEFAULT_RATE_HZ;
+use crate::motion::convention::Convention;
 use crate::motion::profile::MotionLimits;
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
@@ -13,7 +14,7 @@ impl ParamRecord {
     /// Format version written by this firmware (byte 0 of the stored record). Every older
     /// version is read and migrated by [`ParamRecord::decode`]; what each version added and how
     /// it migrates: docs/storage.md, *Versions*.
-    pub const FORMAT_VERSION: u8 = 4;
+    pub const FORMAT_VERSION: u8 = 5;
 
     /// Length of a version-1 record, bytes: version 1 + nominal geometry 28 + `E_d, E_b, E_s`
     /// 24 + calibrated geometry 28 + method 1 + 12 + runs 2 + `E_max` 8 + motion 5 × 4 + 1.
@@ -25,8 +26,12 @@ impl ParamRecord {
     /// Length of a version-3 record, bytes: [`Self::V2_LEN`] + tuning 9 × 4.
     pub const V3_LEN: usize = Self::V2_LEN + 9 * 4;
 
-    /// Length of the stored record, bytes: [`Self::V3_LEN`] + control rate 4.
-    pub const ENCODED_LEN: usize = Self::V3_LEN + 4;
+    /// Length of a version-4 record, bytes: [`Self::V3_LEN`] + control rate 4.
+    pub const V4_LEN: usize = Self::V3_LEN + 4;
+
+    /// Length of the stored record, bytes: [`Self::V4_LEN`] + measuring noise 2 × 4 +
+    /// convention 1.
+    pub const ENCODED_LEN: usize = Self::V4_LEN + 2 * 4 + 1;
 
     /// Writes the stored form into `buf`; returns the number of bytes written
     /// ([`Self::ENCODED_LEN`]).
@@ -63,6 +68,9 @@ impl ParamRecord {
         w.motor(&t.left);
         w.f32(t.bandwidth_radps);
         w.bytes(&self.control_hz.to_le_bytes());
+        w.f32(self.measure_sd_m);
+        w.f32(self.heading_sd_rad);
+        w.bytes(&[self.convention.to_byte()]);
         Ok(w.pos)
     }
 
@@ -82,11 +90,14 @@ impl ParamRecord {
         };
         // Migration: a version-1 record has no wiring byte and means the standard wiring; a
         // version-1 or -2 record has no tuning and means the default one; a version-1..3
-        // record has no control rate and means the 1 kHz those firmwares ran at.
+        // record has no control rate and means the 1 kHz those firmwares ran at; a version-1..4
+        // record has no measuring noise and convention and means the defaults (1 mm, 0.2°,
+        // standard).
         let expected = match version {
             1 => Self::V1_LEN,
             2 => Self::V2_LEN,
             3 => Self::V3_LEN,
+            4 => Self::V4_LEN,
             Self::FORMAT_VERSION => Self::ENCODED_LEN,
             found => return Err(FormatError::UnsupportedVersion { found }),
         };
@@ -140,6 +151,15 @@ impl ParamRecord {
         } else {
             u32::from_le_bytes(r.array())
         };
+        let (measure_sd_m, heading_sd_rad, convention) = if version < 5 {
+            let d = ParamRecord::DEFAULT;
+            (d.measure_sd_m, d.heading_sd_rad, d.convention)
+        } else {
+            let p = r.f32();
+            let h = r.f32();
+            let c = Convention::from_byte(r.array::<1>()[0]).ok_or(FormatError::Convention)?;
+            (p, h, c)
+        };
         // `none` is an uncalibrated robot: its stored factors are those of no calibration and
         // are not kept.
         let calibration = if method == MethodName::NONE {
@@ -168,6 +188,9 @@ impl ParamRecord {
             wiring,
             tuning,
             control_hz,
+            measure_sd_m,
+            heading_sd_rad,
+            convention,
         })
     }
 }

@@ -32,8 +32,10 @@ pub use self::calibration::{AppliedCalibration, METHOD_NAME_MAX, MethodName};
 pub(super) use self::codec::{Reader, Writer};
 pub use self::error::{FormatError, RecordError};
 
+use crate::calibration::fit_check::MeasuringNoise;
 use crate::kinematics::geometry::Geometry;
 use crate::motion::controller::{DEFAULT_RATE_HZ, rate_supported};
+use crate::motion::convention::Convention;
 use crate::motion::profile::MotionLimits;
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
@@ -63,6 +65,12 @@ pub struct ParamRecord {
     pub tuning: SpeedTuning,
     /// Control (and odometry) rate, Hz (one of [`crate::motion::controller::RATES_HZ`]).
     pub control_hz: u32,
+    /// The measuring noise `calibrate`'s fit check assumes: 1σ of a measured x or y, metres.
+    pub measure_sd_m: f32,
+    /// 1σ of a measured heading, radians.
+    pub heading_sd_rad: f32,
+    /// How every measured run is read (`convention`): the runs keep what was typed.
+    pub convention: Convention,
 }
 
 impl Clone for ParamRecord {
@@ -90,7 +98,18 @@ impl ParamRecord {
         wiring: Wiring::STANDARD,
         tuning: SpeedTuning::DEFAULT,
         control_hz: DEFAULT_RATE_HZ,
+        measure_sd_m: MeasuringNoise::DEFAULT.position_m as f32,
+        heading_sd_rad: MeasuringNoise::DEFAULT.heading_rad as f32,
+        convention: Convention::Standard,
     };
+
+    /// The measuring noise the fit check assumes.
+    pub fn measuring_noise(&self) -> MeasuringNoise {
+        MeasuringNoise {
+            position_m: f64::from(self.measure_sd_m),
+            heading_rad: f64::from(self.heading_sd_rad),
+        }
+    }
 
     /// The geometry odometry and the routine use: the calibrated one.
     pub fn active_geometry(&self) -> Geometry {
@@ -168,7 +187,7 @@ impl ParamRecord {
         if !rate_supported(self.control_hz) {
             return Err(RecordError::ControlRate);
         }
-        Ok(())
+        self.validate_noise()
     }
 }
 

@@ -1,7 +1,8 @@
 //! The plausible ranges of the operator's motion settings as the record checks them: speed and
-//! acceleration limits and the calibration routine's square.
+//! acceleration limits, the calibration routine's square and the declared measuring noise.
 
 use super::{ParamRecord, RecordError};
+use crate::calibration::fit_check::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
 use crate::util::num::within;
 
 impl ParamRecord {
@@ -29,6 +30,25 @@ impl ParamRecord {
         }
         if !(1..=50).contains(&self.runs_per_direction) {
             return Err(RecordError::RunsPerDirection);
+        }
+        Ok(())
+    }
+
+    /// Checks that the declared measuring noise is within the ranges `set` accepts.
+    ///
+    /// # Errors
+    /// [`RecordError::MeasuringNoise`].
+    pub(super) fn validate_noise(&self) -> Result<(), RecordError> {
+        let (p_lo, p_hi) = MEASURE_SD_RANGE_M;
+        let (h_lo, h_hi) = HEADING_SD_RANGE_DEG;
+        let heading_deg = f64::from(self.heading_sd_rad).to_degrees();
+        // The stored f32 of a value at a bound may round past it by an ulp.
+        let slack = 1.0 + 1e-6;
+        let p = f64::from(self.measure_sd_m);
+        if !(p >= p_lo / slack && p <= p_hi * slack)
+            || !(heading_deg >= h_lo / slack && heading_deg <= h_hi * slack)
+        {
+            return Err(RecordError::MeasuringNoise);
         }
         Ok(())
     }

@@ -1,0 +1,119 @@
+//! Whether the measured runs fit the exact result at all (`calibrate`'s fit line, `apply`'s
+//! confirmation), and which consistent measuring mistake explains a poor fit (`convention`).
+//!
+//! The χ² is [`FitCheck`]'s, over the runs the robust fit kept (a flagged run is the
+//! `DISAGREES` flow's); the mistakes are the [`Convention`]s, each tried by re-reading every
+//! measured run and fitting again.
+
+use core::fmt::{self, Write};
+
+use super::traits::Calibrator;
+use crate::calibration::fit_check::{FitCheck, MeasuringNoise};
+use crate::kinematics::geometry::Geometry;
+use crate::motion::convention::Convention;
+use crate::motion::run::RunRecord;
+use crate::protocol::EOL;
+use crate::protocol::token::{FIT, MISTAKE, NO_MISTAKE, POOR_FIT};
+use crate::util::decimal::{Decimal, Scientific};
+
+/// How the session reads its measured runs: the convention in force and the measuring noise
+/// declared (`convention`, `set measure_sd`, `set heading_sd`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reading {
+    /// How every measured run is re-read.
+    pub convention: Convention,
+    /// The noise a measured end carries besides the robot's own scatter.
+    pub noise: MeasuringNoise,
+}
+
+impl Reading {
+    /// The standard convention and the default noise.
+    pub const DEFAULT: Reading = Reading {
+        convention: Convention::Standard,
+        noise: MeasuringNoise::DEFAULT,
+    };
+}
+
+/// The method whose residuals the fit check reads.
+pub(super) const CHECKED_METHOD: &str = "exact";
+
+/// The mistaken convention (other than `current`) under which every run fits best, if one
+/// fits within the noise; the calibrator reads the runs under `current` again afterwards.
+pub(super) fn name_mistake<C: Calibrator>(
+    calibrator: &mut C,
+    runs: &[RunRecord],
+    nominal: &Geometry,
+    current: Convention,
+    noise: &MeasuringNoise,
+) -> Option<(Convention, FitCheck)> {
+    let mut best: Option<(Convention, FitCheck)> = None;
+    for c in Convention::ALL {
+        if c == current {
+            continue;
+        }
+        calibrator.set_reading(c, *noise);
+        if let Some(check) = calibrator.fit_check(runs, nominal)
+            && !check.poor()
+            && best.is_none_or(|(_, b)| check.chi2 < b.chi2)
+        {
+            best = Some((c, check));
+        }
+    }
+    calibrator.set_reading(current, *noise);
+    best
+}
+
+/// ` chi2=… dof=… p=…`.
+fn write_numbers(out: &mut dyn Write, check: &FitCheck) -> fmt::Result {
+    write!(
+        out,
+        "chi2={} dof={} p={}",
+        Decimal::fixed(check.chi2, 1),
+        check.dof,
+        Scientific::new(check.probability, 2)
+    )
+}
+
+/// The fit line: `fit exact chi2=… dof=… p=…: …` with the noise assumed, and for a poor fit
+/// the mistake line after it (`mistake`: the convention that fits, if one does).
+pub(super) fn write_fit(
+    out: &mut dyn Write,
+    check: &FitCheck,
+    noise: &MeasuringNoise,
+    mistake: Option<(Convention, FitCheck)>,
+) -> fmt::Result {
+    write!(out, "  {FIT}{CHECKED_METHOD} ")?;
+    write_numbers(out, check)?;
+    write!(
+        out,
+        ": {} within measure_sd {} mm, heading_sd {} deg and the robot's own scatter",
+        if check.poor() {
+            POOR_FIT
+        } else {
+            "the runs agree"
+        },
+        Decimal::fixed(noise.position_m * 1e3, 2),
+        Decimal::fixed(noise.heading_rad.to_degrees(), 2),
+    )?;
+    if !check.poor() {
+        return out.write_str(EOL);
+    }
+    write!(out, " (p < 0.1 %): apply needs yes{EOL}  {MISTAKE}")?;
+    match mistake {
+        Some((c, fits)) => {
+            write!(out, "{}: {} fits (", c.as_str(), c.describe())?;
+            write_numbers(out, &fits)?;
+            write!(
+                out,
+                "): convention {} re-reads every run, then calibrate again{EOL}",
+                c.as_str()
+            )
+        }
+        None => write!(
+            out,
+            "{NO_MISTAKE}: no consistent measuring mistake explains it: measure the runs again, \
+             declare the noise you have (set measure_sd 5mm, set heading_sd 1deg), or apply \
+             <method> yes{EOL}"
+        ),
+    }
+}
