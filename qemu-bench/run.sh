@@ -41,7 +41,7 @@ SEP=$'\x1f'
 # The same tokens as the repository's config (not merely the same flags), so that the bench's
 # dependencies are the firmware's compiled ones rather than a second copy.
 TARGET_RUSTFLAGS="-C${SEP}link-arg=-Tlink.x${SEP}-C${SEP}link-arg=-Tdefmt.x${SEP}-C${SEP}link-arg=--nmagic"
-TARGET_RUSTFLAGS="$TARGET_RUSTFLAGS${SEP}-C${SEP}opt-level=z${SEP}-C${SEP}llvm-args=-enable-machine-outliner=never"
+TARGET_RUSTFLAGS="$TARGET_RUSTFLAGS${SEP}-C${SEP}opt-level=z"
 if [ "${QEMU_BENCH_LINT:-1}" != 0 ]; then
     cargo fmt -- --check
     cargo clippy --quiet --all-targets -- -D warnings
@@ -53,7 +53,7 @@ fi
 # 2. The target binary. The flags are pinned here rather than inherited from the repository's
 #    .cargo/config.toml (which cargo merges with qemu-bench/.cargo/config.toml): cortex-m-rt's
 #    link.x, defmt's section script, --nmagic, and the firmware's size-optimised code generation
-#    (opt-level z without the machine outliner, so the counts are the firmware's). The linker (flip-link, as for the firmware)
+#    (opt-level z with its machine outliner, so the counts are the firmware's). The linker (flip-link, as for the firmware)
 #    comes from qemu-bench/.cargo/config.toml. With the same linker and the same flag tokens the
 #    thumb dependencies are the ones `cargo fw` compiled (a different linker or a different
 #    spelling of the flags would give every dependency a second, rebuilt copy).

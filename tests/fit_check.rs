@@ -219,14 +219,13 @@ fn table_ranks_by_leave_one_out() {
     for method in [Method::UmbmarkX, Method::Exact] {
         let obs: Vec<_> = runs.iter().map(Run::obs).collect();
         let mut ss = 0.0;
-        for k in 0..obs.len() {
+        for (k, run) in runs.iter().enumerate() {
             let rest: Vec<_> = (0..obs.len()).filter(|&i| i != k).map(|i| obs[i]).collect();
             let g = calibration::calibrate(&rest, &NOMINAL, method)
                 .unwrap()
                 .geometry;
-            let end = Robot::of(&g).drive(PoseF64::default(), &runs[k].knots);
-            ss +=
-                (runs[k].measured.x_m - end.x_m).powi(2) + (runs[k].measured.y_m - end.y_m).powi(2);
+            let end = Robot::of(&g).drive(PoseF64::default(), &run.knots);
+            ss += (run.measured.x_m - end.x_m).powi(2) + (run.measured.y_m - end.y_m).powi(2);
         }
         let want_mm = (ss / obs.len() as f64).sqrt() * 1e3;
         let got = solved.iter().find(|s| s.0 == method.as_str()).unwrap().1;

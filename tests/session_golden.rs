@@ -384,10 +384,13 @@ fn params_golden() {
          \x20 motor_left_deadband 0.0000 duty\r\n\
          \x20 speed_bandwidth 30.0000 rad/s\r\n\
          \x20 control_hz 1000 Hz\r\n\
+         \x20 measure_sd 0.001000 m\r\n\
+         \x20 heading_sd 0.200 deg\r\n\
          \x20 speed_loop right kp=3.500 ki=135.000 kii=1350.000 ff_fwd=1.0000 ff_back=1.0000 ff_accel=0.0500 deadband=0.0000\r\n\
          \x20 speed_loop left kp=3.500 ki=135.000 kii=1350.000 ff_fwd=1.0000 ff_back=1.0000 ff_accel=0.0500 deadband=0.0000\r\n\
          \x20 active d_right=0.150000000 d_left=0.150000000 wheelbase=0.385000000 m\r\n\
          \x20 calibration none\r\n\
+         \x20 convention standard\r\n\
          ok\r\n"
     );
 }
@@ -411,8 +414,9 @@ fn help_lists_every_command_then_ok() {
          \x20 runs                      list stored runs\r\n\
          \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
          \x20 drop <n>|all yes          delete run n, or every run\r\n\
-         \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
-         \x20 apply <method> [yes]      use a method's result (then save; yes: with a flagged run)\r\n\
+         \x20 calibrate [method]        compute all methods (or one) from measured runs, check their fit\r\n\
+         \x20 convention [name]         read every measured run as standard, y-right, swapped, ...\r\n\
+         \x20 apply <method> [yes]      use a method's result (then save; yes: flagged run or poor fit)\r\n\
          \x20 save                      store parameters in flash (motors stopped)\r\n\
          \x20 reset-params [yes]        restore the defaults (then save; yes: discard changes)\r\n\
          \x20 pose                      odometry pose\r\n\
@@ -423,7 +427,7 @@ fn help_lists_every_command_then_ok() {
          \x20 drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last\r\n\
          \x20 echo on|off               echo typed characters (on at boot; scripts: off)\r\n\
          \x20 version                   firmware and protocol version\r\n\
-         ok 26 commands\r\n"
+         ok 27 commands\r\n"
     );
 }
 
@@ -868,12 +872,12 @@ fn calibrate_apply_save_golden() {
     b.measured_run("cw", 0.01, 0.0, 0.02, 0.01);
     b.measured_run("ccw", 0.01, 0.0, 0.02, 0.01);
     let table = "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
-                 E_max_mm  sd_E_d    sd_E_b\r\n\
+                 loo_mm    E_max_mm  sd_E_d    sd_E_b\r\n\
                  \x20 alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   388.8500   \
-                 1.200     2.500e-4  -\r\n\
+                 2.000     1.200     2.500e-4  n/a  [lowest loo]\r\n\
                  \x20 beta         failed: degenerate: the runs do not determine every factor\r\n\
                  \x20 wild         1.000000000  1.300000000  1.000000000  150.0000   150.0000   500.5000   \
-                 -         -         -\r\n\
+                 50.000    -         n/a       n/a\r\n\
                  \x20 advice all L=2.000 m is adequate\r\n\
                  ok 2 solved from 2 measured runs (cw 1, ccw 1); apply <method> to use one\r\n";
     assert_eq!(b.send("calibrate"), table);
@@ -896,7 +900,7 @@ fn calibrate_apply_save_golden() {
     assert_eq!(
         b.send("calibrate beta"),
         "  method       E_d          E_b          E_s          D_R_mm     D_L_mm     b_mm       \
-         E_max_mm  sd_E_d    sd_E_b\r\n\
+         loo_mm    E_max_mm  sd_E_d    sd_E_b\r\n\
          \x20 beta         failed: degenerate: the runs do not determine every factor\r\n\
          err 16: no method succeeded (check the measurements: runs)\r\n"
     );

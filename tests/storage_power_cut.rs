@@ -407,10 +407,14 @@ fn every_cut_while_moving_an_old_record_keeps_it_and_the_runs() {
     assert!(stats[1].1 > PAGE as u64, "{stats:?}");
 }
 
-/// The version-3 fixture as today's firmware reads it (1 kHz: v3 stored no rate).
+/// The version-3 fixture as today's firmware reads it (1 kHz: v3 stored no rate; the default
+/// measuring noise and convention: v3 stored none).
 fn param_record_v3() -> ParamRecord {
     let mut want = storage_support::fixtures::param_record();
     want.control_hz = 1000;
+    want.measure_sd_m = ParamRecord::DEFAULT.measure_sd_m;
+    want.heading_sd_rad = ParamRecord::DEFAULT.heading_sd_rad;
+    want.convention = ParamRecord::DEFAULT.convention;
     want
 }
 

@@ -26,33 +26,13 @@ pub const ROBOT_HEADING_SCATTER_RAD: f64 = 0.8 * core::f64::consts::PI / 180.0;
 /// the noise assumed (0.1 %: honest runs are refused once in a thousand sessions).
 pub const POOR_FIT_PROBABILITY: f64 = 1e-3;
 
-/// Accepted declared 1σ of a measured position, metres: 0.1 mm (a calliper on a grid) to 0.5 m
-/// (beyond it a square's systematic error cannot be seen at all).
-pub const MEASURE_SD_RANGE_M: (f64, f64) = (1e-4, 0.5);
-
-/// Accepted declared 1σ of a measured heading, degrees: 0.01° (motion capture) to 30°.
-pub const HEADING_SD_RANGE_DEG: (f64, f64) = (0.01, 30.0);
-
-/// The measuring noise an operator declares: 1σ of a measured end position (each coordinate)
-/// and heading.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MeasuringNoise {
-    /// 1σ of a measured x or y, metres.
-    pub position_m: f64,
-    /// 1σ of a measured heading, radians.
-    pub heading_rad: f64,
-}
-
-/// The declared 1σ of a measured heading by default, degrees: a protractor or a long edge.
-pub const DEFAULT_HEADING_SD_DEG: f64 = 0.2;
+/// The noise a measured end carries, as the operator declares it (the board's settings hold it:
+/// the stored record sits below this module).
+pub use crate::motion::convention::{
+    DEFAULT_HEADING_SD_DEG, HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M, MeasuringNoise,
+};
 
 impl MeasuringNoise {
-    /// What the procedure asks for: 1 mm with a tape, [`DEFAULT_HEADING_SD_DEG`] for a heading.
-    pub const DEFAULT: MeasuringNoise = MeasuringNoise {
-        position_m: 1e-3,
-        heading_rad: DEFAULT_HEADING_SD_DEG * core::f64::consts::PI / 180.0,
-    };
-
     /// 1σ of a run's measured end `(position, heading)` for a path of characteristic length
     /// `length_m`: the measuring and the robot's repeatability together.
     pub fn end_sigma(&self, length_m: f64) -> (f64, f64) {
@@ -133,30 +113,31 @@ impl FitCheck {
     }
 }
 
-/// `P(X ≥ chi2)` for a χ² variable of `dof` degrees of freedom, in closed form: the regularised
-/// upper incomplete gamma function `Q(dof/2, chi2/2)` as the finite Poisson sum (even `dof`)
-/// or `erfc` plus a finite sum (odd `dof`).
+/// `P(X ≥ chi2)` for a χ² variable of `dof` degrees of freedom, in closed form: for even `dof`
+/// the regularised upper incomplete gamma function `Q(dof/2, chi2/2)` as its finite Poisson
+/// sum; for odd `dof` the geometric mean of its even neighbours' (within 12 % of the exact value
+/// at the 0.1 % threshold for 3 degrees of freedom, 2 % from 15 on; for 1, the 2's: the board
+/// does without `erfc`).
 pub fn chi2_survival(chi2: f64, dof: u32) -> f64 {
     if chi2.is_nan() || chi2 <= 0.0 {
         return 1.0;
     }
     let h = 0.5 * chi2;
-    let e = libm::exp(-h);
-    let (mut sum, mut term, first, step) = if dof % 2 == 0 {
-        // Σ_{i<k/2} hⁱ/i!: term i = h^i / i!.
-        (0.0, e, 0u32, 1.0)
-    } else {
-        // erfc(√h) + Σ_{i<(k−1)/2} h^(i+½)/Γ(i+3/2); the first term is 2√h/√π.
-        let t0 = e * 2.0 * libm::sqrt(h / core::f64::consts::PI);
-        (libm::erfc(libm::sqrt(h)), t0, 1, 0.5)
+    // e^-h Σ_{i<m} hⁱ/i!
+    let even = |m: u32| {
+        let (mut sum, mut term) = (0.0, libm::exp(-h));
+        for i in 0..m {
+            sum += term;
+            term *= h / f64::from(i + 1);
+        }
+        sum
     };
-    let terms = dof / 2;
-    for i in 0..terms {
-        sum += term;
-        // Next term: × h / (i + 1) (even) or × h / (i + 3/2) (odd).
-        term *= h / (f64::from(i + first) + step);
-    }
-    sum.clamp(0.0, 1.0)
+    let q = match dof {
+        1 => even(1),
+        d if d % 2 == 0 => even(d / 2),
+        d => libm::sqrt(even(d / 2) * even(d / 2 + 1)),
+    };
+    q.clamp(0.0, 1.0)
 }
 
 #[cfg(test)]
@@ -167,18 +148,29 @@ mod tests {
     /// Known quantiles (e.g. scipy.stats.chi2.sf): the survival at the 95 % and 99.9 % points.
     #[test]
     fn survival_matches_tabulated_quantiles() {
+        // Even degrees of freedom: exact.
         for (x, k, p) in [
-            (3.841_458_820_694_128_5, 1, 0.05),
             (5.991_464_547_107_983, 2, 0.05),
-            (7.814_727_903_251_178, 3, 0.05),
             (23.684_791_304_840_576, 14, 0.05),
             (36.123_273_680_398_14, 14, 0.001),
-            (37.697_298_218_353_83, 15, 0.001),
             (124.342_113_404_004_08, 100, 0.05),
         ] {
             let q = chi2_survival(x, k);
             assert!((q - p).abs() < 1e-6 * p, "k={k} x={x}: {q}");
         }
+        // Odd: within the stated error of the exact survival.
+        for (x, k, p, within) in [
+            (16.266_236_196_238_13, 3, 0.001, 0.12),
+            (37.697_298_218_353_83, 15, 0.001, 0.02),
+            (7.814_727_903_251_178, 3, 0.05, 0.12),
+        ] {
+            let q = chi2_survival(x, k);
+            assert!((q / p - 1.0).abs() < within, "k={k} x={x}: {q}");
+        }
+        assert!(
+            chi2_survival(10.83, 1) > 1e-3,
+            "1 degree: the 2's, never stricter"
+        );
         assert_eq!(chi2_survival(0.0, 4), 1.0);
         assert!(chi2_survival(5000.0, 14) < 1e-300);
     }

@@ -1,7 +1,8 @@
 //! How an operator read every measured end pose of a session: the standard frame (x forward, y
 //! to the left, heading CCW in the heading unit declared), or one of the consistent mistakes a
 //! tape and a square invite. A [`Convention`] re-reads a stored measurement into the standard
-//! frame; the measurement itself stays as typed (`convention standard` undoes it).
+//! frame; the measurement itself stays as typed (`convention standard` undoes it). Also the
+//! measuring noise an operator declares for those measurements ([`MeasuringNoise`]).
 
 use super::run::Measurement;
 use crate::util::text::keyword_eq;
@@ -54,12 +55,12 @@ impl Convention {
     /// The mistake in a few words, as a reply names it.
     pub fn describe(self) -> &'static str {
         match self {
-            Convention::Standard => "x forward, y to the left, heading CCW",
-            Convention::YRight => "y to the right on every run (y and theta negated)",
-            Convention::Swapped => "x and y exchanged on every run",
-            Convention::HeadingSign => "the heading's sign reversed on every run",
-            Convention::ThetaRadians => "headings typed in radians, read as degrees",
-            Convention::ThetaDegrees => "headings typed in degrees, read as radians",
+            Convention::Standard => "x forward, y left, CCW",
+            Convention::YRight => "y to the right",
+            Convention::Swapped => "x and y swapped",
+            Convention::HeadingSign => "heading sign reversed",
+            Convention::ThetaRadians => "headings in rad as deg",
+            Convention::ThetaDegrees => "headings in deg as rad",
         }
     }
 
@@ -115,6 +116,34 @@ impl Convention {
             },
         }
     }
+}
+
+/// Accepted declared 1σ of a measured position, metres: 0.1 mm (a calliper on a grid) to 0.5 m
+/// (beyond it a square's systematic error cannot be seen at all).
+pub const MEASURE_SD_RANGE_M: (f64, f64) = (1e-4, 0.5);
+
+/// Accepted declared 1σ of a measured heading, degrees: 0.01° (motion capture) to 30°.
+pub const HEADING_SD_RANGE_DEG: (f64, f64) = (0.01, 30.0);
+
+/// The measuring noise an operator declares: 1σ of a measured end position (each coordinate)
+/// and heading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuringNoise {
+    /// 1σ of a measured x or y, metres.
+    pub position_m: f64,
+    /// 1σ of a measured heading, radians.
+    pub heading_rad: f64,
+}
+
+/// The declared 1σ of a measured heading by default, degrees: a protractor or a long edge.
+pub const DEFAULT_HEADING_SD_DEG: f64 = 0.2;
+
+impl MeasuringNoise {
+    /// What the procedure asks for: 1 mm with a tape, [`DEFAULT_HEADING_SD_DEG`] for a heading.
+    pub const DEFAULT: MeasuringNoise = MeasuringNoise {
+        position_m: 1e-3,
+        heading_rad: DEFAULT_HEADING_SD_DEG * core::f64::consts::PI / 180.0,
+    };
 }
 
 #[cfg(test)]

@@ -469,29 +469,17 @@ fn set<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
     } else if name.unit() == "m" {
         // A length takes the unit suffixes `measure` takes (`151mm`, `15.1cm`, `0.151m`); a
         // bare number is in metres, the parameter's listed unit.
-        parse_length(value_word)
-            .map_err(|e| unit_error(e, value_word, "value", NumberHint::LengthUnit))
-            .and_then(|l| {
-                in_range(
-                    l.metres(Some(LengthUnit::Metre)).unwrap_or(l.value),
-                    "value",
-                    min,
-                    max,
-                )
-            })
+        measured_length(words, value_word, "value").and_then(|l| {
+            let m = l.metres(Some(LengthUnit::Metre)).unwrap_or(l.value);
+            in_range(m, "value", min, max)
+        })
     } else if name.unit() == "deg" {
         // An angle takes `measure`'s angle suffixes (`0.2deg`, `0.0035rad`); a bare number is
         // in degrees, the parameter's listed unit.
-        parse_angle(value_word)
-            .map_err(|e| unit_error(e, value_word, "value", NumberHint::AngleUnit))
-            .and_then(|a| {
-                in_range(
-                    a.degrees(Some(AngleUnit::Degree)).unwrap_or(a.value),
-                    "value",
-                    min,
-                    max,
-                )
-            })
+        measured_angle(words, value_word, "value").and_then(|a| {
+            let deg = a.degrees(Some(AngleUnit::Degree)).unwrap_or(a.value);
+            in_range(deg, "value", min, max)
+        })
     } else {
         number(value_word, "value", min, max)
     }

@@ -226,12 +226,10 @@ pub fn write_ack(out: &mut dyn Write, ack: Ack) -> fmt::Result {
         Ack::OdometryReset => out.write_str("ok odometry reset")?,
         Ack::Driving => out.write_str("ok")?,
         Ack::Convention { name, changed } => {
-            write!(out, "ok convention {} ({})", name.as_str(), name.describe())?;
-            out.write_str(if changed {
-                ": every measured run is read so from now on, as typed in runs; calibrate again"
-            } else {
-                "; convention <name> to change it"
-            })?;
+            write!(out, "ok convention {}", name.as_str())?;
+            if changed {
+                out.write_str(": runs re-read (typed as listed)")?;
+            }
         }
         Ack::DriveLimited { v_mps, w_radps } => write!(
             out,

@@ -6,7 +6,7 @@
 //! are magnitudes (always positive). The ranges here are the protocol's hard bounds: a value
 //! outside them is rejected by the parser before anything else sees it.
 
-use crate::calibration::fit_check::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
+use crate::motion::convention::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
 use crate::motion::speed::{MotorParams, SpeedTuning};
 use crate::storage::record::ParamRecord;
 use crate::util::text::keyword_eq;
@@ -590,7 +590,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             "measure_sd",
             "m",
             MEASURE_SD_RANGE_M,
-            ValueKind::Real { places: 4 },
+            ValueKind::Real { places: 6 },
             G::Plan,
             (
                 |r| f64::from(r.measure_sd_m),

@@ -67,10 +67,7 @@ impl fmt::Display for ParseError {
             ParseError::Empty => f.write_str("empty line"),
             ParseError::UnknownCommand => f.write_str("unknown command (try help)"),
             ParseError::MissingArgument { what } => write!(f, "missing argument <{what}>"),
-            ParseError::DropWhich => f.write_str(
-                "missing argument: drop <n> forgets run n (numbered as runs lists them), drop all \
-                 yes forgets every run",
-            ),
+            ParseError::DropWhich => f.write_str("drop <n> drops run n, drop all yes every run"),
             ParseError::TooManyArguments => f.write_str("too many arguments"),
             ParseError::BadNumber { what, hint } => {
                 write!(f, "<{what}> ")?;

@@ -354,9 +354,7 @@ pub fn write_refusal(out: &mut dyn Write, refusal: &Refusal<'_>) -> fmt::Result 
             method,
         } => write!(
             out,
-            "the runs fit no geometry within the measuring noise (p={}, see calibrate's fit and \
-             mistake lines): convention <name> or measure again, declare the noise (set \
-             measure_sd, set heading_sd), or type apply {method} yes to apply anyway",
+            "the runs fit no geometry (p={}, see calibrate): apply {method} yes applies anyway",
             Scientific::new(probability, 2)
         )?,
         Refusal::NotEnoughRuns { cw, ccw } => write!(

@@ -455,9 +455,19 @@ mod tests {
                 method: "alpha",
                 columns: "0.995000000  1.010000000  1.000000000  149.6241   150.3759   \
                           388.8500   1.200     2.500e-4  -",
+                lowest: false,
                 flagged: None,
             })
         );
+        let lowest = format!("  exact        1.0  1.0  1.0  1  1  1  0.5  -  -  -{LOWEST_LOO}");
+        let Some(TableRow::Solved {
+            lowest, columns, ..
+        }) = TableRow::parse(&lowest)
+        else {
+            panic!("{lowest}");
+        };
+        assert!(lowest);
+        assert!(columns.ends_with("-  -  -"), "{columns}");
         let flagged = format!("  exact        1.0  1.0  1.0  1  1  1  -  -  -{WITH_FLAGGED}s 3 5]");
         let Some(TableRow::Solved { flagged, .. }) = TableRow::parse(&flagged) else {
             panic!("{flagged}");
@@ -512,8 +522,10 @@ mod tests {
     #[test]
     fn a_solved_rows_values_are_read_by_column_name() {
         let line = "  alpha        0.995000000  1.010000000  1.000000000  149.6241   150.3759   \
-                    388.8500   1.200     2.500e-4  -";
+                    388.8500   2.000     1.200     2.500e-4  n/a";
         let row = TableRow::parse(line).unwrap();
+        assert_eq!(row.value("loo_mm"), Some(2.0));
+        assert_eq!(row.value("E_max_mm"), Some(1.2));
         assert_eq!(row.value("E_d"), Some(0.995));
         assert_eq!(row.value("b_mm"), Some(388.85));
         assert_eq!(row.value("sd_E_d"), Some(2.5e-4));

@@ -86,34 +86,25 @@ pub(super) fn write_fit(
     write_numbers(out, check)?;
     write!(
         out,
-        ": {} within measure_sd {} mm, heading_sd {} deg and the robot's own scatter",
-        if check.poor() {
-            POOR_FIT
-        } else {
-            "the runs agree"
-        },
+        ": {} (measure_sd {} mm, heading_sd {} deg, robot scatter)",
+        if check.poor() { POOR_FIT } else { "ok" },
         Decimal::fixed(noise.position_m * 1e3, 2),
         Decimal::fixed(noise.heading_rad.to_degrees(), 2),
     )?;
     if !check.poor() {
         return out.write_str(EOL);
     }
-    write!(out, " (p < 0.1 %): apply needs yes{EOL}  {MISTAKE}")?;
+    write!(out, ": apply needs yes{EOL}  {MISTAKE}")?;
     match mistake {
         Some((c, fits)) => {
             write!(out, "{}: {} fits (", c.as_str(), c.describe())?;
             write_numbers(out, &fits)?;
-            write!(
-                out,
-                "): convention {} re-reads every run, then calibrate again{EOL}",
-                c.as_str()
-            )
+            write!(out, "): convention {} re-reads the runs{EOL}", c.as_str())
         }
         None => write!(
             out,
-            "{NO_MISTAKE}: no consistent measuring mistake explains it: measure the runs again, \
-             declare the noise you have (set measure_sd 5mm, set heading_sd 1deg), or apply \
-             <method> yes{EOL}"
+            "{NO_MISTAKE}: measure again, set measure_sd/heading_sd to the noise you have, or \
+             apply <method> yes{EOL}"
         ),
     }
 }

@@ -303,7 +303,9 @@ impl LibraryCalibrator {
         self.exact_solves
     }
 
-    /// The exact fit of `runs` for `nominal`: the kept one, or solved now and kept.
+    /// The exact fit of `runs` for `nominal`: the kept one, or solved now and kept. Out of
+    /// line: `solve`, `advice` and `fit_check` each inlined their own copy.
+    #[inline(never)]
     fn exact_fit(
         &mut self,
         runs: &[RunRecord],
@@ -388,14 +390,27 @@ impl Default for LibraryCalibrator {
 
 /// The measured runs as observations, each measurement re-read under `convention`.
 fn observations(runs: &[RunRecord], convention: Convention) -> Vec<RunObservation<'_>, MAX_RUNS> {
-    runs.iter()
-        .filter_map(RunObservation::from_record)
-        .map(|mut o| {
+    kept_observations(runs, &[], convention)
+}
+
+/// The measured runs but those at the 1-based store positions `left_out`, as observations,
+/// each measurement re-read under `convention`.
+#[inline(never)]
+fn kept_observations<'a>(
+    runs: &'a [RunRecord],
+    left_out: &[usize],
+    convention: Convention,
+) -> Vec<RunObservation<'a>, MAX_RUNS> {
+    let mut kept = Vec::new();
+    for (i, r) in runs.iter().enumerate() {
+        if let Some(mut o) = RunObservation::from_record(r)
+            && !left_out.contains(&(i + 1))
+        {
             o.measured = convention.reread(o.measured);
-            o
-        })
-        .take(MAX_RUNS)
-        .collect()
+            let _ = kept.push(o);
+        }
+    }
+    kept
 }
 
 /// Missing runs are the session's own refusal (`NotEnoughRuns`); every other calibration error
@@ -433,17 +448,7 @@ impl Calibrator for LibraryCalibrator {
             .solution
             .flagged()
             .collect();
-        let convention = self.convention;
-        let obs: Vec<RunObservation<'_>, MAX_RUNS> = runs
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| !flagged.contains(&(i + 1)))
-            .filter_map(|(_, r)| RunObservation::from_record(r))
-            .map(|mut o| {
-                o.measured = convention.reread(o.measured);
-                o
-            })
-            .collect();
+        let obs = kept_observations(runs, &flagged, self.convention);
         let noise = MeasuringNoise {
             position_m: self.measurement_sigma_m,
             heading_rad: self.measurement_sigma_rad,
@@ -482,12 +487,13 @@ impl Calibrator for LibraryCalibrator {
         let obs = observations(runs, self.convention);
         let mut sum = 0.0;
         for k in 0..obs.len() {
-            let rest: Vec<RunObservation<'_>, MAX_RUNS> = obs
-                .iter()
-                .enumerate()
-                .filter(|&(i, _)| i != k)
-                .map(|(_, o)| *o)
-                .collect();
+            // Pushed one by one: a collected `Vec` of observations is moved through a copy.
+            let mut rest: Vec<RunObservation<'_>, MAX_RUNS> = Vec::new();
+            for (i, o) in obs.iter().enumerate() {
+                if i != k {
+                    let _ = rest.push(*o);
+                }
+            }
             let left_out = obs.get(k)?;
             let c = calibration::calibrate(&rest, nominal, method).ok()?;
             let end =
@@ -570,17 +576,7 @@ impl Calibrator for LibraryCalibrator {
             (k.solution.geometry, flagged)
         });
         let flagged = fit.as_ref().map(|(_, f)| f.clone()).unwrap_or_default();
-        let kept: Vec<RunObservation<'_>, MAX_RUNS> = runs
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| !flagged.contains(&(i + 1)))
-            .filter_map(|(_, r)| RunObservation::from_record(r))
-            .map(|mut o| {
-                o.measured = self.convention.reread(o.measured);
-                o
-            })
-            .take(MAX_RUNS)
-            .collect();
+        let kept = kept_observations(runs, &flagged, self.convention);
         let estimate = match fit {
             None => belief,
             Some((geometry, f)) if f.is_empty() => geometry,

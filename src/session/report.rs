@@ -51,9 +51,9 @@ const HELP: &[&str] = &[
     "runs\tlist stored runs",
     "record <n> [first]\trun n's full record with its tick knots (host tools)",
     "drop <n>|all yes\tdelete run n, or every run",
-    "calibrate [method]\tcompute all methods (or one) from measured runs, check their fit",
-    "convention [name]\tread every measured run as standard, y-right, swapped, ...",
-    "apply <method> [yes]\tuse a method's result (then save; yes: flagged run or poor fit)",
+    "calibrate [method]\tcompute all methods (or one) from measured runs",
+    "convention [name]\thow measured runs are read (y-right, ...)",
+    "apply <method> [yes]\tuse a method's result (then save; yes: with a flagged run)",
     "save\tstore parameters in flash (motors stopped)",
     "reset-params [yes]\trestore the defaults (then save; yes: discard changes)",
     "pose\todometry pose",
@@ -211,7 +211,7 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
             Decimal::fixed(c.e_max_m * 1e3, 3)
         )?,
     }
-    write!(out, "ok\r\n")
+    write!(out, "  convention {}\r\nok\r\n", s.convention.as_str())
 }
 
 /// The `runs` reply: each stored run under the number it keeps for the session.

@@ -193,6 +193,7 @@ pub mod fixtures {
     use odocal::kinematics::encoder::WheelTicks;
     use odocal::kinematics::geometry::Geometry;
     use odocal::kinematics::reference::PoseF64;
+    use odocal::motion::convention::Convention;
     use odocal::motion::profile::MotionLimits;
     use odocal::motion::run::{Direction, Measurement, PathKind, RunRecord};
     use odocal::motion::speed::{MotorParams, SpeedTuning};

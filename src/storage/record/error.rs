@@ -73,9 +73,7 @@ impl fmt::Display for RecordError {
             RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
             RecordError::Tuning(e) => write!(f, "speed tuning: {e}"),
             RecordError::ControlRate => f.write_str(crate::motion::controller::RATE_RULE),
-            RecordError::MeasuringNoise => {
-                f.write_str("measure_sd must be within 0.1..500 mm, heading_sd within 0.01..30 deg")
-            }
+            RecordError::MeasuringNoise => f.write_str("measure_sd or heading_sd out of range"),
         }
     }
 }
@@ -130,7 +128,7 @@ impl fmt::Display for FormatError {
             ),
             FormatError::MethodName => f.write_str("stored method name is not printable ASCII"),
             FormatError::Wiring => f.write_str("stored wiring byte has unknown bits"),
-            FormatError::Convention => f.write_str("stored convention byte names no convention"),
+            FormatError::Convention => f.write_str("stored convention byte unknown"),
         }
     }
 }

@@ -32,10 +32,9 @@ pub use self::calibration::{AppliedCalibration, METHOD_NAME_MAX, MethodName};
 pub(super) use self::codec::{Reader, Writer};
 pub use self::error::{FormatError, RecordError};
 
-use crate::calibration::fit_check::MeasuringNoise;
 use crate::kinematics::geometry::Geometry;
 use crate::motion::controller::{DEFAULT_RATE_HZ, rate_supported};
-use crate::motion::convention::Convention;
+use crate::motion::convention::{Convention, MeasuringNoise};
 use crate::motion::profile::MotionLimits;
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;

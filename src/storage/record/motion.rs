@@ -2,7 +2,7 @@
 //! acceleration limits, the calibration routine's square and the declared measuring noise.
 
 use super::{ParamRecord, RecordError};
-use crate::calibration::fit_check::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
+use crate::motion::convention::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
 use crate::util::num::within;
 
 impl ParamRecord {
@@ -45,9 +45,9 @@ impl ParamRecord {
         // The stored f32 of a value at a bound may round past it by an ulp.
         let slack = 1.0 + 1e-6;
         let p = f64::from(self.measure_sd_m);
-        if !(p >= p_lo / slack && p <= p_hi * slack)
-            || !(heading_deg >= h_lo / slack && heading_deg <= h_hi * slack)
-        {
+        let p_ok = p >= p_lo / slack && p <= p_hi * slack;
+        let h_ok = heading_deg >= h_lo / slack && heading_deg <= h_hi * slack;
+        if !(p_ok && h_ok) {
             return Err(RecordError::MeasuringNoise);
         }
         Ok(())

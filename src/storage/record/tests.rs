@@ -42,6 +42,9 @@ fn calibrated() -> ParamRecord {
             output_limit: 1.0,
         },
         control_hz: 5_000,
+        measure_sd_m: 0.002,
+        heading_sd_rad: 0.006,
+        convention: Convention::Swapped,
     }
 }
 
@@ -73,10 +76,10 @@ fn default_is_the_uncalibrated_paper_robot() {
 fn version_and_length_are_checked() {
     let mut buf = [0u8; ParamRecord::ENCODED_LEN];
     calibrated().encode(&mut buf).unwrap();
-    buf[0] = 5;
+    buf[0] = 6;
     assert_eq!(
         ParamRecord::decode(&buf),
-        Err(FormatError::UnsupportedVersion { found: 5 })
+        Err(FormatError::UnsupportedVersion { found: 6 })
     );
     buf[0] = 0;
     assert_eq!(
@@ -101,6 +104,7 @@ mod fixtures {
     use super::*;
     use crate::kinematics::encoder::WheelTicks;
     use crate::kinematics::reference::PoseF64;
+    use crate::motion::convention::Convention;
     use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
     use crate::storage::StoredRun;
 
@@ -114,7 +118,8 @@ fn old_bytes(v: u8) -> std::vec::Vec<u8> {
         1 => fixtures::PARAM_RECORD_V1,
         2 => fixtures::PARAM_RECORD_V2,
         3 => fixtures::PARAM_RECORD_V3,
-        _ => fixtures::PARAM_RECORD_V4,
+        4 => fixtures::PARAM_RECORD_V4,
+        _ => fixtures::PARAM_RECORD_V5,
     })
 }
 
@@ -126,6 +131,7 @@ fn the_old_layouts_start_where_the_old_firmware_started() {
         ParamRecord::V1_LEN,
         ParamRecord::V2_LEN,
         ParamRecord::V3_LEN,
+        ParamRecord::V4_LEN,
         ParamRecord::ENCODED_LEN,
     ];
     for (v, len) in (1u8..).zip(lens) {
@@ -152,13 +158,16 @@ fn version_3_records_migrate_with_their_tuning_and_the_1_khz_rate() {
         migrated,
         ParamRecord {
             control_hz: 1_000,
+            measure_sd_m: ParamRecord::DEFAULT.measure_sd_m,
+            heading_sd_rad: ParamRecord::DEFAULT.heading_sd_rad,
+            convention: ParamRecord::DEFAULT.convention,
             ..rec
         }
     );
     assert_eq!(migrated.validate(), Ok(()));
     let mut buf = [0u8; ParamRecord::ENCODED_LEN];
     migrated.encode(&mut buf).unwrap();
-    assert_eq!(buf[0], 4);
+    assert_eq!(buf[0], 5);
     assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
     // A version-3 record of the version-4 length is refused, and so is the reverse.
     let mut long = old_bytes(4);
@@ -189,10 +198,10 @@ fn version_1_and_2_records_migrate_with_their_calibration_and_the_default_tuning
         assert_eq!(migrated.tuning, SpeedTuning::DEFAULT);
         assert_eq!(migrated.control_hz, 1_000);
         assert_eq!(migrated.validate(), Ok(()));
-        // Saved again, it is a version-4 record with the calibration intact.
+        // Saved again, it is a version-5 record with the calibration intact.
         let mut buf = [0u8; ParamRecord::ENCODED_LEN];
         migrated.encode(&mut buf).unwrap();
-        assert_eq!(buf[0], 4);
+        assert_eq!(buf[0], 5);
         assert_eq!(ParamRecord::decode(&buf).unwrap(), migrated);
     }
     // A version-1 record of the new length, or a version-2 record of the old, is refused.
