@@ -414,9 +414,9 @@ fn help_lists_every_command_then_ok() {
          \x20 runs                      list stored runs\r\n\
          \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
          \x20 drop <n>|all yes          delete run n, or every run\r\n\
-         \x20 calibrate [method]        compute all methods (or one) from measured runs, check their fit\r\n\
-         \x20 convention [name]         read every measured run as standard, y-right, swapped, ...\r\n\
-         \x20 apply <method> [yes]      use a method's result (then save; yes: flagged run or poor fit)\r\n\
+         \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
+         \x20 convention [name]         how measured runs are read (y-right, ...)\r\n\
+         \x20 apply <method> [yes]      use a method's result (then save; yes: with a flagged run)\r\n\
          \x20 save                      store parameters in flash (motors stopped)\r\n\
          \x20 reset-params [yes]        restore the defaults (then save; yes: discard changes)\r\n\
          \x20 pose                      odometry pose\r\n\

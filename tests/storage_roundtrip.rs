@@ -145,7 +145,7 @@ fn stored_nan_record_is_rejected_at_load() {
 fn other_format_versions_are_rejected_cleanly() {
     let mut bytes = [0u8; ParamRecord::ENCODED_LEN];
     calibrated(3).encode(&mut bytes).unwrap();
-    for version in [0u8, 5, 255] {
+    for version in [0u8, 6, 255] {
         let mut flash = Box::new(BoardFlash::default());
         bytes[0] = version;
         store_raw(&mut flash, &bytes);
