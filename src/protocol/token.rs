@@ -352,15 +352,21 @@ impl<'a> TableRow<'a> {
     }
 }
 
-impl TableRow<'_> {
-    /// A solved row's value in the column the header names `name` ([`TABLE_COLUMNS`]);
-    /// `None` for another row, an unknown column, or a value the row does not have (`-`).
-    pub fn value(&self, name: &str) -> Option<f64> {
-        let TableRow::Solved { columns, .. } = self else {
+impl<'a> TableRow<'a> {
+    /// A solved row's text in the column the header names `name` ([`TABLE_COLUMNS`]), as the
+    /// board printed it; `None` for another row or an unknown column.
+    pub fn text(&self, name: &str) -> Option<&'a str> {
+        let TableRow::Solved { columns, .. } = *self else {
             return None;
         };
         let at = TABLE_COLUMNS.iter().position(|c| *c == name)?;
-        super::number::parse_f64(columns.split_ascii_whitespace().nth(at)?).ok()
+        columns.split_ascii_whitespace().nth(at)
+    }
+
+    /// A solved row's value in the column the header names `name`; `None` for another row, an
+    /// unknown column, or a value the row does not have (`-`, `n/a`).
+    pub fn value(&self, name: &str) -> Option<f64> {
+        super::number::parse_f64(self.text(name)?).ok()
     }
 }
 

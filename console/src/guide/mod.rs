@@ -11,13 +11,14 @@
 
 mod board_runs;
 mod check;
+mod fit;
 mod plan;
 mod results;
 mod runs;
 mod setup;
 mod typed;
 
-use typed::{length, measurement_words};
+use typed::{SQUARE_SIDE_M, WHEEL_DIAMETER_M, WHEELBASE_M, length, measurement_words};
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -527,7 +528,10 @@ impl Guide {
             }
             Step::Results => {
                 let table = self.calibrate()?;
-                if self.review_flagged_runs(&table)? || self.apply_save_verify(&table)? {
+                if self.review_flagged_runs(&table)?
+                    || self.review_poor_fit(&table)?
+                    || self.apply_save_verify(&table)?
+                {
                     return Ok(Next::To(Step::Runs));
                 }
             }

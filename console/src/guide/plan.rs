@@ -69,7 +69,7 @@ impl Guide {
                 );
                 continue;
             }
-            match length(&a) {
+            match length(&a, super::SQUARE_SIDE_M) {
                 Ok(v) if (PATH_RANGE_M.0..=PATH_RANGE_M.1).contains(&v) => {
                     let (cw, ccw) = self.counts();
                     if cw + ccw > 0 && (v - self.side_m).abs() > 1e-9 * self.side_m {

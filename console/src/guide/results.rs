@@ -8,7 +8,7 @@ use odocal::motion::run::{Direction, PathKind, RunRecord};
 use odocal::protocol::token::{self, TableRow};
 use odocal::protocol::{Command, ErrorCode, FinalLine};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, Numbered, Reading, write_calibration};
+use odocal::session::{Calibrator, Numbered, write_calibration};
 use serde_json::json;
 
 use super::runs::Measured;
@@ -41,12 +41,14 @@ impl Guide {
                 runs: &runs,
                 numbers: &[],
             };
+            // Read as the board reads them: its measuring noise and convention.
+            let reading = self.board_reading()?;
             write_calibration(
                 &mut LibraryCalibrator::default(),
                 numbered,
                 &self.nominal,
                 None,
-                &Reading::DEFAULT,
+                &reading,
                 &mut out,
             )
             .map_err(|e| Stop::Failed(e.to_string()))?;
@@ -66,8 +68,10 @@ impl Guide {
     }
 
     pub(super) fn show_table(&mut self, table: &[String]) {
-        self.ui
-            .say("  method        E_d          E_b          E_max_mm   sd_E_d     sd_E_b");
+        const SHOWN: [&str; 6] = ["E_d", "E_b", "loo_mm", "E_max_mm", "sd_E_d", "sd_E_b"];
+        self.ui.say(
+            "  method        E_d          E_b          loo_mm     E_max_mm   sd_E_d     sd_E_b",
+        );
         let known = |method: &str| LibraryCalibrator::default().methods().contains(&method);
         for l in table {
             match TableRow::parse(l) {
@@ -76,20 +80,22 @@ impl Guide {
                     self.ui
                         .say(&format!("  {method:<12}  {}{why}", token::METHOD_FAILED));
                 }
-                Some(TableRow::Solved {
-                    method, columns, ..
-                }) if known(method) => {
-                    let w: Vec<&str> = columns.split_whitespace().collect();
-                    if w.len() >= 9 {
-                        let flagged = l.find(token::WITH_FLAGGED).map_or("", |i| &l[i..]);
-                        self.ui.say(&format!(
-                            "  {method:<12}  {}  {}  {:<9}  {:<9}  {}{flagged}",
-                            w[0], w[1], w[6], w[7], w[8]
-                        ));
-                    }
+                Some(row @ TableRow::Solved { method, lowest, .. }) if known(method) => {
+                    // Each column by the name the board's header gives it.
+                    let w: Vec<&str> = SHOWN.iter().map(|c| row.text(c).unwrap_or("-")).collect();
+                    let flagged = l.find(token::WITH_FLAGGED).map_or("", |i| &l[i..]);
+                    let mark = if lowest { token::LOWEST_LOO } else { "" };
+                    self.ui.say(&format!(
+                        "  {method:<12}  {}  {}  {:<9}  {:<9}  {:<9}  {}{mark}{flagged}",
+                        w[0], w[1], w[2], w[3], w[4], w[5]
+                    ));
                 }
                 Some(
-                    TableRow::Residual { .. } | TableRow::Disagree { .. } | TableRow::Advice(_),
+                    TableRow::Residual { .. }
+                    | TableRow::Disagree { .. }
+                    | TableRow::Advice(_)
+                    | TableRow::Fit { .. }
+                    | TableRow::Mistake(_),
                 ) => {
                     self.ui.say(&format!("  {l}"));
                 }
@@ -122,7 +128,7 @@ impl Guide {
     ///
     /// # Errors
     /// [`Stop::Back`] for `back` at the question (a run changed before it stays changed).
-    fn review_runs(&mut self, review: &[usize], why: &str) -> Result<bool, Stop> {
+    pub(super) fn review_runs(&mut self, review: &[usize], why: &str) -> Result<bool, Stop> {
         let mut changed = false;
         // The board's numbers stay valid when a run is dropped; the table computed on the PC
         // numbers the live runs 1, 2, … (highest first keeps them valid).
@@ -217,11 +223,12 @@ impl Guide {
     /// applied); returns whether the runs changed (`calibrate` again).
     pub(super) fn apply_save_verify(&mut self, table: &[String]) -> Result<bool, Stop> {
         let solved = solved_rows(table);
-        // The recommended method: exact (no small-angle approximation, robust), else the
-        // smallest predicted E_max.
+        // The recommended method: the one the board marks with the lowest leave-one-out error,
+        // else exact (no small-angle approximation, robust), else the smallest predicted E_max.
         let recommended = solved
             .iter()
-            .find(|r| r.method == Method::Exact.as_str())
+            .find(|r| r.lowest_loo)
+            .or_else(|| solved.iter().find(|r| r.method == Method::Exact.as_str()))
             .or_else(|| {
                 solved
                     .iter()
@@ -286,11 +293,12 @@ impl Guide {
                 confirmed: false,
             })?;
             if applied.is_err(ErrorCode::NotConfirmed) {
-                // A run is flagged (the board's own check): applied only on a second yes.
+                // A run is flagged or the fit is poor (the board's own checks): applied only on
+                // a second yes.
                 self.ui.say(&format!("  {}", applied.last));
-                let anyway = self.ui.confirm_explicit(&format!(
-                    "Apply {method} anyway, with the flagged run in it"
-                ));
+                let anyway = self
+                    .ui
+                    .confirm_explicit(&format!("Apply {method} anyway, as the board says above"));
                 match self.go_on(anyway, table)? {
                     Proceed::Go => {}
                     Proceed::Choice => continue 'choice,
@@ -583,6 +591,8 @@ struct SolvedRow {
     e_b: String,
     /// Its predicted E_max, mm (infinite when the board printed none).
     e_max_mm: f64,
+    /// The board marks it as the lowest leave-one-out error.
+    lowest_loo: bool,
 }
 
 /// The methods a `calibrate` table solved, read by the protocol's table grammar.
@@ -590,16 +600,14 @@ fn solved_rows(table: &[String]) -> Vec<SolvedRow> {
     table
         .iter()
         .filter_map(|l| match TableRow::parse(l)? {
-            TableRow::Solved {
-                method, columns, ..
-            } if Method::parse(method).is_some() => {
-                // E_d E_b E_s D_R_mm D_L_mm b_mm E_max_mm sd_E_d sd_E_b
-                let c: Vec<&str> = columns.split_whitespace().collect();
-                (c.len() >= 9).then(|| SolvedRow {
+            row @ TableRow::Solved { method, lowest, .. } if Method::parse(method).is_some() => {
+                // Read by the header's column names.
+                Some(SolvedRow {
                     method: method.to_string(),
-                    e_d: c[0].to_string(),
-                    e_b: c[1].to_string(),
-                    e_max_mm: c[6].parse().unwrap_or(f64::INFINITY),
+                    e_d: row.text("E_d")?.to_string(),
+                    e_b: row.text("E_b")?.to_string(),
+                    e_max_mm: row.value("E_max_mm").unwrap_or(f64::INFINITY),
+                    lowest_loo: lowest,
                 })
             }
             _ => None,

@@ -12,7 +12,7 @@ use odocal::motion::speed::MotorParams;
 use odocal::protocol::token::{self, EventTag};
 use odocal::protocol::{Command, ErrorCode, FinalLine, ParamName};
 
-use super::{Guide, REPLY, Stop, event_head, event_tag};
+use super::{Guide, REPLY, Stop, WHEEL_DIAMETER_M, WHEELBASE_M, event_head, event_tag};
 use crate::log::{calibration_of, param};
 
 /// How to measure the nominal geometry, and how precisely it needs to be known.
@@ -229,9 +229,9 @@ impl Guide {
         let mut step = 0;
         loop {
             let answer = match step {
-                0 => self.ask_length("Right wheel diameter D_R", d_right),
-                1 => self.ask_length("Left wheel diameter D_L", d_right),
-                2 => self.ask_length("Wheelbase b", b),
+                0 => self.ask_length("Right wheel diameter D_R", d_right, WHEEL_DIAMETER_M),
+                1 => self.ask_length("Left wheel diameter D_L", d_right, WHEEL_DIAMETER_M),
+                2 => self.ask_length("Wheelbase b", b, WHEELBASE_M),
                 _ => {
                     let a = match self.ui.ask(
                         "Encoder counts per wheel revolution",
@@ -268,7 +268,7 @@ impl Guide {
     ///
     /// # Errors
     /// [`Stop::Back`] for `back`.
-    fn ask_length(&mut self, what: &str, default: f64) -> Result<f64, Stop> {
+    fn ask_length(&mut self, what: &str, default: f64, plausible: (f64, f64)) -> Result<f64, Stop> {
         loop {
             let a = self.ui.ask(
                 &format!("{what} (with its unit: 150mm, 15cm, 0.15m)"),
@@ -278,7 +278,7 @@ impl Guide {
                 self.ui.say(HOW_TO_MEASURE);
                 continue;
             }
-            match super::length(&a) {
+            match super::length(&a, plausible) {
                 Ok(v) if v > 0.0 && v <= 5.0 => return Ok(v),
                 Ok(v) => self.ui.say(&format!(
                     "  {v} m is not a plausible {what} (check the unit: 150mm, 0.15m)"

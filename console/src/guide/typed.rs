@@ -12,10 +12,20 @@ fn unit_symbols() -> impl Iterator<Item = &'static str> {
         .chain([AngleUnit::Degree, AngleUnit::Radian].map(AngleUnit::symbol))
 }
 
+/// Plausible ranges of the lengths the session asks for, metres: a robot's wheel diameter
+/// (20 mm to 0.5 m), its wheelbase (5 cm to 2 m), a square's side (the board's 0.1..10 m).
+pub(super) const WHEEL_DIAMETER_M: (f64, f64) = (0.02, 0.5);
+/// See [`WHEEL_DIAMETER_M`].
+pub(super) const WHEELBASE_M: (f64, f64) = (0.05, 2.0);
+/// See [`WHEEL_DIAMETER_M`].
+pub(super) const SQUARE_SIDE_M: (f64, f64) = odocal::protocol::command::PATH_RANGE_M;
+
 /// A length typed by the operator, in metres, read by the library's reader the board uses
 /// (`protocol::unit::parse_length`: `150mm`, `15cm`, `0.15m`, the unit against the number or
 /// apart from it); a bare number is refused, as the board refuses it: a unit is never inferred.
-pub(super) fn length(typed: &str) -> Result<f64, String> {
+/// The refusal proposes the units that make the number plausible for a length within
+/// `plausible` (metres): `150` → `150mm`, `0.15` → `0.15m` for a wheel diameter.
+pub(super) fn length(typed: &str, plausible: (f64, f64)) -> Result<f64, String> {
     // A unit typed apart from its number (`38.5 cm`) joins it.
     let word: String = typed.split_whitespace().collect();
     let word = word.as_str();
@@ -24,9 +34,20 @@ pub(super) fn length(typed: &str) -> Result<f64, String> {
     }
     match parse_length(word) {
         Ok(l) if !l.value.is_finite() => Err(format!("`{word}` is not finite")),
-        Ok(l) => l
-            .metres(None)
-            .ok_or_else(|| format!("`{word}` has no unit: write mm, cm or m after it ({word}mm)")),
+        Ok(l) => l.metres(None).ok_or_else(|| {
+            let fits: Vec<String> = LengthUnit::ALL
+                .into_iter()
+                .filter(|u| {
+                    let m = l.value * u.metres();
+                    m >= plausible.0 && m <= plausible.1
+                })
+                .map(|u| format!("{word}{}", u.symbol()))
+                .collect();
+            match fits.as_slice() {
+                [] => format!("`{word}` has no unit: write mm, cm or m after it"),
+                some => format!("`{word}` has no unit: {}?", some.join(" or ")),
+            }
+        }),
         Err(e) => Err(format!(
             "`{word}`: {e} (a number, with mm, cm or m after it if not metres)"
         )),
@@ -56,7 +77,7 @@ pub(super) fn measurement_words(text: &str) -> Vec<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::{length, measurement_words};
+    use super::{WHEEL_DIAMETER_M, WHEELBASE_M, length, measurement_words};
 
     #[test]
     fn a_measurement_is_passed_on_as_the_board_reads_it() {
@@ -77,18 +98,43 @@ mod tests {
 
     #[test]
     fn a_length_is_read_with_the_boards_unit_reader() {
-        assert_eq!(length("150mm").unwrap(), 150.0 * 0.001);
+        assert_eq!(length("150mm", WHEEL_DIAMETER_M).unwrap(), 150.0 * 0.001);
         assert_eq!(
-            length("0.385").unwrap_err(),
-            "`0.385` has no unit: write mm, cm or m after it (0.385mm)"
+            length("0.385", WHEELBASE_M).unwrap_err(),
+            "`0.385` has no unit: 0.385m?"
         );
-        assert_eq!(length("0.385 m").unwrap(), 0.385);
-        assert_eq!(length("38.5cm").unwrap(), 38.5 * 0.01);
-        assert_eq!(length(" 38.5 cm ").unwrap(), 38.5 * 0.01);
+        assert_eq!(length("0.385 m", WHEELBASE_M).unwrap(), 0.385);
+        assert_eq!(length("38.5cm", WHEELBASE_M).unwrap(), 38.5 * 0.01);
+        assert_eq!(length(" 38.5 cm ", WHEELBASE_M).unwrap(), 38.5 * 0.01);
         assert_eq!(
-            length("0,15").unwrap_err(),
+            length("0,15", WHEEL_DIAMETER_M).unwrap_err(),
             "`0,15` is not a number (use a decimal point)"
         );
-        assert!(length("15in").unwrap_err().starts_with("`15in`: "));
+        assert!(
+            length("15in", WHEEL_DIAMETER_M)
+                .unwrap_err()
+                .starts_with("`15in`: ")
+        );
+    }
+
+    /// The unit proposed makes the number a plausible length of its kind: never `0.15mm` for a
+    /// wheel diameter.
+    #[test]
+    fn the_unit_proposed_is_plausible_for_the_quantity() {
+        for (typed, plausible, hint) in [
+            ("0.15", WHEEL_DIAMETER_M, "`0.15` has no unit: 0.15m?"),
+            ("150", WHEEL_DIAMETER_M, "`150` has no unit: 150mm?"),
+            ("15", WHEEL_DIAMETER_M, "`15` has no unit: 15cm?"),
+            ("38.5", WHEELBASE_M, "`38.5` has no unit: 38.5cm?"),
+            ("385", WHEELBASE_M, "`385` has no unit: 385mm?"),
+            ("1", WHEELBASE_M, "`1` has no unit: 1m?"),
+            (
+                "9000",
+                WHEEL_DIAMETER_M,
+                "`9000` has no unit: write mm, cm or m after it",
+            ),
+        ] {
+            assert_eq!(length(typed, plausible).unwrap_err(), hint, "{typed}");
+        }
     }
 }
