@@ -219,8 +219,18 @@ impl Tool {
         }
     }
 
+    /// Types `text`; the transcript shows it after the question it answers, as `--answers`
+    /// shows a file's answers.
     fn answer(&mut self, text: &str) {
         writeln!(self.stdin, "{text}").unwrap();
+        if let Some(last) = self.transcript.last_mut()
+            && last.starts_with("? ")
+        {
+            if !last.ends_with(' ') {
+                last.push(' ');
+            }
+            last.push_str(text);
+        }
     }
 
     /// Runs the dialogue: answers every measurement question with the simulator's true end
@@ -1068,10 +1078,12 @@ fn ros2_export() {
 /// bare millimetre value is refused, the units named; `help` and an empty answer explain),
 /// applies and saves only on a typed yes, drives the check square and ends
 /// with the summary.
-#[test]
-fn factory_default_board_full_procedure() {
+/// The whole procedure typed on a factory-default board whose right motor is wired the other
+/// way round: the board, whether the tool ended well, its transcript (each answer after its
+/// question), its log, and the poses measured.
+fn factory_session(name: &str) -> (Sim, bool, String, PathBuf, usize) {
     let sim = Sim::start_with(&host_sim(), &["--fast", "--wiring", "right-motor-reversed"]);
-    let dir = out_dir("factory");
+    let dir = out_dir(name);
     let log = dir.join("session.jsonl");
     let mut tool = Tool::start(&["--port", &sim.pty, "--log", log.to_str().unwrap()]);
     let (mut measured, mut helped, mut bare, mut empty_apply) = (0, false, false, false);
@@ -1128,7 +1140,13 @@ fn factory_default_board_full_procedure() {
         };
         tool.answer(&answer);
     }
-    let (ok, text) = tool.finish();
+    let (code, text, _) = tool.end();
+    (sim, code == Some(0), text, log, measured)
+}
+
+#[test]
+fn factory_default_board_full_procedure() {
+    let (sim, ok, text, log, mut measured) = factory_session("factory");
     println!("{text}");
     assert!(ok, "the session failed:\n{text}");
     for expected in [
@@ -1559,4 +1577,76 @@ fn scripted(sim: &Sim, name: &str, script: &[(&str, &str)]) -> (String, Vec<Stri
         .map(|v| v["line"].as_str().unwrap().to_string())
         .collect();
     (text, sent, measured)
+}
+
+/// The marker line that opens docs/operator.md's guided-session transcript.
+const TRANSCRIPT_START: &str = "$ cargo console --port /dev/pts/0 --log session.jsonl";
+
+/// docs/operator.md's guided-session transcript is what the console prints today for the
+/// procedure it describes (`factory_session`: a factory-default board with a reversed motor),
+/// its pty and output folder written as the docs write them. Stale, it fails with the new text;
+/// `ODOCAL_UPDATE_DOCS=1` rewrites the block from this run.
+#[test]
+fn operator_transcript_is_current() {
+    let (_sim, ok, text, log, _) = factory_session("transcript");
+    assert!(ok, "the session failed:\n{text}");
+    let folder = format!("{}/", log.parent().unwrap().display());
+    let mut today = vec![TRANSCRIPT_START.to_string()];
+    for l in text.lines() {
+        let l = l.replace(&folder, "");
+        // The pty's number: the one the docs name.
+        let l = match l.find("/dev/pts/") {
+            Some(at) => {
+                let rest = &l[at + "/dev/pts/".len()..];
+                let digits = rest.chars().take_while(char::is_ascii_digit).count();
+                format!("{}/dev/pts/0{}", &l[..at], &rest[digits..])
+            }
+            None => l,
+        };
+        today.push(l.trim_end().to_string());
+    }
+    let docs_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/operator.md");
+    let docs = std::fs::read_to_string(&docs_path).unwrap();
+    let start = docs
+        .find(TRANSCRIPT_START)
+        .unwrap_or_else(|| panic!("no `{TRANSCRIPT_START}` in docs/operator.md"));
+    let end = start
+        + docs[start..]
+            .find("\n```")
+            .expect("the transcript's block ends");
+    let written: Vec<&str> = docs[start..end].lines().collect();
+    if std::env::var_os("ODOCAL_UPDATE_DOCS").is_some() {
+        let updated = format!("{}{}{}", &docs[..start], today.join("\n"), &docs[end..]);
+        std::fs::write(&docs_path, updated).unwrap();
+        return;
+    }
+    // Two kinds of numbers depend on when the PC's command lands in the simulated board's time:
+    // the pose stream's samples in the progress lines, and the coast of the other wheel during
+    // a bring-up pulse. Compared without them; every other character must match.
+    let steady = |l: &str| -> String {
+        if l.starts_with("  progress ") {
+            return l.chars().take("  progress 100 %".len()).collect();
+        }
+        match (l.find("(other wheel "), l.find("): ")) {
+            (Some(a), Some(b)) if a < b => format!("{}(other wheel …{}", &l[..a], &l[b..]),
+            _ => l.to_string(),
+        }
+    };
+    let written: Vec<String> = written.iter().map(|l| steady(l)).collect();
+    let today_steady: Vec<String> = today.iter().map(|l| steady(l)).collect();
+    let first_difference = written
+        .iter()
+        .zip(&today_steady)
+        .position(|(a, b)| a != b)
+        .unwrap_or(written.len().min(today_steady.len()));
+    assert!(
+        written == today_steady,
+        "docs/operator.md's transcript is stale from its line {} on (docs: {:?}, today: {:?}); \
+         ODOCAL_UPDATE_DOCS=1 cargo test -p odocal-console --test guided_session \
+         operator_transcript_is_current rewrites it from this run:\n{}",
+        first_difference + 1,
+        written.get(first_difference),
+        today_steady.get(first_difference),
+        today.join("\n")
+    );
 }
