@@ -296,9 +296,14 @@ impl Guide {
                 // A run is flagged or the fit is poor (the board's own checks): applied only on
                 // a second yes.
                 self.ui.say(&format!("  {}", applied.last));
+                let why = if applied.last.contains("flagged") {
+                    "with the flagged run in it"
+                } else {
+                    "with runs that fit no geometry"
+                };
                 let anyway = self
                     .ui
-                    .confirm_explicit(&format!("Apply {method} anyway, as the board says above"));
+                    .confirm_explicit(&format!("Apply {method} anyway, {why}"));
                 match self.go_on(anyway, table)? {
                     Proceed::Go => {}
                     Proceed::Choice => continue 'choice,
