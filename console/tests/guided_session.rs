@@ -1328,6 +1328,84 @@ fn a_kept_flagged_run_is_applied_only_on_a_second_yes() {
     );
 }
 
+/// Every run measured with y to the right (y and the heading negated: the commonest slip with a
+/// tape and a square): the board's fit check says the runs fit no geometry and names `y-right`;
+/// the tool stops there with the choices, `c` re-reads every run (`convention y-right`), the fit
+/// is then good, and exact is applied without a second yes, its factors those of the simulated
+/// robot (E_d 0.995, E_b 1.010) to 2e-3. Without the convention they would be about 1.004 and
+/// 0.990 (the y-right session).
+#[test]
+fn a_poor_fit_stops_with_the_choices() {
+    let sim = Sim::start(&host_sim());
+    let (mut tool, log) = tool_with_answers(&sim, "poor-fit", "100cm\n3\n", false);
+    let (mut measured, mut choices) = (0, Vec::new());
+    while let Some(l) = tool.next() {
+        let waiting = l.starts_with("? ") && l.trim_end().ends_with(':');
+        if !waiting {
+            continue;
+        }
+        if l.starts_with("? Measured end pose of run") {
+            let pose = sim.true_end(measured);
+            measured += 1;
+            // y and theta with the other sign.
+            let flipped: Vec<String> = pose
+                .split_whitespace()
+                .enumerate()
+                .map(|(i, w)| match (i, w.strip_prefix('-')) {
+                    (0, _) => w.to_string(),
+                    (_, Some(v)) => v.to_string(),
+                    (_, None) => format!("-{w}"),
+                })
+                .collect();
+            tool.answer(&flipped.join(" "));
+        } else if l.starts_with("? The fit is poor. Now") {
+            choices.push(l.clone());
+            tool.answer("c");
+        } else if l.trim_end().ends_with("(y/n):") {
+            tool.answer("y");
+        } else {
+            tool.answer("");
+        }
+    }
+    let (ok, text) = tool.finish();
+    println!("{text}");
+    assert!(ok, "the session failed:\n{text}");
+    assert_eq!(choices.len(), 1, "{text}");
+    assert!(
+        choices[0].contains("c: convention y-right"),
+        "{}",
+        choices[0]
+    );
+    assert!(text.contains("POOR FIT"), "{text}");
+    assert!(text.contains("  ok convention y-right"), "{text}");
+    let sent: Vec<String> = json_lines(&log)
+        .iter()
+        .filter(|v| v["kind"] == "tx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    assert!(sent.iter().any(|l| l == "convention y-right"), "{sent:#?}");
+    let apply: Vec<&String> = sent.iter().filter(|l| l.starts_with("apply ")).collect();
+    assert_eq!(apply, ["apply exact"], "{sent:#?}");
+    let verified = text
+        .lines()
+        .find(|l| l.starts_with("verified: params shows calibration exact"))
+        .unwrap_or_else(|| panic!("{text}"));
+    let factor = |key: &str| -> f64 {
+        let at = verified.find(key).unwrap() + key.len();
+        verified[at..]
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (e_d, e_b) = (factor("E_d="), factor("E_b="));
+    assert!(
+        (e_d - 0.995).abs() < 2e-3 && (e_b - 1.010).abs() < 2e-3,
+        "E_d {e_d} E_b {e_b}"
+    );
+}
+
 /// `back` at every step of the guided session, on a factory-default board: each answer below is
 /// given to the question the script expects, so the question asked after each `back` is checked
 /// (`POSE`: the simulator's true end pose of the next stored run). Going back drives nothing
