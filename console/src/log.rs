@@ -24,9 +24,11 @@ use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use odocal::kinematics::geometry::Geometry;
+use odocal::motion::convention::Convention;
 use odocal::motion::run::RunRecord;
-use odocal::protocol::ParamName;
 use odocal::protocol::record::RecordReader;
+use odocal::protocol::{Command, ParamName};
+use odocal::session::Reading;
 use serde_json::{Value, json};
 
 /// Appends entries to a session log file.
@@ -142,6 +144,43 @@ pub struct LogContents {
     pub applied: Option<String>,
     /// Whether the parameters were saved after the last apply.
     pub saved: bool,
+    /// How the board read its runs: the measuring noise and convention of the last logged
+    /// `params`, changed by every `set measure_sd|heading_sd` and `convention` sent after it.
+    pub reading: Reading,
+}
+
+/// How a board's `params` (its data lines) say it reads its runs: `measure_sd`, `heading_sd`
+/// and `convention` update `reading`; what they do not say stays.
+pub fn read_reading(lines: &[String], reading: &mut Reading) {
+    if let Some(v) = param(lines, ParamName::MeasureSd.as_str()).filter(|v| v.is_finite()) {
+        reading.noise.position_m = v;
+    }
+    if let Some(v) = param(lines, ParamName::HeadingSd.as_str()).filter(|v| v.is_finite()) {
+        reading.noise.heading_rad = v.to_radians();
+    }
+    let convention = lines.iter().find_map(|l| {
+        let mut w = l.split_whitespace();
+        (w.next() == Some("convention")).then(|| Convention::parse(w.next()?))?
+    });
+    if let Some(c) = convention {
+        reading.convention = c;
+    }
+}
+
+/// What a command sent changes of how the board reads its runs.
+fn follow_reading(line: &str, reading: &mut Reading) {
+    match Command::parse(line) {
+        Ok(Command::Convention { name: Some(c) }) => reading.convention = c,
+        Ok(Command::Set {
+            name: ParamName::MeasureSd,
+            value,
+        }) => reading.noise.position_m = value,
+        Ok(Command::Set {
+            name: ParamName::HeadingSd,
+            value,
+        }) => reading.noise.heading_rad = value.to_radians(),
+        _ => {}
+    }
 }
 
 /// The value of one `params` data line `name value unit`.
@@ -213,7 +252,12 @@ impl LogContents {
             };
             let slot = v["slot"].as_u64().map(|s| s as usize);
             match v["kind"].as_str().unwrap_or("") {
-                "nominal" => c.nominal = nominal_of(&strings(&v["params"])).or(c.nominal),
+                "nominal" => {
+                    let params = strings(&v["params"]);
+                    c.nominal = nominal_of(&params).or(c.nominal);
+                    read_reading(&params, &mut c.reading);
+                }
+                "tx" => follow_reading(v["line"].as_str().unwrap_or(""), &mut c.reading),
                 "plan" => {
                     if let (Some(s), Some(n)) =
                         (v["side_m"].as_f64(), v["runs_per_direction"].as_u64())
@@ -260,5 +304,35 @@ impl LogContents {
     /// The live runs in slot order.
     pub fn live_runs(&self) -> Vec<RunRecord> {
         self.runs.iter().flatten().cloned().collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A log read offline calibrates as the board read its runs: the noise and convention of
+    /// its `params`, then those the session set.
+    #[test]
+    fn the_reading_follows_params_and_the_commands_sent() {
+        let params: Vec<String> = [
+            "  measure_sd 0.002000 m",
+            "  heading_sd 0.500 deg",
+            "  convention swapped",
+        ]
+        .map(String::from)
+        .to_vec();
+        let mut reading = Reading::DEFAULT;
+        read_reading(&params, &mut reading);
+        assert_eq!(reading.noise.position_m, 0.002);
+        assert_eq!(reading.noise.heading_rad, 0.5f64.to_radians());
+        assert_eq!(reading.convention, Convention::Swapped);
+        follow_reading("convention y-right", &mut reading);
+        follow_reading("set measure_sd 5mm", &mut reading);
+        follow_reading("set heading_sd 1deg", &mut reading);
+        follow_reading("calibrate", &mut reading);
+        assert_eq!(reading.convention, Convention::YRight);
+        assert!((reading.noise.position_m - 0.005).abs() < 1e-15);
+        assert_eq!(reading.noise.heading_rad, 1f64.to_radians());
     }
 }

@@ -30,7 +30,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 use odocal::session::library::LibraryCalibrator;
-use odocal::session::{Calibrator, Reading, write_calibration};
+use odocal::session::{Calibrator, write_calibration};
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
@@ -153,12 +153,13 @@ fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
         runs: &runs,
         numbers: &[],
     };
+    // Read as the board read them when the log was written.
     write_calibration(
         &mut calibrator,
         numbered,
         &nominal,
         method,
-        &Reading::DEFAULT,
+        &contents.reading,
         &mut out,
     )
     .map_err(|e| e.to_string())?;

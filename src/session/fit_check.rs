@@ -34,6 +34,12 @@ impl Reading {
     };
 }
 
+impl Default for Reading {
+    fn default() -> Self {
+        Reading::DEFAULT
+    }
+}
+
 /// The method whose residuals the fit check reads.
 pub(super) const CHECKED_METHOD: &str = "exact";
 

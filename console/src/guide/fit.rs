@@ -127,21 +127,7 @@ impl Guide {
     pub(super) fn board_reading(&mut self) -> Result<Reading, Stop> {
         let r = self.cmd(Command::Params)?;
         let mut reading = Reading::DEFAULT;
-        for line in &r.data {
-            let mut w = line.split_whitespace();
-            let (Some(key), Some(value)) = (w.next(), w.next()) else {
-                continue;
-            };
-            let number = value.parse::<f64>().ok().filter(|v| v.is_finite());
-            match (key, number) {
-                ("measure_sd", Some(v)) => reading.noise.position_m = v,
-                ("heading_sd", Some(v)) => reading.noise.heading_rad = v.to_radians(),
-                ("convention", _) => {
-                    reading.convention = Convention::parse(value).unwrap_or_default();
-                }
-                _ => {}
-            }
-        }
+        crate::log::read_reading(&r.data, &mut reading);
         Ok(reading)
     }
 }
