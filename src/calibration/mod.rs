@@ -33,6 +33,7 @@ use crate::motion::run::{Direction, Measurement, PathKind, RunRecord};
 use crate::util::decimal::Decimal;
 use crate::util::trig;
 
+pub mod covariance;
 pub mod exact;
 pub mod fit_check;
 pub mod jung_chung;

@@ -4,6 +4,9 @@
 
 use std::fmt::Write as _;
 
+use odocal::calibration::covariance::{
+    PoseCovariance, RandomError, RandomEstimate, Uncertainty, nees,
+};
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::Direction;
@@ -22,6 +25,11 @@ pub struct RunEval {
     pub path_rms_m: f64,
     /// Maximum position error along the path, metres.
     pub path_max_m: f64,
+    /// The model's predicted covariance of the final position (x, y), m² (the library's
+    /// `calibration::covariance`, with the set's uncertainty).
+    pub final_pos_cov_m2: [[f64; 2]; 2],
+    /// The final position error's normalised square against it (2 on average when right).
+    pub nees: Option<f64>,
     /// The odometry path (x, y).
     pub odometry: Vec<(f64, f64)>,
     /// Position error against distance travelled (ground truth), metres.
@@ -52,8 +60,9 @@ pub fn e_max_syst(session: &Session, g: &Geometry) -> Option<f64> {
     Some(cg(Direction::Cw)?.max(cg(Direction::Ccw)?))
 }
 
-/// Re-integrates `run` with `g` and compares it with ground truth at every knot.
-pub fn evaluate_run(run: &OptiRun, g: &Geometry) -> RunEval {
+/// Re-integrates `run` with `g` and compares it with ground truth at every knot; the final
+/// position's covariance by the model with `u`.
+pub fn evaluate_run(run: &OptiRun, g: &Geometry, u: &Uncertainty) -> RunEval {
     let model = ArcModel::from_geometry(g);
     let mut pose = PoseF64::default();
     let mut odometry = vec![(0.0, 0.0)];
@@ -71,7 +80,11 @@ pub fn evaluate_run(run: &OptiRun, g: &Geometry) -> RunEval {
     }
     let n = (run.knots.len() - 1).max(1) as f64;
     let end = run.truth_end;
+    let cov = PoseCovariance::along(&model, *u, &run.knots).xy();
+    let e = [end.x_m - pose.x_m, end.y_m - pose.y_m];
     RunEval {
+        final_pos_cov_m2: cov,
+        nees: nees(e, cov),
         final_pos_err_m: end.distance_to(&pose),
         final_heading_err_rad: odocal::calibration::wrap_angle(end.theta_rad - pose.theta_rad)
             .abs(),
@@ -95,6 +108,9 @@ pub struct Means {
     pub path_rms_m: f64,
     /// Mean path maximum error, metres.
     pub path_max_m: f64,
+    /// Mean NEES of the final position against the model's covariance (over the runs that
+    /// have one), and how many have one.
+    pub nees: (f64, usize),
     /// UMBmark's `E_max,syst` of square or circle runs: the larger distance of the CW and CCW
     /// centres of gravity of the final position errors, metres (`None` for other kinds).
     pub e_max_syst_m: Option<f64>,
@@ -107,6 +123,10 @@ impl Means {
         self.final_heading_err_rad += e.final_heading_err_rad;
         self.path_rms_m += e.path_rms_m;
         self.path_max_m += e.path_max_m;
+        if let Some(v) = e.nees {
+            self.nees.0 += v;
+            self.nees.1 += 1;
+        }
     }
 
     fn finish(mut self) -> Self {
@@ -115,6 +135,7 @@ impl Means {
         self.final_heading_err_rad /= n;
         self.path_rms_m /= n;
         self.path_max_m /= n;
+        self.nees.0 /= self.nees.1.max(1) as f64;
         self
     }
 
@@ -129,6 +150,9 @@ impl Means {
         );
         if let Some(e) = self.e_max_syst_m {
             let _ = write!(s, ",\"E_max_syst_m\":{e:e}");
+        }
+        if self.nees.1 > 0 {
+            let _ = write!(s, ",\"nees_mean\":{:e}", self.nees.0);
         }
         s
     }
@@ -150,15 +174,49 @@ pub fn geometry_on(set: &ParamSet, session: &Session) -> Geometry {
     set.geometry.unwrap_or(session.nominal)
 }
 
-/// Evaluates `set` on every run of `sessions`.
-pub fn evaluate_set(set: &ParamSet, sessions: &[Session]) -> SetEval {
+/// The uncertainty of odometry with `set`: a calibrated set's relative 1σ (raised to the
+/// between-session floor unless `trust_session`), its fitted `E_s` 1σ or a tape's, and the slip
+/// and scrub its own calibration runs show (`calib`: the sessions it was calibrated on, each
+/// run's end residual against its geometry, `RandomEstimate`); the nominal one's defaults.
+pub fn uncertainty_of(set: &ParamSet, calib: &[Session], trust_session: bool) -> Uncertainty {
+    let Some(c) = &set.calibration else {
+        return Uncertainty::nominal(RandomError::DEFAULT);
+    };
+    let mut random = RandomEstimate::default();
+    for s in calib.iter().filter(|s| set.calib_sessions.contains(&s.id)) {
+        let model = ArcModel::from_geometry(&geometry_on(set, s));
+        // A session's runs of one direction are one path (its kind and size are the session's).
+        for d in [None, Some(Direction::Cw), Some(Direction::Ccw)] {
+            let group = s.runs.iter().filter(|r| r.direction == d);
+            random.add_group(
+                &model,
+                group.map(|r| (r.knots.as_slice(), (r.truth_end.x_m, r.truth_end.y_m))),
+            );
+        }
+    }
+    let q = &c.quality;
+    let relative = (
+        q.sigma_e_d.unwrap_or(0.0) / c.e_d,
+        q.sigma_e_b.unwrap_or(0.0) / c.e_b,
+    );
+    let sd_s = q.sigma_e_s.filter(|s| *s > 0.0).map(|s| s / c.e_s);
+    let random = random.random_error().unwrap_or(RandomError::DEFAULT);
+    eprintln!(
+        "DEBUG {} {:?} rel {:?} sd_s {:?}",
+        set.method, random, relative, sd_s
+    );
+    Uncertainty::calibrated(relative, sd_s, random, trust_session)
+}
+
+/// Evaluates `set` on every run of `sessions`, its covariance with `u`.
+pub fn evaluate_set(set: &ParamSet, sessions: &[Session], u: &Uncertainty) -> SetEval {
     let mut runs = Vec::new();
     let mut per = vec![Means::default(); sessions.len()];
     let mut overall = Means::default();
     for (si, s) in sessions.iter().enumerate() {
         let g = geometry_on(set, s);
         for (ri, r) in s.runs.iter().enumerate() {
-            let e = evaluate_run(r, &g);
+            let e = evaluate_run(r, &g, u);
             per[si].push(&e);
             overall.push(&e);
             runs.push((si, ri, e));

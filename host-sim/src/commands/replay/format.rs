@@ -56,12 +56,17 @@ pub fn json_lines(
     for (si, ri, e) in &eval.runs {
         let s = &sessions[*si];
         out.push(format!(
-            "{{{},\"session\":{},\"kind\":\"{}\",\"run\":{},\"final_pos_err_m\":{:e},\"final_heading_err_rad\":{:e},\"path_rms_m\":{:e},\"path_max_m\":{:e}}}",
+            "{{{},\"session\":{},\"kind\":\"{}\",\"run\":{},\"final_pos_err_m\":{:e},\"final_pos_cov_m2\":[[{:e},{:e}],[{:e},{:e}]],\"nees\":{},\"final_heading_err_rad\":{:e},\"path_rms_m\":{:e},\"path_max_m\":{:e}}}",
             set_fields(set, &geometry_on(set, s), reference),
             json_str(&s.id),
             s.kind.as_str(),
             ri + 1,
             e.final_pos_err_m,
+            e.final_pos_cov_m2[0][0],
+            e.final_pos_cov_m2[0][1],
+            e.final_pos_cov_m2[1][0],
+            e.final_pos_cov_m2[1][1],
+            e.nees.map_or_else(|| "null".to_string(), |v| format!("{v:e}")),
             e.final_heading_err_rad,
             e.path_rms_m,
             e.path_max_m

@@ -73,7 +73,7 @@ use crate::sim::plot::{Figure, Series, Style, write_svg};
 
 use self::campaign::{CAMPAIGN_DAYS, nearest_campaign};
 pub use self::evaluation::{
-    Means, RunEval, SetEval, e_max_syst, evaluate_run, evaluate_set, geometry_on,
+    Means, RunEval, SetEval, e_max_syst, evaluate_run, evaluate_set, geometry_on, uncertainty_of,
 };
 pub use self::format::json_lines;
 use self::format::print_text;
@@ -81,6 +81,7 @@ pub use self::methods::{
     EXACT_LS, EXACT_PATH, EndNoise, FitOptions, GEOMETRY, NOMINAL, ParamSet, Pool, ScaleRuns,
     calibrate_method, calibrated_methods, calibrated_sets, default_method, parse_geometry,
 };
+use odocal::calibration::covariance::{RandomError, Uncertainty};
 
 /// Arguments of `host-sim replay`.
 #[derive(Args, Debug)]
@@ -171,6 +172,10 @@ pub struct ReplayArgs {
     /// Calibrate on every --calibrate session, whenever it was recorded.
     #[arg(long)]
     pub every_date: bool,
+    /// The predicted covariance (`final_pos_cov_m2`, `nees`) with the calibration's own 1σ of
+    /// E_d and E_b, not raised to the drift measured between sessions.
+    #[arg(long)]
+    pub trust_session_sd: bool,
 }
 
 fn read_all(dirs: &[PathBuf]) -> Result<Vec<Session>, String> {
@@ -184,10 +189,12 @@ fn plot_free_runs(
     calibrated: Option<&ParamSet>,
 ) -> Result<Vec<PathBuf>, Box<dyn std::error::Error>> {
     let mut written = Vec::new();
+    // The plots show errors only.
+    let no_covariance = Uncertainty::nominal(RandomError::NONE);
     for s in sessions.iter().filter(|s| s.kind == Kind::Free) {
         for (i, r) in s.runs.iter().enumerate() {
             let truth: Vec<(f64, f64)> = r.truth.iter().map(|p| (p.x_m, p.y_m)).collect();
-            let nom = evaluate_run(r, &geometry_on(nominal, s));
+            let nom = evaluate_run(r, &geometry_on(nominal, s), &no_covariance);
             let mut paths = vec![
                 Series::new("ground truth", truth, Style::Line, 0),
                 Series::new(
@@ -199,7 +206,7 @@ fn plot_free_runs(
             ];
             let mut errors = vec![Series::new("nominal", nom.growth.clone(), Style::Line, 1)];
             if let Some(c) = calibrated {
-                let e = evaluate_run(r, &geometry_on(c, s));
+                let e = evaluate_run(r, &geometry_on(c, s), &no_covariance);
                 let label = format!("odometry, {} ({})", c.method, c.calib_sessions.join("+"));
                 paths.push(Series::new(label, e.odometry, Style::Line, 2));
                 errors.push(Series::new(c.method.clone(), e.growth, Style::Line, 2));
@@ -343,7 +350,10 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
     if !calib.is_empty() {
         sets.extend(calibrated_sets(&calib, &names, &fit));
     }
-    let evals_of: Vec<SetEval> = sets.iter().map(|s| evaluate_set(s, &evals)).collect();
+    let evals_of: Vec<SetEval> = sets
+        .iter()
+        .map(|s| evaluate_set(s, &evals, &uncertainty_of(s, &calib, args.trust_session_sd)))
+        .collect();
     let mut lines = Vec::new();
     for (set, ev) in sets.iter().zip(&evals_of) {
         lines.extend(json_lines(set, ev, &evals, &reference));
