@@ -28,7 +28,9 @@ use serde_json::{Value, json};
 
 use crate::log::{LogContents, calibration_of, nominal_of, param};
 
-use crate::covariance::{self, PoseCovariance, UNOBSERVED_VARIANCE, Uncertainty};
+use crate::covariance::{self, PoseCovariance, RandomError, UNOBSERVED_VARIANCE, Uncertainty};
+use odocal::calibration::covariance::RandomEstimate;
+use odocal::kinematics::reference::ArcModel;
 
 /// What the ROS 2 parameter file is for: the controller's name (its top key), the wheel
 /// joints, and the inputs of the covariance model that are not in the log.
@@ -40,11 +42,20 @@ pub struct Target {
     pub left_wheel: String,
     /// The right wheel's joint.
     pub right_wheel: String,
-    /// Random travel error of each wheel after one metre (1σ, m).
-    pub slip_m: f64,
-    /// The controller's update rate, Hz (the twist's averaging period).
+    /// Random travel error of each wheel after one metre (1σ, m); `None`: estimated from the
+    /// log's runs (their scatter), or the default without runs.
+    pub slip_m: Option<f64>,
+    /// Keep the calibration's own 1σ of E_d and E_b, below the between-session floor.
+    pub trust_session_sd: bool,
+    /// The controller's update rate, Hz.
     pub rate_hz: f64,
+    /// The controller's `velocity_rolling_window_size`: its speeds are the mean over this many
+    /// updates (the twist's averaging period, with `rate_hz`).
+    pub rolling_window: u32,
 }
+
+/// `diff_drive_controller`'s default `velocity_rolling_window_size`.
+pub const ROLLING_WINDOW_DEFAULT: u32 = 10;
 
 impl Default for Target {
     fn default() -> Self {
@@ -52,8 +63,10 @@ impl Default for Target {
             controller: "diff_drive_controller".into(),
             left_wheel: "left_wheel_joint".into(),
             right_wheel: "right_wheel_joint".into(),
-            slip_m: covariance::DEFAULT_SLIP_M,
+            slip_m: None,
+            trust_session_sd: false,
             rate_hz: 100.0,
+            rolling_window: ROLLING_WINDOW_DEFAULT,
         }
     }
 }
@@ -400,29 +413,40 @@ impl Export {
             "    right_wheel_radius_multiplier: {}",
             yaml_float(g.diameter_right_m / (2.0 * r))
         );
-        let (sd, sd_source) = self.relative_sd();
-        let slip = t.slip_m * t.slip_m;
-        let pose = self.pose_covariance(slip);
+        let (u, source) = self.uncertainty(t.slip_m, t.trust_session_sd);
+        let pose = self.pose_covariance(&u);
         let _ = writeln!(
             s,
             "    # Variances of x, y (m^2), z, roll, pitch (unobserved) and yaw (rad^2): the end \
-             pose's spread after one {side} m square, from {sd_source} (relative sd_E_d={:.3e}, \
-             sd_E_b={:.3e}) and {slip_mm} mm of slip per wheel per metre; docs/operator.md.",
-            sd.0,
-            sd.1,
+             pose's spread after one {side} m square, from {source} (relative sd_E_d={:.3e}, \
+             sd_E_b={:.3e}, sd_E_s={:.3e}; slip {:.3e} m^2/m, scrub {:.3e} m^2/rad); \
+             docs/operator.md.",
+            u.sd_d,
+            u.sd_b,
+            u.sd_s,
+            u.slip_m2_per_m,
+            u.scrub_m2_per_rad,
             side = self.side_m,
-            slip_mm = 1e3 * t.slip_m
         );
         let _ = writeln!(s, "    pose_covariance_diagonal: [{}]", list(&pose));
-        let twist = self.twist_covariance(t.rate_hz);
+        let twist = self.twist_covariance(t.rate_hz, t.rolling_window);
         let _ = writeln!(
             s,
-            "    # Variances of vx (m^2/s^2), vy, vz, wx, wy (unobserved) and wz (rad^2/s^2): \
-             encoder counts ({} counts/rev) and the speed loop's max_accel ({} m/s^2) over one \
-             {} Hz update.",
-            self.nominal.counts_per_rev, self.max_accel, t.rate_hz
+            "    # Variances of vx (m^2/s^2), vy, vz, wx, wy (unobserved) and wz (rad^2/s^2) of \
+             the controller's speeds, means over velocity_rolling_window_size = {} updates at \
+             {} Hz: encoder counts ({} counts/rev) and the speed loop's max_accel ({} m/s^2).",
+            t.rolling_window, t.rate_hz, self.nominal.counts_per_rev, self.max_accel
         );
+        let _ = writeln!(s, "    velocity_rolling_window_size: {}", t.rolling_window);
         let _ = writeln!(s, "    twist_covariance_diagonal: [{}]", list(&twist));
+        let _ = writeln!(
+            s,
+            "    # Left at the controller's defaults: wheels_per_side, odom_frame_id, \
+             base_frame_id, open_loop, position_feedback, enable_odom_tf, cmd_vel_timeout, \
+             publish_limited_velocity, the linear and angular limits; publish_rate {} Hz if \
+             this rate_hz is not the controller manager's update_rate.",
+            t.rate_hz
+        );
         s
     }
 
@@ -497,48 +521,75 @@ impl Export {
                 "wheelbase_m": g.wheelbase_m, "counts_per_rev": g.counts_per_rev },
             "factors": { "e_d": self.factors.0, "e_b": self.factors.1, "e_s": self.factors.2 },
             "sd": self.sd.map(|(d, b)| json!({ "e_d": d, "e_b": b })),
-            "pose_covariance_diagonal": self.pose_covariance(
-                Target::default().slip_m * Target::default().slip_m
+            "pose_covariance_diagonal": self.pose_covariance(&self.uncertainty(None, false).0),
+            "twist_covariance_diagonal": self.twist_covariance(
+                Target::default().rate_hz,
+                Target::default().rolling_window
             ),
-            "twist_covariance_diagonal": self.twist_covariance(Target::default().rate_hz),
             "covariance_square_side_m": self.side_m,
             "table": self.table,
             "runs": runs,
         })
     }
 
-    /// The relative 1σ of E_d and E_b for the covariance model, and where it comes from: the
-    /// log's, or the stated defaults ([`covariance::DEFAULT_SD_CALIBRATED`], or
-    /// [`covariance::DEFAULT_SD_NOMINAL`] for an uncalibrated board).
-    pub fn relative_sd(&self) -> ((f64, f64), &'static str) {
-        match (self.sd, &self.method) {
-            (Some((d, b)), _) => (
-                (d / self.factors.0, b / self.factors.1),
-                "the calibration's 1-sigma",
-            ),
-            (None, Some(_)) => (
-                covariance::DEFAULT_SD_CALIBRATED,
-                "default 1-sigma (the log has none)",
-            ),
-            (None, None) => (
-                covariance::DEFAULT_SD_NOMINAL,
-                "default 1-sigma of a nominal geometry",
-            ),
+    /// The covariance model's inputs, and where they come from: the calibration's relative 1σ
+    /// of E_d and E_b from the log (raised to the between-session floor unless
+    /// `trust_session`), or the floor for a calibrated board without one, or a nominal
+    /// geometry's; a tape's 1σ of E_s; slip and scrub from the scatter of the log's runs around
+    /// their path's mean (with the applied geometry), unless `slip_m` is given, or the defaults.
+    pub fn uncertainty(&self, slip_m: Option<f64>, trust_session: bool) -> (Uncertainty, String) {
+        let model = ArcModel::from_geometry(&self.applied);
+        let mut estimate = RandomEstimate::default();
+        let mut paths: Vec<PathKind> = Vec::new();
+        for r in &self.runs {
+            if !paths.contains(&r.path) {
+                paths.push(r.path);
+            }
         }
+        for path in paths {
+            let group =
+                self.runs.iter().filter(|r| r.path == path).filter_map(|r| {
+                    Some((r.knots.as_slice(), r.measured.map(|m| (m.x_m, m.y_m))?))
+                });
+            estimate.add_group(&model, group);
+        }
+        let (mut random, mut source) = match estimate.random_error() {
+            Some(r) => (
+                r,
+                format!("slip and scrub of {} runs' scatter", estimate.runs),
+            ),
+            None => (RandomError::DEFAULT, "default slip and scrub".to_string()),
+        };
+        if let Some(m) = slip_m {
+            random.slip_m2_per_m = m * m;
+            source = format!("slip {m} m/m as given");
+        }
+        let u = match (self.sd, &self.method) {
+            (Some((d, b)), _) => Uncertainty::calibrated(
+                (d / self.factors.0, b / self.factors.1),
+                None,
+                random,
+                trust_session,
+            ),
+            (None, Some(_)) => Uncertainty::calibrated((0.0, 0.0), None, random, false),
+            (None, None) => Uncertainty::nominal(random),
+        };
+        let sd = match (self.sd, &self.method, trust_session) {
+            (Some(_), _, true) => "the calibration's 1-sigma",
+            (Some(_), _, false) => "the calibration's 1-sigma, at least the between-session drift",
+            (None, Some(_), _) => "the between-session drift (the log has no 1-sigma)",
+            (None, None, _) => "a nominal geometry's 1-sigma",
+        };
+        (u, format!("{sd}; {source}"))
     }
 
     /// The diagonal of the pose covariance `[x, y, z, roll, pitch, yaw]` for a robot stack
     /// whose covariance is a constant: the [`covariance`] model's at the end of one square of
     /// the plan's side L (CW and CCW, the larger of the two), driven with the applied geometry,
-    /// with the relative 1σ of [`Export::relative_sd`] and `slip_m2_per_m` of slip.
-    pub fn pose_covariance(&self, slip_m2_per_m: f64) -> [f64; 6] {
+    /// with the model's inputs `u` ([`Export::uncertainty`]).
+    pub fn pose_covariance(&self, u: &Uncertainty) -> [f64; 6] {
         let g = &self.applied;
-        let (sd_d, sd_b) = self.relative_sd().0;
-        let u = Uncertainty {
-            sd_d,
-            sd_b,
-            slip_m2_per_m,
-        };
+        let u = *u;
         let per_tick = |d: f64| std::f64::consts::PI * d / f64::from(g.counts_per_rev);
         let mut var = [0.0f64; 3];
         for direction in [Direction::Cw, Direction::Ccw] {
@@ -569,13 +620,13 @@ impl Export {
 
     /// The diagonal of the twist covariance `[vx, vy, vz, wx, wy, wz]` of speeds averaged over
     /// one update at `rate_hz` ([`covariance::twist_variance`]).
-    pub fn twist_covariance(&self, rate_hz: f64) -> [f64; 6] {
+    pub fn twist_covariance(&self, rate_hz: f64, rolling_window: u32) -> [f64; 6] {
         let g = &self.applied;
         let (v, w) = covariance::twist_variance(
             0.5 * (g.diameter_right_m + g.diameter_left_m),
             g.counts_per_rev,
             g.wheelbase_m,
-            1.0 / rate_hz,
+            f64::from(rolling_window.max(1)) / rate_hz,
             self.max_accel,
         );
         let c = covariance::twist_ros(v, w);

@@ -103,12 +103,20 @@ enum Cmd {
         #[arg(long, default_value = "right_wheel_joint")]
         right_wheel: String,
         /// ros2: random travel error of each wheel after one metre (1σ, m), in the pose
-        /// covariance.
-        #[arg(long, default_value_t = covariance::DEFAULT_SLIP_M)]
-        slip: f64,
-        /// ros2: the controller's update rate, Hz (the twist covariance's averaging period).
+        /// covariance (default: the scatter of the log's runs, or 2 mm without runs).
+        #[arg(long)]
+        slip: Option<f64>,
+        /// ros2: keep the log's own 1σ of E_d and E_b, even below the drift measured between
+        /// sessions.
+        #[arg(long)]
+        trust_session_sd: bool,
+        /// ros2: the controller's update rate, Hz.
         #[arg(long, default_value_t = 100.0)]
         rate_hz: f64,
+        /// ros2: the controller's velocity_rolling_window_size (its speeds are the mean over
+        /// this many updates: the twist covariance's averaging period).
+        #[arg(long, default_value_t = export::ROLLING_WINDOW_DEFAULT)]
+        rolling_window: u32,
     },
     /// Bridge the board to a ROS 2 network: odometry, tf, joint states and diagnostics out,
     /// cmd_vel in (docs/operator.md, "Using odocal on a ROS 2 robot").
@@ -187,7 +195,9 @@ fn main() -> ExitCode {
             left_wheel,
             right_wheel,
             slip,
+            trust_session_sd,
             rate_hz,
+            rolling_window,
         }) => export::run(
             log,
             *format,
@@ -196,7 +206,9 @@ fn main() -> ExitCode {
                 left_wheel: left_wheel.clone(),
                 right_wheel: right_wheel.clone(),
                 slip_m: *slip,
+                trust_session_sd: *trust_session_sd,
                 rate_hz: *rate_hz,
+                rolling_window: *rolling_window,
             },
             output.as_deref(),
         ),

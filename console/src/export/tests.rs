@@ -33,7 +33,7 @@ fn a_terminal_capture_with_the_params_reply_exports() {
     assert!(yaml.contains("    wheel_separation: 0.38885\n"), "{yaml}");
     assert!(yaml.contains("    wheel_radius: 0.075\n"), "{yaml}");
     assert!(
-        yaml.contains("default 1-sigma (the log has none)"),
+        yaml.contains("the between-session drift (the log has no 1-sigma)"),
         "{yaml}"
     );
     assert!(yaml.contains("    pose_covariance_diagonal: ["), "{yaml}");
@@ -145,9 +145,20 @@ fn the_covariance_model_meets_the_exact_arc_and_grows_with_slip() {
         runs: Vec::new(),
         table: Vec::new(),
     };
+    // The model's inputs: the log's relative 1σ as they are (no floor, no scale term).
+    let inputs = |e: &Export, slip: f64| {
+        let (d, b) = e.sd.unwrap();
+        crate::covariance::Uncertainty {
+            sd_d: d / e.factors.0,
+            sd_b: b / e.factors.1,
+            sd_s: 0.0,
+            slip_m2_per_m: slip,
+            scrub_m2_per_rad: 0.0,
+        }
+    };
     // Without slip: the calibration's 1σ through the exact-arc model, to 1 % (first order
     // against finite differences of ±1σ).
-    let model = e.pose_covariance(0.0);
+    let model = e.pose_covariance(&inputs(&e, 0.0));
     let exact = exact_arc_variance(&e);
     for (k, m) in [(0, 0), (1, 1), (2, 5)] {
         assert!(
@@ -158,19 +169,29 @@ fn the_covariance_model_meets_the_exact_arc_and_grows_with_slip() {
     assert_eq!(model[2], UNOBSERVED_VARIANCE);
     // Twice the 1σ, four times the variance.
     e.sd = Some((2e-4, 4e-4));
-    let large = e.pose_covariance(0.0);
+    let large = e.pose_covariance(&inputs(&e, 0.0));
     for k in [0, 1, 5] {
         assert!((large[k] / model[k] - 4.0).abs() < 1e-9, "{large:?}");
     }
     // Slip adds to every observed variance.
-    let slipping = e.pose_covariance(4e-6);
+    let slipping = e.pose_covariance(&inputs(&e, 4e-6));
     for k in [0, 1, 5] {
         assert!(slipping[k] > large[k], "{slipping:?}");
     }
     // The twist: nonzero, unobserved components large.
-    let t = e.twist_covariance(100.0);
+    let t = e.twist_covariance(100.0, 1);
     assert!(
         t[0] > 0.0 && t[5] > 0.0 && t[1] == UNOBSERVED_VARIANCE,
         "{t:?}"
     );
+    // diff_drive_controller's rolling mean over 10 updates: the edge counts' share 100 times
+    // smaller, the acceleration's 100 times larger (at 0.3 m/s² it dominates).
+    let ten = e.twist_covariance(100.0, 10);
+    assert!(ten[0] > t[0] && ten[5] > t[5], "{ten:?} vs {t:?}");
+    // The floor: the log's 1σ raised to the between-session drift unless trusted.
+    let (floored, _) = e.uncertainty(None, false);
+    let (trusted, _) = e.uncertainty(None, true);
+    assert_eq!(floored.sd_b, 3e-3);
+    assert!((trusted.sd_b - 4e-4 / 1.01).abs() < 1e-15);
+    assert_eq!(floored.sd_s, 1e-3);
 }

@@ -101,6 +101,11 @@ impl Bridge<'_> {
                             println!("  {d}");
                         }
                         println!("{}", r.last);
+                        // The board's pose is at the origin again: so is `odom`, and its
+                        // covariance restarts with it.
+                        if r.ok() && matches!(Command::parse(cmd.trim()), Ok(Command::OdomReset)) {
+                            self.odometer.odom_reset();
+                        }
                     }
                     Err(LinkError::Timeout(c)) => println!("no reply to `{c}`"),
                     Err(e) => return Err(e),

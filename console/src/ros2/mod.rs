@@ -33,7 +33,7 @@ use ros2_client::{
     Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
 };
 
-use crate::covariance::{self, PoseCovariance, Uncertainty};
+use crate::covariance::{self, PoseCovariance, RandomError, Uncertainty};
 use crate::link::Link;
 use crate::log::{SessionLog, calibration_of, nominal_of, param};
 use bridge::Bridge;
@@ -92,9 +92,14 @@ pub struct Options {
     /// covariance come from it (without it: stated defaults, see docs/operator.md).
     #[arg(long)]
     pub calibration: Option<PathBuf>,
-    /// Random travel error of each wheel after one metre (1σ, m) in the pose covariance.
-    #[arg(long, default_value_t = covariance::DEFAULT_SLIP_M)]
-    pub slip: f64,
+    /// Random travel error of each wheel after one metre (1σ, m) in the pose covariance
+    /// (default: the scatter of the `--calibration` log's runs, or 2 mm without one).
+    #[arg(long)]
+    pub slip: Option<f64>,
+    /// Keep the `--calibration` log's own 1σ of E_d and E_b in the pose covariance, even below
+    /// the drift measured between sessions of one robot (docs/calibration.md).
+    #[arg(long)]
+    pub trust_session_sd: bool,
     /// Log every line to and from the board to this file (JSON lines, as the guided session).
     #[arg(long)]
     pub log: Option<PathBuf>,
@@ -260,16 +265,18 @@ fn read_board(link: &mut Link) -> Result<Board, String> {
     })
 }
 
-/// The relative 1σ of E_d and E_b for the pose covariance, and where they come from.
-fn uncertainty(opts: &Options, board: &Board) -> Result<((f64, f64), String), String> {
+/// The pose covariance's inputs, and where they come from: the `--calibration` log's
+/// ([`crate::export::Export::uncertainty`]), or the defaults of a calibrated or an uncalibrated
+/// board.
+fn uncertainty(opts: &Options, board: &Board) -> Result<(Uncertainty, String), String> {
     if let Some(log) = &opts.calibration {
         let e = crate::export::Export::read(log)?;
-        let (sd_d, sd_b) = e.sd.ok_or_else(|| {
-            format!(
+        if e.sd.is_none() {
+            return Err(format!(
                 "{}: no 1-sigma of the calibration in it (no `calibrate` table, no runs)",
                 log.display()
-            )
-        })?;
+            ));
+        }
         let board_method = board
             .calibration
             .split_whitespace()
@@ -282,20 +289,22 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<((f64, f64), String), St
                 e.method.as_deref().unwrap_or("none")
             ));
         }
-        return Ok((
-            (sd_d / e.factors.0, sd_b / e.factors.1),
-            format!("the calibration's 1-sigma from {}", log.display()),
-        ));
+        let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd);
+        return Ok((u, format!("{source} from {}", log.display())));
+    }
+    let mut random = RandomError::DEFAULT;
+    if let Some(m) = opts.slip {
+        random.slip_m2_per_m = m * m;
     }
     if board.calibration.starts_with("none") {
         Ok((
-            covariance::DEFAULT_SD_NOMINAL,
+            Uncertainty::nominal(random),
             "defaults for an uncalibrated board".into(),
         ))
     } else {
         Ok((
-            covariance::DEFAULT_SD_CALIBRATED,
-            "defaults for a calibrated board (no --calibration log)".into(),
+            Uncertainty::calibrated((0.0, 0.0), None, random, false),
+            "the between-session drift for a calibrated board (no --calibration log)".into(),
         ))
     }
 }
@@ -455,15 +464,10 @@ fn banner(opts: &Options, version: &str, (domain, range): (u16, Range), sd_sourc
 }
 
 /// The odometer of the bridge's messages for `board`: its names from `opts`, the pose
-/// covariance from the relative 1σ `sd` of E_d and E_b and the slip, the twist covariance from
+/// covariance from `u`, the twist covariance from
 /// the encoders and the speed loop's acceleration over one stream period, the clock map with
 /// the wire's time per byte (none on a pseudo-terminal).
-fn odometer(opts: &Options, board: &Board, sd: (f64, f64)) -> Odometer {
-    let u = Uncertainty {
-        sd_d: sd.0,
-        sd_b: sd.1,
-        slip_m2_per_m: opts.slip * opts.slip,
-    };
+fn odometer(opts: &Options, board: &Board, u: Uncertainty) -> Odometer {
     let period = 1.0 / f64::from(opts.rate_hz);
     let (var_v, var_w) = covariance::twist_variance(
         0.5 * (board.d_right + board.d_left),
@@ -515,7 +519,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
     let mut link = Link::open(&opts.port, session_log(opts)?)?;
     let version = link.handshake()?;
     let board = read_board(&mut link)?;
-    let (sd, sd_source) = uncertainty(opts, &board)?;
+    let (u, sd_source) = uncertainty(opts, &board)?;
     let net = network(opts, domain, range)?;
 
     let stream_on = Command::Stream {
@@ -535,7 +539,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         board: &board,
         link,
         stream_on,
-        odometer: odometer(opts, &board, sd),
+        odometer: odometer(opts, &board, u),
         stats: Stats::default(),
         guard: Guard::new(opts.rate_hz),
         prev: None,

@@ -139,6 +139,15 @@ impl Odometer {
         self.carry
     }
 
+    /// The board's odometry was reset on purpose (`odom reset`): the published pose restarts at
+    /// the origin with it, and its covariance with the pose.
+    pub fn odom_reset(&mut self) {
+        self.carry = (0.0, 0.0, 0.0);
+        self.published = (0.0, 0.0, 0.0);
+        self.prev = None;
+        self.cov.restart();
+    }
+
     /// The messages of `line` (without its line end), which arrived at `arrived_s` on the PC's
     /// clock; `None` when it is not a stream line.
     pub fn messages(&mut self, line: &str, arrived_s: f64) -> Option<Messages> {
@@ -187,7 +196,7 @@ impl Odometer {
                     },
                     orientation: q,
                 },
-                covariance: Covariance(self.cov.ros()),
+                covariance: Covariance(crate::covariance::pose_ros(&self.cov)),
             },
             twist: TwistWithCovariance {
                 twist: Twist::planar(v, turn),
@@ -256,7 +265,9 @@ mod tests {
         let u = Uncertainty {
             sd_d: 1e-3,
             sd_b: 1e-3,
+            sd_s: 1e-3,
             slip_m2_per_m: 1e-6,
+            scrub_m2_per_rad: 1e-6,
         };
         Odometer::new(
             names(),
@@ -479,6 +490,28 @@ mod tests {
         assert!(
             (x - (-0.5 + 0.1 * (-45f64).to_radians().cos())).abs() < 1e-9,
             "{x}"
+        );
+    }
+
+    /// `odom reset` on the board: the published pose restarts at the origin (not carried over as
+    /// after a reset), and its covariance with it, from zero.
+    #[test]
+    fn odom_reset_restarts_the_pose_and_its_covariance() {
+        let mut o = odometer();
+        let at = |o: &mut Odometer, t: f64, pose: (f64, f64, f64), v: f64| {
+            let m = o.messages(&line(t, pose, v, v), OFFSET_S + t).unwrap();
+            (m.line.x_m, m.odom.pose.covariance.0[0])
+        };
+        at(&mut o, 1.0, (0.0, 0.0, 0.0), 0.5);
+        let (_, grown) = at(&mut o, 3.0, (1.0, 0.0, 0.0), 0.5);
+        assert!(grown > 0.0);
+        o.odom_reset();
+        let (x, var) = at(&mut o, 3.1, (0.0, 0.0, 0.0), 0.0);
+        assert_eq!((x, var), (0.0, 0.0));
+        let (x, var) = at(&mut o, 4.1, (0.2, 0.0, 0.0), 0.2);
+        assert!(
+            (x - 0.2).abs() < 1e-12 && var > 0.0 && var < grown,
+            "{x} {var} {grown}"
         );
     }
 }

@@ -43,10 +43,13 @@
 //! error along the path; per session and overall the means over runs.
 //!
 //! `--format json` prints one object per line per (parameter set, evaluated run) with the keys
-//! `method, default, calib_sessions, session, kind, run, final_pos_err_m, final_heading_err_rad,
-//! path_rms_m, path_max_m, E_b, E_d, E_s, D_R_m, D_L_m, b_m`, then one summary object per
+//! `method, default, calib_sessions, session, kind, run, final_pos_err_m, final_pos_cov_m2,
+//! nees, final_heading_err_rad, path_rms_m, path_max_m, E_b, E_d, E_s, D_R_m, D_L_m, b_m`
+//! (`final_pos_cov_m2`: the 2×2 x/y covariance of the final position the library's
+//! `calibration::covariance` predicts for the parameter set, [`evaluation::uncertainty_of`];
+//! `nees`: the final position error's normalised square against it), then one summary object per
 //! parameter set with `"session": "all"`, `"kind": "all"`, `"run": "all"`, the means over the
-//! evaluated runs and, under `sessions`, the means per session. The `method` a user gets by
+//! evaluated runs (`nees_mean` among them) and, under `sessions`, the means per session. The `method` a user gets by
 //! default here (`exact-mocap`) carries `"default": true`. The same lines go to `<out>/replay.jsonl`; next to
 //! it, each evaluated free-path run gets a plot of its paths (ground truth, nominal odometry,
 //! calibrated odometry) and of the position error along it.
