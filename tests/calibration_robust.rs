@@ -491,15 +491,7 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         numbers: &[],
     };
     let mut out = String::new();
-    write_calibration(
-        &mut calibrator,
-        numbered,
-        &NOMINAL,
-        None,
-        &Reading::DEFAULT,
-        &mut out,
-    )
-    .unwrap();
+    calibrate_reply(&mut calibrator, numbered, &mut out);
     assert!(
         out.contains("without run 4 the others agree (each run left out in turn): check run 4"),
         "{out}"
@@ -511,15 +503,7 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         runs: &stored,
         numbers: &numbers,
     };
-    write_calibration(
-        &mut calibrator,
-        numbered,
-        &NOMINAL,
-        None,
-        &Reading::DEFAULT,
-        &mut out,
-    )
-    .unwrap();
+    calibrate_reply(&mut calibrator, numbered, &mut out);
     assert!(out.contains("without run 5 the others agree"), "{out}");
     // Measured right, no run disagrees and none is named.
     all[wrong].measured.x_m *= 10.0;
@@ -531,15 +515,7 @@ fn leave_one_out_names_the_run_typed_in_the_wrong_unit() {
         runs: &stored,
         numbers: &[],
     };
-    write_calibration(
-        &mut calibrator,
-        numbered,
-        &NOMINAL,
-        None,
-        &Reading::DEFAULT,
-        &mut out,
-    )
-    .unwrap();
+    calibrate_reply(&mut calibrator, numbered, &mut out);
     assert!(
         !out.contains("DISAGREES") && !out.contains("left out"),
         "{out}"
@@ -554,15 +530,7 @@ fn advice_lines(
 ) -> Vec<String> {
     let numbered = Numbered { runs, numbers };
     let mut out = String::new();
-    write_calibration(
-        calibrator,
-        numbered,
-        &NOMINAL,
-        None,
-        &Reading::DEFAULT,
-        &mut out,
-    )
-    .unwrap();
+    calibrate_reply(calibrator, numbered, &mut out);
     out.lines()
         .map(str::trim)
         .filter(|l| l.starts_with("advice "))
@@ -638,4 +606,9 @@ fn the_track_advice_leaves_a_flagged_run_out() {
         renumbered[0].ends_with(" (run 5 flagged, left out)"),
         "{renumbered:#?}"
     );
+}
+
+/// The `calibrate` reply for `numbered`, as the board reads its runs by default, into `out`.
+fn calibrate_reply(calibrator: &mut LibraryCalibrator, numbered: Numbered<'_>, out: &mut String) {
+    write_calibration(calibrator, numbered, &NOMINAL, None, &Reading::DEFAULT, out).unwrap();
 }

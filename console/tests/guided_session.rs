@@ -1284,12 +1284,7 @@ fn a_kept_flagged_run_is_applied_only_on_a_second_yes() {
             measured += 1;
             let answer = if measured == 3 {
                 // y typed with the wrong sign.
-                let mut w: Vec<String> = pose.split_whitespace().map(str::to_string).collect();
-                w[1] = match w[1].strip_prefix('-') {
-                    Some(v) => v.to_string(),
-                    None => format!("-{}", w[1]),
-                };
-                w.join(" ")
+                with_other_sign(&pose, &[1])
             } else {
                 pose
             };
@@ -1348,16 +1343,7 @@ fn a_poor_fit_stops_with_the_choices() {
             let pose = sim.true_end(measured);
             measured += 1;
             // y and theta with the other sign.
-            let flipped: Vec<String> = pose
-                .split_whitespace()
-                .enumerate()
-                .map(|(i, w)| match (i, w.strip_prefix('-')) {
-                    (0, _) => w.to_string(),
-                    (_, Some(v)) => v.to_string(),
-                    (_, None) => format!("-{w}"),
-                })
-                .collect();
-            tool.answer(&flipped.join(" "));
+            tool.answer(&with_other_sign(&pose, &[1, 2]));
         } else if l.starts_with("? The fit is poor. Now") {
             choices.push(l.clone());
             tool.answer("c");
@@ -1727,4 +1713,20 @@ fn operator_transcript_is_current() {
         today_steady.get(first_difference),
         today.join("\n")
     );
+}
+
+/// A typed pose (`x y theta`, each with its unit) with the values at `positions` given the other
+/// sign: an operator's sign mistake.
+fn with_other_sign(pose: &str, positions: &[usize]) -> String {
+    pose.split_whitespace()
+        .enumerate()
+        .map(
+            |(i, w)| match (positions.contains(&i), w.strip_prefix('-')) {
+                (false, _) => w.to_string(),
+                (true, Some(v)) => v.to_string(),
+                (true, None) => format!("-{w}"),
+            },
+        )
+        .collect::<Vec<_>>()
+        .join(" ")
 }
