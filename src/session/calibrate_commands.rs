@@ -271,7 +271,7 @@ pub fn write_calibration<C: Calibrator>(
             ),
             false => None,
         };
-        fit_check::write_fit(out, &check, &reading.noise, mistake)?;
+        fit_check::write_fit(out, &check, mistake)?;
     }
     if solved == 0 {
         // Advice from a failed fit would be meaningless.

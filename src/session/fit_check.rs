@@ -80,27 +80,22 @@ fn write_numbers(out: &mut dyn Write, check: &FitCheck) -> fmt::Result {
     )
 }
 
-/// The fit line: `fit exact chi2=… dof=… p=…: …` with the noise assumed, and for a poor fit
-/// the mistake line after it (`mistake`: the convention that fits, if one does).
+/// The fit line: `fit exact chi2=… dof=… p=…: ok|POOR FIT, apply needs yes` (the noise
+/// assumed is `params`' `measure_sd`, `heading_sd`), and for a poor fit the mistake line after
+/// it (`mistake`: the convention that fits, if one does).
 pub(super) fn write_fit(
     out: &mut dyn Write,
     check: &FitCheck,
-    noise: &MeasuringNoise,
     mistake: Option<(Convention, FitCheck)>,
 ) -> fmt::Result {
     write!(out, "  {FIT}{CHECKED_METHOD} ")?;
     write_numbers(out, check)?;
-    write!(
-        out,
-        ": {} (measure_sd {} mm, heading_sd {} deg, robot scatter)",
-        if check.poor() { POOR_FIT } else { "ok" },
-        Decimal::fixed(noise.position_m * 1e3, 2),
-        Decimal::fixed(noise.heading_rad.to_degrees(), 2),
-    )?;
+    out.write_str(": ")?;
+    out.write_str(if check.poor() { POOR_FIT } else { "ok" })?;
     if !check.poor() {
         return out.write_str(EOL);
     }
-    write!(out, ": apply needs yes{EOL}  {MISTAKE}")?;
+    write!(out, ", apply needs yes{EOL}  {MISTAKE}")?;
     match mistake {
         Some((c, fits)) => {
             write!(out, "{}: {} fits (", c.as_str(), c.describe())?;
@@ -109,8 +104,7 @@ pub(super) fn write_fit(
         }
         None => write!(
             out,
-            "{NO_MISTAKE}: measure again, set measure_sd/heading_sd to the noise you have, or \
-             apply <method> yes{EOL}"
+            "{NO_MISTAKE}: measure again, declare measure_sd/heading_sd, or apply <method> yes{EOL}"
         ),
     }
 }

@@ -142,8 +142,7 @@ mod tests {
         let table: Vec<String> = [
             "  run 1  dx=+46.000 mm dy=-3.000 mm weight=1.00",
             "  run 2  dx=-46.000 mm dy=+3.000 mm weight=1.00",
-            "  fit exact chi2=970.0 dof=2 p=1.0e-200: POOR FIT (measure_sd 1.00 mm, heading_sd \
-             0.20 deg, robot scatter): apply needs yes",
+            "  fit exact chi2=970.0 dof=2 p=1.00e-200: POOR FIT, apply needs yes",
             "  mistake y-right: y to the right fits (chi2=1.0 dof=2 p=6.1e-1): convention y-right \
              re-reads the runs",
         ]
