@@ -3,63 +3,17 @@
 //! line session, the fit along ground-truth paths, and a clear error for an absent folder.
 //! Without the data the tests fail; `ODOCAL_SKIP_DATA=1` skips them on purpose, said on stderr.
 
-use std::path::PathBuf;
-use std::process::Command;
+#[path = "support/replay_data.rs"]
+mod support;
 
 use host_sim::commands::replay::{
     EXACT_LS, EXACT_PATH, FitOptions, ParamSet, Pool, ScaleRuns, calibrate_method,
     calibrated_methods, calibrated_sets, e_max_syst, evaluate_set,
 };
-use host_sim::sim::optiodom::{Kind, Session, read_session};
+use host_sim::sim::optiodom::Kind;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use serde_json::Value;
-
-fn data_dir() -> PathBuf {
-    std::env::var_os("ODOCAL_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
-        PathBuf::from,
-    )
-}
-
-/// The folder of a shared session. An absent folder fails the test, unless `ODOCAL_SKIP_DATA`
-/// is set: then the test is skipped and says so on stderr (`None`). A missing data folder must
-/// never pass for a green run.
-fn session_dir(kind: &str, id: &str) -> Option<PathBuf> {
-    let d = data_dir().join("optiodom/diff").join(kind).join(id);
-    if d.is_dir() {
-        Some(d)
-    } else if std::env::var_os("ODOCAL_SKIP_DATA").is_some() {
-        eprintln!("skipped (ODOCAL_SKIP_DATA is set): {} absent", d.display());
-        None
-    } else {
-        panic!(
-            "{} absent: put the shared data beside the checkout (../shared/data) or set \
-             ODOCAL_DATA to its folder; ODOCAL_SKIP_DATA=1 skips these tests on purpose",
-            d.display()
-        )
-    }
-}
-
-fn session(kind: &str, id: &str) -> Option<Session> {
-    session_dir(kind, id).map(|d| read_session(&d).unwrap())
-}
-
-fn sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-/// The JSON lines of a successful `replay --format json`, parsed; a failure shows its stderr.
-fn json_rows(out: &std::process::Output) -> Vec<Value> {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect()
-}
+use support::{json_rows, session, session_dir, sim};
 
 #[test]
 fn an_absent_session_folder_is_a_clear_error() {
@@ -648,111 +602,4 @@ fn the_campaign_nearest_in_time_calibrates_and_the_sessions_half_a_year_away_are
             "{bad}: {stderr}"
         );
     }
-}
-
-/// The mean NEES of `rows` (per-run rows of `method` and `kind`), and how many.
-fn mean_nees(rows: &[Value], method: &str, kind: &str) -> (f64, usize) {
-    let v: Vec<f64> = rows
-        .iter()
-        .filter(|r| r["method"] == method && r["kind"] == kind && r["run"] != "all")
-        .map(|r| r["nees"].as_f64().unwrap())
-        .collect();
-    (v.iter().sum::<f64>() / v.len() as f64, v.len())
-}
-
-/// The covariance the bridge publishes holds on real runs: `replay --format json` gives every
-/// evaluated run its predicted final-position covariance (`final_pos_cov_m2`, the library's
-/// model with the calibration's 1σ raised to the between-session floor, a tape's `E_s`, and the
-/// slip and scrub of the calibration runs' own scatter) and the NEES of its error against it.
-/// Calibrated on the squares, evaluated on the other kinds (the squares of the same day
-/// calibrate them), and on each square session left out of the calibration: a mean NEES of 2
-/// is a right covariance. Measured: squares 2.70 (24 runs), lines and turns 2.67 (9), free
-/// paths 3.79 (2), circles 0.56 (6: their predicted σ is the floor's, which this session's
-/// E_b did not need). Bounds 1..4 on each kind, the circles 0.3..4 (docs/calibration.md,
-/// *Covariance that holds*). Without the floor (`--trust-session-sd`) the squares are at
-/// 5.28 and the free paths at 7.44: over-confident.
-#[test]
-fn replay_covariance_holds_on_real_runs() {
-    let kinds = ["circular", "ivanjko", "free"];
-    let ids = ["231220200134", "231220200057", "030120210001"];
-    let squares = [
-        "230620202042",
-        "230620202144",
-        "231220200029",
-        "231220200040",
-    ];
-    let Some(square_dirs) = squares
-        .iter()
-        .map(|id| session_dir("square", id))
-        .collect::<Option<Vec<_>>>()
-    else {
-        return;
-    };
-    let Some(other_dirs) = kinds
-        .iter()
-        .zip(ids)
-        .map(|(k, id)| session_dir(k, id))
-        .collect::<Option<Vec<_>>>()
-    else {
-        return;
-    };
-    let mut args: Vec<std::ffi::OsString> = vec!["replay".into(), "--calibrate".into()];
-    args.extend(square_dirs.iter().map(|d| d.clone().into_os_string()));
-    args.push("--evaluate".into());
-    args.extend(other_dirs.iter().map(|d| d.clone().into_os_string()));
-    args.extend(["--method", "exact", "--format", "json", "--out"].map(Into::into));
-    args.push(
-        std::env::temp_dir()
-            .join("odocal-replay-nees")
-            .into_os_string(),
-    );
-    let rows = json_rows(&sim().args(&args).output().unwrap());
-    for r in rows.iter().filter(|r| r["run"] != "all") {
-        let c = &r["final_pos_cov_m2"];
-        assert!(c[0][0].as_f64().unwrap() > 0.0 && c[0][1] == c[1][0], "{r}");
-    }
-    for (kind, (lo, hi)) in [
-        ("circular", (0.3, 4.0)),
-        ("ivanjko", (1.0, 4.0)),
-        ("free", (1.0, 4.0)),
-    ] {
-        let (nees, n) = mean_nees(&rows, "exact", kind);
-        assert!(
-            n > 0 && nees > lo && nees < hi,
-            "{kind}: mean NEES {nees} of {n}"
-        );
-    }
-    // Each square session predicted by the others.
-    let mut square_rows = Vec::new();
-    for (i, d) in square_dirs.iter().enumerate() {
-        let mut args: Vec<std::ffi::OsString> = vec!["replay".into(), "--calibrate".into()];
-        for (j, o) in square_dirs.iter().enumerate() {
-            if j != i {
-                args.push(o.clone().into_os_string());
-            }
-        }
-        args.extend(["--evaluate".into(), d.clone().into_os_string()]);
-        args.extend(
-            [
-                "--method",
-                "exact",
-                "--format",
-                "json",
-                "--every-date",
-                "--out",
-            ]
-            .map(Into::into),
-        );
-        args.push(
-            std::env::temp_dir()
-                .join("odocal-replay-nees")
-                .into_os_string(),
-        );
-        square_rows.extend(json_rows(&sim().args(&args).output().unwrap()));
-    }
-    let (nees, n) = mean_nees(&square_rows, "exact", "square");
-    assert!(
-        n == 24 && nees > 1.0 && nees < 4.0,
-        "squares: mean NEES {nees} of {n}"
-    );
 }
