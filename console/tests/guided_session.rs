@@ -1684,20 +1684,25 @@ fn operator_transcript_is_current() {
         std::fs::write(&docs_path, updated).unwrap();
         return;
     }
-    // Two kinds of numbers depend on when the PC's command lands in the simulated board's time:
-    // the pose stream's samples in the progress lines, and the coast of the other wheel during
-    // a bring-up pulse. Compared without them; every other character must match.
-    let steady = |l: &str| -> String {
-        if l.starts_with("  progress ") {
-            return l.chars().take("  progress 100 %".len()).collect();
-        }
-        match (l.find("(other wheel "), l.find("): ")) {
-            (Some(a), Some(b)) if a < b => format!("{}(other wheel …{}", &l[..a], &l[b..]),
-            _ => l.to_string(),
-        }
+    // The measured values depend, in their last digits, on when the PC's commands land in the
+    // simulated board's time (a run's end to a micrometre, the bring-up's coast, the factors to
+    // 1e-7, and so the table's padding): every signed or decimal number is compared as `#`, and
+    // runs of spaces as one; the progress lines, samples of the pose stream (how many arrive
+    // before a run's end depends on the same timing), not at all. The words, the units, the
+    // columns and the whole numbers (runs, counts, steps) must match.
+    let steady = |lines: &mut dyn Iterator<Item = &str>| -> Vec<String> {
+        lines
+            .filter(|l| !l.starts_with("  progress "))
+            .map(|l| {
+                numbers_masked(l)
+                    .split_whitespace()
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .collect()
     };
-    let written: Vec<String> = written.iter().map(|l| steady(l)).collect();
-    let today_steady: Vec<String> = today.iter().map(|l| steady(l)).collect();
+    let written = steady(&mut written.iter().copied());
+    let today_steady = steady(&mut today.iter().map(String::as_str));
     let first_difference = written
         .iter()
         .zip(&today_steady)
@@ -1729,4 +1734,64 @@ fn with_other_sign(pose: &str, positions: &[usize]) -> String {
         )
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// `line` with every signed or decimal number (`+0.003`, `-54.731`, `1.25e-4`, `+21231`) written
+/// `#`; unsigned whole numbers stay.
+fn numbers_masked(line: &str) -> String {
+    let chars: Vec<char> = line.chars().collect();
+    let mut out = String::new();
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        let signed = (c == '+' || c == '-') && chars.get(i + 1).is_some_and(char::is_ascii_digit);
+        // A number starts at a digit or a sign before one, not inside a word (`E_d`, `L=1`).
+        let starts = (c.is_ascii_digit() || signed)
+            && !i
+                .checked_sub(1)
+                .and_then(|j| chars.get(j))
+                .is_some_and(|p| p.is_ascii_alphanumeric() || *p == '_' || *p == '.');
+        if !starts {
+            out.push(c);
+            i += 1;
+            continue;
+        }
+        let mut j = i + usize::from(signed);
+        let mut decimal = false;
+        while let Some(&d) = chars.get(j) {
+            let exponent = (d == 'e' || d == 'E')
+                && chars
+                    .get(j + 1)
+                    .is_some_and(|n| n.is_ascii_digit() || *n == '-' || *n == '+');
+            if d.is_ascii_digit() {
+                j += 1;
+            } else if d == '.' && chars.get(j + 1).is_some_and(char::is_ascii_digit) {
+                decimal = true;
+                j += 1;
+            } else if exponent && decimal {
+                j += 2;
+            } else {
+                break;
+            }
+        }
+        if signed || decimal {
+            out.push('#');
+        } else {
+            out.extend(&chars[i..j]);
+        }
+        i = j;
+    }
+    out
+}
+
+#[test]
+fn numbers_are_masked_but_words_and_whole_numbers_stay() {
+    assert_eq!(
+        numbers_masked("  exact  0.995000 1.25e-4 run 12 L=1.000 m +21231 counts E_d=0.99"),
+        "  exact  # # run 12 L=# m # counts E_d=#"
+    );
+    assert_eq!(
+        numbers_masked("ok 27 commands, 200000 counts/rev"),
+        "ok 27 commands, 200000 counts/rev"
+    );
 }
