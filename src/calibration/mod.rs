@@ -49,7 +49,8 @@ pub use quality::Quality;
 pub use stats::{DirectionStats, SquareStats};
 pub use track::{TrackAdvice, TrackAdviceInput};
 
-/// Plausible range of every calibration factor; a result outside is rejected.
+/// Plausible range of every calibration factor; a result outside is rejected. What may be
+/// stored and applied is narrower (`storage::record::STORED_FACTOR_RANGE`, 0.8..1.25).
 pub const FACTOR_RANGE: core::ops::RangeInclusive<f64> = 0.5..=2.0;
 
 /// One measured run, borrowed from a firmware [`RunRecord`] or from host replay data.

@@ -39,6 +39,12 @@ use crate::motion::profile::MotionLimits;
 use crate::motion::speed::SpeedTuning;
 use crate::motion::wiring::Wiring;
 
+/// The calibration factors a stored record may hold (`E_d`, `E_b`, `E_s`, and each calibrated
+/// dimension against its nominal one). Narrower on purpose than the range a fit may visit while
+/// it iterates (`calibration::FACTOR_RANGE`, 0.5..2): a calibration 20 % off the nominal
+/// geometry is a measuring or typing mistake, not a robot, and is neither applied nor loaded.
+pub const STORED_FACTOR_RANGE: core::ops::RangeInclusive<f64> = 0.8..=1.25;
+
 /// Everything the board persists, as one stored record: also the session's settings (what
 /// `params` shows and `set` changes), so a parameter lives in one struct. Each operator
 /// parameter's field is named by its row of `protocol::PARAMS`.
@@ -162,7 +168,7 @@ impl ParamRecord {
         c.geometry
             .validate()
             .map_err(RecordError::CalibratedGeometry)?;
-        let factor_ok = |e: f64| e.is_finite() && (0.8..=1.25).contains(&e);
+        let factor_ok = |e: f64| e.is_finite() && STORED_FACTOR_RANGE.contains(&e);
         if !(factor_ok(c.e_d) && factor_ok(c.e_b) && factor_ok(c.e_s)) {
             return Err(RecordError::Factor);
         }
