@@ -59,16 +59,6 @@ pub struct EndResidual {
     pub dtheta_rad: Option<f64>,
 }
 
-/// The characteristic length of a path: the side of a square, the length of a line, the radius
-/// of a circle.
-pub fn characteristic_length_m(path: &PathKind) -> f64 {
-    match *path {
-        PathKind::Square { side_m, .. } => side_m,
-        PathKind::Line { length_m } => length_m,
-        PathKind::Circle { radius_m, .. } => radius_m,
-    }
-}
-
 /// The χ² of a fit and what it says.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FitCheck {
@@ -91,7 +81,7 @@ impl FitCheck {
     ) -> Option<FitCheck> {
         let (mut chi2, mut components) = (0.0, 0u32);
         for r in residuals {
-            let (sp, sh) = noise.end_sigma(characteristic_length_m(&r.path));
+            let (sp, sh) = noise.end_sigma(r.path.characteristic_length_m());
             chi2 += (r.dx_m * r.dx_m + r.dy_m * r.dy_m) / (sp * sp);
             components += 2;
             if let Some(t) = r.dtheta_rad {

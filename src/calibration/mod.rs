@@ -97,14 +97,10 @@ impl<'a> RunObservation<'a> {
         )
     }
 
-    /// Characteristic length of the path, metres: the side of a square, the length of a line,
-    /// the radius of a circle. The exact method weights heading residuals by it.
+    /// Characteristic length of the path ([`PathKind::characteristic_length_m`]); the exact
+    /// method weights heading residuals by it.
     pub fn characteristic_length_m(&self) -> f64 {
-        match self.path {
-            PathKind::Square { side_m, .. } => side_m,
-            PathKind::Line { length_m } => length_m,
-            PathKind::Circle { radius_m, .. } => radius_m,
-        }
+        self.path.characteristic_length_m()
     }
 
     /// Checks that the measurement and odometry are finite, the error is not absurd (larger

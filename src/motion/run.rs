@@ -93,6 +93,16 @@ impl PathKind {
             PathKind::Circle { radius_m, .. } => 2.0 * core::f64::consts::PI * radius_m,
         }
     }
+
+    /// Characteristic length of the path, metres: the side of a square, the length of a line,
+    /// the radius of a circle.
+    pub fn characteristic_length_m(&self) -> f64 {
+        match *self {
+            PathKind::Square { side_m, .. } => side_m,
+            PathKind::Line { length_m } => length_m,
+            PathKind::Circle { radius_m, .. } => radius_m,
+        }
+    }
 }
 
 /// A measured true end pose, in the start frame of the run.

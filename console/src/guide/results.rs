@@ -296,7 +296,8 @@ impl Guide {
                 // A run is flagged or the fit is poor (the board's own checks): applied only on
                 // a second yes.
                 self.ui.say(&format!("  {}", applied.last));
-                let why = if applied.last.contains("flagged") {
+                // Which check asked, from the table the board wrote (not the reply's words).
+                let why = if !flagged_and_culprit(table).0.is_empty() {
                     "with the flagged run in it"
                 } else {
                     "with runs that fit no geometry"

@@ -39,14 +39,16 @@ impl ParamRecord {
     /// # Errors
     /// [`RecordError::MeasuringNoise`].
     pub(super) fn validate_noise(&self) -> Result<(), RecordError> {
+        // Bounds as stored (`f32`, the heading in radians): `set` stores a value within the range
+        // rounded by the same monotone conversions, so it never falls outside them.
         let (p_lo, p_hi) = MEASURE_SD_RANGE_M;
         let (h_lo, h_hi) = HEADING_SD_RANGE_DEG;
-        let heading_deg = f64::from(self.heading_sd_rad).to_degrees();
-        // The stored f32 of a value at a bound may round past it by an ulp.
-        let slack = 1.0 + 1e-6;
-        let p = f64::from(self.measure_sd_m);
-        let p_ok = p >= p_lo / slack && p <= p_hi * slack;
-        let h_ok = heading_deg >= h_lo / slack && heading_deg <= h_hi * slack;
+        let p_ok = within(self.measure_sd_m, p_lo as f32, p_hi as f32);
+        let h_ok = within(
+            self.heading_sd_rad,
+            h_lo.to_radians() as f32,
+            h_hi.to_radians() as f32,
+        );
         if !(p_ok && h_ok) {
             return Err(RecordError::MeasuringNoise);
         }

@@ -285,3 +285,37 @@ fn validation_rejects_every_bad_field() {
         assert_eq!(r.validate(), Err(expected));
     }
 }
+
+/// The declared measuring noise at each end of `set`'s range, stored as `set` stores it, is a
+/// valid record; a step beyond either end is not.
+#[test]
+fn measuring_noise_at_its_range_ends_is_stored() {
+    use crate::motion::convention::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
+    let (p_lo, p_hi) = MEASURE_SD_RANGE_M;
+    let (h_lo, h_hi) = HEADING_SD_RANGE_DEG;
+    for (p, h) in [(p_lo, h_lo), (p_hi, h_hi)] {
+        let rec = ParamRecord {
+            measure_sd_m: p as f32,
+            heading_sd_rad: h.to_radians() as f32,
+            ..ParamRecord::DEFAULT
+        };
+        assert_eq!(rec.validate(), Ok(()), "{p} m, {h} deg");
+    }
+    for (p, h) in [
+        (p_lo * 0.99, 1.0),
+        (p_hi * 1.01, 1.0),
+        (0.001, h_lo * 0.99),
+        (0.001, h_hi * 1.01),
+    ] {
+        let rec = ParamRecord {
+            measure_sd_m: p as f32,
+            heading_sd_rad: f64::to_radians(h) as f32,
+            ..ParamRecord::DEFAULT
+        };
+        assert_eq!(
+            rec.validate(),
+            Err(RecordError::MeasuringNoise),
+            "{p} m, {h} deg"
+        );
+    }
+}
