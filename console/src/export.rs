@@ -566,12 +566,12 @@ impl Export {
         }
         let u = match (self.sd, &self.method) {
             (Some((d, b)), _) => Uncertainty::calibrated(
-                (d / self.factors.0, b / self.factors.1),
+                Some((d / self.factors.0, b / self.factors.1)),
                 None,
                 random,
                 trust_session,
             ),
-            (None, Some(_)) => Uncertainty::calibrated((0.0, 0.0), None, random, false),
+            (None, Some(_)) => Uncertainty::calibrated(None, None, random, trust_session),
             (None, None) => Uncertainty::nominal(random),
         };
         let sd = match (self.sd, &self.method, trust_session) {

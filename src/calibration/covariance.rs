@@ -63,15 +63,17 @@ pub struct Uncertainty {
 
 impl Uncertainty {
     /// A calibrated robot: the calibration's relative 1σ `(sd_d, sd_b)`, raised to
-    /// [`BETWEEN_SESSION_FLOOR`] unless `trust_session`; the fitted relative 1σ of `E_s`, or
-    /// [`TAPE_SCALE_SD`] when `E_s` was not fitted; `random` the slip and scrub
-    /// ([`RandomError`]).
+    /// [`BETWEEN_SESSION_FLOOR`] unless `trust_session` (`None`, a calibration whose 1σ is not
+    /// known: the floor); the fitted relative 1σ of `E_s`, or [`TAPE_SCALE_SD`] when `E_s` was
+    /// not fitted; `random` the slip and scrub ([`RandomError`]).
     pub fn calibrated(
-        (sd_d, sd_b): (f64, f64),
+        relative_sd: Option<(f64, f64)>,
         fitted_sd_s: Option<f64>,
         random: RandomError,
         trust_session: bool,
     ) -> Uncertainty {
+        let (sd_d, sd_b) = relative_sd.unwrap_or((0.0, 0.0));
+        let trust_session = trust_session && relative_sd.is_some();
         let (floor_d, floor_b) = match trust_session {
             true => (0.0, 0.0),
             false => BETWEEN_SESSION_FLOOR,
@@ -427,10 +429,13 @@ mod tests {
     #[test]
     fn the_session_sd_is_floored_unless_trusted() {
         let r = RandomError::DEFAULT;
-        let u = Uncertainty::calibrated((1e-5, 3.5e-8), None, r, false);
+        let u = Uncertainty::calibrated(Some((1e-5, 3.5e-8)), None, r, false);
         assert_eq!((u.sd_d, u.sd_b, u.sd_s), (5e-4, 3e-3, TAPE_SCALE_SD));
-        let t = Uncertainty::calibrated((1e-5, 3.5e-8), Some(2e-4), r, true);
+        let t = Uncertainty::calibrated(Some((1e-5, 3.5e-8)), Some(2e-4), r, true);
         assert_eq!((t.sd_d, t.sd_b, t.sd_s), (1e-5, 3.5e-8, 2e-4));
+        // No 1σ known: the floor, trusted or not.
+        let f = Uncertainty::calibrated(None, None, r, true);
+        assert_eq!((f.sd_d, f.sd_b), BETWEEN_SESSION_FLOOR);
     }
 
     /// A turn in place scrubs: the midpoint's variance grows by `s` per radian on each axis.

@@ -303,7 +303,7 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<(Uncertainty, String), S
         ))
     } else {
         Ok((
-            Uncertainty::calibrated((0.0, 0.0), None, random, false),
+            Uncertainty::calibrated(None, None, random, false),
             "the between-session drift for a calibrated board (no --calibration log)".into(),
         ))
     }

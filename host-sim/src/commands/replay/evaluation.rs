@@ -205,7 +205,7 @@ pub fn uncertainty_of(set: &ParamSet, calib: &[Session], trust_session: bool) ->
         "DEBUG {} {:?} rel {:?} sd_s {:?}",
         set.method, random, relative, sd_s
     );
-    Uncertainty::calibrated(relative, sd_s, random, trust_session)
+    Uncertainty::calibrated(Some(relative), sd_s, random, trust_session)
 }
 
 /// Evaluates `set` on every run of `sessions`, its covariance with `u`.
