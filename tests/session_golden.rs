@@ -4,10 +4,9 @@
 //! The doubles here only record what the session asked for and return scripted values; the
 //! closed-loop behaviour against the real controller and calibration is tested in host-sim.
 
-use odocal::calibration::fit_check::{FitCheck, MeasuringNoise};
+use odocal::calibration::fit_check::FitCheck;
 use odocal::motion::bringup::{CheckKind, CheckReport};
 use odocal::motion::controller::{Fault, Wheel};
-use odocal::motion::convention::Convention;
 use odocal::motion::wiring::Wiring;
 use std::fmt;
 
@@ -19,8 +18,8 @@ use odocal::motion::profile::MotionLimits;
 use odocal::motion::run::{MAX_KNOTS, PathKind, RunRecord};
 use odocal::motion::speed::{MotorParams, SpeedTuning};
 use odocal::session::{
-    Calibrator, Culprit, MAX_RUNS, MotorsRunning, MotorsStopped, Numbered, Robot, RobotError,
-    Session, Settings, SettingsAndRuns, Solution, SolveError, Status, StoreError,
+    Calibrator, Culprit, MAX_RUNS, MotorsRunning, MotorsStopped, Numbered, Reading, Robot,
+    RobotError, Session, Settings, SettingsAndRuns, Solution, SolveError, Status, StoreError,
 };
 use odocal::storage::{FlashFault, FlashTooSmall, RunsLoaded, StoredRun};
 
@@ -277,7 +276,7 @@ impl Calibrator for KnownCalibrator {
         }
     }
     /// Its reading changes nothing of its known answers.
-    fn set_reading(&mut self, _: Convention, _: MeasuringNoise) {}
+    fn set_reading(&mut self, _: Reading) {}
     /// Its results carry no residuals to check.
     fn fit_check(&mut self, _: &[RunRecord], _: &Geometry) -> Option<FitCheck> {
         None

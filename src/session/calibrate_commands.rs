@@ -76,8 +76,7 @@ impl<C: Calibrator> Session<C> {
         if changed {
             self.unsaved = true;
             let reading = self.reading();
-            self.calibrator
-                .set_reading(reading.convention, reading.noise);
+            self.calibrator.set_reading(reading);
         }
         let ack = Ack::Convention {
             name: self.settings.convention,
@@ -123,9 +122,7 @@ impl<C: Calibrator> Session<C> {
             runs: &self.runs,
             numbers: &self.numbers,
         };
-        let reading = self.reading();
-        self.calibrator
-            .set_reading(reading.convention, reading.noise);
+        self.calibrator.set_reading(self.reading());
         let flagged = flagged_runs(&mut self.calibrator, runs, &nominal);
         if !flagged.is_empty() && !confirmed {
             let refusal = Refusal::Flagged {
@@ -205,7 +202,7 @@ pub fn write_calibration<C: Calibrator>(
     if let Some(refused) = refuse_calibration(&p, out) {
         return refused;
     }
-    calibrator.set_reading(reading.convention, reading.noise);
+    calibrator.set_reading(*reading);
     let flagged = flagged_runs(calibrator, numbered, nominal);
     let methods: Vec<&'static str, 16> = calibrator
         .methods()
@@ -262,13 +259,7 @@ pub fn write_calibration<C: Calibrator>(
     {
         // A poor fit: the consistent measuring mistake that explains it, if one does.
         let mistake = match check.poor() {
-            true => fit_check::name_mistake(
-                calibrator,
-                runs,
-                nominal,
-                reading.convention,
-                &reading.noise,
-            ),
+            true => fit_check::name_mistake(calibrator, runs, nominal, *reading),
             false => None,
         };
         fit_check::write_fit(out, &check, mistake)?;

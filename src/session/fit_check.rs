@@ -43,21 +43,23 @@ impl Default for Reading {
 /// The method whose residuals the fit check reads.
 pub(super) const CHECKED_METHOD: &str = "exact";
 
-/// The mistaken convention (other than `current`) under which every run fits best, if one
-/// fits within the noise; the calibrator reads the runs under `current` again afterwards.
+/// The mistaken convention (other than `current`'s) under which every run fits best, if one
+/// fits within the noise; the calibrator reads the runs as `current` again afterwards.
 pub(super) fn name_mistake<C: Calibrator>(
     calibrator: &mut C,
     runs: &[RunRecord],
     nominal: &Geometry,
-    current: Convention,
-    noise: &MeasuringNoise,
+    current: Reading,
 ) -> Option<(Convention, FitCheck)> {
     let mut best: Option<(Convention, FitCheck)> = None;
     for c in Convention::ALL {
-        if c == current {
+        if c == current.convention {
             continue;
         }
-        calibrator.set_reading(c, *noise);
+        calibrator.set_reading(Reading {
+            convention: c,
+            ..current
+        });
         if let Some(check) = calibrator.fit_check(runs, nominal)
             && !check.poor()
             && best.is_none_or(|(_, b)| check.chi2 < b.chi2)
@@ -65,7 +67,7 @@ pub(super) fn name_mistake<C: Calibrator>(
             best = Some((c, check));
         }
     }
-    calibrator.set_reading(current, *noise);
+    calibrator.set_reading(current);
     best
 }
 

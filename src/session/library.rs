@@ -15,6 +15,7 @@ use heapless::Vec;
 
 use super::MAX_RUNS;
 use super::Settings;
+use super::fit_check::Reading;
 use super::traits::{
     Calibrator, Culprit, Health, Numbered, Rejection, Robot, RobotError, RunResidual,
     SettingsAndRuns, Solution, SolveError,
@@ -432,13 +433,13 @@ impl Calibrator for LibraryCalibrator {
         self.exact = None;
     }
 
-    fn set_reading(&mut self, convention: Convention, noise: MeasuringNoise) {
-        if convention != self.convention {
-            self.convention = convention;
+    fn set_reading(&mut self, reading: Reading) {
+        if reading.convention != self.convention {
+            self.convention = reading.convention;
             self.exact = None;
         }
-        self.measurement_sigma_m = noise.position_m;
-        self.measurement_sigma_rad = noise.heading_rad;
+        self.measurement_sigma_m = reading.noise.position_m;
+        self.measurement_sigma_rad = reading.noise.heading_rad;
     }
 
     fn fit_check(&mut self, runs: &[RunRecord], nominal: &Geometry) -> Option<FitCheck> {

@@ -8,14 +8,14 @@
 use core::fmt;
 
 use super::Settings;
+use super::fit_check::Reading;
 use crate::calibration::CalibrationError;
-use crate::calibration::fit_check::{FitCheck, MeasuringNoise};
+use crate::calibration::fit_check::FitCheck;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
-use crate::motion::convention::Convention;
 use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
@@ -327,9 +327,10 @@ pub trait Calibrator {
         nominal: &Geometry,
         method: &str,
     ) -> Result<Solution, SolveError>;
-    /// Reads every measured run under `convention` and assumes `noise` for a measured end
-    /// from now on (results kept from earlier solves under another reading are stale).
-    fn set_reading(&mut self, convention: Convention, noise: MeasuringNoise);
+    /// Reads every measured run under `reading`'s convention and assumes its noise for a
+    /// measured end from now on (results kept from earlier solves under another reading are
+    /// stale).
+    fn set_reading(&mut self, reading: Reading);
     /// Whether the runs the exact fit kept (those it did not flag) agree with one geometry
     /// within the noise set by [`Calibrator::set_reading`] and the robot's own scatter: the χ²
     /// of a least-squares exact fit weighted by that noise. `None` when the fit fails or leaves
