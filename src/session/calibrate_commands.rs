@@ -11,8 +11,8 @@ use core::fmt::{self, Write};
 use heapless::Vec;
 
 use super::AppliedCalibration;
-use super::fit_check::{self, Reading};
-use super::traits::{Calibrator, Culprit, Numbered, Robot, RobotError, RunResidual};
+use super::fit_check;
+use super::traits::{Calibrator, Culprit, Numbered, Reading, Robot, RobotError, RunResidual};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::convention::Convention;

@@ -7,38 +7,14 @@
 
 use core::fmt::{self, Write};
 
-use super::traits::Calibrator;
-use crate::calibration::fit_check::{FitCheck, MeasuringNoise};
+use super::traits::{Calibrator, Reading};
+use crate::calibration::fit_check::FitCheck;
 use crate::kinematics::geometry::Geometry;
 use crate::motion::convention::Convention;
 use crate::motion::run::RunRecord;
 use crate::protocol::EOL;
 use crate::protocol::token::{FIT, MISTAKE, NO_MISTAKE, POOR_FIT};
 use crate::util::decimal::{Decimal, Scientific};
-
-/// How the session reads its measured runs: the convention in force and the measuring noise
-/// declared (`convention`, `set measure_sd`, `set heading_sd`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Reading {
-    /// How every measured run is re-read.
-    pub convention: Convention,
-    /// The noise a measured end carries besides the robot's own scatter.
-    pub noise: MeasuringNoise,
-}
-
-impl Reading {
-    /// The standard convention and the default noise.
-    pub const DEFAULT: Reading = Reading {
-        convention: Convention::Standard,
-        noise: MeasuringNoise::DEFAULT,
-    };
-}
-
-impl Default for Reading {
-    fn default() -> Self {
-        Reading::DEFAULT
-    }
-}
 
 /// The method whose residuals the fit check reads.
 pub(super) const CHECKED_METHOD: &str = "exact";

@@ -15,9 +15,8 @@ use heapless::Vec;
 
 use super::MAX_RUNS;
 use super::Settings;
-use super::fit_check::Reading;
 use super::traits::{
-    Calibrator, Culprit, Health, Numbered, Rejection, Robot, RobotError, RunResidual,
+    Calibrator, Culprit, Health, Numbered, Reading, Rejection, Robot, RobotError, RunResidual,
     SettingsAndRuns, Solution, SolveError,
 };
 use crate::calibration::ExactOptions;

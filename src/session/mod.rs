@@ -66,7 +66,6 @@ use crate::util::text::keyword_eq;
 pub use boot::{Booted, boot};
 pub use calibrate_commands::write_calibration;
 pub use events::{ControlTimerStopped, write_boot_event, write_fault_event, write_runs_restored};
-pub use fit_check::Reading;
 pub use settings::{BootRefusal, BootRefusals, SettingsError, check_nominal};
 
 /// The session's settings: the stored parameter record itself, so a parameter lives in one
@@ -77,7 +76,7 @@ pub use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
 pub use crate::storage::StoreError;
 pub use stream::DEFAULT_STREAM_HZ;
 pub use traits::{
-    Calibrator, Culprit, Health, Numbered, Rejection, Robot, RobotError, RunResidual,
+    Calibrator, Culprit, Health, Numbered, Reading, Rejection, Robot, RobotError, RunResidual,
     SettingsAndRuns, Solution, SolveError,
 };
 

@@ -8,14 +8,14 @@
 use core::fmt;
 
 use super::Settings;
-use super::fit_check::Reading;
 use crate::calibration::CalibrationError;
-use crate::calibration::fit_check::FitCheck;
+use crate::calibration::fit_check::{FitCheck, MeasuringNoise};
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport};
 use crate::motion::controller::{MotorsRunning, MotorsStopped, Status};
+use crate::motion::convention::Convention;
 use crate::motion::profile::{LimitsError, MotionLimits};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::SpeedTuning;
@@ -306,6 +306,30 @@ impl fmt::Display for SolveError {
                 })
             }
         }
+    }
+}
+
+/// How the session reads its measured runs: the convention in force and the measuring noise
+/// declared (`convention`, `set measure_sd`, `set heading_sd`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reading {
+    /// How every measured run is re-read.
+    pub convention: Convention,
+    /// The noise a measured end carries besides the robot's own scatter.
+    pub noise: MeasuringNoise,
+}
+
+impl Reading {
+    /// The standard convention and the default noise.
+    pub const DEFAULT: Reading = Reading {
+        convention: Convention::Standard,
+        noise: MeasuringNoise::DEFAULT,
+    };
+}
+
+impl Default for Reading {
+    fn default() -> Self {
+        Reading::DEFAULT
     }
 }
 
