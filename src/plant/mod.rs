@@ -15,8 +15,9 @@
 //! - **True pose** in `f64`, integrated as one exact arc per control period (the wheels' ground
 //!   travel over it; the speeds change only smoothly within a period).
 //! - **Disturbances** a test or a simulated operator applies: a blocked wheel, a counter jump,
-//!   a hand pushing the robot, and per-period slip factors of the wheels' ground travel
-//!   ([`SimRobot::advance_slipping`]; host-sim draws them from its noise model).
+//!   a hand pushing the robot, per-period slip factors of the wheels' ground travel
+//!   ([`SimRobot::advance_slipping`]; host-sim draws them from its noise model), and a true
+//!   geometry that changes mid-run ([`SimRobot::set_true_geometry`]: a worn tyre, a load).
 //!
 //! It is portable `no_std` code like the rest of the library, generic over its arithmetic
 //! ([`Numerics`]): [`Portable`] gives the same bits on the host and the Cortex-M4.

@@ -231,6 +231,17 @@ impl<N: Numerics> SimRobot<N> {
         self.config.rate_hz = rate_hz;
     }
 
+    /// Changes the true wheel diameters and wheelbase from the next period on (a tyre worn, a
+    /// load added): the pose, the wheels' speeds and the encoder counts stay as they are, and
+    /// so do the encoder resolution (`geometry.counts_per_rev` is not used) and the motors
+    /// (their gains are wheel turning rates: a smaller wheel rolls slower at the same duty).
+    pub fn set_true_geometry(&mut self, geometry: Geometry) {
+        self.config.true_geometry = Geometry {
+            counts_per_rev: self.config.true_geometry.counts_per_rev,
+            ..geometry
+        };
+    }
+
     /// True pose (start frame: origin, heading +x).
     pub fn true_pose(&self) -> PoseF64 {
         self.pose

@@ -8,22 +8,60 @@
 //!
 //! With `--pty`, this program's own stdin is the rest of the board: `button` (short press),
 //! `button long`, `reboot` or `reset` (a new board over the same flash, as after a reset or
-//! power cycle; with `--image`, the file's contents) and `help`. The flash keeps the parameters
+//! power cycle; with `--image`, the file's contents), `play` (`--replay`) and `help`. The flash keeps the parameters
 //! and the session's runs with their measurements, so the new board resumes the session: its
 //! boot events (`event boot: …`, then `event runs restored: <n> runs, <m> measured` when runs
 //! were stored) go to the pty, as on the board, and are also printed on stderr, since a
 //! terminal program that opens the pty later never sees them. The pty stays open across the
 //! restart.
+//!
+//! For a test of a calibration that runs on the robot's computer (a bridge on the pty, a test
+//! process reading this program's stdout):
+//! - `--speed K`: in real time, each 10 ms of wall clock runs K·10 ms of board time.
+//! - `--truth-hz HZ` (with `--pty`): `truth T X Y THETA` on stdout every 1/HZ s of board time
+//!   (flushed): `T` the board's clock in seconds with 6 decimals, exactly as a `stream` line at
+//!   that period prints it; `X`, `Y` (m) and `THETA` (rad, unwrapped: counted on from the start,
+//!   CCW positive) the robot's true pose in the world frame (the frame its odometry starts in),
+//!   6 decimals. A line is due on a grid of 1/HZ from boot and printed after the first control
+//!   period that reaches it: when 1/HZ is a whole number of control periods, the `T`s are
+//!   exactly 1/HZ apart. After `reboot` the lines go on with the new board: `T` restarts with
+//!   its clock, and the pose with the robot the simulator puts back at the origin (as every boot
+//!   of a simulated board does).
+//! - `--wear T:ED:EB` (repeatable): at board time T s the robot's true E_d and E_b become ED
+//!   and EB (wheel diameters and wheelbase change, not the pose; the mean diameter stays);
+//!   `wear at T s: E_d ED, E_b EB` on stderr when it happens, `T` the board time then. A wear
+//!   stays across `reboot`; one not yet due happens when the new board's clock reaches it.
+//! - `--replay SESSION_DIR` (with `--pty`): the board boots with the OptiOdom session's nominal
+//!   geometry (the simulated operator `set`s its diameters, wheelbase and encoder resolution, as
+//!   `--rate-hz` sets the rate) and its encoders count the session's recorded wheel motion
+//!   instead of the simulated wheels, which are held from boot on (motor commands move nothing;
+//!   [`Sim::play_counts`] turns the robot model's own counters, which the board reads as ever).
+//!   `play` on this program's stdin starts it: the runs play in file order in board time (each
+//!   row's ticks spread evenly over its 50 ms, 2 s at rest between runs:
+//!   [`Playback`](crate::sim::optiodom::playback::Playback)), `replay run N started` on stdout
+//!   at each run's first period and `replay done` after the last. With `--truth-hz` the truth
+//!   lines are then the run's recorded ground truth (interpolated in time, in the run's start
+//!   frame, heading unwrapped), and there are none outside a run. A `reboot` does not stop the
+//!   recording: the new board counts it on from where it is.
 
 use std::io::{Read, Write};
+use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use odocal::motion::controller::Status;
+use odocal::protocol::ParamName;
 
+use self::replay::Replay;
+use self::truth::{TruthClock, board_seconds, print_truth};
 use crate::sim::board::{Board, measure_line};
 use crate::sim::flash::{SimFlash, SimParamFlash};
-use crate::sim::robot::{MotorArgs, SimConfig, WiringOption, sim_config};
+use crate::sim::robot::{
+    MotorArgs, Sim, SimConfig, Wear, WiringOption, parse_wear, sim_config, true_geometry,
+};
+
+mod replay;
+mod truth;
 
 /// Command-line arguments of the `serial` subcommand.
 #[derive(clap::Args, Debug, Clone)]
@@ -75,6 +113,36 @@ pub struct SerialArgs {
     /// for `drive` and `session`): rehearse `identify` with weak or strong motors.
     #[command(flatten)]
     pub motors: MotorArgs,
+    /// Real time K times faster (K > 0): each 10 ms of wall clock runs K·10 ms of board time.
+    #[arg(long, value_name = "K", default_value_t = 1.0, value_parser = parse_positive,
+          allow_negative_numbers = true, conflicts_with = "fast")]
+    pub speed: f64,
+    /// Print `truth T X Y THETA` on stdout every 1/HZ s of board time (HZ > 0): the board's
+    /// time in seconds as its `stream` lines print it, the robot's true pose (m, m, rad
+    /// unwrapped) in the world frame.
+    #[arg(long = "truth-hz", value_name = "HZ", value_parser = parse_positive,
+          allow_negative_numbers = true, requires = "pty")]
+    pub truth_hz: Option<f64>,
+    /// At board time T s the robot's true E_d and E_b become ED and EB (a tyre worn, a load
+    /// added; repeatable); announced on stderr. Not with `--replay` (its wheels are held).
+    #[arg(long, value_name = "T:ED:EB", value_parser = parse_wear, conflicts_with = "replay")]
+    pub wear: Vec<Wear>,
+    /// An OptiOdom session folder whose recorded wheel motion the board's encoders count, from
+    /// `play` typed on this program's stdin on (the board boots with the session's geometry).
+    #[arg(long, value_name = "SESSION_DIR", requires = "pty")]
+    pub replay: Option<PathBuf>,
+}
+
+/// `--speed`, `--truth-hz`: a positive finite number.
+///
+/// # Errors
+/// Not a number, or not above 0 and finite.
+fn parse_positive(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
+        Ok(_) => Err("must be a finite number above 0".into()),
+        Err(e) => Err(format!("{s}: {e}")),
+    }
 }
 
 /// Opens a pseudo-terminal in raw mode; returns the master's file and the slave's path. The
@@ -123,17 +191,52 @@ fn open_pty() -> Result<(std::fs::File, String, std::fs::File), String> {
 }
 
 /// Boots the simulated board: at the rate `config` asks for when `--rate-hz` was given (the
-/// simulated operator sets it), else at the board's stored rate.
+/// simulated operator sets it), else at the board's stored rate. With `--replay` the operator
+/// sets the session's nominal geometry too, and the encoders take the recording's counts.
 fn boot_board<'f>(
     config: SimConfig,
     operator_rate: bool,
+    replay: Option<&Replay>,
     flash: &'f mut SimParamFlash,
     out: &mut String,
 ) -> Result<Board<'f>, String> {
-    if operator_rate {
-        Board::boot(config, flash, out)
+    let mut board = if operator_rate {
+        Board::boot(config, flash, out)?
     } else {
-        Board::boot_at_stored_rate(config, flash, out)
+        Board::boot_at_stored_rate(config, flash, out)?
+    };
+    if let Some(r) = replay {
+        let g = r.geometry;
+        for (name, value) in [
+            (ParamName::DiameterRight, g.diameter_right_m),
+            (ParamName::DiameterLeft, g.diameter_left_m),
+            (ParamName::Wheelbase, g.wheelbase_m),
+            (ParamName::CountsPerRev, f64::from(g.counts_per_rev)),
+        ] {
+            board
+                .operator_set(name, value, out)
+                .map_err(|e| format!("--replay: the session's geometry: {e}"))?;
+        }
+        board.sim.play_counts(r.ticks());
+    }
+    Ok(board)
+}
+
+/// Applies the wears due at `now_us` (`pending` sorted by time) to the robot and to `config`
+/// (so that a new board's robot keeps them), each announced on stderr.
+fn apply_wears(pending: &mut Vec<Wear>, now_us: u64, sim: &mut Sim, config: &mut SimConfig) {
+    while let Some(w) = pending.first().copied()
+        && w.at_us() <= now_us
+    {
+        pending.remove(0);
+        sim.apply_wear(&w);
+        config.robot.true_geometry = true_geometry(w.ed, w.eb);
+        eprintln!(
+            "wear at {} s: E_d {}, E_b {}",
+            board_seconds(now_us),
+            w.ed,
+            w.eb
+        );
     }
 }
 
@@ -153,13 +256,24 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     );
     config.wiring = args.wiring.wiring();
     args.motors.apply(&mut config)?;
+    let mut replay = args.replay.as_deref().map(Replay::open).transpose()?;
+    let mut wears = args.wear.clone();
+    wears.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+    let mut truth = args.truth_hz.map(TruthClock::new);
 
     let mut out = String::new();
     let mut flash = match &args.image {
         Some(path) => SimParamFlash::open(path).map_err(|e| format!("{}: {e}", path.display()))?,
         None => SimParamFlash::erased(),
     };
-    let mut board = boot_board(config, args.rate.is_some(), &mut flash, &mut out)?;
+    let mut board = boot_board(
+        config,
+        args.rate.is_some(),
+        replay.as_ref(),
+        &mut flash,
+        &mut out,
+    )?;
+    apply_wears(&mut wears, board.now_us(), &mut board.sim, &mut config);
     let (tx, rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (ctl_tx, ctl_rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
@@ -169,6 +283,14 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
             "serial: connect to {path} at 115200 baud (e.g. picocom -b 115200 {path}); Ctrl-C to quit"
         );
         eprintln!("serial: type `button`, `button long` or `reboot` here (`help` lists them)");
+        if let (Some(r), Some(dir)) = (&replay, &args.replay) {
+            eprintln!(
+                "serial: replay of {} ({} runs, {} s): type `play` here to start it",
+                dir.display(),
+                r.playback.runs(),
+                board_seconds(r.playback.duration_us())
+            );
+        }
         eprint!("sim: {out}");
         let mut reader = master.try_clone().map_err(|e| e.to_string())?;
         spawn_reader(move |buf| reader.read(buf), tx);
@@ -185,6 +307,8 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     let mut report_at_rest = false;
     let mut stored_before = 0;
     let mut image_touched = board.store.flash().bytes_touched();
+    // Board time the slices have given and the periods not yet taken, µs.
+    let mut budget_us = 0.0;
     loop {
         // What has arrived goes to the receive side at once (stop keys act now); lines wait in
         // the board's input queue.
@@ -215,19 +339,37 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                             .map_err(|e| format!("{}: {e}", path.display()))?;
                     }
                     let mut boot = String::new();
-                    board = boot_board(config, args.rate.is_some(), &mut flash, &mut boot)?;
+                    board = boot_board(
+                        config,
+                        args.rate.is_some(),
+                        replay.as_ref(),
+                        &mut flash,
+                        &mut boot,
+                    )?;
+                    apply_wears(&mut wears, board.now_us(), &mut board.sim, &mut config);
+                    if let Some(t) = &mut truth {
+                        t.restart();
+                    }
                     image_touched = board.store.flash().bytes_touched();
                     eprint!("sim: {boot}");
                     out.push_str(&boot);
                     (was_running, report_at_rest, stored_before) = (false, false, 0);
                 }
+                "play" => match &mut replay {
+                    Some(r) => r.play()?,
+                    None => eprintln!(
+                        "sim: nothing to play (start the simulator with --replay SESSION_DIR)"
+                    ),
+                },
                 "help" => eprintln!(
-                    "sim: button | button long | reboot (or reset) (the board's button and \
+                    "sim: button | button long | reboot (or reset) | play (the board's button and \
                      reset: parameters, runs and measurements survive it; the console is the \
-                     pty)"
+                     pty; `play` starts --replay's recording)"
                 ),
                 other => {
-                    eprintln!("sim: unknown `{other}` (button | button long | reboot | reset)")
+                    eprintln!(
+                        "sim: unknown `{other}` (button | button long | reboot | reset | play)"
+                    )
                 }
             }
         }
@@ -240,11 +382,33 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         if !args.fast || settled(&board) {
             board.process(&mut out, args.fast);
         }
-        // 10 ms of robot time per slice at the rate the board runs at now (`set control_hz`
-        // retimes it).
-        let slice_periods = u64::from(board.controller.config().rate_hz / 100).max(1);
-        for _ in 0..slice_periods {
+        // 10 ms of wall clock runs K·10 ms of board time (`--speed`; with `--fast` 10 ms a
+        // pass), in whole periods of the rate the board runs at now (`set control_hz` retimes
+        // it); the rest waits for the next slice.
+        budget_us += if args.fast { 1e4 } else { 1e4 * args.speed };
+        while budget_us >= board.period_us() as f64 {
+            let before = board.now_us();
+            if let Some(r) = &replay {
+                r.before_period(&mut board.sim);
+            }
             board.step(&mut out);
+            let now = board.now_us();
+            budget_us -= (now - before) as f64;
+            if let Some(r) = &mut replay {
+                r.after_period(now - before)?;
+            }
+            apply_wears(&mut wears, now, &mut board.sim, &mut config);
+            if let Some(t) = &mut truth
+                && t.due(now)
+            {
+                let pose = match &replay {
+                    Some(r) => r.truth(),
+                    None => Some(board.sim.true_pose()),
+                };
+                if let Some(p) = pose {
+                    print_truth(now, p)?;
+                }
+            }
         }
         // Commands (`save`, `measure`, `drop`) and finished runs write the flash.
         let touched = board.store.flash().bytes_touched();

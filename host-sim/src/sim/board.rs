@@ -98,19 +98,31 @@ impl<'f> Board<'f> {
     ) -> Result<Board<'f>, String> {
         let wanted_hz = config.rate_hz;
         let mut board = Board::boot_at_stored_rate(config, flash, out)?;
-        if wanted_hz != board.controller.config().rate_hz {
-            let set = Command::Set {
-                name: ParamName::ControlHz,
-                value: f64::from(wanted_hz),
-            }
-            .to_string();
-            let reply = board.send(&set);
-            if !accepted(&reply) {
-                return Err(format!("{set}: {reply}"));
-            }
-            out.push_str(&reply);
-        }
+        board.operator_set(ParamName::ControlHz, f64::from(wanted_hz), out)?;
         Ok(board)
+    }
+
+    /// The simulated operator types `set <name> <value>` when the board's value differs (the
+    /// reply is appended to `out`); nothing when it is already `value`.
+    ///
+    /// # Errors
+    /// The command and the board's reply when it refuses it.
+    pub fn operator_set(
+        &mut self,
+        name: ParamName,
+        value: f64,
+        out: &mut String,
+    ) -> Result<(), String> {
+        if self.session.settings().value(name) == value {
+            return Ok(());
+        }
+        let set = Command::Set { name, value }.to_string();
+        let reply = self.send(&set);
+        if !accepted(&reply) {
+            return Err(format!("{set}: {}", reply.trim_end()));
+        }
+        out.push_str(&reply);
+        Ok(())
     }
 
     /// [`Board::boot`] without the simulated operator: the board runs at its stored control
@@ -171,9 +183,15 @@ impl<'f> Board<'f> {
         Ok(board)
     }
 
-    /// Simulated time since boot, microseconds.
+    /// Simulated time since boot, microseconds: the board's clock (the `t` of its `stream`
+    /// lines), advanced by one control period after each period.
     pub fn now_us(&self) -> u64 {
         self.now_us
+    }
+
+    /// The control period the board runs at now, microseconds.
+    pub fn period_us(&self) -> u64 {
+        self.period_us
     }
 
     /// Bytes received on the serial port, as the receive interrupt takes them: assembled into

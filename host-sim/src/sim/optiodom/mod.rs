@@ -32,10 +32,12 @@
 //! files in order, the checks that span a run), [`run_file`] reads one run file (rows, dropouts,
 //! glitches), [`heading_offset`] measures and removes the motion-capture heading offset,
 //! [`anchor`] places each run's start anchor past its start transient, [`run`] turns a run
-//! into a calibration input, and [`recorded`] reads when a session was recorded from its id.
+//! into a calibration input, [`recorded`] reads when a session was recorded from its id, and
+//! [`playback`] lays a session's runs out in time as wheel motion (`serial --replay`).
 
 pub mod anchor;
 pub mod heading_offset;
+pub mod playback;
 pub mod recorded;
 pub mod run;
 pub mod run_file;

@@ -10,10 +10,16 @@
 //!   ([`crate::sim::pair::Host`]).
 //! - **Closed loop**: [`Sim::run_until_idle`] steps the library's own [`Controller`] against
 //!   the robot; nothing of the firmware's logic is repeated here.
-//! - **Options**: the command line's motors and wiring ([`MotorArgs`], [`WiringOption`]).
+//! - **Wear**: the true geometry changed mid-run ([`Sim::apply_wear`], `serial --wear`):
+//!   the wheels and the wheelbase change, not the pose.
+//! - **Played counts**: the wheels held and the encoders counting recorded motion instead
+//!   ([`Sim::play_counts`], `serial --replay`), through the model's own counters.
+//! - **Options**: the command line's motors, wiring and wear ([`MotorArgs`], [`WiringOption`],
+//!   [`Wear`]).
 
 use core::ops::{Deref, DerefMut};
 
+use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
@@ -25,7 +31,7 @@ use crate::sim::pair::Host;
 
 mod options;
 pub use odocal::plant::{BRAKE_TAU_RATIO, COAST_TAU_RATIO, MotorModel};
-pub use options::{MotorArgs, WiringOption};
+pub use options::{MotorArgs, Wear, WiringOption, parse_wear};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
@@ -92,6 +98,9 @@ pub struct Sim {
     rng: Pcg64,
     /// True pose when the counters were last read by [`Sim::step`].
     pose_at_read: PoseF64,
+    /// The recorded counts the encoders show so far ([`Sim::play_counts`]); `None` while the
+    /// wheels drive them.
+    played: Option<WheelTicks>,
 }
 
 impl Sim {
@@ -102,6 +111,7 @@ impl Sim {
             robot: SimRobot::new(config.robot),
             rng: Pcg64::seed_from_u64(config.seed),
             pose_at_read: PoseF64::default(),
+            played: None,
         }
     }
 
@@ -122,6 +132,40 @@ impl Sim {
         self.robot.true_pose()
     }
 
+    /// The robot's true factors become `wear`'s ([`true_geometry`], checked by [`parse_wear`])
+    /// from the next period on: its wheel diameters and wheelbase change, its pose, wheel speeds
+    /// and encoder counts do not.
+    pub fn apply_wear(&mut self, wear: &Wear) {
+        self.robot
+            .set_true_geometry(true_geometry(wear.ed, wear.eb));
+        self.config.robot.true_geometry = self.robot.config().true_geometry;
+    }
+
+    /// Recorded wheel motion as the encoders' counts: `total` forward counts per wheel on some
+    /// recording's scale. The first call holds the wheels (the motors' commands no longer turn
+    /// them, the true pose stays) and takes `total` as what the counters show now; each later
+    /// call turns the counters by the difference from the previous `total`, as the model's own
+    /// hardware counters count a wheel's rotation (wrapping, the left one counting down, through
+    /// the robot's wiring).
+    pub fn play_counts(&mut self, total: WheelTicks) {
+        let Some(shown) = self.played else {
+            self.robot.set_blocked(true, true);
+            self.played = Some(total);
+            return;
+        };
+        let d = total - shown;
+        let w = self.config.wiring;
+        let sign = |reversed: bool, n: i64| if reversed { -n } else { n };
+        let (r, l) = (
+            sign(w.encoder_right_reversed, d.right),
+            sign(w.encoder_left_reversed, d.left),
+        );
+        // Wrapping casts: the counters are 32 and 16 bits wide; the left one counts down.
+        self.robot
+            .inject_counter_jump(r as u32, (l as u16).wrapping_neg());
+        self.played = Some(total);
+    }
+
     /// True pose at the moment the controller last read the counters (the instant its tick
     /// totals, and so a run record's last knot, refer to).
     pub fn pose_at_last_read(&self) -> PoseF64 {
@@ -138,7 +182,8 @@ impl Sim {
         self.robot.wheel_speeds_mps()
     }
 
-    /// Quantised wheel rotation since power-up (right, left), counts, forward positive.
+    /// Quantised wheel rotation since power-up (right, left), counts, forward positive (the
+    /// wheels' own: not what [`Sim::play_counts`] makes the counters show).
     pub fn counts(&self) -> (i64, i64) {
         self.robot.counts()
     }
@@ -280,9 +325,15 @@ pub fn default_controller(belief: Geometry, rate_hz: u32) -> Result<Controller, 
     Controller::new(cfg).map_err(|e| format!("controller config: {e}"))
 }
 
+/// The simulated robot's true geometry: the paper's nominal robot with true factors `ed`, `eb`
+/// (its mean wheel diameter unchanged).
+pub fn true_geometry(ed: f64, eb: f64) -> Geometry {
+    Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0)
+}
+
 /// The simulated robot's configuration: the paper's nominal robot with true factors `ed`, `eb`.
 pub fn sim_config(ed: f64, eb: f64, slip: f64, seed: u64, rate_hz: u32) -> SimConfig {
-    let truth = Geometry::PAPER_NOMINAL.with_factors(ed, eb, 1.0);
+    let truth = true_geometry(ed, eb);
     let mut c = SimConfig::new(truth, rate_hz);
     c.slip_sigma = slip;
     c.seed = seed;

@@ -1,9 +1,9 @@
-//! The simulated robot's motors and wiring as the command line sets them (`--motor-gain`,
-//! `--motor-tau`, `--motor-deadband`, `--wiring`).
+//! The simulated robot's motors, wiring and wear as the command line sets them
+//! (`--motor-gain`, `--motor-tau`, `--motor-deadband`, `--wiring`, `--wear`).
 
 use odocal::motion::wiring::Wiring;
 
-use super::{MotorModel, SimConfig};
+use super::{MotorModel, SimConfig, true_geometry};
 
 /// The simulated motors as the command line sets them (`R,L` per wheel, or one value for
 /// both): `--motor-gain` (m/s at full duty above the dead-band), `--motor-tau` (s),
@@ -97,4 +97,58 @@ impl WiringOption {
         }
         w
     }
+}
+
+/// A change of the robot's true geometry at a board time (`--wear T:ED:EB`): a tyre worn, a
+/// load added.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Wear {
+    /// Board time at which it happens, seconds since boot.
+    pub at_s: f64,
+    /// The true E_d from then on.
+    pub ed: f64,
+    /// The true E_b from then on.
+    pub eb: f64,
+}
+
+impl Wear {
+    /// The board time at which it happens, microseconds (the board clock's unit).
+    pub fn at_us(&self) -> u64 {
+        // In range: `parse_wear` bounds the time.
+        (self.at_s * 1e6).round() as u64
+    }
+}
+
+/// Latest board time a `--wear` may name, seconds (a year: far beyond any session).
+const WEAR_MAX_S: f64 = 3.2e7;
+
+/// `--wear T:ED:EB`: board time in seconds, then the true E_d and E_b (a geometry the robot
+/// model accepts, with its mean wheel diameter kept).
+///
+/// # Errors
+/// The expected form with an example, or the field or factor that is wrong.
+pub fn parse_wear(s: &str) -> Result<Wear, String> {
+    const FORM: &str = "expected T:ED:EB, the board time in seconds and the robot's true E_d \
+                        and E_b from then on (e.g. --wear 600:0.990:1.010)";
+    let fields: Vec<&str> = s.split(':').map(str::trim).collect();
+    let [t, ed, eb] = fields[..] else {
+        return Err(FORM.into());
+    };
+    let number = |v: &str, what: &str| -> Result<f64, String> {
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{what} {v:?} is not a number; {FORM}"))
+    };
+    let (at_s, ed, eb) = (number(t, "T")?, number(ed, "ED")?, number(eb, "EB")?);
+    if !(0.0..=WEAR_MAX_S).contains(&at_s) {
+        return Err(format!("T {t} s is not within 0..{WEAR_MAX_S} s; {FORM}"));
+    }
+    if !(ed > 0.0 && eb > 0.0) {
+        return Err(format!("E_d and E_b must be positive; {FORM}"));
+    }
+    true_geometry(ed, eb)
+        .validate()
+        .map_err(|e| format!("E_d {ed}, E_b {eb} make no robot: {e}"))?;
+    Ok(Wear { at_s, ed, eb })
 }
