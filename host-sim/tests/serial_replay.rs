@@ -53,7 +53,7 @@ fn a_replayed_session_is_counted_by_the_boards_own_odometry() {
     assert_eq!(run1.last().unwrap(), "replay run 2 started");
     assert_eq!(run2.last().unwrap(), "replay done");
 
-    // The truth lines of each run: 50 ms apart exactly, the run's recorded ground truth (in its
+    // The truth lines of each run: 50 ms apart exactly, the run's aligned ground truth (in its
     // start frame) from its start to its end: the robot stands still at both, so the lines at
     // most a row (50 ms) from them show the origin and the recorded end pose within the motion
     // capture's jitter (below a millimetre and 0.01 rad here); none in the 2 s between the runs.
@@ -71,7 +71,7 @@ fn a_replayed_session_is_counted_by_the_boards_own_odometry() {
         assert!(t.windows(2).all(|w| w[1].0 - w[0].0 == 50_000), "{t:?}");
         let (first, last) = (t[0], t[t.len() - 1]);
         assert!(first.1.hypot(first.2) < 0.002, "{first:?}");
-        let end = run.truth_end;
+        let end = run.aligned[run.aligned.len() - 1];
         assert!(
             (last.1 - end.x_m).hypot(last.2 - end.y_m) < 0.002
                 && wrap_angle(last.3 - end.theta_rad).abs() < 0.01,

@@ -40,7 +40,7 @@
 //!   row's ticks spread evenly over its 50 ms, 2 s at rest between runs:
 //!   [`Playback`](crate::sim::optiodom::playback::Playback)), `replay run N started` on stdout
 //!   at each run's first period and `replay done` after the last. With `--truth-hz` the truth
-//!   lines are then the run's recorded ground truth (interpolated in time, in the run's start
+//!   lines are then the run's recorded ground truth turned by the session's motion-capture heading offset (interpolated in time, in the run's start
 //!   frame, heading unwrapped), and there are none outside a run. A `reboot` does not stop the
 //!   recording: the new board counts it on from where it is.
 

@@ -6,8 +6,9 @@
 //! Run `i` plays from its start to its start plus `(knots − 1) · ROW_US`; at a time `τ` within
 //! it, row `j = τ / ROW_US` is a fraction `f` through, and each wheel's count is its knot `j`
 //! plus `⌊f · (knot j+1 − knot j)⌋` (exactly the knot at every row boundary), on top of the
-//! totals of the runs before. The ground truth is the run's recorded one ([`OptiRun::truth`],
-//! in its start frame) interpolated linearly in time, its heading unwrapped from the run's
+//! totals of the runs before. The ground truth is the run's recorded one turned by the
+//! session's measured motion-capture heading offset ([`OptiRun::aligned`], in its start frame:
+//! the robot's own heading, as `replay` calibrates with it) interpolated linearly in time, its heading unwrapped from the run's
 //! start (each row's turn taken the short way round).
 
 use std::f64::consts::TAU;
@@ -142,7 +143,7 @@ impl Playback {
                 start_us,
                 base,
                 knots: run.knots.clone(),
-                truth: unwrapped(&run.truth),
+                truth: unwrapped(&run.aligned),
             });
         }
         Playback { tracks }
