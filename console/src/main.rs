@@ -19,6 +19,7 @@ mod export;
 mod guide;
 mod link;
 mod log;
+mod online;
 mod plot;
 mod ros2;
 mod stale;
@@ -76,7 +77,11 @@ enum Cmd {
     /// Recalibrate a session log on the PC with the library the board runs.
     Recalibrate {
         /// The session log (JSON lines).
-        log: PathBuf,
+        #[arg(required_unless_present = "reference_log")]
+        log: Option<PathBuf>,
+        /// Redo the online calibration's estimate from the bridge's `--reference-log` instead.
+        #[arg(long, conflicts_with_all = ["log", "method"])]
+        reference_log: Option<PathBuf>,
         /// Only this method (default: every method, as `calibrate` shows them).
         #[arg(long)]
         method: Option<String>,
@@ -120,7 +125,7 @@ enum Cmd {
     },
     /// Bridge the board to a ROS 2 network: odometry, tf, joint states and diagnostics out,
     /// cmd_vel in (docs/operator.md, "Using odocal on a ROS 2 robot").
-    Ros2(ros2::Options),
+    Ros2(Box<ros2::Options>),
     /// List candidate serial ports.
     Ports,
 }
@@ -186,7 +191,18 @@ fn recalibrate(log: &Path, method: Option<&str>) -> Result<(), String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
-        Some(Cmd::Recalibrate { log, method }) => recalibrate(log, method.as_deref()),
+        Some(Cmd::Recalibrate {
+            reference_log: Some(path),
+            ..
+        }) => online::log::recalibrate(path),
+        Some(Cmd::Recalibrate {
+            log: Some(log),
+            method,
+            ..
+        }) => recalibrate(log, method.as_deref()),
+        Some(Cmd::Recalibrate { .. }) => {
+            Err("recalibrate: a session log or --reference-log".into())
+        }
         Some(Cmd::Export {
             log,
             format,

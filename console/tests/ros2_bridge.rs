@@ -27,6 +27,8 @@ use std::time::{Duration, Instant};
 
 mod support;
 use support::{host_sim, lines_of};
+#[path = "ros2_bridge/online.rs"]
+mod online;
 #[path = "ros2_bridge/robust.rs"]
 mod robust;
 #[path = "ros2_bridge/turns.rs"]

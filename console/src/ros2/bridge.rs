@@ -10,10 +10,13 @@ use odocal::protocol::token::EventTag;
 
 use super::guard::{self, Guard};
 use super::msgs::tf2_msgs::TFMessage;
+use super::odometry::Wheels;
 use super::odometry::{Odometer, StreamLine};
+use super::reference::Reference;
 use super::status::{self, Stats};
 use super::{Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log};
 use crate::link::{Link, LinkError};
+use crate::online::{ApplyMode, Online, estimator::Estimate};
 
 /// How long the bridge waits for the board's reply to `drive`, `stop`, `status`: the board
 /// answers within milliseconds; a board that reset under a command never does, and the bridge
@@ -24,7 +27,7 @@ const COMMAND_WAIT: Duration = Duration::from_millis(300);
 pub(super) struct Bridge<'a> {
     pub opts: &'a Options,
     pub net: &'a Network,
-    pub board: &'a Board,
+    pub board: Board,
     pub link: Link,
     /// `stream on` at the bridge's rate.
     pub stream_on: Command<'static>,
@@ -39,6 +42,8 @@ pub(super) struct Bridge<'a> {
     /// The pose `odom` went on from at the last board reset.
     pub carried: Option<(f64, f64, f64)>,
     pub next_status: Instant,
+    /// The online calibration and its reference topic (`--reference`).
+    pub online: Option<(Online, Reference)>,
 }
 
 impl Bridge<'_> {
@@ -93,8 +98,12 @@ impl Bridge<'_> {
             }
             self.restart_if_stale()?;
             self.forward_cmd_vel()?;
+            self.take_reference();
             // Commands typed on stdin.
             while let Ok(cmd) = typed.try_recv() {
+                if self.answer_offer(cmd.trim())? {
+                    continue;
+                }
                 match self.link.command(cmd.trim(), Duration::from_secs(10)) {
                     Ok(r) => {
                         for d in &r.data {
@@ -114,6 +123,7 @@ impl Bridge<'_> {
             if Instant::now() >= self.next_status {
                 self.next_status += Duration::from_secs(1);
                 self.publish_status()?;
+                self.apply_online()?;
             }
         }
     }
@@ -161,6 +171,9 @@ impl Bridge<'_> {
             });
         }
         let _ = net.joints.publish(m.joints);
+        if let Some((o, _)) = &mut self.online {
+            o.stream(s.t_s, s.v_right, s.v_left);
+        }
         let done = now_s();
         self.stats.line(s.t_s, arrived);
         self.stats.handling.push(done - arrived);
@@ -249,7 +262,7 @@ impl Bridge<'_> {
             Err(LinkError::Timeout(_)) => return Ok(()),
             Err(e) => return Err(e),
         };
-        let _ = self.net.diag.publish(status::diagnostics(
+        let mut array = status::diagnostics(
             reply.text(),
             &status::Context {
                 node_name: &self.opts.node_name,
@@ -262,7 +275,128 @@ impl Bridge<'_> {
                 carried: self.carried,
             },
             now_s(),
-        ));
+        );
+        if let Some((o, r)) = &self.online {
+            let applied = self.applied_factors();
+            array
+                .status
+                .push(status::online(&self.opts.node_name, o, r, applied));
+        }
+        let _ = self.net.diag.publish(array);
+        Ok(())
+    }
+
+    /// The board's calibration factors `(E_d, E_b, E_s)` against its nominal geometry.
+    fn applied_factors(&self) -> (f64, f64, f64) {
+        odocal::calibration::factors_of(&self.board.active(), &self.board.nominal)
+    }
+
+    /// The reference's new samples into the online calibration, their stamps on the board's
+    /// clock (the topic subscribed once it is known).
+    fn take_reference(&mut self) {
+        let Some((o, r)) = &mut self.online else {
+            return;
+        };
+        if r.kind().is_none()
+            && Instant::now() >= self.next_status
+            && let Err(e) = r.resolve()
+        {
+            eprintln!("online: {e}");
+        }
+        let clock = self.odometer.clock();
+        for (stamp, pose, var) in r.take() {
+            if let Some(board_s) = clock.board_time_of(stamp) {
+                o.reference(board_s, pose, var);
+            }
+        }
+    }
+
+    /// `yes` or `no` typed to an estimate offered with `--apply ask`; `true` when it was one.
+    fn answer_offer(&mut self, typed: &str) -> Result<bool, LinkError> {
+        let Some((o, _)) = &mut self.online else {
+            return Ok(false);
+        };
+        let Some(e) = o.offered else {
+            return Ok(false);
+        };
+        if typed.eq_ignore_ascii_case("yes") {
+            o.offered = None;
+            self.apply(&e)?;
+            Ok(true)
+        } else if typed.eq_ignore_ascii_case("no") {
+            o.offered = None;
+            println!("online: not applied; asked again when the estimate changes by --min-change");
+            Ok(true)
+        } else {
+            Ok(false)
+        }
+    }
+
+    /// `--apply ask|auto`: offers or applies the estimate when its rules allow.
+    fn apply_online(&mut self) -> Result<(), LinkError> {
+        let (e_d, e_b, _) = self.applied_factors();
+        let Some((o, _)) = &mut self.online else {
+            return Ok(());
+        };
+        let Some(e) = o.to_apply((e_d, e_b)) else {
+            return Ok(());
+        };
+        match o.args.apply {
+            ApplyMode::Never => Ok(()),
+            ApplyMode::Ask => {
+                if o.offered
+                    .is_none_or(|old| old.distance_sigma(e.e_d, e.e_b) > o.args.min_change)
+                {
+                    o.offered = Some(e);
+                    println!(
+                        "online: the board's calibration (E_d={e_d:.6} E_b={e_b:.6}) is {:.1} sigma \
+                         from {}: type `yes` to apply and save it, `no` to keep it",
+                        e.distance_sigma(e_d, e_b),
+                        crate::online::log::describe(&e)
+                    );
+                }
+                Ok(())
+            }
+            ApplyMode::Auto => self.apply(&e),
+        }
+    }
+
+    /// Applies and saves `e` through the board's commands (`apply online …`, `save`); the board's
+    /// pose goes on from where it is, and so does `odom`.
+    fn apply(&mut self, e: &Estimate) -> Result<(), LinkError> {
+        let apply = Command::ApplyFactors {
+            e_d: e.e_d as f32,
+            e_b: e.e_b as f32,
+            e_s: e.e_s as f32,
+        };
+        for c in [apply, Command::Save] {
+            let line = c.to_string();
+            let r = self.link.command(&line, Duration::from_secs(5))?;
+            if !r.ok() {
+                eprintln!("online: the board refused `{line}`: {}", r.last);
+                return Ok(());
+            }
+        }
+        match super::read_board(&mut self.link) {
+            Ok(b) => self.board = b,
+            Err(why) => {
+                eprintln!("online: applied, but the board's `params` cannot be read: {why}");
+                return Ok(());
+            }
+        }
+        let active = self.board.active();
+        self.odometer.set_wheels(Wheels {
+            d_right: active.diameter_right_m,
+            d_left: active.diameter_left_m,
+            wheelbase: active.wheelbase_m,
+        });
+        if let Some((o, _)) = &mut self.online {
+            o.applied(e, active);
+        }
+        println!(
+            "online: applied and saved {} (method online)",
+            crate::online::log::describe(e)
+        );
         Ok(())
     }
 }

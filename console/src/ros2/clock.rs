@@ -24,6 +24,8 @@ pub struct ClockMap {
     /// Jitter (delay above the current minimum) of every line so far, seconds.
     jitter: Vec<f64>,
     last_board: Option<f64>,
+    /// The board's time is the clock (`--use-sim-time`): no offset, no jitter.
+    board_time: bool,
 }
 
 /// Statistics of the mapping so far.
@@ -49,6 +51,15 @@ impl ClockMap {
             samples: VecDeque::new(),
             jitter: Vec::new(),
             last_board: None,
+            board_time: false,
+        }
+    }
+
+    /// The identity map: the board's time is the ROS time (a simulation's clock).
+    pub fn board() -> ClockMap {
+        ClockMap {
+            board_time: true,
+            ..ClockMap::new(None, 0.0)
         }
     }
 
@@ -56,6 +67,13 @@ impl ClockMap {
     /// `t_pc`: returns the PC time of the board's instant `t_board`. A board time that goes
     /// backwards (the board was reset) restarts the map.
     pub fn map(&mut self, t_board: f64, t_pc: f64, len: usize) -> f64 {
+        if self.board_time {
+            self.last_board = Some(t_board);
+            self.samples.clear();
+            self.samples.push_back((t_board, 0.0));
+            self.jitter.push(0.0);
+            return t_board;
+        }
         if self.last_board.is_some_and(|last| t_board < last) {
             self.samples.clear();
         }
@@ -77,6 +95,11 @@ impl ClockMap {
         let offset = self.samples.front().map_or(d, |&(_, o)| o);
         self.jitter.push(d - offset);
         t_board + offset
+    }
+
+    /// The board time of PC time `t_pc` (the current offset; `None` before the first line).
+    pub fn board_time_of(&self, t_pc: f64) -> Option<f64> {
+        self.samples.front().map(|&(_, o)| t_pc - o)
     }
 
     /// The statistics so far (`None` before the first line).

@@ -17,6 +17,7 @@ pub mod clock;
 mod guard;
 pub mod msgs;
 pub mod odometry;
+mod reference;
 mod status;
 
 use std::io::BufRead;
@@ -24,6 +25,7 @@ use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use odocal::kinematics::geometry::Geometry;
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
 use odocal::protocol::Command;
 use odocal::protocol::command::{DRIVE_LIMIT_MPS, DRIVE_LIMIT_RADPS, STREAM_RANGE_HZ};
@@ -115,6 +117,15 @@ pub struct Options {
     /// the bridge; without it the bridge waits for the same port path to come back.
     #[arg(long)]
     pub exit_on_disconnect: bool,
+    /// Stamp every message with the board's own time (seconds since its boot) in place of the
+    /// PC's clock: the ROS time of a simulation (`use_sim_time`), for a simulated board that
+    /// runs faster than real time (`cargo sim serial --speed`); the reference's stamps are then
+    /// read on the same clock.
+    #[arg(long)]
+    pub use_sim_time: bool,
+    /// The online calibration (`--reference TOPIC`).
+    #[command(flatten)]
+    pub online: crate::online::OnlineArgs,
 }
 
 /// Seconds since the Unix epoch on the PC's clock.
@@ -172,7 +183,7 @@ pub fn ros_environment(get: impl Fn(&str) -> Option<String>) -> Result<(u16, Ran
 }
 
 /// ROS 2's default QoS (`rmw_qos_profile_default`): reliable, volatile, keep last `depth`.
-fn default_qos(depth: usize) -> QosProfile {
+pub(super) fn default_qos(depth: usize) -> QosProfile {
     QosProfile::publisher_default()
         .reliability(Reliability::Reliable {
             when_full: WhenFull::DEFAULT,
@@ -192,7 +203,7 @@ fn namespace(ns: Option<&str>) -> String {
 
 /// A topic in the node's namespace `ns` (`namespace`): `odom` and `/odom` are one topic, `/odom`
 /// (`rt/odom` in DDS) at the root, `/robot1/odom` (`rt/robot1/odom`) under `--namespace robot1`.
-fn topic_name(ns: &str, name: &str) -> Result<Name, String> {
+pub(super) fn topic_name(ns: &str, name: &str) -> Result<Name, String> {
     let base = name.trim_start_matches('/');
     Name::new(ns, base).map_err(|e| format!("topic `{name}` in `{ns}`: {e:?}"))
 }
@@ -240,12 +251,25 @@ impl CmdVel {
 
 /// The board's geometry and limits from its `params` reply.
 struct Board {
+    nominal: Geometry,
     d_right: f64,
     d_left: f64,
     wheelbase: f64,
     counts_per_rev: u32,
     max_accel: f64,
     calibration: String,
+}
+
+impl Board {
+    /// The geometry the board drives with.
+    fn active(&self) -> Geometry {
+        Geometry {
+            diameter_right_m: self.d_right,
+            diameter_left_m: self.d_left,
+            wheelbase_m: self.wheelbase,
+            counts_per_rev: self.counts_per_rev,
+        }
+    }
 }
 
 fn read_board(link: &mut Link) -> Result<Board, String> {
@@ -256,6 +280,7 @@ fn read_board(link: &mut Link) -> Result<Board, String> {
     let active = crate::export::active_of(&reply.data, nominal.counts_per_rev)
         .ok_or("the board's `params` reply has no `active` line: update its firmware")?;
     Ok(Board {
+        nominal,
         d_right: active.diameter_right_m,
         d_left: active.diameter_left_m,
         wheelbase: active.wheelbase_m,
@@ -335,7 +360,7 @@ struct Network {
     diag: Publisher<DiagnosticArray>,
     cmd_vel: Option<CmdVel>,
     _node: Node,
-    _context: Context,
+    context: Context,
 }
 
 /// Joins `domain` within `range` as the node `opts` names, with its topics.
@@ -424,7 +449,7 @@ fn network(opts: &Options, domain: u16, range: Range) -> Result<Network, String>
         diag: diag_pub,
         cmd_vel,
         _node: node,
-        _context: context,
+        context,
     })
 }
 
@@ -491,7 +516,11 @@ fn odometer(opts: &Options, board: &Board, u: Uncertainty) -> Odometer {
             d_left: board.d_left,
             wheelbase: board.wheelbase,
         },
-        ClockMap::new(wire_baud, 10.0),
+        if opts.use_sim_time {
+            ClockMap::board()
+        } else {
+            ClockMap::new(wire_baud, 10.0)
+        },
         PoseCovariance::new(board.wheelbase, u),
         twist_cov,
     )
@@ -532,14 +561,41 @@ pub fn run(opts: &Options) -> Result<(), String> {
         return Err(format!("the board refused `stream on`: {}", on.last));
     }
     println!("{}", banner(opts, &version, (domain, range), &sd_source));
+    let online = match &opts.online.reference {
+        Some(topic) => {
+            let o = crate::online::Online::new(&opts.online, board.nominal, board.active())?;
+            let r = reference::Reference::new(
+                net.context.clone(),
+                &namespace(opts.namespace.as_deref()),
+                topic,
+                &opts.node_name,
+                opts.online.reference_type,
+            );
+            println!(
+                "ros2: online calibration from {topic} (windows of {} m, horizon {} m, E_s {}, \
+                 apply {:?})",
+                opts.online.window,
+                opts.online.horizon,
+                if opts.online.fit_scale {
+                    "fitted"
+                } else {
+                    "held"
+                },
+                opts.online.apply
+            );
+            Some((o, r))
+        }
+        None => None,
+    };
 
+    let odometer = odometer(opts, &board, u);
     let bridge = Bridge {
         opts,
         net: &net,
-        board: &board,
+        board,
         link,
         stream_on,
-        odometer: odometer(opts, &board, u),
+        odometer,
         stats: Stats::default(),
         guard: Guard::new(opts.rate_hz),
         prev: None,
@@ -547,6 +603,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         last_drive_reply: String::new(),
         carried: None,
         next_status: Instant::now(),
+        online,
     };
     // Lines typed on stdin go to the board.
     bridge.run(&stdin_lines()).map_err(|e| e.to_string())

@@ -79,7 +79,6 @@ pub mod builtin_interfaces {
             }
         }
         /// Seconds since the Unix epoch.
-        #[cfg(test)]
         pub fn secs(&self) -> f64 {
             f64::from(self.sec) + f64::from(self.nanosec) * 1e-9
         }
@@ -102,6 +101,9 @@ pub mod geometry_msgs {
     use super::*;
     pub const TWIST: TypeName = ("geometry_msgs", "Twist");
     pub const TWIST_STAMPED: TypeName = ("geometry_msgs", "TwistStamped");
+    pub const POSE_STAMPED: TypeName = ("geometry_msgs", "PoseStamped");
+    pub const POSE_WITH_COVARIANCE_STAMPED: TypeName =
+        ("geometry_msgs", "PoseWithCovarianceStamped");
 
     /// `geometry_msgs/msg/Point`.
     #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -136,6 +138,12 @@ pub mod geometry_msgs {
                 w: c,
             }
         }
+
+        /// The rotation's angle about z (the yaw of a planar pose), radians in (−π, π].
+        pub fn yaw(&self) -> f64 {
+            (2.0 * (self.w * self.z + self.x * self.y))
+                .atan2(1.0 - 2.0 * (self.y * self.y + self.z * self.z))
+        }
     }
     /// `geometry_msgs/msg/Pose`.
     #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -148,6 +156,18 @@ pub mod geometry_msgs {
     pub struct PoseWithCovariance {
         pub pose: Pose,
         pub covariance: Covariance,
+    }
+    /// `geometry_msgs/msg/PoseStamped` (a motion-capture system's pose).
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct PoseStamped {
+        pub header: Header,
+        pub pose: Pose,
+    }
+    /// `geometry_msgs/msg/PoseWithCovarianceStamped` (AMCL's, robot_localization's pose).
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct PoseWithCovarianceStamped {
+        pub header: Header,
+        pub pose: PoseWithCovariance,
     }
     /// `geometry_msgs/msg/Twist`.
     #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]

@@ -139,6 +139,12 @@ impl Odometer {
         self.carry
     }
 
+    /// The board's geometry changed (a calibration applied): joint rates and turn rates from
+    /// the next line on use it; the pose goes on from where it is.
+    pub fn set_wheels(&mut self, wheels: Wheels) {
+        self.wheels = wheels;
+    }
+
     /// The board's odometry was reset on purpose (`odom reset`): the published pose restarts at
     /// the origin with it, and its covariance with the pose.
     pub fn odom_reset(&mut self) {

@@ -8,6 +8,8 @@ use super::msgs::builtin_interfaces::Time;
 use super::msgs::diagnostic_msgs::{self, DiagnosticArray, DiagnosticStatus, KeyValue};
 use super::msgs::std_msgs::Header;
 use super::odometry::Odometer;
+use super::reference::Reference;
+use crate::online::Online;
 use odocal::protocol::FinalLine;
 use odocal::protocol::token;
 
@@ -242,6 +244,69 @@ pub(super) fn disconnected(node_name: &str, port: &str, now_s: f64) -> Diagnosti
                 value: "none: the board is disconnected".into(),
             }],
         }],
+    }
+}
+
+/// The online calibration's status (`--reference`): the estimate with its 1σ, the windows used
+/// and rejected, and how far the board's calibration `applied` (`E_d`, `E_b`, `E_s`) is from the
+/// estimate, in σ: WARN from `--min-change` σ on (the calibration went stale), OK otherwise.
+pub(super) fn online(
+    node_name: &str,
+    o: &Online,
+    r: &Reference,
+    applied: (f64, f64, f64),
+) -> DiagnosticStatus {
+    let e = o.estimator.estimate();
+    let num = |v: Option<f64>| v.map_or_else(|| "none".to_string(), |v| format!("{v:.6}"));
+    let drift = e.map(|e| e.distance_sigma(applied.0, applied.1));
+    let (level, message) = match (r.kind(), e, drift) {
+        (None, _, _) => (
+            diagnostic_msgs::WARN,
+            format!("waiting for the reference {}", r.topic()),
+        ),
+        (Some(_), None, _) => (
+            diagnostic_msgs::OK,
+            format!(
+                "collecting windows ({} used, {} rejected; an estimate from {})",
+                o.estimator.used,
+                o.estimator.rejected,
+                crate::online::estimator::MIN_WINDOWS
+            ),
+        ),
+        (Some(_), Some(_), Some(d)) if d > o.args.min_change => (
+            diagnostic_msgs::WARN,
+            format!("the board's calibration is {d:.1} sigma from the online estimate"),
+        ),
+        (Some(_), Some(_), _) => (
+            diagnostic_msgs::OK,
+            "the board's calibration agrees with the online estimate".to_string(),
+        ),
+    };
+    let kv = |key: &str, value: String| KeyValue {
+        key: key.into(),
+        value,
+    };
+    DiagnosticStatus {
+        level,
+        name: format!("{node_name}: online calibration"),
+        message,
+        hardware_id: format!("odocal reference {}", r.topic()),
+        values: vec![
+            kv("online_E_b", num(e.map(|e| e.e_b))),
+            kv("online_E_d", num(e.map(|e| e.e_d))),
+            kv("online_E_s", num(e.map(|e| e.e_s))),
+            kv("online_sd_E_b", num(e.map(|e| e.sd_e_b))),
+            kv("online_sd_E_d", num(e.map(|e| e.sd_e_d))),
+            kv("windows_used", o.estimator.used.to_string()),
+            kv("windows_rejected", o.estimator.rejected.to_string()),
+            kv(
+                "drift_sigma",
+                drift.map_or_else(|| "none".into(), |d| format!("{d:.2}")),
+            ),
+            kv("applied_E_d", format!("{:.6}", applied.0)),
+            kv("applied_E_b", format!("{:.6}", applied.1)),
+            kv("applied_E_s", format!("{:.6}", applied.2)),
+        ],
     }
 }
 
