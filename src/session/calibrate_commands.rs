@@ -228,7 +228,7 @@ pub fn write_calibration<C: Calibrator>(
     // The first result with per-run residuals (the exact fit) is listed after the table, with
     // its fit check.
     let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
-    for (i, name) in methods.into_iter().enumerate() {
+    for (i, &name) in methods.iter().enumerate() {
         let result = calibrator.solve(runs, nominal, name);
         if let Ok(s) = &result {
             solved += 1;
@@ -290,7 +290,7 @@ pub fn flagged_runs<C: Calibrator>(
     // The fit with residuals is the last method (exact, whose solution the calibrator keeps);
     // asking it first spares solving every closed form again on each `apply`.
     let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
-    for name in methods.into_iter().rev() {
+    for &name in methods.iter().rev() {
         if let Ok(s) = calibrator.solve(runs, nominal, name)
             && !s.residuals.is_empty()
         {
