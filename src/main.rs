@@ -101,6 +101,7 @@ mod app {
         CONTROL_FROM_MONOTONIC, CONTROL_INTERRUPT, ConsoleRx, ConsoleTx, ControlTick, Encoders,
         Leds, WATCHDOG_MS,
     };
+    use odocal::kinematics::odometry::metres_f32;
     use odocal::motion::button::{Button, ButtonConfig, Press};
     use odocal::motion::controller::Controller;
     use odocal::protocol::LineAssembler;
@@ -377,8 +378,8 @@ mod app {
             let (pose, fault) = cx.shared.controller.lock(|c| (c.pose(), c.fault()));
             defmt::info!(
                 "pose x={} y={} heading={} fault={}",
-                pose.x.to_num::<f32>(),
-                pose.y.to_num::<f32>(),
+                metres_f32(pose.x),
+                metres_f32(pose.y),
                 pose.heading.to_radians() as f32,
                 fault
             );

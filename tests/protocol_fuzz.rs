@@ -26,6 +26,7 @@ use odocal::protocol::command::{
 };
 use odocal::protocol::reply::parse_error_reply;
 use odocal::protocol::{Command, LineAssembler, LineError, LineEvent, ParseError, StopKey};
+use odocal::storage::record::STORED_FACTOR_RANGE;
 
 const SEQUENCES: u64 = 1_000_000;
 const CAP: usize = 40;
@@ -49,6 +50,7 @@ const WORDS: &[&str] = &[
     "drop",
     "calibrate",
     "apply",
+    "online",
     "save",
     "reset-params",
     "pose",
@@ -133,6 +135,7 @@ const TEMPLATES: &[&str] = &[
     "measure # #",
     "measure # # #",
     "drive # #",
+    "apply online # # #",
     "set max_speed #",
     "set counts_per_rev #",
     "set d_left #",
@@ -176,6 +179,9 @@ const NUMBERS: &[&str] = &[
     "10.000001",
     "6",
     "5",
+    "0.995",
+    "1.25",
+    "0.8",
 ];
 
 fn template(rng: &mut Rng, buf: &mut Vec<u16>) {
@@ -271,6 +277,9 @@ fn check_command(cmd: &Command<'_>) {
         Command::Stream { on: Some(Some(hz)) } => {
             (STREAM_RANGE_HZ.0..=STREAM_RANGE_HZ.1).contains(&hz)
         }
+        Command::ApplyFactors { e_d, e_b, e_s } => [e_d, e_b, e_s]
+            .iter()
+            .all(|&e| STORED_FACTOR_RANGE.contains(&f64::from(e))),
         Command::Drive { v_mps, w_radps } => {
             within(f64::from(v_mps), (-DRIVE_LIMIT_MPS, DRIVE_LIMIT_MPS))
                 && within(f64::from(w_radps), (-DRIVE_LIMIT_RADPS, DRIVE_LIMIT_RADPS))

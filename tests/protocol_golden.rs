@@ -172,6 +172,23 @@ fn commands_parse_to_the_documented_values() {
                 confirmed: true,
             },
         ),
+        // Factors computed elsewhere: `online` is the keyword, not a method's name.
+        (
+            "apply online 0.995 1.01 1",
+            Command::ApplyFactors {
+                e_d: 0.995,
+                e_b: 1.01,
+                e_s: 1.0,
+            },
+        ),
+        (
+            "APPLY Online 0.99512345 1.25 8e-1",
+            Command::ApplyFactors {
+                e_d: 0.995_123_45,
+                e_b: 1.25,
+                e_s: 0.8,
+            },
+        ),
         ("drop all", Command::DropAll { confirmed: false }),
         ("drop ALL yes", Command::DropAll { confirmed: true }),
         (
@@ -388,6 +405,29 @@ fn error_replies_are_exact() {
         (
             "apply ex@ct",
             "err 7: <method> must be one of a method name listed by calibrate\r\n",
+        ),
+        ("apply online", "err 2: missing argument <E_d>\r\n"),
+        (
+            "apply online 1 2",
+            "err 6: <E_b> must be within 0.8..1.25\r\n",
+        ),
+        ("apply online 1 1", "err 2: missing argument <E_s>\r\n"),
+        ("apply online 1 1 1 yes", "err 3: too many arguments\r\n"),
+        ("apply online nan 1 1", "err 5: <E_d> must be finite\r\n"),
+        ("apply online 1 -inf 1", "err 5: <E_b> must be finite\r\n"),
+        ("apply online 1 1 1e999", "err 5: <E_s> must be finite\r\n"),
+        ("apply online 1 x 1", "err 4: <E_b> is not a number\r\n"),
+        (
+            "apply online 1 1 0,9",
+            "err 4: <E_s> is not a number (use a decimal point)\r\n",
+        ),
+        (
+            "apply online 1.5 1 1",
+            "err 6: <E_d> must be within 0.8..1.25\r\n",
+        ),
+        (
+            "apply online 1 1 0.79999999",
+            "err 6: <E_s> must be within 0.8..1.25\r\n",
         ),
     ];
     for (line, expected) in cases {

@@ -399,34 +399,35 @@ fn help_lists_every_command_then_ok() {
     let mut b = Bench::new();
     assert_eq!(
         b.send("help"),
-        "  help                      this list\r\n\
-         \x20 status                    state, pose, faults, session progress\r\n\
-         \x20 params                    parameters and the active calibration\r\n\
-         \x20 set <name> <value>        change a parameter (params; measure_unit, heading_unit)\r\n\
-         \x20 run cw|ccw [L]            drive a square of side L m (default: planned side)\r\n\
-         \x20 next                      start the next planned run (button short press)\r\n\
-         \x20 line [d]                  drive straight d m\r\n\
-         \x20 circle cw|ccw [r]         drive a full circle of radius r m\r\n\
-         \x20 stop                      stop now (Ctrl-C or Esc also stop at once)\r\n\
-         \x20 clear                     clear a latched fault (stall, glitch, following)\r\n\
-         \x20 measure [#n] <x> <y> [th] true end pose of the last run, or of run n, units written (5mm 1cm 2deg)\r\n\
-         \x20 runs                      list stored runs\r\n\
-         \x20 record <n> [first]        run n's full record with its tick knots (host tools)\r\n\
-         \x20 drop <n>|all yes          delete run n, or every run\r\n\
-         \x20 calibrate [method]        compute all methods (or one) from measured runs\r\n\
-         \x20 convention [name]         how measured runs are read (y-right, ...)\r\n\
-         \x20 apply <method> [yes]      use a method's result (then save; yes: with a flagged run)\r\n\
-         \x20 save                      store parameters in flash (motors stopped)\r\n\
-         \x20 reset-params [yes]        restore the defaults (then save; yes: discard changes)\r\n\
-         \x20 pose                      odometry pose\r\n\
-         \x20 odom reset                set the odometry pose to the origin\r\n\
-         \x20 bringup [motors|push]     wiring check: motor pulses (wheels up) or a hand push\r\n\
-         \x20 identify [lifted|floor]   motor identification: duty steps, fit, speed-loop tuning\r\n\
-         \x20 stream on [hz]|off        pose + wheel speed stream, 1..100 Hz\r\n\
-         \x20 drive <v_mps> <w_radps>   velocity command, motors stop 500 ms after the last\r\n\
-         \x20 echo on|off               echo typed characters (on at boot; scripts: off)\r\n\
-         \x20 version                   firmware and protocol version\r\n\
-         ok 27 commands\r\n"
+        "  help                           this list\r\n\
+         \x20 status                         state, pose, faults, session progress\r\n\
+         \x20 params                         parameters and the active calibration\r\n\
+         \x20 set <name> <value>             change a parameter (params; measure_unit, heading_unit)\r\n\
+         \x20 run cw|ccw [L]                 drive a square of side L m (default: planned side)\r\n\
+         \x20 next                           start the next planned run (button short press)\r\n\
+         \x20 line [d]                       drive straight d m\r\n\
+         \x20 circle cw|ccw [r]              drive a full circle of radius r m\r\n\
+         \x20 stop                           stop now (Ctrl-C or Esc also stop at once)\r\n\
+         \x20 clear                          clear a latched fault (stall, glitch, following)\r\n\
+         \x20 measure [#n] <x> <y> [th]      true end pose of the last run, or of run n, units written (5mm 1cm 2deg)\r\n\
+         \x20 runs                           list stored runs\r\n\
+         \x20 record <n> [first]             run n's full record with its tick knots (host tools)\r\n\
+         \x20 drop <n>|all yes               delete run n, or every run\r\n\
+         \x20 calibrate [method]             compute all methods (or one) from measured runs\r\n\
+         \x20 convention [name]              how measured runs are read (y-right, ...)\r\n\
+         \x20 apply <method> [yes]           use a method's result (then save; yes: with a flagged run)\r\n\
+         \x20 apply online <E_d> <E_b> <E_s> use factors computed elsewhere (then save)\r\n\
+         \x20 save                           store parameters in flash (motors stopped)\r\n\
+         \x20 reset-params [yes]             restore the defaults (then save; yes: discard changes)\r\n\
+         \x20 pose                           odometry pose\r\n\
+         \x20 odom reset                     set the odometry pose to the origin\r\n\
+         \x20 bringup [motors|push]          wiring check: motor pulses (wheels up) or a hand push\r\n\
+         \x20 identify [lifted|floor]        motor identification: duty steps, fit, speed-loop tuning\r\n\
+         \x20 stream on [hz]|off             pose + wheel speed stream, 1..100 Hz\r\n\
+         \x20 drive <v_mps> <w_radps>        velocity command, motors stop 500 ms after the last\r\n\
+         \x20 echo on|off                    echo typed characters (on at boot; scripts: off)\r\n\
+         \x20 version                        firmware and protocol version\r\n\
+         ok 28 commands\r\n"
     );
 }
 

@@ -1,7 +1,7 @@
 //! Whether a log's last `params` reply still describes the board: a later `reset-params`, `set`
-//! of a geometry parameter or `apply` that the board accepted changed the geometry it drives
-//! with, so an export from that reply would hand a robot stack a calibration the board no
-//! longer holds.
+//! of a geometry parameter, `apply` or `apply online` that the board accepted changed the
+//! geometry it drives with, so an export from that reply would hand a robot stack a calibration
+//! the board no longer holds.
 
 use odocal::protocol::reply::{self, FinalLine};
 use odocal::protocol::{Command, ParamGroup, token};
@@ -20,7 +20,9 @@ pub struct Stale {
 /// Whether `command` (as typed, without a prompt) may change the geometry `params` reports.
 fn changes_geometry(command: &str) -> bool {
     match Command::parse(command) {
-        Ok(Command::ResetParams { .. } | Command::Apply { .. }) => true,
+        Ok(Command::ResetParams { .. } | Command::Apply { .. } | Command::ApplyFactors { .. }) => {
+            true
+        }
         Ok(Command::Set { name, .. }) => name.spec().group == ParamGroup::Geometry,
         _ => false,
     }
@@ -103,6 +105,7 @@ mod tests {
         .unwrap();
         assert_eq!(s.command, "set wheelbase 0.4");
         assert!(capture(&format!("{PARAMS}apply exact\nok applied exact: E_d=1 E_b=1 E_s=1 (not saved; save to keep)\n")).is_some());
+        assert!(capture(&format!("{PARAMS}apply online 0.995 1.01 1\nok applied online: E_d=0.995000000 E_b=1.010000000 E_s=1.000000000 (not saved; save to keep)\n")).is_some());
     }
 
     #[test]

@@ -302,7 +302,7 @@ fn serial_pipe_answers_cr_line_ends_and_ctrl_c() {
         .collect();
     assert_eq!(finals.len(), 4, "{text}");
     assert!(finals.iter().all(|l| l.starts_with("ok")), "{text}");
-    assert_eq!(finals[0], "ok 27 commands");
+    assert_eq!(finals[0], "ok 28 commands");
     assert_eq!(finals[2], "ok stopped");
 }
 

@@ -187,7 +187,7 @@ fn picocom_with_default_settings_drives_a_session() {
     }
     let t = start();
     t.line("help");
-    let screen = t.wait_for("ok 27 commands", 1);
+    let screen = t.wait_for("ok 28 commands", 1);
     // The board echoes what is typed (picocom does not echo locally).
     assert!(screen.contains("help\n"), "{screen}");
     for (set, reply) in [

@@ -46,7 +46,7 @@ pub const LOCK_SCRIPT: [&str; 17] = [
     "status",
 ];
 
-/// Whether a console line changes what the controller runs with (`set`, `apply`,
+/// Whether a console line changes what the controller runs with (`set`, `apply`, `apply online`,
 /// `reset-params`): refused unless the robot is idle, so its locks can only delay a period in
 /// which nothing moves. The others (`status`, `params`, `runs`, `calibrate`) run at any time.
 pub fn changes_settings(line: &str) -> bool {
@@ -54,6 +54,7 @@ pub fn changes_settings(line: &str) -> bool {
         odocal::protocol::Command::parse(line),
         Ok(odocal::protocol::Command::Set { .. }
             | odocal::protocol::Command::Apply { .. }
+            | odocal::protocol::Command::ApplyFactors { .. }
             | odocal::protocol::Command::ResetParams { .. })
     )
 }

@@ -65,19 +65,26 @@ impl<W: rtic::Mutex<T = IndependentWatchdog>> RelaxedWatchdog<'_, W> {
     // about 0.8 KiB more flash.
     #[inline(never)]
     fn relaxed<R>(&mut self, f: impl FnOnce(&mut ParamAndRunStore<BoardFlash>) -> R) -> R {
+        self.set_timeout(FLASH_WATCHDOG_MS);
+        let result = f(self.store);
+        self.set_timeout(WATCHDOG_MS);
+        result
+    }
+
+    /// Sets the watchdog's timeout and feeds it: wait, write, wait, reload, the sequence of
+    /// [`super::watchdog::set_timeout`] with the waits outside the lock. Out of line: each store
+    /// operation's [`Self::relaxed`] would otherwise carry both changes.
+    #[inline(never)]
+    fn set_timeout(&mut self, timeout_ms: u32) {
         // The waits for the low-power register domain stay outside the lock, so the control
-        // task is never held up by them. The reload comes after the update has crossed over:
+        // task is never held up by them (the first finds nothing pending when the timeout goes
+        // back after a store operation). The reload comes after the update has crossed over:
         // an earlier one would load the old 50 ms reload value, counted at the new divider
         // (about 1.1-1.6 s, shorter than an erase).
         wait_for_update();
-        self.watchdog.lock(|w| write_timeout(w, FLASH_WATCHDOG_MS));
+        self.watchdog.lock(|w| write_timeout(w, timeout_ms));
         wait_for_update();
         self.watchdog.lock(|w| w.feed());
-        let result = f(self.store);
-        self.watchdog.lock(|w| write_timeout(w, WATCHDOG_MS));
-        wait_for_update();
-        self.watchdog.lock(|w| w.feed());
-        result
     }
 }
 

@@ -124,16 +124,10 @@ impl Geometry {
     /// Composes a correction measured while driving with `self` onto it: the diameter ratio is
     /// multiplied by `e_d`, the wheelbase by `e_b` and the mean diameter by `e_s`.
     ///
-    /// This is how an iterative calibration (paper Fig. 10) refines an earlier one.
+    /// This is how an iterative calibration (paper Fig. 10) refines an earlier one: the geometry
+    /// [`Geometry::with_factors`] gives for the diameter ratio `D_R / D_L · e_d`.
     pub fn corrected(&self, e_d: f64, e_b: f64, e_s: f64) -> Geometry {
-        let mean = e_s * self.mean_diameter_m();
-        let ratio = self.diameter_ratio() * e_d;
-        Geometry {
-            diameter_right_m: 2.0 * mean / (1.0 + 1.0 / ratio),
-            diameter_left_m: 2.0 * mean / (1.0 + ratio),
-            wheelbase_m: e_b * self.wheelbase_m,
-            counts_per_rev: self.counts_per_rev,
-        }
+        self.with_factors(self.diameter_ratio() * e_d, e_b, e_s)
     }
 }
 

@@ -28,6 +28,21 @@ use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::{Geometry, GeometryError};
 use crate::kinematics::reference::PoseF64;
 
+/// 2^-40: one step of a Q40 position, metres (exact in `f64` and `f32`).
+const Q40_STEP_M: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// A Q40 position in metres: exactly `q.to_num::<f64>()` (an `i64` to `f64` cast rounds to the
+/// nearest, ties to even, as `fixed` does, and the scaling by 2^-40 is exact), without `fixed`'s
+/// generic conversion (about 150 B of flash for each target type).
+pub fn metres(q: I24F40) -> f64 {
+    q.to_bits() as f64 * Q40_STEP_M
+}
+
+/// [`metres`] as an `f32`: exactly `q.to_num::<f32>()`, for the same reasons.
+pub fn metres_f32(q: I24F40) -> f32 {
+    q.to_bits() as f32 * Q40_STEP_M as f32
+}
+
 /// Integration rule for one control period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -54,11 +69,7 @@ pub struct Pose {
 impl Pose {
     /// Conversion to `f64` metres and radians (heading in `[-π, π)`).
     pub fn to_f64(&self) -> PoseF64 {
-        PoseF64::new(
-            self.x.to_num::<f64>(),
-            self.y.to_num::<f64>(),
-            self.heading.to_radians(),
-        )
+        PoseF64::new(metres(self.x), metres(self.y), self.heading.to_radians())
     }
 
     /// The fixed-point pose nearest to `p` (position saturates at ±8,388 km).
@@ -205,6 +216,36 @@ mod tests {
 
     use super::*;
     use crate::kinematics::reference::ArcModel;
+
+    /// `metres` and `metres_f32` are `fixed`'s conversions bit for bit: at the ends of the
+    /// range, at ties and beyond 2^53 (where both round) and over random bits (xorshift64).
+    #[test]
+    fn metres_are_fixeds_conversions() {
+        let mut bits = std::vec![
+            0,
+            1,
+            -1,
+            i64::MAX,
+            i64::MIN,
+            (1 << 53) + 1,
+            (1 << 53) + 3,
+            (1 << 24) + 1,
+            -(1 << 60) - 1,
+        ];
+        let mut x = 0x9E37_79B9_7F4A_7C15_u64;
+        for shift in 0..64 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            bits.push((x >> shift) as i64);
+            bits.push(-((x >> shift) as i64));
+        }
+        for b in bits {
+            let q = I24F40::from_bits(b);
+            assert_eq!(metres(q).to_bits(), q.to_num::<f64>().to_bits(), "{b}");
+            assert_eq!(metres_f32(q).to_bits(), q.to_num::<f32>().to_bits(), "{b}");
+        }
+    }
 
     fn setup(g: &Geometry) -> (Odometry, OdometryState) {
         let odo = Odometry::new(g, Integration::ExactArc).unwrap();

@@ -18,7 +18,7 @@ use crate::motion::bringup::CheckKind;
 use crate::motion::convention::Convention;
 use crate::motion::identify::IdentifyMode;
 use crate::motion::run::Direction;
-use crate::storage::record::METHOD_NAME_MAX;
+use crate::storage::record::{METHOD_NAME_MAX, STORED_FACTOR_RANGE};
 pub use crate::util::text::keyword_eq;
 
 /// Largest accepted `|x|`, `|y|` of a measurement, metres.
@@ -33,6 +33,9 @@ pub const DRIVE_LIMIT_MPS: f64 = 2.0;
 pub const DRIVE_LIMIT_RADPS: f64 = 10.0;
 /// Accepted pose-stream rates, Hz.
 pub const STREAM_RANGE_HZ: (u32, u32) = (1, 100);
+/// The method name of factors computed elsewhere (`apply online <E_d> <E_b> <E_s>`): the word
+/// after `apply` and the name the calibration is stored under.
+pub const ONLINE: &str = "online";
 /// Largest run number: runs keep the number they started with for the whole session (a dropped
 /// run leaves a gap), so numbers go beyond the store's size.
 pub const RUN_NUMBER_MAX: u32 = u16::MAX as u32;
@@ -138,6 +141,18 @@ pub enum Command<'a> {
         method: &'a str,
         /// `yes` was typed after it: apply even with a flagged run.
         confirmed: bool,
+    },
+    /// `apply online <E_d> <E_b> <E_s>`: use calibration factors computed elsewhere (the PC
+    /// bridge's online estimate from the robot's localization) as the active geometry, stored
+    /// under the method name [`ONLINE`] (not yet saved); each factor within the range a stored
+    /// record holds.
+    ApplyFactors {
+        /// Diameter ratio `E_d = D_R / D_L`.
+        e_d: f32,
+        /// Wheelbase factor `E_b = b_actual / b_nominal`.
+        e_b: f32,
+        /// Mean-diameter scale `E_s`.
+        e_s: f32,
     },
     /// `save`: write the parameters to flash (motors must be stopped).
     Save,
@@ -437,6 +452,18 @@ fn method_name(word: &str) -> Result<&str, ParseError> {
     }
 }
 
+/// `apply online <E_d> <E_b> <E_s>`: each factor within the range a stored record holds
+/// ([`STORED_FACTOR_RANGE`]), so finite as an `f32` too.
+fn apply_online<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
+    let (min, max) = (*STORED_FACTOR_RANGE.start(), *STORED_FACTOR_RANGE.end());
+    let mut factors = [0.0; 3];
+    for (factor, what) in factors.iter_mut().zip(["E_d", "E_b", "E_s"]) {
+        *factor = number(words.required(what)?, what, min, max)? as f32;
+    }
+    let [e_d, e_b, e_s] = factors;
+    Ok(Command::ApplyFactors { e_d, e_b, e_s })
+}
+
 /// `set <name> <value>`, `set measure_unit <unit>`, `set heading_unit <unit>`.
 fn set<'a>(words: &mut Words<'a>) -> Result<Command<'a>, ParseError> {
     let name_word = words.required("name")?;
@@ -683,10 +710,14 @@ impl<'a> Command<'a> {
             let method = words.next().map(method_name).transpose()?;
             Command::Calibrate { method }
         } else if is("apply") {
-            let method = method_name(words.required("method")?)?;
-            Command::Apply {
-                method,
-                confirmed: confirmation(&mut words)?,
+            let method = words.required("method")?;
+            if keyword_eq(method, ONLINE) {
+                apply_online(&mut words)?
+            } else {
+                Command::Apply {
+                    method: method_name(method)?,
+                    confirmed: confirmation(&mut words)?,
+                }
             }
         } else if is("save") {
             Command::Save

@@ -5,14 +5,14 @@
 //!
 //! Numbers are written in Rust's shortest form that reads back to the same value (never with an
 //! exponent, at most 17 significant digits: within the parser's
-//! [`MAX_DIGITS`](super::number::MAX_DIGITS)); a `drive`'s `f32` values likewise, which read
-//! back through `f64` to the same `f32`. A measured length or heading keeps the unit it was
+//! [`MAX_DIGITS`](super::number::MAX_DIGITS)); the `f32` values of `drive` and `apply online`
+//! likewise, which read back through `f64` to the same `f32`. A measured length or heading keeps the unit it was
 //! typed with (a bare value stays bare: its unit is the session's). Optional arguments that were
 //! omitted stay omitted.
 
 use core::fmt;
 
-use super::command::{Command, UnitSetting};
+use super::command::{Command, ONLINE, UnitSetting};
 use super::unit::{Angle, Length};
 use crate::motion::bringup::CheckKind;
 use crate::motion::identify::IdentifyMode;
@@ -88,6 +88,9 @@ impl fmt::Display for Command<'_> {
             Command::Apply { method, confirmed } => {
                 write!(f, "apply {method}")?;
                 yes(f, confirmed)
+            }
+            Command::ApplyFactors { e_d, e_b, e_s } => {
+                write!(f, "apply {ONLINE} {e_d} {e_b} {e_s}")
             }
             Command::Save => f.write_str("save"),
             Command::ResetParams { confirmed } => {
@@ -200,9 +203,10 @@ mod tests {
             Command::Echo { .. } => 26,
             Command::Drive { .. } => 27,
             Command::Convention { .. } => 28,
+            Command::ApplyFactors { .. } => 29,
         }
     }
-    const VARIANTS: usize = 29;
+    const VARIANTS: usize = 30;
 
     /// Every parameter at the ends and the middle of its range (signs at ±1, whole numbers
     /// whole), as `set` commands.
@@ -345,6 +349,16 @@ mod tests {
                 method: "umbmark",
                 confirmed: true,
             },
+            Command::ApplyFactors {
+                e_d: 0.995_123_45,
+                e_b: 1.0,
+                e_s: 1.000_000_1,
+            },
+            Command::ApplyFactors {
+                e_d: 0.8,
+                e_b: 1.25,
+                e_s: 10.0 / 9.0,
+            },
             Command::Save,
             Command::ResetParams { confirmed: false },
             Command::ResetParams { confirmed: true },
@@ -400,7 +414,7 @@ mod tests {
             covered.iter().all(|&c| c),
             "a command without a case: {covered:?}"
         );
-        assert_eq!(commands.len(), 56 + 3 * ParamName::ALL.len());
+        assert_eq!(commands.len(), 58 + 3 * ParamName::ALL.len());
     }
 
     /// The lines a person types and the writer's agree on the spelling the docs use.
@@ -432,5 +446,11 @@ mod tests {
             Command::Stream { on: Some(Some(50)) }.to_string(),
             "stream on 50"
         );
+        let online = Command::ApplyFactors {
+            e_d: 0.995,
+            e_b: 1.01,
+            e_s: 1.0,
+        };
+        assert_eq!(online.to_string(), "apply online 0.995 1.01 1");
     }
 }

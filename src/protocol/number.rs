@@ -100,6 +100,23 @@ pub fn parse_f64(word: &str) -> Result<f64, NumberError> {
     Ok(if negative { -magnitude } else { magnitude })
 }
 
+/// The value a host meant by an `f32` argument it wrote as text (a command's `f32` is written
+/// in its shortest form): the `f64` this parser reads from the decimal of fewest places, up to
+/// 9, that reads back as `x` (`0.995_f32` gives `0.995`, not `0.995000004768…`); `x` widened
+/// exactly when no such decimal exists (magnitudes far from 1).
+pub fn f32_as_written(x: f32) -> f64 {
+    let wide = f64::from(x);
+    for pow in &EXACT_POW10[..10] {
+        // `round(..)` is whole and below 2^53 where it matters, so the quotient is the correctly
+        // rounded decimal, as `scale` divides it.
+        let decimal = libm::round(wide * pow) / pow;
+        if decimal as f32 == x {
+            return decimal;
+        }
+    }
+    wide
+}
+
 /// `digits[.digits][e[+-]digits]` (at least one mantissa digit) without sign.
 fn finite_magnitude(text: &[u8]) -> Result<f64, NumberError> {
     let mut mantissa = Mantissa {
@@ -208,6 +225,34 @@ mod tests {
         ] {
             assert_eq!(parse_f64(bad), Err(NumberError::Malformed), "{bad:?}");
         }
+    }
+
+    #[test]
+    fn an_f32_reads_as_the_decimal_it_was_written_as() {
+        use std::string::ToString;
+        for x in [
+            0.995_f32,
+            1.01,
+            1.0,
+            0.8,
+            1.25,
+            0.995_123_45,
+            1.000_000_1,
+            0.999_999_94,
+            1.0 / 3.0,
+            -0.5,
+            0.0,
+        ] {
+            let wide = f32_as_written(x);
+            assert_eq!(wide as f32, x, "{x}");
+            // What the writer writes (the shortest form), read back by this parser.
+            assert_eq!(parse_f64(&x.to_string()), Ok(wide), "{x}");
+        }
+        assert_eq!(f32_as_written(0.995), 0.995);
+        // No decimal of 9 places: widened as it is.
+        assert_eq!(f32_as_written(1e-12), f64::from(1e-12_f32));
+        assert_eq!(f32_as_written(f32::MAX), f64::from(f32::MAX));
+        assert!(f32_as_written(f32::NAN).is_nan());
     }
 
     #[test]

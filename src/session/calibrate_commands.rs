@@ -1,6 +1,7 @@
 //! The commands that turn measured runs into calibration factors: `calibrate [method]` (solve
 //! and compare the methods, change nothing) and `apply <method>` (make one method's factors the
-//! active geometry, not saved).
+//! active geometry, not saved); and `apply online <E_d> <E_b> <E_s>`, which makes factors
+//! computed elsewhere active the same way.
 //!
 //! Owns the rule that both need a measured square in each direction and [`write_calibration`],
 //! the `calibrate` reply, which the console's offline `recalibrate` prints from its kept runs
@@ -12,10 +13,14 @@ use heapless::Vec;
 
 use super::AppliedCalibration;
 use super::fit_check;
-use super::traits::{Calibrator, Culprit, Numbered, Reading, Robot, RobotError, RunResidual};
+use super::traits::{
+    Calibrator, Culprit, Numbered, Reading, Robot, RobotError, RunResidual, Solution,
+};
 use super::{MAX_RUNS, Progress, Session, progress_of, report, robot_err, storable, storage_err};
 use crate::kinematics::geometry::Geometry;
 use crate::motion::convention::Convention;
+use crate::protocol::command::ONLINE;
+use crate::protocol::number::f32_as_written;
 use crate::protocol::outcome::{Ack, ParamOutcome, write_ack, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
 use crate::storage::record::METHOD_NAME_MAX;
@@ -146,6 +151,53 @@ impl<C: Calibrator> Session<C> {
             Err(e) => return write_refusal(out, &Refusal::MethodFailed { why: &e }),
         };
         let p = self.progress();
+        let runs_used = (p.cw_measured + p.ccw_measured).min(usize::from(u16::MAX)) as u16;
+        self.make_active(name, &sol, runs_used, robot, out)
+    }
+
+    /// `apply online <E_d> <E_b> <E_s>`: factors computed elsewhere (the PC bridge's online
+    /// estimate) made active on the nominal geometry under the method name [`ONLINE`], with no
+    /// runs of this session behind them (`runs=0`, no `E_max`). Each factor is taken as the
+    /// decimal it was written as ([`f32_as_written`]); the stored record's rule refuses what it
+    /// cannot hold (`err 17`), as for `apply`.
+    pub(super) fn apply_factors(
+        &mut self,
+        (e_d, e_b, e_s): (f32, f32, f32),
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
+        if robot.status().is_busy() {
+            return robot_err(out, RobotError::Busy, robot);
+        }
+        let (e_d, e_b, e_s) = (
+            f32_as_written(e_d),
+            f32_as_written(e_b),
+            f32_as_written(e_s),
+        );
+        let sol = Solution {
+            e_d,
+            e_b,
+            e_s,
+            geometry: self.settings.nominal.with_factors(e_d, e_b, e_s),
+            e_max_m: None,
+            sd_e_d: None,
+            sd_e_b: None,
+            residuals: Vec::new(),
+        };
+        self.make_active(ONLINE, &sol, 0, robot, out)
+    }
+
+    /// Makes `sol`, method `name` from `runs_used` runs, the active calibration: the rule of
+    /// `save` first (what cannot be stored is not applied either), then the robot (odometry
+    /// keeps its pose and integrates on with the new geometry), then the `ok applied` reply.
+    fn make_active(
+        &mut self,
+        name: &str,
+        sol: &Solution,
+        runs_used: u16,
+        robot: &mut dyn Robot,
+        out: &mut dyn Write,
+    ) -> fmt::Result {
         // The longest whole-character prefix that fits (method names are short ASCII), copied
         // as one `str`: pushing `char`s would link the UTF-8 encoder for this one use.
         let mut end = name.len().min(METHOD_NAME_MAX);
@@ -161,10 +213,9 @@ impl<C: Calibrator> Session<C> {
             e_d: sol.e_d,
             e_b: sol.e_b,
             e_s: sol.e_s,
-            runs_used: (p.cw_measured + p.ccw_measured).min(usize::from(u16::MAX)) as u16,
+            runs_used,
             e_max_m: sol.e_max_m.unwrap_or(0.0),
         });
-        // The rule `save` applies: what cannot be stored is not applied either.
         if let Err(e) = storable(&candidate) {
             return storage_err(out, e);
         }
@@ -228,7 +279,7 @@ pub fn write_calibration<C: Calibrator>(
     // The first result with per-run residuals (the exact fit) is listed after the table, with
     // its fit check.
     let mut residuals: Option<(&'static str, Vec<RunResidual, MAX_RUNS>)> = None;
-    for (i, name) in methods.into_iter().enumerate() {
+    for (i, &name) in methods.iter().enumerate() {
         let result = calibrator.solve(runs, nominal, name);
         if let Ok(s) = &result {
             solved += 1;
@@ -290,7 +341,7 @@ pub fn flagged_runs<C: Calibrator>(
     // The fit with residuals is the last method (exact, whose solution the calibrator keeps);
     // asking it first spares solving every closed form again on each `apply`.
     let methods: Vec<&'static str, 16> = calibrator.methods().iter().take(16).copied().collect();
-    for name in methods.into_iter().rev() {
+    for &name in methods.iter().rev() {
         if let Ok(s) = calibrator.solve(runs, nominal, name)
             && !s.residuals.is_empty()
         {

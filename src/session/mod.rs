@@ -15,7 +15,8 @@
 //! each run the operator enters `measure x y [θ]` (true end pose in the run's start frame,
 //! metres/degrees; it attaches to the last finished run). `calibrate` needs at least one measured
 //! square in each direction; runs stay stored across `calibrate`, so a bad one can be dropped and
-//! the calibration recomputed. `apply` makes a result active, `save` stores it.
+//! the calibration recomputed. `apply` makes a result active (`apply online` factors computed
+//! elsewhere), `save` stores it.
 //!
 //! RAM: one [`RunRecord`] is `MAX_KNOTS` × 16 B plus ~100 B (1,712 B with 100 knots), so the
 //! store costs `MAX_RUNS` × that, ≈ 20.8 KB for the whole session (the `run_store_ram` test
@@ -528,6 +529,9 @@ impl<C: Calibrator> Session<C> {
             Command::Convention { name } => self.convention(name, out),
             Command::Calibrate { method } => self.calibrate(method, robot, out),
             Command::Apply { method, confirmed } => self.apply(method, confirmed, robot, out),
+            Command::ApplyFactors { e_d, e_b, e_s } => {
+                self.apply_factors((e_d, e_b, e_s), robot, out)
+            }
             Command::Save => self.save(robot, storage, out),
             Command::ResetParams { confirmed } => self.reset_params(confirmed, robot, out),
             Command::Pose => self.pose(robot, out),

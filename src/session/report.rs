@@ -54,6 +54,7 @@ const HELP: &[&str] = &[
     "calibrate [method]\tcompute all methods (or one) from measured runs",
     "convention [name]\thow measured runs are read (y-right, ...)",
     "apply <method> [yes]\tuse a method's result (then save; yes: with a flagged run)",
+    "apply online <E_d> <E_b> <E_s>\tuse factors computed elsewhere (then save)",
     "save\tstore parameters in flash (motors stopped)",
     "reset-params [yes]\trestore the defaults (then save; yes: discard changes)",
     "pose\todometry pose",
@@ -66,8 +67,8 @@ const HELP: &[&str] = &[
     "version\tfirmware and protocol version",
 ];
 
-/// Width of the `help` command column.
-const HELP_COLUMN: usize = 26;
+/// Width of the `help` command column (the longest command, `apply online …`, and a space).
+const HELP_COLUMN: usize = 31;
 
 pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
     for line in HELP {

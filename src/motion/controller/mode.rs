@@ -8,7 +8,7 @@ use super::{Controller, Fault, MotorCommand, Tracking, WheelScale};
 use crate::kinematics::angle::Angle;
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
-use crate::kinematics::odometry::Pose;
+use crate::kinematics::odometry::{Pose, metres};
 use crate::kinematics::reference::PoseF64;
 use crate::motion::bringup::{CheckKind, CheckReport, PulseCheck, PulseStep, PushCheck};
 use crate::motion::button::Press;
@@ -169,7 +169,7 @@ impl RunFrame {
     /// The frame whose origin is the odometry pose `at`.
     pub(super) fn starting_at(at: &Pose) -> Self {
         let rotation = Angle(at.heading.0.wrapping_neg());
-        let (x, y) = rotate(rotation, at.x.to_num(), at.y.to_num());
+        let (x, y) = rotate(rotation, metres(at.x), metres(at.y));
         RunFrame {
             rotation,
             shift: (-x, -y),
@@ -179,7 +179,7 @@ impl RunFrame {
     /// The same frame after the odometry frame was reset at its pose `at` (`at` becomes the
     /// odometry's origin): `R(ρ)·(R(θ)·p + P) + s = R(ρ + θ)·p + (R(ρ)·P + s)`.
     pub(super) fn after_reset(&self, at: &Pose) -> Self {
-        let (x, y) = rotate(self.rotation, at.x.to_num(), at.y.to_num());
+        let (x, y) = rotate(self.rotation, metres(at.x), metres(at.y));
         RunFrame {
             rotation: Angle(self.rotation.0.wrapping_add(at.heading.0)),
             shift: (x + self.shift.0, y + self.shift.1),
@@ -188,7 +188,7 @@ impl RunFrame {
 
     /// The odometry pose `p` in the run frame.
     pub(super) fn map(&self, p: &Pose) -> PoseF64 {
-        let (x, y) = rotate(self.rotation, p.x.to_num(), p.y.to_num());
+        let (x, y) = rotate(self.rotation, metres(p.x), metres(p.y));
         PoseF64::new(
             x + self.shift.0,
             y + self.shift.1,
