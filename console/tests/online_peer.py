@@ -6,8 +6,10 @@ binding, independent of the bridge's RustDDS. It publishes the robot's reference
 (`{"k": "diag", "name": ..., "level": ..., "message": ..., "values": {...}}`).
 
 Commands on stdin, one a line:
-- `cmd V W`: from now on `cmd_vel` is V m/s, W rad/s, published every 20 ms (a teleop's or a
-  planner's period) until the next `cmd`;
+- `cmd off`: no more `cmd_vel` (a planner at its goal);
+- `cmd V W`: from now on `cmd_vel` is V m/s, W rad/s, published every 10 ms of the wall clock
+  (the board's deadman counts its own time, which a simulated board runs faster) until the next
+  `cmd`;
 - `pose T X Y YAW SXY SYAW`: one reference sample stamped T seconds, with standard deviations
   SXY (m) and SYAW (rad) in its covariance;
 - `quit`.
@@ -94,7 +96,7 @@ def main():
             if on:
                 cmd_vel.write(Twist(linear=Vector3(x=v), angular=Vector3(z=w)))
             # The command's own period, not a wait for anything.
-            time.sleep(0.02)
+            time.sleep(0.01)
 
     threading.Thread(target=read_diagnostics, daemon=True).start()
     threading.Thread(target=drive, daemon=True).start()
@@ -105,7 +107,10 @@ def main():
             continue
         if w[0] == "quit":
             break
-        if w[0] == "cmd":
+        if w[0] == "cmd" and w[1] == "off":
+            with lock:
+                command[2] = False
+        elif w[0] == "cmd":
             with lock:
                 command[0], command[1], command[2] = float(w[1]), float(w[2]), True
         elif w[0] == "pose":

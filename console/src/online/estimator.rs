@@ -5,12 +5,11 @@
 //! - **Horizon**: the newest windows whose wheel travel adds up to `horizon_m` (at least
 //!   [`MIN_WINDOWS`]); older ones are forgotten, so a worn tyre or a new load is followed
 //!   within one horizon of driving.
-//! - **Weights**: the reference's covariance sets the end heading's weight against the
-//!   positions along the path (`ℓ = σ_xy / (σ_end·√n)`, `n` the knots of a window and `σ_end`
-//!   the 1σ of its smoothed end-to-start heading: the heading row's noise is then that of each
-//!   of the window's position rows, σ_xy/√n after the fit's normalisation), from the medians over the windows fitted; within the fit every window
-//!   counts alike, and the robust fit's own weights take a window that disagrees with the rest
-//!   down.
+//! - **Weights**: the reference's covariance sets its heading's weight against its positions:
+//!   at every knot the fit compares both, the heading times `ℓ = σ_xy / σ_θ` (from the medians
+//!   over the windows fitted), so that a heading row's noise is that of a position row; within
+//!   the fit every window counts alike, and the robust fit's own weights take a window that
+//!   disagrees with the rest down.
 //! - **`E_s`**: fitted only when asked (`fit_scale`): a localization's scale is that of its map,
 //!   which a lidar map built with this odometry inherits; motion capture's can be trusted.
 
@@ -22,7 +21,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::{Measurement, PathKind};
 
-use super::window::{ANCHOR_KNOTS, Window};
+use super::window::Window;
 
 /// Fewest accepted windows an estimate is made from.
 pub const MIN_WINDOWS: usize = 3;
@@ -147,10 +146,7 @@ impl Estimator {
         };
         let sd_xy = median(self.windows.iter().map(|w| w.sd_xy_m).collect());
         let sd_th = median(self.windows.iter().map(|w| w.sd_theta_rad).collect());
-        let knots = median(self.windows.iter().map(|w| w.knots.len() as f64).collect());
-        // The end heading is smoothed over `ANCHOR_KNOTS` knots at both ends of its window.
-        let sd_end = sd_th * (2.0 / ANCHOR_KNOTS as f64).sqrt();
-        let heading_length_m = sd_xy / (sd_end * knots.sqrt());
+        let heading_length_m = sd_xy / sd_th;
         let options = ExactOptions {
             scale: if self.options.fit_scale {
                 ScaleFit::Always

@@ -33,7 +33,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 
 /// Knots the start and end of a window are smoothed over.
-pub const ANCHOR_KNOTS: usize = 5;
+pub const ANCHOR_KNOTS: usize = 10;
 /// Noise multiple of the jump and disagreement gates.
 const GATE_SIGMAS: f64 = 5.0;
 /// Fraction of the motion the gates allow beyond the noise (geometry errors are a few percent).

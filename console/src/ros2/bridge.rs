@@ -335,6 +335,10 @@ impl Bridge<'_> {
     /// `--apply ask|auto`: offers or applies the estimate when its rules allow.
     fn apply_online(&mut self) -> Result<(), LinkError> {
         let (e_d, e_b, _) = self.applied_factors();
+        // At rest: no command coming (the board's `drive` mode ends with its deadman).
+        if self.commanding.is_some() {
+            return Ok(());
+        }
         let Some((o, _)) = &mut self.online else {
             return Ok(());
         };

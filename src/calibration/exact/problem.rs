@@ -137,7 +137,6 @@ impl Problem<'_, '_> {
             }
             out
         };
-        let mut pose = [PoseF64::default(); MODELS];
         if Self::is_path(run) {
             let samples = (run.knots.len() - 1) as f64;
             let norm = 1.0 / libm::sqrt(samples);
@@ -150,7 +149,7 @@ impl Problem<'_, '_> {
                 for (m, model) in models32[..nm32].iter().enumerate() {
                     end32[m] = model.integrate(end32[m], knots);
                 }
-                pose = poses(&end, &end32);
+                let pose = poses(&end, &end32);
                 for m in 0..all {
                     v[m] = (truth.x_m - pose[m].x_m) * norm;
                 }
@@ -159,25 +158,32 @@ impl Problem<'_, '_> {
                     v[m] = (truth.y_m - pose[m].y_m) * norm;
                 }
                 row(&v[..all], Y);
+                if self.heading(run).is_some() {
+                    let l = self.heading_length(run) * norm;
+                    for m in 0..all {
+                        v[m] = wrap_angle(truth.theta_rad - pose[m].theta_rad) * l;
+                    }
+                    row(&v[..all], HEADING);
+                }
             }
-        } else {
-            for (m, model) in models[..nm].iter().enumerate() {
-                end[m] = model.integrate(PoseF64::default(), run.knots);
-            }
-            for (m, model) in models32[..nm32].iter().enumerate() {
-                end32[m] = model.integrate(PoseF32::default(), run.knots);
-            }
-            pose = poses(&end, &end32);
-            let meas = &run.measured;
-            for m in 0..all {
-                v[m] = meas.x_m - pose[m].x_m;
-            }
-            row(&v[..all], X);
-            for m in 0..all {
-                v[m] = meas.y_m - pose[m].y_m;
-            }
-            row(&v[..all], Y);
+            return;
         }
+        for (m, model) in models[..nm].iter().enumerate() {
+            end[m] = model.integrate(PoseF64::default(), run.knots);
+        }
+        for (m, model) in models32[..nm32].iter().enumerate() {
+            end32[m] = model.integrate(PoseF32::default(), run.knots);
+        }
+        let pose = poses(&end, &end32);
+        let meas = &run.measured;
+        for m in 0..all {
+            v[m] = meas.x_m - pose[m].x_m;
+        }
+        row(&v[..all], X);
+        for m in 0..all {
+            v[m] = meas.y_m - pose[m].y_m;
+        }
+        row(&v[..all], Y);
         if let Some(t) = self.heading(run) {
             let l = self.heading_length(run);
             for m in 0..all {
@@ -254,12 +260,12 @@ impl Problem<'_, '_> {
 
     /// Number of residual rows of a run (2 per knot of a path run).
     pub(super) fn row_count(&self, run: &RunObservation<'_>) -> usize {
-        let pos = if Self::is_path(run) {
-            2 * (run.knots.len() - 1)
+        let per_pose = 2 + usize::from(self.heading(run).is_some());
+        if Self::is_path(run) {
+            per_pose * (run.knots.len() - 1)
         } else {
-            2
-        };
-        pos + usize::from(self.heading(run).is_some())
+            per_pose
+        }
     }
 
     /// Weighted sum of squared residuals and number of residual components; `None` for an
