@@ -190,3 +190,29 @@ fn the_estimate_follows_wear_within_the_horizon() {
     eprintln!("{est:?} used {} rejected {}", e.used, e.rejected);
     assert!((est.e_d - 0.990).abs() < 3.0 * est.sd_e_d, "{est:?}");
 }
+
+/// `--apply`: never by default; `auto` only at rest, with a 1σ below `--max-sd`, and when the
+/// board's calibration is more than `--min-change` σ from the estimate.
+#[test]
+fn apply_rules() {
+    let mut o = online(&["--horizon", "200", "--apply", "auto", "--max-sd", "2e-3"]);
+    drive(&mut o, 300.0, (0.995, 1.010), None, 1e9);
+    let e = o.estimator.estimate().expect("an estimate");
+    assert!(e.sd_e_d.max(e.sd_e_b) < 2e-3, "{e:?}");
+    // Still moving: not applied.
+    o.stream(300.01, 0.1, 0.1);
+    assert_eq!(o.to_apply((1.0, 1.0)), None);
+    // At rest for a second: applied, unless the board's calibration is the estimate.
+    for i in 1..=101 {
+        o.stream(300.01 + f64::from(i) * 0.01, 0.0, 0.0);
+    }
+    assert_eq!(o.to_apply((1.0, 1.0)), Some(e));
+    assert_eq!(o.to_apply((e.e_d, e.e_b)), None);
+    // A stricter --max-sd: not sure enough.
+    o.args.max_sd = e.sd_e_d.max(e.sd_e_b) / 2.0;
+    assert_eq!(o.to_apply((1.0, 1.0)), None);
+    // --apply never: never.
+    o.args.max_sd = 1.0;
+    o.args.apply = super::ApplyMode::Never;
+    assert_eq!(o.to_apply((1.0, 1.0)), None);
+}
