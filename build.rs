@@ -1,10 +1,17 @@
-//! Puts the selected board's `memory.x` (`src/board/<board>/memory.x`, by the `board-*` cargo
-//! feature) where the linker finds it. A target build needs exactly one board feature.
+//! Puts the selected board's `memory.x` (by the `board-*` cargo feature: the default board's at
+//! the top level, every other board's in `src/board/<board>/memory.x`) where the linker finds
+//! it. A target build needs exactly one board feature.
+//!
+//! The linker (`.cargo/firmware-linker.sh`: flip-link run from an empty directory) never looks in the
+//! repository's top level: a linker script's `INCLUDE memory.x` searches the current directory
+//! before the search path, so run from the top level every board would link the default
+//! board's map (an F411CE image with its run region at the F407's 0x080C_0000, off its flash).
 use std::env;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-/// Board features and their folders under `src/board/`.
+/// Board features and their folders under `src/board/` (the default board's map is the
+/// top-level `memory.x`).
 const BOARDS: [(&str, &str); 3] = [
     ("BOARD_F407", "f407"),
     ("BOARD_NUCLEO_F446RE", "nucleo_f446re"),
@@ -14,7 +21,7 @@ const BOARDS: [(&str, &str); 3] = [
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     for (_, folder) in BOARDS {
-        println!("cargo:rerun-if-changed=src/board/{folder}/memory.x");
+        println!("cargo:rerun-if-changed={}", map_of(folder).display());
     }
     let selected: Vec<&str> = BOARDS
         .iter()
@@ -37,7 +44,16 @@ fn main() {
         ),
     };
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("OUT_DIR is set by cargo"));
-    let map = Path::new("src/board").join(folder).join("memory.x");
-    fs::copy(&map, out.join("memory.x")).expect("the board's memory.x is copied to OUT_DIR");
+    fs::copy(map_of(folder), out.join("memory.x"))
+        .expect("the board's memory.x is copied to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
+}
+
+/// The memory map of the board in `folder`: the top-level `memory.x` for the default board.
+fn map_of(folder: &str) -> PathBuf {
+    if folder == "f407" {
+        PathBuf::from("memory.x")
+    } else {
+        Path::new("src/board").join(folder).join("memory.x")
+    }
 }
