@@ -23,6 +23,7 @@
 //! command table and error codes are documented in `docs/protocol.md`.
 
 pub mod command;
+mod command_values;
 mod command_write;
 pub mod line;
 pub mod number;

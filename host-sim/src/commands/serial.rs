@@ -276,36 +276,11 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     apply_wears(&mut wears, board.now_us(), &mut board.sim, &mut config);
     let (tx, rx) = mpsc::channel::<Option<Vec<u8>>>();
     let (ctl_tx, ctl_rx) = mpsc::channel::<Option<Vec<u8>>>();
-    let (mut writer, _slave): (Box<dyn Write>, Option<std::fs::File>) = if args.pty {
-        let (master, path, slave) = open_pty()?;
-        println!("pty {path}");
-        eprintln!(
-            "serial: connect to {path} at 115200 baud (e.g. picocom -b 115200 {path}); Ctrl-C to quit"
-        );
-        eprintln!("serial: type `button`, `button long` or `reboot` here (`help` lists them)");
-        if let (Some(r), Some(dir)) = (&replay, &args.replay) {
-            eprintln!(
-                "serial: replay of {} ({} runs, {} s): type `play` here to start it",
-                dir.display(),
-                r.playback.runs(),
-                board_seconds(r.playback.duration_us())
-            );
-        }
-        eprint!("sim: {out}");
-        let mut reader = master.try_clone().map_err(|e| e.to_string())?;
-        spawn_reader(move |buf| reader.read(buf), tx);
-        spawn_reader(|buf| std::io::stdin().read(buf), ctl_tx);
-        (Box::new(master), Some(slave))
-    } else {
-        spawn_reader(|buf| std::io::stdin().read(buf), tx);
-        (Box::new(std::io::stdout()), None)
-    };
+    let (mut writer, _slave) = connect(args, replay.as_ref(), &out, tx, ctl_tx)?;
     let mut control = Vec::new();
     let mut input_done = false;
     let mut deadline = Instant::now();
-    let mut was_running = false;
-    let mut report_at_rest = false;
-    let mut stored_before = 0;
+    let mut ends = RunEnds::default();
     let mut image_touched = board.store.flash().bytes_touched();
     // Board time the slices have given and the periods not yet taken, µs.
     let mut budget_us = 0.0;
@@ -353,7 +328,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                     image_touched = board.store.flash().bytes_touched();
                     eprint!("sim: {boot}");
                     out.push_str(&boot);
-                    (was_running, report_at_rest, stored_before) = (false, false, 0);
+                    ends = RunEnds::default();
                 }
                 "play" => match &mut replay {
                     Some(r) => r.play()?,
@@ -386,30 +361,13 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         // pass), in whole periods of the rate the board runs at now (`set control_hz` retimes
         // it); the rest waits for the next slice.
         budget_us += if args.fast { 1e4 } else { 1e4 * args.speed };
-        while budget_us >= board.period_us() as f64 {
-            let before = board.now_us();
-            if let Some(r) = &replay {
-                r.before_period(&mut board.sim);
-            }
-            board.step(&mut out);
-            let now = board.now_us();
-            budget_us -= (now - before) as f64;
-            if let Some(r) = &mut replay {
-                r.after_period(now - before)?;
-            }
-            apply_wears(&mut wears, now, &mut board.sim, &mut config);
-            if let Some(t) = &mut truth
-                && t.due(now)
-            {
-                let pose = match &replay {
-                    Some(r) => r.truth(),
-                    None => Some(board.sim.true_pose()),
-                };
-                if let Some(p) = pose {
-                    print_truth(now, p)?;
-                }
-            }
-        }
+        let mut world = World {
+            replay: replay.as_mut(),
+            wears: &mut wears,
+            config: &mut config,
+            truth: truth.as_mut(),
+        };
+        world.run_periods(&mut board, &mut budget_us, &mut out)?;
         // Commands (`save`, `measure`, `drop`) and finished runs write the flash.
         let touched = board.store.flash().bytes_touched();
         if let Some(path) = &args.image
@@ -420,35 +378,8 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
             board.store.flash().copy_image(&mut image);
             std::fs::write(path, image).map_err(|e| format!("{}: {e}", path.display()))?;
         }
-        let running = matches!(board.controller.status(), Status::Running { .. });
-        report_at_rest |= was_running && !running;
-        was_running = running;
-        if report_at_rest && board.at_rest() && settled(&board) {
-            report_at_rest = false;
-            // Only a run that finished was stored; an aborted one is not, and measuring it
-            // would fill an earlier run.
-            let stored = board.session.runs().len();
-            let finished = stored > stored_before
-                && board
-                    .session
-                    .runs()
-                    .last()
-                    .is_some_and(|r| r.measured.is_none());
-            stored_before = stored;
-            if let Some(line) = measure_line(&board) {
-                let what = if finished {
-                    ""
-                } else {
-                    " (aborted, not stored)"
-                };
-                eprintln!("sim: true end pose in the run's start frame{what}: {line}");
-                if args.auto_measure && finished {
-                    out.push_str(&format!("> {line}\r\n"));
-                    out.push_str(&board.send(&line));
-                }
-            }
-        }
-        stored_before = stored_before.min(board.session.runs().len());
+        let still = settled(&board);
+        ends.after_slice(&mut board, args, still, &mut out);
         if !out.is_empty() {
             writer
                 .write_all(out.as_bytes())
@@ -459,18 +390,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         if input_done && !board.has_input() && board.at_rest() {
             return Ok(());
         }
-        if !args.fast {
-            deadline += Duration::from_millis(10);
-            let now = Instant::now();
-            if deadline > now {
-                std::thread::sleep(deadline - now);
-            } else {
-                deadline = now;
-            }
-        } else if !board.has_input() && !input_done && board.at_rest() {
-            // Nothing to do until input arrives.
-            std::thread::sleep(Duration::from_millis(1));
-        }
+        pace(args, &board, input_done, &mut deadline);
     }
 }
 
@@ -494,4 +414,153 @@ where
             }
         }
     });
+}
+
+/// What changes the simulated robot between its periods: the recording it plays, the wears
+/// still due, its configuration and the truth lines' clock.
+struct World<'a> {
+    replay: Option<&'a mut Replay>,
+    wears: &'a mut Vec<Wear>,
+    config: &'a mut SimConfig,
+    truth: Option<&'a mut TruthClock>,
+}
+
+impl World<'_> {
+    /// Runs the whole control periods `budget_us` holds (the rest waits for the next slice),
+    /// with the recording's counts, the wears as they fall due, and the truth lines.
+    fn run_periods(
+        &mut self,
+        board: &mut Board<'_>,
+        budget_us: &mut f64,
+        out: &mut String,
+    ) -> Result<(), String> {
+        while *budget_us >= board.period_us() as f64 {
+            let before = board.now_us();
+            if let Some(r) = &self.replay {
+                r.before_period(&mut board.sim);
+            }
+            board.step(out);
+            let now = board.now_us();
+            *budget_us -= (now - before) as f64;
+            if let Some(r) = &mut self.replay {
+                r.after_period(now - before)?;
+            }
+            apply_wears(self.wears, now, &mut board.sim, self.config);
+            if let Some(t) = &mut self.truth
+                && t.due(now)
+            {
+                let pose = match &self.replay {
+                    Some(r) => r.truth(),
+                    None => Some(board.sim.true_pose()),
+                };
+                if let Some(p) = pose {
+                    print_truth(now, p)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The ends of runs: the true end pose said (and measured with `--auto-measure`) once the robot
+/// is at rest after a run.
+#[derive(Default)]
+struct RunEnds {
+    was_running: bool,
+    report_at_rest: bool,
+    stored_before: usize,
+}
+
+impl RunEnds {
+    /// After a slice: a run that ended is reported once the robot is at rest (`settled`: and,
+    /// with `--settle`, its wheels still).
+    fn after_slice(
+        &mut self,
+        board: &mut Board<'_>,
+        args: &SerialArgs,
+        settled: bool,
+        out: &mut String,
+    ) {
+        let running = matches!(board.controller.status(), Status::Running { .. });
+        self.report_at_rest |= self.was_running && !running;
+        self.was_running = running;
+        if self.report_at_rest && board.at_rest() && settled {
+            self.report_at_rest = false;
+            // Only a run that finished was stored; an aborted one is not, and measuring it
+            // would fill an earlier run.
+            let stored = board.session.runs().len();
+            let finished = stored > self.stored_before
+                && board
+                    .session
+                    .runs()
+                    .last()
+                    .is_some_and(|r| r.measured.is_none());
+            self.stored_before = stored;
+            if let Some(line) = measure_line(board) {
+                let what = if finished {
+                    ""
+                } else {
+                    " (aborted, not stored)"
+                };
+                eprintln!("sim: true end pose in the run's start frame{what}: {line}");
+                if args.auto_measure && finished {
+                    out.push_str(&format!("> {line}\r\n"));
+                    out.push_str(&board.send(&line));
+                }
+            }
+        }
+        self.stored_before = self.stored_before.min(board.session.runs().len());
+    }
+}
+
+/// Waits for the next 10 ms slice of the wall clock (real time), or, with `--fast`, a moment
+/// when there is nothing to do until input arrives.
+fn pace(args: &SerialArgs, board: &Board<'_>, input_done: bool, deadline: &mut Instant) {
+    if !args.fast {
+        *deadline += Duration::from_millis(10);
+        let now = Instant::now();
+        if *deadline > now {
+            std::thread::sleep(*deadline - now);
+        } else {
+            *deadline = now;
+        }
+    } else if !board.has_input() && !input_done && board.at_rest() {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// The board's console: a new pseudo-terminal (its path printed, this program's stdin then the
+/// rest of the board: `button`, `reboot`, `play`) or stdin/stdout; its bytes go to `tx`, the
+/// control lines to `ctl_tx`. Returns the writer and the pty's slave, kept open.
+fn connect(
+    args: &SerialArgs,
+    replay: Option<&Replay>,
+    out: &str,
+    tx: mpsc::Sender<Option<Vec<u8>>>,
+    ctl_tx: mpsc::Sender<Option<Vec<u8>>>,
+) -> Result<(Box<dyn Write>, Option<std::fs::File>), String> {
+    if args.pty {
+        let (master, path, slave) = open_pty()?;
+        println!("pty {path}");
+        eprintln!(
+            "serial: connect to {path} at 115200 baud (e.g. picocom -b 115200 {path}); Ctrl-C to quit"
+        );
+        eprintln!("serial: type `button`, `button long` or `reboot` here (`help` lists them)");
+        if let (Some(r), Some(dir)) = (replay, &args.replay) {
+            eprintln!(
+                "serial: replay of {} ({} runs, {} s): type `play` here to start it",
+                dir.display(),
+                r.playback.runs(),
+                board_seconds(r.playback.duration_us())
+            );
+        }
+        eprint!("sim: {out}");
+        let mut reader = master.try_clone().map_err(|e| e.to_string())?;
+        spawn_reader(move |buf| reader.read(buf), tx);
+        spawn_reader(|buf| std::io::stdin().read(buf), ctl_tx);
+        Ok((Box::new(master), Some(slave)))
+    } else {
+        spawn_reader(|buf| std::io::stdin().read(buf), tx);
+        Ok((Box::new(std::io::stdout()), None))
+    }
 }

@@ -1,11 +1,11 @@
 //! The exact fit from start to result: the plain fit, the reweighting rounds, the final `f64`
 //! solve, the degeneracy and range checks, the 1σ and the per-run report.
 
-use super::linalg::solve;
+use super::linalg::{Mat, solve};
 use super::offset::MAX_GROUPS;
-use super::problem::{Precision, Problem, X, Y};
+use super::problem::{Precision, Problem, Residuals, X, Y};
 use super::report::{EndOffset, ExactFit, RunFit};
-use super::robust::{Weight, weight};
+use super::robust::{Scales, Weight, weight};
 use super::solver::HeadingPart;
 use super::{
     ExactOptions, FREEZE_SCALES_AFTER, MAX_FACTOR_SIGMA, MAX_REWEIGHTS, MAX_RUN_FITS,
@@ -166,26 +166,12 @@ pub fn calibrate_exact(
     // Uncertainty from the weighted residual scatter, the weights as relative precisions, by
     // channel (see the module docs, *Uncertainty*).
     let (a, _, _, heading) = problem.normal(&p, w, Precision::F64, Some(&solved.residuals));
-    let mut sigma = [None; 3];
-    if let Some((s2_position, s2_heading)) = channel_variances(cost, m, fitted, n, &heading) {
-        for (i, s) in sigma.iter_mut().enumerate().take(n) {
-            let mut e = [0.0; 3];
-            e[i] = 1.0;
-            if let Some(col) = solve(a, e, n) {
-                // colᵀ (s²_pos·A_pos + s²_head·A_head) col with A_pos = A − A_head, and
-                // colᵀ A col = col[i]; one variance for both gives s²·col[i].
-                let head: f64 = (0..n)
-                    .map(|e| {
-                        (0..n)
-                            .map(|f| col[e] * heading.a[e][f] * col[f])
-                            .sum::<f64>()
-                    })
-                    .sum();
-                let var = s2_position * (col[i] - head) + s2_heading * head;
-                *s = Some(libm::sqrt(fmax(var, 0.0)));
-            }
-        }
-    }
+    let sigma = factor_sigmas(
+        &a,
+        &heading,
+        channel_variances(cost, m, fitted, n, &heading),
+        n,
+    );
     if sigma.iter().flatten().any(|s| *s > MAX_FACTOR_SIGMA) {
         return Err(CalibrationError::Degenerate);
     }
@@ -194,50 +180,9 @@ pub fn calibrate_exact(
         .map(|(d, b)| [d, b, sigma[2].unwrap_or(0.0)]);
     // Per-run report, and the weighted mean square of the residual components.
     let model = ArcModel::from_geometry(&geometry);
-    let mut fit = ExactFit {
-        robust: options.robust,
-        reweighted,
-        reweights,
-        outliers: 0,
-        run_count: 0,
-        parameters: fitted as u32,
-        fits: [RunFit::EMPTY; MAX_RUN_FITS],
-        end_offsets: [EndOffset::default(); MAX_GROUPS],
-        end_offset_groups: 0,
-    };
     let known = Some(&solved.residuals);
-    let offsets = problem.offsets(w, known, &model);
-    fit.end_offset_groups = problem.groups.count();
-    for (g, e) in fit
-        .end_offsets
-        .iter_mut()
-        .enumerate()
-        .take(fit.end_offset_groups)
-    {
-        *e = EndOffset {
-            first_run: problem.groups.first(g),
-            offset_m: offsets[g],
-        };
-    }
-    let mut weighted_components = 0.0;
-    for (i, run) in runs.iter().enumerate() {
-        if !Problem::usable(run) {
-            continue;
-        }
-        let wi = weight(w, i);
-        weighted_components += wi.run * problem.components(run) as f64;
-        let scale = if reweighted { scales[i] } else { None };
-        let kept = Problem::kept(i, run, known);
-        let offset = problem.group(run).map(|g| offsets[g]);
-        let rf = problem.run_fit(i, &model, kept, wi, scale, offset);
-        if rf.outlier {
-            fit.outliers += 1;
-        }
-        if fit.run_count < MAX_RUN_FITS {
-            fit.fits[fit.run_count] = rf;
-        }
-        fit.run_count += 1;
-    }
+    let (fit, weighted_components) =
+        problem.report(&model, w, known, (reweighted, reweights), &scales);
     let stats = SquareStats::from_runs(runs, false).ok();
     let rms = libm::sqrt(cost / weighted_components);
     // E_max after the correction from the kept residual rows (the same end poses to rounding).
@@ -256,4 +201,99 @@ pub fn calibrate_exact(
         iterations,
         fit: Some(fit),
     })
+}
+
+/// The factors' 1σ from the normal matrix `a` (its heading rows' part in `heading`) and the
+/// position and heading variances of one weighted residual component (see the module docs,
+/// *Uncertainty*); `None` where not determined.
+fn factor_sigmas(
+    a: &Mat,
+    heading: &HeadingPart,
+    variances: Option<(f64, f64)>,
+    n: usize,
+) -> [Option<f64>; 3] {
+    let mut sigma = [None; 3];
+    if let Some((s2_position, s2_heading)) = variances {
+        for (i, s) in sigma.iter_mut().enumerate().take(n) {
+            let mut e = [0.0; 3];
+            e[i] = 1.0;
+            if let Some(col) = solve(*a, e, n) {
+                // colᵀ (s²_pos·A_pos + s²_head·A_head) col with A_pos = A − A_head, and
+                // colᵀ A col = col[i]; one variance for both gives s²·col[i].
+                let head: f64 = (0..n)
+                    .map(|e| {
+                        (0..n)
+                            .map(|f| col[e] * heading.a[e][f] * col[f])
+                            .sum::<f64>()
+                    })
+                    .sum();
+                let var = s2_position * (col[i] - head) + s2_heading * head;
+                *s = Some(libm::sqrt(fmax(var, 0.0)));
+            }
+        }
+    }
+    sigma
+}
+
+impl Problem<'_, '_> {
+    /// The per-run report at the fitted `model` (weights `w`, the kept residual rows `known`,
+    /// whether and how often the fit was reweighted, the runs' scales), and the weighted count of
+    /// residual components.
+    fn report(
+        &self,
+        model: &ArcModel,
+        w: Option<&[Weight]>,
+        known: Option<&Residuals>,
+        (reweighted, reweights): (bool, u32),
+        scales: &[Option<Scales>],
+    ) -> (ExactFit, f64) {
+        let mut fit = ExactFit {
+            robust: self.options.robust,
+            reweighted,
+            reweights,
+            outliers: 0,
+            run_count: 0,
+            parameters: (self.n + 2 * self.groups.count()) as u32,
+            fits: [RunFit::EMPTY; MAX_RUN_FITS],
+            end_offsets: [EndOffset::default(); MAX_GROUPS],
+            end_offset_groups: 0,
+        };
+        let offsets = self.offsets(w, known, model);
+        fit.end_offset_groups = self.groups.count();
+        for (g, e) in fit
+            .end_offsets
+            .iter_mut()
+            .enumerate()
+            .take(fit.end_offset_groups)
+        {
+            *e = EndOffset {
+                first_run: self.groups.first(g),
+                offset_m: offsets[g],
+            };
+        }
+        let mut weighted_components = 0.0;
+        for (i, run) in self.runs.iter().enumerate() {
+            if !Problem::usable(run) {
+                continue;
+            }
+            let wi = weight(w, i);
+            weighted_components += wi.run * self.components(run) as f64;
+            let scale = if reweighted {
+                scales.get(i).copied().flatten()
+            } else {
+                None
+            };
+            let kept = Problem::kept(i, run, known);
+            let offset = self.group(run).map(|g| offsets[g]);
+            let rf = self.run_fit(i, model, kept, wi, scale, offset);
+            if rf.outlier {
+                fit.outliers += 1;
+            }
+            if fit.run_count < MAX_RUN_FITS {
+                fit.fits[fit.run_count] = rf;
+            }
+            fit.run_count += 1;
+        }
+        (fit, weighted_components)
+    }
 }

@@ -20,39 +20,7 @@ pub fn text(r: &SessionReport) -> String {
     let a = &r.args;
     let nominal = Geometry::PAPER_NOMINAL;
     let mut s = String::new();
-    let _ = writeln!(s, "odocal simulated calibration session");
-    let _ = writeln!(
-        s,
-        "robot: true E_b = {}, E_d = {} (unknown to the robot); slip σ = {} per ms; \
-         measurement σ = {} mm, {}°; seed {}",
-        a.eb, a.ed, a.slip, a.meas_mm, a.meas_deg, a.seed
-    );
-    if let Some(events) = &r.identification {
-        let _ = writeln!(
-            s,
-            "motors differ from the defaults: identified first (identify floor)"
-        );
-        for line in events.lines().filter(|l| l.starts_with("event identify")) {
-            let _ = writeln!(s, "  {line}");
-        }
-    }
-    match (a.side, r.advice) {
-        (Some(l), _) => {
-            let _ = writeln!(s, "track: L = {l} m (--side)");
-        }
-        (None, Some((l, e))) => {
-            let _ = writeln!(
-                s,
-                "track: pilot scatter {:.2} mm at 1 m; advice for {} (L ≤ {} m): L = {l} m, \
-                 expected parameter error {:.1e}",
-                r.pilot_scatter_m * 1e3,
-                a.method,
-                a.max_side,
-                e
-            );
-        }
-        (None, None) => {}
-    }
+    header(r, &mut s);
     let _ = writeln!(
         s,
         "calibration runs: {n} CW + {n} CCW squares at L = {} m through the serial protocol \
@@ -182,4 +150,42 @@ pub fn reply_block(transcript: &str, command: &str) -> Option<String> {
         }
     }
     Some(out)
+}
+
+/// The report's opening lines: the simulated robot, the motors' identification, the track.
+fn header(r: &SessionReport, s: &mut String) {
+    let a = &r.args;
+    let _ = writeln!(s, "odocal simulated calibration session");
+    let _ = writeln!(
+        s,
+        "robot: true E_b = {}, E_d = {} (unknown to the robot); slip σ = {} per ms; \
+         measurement σ = {} mm, {}°; seed {}",
+        a.eb, a.ed, a.slip, a.meas_mm, a.meas_deg, a.seed
+    );
+    if let Some(events) = &r.identification {
+        let _ = writeln!(
+            s,
+            "motors differ from the defaults: identified first (identify floor)"
+        );
+        for line in events.lines().filter(|l| l.starts_with("event identify")) {
+            let _ = writeln!(s, "  {line}");
+        }
+    }
+    match (a.side, r.advice) {
+        (Some(l), _) => {
+            let _ = writeln!(s, "track: L = {l} m (--side)");
+        }
+        (None, Some((l, e))) => {
+            let _ = writeln!(
+                s,
+                "track: pilot scatter {:.2} mm at 1 m; advice for {} (L ≤ {} m): L = {l} m, \
+                 expected parameter error {:.1e}",
+                r.pilot_scatter_m * 1e3,
+                a.method,
+                a.max_side,
+                e
+            );
+        }
+        (None, None) => {}
+    }
 }
