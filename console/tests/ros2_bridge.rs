@@ -378,10 +378,16 @@ fn point(link: &Path, target: &str) {
 
 /// The simulated board on a new pty: the process and the pty's path.
 fn start_sim() -> (Proc, String) {
+    start_sim_with(&[])
+}
+
+/// [`start_sim`] with more options of `host-sim serial`.
+fn start_sim_with(args: &[&str]) -> (Proc, String) {
     let mut sim = Proc::start(
         "host-sim",
         Command::new(host_sim())
             .args(["serial", "--pty"])
+            .args(args)
             .stderr(Stdio::null()),
     );
     let first = sim.next();

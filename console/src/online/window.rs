@@ -28,6 +28,7 @@
 
 use std::collections::VecDeque;
 
+use odocal::calibration::wrap_angle as wrap;
 use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
@@ -127,15 +128,11 @@ impl Window {
     }
 }
 
-/// `b` in the frame of `a` (`a⁻¹ ∘ b`).
+/// `b` in the frame of `a` (`a⁻¹ ∘ b`, the library's [`PoseF64::relative`]), the heading
+/// wrapped.
 pub fn relative(a: &PoseF64, b: &PoseF64) -> PoseF64 {
-    let (s, c) = a.theta_rad.sin_cos();
-    let (dx, dy) = (b.x_m - a.x_m, b.y_m - a.y_m);
-    PoseF64::new(
-        c * dx + s * dy,
-        -s * dx + c * dy,
-        wrap(b.theta_rad - a.theta_rad),
-    )
+    let r = a.relative(b);
+    PoseF64::new(r.x_m, r.y_m, wrap(r.theta_rad))
 }
 
 /// `a ∘ d`: the pose `d` (in the frame of `a`) in `a`'s frame's parent.
@@ -151,11 +148,6 @@ pub fn compose(a: &PoseF64, d: &PoseF64) -> PoseF64 {
 /// The inverse of a relative pose.
 fn inverse(d: &PoseF64) -> PoseF64 {
     relative(d, &PoseF64::default())
-}
-
-/// An angle wrapped to (−π, π].
-pub fn wrap(a: f64) -> f64 {
-    odocal::calibration::wrap_angle(a)
 }
 
 /// The mean of poses near each other (headings averaged as deviations from the first).

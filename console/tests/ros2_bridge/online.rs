@@ -17,12 +17,12 @@
 //! 4. `recalibrate --reference-log` finds the bridge's last estimate bit for bit.
 
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 use serde_json::Value;
 
 use super::support::host_sim;
-use super::{Proc, cyclone_available, isolate_network, ready_or_skip};
+use super::{Proc, cyclone_available, isolate_network, ready_or_skip, start_sim_with};
 
 /// The mixed path: (v m/s, ω rad/s, seconds of board time), repeated.
 const PATH: [(f64, f64, f64); 7] = [
@@ -167,7 +167,7 @@ fn online_calibration() {
         return;
     }
     let peer_script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/online_peer.py");
-    let sim_bin = host_sim();
+    host_sim();
     if !ready_or_skip("online_calibration", isolate_network()) {
         return;
     }
@@ -175,19 +175,19 @@ fn online_calibration() {
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("reference.jsonl");
 
-    let mut sim = Proc::start(
-        "host-sim",
-        Command::new(sim_bin)
-            .args(["serial", "--pty", "--speed", SPEED, "--truth-hz", "20"])
-            .args(["--ed", "0.995", "--eb", "1.010"])
-            .args(["--wear", &format!("{WEAR_S}:0.990:1.010")])
-            .stderr(Stdio::null()),
-    );
-    let first = sim.next();
-    let pty = first
-        .strip_prefix("pty ")
-        .unwrap_or_else(|| panic!("no pty line: {first:?}"))
-        .to_string();
+    let wear = format!("{WEAR_S}:0.990:1.010");
+    let (mut sim, pty) = start_sim_with(&[
+        "--speed",
+        SPEED,
+        "--truth-hz",
+        "20",
+        "--ed",
+        "0.995",
+        "--eb",
+        "1.010",
+        "--wear",
+        &wear,
+    ]);
     let mut bridge = Proc::start(
         "odocal-console ros2",
         Command::new(env!("CARGO_BIN_EXE_odocal-console"))
