@@ -10,12 +10,12 @@ use odocal::protocol::{
 };
 
 /// A measured length typed bare.
-fn bare(value: f64) -> Length {
+const fn bare(value: f64) -> Length {
     Length { value, unit: None }
 }
 
 /// A measured length typed with its unit.
-fn length(value: f64, unit: LengthUnit) -> Length {
+const fn length(value: f64, unit: LengthUnit) -> Length {
     Length {
         value,
         unit: Some(unit),
@@ -27,410 +27,414 @@ fn err_text(line: &str) -> String {
     parse_error_reply(&e).as_str().to_owned()
 }
 
+/// Every command as documented in docs/protocol.md, with the value it parses to.
+const DOCUMENTED_COMMANDS: &[(&str, Command<'static>)] = &[
+    ("help", Command::Help),
+    ("?", Command::Help),
+    ("status", Command::Status),
+    ("params", Command::Params),
+    (
+        "set wheelbase 0.4",
+        Command::Set {
+            name: ParamName::Wheelbase,
+            value: 0.4,
+        },
+    ),
+    (
+        "set counts_per_rev 4096",
+        Command::Set {
+            name: ParamName::CountsPerRev,
+            value: 4096.0,
+        },
+    ),
+    // A whole number written as a decimal or with an exponent is that number.
+    (
+        "set counts_per_rev 200000.0",
+        Command::Set {
+            name: ParamName::CountsPerRev,
+            value: 200_000.0,
+        },
+    ),
+    (
+        "set counts_per_rev 2e5",
+        Command::Set {
+            name: ParamName::CountsPerRev,
+            value: 200_000.0,
+        },
+    ),
+    ("drop +3.0", Command::Drop { index: 3 }),
+    (
+        "run cw",
+        Command::Run {
+            direction: Direction::Cw,
+            side_m: None,
+        },
+    ),
+    (
+        "RUN CCW 1.5",
+        Command::Run {
+            direction: Direction::Ccw,
+            side_m: Some(1.5),
+        },
+    ),
+    ("next", Command::Next),
+    ("line", Command::Line { length_m: None }),
+    (
+        "line 3",
+        Command::Line {
+            length_m: Some(3.0),
+        },
+    ),
+    (
+        "circle ccw 0.75",
+        Command::Circle {
+            direction: Direction::Ccw,
+            radius_m: Some(0.75),
+        },
+    ),
+    ("stop", Command::Stop),
+    ("clear", Command::Clear),
+    (
+        "measure 0.0123 -0.045",
+        Command::Measure {
+            run: None,
+            x: bare(0.0123),
+            y: bare(-0.045),
+            theta: None,
+            confirmed: false,
+        },
+    ),
+    (
+        "measure\t-1e-3  2E-2   -1.5 yes",
+        Command::Measure {
+            run: None,
+            x: bare(-0.001),
+            y: bare(0.02),
+            theta: Some(Angle {
+                value: -1.5,
+                unit: None,
+            }),
+            confirmed: true,
+        },
+    ),
+    (
+        "measure #2 -9.1 mm -9 MM 0.2 rad",
+        Command::Measure {
+            run: Some(2),
+            x: length(-9.1, LengthUnit::Millimetre),
+            y: length(-9.0, LengthUnit::Millimetre),
+            theta: Some(Angle {
+                value: 0.2,
+                unit: Some(AngleUnit::Radian),
+            }),
+            confirmed: false,
+        },
+    ),
+    (
+        "measure 1m 2m yes",
+        Command::Measure {
+            run: None,
+            x: length(1.0, LengthUnit::Metre),
+            y: length(2.0, LengthUnit::Metre),
+            theta: None,
+            confirmed: true,
+        },
+    ),
+    (
+        "set measure_unit mm",
+        Command::SetUnit(UnitSetting::Length(LengthUnit::Millimetre)),
+    ),
+    (
+        "set HEADING_UNIT rad",
+        Command::SetUnit(UnitSetting::Angle(AngleUnit::Radian)),
+    ),
+    ("runs", Command::Runs),
+    ("drop 3", Command::Drop { index: 3 }),
+    ("calibrate", Command::Calibrate { method: None }),
+    (
+        "calibrate exact",
+        Command::Calibrate {
+            method: Some("exact"),
+        },
+    ),
+    (
+        "apply lee-x",
+        Command::Apply {
+            method: "lee-x",
+            confirmed: false,
+        },
+    ),
+    (
+        "apply LEE-Y yes",
+        Command::Apply {
+            method: "LEE-Y",
+            confirmed: true,
+        },
+    ),
+    // Factors computed elsewhere: `online` is the keyword, not a method's name.
+    (
+        "apply online 0.995 1.01 1",
+        Command::ApplyFactors {
+            e_d: 0.995,
+            e_b: 1.01,
+            e_s: 1.0,
+        },
+    ),
+    (
+        "APPLY Online 0.99512345 1.25 8e-1",
+        Command::ApplyFactors {
+            e_d: 0.995_123_45,
+            e_b: 1.25,
+            e_s: 0.8,
+        },
+    ),
+    ("drop all", Command::DropAll { confirmed: false }),
+    ("drop ALL yes", Command::DropAll { confirmed: true }),
+    (
+        "measure -5.356mm -5.4cm 2.5deg",
+        Command::Measure {
+            run: None,
+            x: length(-5.356, LengthUnit::Millimetre),
+            y: length(-5.4, LengthUnit::Centimetre),
+            theta: Some(Angle {
+                value: 2.5,
+                unit: Some(AngleUnit::Degree),
+            }),
+            confirmed: false,
+        },
+    ),
+    (
+        "measure #2 0.05m 1e-3 0.5rad",
+        Command::Measure {
+            run: Some(2),
+            x: length(0.05, LengthUnit::Metre),
+            y: bare(1e-3),
+            theta: Some(Angle {
+                value: 0.5,
+                unit: Some(AngleUnit::Radian),
+            }),
+            confirmed: false,
+        },
+    ),
+    ("save", Command::Save),
+    ("reset-params", Command::ResetParams { confirmed: false }),
+    ("reset-params yes", Command::ResetParams { confirmed: true }),
+    ("pose", Command::Pose),
+    ("odom reset", Command::OdomReset),
+    ("stream on", Command::Stream { on: Some(None) }),
+    (
+        "stream on 100",
+        Command::Stream {
+            on: Some(Some(100)),
+        },
+    ),
+    ("stream off", Command::Stream { on: None }),
+    (
+        "drive 0.25 -0.5",
+        Command::Drive {
+            v_mps: 0.25,
+            w_radps: -0.5,
+        },
+    ),
+    ("  stop  ", Command::Stop),
+    (
+        "measure #3 0.01m -0.02m",
+        Command::Measure {
+            run: Some(3),
+            x: length(0.01, LengthUnit::Metre),
+            y: length(-0.02, LengthUnit::Metre),
+            theta: None,
+            confirmed: false,
+        },
+    ),
+    (
+        "MEASURE #40 1 2 -3",
+        Command::Measure {
+            run: Some(40),
+            x: bare(1.0),
+            y: bare(2.0),
+            theta: Some(Angle {
+                value: -3.0,
+                unit: None,
+            }),
+            confirmed: false,
+        },
+    ),
+    ("echo on", Command::Echo { on: true }),
+    ("ECHO Off", Command::Echo { on: false }),
+];
+
 #[test]
 fn commands_parse_to_the_documented_values() {
-    let cases: &[(&str, Command<'_>)] = &[
-        ("help", Command::Help),
-        ("?", Command::Help),
-        ("status", Command::Status),
-        ("params", Command::Params),
-        (
-            "set wheelbase 0.4",
-            Command::Set {
-                name: ParamName::Wheelbase,
-                value: 0.4,
-            },
-        ),
-        (
-            "set counts_per_rev 4096",
-            Command::Set {
-                name: ParamName::CountsPerRev,
-                value: 4096.0,
-            },
-        ),
-        // A whole number written as a decimal or with an exponent is that number.
-        (
-            "set counts_per_rev 200000.0",
-            Command::Set {
-                name: ParamName::CountsPerRev,
-                value: 200_000.0,
-            },
-        ),
-        (
-            "set counts_per_rev 2e5",
-            Command::Set {
-                name: ParamName::CountsPerRev,
-                value: 200_000.0,
-            },
-        ),
-        ("drop +3.0", Command::Drop { index: 3 }),
-        (
-            "run cw",
-            Command::Run {
-                direction: Direction::Cw,
-                side_m: None,
-            },
-        ),
-        (
-            "RUN CCW 1.5",
-            Command::Run {
-                direction: Direction::Ccw,
-                side_m: Some(1.5),
-            },
-        ),
-        ("next", Command::Next),
-        ("line", Command::Line { length_m: None }),
-        (
-            "line 3",
-            Command::Line {
-                length_m: Some(3.0),
-            },
-        ),
-        (
-            "circle ccw 0.75",
-            Command::Circle {
-                direction: Direction::Ccw,
-                radius_m: Some(0.75),
-            },
-        ),
-        ("stop", Command::Stop),
-        ("clear", Command::Clear),
-        (
-            "measure 0.0123 -0.045",
-            Command::Measure {
-                run: None,
-                x: bare(0.0123),
-                y: bare(-0.045),
-                theta: None,
-                confirmed: false,
-            },
-        ),
-        (
-            "measure\t-1e-3  2E-2   -1.5 yes",
-            Command::Measure {
-                run: None,
-                x: bare(-0.001),
-                y: bare(0.02),
-                theta: Some(Angle {
-                    value: -1.5,
-                    unit: None,
-                }),
-                confirmed: true,
-            },
-        ),
-        (
-            "measure #2 -9.1 mm -9 MM 0.2 rad",
-            Command::Measure {
-                run: Some(2),
-                x: length(-9.1, LengthUnit::Millimetre),
-                y: length(-9.0, LengthUnit::Millimetre),
-                theta: Some(Angle {
-                    value: 0.2,
-                    unit: Some(AngleUnit::Radian),
-                }),
-                confirmed: false,
-            },
-        ),
-        (
-            "measure 1m 2m yes",
-            Command::Measure {
-                run: None,
-                x: length(1.0, LengthUnit::Metre),
-                y: length(2.0, LengthUnit::Metre),
-                theta: None,
-                confirmed: true,
-            },
-        ),
-        (
-            "set measure_unit mm",
-            Command::SetUnit(UnitSetting::Length(LengthUnit::Millimetre)),
-        ),
-        (
-            "set HEADING_UNIT rad",
-            Command::SetUnit(UnitSetting::Angle(AngleUnit::Radian)),
-        ),
-        ("runs", Command::Runs),
-        ("drop 3", Command::Drop { index: 3 }),
-        ("calibrate", Command::Calibrate { method: None }),
-        (
-            "calibrate exact",
-            Command::Calibrate {
-                method: Some("exact"),
-            },
-        ),
-        (
-            "apply lee-x",
-            Command::Apply {
-                method: "lee-x",
-                confirmed: false,
-            },
-        ),
-        (
-            "apply LEE-Y yes",
-            Command::Apply {
-                method: "LEE-Y",
-                confirmed: true,
-            },
-        ),
-        // Factors computed elsewhere: `online` is the keyword, not a method's name.
-        (
-            "apply online 0.995 1.01 1",
-            Command::ApplyFactors {
-                e_d: 0.995,
-                e_b: 1.01,
-                e_s: 1.0,
-            },
-        ),
-        (
-            "APPLY Online 0.99512345 1.25 8e-1",
-            Command::ApplyFactors {
-                e_d: 0.995_123_45,
-                e_b: 1.25,
-                e_s: 0.8,
-            },
-        ),
-        ("drop all", Command::DropAll { confirmed: false }),
-        ("drop ALL yes", Command::DropAll { confirmed: true }),
-        (
-            "measure -5.356mm -5.4cm 2.5deg",
-            Command::Measure {
-                run: None,
-                x: length(-5.356, LengthUnit::Millimetre),
-                y: length(-5.4, LengthUnit::Centimetre),
-                theta: Some(Angle {
-                    value: 2.5,
-                    unit: Some(AngleUnit::Degree),
-                }),
-                confirmed: false,
-            },
-        ),
-        (
-            "measure #2 0.05m 1e-3 0.5rad",
-            Command::Measure {
-                run: Some(2),
-                x: length(0.05, LengthUnit::Metre),
-                y: bare(1e-3),
-                theta: Some(Angle {
-                    value: 0.5,
-                    unit: Some(AngleUnit::Radian),
-                }),
-                confirmed: false,
-            },
-        ),
-        ("save", Command::Save),
-        ("reset-params", Command::ResetParams { confirmed: false }),
-        ("reset-params yes", Command::ResetParams { confirmed: true }),
-        ("pose", Command::Pose),
-        ("odom reset", Command::OdomReset),
-        ("stream on", Command::Stream { on: Some(None) }),
-        (
-            "stream on 100",
-            Command::Stream {
-                on: Some(Some(100)),
-            },
-        ),
-        ("stream off", Command::Stream { on: None }),
-        (
-            "drive 0.25 -0.5",
-            Command::Drive {
-                v_mps: 0.25,
-                w_radps: -0.5,
-            },
-        ),
-        ("  stop  ", Command::Stop),
-        (
-            "measure #3 0.01m -0.02m",
-            Command::Measure {
-                run: Some(3),
-                x: length(0.01, LengthUnit::Metre),
-                y: length(-0.02, LengthUnit::Metre),
-                theta: None,
-                confirmed: false,
-            },
-        ),
-        (
-            "MEASURE #40 1 2 -3",
-            Command::Measure {
-                run: Some(40),
-                x: bare(1.0),
-                y: bare(2.0),
-                theta: Some(Angle {
-                    value: -3.0,
-                    unit: None,
-                }),
-                confirmed: false,
-            },
-        ),
-        ("echo on", Command::Echo { on: true }),
-        ("ECHO Off", Command::Echo { on: false }),
-    ];
-    for (line, expected) in cases {
+    for (line, expected) in DOCUMENTED_COMMANDS {
         assert_eq!(Command::parse(line).as_ref(), Ok(expected), "line {line:?}");
     }
 }
 
+/// Malformed lines and the exact error reply each gets.
+const ERROR_REPLIES: &[(&str, &str)] = &[
+    ("fly", "err 1: unknown command (try help)\r\n"),
+    ("run", "err 2: missing argument <direction>\r\n"),
+    ("measure 0.1", "err 2: missing argument <y>\r\n"),
+    ("stop now", "err 3: too many arguments\r\n"),
+    (
+        "measure 0.1 0.2 3 4",
+        "err 7: <confirmation> must be one of yes\r\n",
+    ),
+    (
+        "measure 1mm 2mm 3deg yes 4",
+        "err 3: too many arguments\r\n",
+    ),
+    (
+        "measure 0,1 0.2",
+        "err 4: <x> is not a number (use a decimal point)\r\n",
+    ),
+    // A measured value may carry its unit, but only one of its kind.
+    (
+        "measure 0.1 0.2deg",
+        "err 4: <y> has an unknown unit (m, cm or mm after the number)\r\n",
+    ),
+    (
+        "measure 41.8in 39.5mm -0.04",
+        "err 4: <x> has an unknown unit (m, cm or mm after the number)\r\n",
+    ),
+    (
+        "measure 0.1 0.2 3mm",
+        "err 4: <theta> has an unknown unit (deg or rad after the number)\r\n",
+    ),
+    // A unit apart from its number is its unit; a word that is no unit is the next value.
+    ("measure 1 mm 2 in", "err 4: <theta> is not a number\r\n"),
+    (
+        "set measure_unit in",
+        "err 7: <value> must be one of mm|cm|m\r\n",
+    ),
+    (
+        "set heading_unit mm",
+        "err 7: <value> must be one of deg|rad\r\n",
+    ),
+    // Elsewhere a unit is still named as such.
+    (
+        "run cw 2m",
+        "err 4: <side_m> is not a number (type the number alone, without a unit)\r\n",
+    ),
+    ("run cw abc", "err 4: <side_m> is not a number\r\n"),
+    ("drop 1.5", "err 4: <n> is not a whole number\r\n"),
+    ("drop -1", "err 6: <n> must be within 1..65535\r\n"),
+    (
+        "set counts_per_rev 2e5.5",
+        "err 4: <value> is not a number\r\n",
+    ),
+    (
+        "set runs_per_direction 2.5",
+        "err 4: <value> is not a whole number\r\n",
+    ),
+    ("stream on 0x10", "err 4: <hz> is not a number\r\n"),
+    // 20 significant digits: more than the parser's u64 mantissa holds.
+    (
+        "measure 0.12345678901234567891 0",
+        "err 4: <x> has too many digits (at most 19 significant)\r\n",
+    ),
+    ("measure nan 0", "err 5: <x> must be finite\r\n"),
+    ("measure NaN 0", "err 5: <x> must be finite\r\n"),
+    ("measure 0 inf", "err 5: <y> must be finite\r\n"),
+    ("measure 0 -infinity", "err 5: <y> must be finite\r\n"),
+    ("measure 0 -1e999mm", "err 5: <y> must be finite\r\n"),
+    ("drive 1e999 0", "err 5: <v_mps> must be finite\r\n"),
+    ("set max_speed inf", "err 5: <value> must be finite\r\n"),
+    ("run cw 0.05", "err 6: <side_m> must be within 0.1..10\r\n"),
+    (
+        "circle cw 11",
+        "err 6: <radius_m> must be within 0.1..10\r\n",
+    ),
+    ("drive 2.5 0", "err 6: <v_mps> must be within -2..2\r\n"),
+    (
+        "drive 0 -10.5",
+        "err 6: <w_radps> must be within -10..10\r\n",
+    ),
+    ("stream on 101", "err 6: <hz> must be within 1..100\r\n"),
+    ("stream on 0", "err 6: <hz> must be within 1..100\r\n"),
+    ("drop 0", "err 6: <n> must be within 1..65535\r\n"),
+    ("drop 99999999999", "err 6: <n> must be within 1..65535\r\n"),
+    (
+        "set wheelbase 0",
+        "err 6: <value> must be within 0.01..5 m\r\n",
+    ),
+    // Millimetres typed for metres: the range names the unit.
+    (
+        "set wheelbase 385",
+        "err 6: <value> must be within 0.01..5 m\r\n",
+    ),
+    (
+        "set d_right -0.15",
+        "err 6: <value> must be within 0.001..2 m\r\n",
+    ),
+    (
+        "set runs_per_direction 7",
+        "err 6: <value> must be within 1..6 runs\r\n",
+    ),
+    ("measure #0 0 0", "err 6: <n> must be within 1..65535\r\n"),
+    (
+        "measure #65536 0 0",
+        "err 6: <n> must be within 1..65535\r\n",
+    ),
+    ("measure #x 0 0", "err 4: <n> is not a number\r\n"),
+    ("measure # 0 0", "err 4: <n> is not a number\r\n"),
+    ("measure #2 0", "err 2: missing argument <y>\r\n"),
+    ("measure #2 0 0 1 yes 2", "err 3: too many arguments\r\n"),
+    ("echo", "err 2: missing argument <mode>\r\n"),
+    ("echo loud", "err 7: <mode> must be one of on|off\r\n"),
+    ("run left", "err 7: <direction> must be one of cw|ccw\r\n"),
+    ("stream maybe", "err 7: <mode> must be one of on|off\r\n"),
+    ("odom zero", "err 7: <action> must be one of reset\r\n"),
+    (
+        "set color red",
+        "err 7: <name> must be one of the parameters listed by params\r\n",
+    ),
+    (
+        "set squareside 1",
+        "err 7: <name> must be one of the parameters listed by params; did you mean \
+         square_side?\r\n",
+    ),
+    (
+        "drop all now",
+        "err 7: <confirmation> must be one of yes\r\n",
+    ),
+    (
+        "apply exact please",
+        "err 7: <confirmation> must be one of yes\r\n",
+    ),
+    (
+        "apply ex@ct",
+        "err 7: <method> must be one of a method name listed by calibrate\r\n",
+    ),
+    ("apply online", "err 2: missing argument <E_d>\r\n"),
+    (
+        "apply online 1 2",
+        "err 6: <E_b> must be within 0.8..1.25\r\n",
+    ),
+    ("apply online 1 1", "err 2: missing argument <E_s>\r\n"),
+    ("apply online 1 1 1 yes", "err 3: too many arguments\r\n"),
+    ("apply online nan 1 1", "err 5: <E_d> must be finite\r\n"),
+    ("apply online 1 -inf 1", "err 5: <E_b> must be finite\r\n"),
+    ("apply online 1 1 1e999", "err 5: <E_s> must be finite\r\n"),
+    ("apply online 1 x 1", "err 4: <E_b> is not a number\r\n"),
+    (
+        "apply online 1 1 0,9",
+        "err 4: <E_s> is not a number (use a decimal point)\r\n",
+    ),
+    (
+        "apply online 1.5 1 1",
+        "err 6: <E_d> must be within 0.8..1.25\r\n",
+    ),
+    (
+        "apply online 1 1 0.79999999",
+        "err 6: <E_s> must be within 0.8..1.25\r\n",
+    ),
+];
+
 #[test]
 fn error_replies_are_exact() {
-    let cases: &[(&str, &str)] = &[
-        ("fly", "err 1: unknown command (try help)\r\n"),
-        ("run", "err 2: missing argument <direction>\r\n"),
-        ("measure 0.1", "err 2: missing argument <y>\r\n"),
-        ("stop now", "err 3: too many arguments\r\n"),
-        (
-            "measure 0.1 0.2 3 4",
-            "err 7: <confirmation> must be one of yes\r\n",
-        ),
-        (
-            "measure 1mm 2mm 3deg yes 4",
-            "err 3: too many arguments\r\n",
-        ),
-        (
-            "measure 0,1 0.2",
-            "err 4: <x> is not a number (use a decimal point)\r\n",
-        ),
-        // A measured value may carry its unit, but only one of its kind.
-        (
-            "measure 0.1 0.2deg",
-            "err 4: <y> has an unknown unit (m, cm or mm after the number)\r\n",
-        ),
-        (
-            "measure 41.8in 39.5mm -0.04",
-            "err 4: <x> has an unknown unit (m, cm or mm after the number)\r\n",
-        ),
-        (
-            "measure 0.1 0.2 3mm",
-            "err 4: <theta> has an unknown unit (deg or rad after the number)\r\n",
-        ),
-        // A unit apart from its number is its unit; a word that is no unit is the next value.
-        ("measure 1 mm 2 in", "err 4: <theta> is not a number\r\n"),
-        (
-            "set measure_unit in",
-            "err 7: <value> must be one of mm|cm|m\r\n",
-        ),
-        (
-            "set heading_unit mm",
-            "err 7: <value> must be one of deg|rad\r\n",
-        ),
-        // Elsewhere a unit is still named as such.
-        (
-            "run cw 2m",
-            "err 4: <side_m> is not a number (type the number alone, without a unit)\r\n",
-        ),
-        ("run cw abc", "err 4: <side_m> is not a number\r\n"),
-        ("drop 1.5", "err 4: <n> is not a whole number\r\n"),
-        ("drop -1", "err 6: <n> must be within 1..65535\r\n"),
-        (
-            "set counts_per_rev 2e5.5",
-            "err 4: <value> is not a number\r\n",
-        ),
-        (
-            "set runs_per_direction 2.5",
-            "err 4: <value> is not a whole number\r\n",
-        ),
-        ("stream on 0x10", "err 4: <hz> is not a number\r\n"),
-        // 20 significant digits: more than the parser's u64 mantissa holds.
-        (
-            "measure 0.12345678901234567891 0",
-            "err 4: <x> has too many digits (at most 19 significant)\r\n",
-        ),
-        ("measure nan 0", "err 5: <x> must be finite\r\n"),
-        ("measure NaN 0", "err 5: <x> must be finite\r\n"),
-        ("measure 0 inf", "err 5: <y> must be finite\r\n"),
-        ("measure 0 -infinity", "err 5: <y> must be finite\r\n"),
-        ("measure 0 -1e999mm", "err 5: <y> must be finite\r\n"),
-        ("drive 1e999 0", "err 5: <v_mps> must be finite\r\n"),
-        ("set max_speed inf", "err 5: <value> must be finite\r\n"),
-        ("run cw 0.05", "err 6: <side_m> must be within 0.1..10\r\n"),
-        (
-            "circle cw 11",
-            "err 6: <radius_m> must be within 0.1..10\r\n",
-        ),
-        ("drive 2.5 0", "err 6: <v_mps> must be within -2..2\r\n"),
-        (
-            "drive 0 -10.5",
-            "err 6: <w_radps> must be within -10..10\r\n",
-        ),
-        ("stream on 101", "err 6: <hz> must be within 1..100\r\n"),
-        ("stream on 0", "err 6: <hz> must be within 1..100\r\n"),
-        ("drop 0", "err 6: <n> must be within 1..65535\r\n"),
-        ("drop 99999999999", "err 6: <n> must be within 1..65535\r\n"),
-        (
-            "set wheelbase 0",
-            "err 6: <value> must be within 0.01..5 m\r\n",
-        ),
-        // Millimetres typed for metres: the range names the unit.
-        (
-            "set wheelbase 385",
-            "err 6: <value> must be within 0.01..5 m\r\n",
-        ),
-        (
-            "set d_right -0.15",
-            "err 6: <value> must be within 0.001..2 m\r\n",
-        ),
-        (
-            "set runs_per_direction 7",
-            "err 6: <value> must be within 1..6 runs\r\n",
-        ),
-        ("measure #0 0 0", "err 6: <n> must be within 1..65535\r\n"),
-        (
-            "measure #65536 0 0",
-            "err 6: <n> must be within 1..65535\r\n",
-        ),
-        ("measure #x 0 0", "err 4: <n> is not a number\r\n"),
-        ("measure # 0 0", "err 4: <n> is not a number\r\n"),
-        ("measure #2 0", "err 2: missing argument <y>\r\n"),
-        ("measure #2 0 0 1 yes 2", "err 3: too many arguments\r\n"),
-        ("echo", "err 2: missing argument <mode>\r\n"),
-        ("echo loud", "err 7: <mode> must be one of on|off\r\n"),
-        ("run left", "err 7: <direction> must be one of cw|ccw\r\n"),
-        ("stream maybe", "err 7: <mode> must be one of on|off\r\n"),
-        ("odom zero", "err 7: <action> must be one of reset\r\n"),
-        (
-            "set color red",
-            "err 7: <name> must be one of the parameters listed by params\r\n",
-        ),
-        (
-            "set squareside 1",
-            "err 7: <name> must be one of the parameters listed by params; did you mean \
-             square_side?\r\n",
-        ),
-        (
-            "drop all now",
-            "err 7: <confirmation> must be one of yes\r\n",
-        ),
-        (
-            "apply exact please",
-            "err 7: <confirmation> must be one of yes\r\n",
-        ),
-        (
-            "apply ex@ct",
-            "err 7: <method> must be one of a method name listed by calibrate\r\n",
-        ),
-        ("apply online", "err 2: missing argument <E_d>\r\n"),
-        (
-            "apply online 1 2",
-            "err 6: <E_b> must be within 0.8..1.25\r\n",
-        ),
-        ("apply online 1 1", "err 2: missing argument <E_s>\r\n"),
-        ("apply online 1 1 1 yes", "err 3: too many arguments\r\n"),
-        ("apply online nan 1 1", "err 5: <E_d> must be finite\r\n"),
-        ("apply online 1 -inf 1", "err 5: <E_b> must be finite\r\n"),
-        ("apply online 1 1 1e999", "err 5: <E_s> must be finite\r\n"),
-        ("apply online 1 x 1", "err 4: <E_b> is not a number\r\n"),
-        (
-            "apply online 1 1 0,9",
-            "err 4: <E_s> is not a number (use a decimal point)\r\n",
-        ),
-        (
-            "apply online 1.5 1 1",
-            "err 6: <E_d> must be within 0.8..1.25\r\n",
-        ),
-        (
-            "apply online 1 1 0.79999999",
-            "err 6: <E_s> must be within 0.8..1.25\r\n",
-        ),
-    ];
-    for (line, expected) in cases {
+    for (line, expected) in ERROR_REPLIES {
         assert_eq!(err_text(line), *expected, "line {line:?}");
     }
 }

@@ -9,7 +9,9 @@
 //! mean departs from the speed at the period's end by up to `a·T/2` (variance `(a·T/2)²/3`,
 //! uniform). The robot's `v = (v_R + v_L)/2` and `ω = (v_R − v_L)/b` carry these.
 
-pub use odocal::calibration::covariance::{PoseCovariance, RandomError, Uncertainty};
+pub use odocal::calibration::covariance::{
+    Floor, PoseCovariance, RandomError, SAME_DAY_S, Uncertainty,
+};
 
 /// Variance written for the components a planar robot's odometry does not observe (z, roll,
 /// pitch; linear y and z, angular x and y of the twist), as ROS configurations of

@@ -28,7 +28,9 @@ use serde_json::{Value, json};
 
 use crate::log::{LogContents, calibration_of, nominal_of, param};
 
-use crate::covariance::{self, PoseCovariance, RandomError, UNOBSERVED_VARIANCE, Uncertainty};
+use crate::covariance::{
+    self, Floor, PoseCovariance, RandomError, UNOBSERVED_VARIANCE, Uncertainty,
+};
 use odocal::calibration::covariance::RandomEstimate;
 use odocal::kinematics::reference::ArcModel;
 
@@ -103,6 +105,8 @@ pub struct Export {
     pub max_accel: f64,
     /// The runs of a session log.
     pub runs: Vec<RunRecord>,
+    /// When the oldest of `runs` was logged (Unix seconds): the calibration's age.
+    pub runs_logged_s: Option<f64>,
     /// The last `calibrate` table in the log (its lines).
     pub table: Vec<String>,
 }
@@ -261,7 +265,7 @@ impl Export {
                 s.params_line
             ));
         }
-        let (replies, runs, tables) = if session_log {
+        let (replies, runs, tables, runs_logged_s) = if session_log {
             let c = LogContents::read(path)?;
             let rx: Vec<String> = text
                 .lines()
@@ -274,9 +278,10 @@ impl Export {
             if replies.params.is_none() {
                 replies.params = last_logged_params(&text);
             }
-            (replies, c.live_runs(), c.tables)
+            let logged = c.oldest_live_run_s();
+            (replies, c.live_runs(), c.tables, logged)
         } else {
-            (scan(text.lines()), Vec::new(), Vec::new())
+            (scan(text.lines()), Vec::new(), Vec::new(), None)
         };
         let params = replies.params.ok_or_else(|| {
             format!(
@@ -321,6 +326,7 @@ impl Export {
             side_m,
             max_accel,
             runs,
+            runs_logged_s,
             table,
         };
         let Some(method) = method else {
@@ -413,7 +419,8 @@ impl Export {
             "    right_wheel_radius_multiplier: {}",
             yaml_float(g.diameter_right_m / (2.0 * r))
         );
-        let (u, source) = self.uncertainty(t.slip_m, t.trust_session_sd);
+        // A parameter file is used on days to come: the between-session floor.
+        let (u, source) = self.uncertainty(t.slip_m, t.trust_session_sd, None);
         let pose = self.pose_covariance(&u);
         let _ = writeln!(
             s,
@@ -521,7 +528,7 @@ impl Export {
                 "wheelbase_m": g.wheelbase_m, "counts_per_rev": g.counts_per_rev },
             "factors": { "e_d": self.factors.0, "e_b": self.factors.1, "e_s": self.factors.2 },
             "sd": self.sd.map(|(d, b)| json!({ "e_d": d, "e_b": b })),
-            "pose_covariance_diagonal": self.pose_covariance(&self.uncertainty(None, false).0),
+            "pose_covariance_diagonal": self.pose_covariance(&self.uncertainty(None, false, None).0),
             "twist_covariance_diagonal": self.twist_covariance(
                 Target::default().rate_hz,
                 Target::default().rolling_window
@@ -533,11 +540,17 @@ impl Export {
     }
 
     /// The covariance model's inputs, and where they come from: the calibration's relative 1σ
-    /// of E_d and E_b from the log (raised to the between-session floor unless
-    /// `trust_session`), or the floor for a calibrated board without one, or a nominal
-    /// geometry's; a tape's 1σ of E_s; slip and scrub from the scatter of the log's runs around
-    /// their path's mean (with the applied geometry), unless `slip_m` is given, or the defaults.
-    pub fn uncertainty(&self, slip_m: Option<f64>, trust_session: bool) -> (Uncertainty, String) {
+    /// of E_d and E_b from the log, raised to the floor for its age at `now_s` (Unix seconds;
+    /// `None`, a file used on days to come: the between-session floor) unless `trust_session`,
+    /// or the floor for a calibrated board without one, or a nominal geometry's; a tape's 1σ of
+    /// E_s; slip and scrub from the scatter of the log's runs around their path's mean (with the
+    /// applied geometry), unless `slip_m` is given, or the defaults.
+    pub fn uncertainty(
+        &self,
+        slip_m: Option<f64>,
+        trust_session: bool,
+        now_s: Option<f64>,
+    ) -> (Uncertainty, String) {
         let model = ArcModel::from_geometry(&self.applied);
         let mut estimate = RandomEstimate::default();
         let mut paths: Vec<PathKind> = Vec::new();
@@ -564,19 +577,27 @@ impl Export {
             random.slip_m2_per_m = m * m;
             source = format!("slip {m} m/m as given");
         }
+        let age_s = now_s.zip(self.runs_logged_s).map(|(now, t)| now - t);
+        let floor = Floor::for_age(age_s, trust_session);
         let u = match (self.sd, &self.method) {
             (Some((d, b)), _) => Uncertainty::calibrated(
                 Some((d / self.factors.0, b / self.factors.1)),
                 None,
                 random,
-                trust_session,
+                floor,
             ),
-            (None, Some(_)) => Uncertainty::calibrated(None, None, random, trust_session),
+            (None, Some(_)) => Uncertainty::calibrated(None, None, random, floor),
             (None, None) => Uncertainty::nominal(random),
         };
-        let sd = match (self.sd, &self.method, trust_session) {
-            (Some(_), _, true) => "the calibration's 1-sigma",
-            (Some(_), _, false) => "the calibration's 1-sigma, at least the between-session drift",
+        let sd = match (self.sd, &self.method, floor) {
+            (Some(_), _, Floor::TrustSession) => "the calibration's 1-sigma",
+            (Some(_), _, Floor::SameDay) => {
+                "the calibration's 1-sigma, at least the same day's drift (its runs are less than \
+                 a day old)"
+            }
+            (Some(_), _, Floor::BetweenSessions) => {
+                "the calibration's 1-sigma, at least the between-session drift"
+            }
             (None, Some(_), _) => "the between-session drift (the log has no 1-sigma)",
             (None, None, _) => "a nominal geometry's 1-sigma",
         };

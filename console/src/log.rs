@@ -134,6 +134,8 @@ pub struct LogContents {
     pub runs: Vec<Option<RunRecord>>,
     /// The logged stream poses of every slot's run (x, y), for the plot.
     pub paths: Vec<Vec<(f64, f64)>>,
+    /// When every slot's run was logged (the entry's `t`, Unix seconds).
+    pub run_times_s: Vec<Option<f64>>,
     /// The nominal geometry from the last logged `params`.
     pub nominal: Option<Geometry>,
     /// The plan: square side and runs per direction.
@@ -272,8 +274,10 @@ impl LogContents {
                     if c.runs.len() <= slot {
                         c.runs.resize(slot + 1, None);
                         c.paths.resize(slot + 1, Vec::new());
+                        c.run_times_s.resize(slot + 1, None);
                     }
                     c.runs[slot] = Some(record);
+                    c.run_times_s[slot] = v["t"].as_f64();
                     if let Some(p) = v["path"].as_array() {
                         c.paths[slot] = p
                             .iter()
@@ -304,6 +308,19 @@ impl LogContents {
     /// The live runs in slot order.
     pub fn live_runs(&self) -> Vec<RunRecord> {
         self.runs.iter().flatten().cloned().collect()
+    }
+
+    /// When the oldest live run was logged (Unix seconds); `None` without live runs or when one
+    /// has no time.
+    pub fn oldest_live_run_s(&self) -> Option<f64> {
+        let mut oldest: Option<f64> = None;
+        for (run, t) in self.runs.iter().zip(&self.run_times_s) {
+            if run.is_some() {
+                let t = (*t)?;
+                oldest = Some(oldest.map_or(t, |o| o.min(t)));
+            }
+        }
+        oldest
     }
 }
 

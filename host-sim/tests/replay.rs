@@ -298,8 +298,8 @@ fn lines_add_e_s_and_paths_fit_the_whole_trajectory() {
     let u = odocal::calibration::covariance::Uncertainty::nominal(
         odocal::calibration::covariance::RandomError::NONE,
     );
-    let nominal = evaluate_set(&set(None), std::slice::from_ref(&free), &u).overall;
-    let fitted = evaluate_set(&set(Some(&path)), std::slice::from_ref(&free), &u).overall;
+    let nominal = evaluate_set(&set(None), std::slice::from_ref(&free), &|_| u).overall;
+    let fitted = evaluate_set(&set(Some(&path)), std::slice::from_ref(&free), &|_| u).overall;
     assert!(
         fitted.path_rms_m < 0.5 * nominal.path_rms_m,
         "nominal {nominal:?} fitted {fitted:?}"

@@ -35,6 +35,46 @@ fn row(table: &str, method: &str) -> (f64, f64) {
     (e_d, e_b)
 }
 
+/// Each closed-form row of `table` is that method's formula (held to hand-computed values in
+/// tests/calibration_closed_form.rs) on the centres of gravity of the board's stored runs' end
+/// errors `measured − odometry` (5 + 5 squares of 2 m), evaluated here: catches rows swapped or
+/// mislabelled, a wrong input (x for y, a missing direction) or a wrong wheelbase. The table
+/// prints 9 decimals (±5e-10); the rows' own distance from the truth (up to 3.3e-3 in E_b, the
+/// small-angle bias at 2 m) is not a property of the wiring.
+fn closed_form_rows_are_their_formulas(b: &Board<'_>, table: &str) {
+    let runs = b.session.runs();
+    let centre = |d: Direction, f: &dyn Fn(&odocal::motion::run::RunRecord) -> f64| {
+        let v: Vec<f64> = runs
+            .iter()
+            .filter(|r| matches!(r.path, PathKind::Square { direction, .. } if direction == d))
+            .map(f)
+            .collect();
+        assert_eq!(v.len(), 5);
+        v.iter().sum::<f64>() / 5.0
+    };
+    let ex = |r: &odocal::motion::run::RunRecord| r.measured.unwrap().x_m - r.odometry_end.x_m;
+    let ey = |r: &odocal::motion::run::RunRecord| r.measured.unwrap().y_m - r.odometry_end.y_m;
+    let et = |r: &odocal::motion::run::RunRecord| {
+        wrap_angle(r.measured.unwrap().theta_rad.unwrap() - r.odometry_end.theta_rad)
+    };
+    let (x_cw, x_ccw) = (centre(Direction::Cw, &ex), centre(Direction::Ccw, &ex));
+    let (y_cw, y_ccw) = (centre(Direction::Cw, &ey), centre(Direction::Ccw, &ey));
+    let (t_cw, t_ccw) = (centre(Direction::Cw, &et), centre(Direction::Ccw, &et));
+    let b0 = Geometry::PAPER_NOMINAL.wheelbase_m;
+    for (m, f) in [
+        ("umbmark-x", umbmark::umbmark_x(x_cw, x_ccw, 2.0, b0)),
+        ("umbmark-y", umbmark::umbmark_y(y_cw, y_ccw, 2.0, b0)),
+        ("lee-x", lee::lee_x(x_cw, x_ccw, 2.0, b0)),
+        ("lee-y", lee::lee_y(y_cw, y_ccw, 2.0, b0)),
+        ("jung-chung", jung_chung::jung_chung(t_cw, t_ccw, 2.0, b0)),
+    ] {
+        let f = f.unwrap();
+        let (ed, eb) = row(table, m);
+        assert!((ed - f.e_d).abs() < 1e-9, "{m} E_d {ed} vs {}", f.e_d);
+        assert!((eb - f.e_b).abs() < 1e-9, "{m} E_b {eb} vs {}", f.e_b);
+    }
+}
+
 #[test]
 fn scripted_session_calibrate_save_reboot() {
     let mut flash = SimParamFlash::erased();
@@ -103,43 +143,7 @@ fn scripted_session_calibrate_save_reboot() {
     let (ed, eb) = row(&table, "exact");
     assert!((ed - TRUE_ED).abs() < 1e-5, "exact E_d {ed} vs {TRUE_ED}");
     assert!((eb - TRUE_EB).abs() < 1e-5, "exact E_b {eb} vs {TRUE_EB}");
-    // Each closed-form row is that method's formula (held to hand-computed values in
-    // tests/calibration_closed_form.rs) on the centres of gravity of the stored runs' end
-    // errors `measured − odometry`, evaluated here: catches rows swapped or mislabelled, a
-    // wrong input (x for y, a missing direction) or a wrong wheelbase. The table prints 9
-    // decimals (±5e-10); the rows' own distance from the truth (up to 3.3e-3 in E_b, the
-    // small-angle bias at 2 m) is not a property of the wiring.
-    let runs = b.session.runs();
-    let centre = |d: Direction, f: &dyn Fn(&odocal::motion::run::RunRecord) -> f64| {
-        let v: Vec<f64> = runs
-            .iter()
-            .filter(|r| matches!(r.path, PathKind::Square { direction, .. } if direction == d))
-            .map(f)
-            .collect();
-        assert_eq!(v.len(), 5);
-        v.iter().sum::<f64>() / 5.0
-    };
-    let ex = |r: &odocal::motion::run::RunRecord| r.measured.unwrap().x_m - r.odometry_end.x_m;
-    let ey = |r: &odocal::motion::run::RunRecord| r.measured.unwrap().y_m - r.odometry_end.y_m;
-    let et = |r: &odocal::motion::run::RunRecord| {
-        wrap_angle(r.measured.unwrap().theta_rad.unwrap() - r.odometry_end.theta_rad)
-    };
-    let (x_cw, x_ccw) = (centre(Direction::Cw, &ex), centre(Direction::Ccw, &ex));
-    let (y_cw, y_ccw) = (centre(Direction::Cw, &ey), centre(Direction::Ccw, &ey));
-    let (t_cw, t_ccw) = (centre(Direction::Cw, &et), centre(Direction::Ccw, &et));
-    let b0 = Geometry::PAPER_NOMINAL.wheelbase_m;
-    for (m, f) in [
-        ("umbmark-x", umbmark::umbmark_x(x_cw, x_ccw, 2.0, b0)),
-        ("umbmark-y", umbmark::umbmark_y(y_cw, y_ccw, 2.0, b0)),
-        ("lee-x", lee::lee_x(x_cw, x_ccw, 2.0, b0)),
-        ("lee-y", lee::lee_y(y_cw, y_ccw, 2.0, b0)),
-        ("jung-chung", jung_chung::jung_chung(t_cw, t_ccw, 2.0, b0)),
-    ] {
-        let f = f.unwrap();
-        let (ed, eb) = row(&table, m);
-        assert!((ed - f.e_d).abs() < 1e-9, "{m} E_d {ed} vs {}", f.e_d);
-        assert!((eb - f.e_b).abs() < 1e-9, "{m} E_b {eb} vs {}", f.e_b);
-    }
+    closed_form_rows_are_their_formulas(&b, &table);
     assert!(b.send("apply exact").starts_with("ok applied exact: "));
     // The exact fit (seconds on the board) ran once for the table, the advice and `apply`.
     assert_eq!(b.session.calibrator().exact_solves(), 1);

@@ -229,9 +229,24 @@ fn main() -> ! {
         bench_start();
         bench_end();
     }
+    bench_systick(cp.SYST);
+    bench_odometry();
+    let runs = bench_calibration();
+    bench_console(&runs);
+    bench_console_locks(&runs);
+    bench_control();
+    bench_identify();
 
+    out(format_args!("info done\n"));
+    debug::exit(EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+/// SysTick cross-check: one window over a block of steps, trace generation included.
+fn bench_systick(mut syst: SYST) {
     // SysTick cross-check: one window over a block of steps, trace generation included.
-    let mut syst: SYST = cp.SYST;
     syst.set_clock_source(SystClkSource::Core);
     syst.set_reload(0x00FF_FFFF);
     syst.clear_current();
@@ -251,7 +266,10 @@ fn main() -> ! {
     out(format_args!(
         "info systick_block steps={BLOCK_STEPS} ticks={ticks}\n"
     ));
+}
 
+/// The standard trace with the exact-arc rule (the firmware's default), one window per step; a shorter run with the midpoint rule.
+fn bench_odometry() {
     // The standard trace, exact-arc rule (the firmware's default), one window per step.
     let Ok((odo, mut state)) = qemu_bench::odometry(Integration::ExactArc) else {
         fail("bench geometry rejected")
@@ -276,7 +294,10 @@ fn main() -> ! {
     let mut line = heapless_line::Line::new();
     let _ = report::pose_line(&mut line, "odometry_midpoint", &pose);
     out(format_args!("{}", line.as_str()));
+}
 
+/// The exact calibration of the recorded squares, and one re-integration of a run; the runs.
+fn bench_calibration() -> SquareRuns {
     // The exact calibration of the recorded squares.
     let runs = SquareRuns::generate();
     let mut line = heapless_line::Line::new();
@@ -312,77 +333,84 @@ fn main() -> ! {
         "info stack solve high_water={stack} at_call={caller}\n"
     ));
 
+    runs
+}
+
+/// The console's `calibrate` and `apply exact` on the runs, as the console task runs them.
+fn bench_console(runs: &SquareRuns) {
     // The console's `calibrate` and `apply exact` on the same runs, as the console task runs
     // them (the whole command: every method, the residual listing, the advice).
-    {
-        let Ok(mut controller) = control::controller() else {
-            fail("controller configuration rejected")
-        };
-        let mut robot = LockedController(&mut controller);
-        let mut session = console::session(&runs);
-        let mut reply = console::ReplyHash::default();
-        let caller = paint_stack();
-        for (i, line) in console::COMMANDS.iter().enumerate() {
-            if i == 0 {
-                bench_select_calibrate();
-            } else {
-                bench_select_apply();
-            }
-            bench_start();
-            console::command(black_box(&mut session), &mut robot, &runs, line, &mut reply);
-            bench_end();
+    let Ok(mut controller) = control::controller() else {
+        fail("controller configuration rejected")
+    };
+    let mut robot = LockedController(&mut controller);
+    let mut session = console::session(runs);
+    let mut reply = console::ReplyHash::default();
+    let caller = paint_stack();
+    for (i, line) in console::COMMANDS.iter().enumerate() {
+        if i == 0 {
+            bench_select_calibrate();
+        } else {
+            bench_select_apply();
         }
-        let stack = stack_used();
-        let mut line = heapless_line::Line::new();
-        let _ = report::bits_line(
-            &mut line,
-            "console_calibrate_apply",
-            &[
-                ("reply_hash", reply.hash),
-                ("reply_bytes", reply.bytes),
-                (
-                    "exact_solves",
-                    u64::from(session.calibrator().exact_solves()),
-                ),
-            ],
-        );
-        out(format_args!("{}", line.as_str()));
-        out(format_args!(
-            "info stack console high_water={stack} at_call={caller}\n"
-        ));
+        bench_start();
+        console::command(black_box(&mut session), &mut robot, runs, line, &mut reply);
+        bench_end();
     }
+    let stack = stack_used();
+    let mut line = heapless_line::Line::new();
+    let _ = report::bits_line(
+        &mut line,
+        "console_calibrate_apply",
+        &[
+            ("reply_hash", reply.hash),
+            ("reply_bytes", reply.bytes),
+            (
+                "exact_solves",
+                u64::from(session.calibrator().exact_solves()),
+            ),
+        ],
+    );
+    out(format_args!("{}", line.as_str()));
+    out(format_args!(
+        "info stack console high_water={stack} at_call={caller}\n"
+    ));
+}
 
+/// The console task's controller locks, one window per hold.
+fn bench_console_locks(runs: &SquareRuns) {
     // The console task's controller locks (the firmware's `LockedController`): one window per hold over
     // a session touching every kind of access; the longest is the most a console command can
     // delay a control period.
-    {
-        let Ok(mut controller) = control::controller() else {
-            fail("controller configuration rejected")
-        };
-        let mut robot = LockedController(console::Bracketed {
-            controller: &mut controller,
-            open: || bench_start(),
-            close: || bench_end(),
-        });
-        let mut session = console::session(&runs);
-        let mut reply = console::ReplyHash::default();
-        for line in console::LOCK_SCRIPT {
-            if console::changes_settings(line) {
-                bench_select_lock_idle();
-            } else {
-                bench_select_lock();
-            }
-            console::command(black_box(&mut session), &mut robot, &runs, line, &mut reply);
+    let Ok(mut controller) = control::controller() else {
+        fail("controller configuration rejected")
+    };
+    let mut robot = LockedController(console::Bracketed {
+        controller: &mut controller,
+        open: || bench_start(),
+        close: || bench_end(),
+    });
+    let mut session = console::session(runs);
+    let mut reply = console::ReplyHash::default();
+    for line in console::LOCK_SCRIPT {
+        if console::changes_settings(line) {
+            bench_select_lock_idle();
+        } else {
+            bench_select_lock();
         }
-        let mut line = heapless_line::Line::new();
-        let _ = report::bits_line(
-            &mut line,
-            "console_locks",
-            &[("reply_hash", reply.hash), ("reply_bytes", reply.bytes)],
-        );
-        out(format_args!("{}", line.as_str()));
+        console::command(black_box(&mut session), &mut robot, runs, line, &mut reply);
     }
+    let mut line = heapless_line::Line::new();
+    let _ = report::bits_line(
+        &mut line,
+        "console_locks",
+        &[("reply_hash", reply.hash), ("reply_bytes", reply.bytes)],
+    );
+    out(format_args!("{}", line.as_str()));
+}
 
+/// The controller and the control task driving a 1 m square with the simulated robot.
+fn bench_control() {
     // The controller driving a 1 m square with the simulated robot, one window per step (the
     // motor command's hand-off outside it).
     let Ok(mut controller) = control::controller() else {
@@ -432,7 +460,10 @@ fn main() -> ! {
     out(format_args!(
         "info stack control high_water={stack} at_call={caller}\n"
     ));
+}
 
+/// The control task during a motor identification, and the console task's poll of its report.
+fn bench_identify() {
     // The control task during a motor identification (wheels lifted, the robot's motors), one
     // window per period, and the console task's poll of the report after each period.
     let Ok(mut controller) = control::controller() else {
@@ -468,12 +499,6 @@ fn main() -> ! {
     out(format_args!(
         "info stack identify high_water={stack} at_call={caller}\n"
     ));
-
-    out(format_args!("info done\n"));
-    debug::exit(EXIT_SUCCESS);
-    loop {
-        cortex_m::asm::bkpt();
-    }
 }
 
 /// A fixed-capacity line buffer, so that a result line reaches the host in one write.

@@ -18,9 +18,11 @@
 //!
 //! Which numbers: a session's own 1σ of `E_d`, `E_b` is far below what the next session finds
 //! (docs/calibration.md: `E_b` drifts by 5–10 times a session's 1σ between sessions of one
-//! robot), so the model never takes them below [`BETWEEN_SESSION_FLOOR`] unless told to trust
-//! the session; `E_s` is a tape's [`TAPE_SCALE_SD`] unless a fit measured it; slip and scrub
-//! are estimated from the calibration's own runs ([`RandomEstimate`]).
+//! robot on different days, by about 1e-3 between sessions of one evening), so the model never
+//! takes them below a floor ([`Floor`]): [`SAME_DAY_FLOOR`] for a calibration less than a day
+//! old, [`BETWEEN_SESSION_FLOOR`] for an older one or one of unknown age, none when told to
+//! trust the session; `E_s` is a tape's [`TAPE_SCALE_SD`] unless a fit measured it; slip and
+//! scrub are estimated from the calibration's own runs ([`RandomEstimate`]).
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::reference::{ArcModel, PoseF64};
@@ -34,6 +36,47 @@ pub const DEFAULT_SLIP_M: f64 = 0.002;
 /// sessions of one robot on one floor (docs/calibration.md: 2.9e-3, 5–10 times a single
 /// session's 1σ), `E_d`'s a single session's at its largest.
 pub const BETWEEN_SESSION_FLOOR: (f64, f64) = (5.0e-4, 3.0e-3);
+
+/// The least relative 1σ of `(E_d, E_b)` for a calibration less than [`SAME_DAY_S`] old: the
+/// spread of sessions recorded within an hour of each other, rounded up (docs/calibration.md:
+/// the two pairs of shared sessions of one evening scatter by 1.3e-4 and 1.5e-4 in `E_d`, 0.8e-3
+/// and 1.0e-3 in `E_b`, 1σ).
+pub const SAME_DAY_FLOOR: (f64, f64) = (2.0e-4, 1.0e-3);
+
+/// How long a calibration counts as the day's own, seconds: a day.
+pub const SAME_DAY_S: f64 = 86_400.0;
+
+/// The least relative 1σ the model takes for `E_d`, `E_b` (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Floor {
+    /// [`BETWEEN_SESSION_FLOOR`]: a calibration a day old or older, or of unknown age.
+    BetweenSessions,
+    /// [`SAME_DAY_FLOOR`]: a calibration from runs less than [`SAME_DAY_S`] old.
+    SameDay,
+    /// None: the calibration's own 1σ (`--trust-session-sd`).
+    TrustSession,
+}
+
+impl Floor {
+    /// The floor for a calibration whose oldest run is `age_s` seconds from the odometry it
+    /// corrects (`None`: unknown), or none with `trust_session`.
+    pub fn for_age(age_s: Option<f64>, trust_session: bool) -> Floor {
+        match age_s {
+            _ if trust_session => Floor::TrustSession,
+            Some(a) if libm::fabs(a) < SAME_DAY_S => Floor::SameDay,
+            _ => Floor::BetweenSessions,
+        }
+    }
+
+    /// The floor's relative 1σ of `(E_d, E_b)`.
+    pub fn sd(self) -> (f64, f64) {
+        match self {
+            Floor::BetweenSessions => BETWEEN_SESSION_FLOOR,
+            Floor::SameDay => SAME_DAY_FLOOR,
+            Floor::TrustSession => (0.0, 0.0),
+        }
+    }
+}
 
 /// The relative 1σ of `(E_d, E_b)` for an uncalibrated robot (nominal, tape-measured
 /// geometry): 1 %.
@@ -62,22 +105,22 @@ pub struct Uncertainty {
 }
 
 impl Uncertainty {
-    /// A calibrated robot: the calibration's relative 1σ `(sd_d, sd_b)`, raised to
-    /// [`BETWEEN_SESSION_FLOOR`] unless `trust_session` (`None`, a calibration whose 1σ is not
-    /// known: the floor); the fitted relative 1σ of `E_s`, or [`TAPE_SCALE_SD`] when `E_s` was
+    /// A calibrated robot: the calibration's relative 1σ `(sd_d, sd_b)`, raised to `floor`
+    /// (`None`, a calibration whose 1σ is not known: at least the between-session floor when
+    /// told to trust it); the fitted relative 1σ of `E_s`, or [`TAPE_SCALE_SD`] when `E_s` was
     /// not fitted; `random` the slip and scrub ([`RandomError`]).
     pub fn calibrated(
         relative_sd: Option<(f64, f64)>,
         fitted_sd_s: Option<f64>,
         random: RandomError,
-        trust_session: bool,
+        floor: Floor,
     ) -> Uncertainty {
         let (sd_d, sd_b) = relative_sd.unwrap_or((0.0, 0.0));
-        let trust_session = trust_session && relative_sd.is_some();
-        let (floor_d, floor_b) = match trust_session {
-            true => (0.0, 0.0),
-            false => BETWEEN_SESSION_FLOOR,
+        let floor = match floor {
+            Floor::TrustSession if relative_sd.is_none() => Floor::BetweenSessions,
+            f => f,
         };
+        let (floor_d, floor_b) = floor.sd();
         Uncertainty {
             sd_d: crate::util::num::fmax(sd_d, floor_d),
             sd_b: crate::util::num::fmax(sd_b, floor_b),
@@ -168,6 +211,12 @@ impl PoseCovariance {
             c.step(dr, dl);
         }
         c
+    }
+
+    /// The model's inputs from now on: the calibration's 1σ applies to the whole path driven
+    /// (it is read when the covariance is), the random part to the steps still to come.
+    pub fn set_uncertainty(&mut self, u: Uncertainty) {
+        self.u = u;
     }
 
     /// The same model from the start of a new path (the pose reset to the origin).
@@ -429,13 +478,38 @@ mod tests {
     #[test]
     fn the_session_sd_is_floored_unless_trusted() {
         let r = RandomError::DEFAULT;
-        let u = Uncertainty::calibrated(Some((1e-5, 3.5e-8)), None, r, false);
+        let sd = Some((1e-5, 3.5e-8));
+        let u = Uncertainty::calibrated(sd, None, r, Floor::BetweenSessions);
         assert_eq!((u.sd_d, u.sd_b, u.sd_s), (5e-4, 3e-3, TAPE_SCALE_SD));
-        let t = Uncertainty::calibrated(Some((1e-5, 3.5e-8)), Some(2e-4), r, true);
+        let d = Uncertainty::calibrated(sd, None, r, Floor::SameDay);
+        assert_eq!((d.sd_d, d.sd_b), (5e-4, 1e-3));
+        // A session 1σ above the floor is kept.
+        let wide = Uncertainty::calibrated(Some((1e-5, 2e-3)), None, r, Floor::SameDay);
+        assert_eq!(wide.sd_b, 2e-3);
+        let t = Uncertainty::calibrated(sd, Some(2e-4), r, Floor::TrustSession);
         assert_eq!((t.sd_d, t.sd_b, t.sd_s), (1e-5, 3.5e-8, 2e-4));
-        // No 1σ known: the floor, trusted or not.
-        let f = Uncertainty::calibrated(None, None, r, true);
+        // No 1σ known: the between-session floor, trusted or not.
+        let f = Uncertainty::calibrated(None, None, r, Floor::TrustSession);
         assert_eq!((f.sd_d, f.sd_b), BETWEEN_SESSION_FLOOR);
+    }
+
+    /// A calibration counts as the day's own for a day, before or after the odometry; of
+    /// unknown age it is an old one.
+    #[test]
+    fn the_floor_follows_the_calibrations_age() {
+        assert_eq!(Floor::for_age(Some(3_900.0), false), Floor::SameDay);
+        assert_eq!(Floor::for_age(Some(-3_900.0), false), Floor::SameDay);
+        assert_eq!(
+            Floor::for_age(Some(SAME_DAY_S), false),
+            Floor::BetweenSessions
+        );
+        assert_eq!(
+            Floor::for_age(Some(11.0 * SAME_DAY_S), false),
+            Floor::BetweenSessions
+        );
+        assert_eq!(Floor::for_age(None, false), Floor::BetweenSessions);
+        assert_eq!(Floor::for_age(None, true), Floor::TrustSession);
+        assert_eq!(Floor::for_age(Some(0.0), true), Floor::TrustSession);
     }
 
     /// A turn in place scrubs: the midpoint's variance grows by `s` per radian on each axis.

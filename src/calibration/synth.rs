@@ -2,47 +2,34 @@
 //! (different) true geometry with no dynamics, slip or noise.
 //!
 //! This is the simulation of the paper's §3 and the model the track-size advice evaluates the
-//! closed-form methods on. Legs are `round(L / travel_per_tick)` pulses per wheel; an in-place
-//! turn of `φ` is `round(±φ·(b/2) / travel_per_tick)` pulses (right wheel `+`, left `−` for a
-//! CCW turn), all from the belief. The true end pose is the exact-arc integration of the same
+//! closed-form methods on. The pulses are the routine's own ([`crate::motion::path`]): a leg is
+//! `L` in each wheel's pulses, an in-place turn of `φ` is `±φ·b/2` (right wheel `+`, left `−`
+//! for a CCW turn), rounded, all from the belief. The true end pose is the exact-arc integration of the same
 //! pulses with the true geometry ([`crate::kinematics::reference::ArcModel`]).
-
-use core::f64::consts::FRAC_PI_2;
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
-use crate::motion::run::{Direction, Measurement};
+use crate::motion::path::{SegmentKind, commanded_knots, segment, segment_ticks};
+use crate::motion::run::{Direction, Measurement, PathKind};
 
 /// Knots of a square run: the start plus the end of each of 8 segments.
 pub const SQUARE_KNOTS: usize = 9;
 
-fn ticks(distance_m: f64, m_per_tick: f64) -> i64 {
-    libm::round(distance_m / m_per_tick) as i64
-}
-
 /// Pulse counts of a straight leg of `length_m`, commanded from `belief`.
 pub fn leg_ticks(belief: &Geometry, length_m: f64) -> WheelTicks {
-    WheelTicks::new(
-        ticks(length_m, belief.meters_per_tick_right()),
-        ticks(length_m, belief.meters_per_tick_left()),
-    )
+    segment_ticks(&SegmentKind::Straight { length_m }, belief)
 }
 
 /// Pulse counts of an in-place turn by `angle_rad` (CCW positive), commanded from `belief`.
 pub fn turn_ticks(belief: &Geometry, angle_rad: f64) -> WheelTicks {
-    let arc = angle_rad * 0.5 * belief.wheelbase_m;
-    WheelTicks::new(
-        ticks(arc, belief.meters_per_tick_right()),
-        ticks(-arc, belief.meters_per_tick_left()),
-    )
+    segment_ticks(&SegmentKind::Turn { angle_rad }, belief)
 }
 
 /// The 8 segment increments (leg, turn, leg, turn, …) of a square of side `side_m`.
 pub fn square_segments(belief: &Geometry, direction: Direction, side_m: f64) -> [WheelTicks; 8] {
-    let leg = leg_ticks(belief, side_m);
-    let turn = turn_ticks(belief, direction.turn_sign() * FRAC_PI_2);
-    [leg, turn, leg, turn, leg, turn, leg, turn]
+    let path = PathKind::Square { direction, side_m };
+    core::array::from_fn(|i| segment_ticks(&segment(&path, i), belief))
 }
 
 /// Cumulative knots of a square (first knot `(0, 0)`).
@@ -51,14 +38,8 @@ pub fn square_knots(
     direction: Direction,
     side_m: f64,
 ) -> [WheelTicks; SQUARE_KNOTS] {
-    let mut k = [WheelTicks::default(); SQUARE_KNOTS];
-    for (i, s) in square_segments(belief, direction, side_m)
-        .iter()
-        .enumerate()
-    {
-        k[i + 1] = WheelTicks::new(k[i].right + s.right, k[i].left + s.left);
-    }
-    k
+    let knots = commanded_knots(&PathKind::Square { direction, side_m }, belief);
+    core::array::from_fn(|i| knots.get(i).copied().unwrap_or_default())
 }
 
 /// Odometry end pose (belief) and true end pose (truth, θ included) of a knot record.

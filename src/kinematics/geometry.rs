@@ -11,6 +11,8 @@
 use core::f64::consts::PI;
 use core::fmt;
 
+use crate::util::decimal::Plain;
+
 /// Default encoder resolution: counts per wheel revolution seen by the timer.
 pub const DEFAULT_COUNTS_PER_REV: u32 = 200_000;
 
@@ -42,11 +44,20 @@ pub enum GeometryError {
 
 impl fmt::Display for GeometryError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            GeometryError::Diameter => "wheel diameter must be within 0.001..2 m",
-            GeometryError::Wheelbase => "wheelbase must be within 0.01..5 m",
-            GeometryError::CountsPerRev => "counts per revolution must be within 1..100000000",
-        })
+        let (what, (lo, hi), unit) = match self {
+            GeometryError::Diameter => ("wheel diameter", Geometry::DIAMETER_RANGE_M, " m"),
+            GeometryError::Wheelbase => ("wheelbase", Geometry::WHEELBASE_RANGE_M, " m"),
+            GeometryError::CountsPerRev => {
+                let (lo, hi) = Geometry::COUNTS_PER_REV_RANGE;
+                return write!(f, "counts per revolution must be within {lo}..{hi}");
+            }
+        };
+        write!(
+            f,
+            "{what} must be within {}..{}{unit}",
+            Plain(lo),
+            Plain(hi)
+        )
     }
 }
 
@@ -69,19 +80,29 @@ impl Geometry {
         }
     }
 
-    /// Checks that every value is finite and physically plausible.
+    /// The wheel diameters `set` accepts and a geometry may have, metres.
+    pub const DIAMETER_RANGE_M: (f64, f64) = (0.001, 2.0);
+    /// The wheelbases `set` accepts and a geometry may have, metres.
+    pub const WHEELBASE_RANGE_M: (f64, f64) = (0.01, 5.0);
+    /// The encoder counts per wheel revolution `set` accepts and a geometry may have.
+    pub const COUNTS_PER_REV_RANGE: (u32, u32) = (1, 100_000_000);
+
+    /// Checks that every value is finite and within its range.
     ///
     /// # Errors
     /// The first offending field, as a [`GeometryError`].
     pub fn validate(&self) -> Result<(), GeometryError> {
-        let diameter_ok = |d: f64| d.is_finite() && (0.001..=2.0).contains(&d);
-        if !diameter_ok(self.diameter_right_m) || !diameter_ok(self.diameter_left_m) {
+        let ok = |v: f64, (lo, hi): (f64, f64)| v.is_finite() && (lo..=hi).contains(&v);
+        if !ok(self.diameter_right_m, Self::DIAMETER_RANGE_M)
+            || !ok(self.diameter_left_m, Self::DIAMETER_RANGE_M)
+        {
             return Err(GeometryError::Diameter);
         }
-        if !(self.wheelbase_m.is_finite() && (0.01..=5.0).contains(&self.wheelbase_m)) {
+        if !ok(self.wheelbase_m, Self::WHEELBASE_RANGE_M) {
             return Err(GeometryError::Wheelbase);
         }
-        if !(1..=100_000_000).contains(&self.counts_per_rev) {
+        let (lo, hi) = Self::COUNTS_PER_REV_RANGE;
+        if !(lo..=hi).contains(&self.counts_per_rev) {
             return Err(GeometryError::CountsPerRev);
         }
         Ok(())

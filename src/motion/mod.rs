@@ -8,6 +8,7 @@ pub mod convention;
 pub mod hbridge;
 pub mod identify;
 pub mod motor;
+pub mod path;
 pub mod profile;
 pub mod routine;
 pub mod run;

@@ -18,6 +18,7 @@
 //! integer target, so nothing of it accumulates.
 
 use crate::kinematics::geometry::Geometry;
+use crate::util::decimal::Plain;
 use crate::util::num::{fmax, fmin, within};
 use core::fmt;
 
@@ -40,13 +41,13 @@ pub struct MotionLimits {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum LimitsError {
-    /// The speed is not finite or outside 0.001 ..= 5 m/s.
+    /// The speed is not finite or outside [`MotionLimits::SPEED_RANGE_MPS`].
     Speed,
-    /// The acceleration is not finite or outside 0.001 ..= 20 m/s².
+    /// The acceleration is not finite or outside [`MotionLimits::ACCEL_RANGE_MPS2`].
     Accel,
-    /// The turn rate is not finite or outside 0.001 ..= 20 rad/s.
+    /// The turn rate is not finite or outside [`MotionLimits::TURN_RATE_RANGE_RADPS`].
     TurnRate,
-    /// The turn acceleration is not finite or outside 0.001 ..= 100 rad/s².
+    /// The turn acceleration is not finite or outside [`MotionLimits::TURN_ACCEL_RANGE_RADPS2`].
     TurnAccel,
     /// The fastest wheel speed the limits allow is more than the encoders can count
     /// ([`ENCODER_MAX_COUNT_RATE`] on the smaller wheel).
@@ -61,16 +62,32 @@ pub const ENCODER_MAX_COUNT_RATE: f64 = 1_000_000.0;
 
 impl fmt::Display for LimitsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            LimitsError::Speed => "max speed must be within 0.001..5 m/s",
-            LimitsError::Accel => "max acceleration must be within 0.001..20 m/s^2",
-            LimitsError::TurnRate => "max turn rate must be within 0.001..20 rad/s",
-            LimitsError::TurnAccel => "max turn acceleration must be within 0.001..100 rad/s^2",
+        let (what, (lo, hi), unit) = match self {
+            LimitsError::Speed => ("max speed", MotionLimits::SPEED_RANGE_MPS, "m/s"),
+            LimitsError::Accel => ("max acceleration", MotionLimits::ACCEL_RANGE_MPS2, "m/s^2"),
+            LimitsError::TurnRate => (
+                "max turn rate",
+                MotionLimits::TURN_RATE_RANGE_RADPS,
+                "rad/s",
+            ),
+            LimitsError::TurnAccel => (
+                "max turn acceleration",
+                MotionLimits::TURN_ACCEL_RANGE_RADPS2,
+                "rad/s^2",
+            ),
             LimitsError::BeyondEncoders => {
-                "the wheels would turn faster than the encoders can count (1,000,000 counts/s): \
-                 lower max_speed or max_turn_rate"
+                return f.write_str(
+                    "the wheels would turn faster than the encoders can count (1,000,000 \
+                     counts/s): lower max_speed or max_turn_rate",
+                );
             }
-        })
+        };
+        write!(
+            f,
+            "{what} must be within {}..{} {unit}",
+            Plain(lo),
+            Plain(hi)
+        )
     }
 }
 
@@ -83,22 +100,33 @@ impl MotionLimits {
         max_turn_accel_radps2: 2.0,
     };
 
-    /// Checks that every limit is finite, positive and plausible.
+    /// The speeds `set max_speed` accepts and a stored record may hold, m/s.
+    pub const SPEED_RANGE_MPS: (f64, f64) = (0.01, 2.0);
+    /// The accelerations `set max_accel` accepts and a stored record may hold, m/s².
+    pub const ACCEL_RANGE_MPS2: (f64, f64) = (0.01, 5.0);
+    /// The turn rates `set max_turn_rate` accepts and a stored record may hold, rad/s.
+    pub const TURN_RATE_RANGE_RADPS: (f64, f64) = (0.05, 10.0);
+    /// The turn accelerations `set max_turn_accel` accepts and a stored record may hold, rad/s².
+    pub const TURN_ACCEL_RANGE_RADPS2: (f64, f64) = (0.05, 20.0);
+
+    /// Checks that every limit is finite and within its range.
     ///
     /// # Errors
     /// The first offending field, as a [`LimitsError`].
     pub fn validate(&self) -> Result<(), LimitsError> {
-        let ok = |v: f32, max: f32| within(v, 0.001, max);
-        if !ok(self.max_speed_mps, 5.0) {
+        // Compared as stored (`f32`): `set` stores a value within the range rounded by the same
+        // monotone conversion, so it never falls outside it.
+        let ok = |v: f32, (lo, hi): (f64, f64)| within(v, lo as f32, hi as f32);
+        if !ok(self.max_speed_mps, Self::SPEED_RANGE_MPS) {
             return Err(LimitsError::Speed);
         }
-        if !ok(self.max_accel_mps2, 20.0) {
+        if !ok(self.max_accel_mps2, Self::ACCEL_RANGE_MPS2) {
             return Err(LimitsError::Accel);
         }
-        if !ok(self.max_turn_rate_radps, 20.0) {
+        if !ok(self.max_turn_rate_radps, Self::TURN_RATE_RANGE_RADPS) {
             return Err(LimitsError::TurnRate);
         }
-        if !ok(self.max_turn_accel_radps2, 100.0) {
+        if !ok(self.max_turn_accel_radps2, Self::TURN_ACCEL_RANGE_RADPS2) {
             return Err(LimitsError::TurnAccel);
         }
         Ok(())

@@ -1,15 +1,14 @@
 //! Test-path routines: the UMBmark square (CW/CCW), a straight line and a full circle, as a pure
 //! state machine stepped once per control period.
 //!
-//! A path is a list of segments: a square is 4 legs of `L` and 4 in-place 90° turns (right turns
-//! for CW, left turns for CCW), a line is one leg, a circle one arc of `2π r`. Each segment is one
+//! A path is a list of segments ([`crate::motion::path`]). Each segment is one
 //! [`Trapezoid`] over its own parameter (metres along the path for legs and arcs, radians for
 //! turns), mapped *linearly* to both wheels' tick references, so the wheels follow one profile:
 //! on a leg they travel equal distances at every instant, on a turn equal and opposite ones.
 //!
-//! The tick targets of a segment are computed from the geometry handed in when the run starts
-//! (the current calibrated `D_R`, `D_L`, `b`; the controller changes it only while idle) and
-//! rounded to whole ticks; references are cumulative ticks since the run start and continue
+//! The tick targets of a segment ([`crate::motion::path::segment_ticks`]) are computed from the
+//! geometry handed in when the run starts (the current calibrated `D_R`, `D_L`, `b`; the
+//! controller changes it only while idle); references are cumulative ticks since the run start and continue
 //! from the previous segment's *target*, so tracking errors do not add up along the path. A segment ends when its profile is over and
 //! both wheels have stayed within `settle_tolerance_ticks` of the target for `settle_periods`
 //! periods (or `settle_timeout_periods` have passed since the profile ended): the robot stops at
@@ -30,108 +29,16 @@
 //! starts, targets and knots stay integer ticks, so no rounding carries from one segment into
 //! the next and the reference ends every segment exactly on its integer target.
 
-use core::f64::consts::PI;
-use core::fmt;
-
 use heapless::Vec;
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
+pub use crate::motion::path::{PathError, SegmentKind, segment, segment_count, validate_path};
+use crate::motion::path::{segment_scales, segment_ticks};
 use crate::motion::profile::{MotionLimits, Trapezoid};
-use crate::motion::run::{Direction, MAX_KNOTS, PathKind};
+use crate::motion::run::{Direction, MAX_KNOTS, MAX_RUNS, PathKind};
 use crate::motion::speed::WheelReference;
 use crate::util::num::fmin;
-
-/// One segment of a path.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum SegmentKind {
-    /// A straight leg forward.
-    Straight {
-        /// Length, metres.
-        length_m: f64,
-    },
-    /// An in-place turn.
-    Turn {
-        /// Signed angle, radians (CCW positive).
-        angle_rad: f64,
-    },
-    /// A circular arc forward.
-    Arc {
-        /// Path length of the robot's centre, metres.
-        length_m: f64,
-        /// Radius, metres.
-        radius_m: f64,
-        /// Turn direction.
-        direction: Direction,
-    },
-}
-
-/// Why a path was rejected.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-#[non_exhaustive]
-pub enum PathError {
-    /// A side, length or radius is not finite or outside 0.01 ..= 100 m.
-    Size,
-}
-
-impl fmt::Display for PathError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            PathError::Size => "path size must be within 0.01..100 m",
-        })
-    }
-}
-
-/// Checks a path's dimensions.
-///
-/// # Errors
-/// [`PathError::Size`] for a non-finite or implausible size.
-pub fn validate_path(path: &PathKind) -> Result<(), PathError> {
-    let size = match *path {
-        PathKind::Square { side_m, .. } => side_m,
-        PathKind::Line { length_m } => length_m,
-        PathKind::Circle { radius_m, .. } => radius_m,
-    };
-    if size.is_finite() && (0.01..=100.0).contains(&size) {
-        Ok(())
-    } else {
-        Err(PathError::Size)
-    }
-}
-
-/// Number of segments of a path.
-pub fn segment_count(path: &PathKind) -> usize {
-    match path {
-        PathKind::Square { .. } => 8,
-        PathKind::Line { .. } | PathKind::Circle { .. } => 1,
-    }
-}
-
-/// Segment `index` of a path (indices past the end repeat the last segment).
-pub fn segment(path: &PathKind, index: usize) -> SegmentKind {
-    match *path {
-        PathKind::Square { direction, side_m } => {
-            if index.is_multiple_of(2) {
-                SegmentKind::Straight { length_m: side_m }
-            } else {
-                SegmentKind::Turn {
-                    angle_rad: direction.turn_sign() * 0.5 * PI,
-                }
-            }
-        }
-        PathKind::Line { length_m } => SegmentKind::Straight { length_m },
-        PathKind::Circle {
-            direction,
-            radius_m,
-        } => SegmentKind::Arc {
-            length_m: 2.0 * PI * radius_m,
-            radius_m,
-            direction,
-        },
-    }
-}
 
 /// Settling rules of the routine, in control periods and ticks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -244,42 +151,18 @@ fn segment_limits(kind: &SegmentKind, g: &Geometry, l: &MotionLimits) -> (f64, f
     }
 }
 
-/// Wheel ticks per unit of the segment's parameter (before rounding), right and left.
-fn segment_scales(kind: &SegmentKind, g: &Geometry) -> (f64, f64, f64) {
-    let kr = g.meters_per_tick_right();
-    let kl = g.meters_per_tick_left();
-    let half_b = 0.5 * g.wheelbase_m;
-    match *kind {
-        SegmentKind::Straight { length_m } => (length_m, 1.0 / kr, 1.0 / kl),
-        SegmentKind::Turn { angle_rad } => {
-            let s = if angle_rad < 0.0 { -1.0 } else { 1.0 };
-            (libm::fabs(angle_rad), s * half_b / kr, -s * half_b / kl)
-        }
-        SegmentKind::Arc {
-            length_m,
-            radius_m,
-            direction,
-        } => {
-            let s = direction.turn_sign();
-            (
-                length_m,
-                (1.0 + s * half_b / radius_m) / kr,
-                (1.0 - s * half_b / radius_m) / kl,
-            )
-        }
-    }
-}
-
 impl Plan {
     /// Plans `kind` for `g` and `l` at `rate_hz` (config time, `f64`).
     fn new(kind: SegmentKind, g: &Geometry, l: &MotionLimits, rate_hz: f64) -> Plan {
-        let (distance, cr, cl) = segment_scales(&kind, g);
+        let (distance, _, _) = segment_scales(&kind, g);
         let (v, a) = segment_limits(&kind, g, l);
         let profile = Trapezoid::new(distance, v, a);
-        let end_r = libm::round(distance * cr);
-        let end_l = libm::round(distance * cl);
+        let end = segment_ticks(&kind, g);
         let scale = if distance > 0.0 {
-            ((end_r / distance) as f32, (end_l / distance) as f32)
+            (
+                (end.right as f64 / distance) as f32,
+                (end.left as f64 / distance) as f32,
+            )
         } else {
             (0.0, 0.0)
         };
@@ -287,7 +170,7 @@ impl Plan {
             kind,
             profile,
             scale,
-            travel: (end_r as i64, end_l as i64),
+            travel: (end.right, end.left),
             // Saturating: a profile longer than u32::MAX periods is not a valid path.
             profile_periods: libm::ceil(profile.duration() * rate_hz) as u32,
         }
@@ -510,6 +393,12 @@ pub struct RunPlan {
 }
 
 impl RunPlan {
+    /// The square sides `set square_side` accepts and a stored record may hold, metres.
+    pub const SIDE_RANGE_M: (f64, f64) = (0.1, 10.0);
+    /// The runs per direction `set runs_per_direction` accepts and a stored record may hold:
+    /// both directions' runs fit the run store ([`MAX_RUNS`]).
+    pub const RUNS_PER_DIRECTION_RANGE: (u8, u8) = (1, (MAX_RUNS / 2) as u8);
+
     /// A plan starting with `first`.
     pub const fn new(side_m: f64, first: Direction) -> Self {
         RunPlan {
@@ -535,6 +424,8 @@ impl RunPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use core::f64::consts::PI;
+
     use crate::kinematics::reference::ArcModel;
     use crate::kinematics::reference::PoseF64;
 

@@ -3,10 +3,14 @@
 //! `set`, `params`, the parser's checks and the console tool read them from there.
 //!
 //! Geometry values are the *nominal* geometry (metres, counts per wheel revolution); motion limits
-//! are magnitudes (always positive). The ranges here are the protocol's hard bounds: a value
-//! outside them is rejected by the parser before anything else sees it.
+//! are magnitudes (always positive). Each range is its owner's (`Geometry`, `MotionLimits`,
+//! `RunPlan`, `MotorParams`, the measuring convention), the one a stored record is checked
+//! against too: a value outside it is rejected by the parser before anything else sees it.
 
+use crate::kinematics::geometry::Geometry;
 use crate::motion::convention::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
+use crate::motion::profile::MotionLimits;
+use crate::motion::routine::RunPlan;
 use crate::motion::speed::{MotorParams, SpeedTuning};
 use crate::storage::record::ParamRecord;
 use crate::util::text::keyword_eq;
@@ -294,6 +298,14 @@ const LIMIT_3: ValueKind = ValueKind::Real { places: 3 };
 const TUNING_4: ValueKind = ValueKind::Real { places: 4 };
 const SIGN_UNIT: &str = "(1 standard, -1 reversed)";
 const GAIN: (f64, f64) = f32_range(MotorParams::GAIN_RANGE);
+const COUNTS: (f64, f64) = {
+    let (lo, hi) = Geometry::COUNTS_PER_REV_RANGE;
+    (lo as f64, hi as f64)
+};
+const RUNS: (f64, f64) = {
+    let (lo, hi) = RunPlan::RUNS_PER_DIRECTION_RANGE;
+    (lo as f64, hi as f64)
+};
 const TAU: (f64, f64) = f32_range(MotorParams::TAU_RANGE);
 const DEADBAND: (f64, f64) = f32_range(MotorParams::DEADBAND_RANGE);
 
@@ -307,7 +319,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::DiameterRight,
             "d_right",
             "m",
-            (0.001, 2.0),
+            Geometry::DIAMETER_RANGE_M,
             METRES_9,
             G::Geometry,
             (
@@ -319,7 +331,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::DiameterLeft,
             "d_left",
             "m",
-            (0.001, 2.0),
+            Geometry::DIAMETER_RANGE_M,
             METRES_9,
             G::Geometry,
             (
@@ -331,7 +343,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::Wheelbase,
             "wheelbase",
             "m",
-            (0.01, 5.0),
+            Geometry::WHEELBASE_RANGE_M,
             METRES_9,
             G::Geometry,
             (|r| r.nominal.wheelbase_m, |r, v| r.nominal.wheelbase_m = v),
@@ -340,7 +352,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::CountsPerRev,
             "counts_per_rev",
             "counts/rev",
-            (1.0, 100_000_000.0),
+            COUNTS,
             Whole,
             G::Geometry,
             (
@@ -352,7 +364,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::MaxSpeed,
             "max_speed",
             "m/s",
-            (0.01, 2.0),
+            MotionLimits::SPEED_RANGE_MPS,
             LIMIT_3,
             G::Motion,
             (
@@ -364,7 +376,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::MaxAccel,
             "max_accel",
             "m/s^2",
-            (0.01, 5.0),
+            MotionLimits::ACCEL_RANGE_MPS2,
             LIMIT_3,
             G::Motion,
             (
@@ -376,7 +388,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::MaxTurnRate,
             "max_turn_rate",
             "rad/s",
-            (0.05, 10.0),
+            MotionLimits::TURN_RATE_RANGE_RADPS,
             LIMIT_3,
             G::Motion,
             (
@@ -388,7 +400,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::MaxTurnAccel,
             "max_turn_accel",
             "rad/s^2",
-            (0.05, 20.0),
+            MotionLimits::TURN_ACCEL_RANGE_RADPS2,
             LIMIT_3,
             G::Motion,
             (
@@ -400,7 +412,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::SquareSide,
             "square_side",
             "m",
-            (0.1, 10.0),
+            RunPlan::SIDE_RANGE_M,
             LIMIT_3,
             G::Plan,
             (
@@ -412,7 +424,7 @@ pub const PARAMS: [ParamSpec; 26] = {
             P::RunsPerDirection,
             "runs_per_direction",
             "runs",
-            (1.0, (crate::motion::run::MAX_RUNS / 2) as f64),
+            RUNS,
             Whole,
             G::Plan,
             (

@@ -2,7 +2,7 @@
 //!
 //! A run ends where its odometry says, give or take what the robot's geometry may differ from
 //! its nominal values. The bound is computed for the run's own path: the wheel ticks of that
-//! path as commanded (a square's legs and in-place turns, a line, a circle's arc) are
+//! path as commanded ([`commanded_knots`], the routine's own targets) are
 //! integrated with the run's geometry changed by each corner of the tolerance box
 //! (diameter ratio `E_d` ±[`DIAMETER_RATIO_TOLERANCE`], wheelbase ±[`WHEELBASE_TOLERANCE`], mean
 //! diameter ±[`SCALE_TOLERANCE`]); the farthest of those eight ends from the odometry end, plus
@@ -12,16 +12,10 @@
 
 use core::fmt;
 
-use core::f64::consts::PI;
-
-use heapless::Vec;
-
-use crate::calibration::synth::{SQUARE_KNOTS, leg_ticks, square_knots, turn_ticks};
 use crate::calibration::wrap_angle;
-use crate::kinematics::encoder::WheelTicks;
-use crate::kinematics::geometry::Geometry;
 use crate::kinematics::reference::{ArcModel, PoseF64};
-use crate::motion::run::{PathKind, RunRecord};
+use crate::motion::path::commanded_knots;
+use crate::motion::run::RunRecord;
 use crate::util::decimal::Decimal;
 use crate::util::num::fmax;
 
@@ -47,37 +41,10 @@ pub struct Bound {
     pub heading_deg: f64,
 }
 
-/// The cumulative wheel ticks of `path` as commanded from `g` (first knot `(0, 0)`).
-fn path_knots(g: &Geometry, path: &PathKind) -> Vec<WheelTicks, SQUARE_KNOTS> {
-    let mut knots = Vec::new();
-    let _ = knots.push(WheelTicks::default());
-    match *path {
-        PathKind::Square { direction, side_m } => {
-            knots = Vec::from_slice(&square_knots(g, direction, side_m)).unwrap_or(knots);
-        }
-        PathKind::Line { length_m } => {
-            let _ = knots.push(leg_ticks(g, length_m));
-        }
-        PathKind::Circle {
-            direction,
-            radius_m,
-        } => {
-            // One arc: the centre line's travel plus the turn's difference between the wheels.
-            let leg = leg_ticks(g, 2.0 * PI * radius_m);
-            let turn = turn_ticks(g, direction.turn_sign() * 2.0 * PI);
-            let _ = knots.push(WheelTicks::new(
-                leg.right + turn.right,
-                leg.left + turn.left,
-            ));
-        }
-    }
-    knots
-}
-
 /// The bound of `run`: its path's ticks integrated with every corner of the geometry tolerance
 /// box, the farthest end (and heading) from the nominal one, plus the measuring precision.
 pub fn bound(run: &RunRecord) -> Bound {
-    let knots = path_knots(&run.geometry, &run.path);
+    let knots = commanded_knots(&run.path, &run.geometry);
     let nominal = ArcModel::from_geometry(&run.geometry).integrate(PoseF64::default(), &knots);
     let mut position_m: f64 = 0.0;
     let mut heading_deg: f64 = 0.0;
@@ -188,16 +155,17 @@ impl fmt::Display for Implausible {
 mod tests {
     use super::*;
 
-    use crate::motion::run::Direction;
+    use crate::kinematics::geometry::Geometry;
+    use crate::motion::run::{Direction, PathKind};
 
     fn run_on(path: PathKind) -> RunRecord {
         let g = Geometry::PAPER_NOMINAL;
-        let knots = path_knots(&g, &path);
+        let knots = commanded_knots(&path, &g);
         let end = ArcModel::from_geometry(&g).integrate(PoseF64::default(), &knots);
         RunRecord {
             path,
             geometry: g,
-            knots: Vec::from_slice(&knots).unwrap(),
+            knots: heapless::Vec::from_slice(&knots).unwrap(),
             odometry_end: end,
             measured: None,
         }

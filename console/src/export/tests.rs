@@ -143,6 +143,7 @@ fn the_covariance_model_meets_the_exact_arc_and_grows_with_slip() {
         side_m: 2.0,
         max_accel: 0.3,
         runs: Vec::new(),
+        runs_logged_s: None,
         table: Vec::new(),
     };
     // The model's inputs: the log's relative 1σ as they are (no floor, no scale term).
@@ -188,10 +189,21 @@ fn the_covariance_model_meets_the_exact_arc_and_grows_with_slip() {
     // smaller, the acceleration's 100 times larger (at 0.3 m/s² it dominates).
     let ten = e.twist_covariance(100.0, 10);
     assert!(ten[0] > t[0] && ten[5] > t[5], "{ten:?} vs {t:?}");
-    // The floor: the log's 1σ raised to the between-session drift unless trusted.
-    let (floored, _) = e.uncertainty(None, false);
-    let (trusted, _) = e.uncertainty(None, true);
+    // The floor: the log's 1σ raised to the between-session drift unless trusted; to the same
+    // day's while its runs are less than a day old.
+    let (floored, _) = e.uncertainty(None, false, None);
+    let (trusted, _) = e.uncertainty(None, true, None);
     assert_eq!(floored.sd_b, 3e-3);
+    let logged = 1.7e9;
+    let e = Export {
+        runs_logged_s: Some(logged),
+        ..e
+    };
+    let (today, why) = e.uncertainty(None, false, Some(logged + 3_600.0));
+    assert_eq!(today.sd_b, 1e-3, "{why}");
+    assert!(why.contains("same day's drift"), "{why}");
+    let (tomorrow, _) = e.uncertainty(None, false, Some(logged + 86_400.0));
+    assert_eq!(tomorrow.sd_b, 3e-3);
     assert!((trusted.sd_b - 4e-4 / 1.01).abs() < 1e-15);
     assert_eq!(floored.sd_s, 1e-3);
 }

@@ -14,7 +14,9 @@ use super::odometry::Wheels;
 use super::odometry::{Odometer, StreamLine};
 use super::reference::Reference;
 use super::status::{self, Stats};
-use super::{Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log};
+use super::{
+    Aging, Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log, wall_clock_s,
+};
 use crate::link::{Link, LinkError};
 use crate::online::{ApplyMode, Online, estimator::Estimate};
 
@@ -44,6 +46,8 @@ pub(super) struct Bridge<'a> {
     pub next_status: Instant,
     /// The online calibration and its reference topic (`--reference`).
     pub online: Option<(Online, Reference)>,
+    /// A calibration of today: when its covariance widens to the between-session drift.
+    pub aging: Option<Aging>,
 }
 
 impl Bridge<'_> {
@@ -122,9 +126,27 @@ impl Bridge<'_> {
             }
             if Instant::now() >= self.next_status {
                 self.next_status += Duration::from_secs(1);
+                self.age_calibration();
                 self.publish_status()?;
                 self.apply_online()?;
             }
+        }
+    }
+
+    /// Once the calibration's runs are a day old, the pose covariance takes the between-session
+    /// drift (said on stderr once).
+    fn age_calibration(&mut self) {
+        if self
+            .aging
+            .as_ref()
+            .is_some_and(|a| wall_clock_s() >= a.at_s)
+            && let Some(a) = self.aging.take()
+        {
+            self.odometer.set_uncertainty(a.u);
+            eprintln!(
+                "ros2: the calibration's runs are a day old: the pose covariance now takes {}",
+                a.source
+            );
         }
     }
 

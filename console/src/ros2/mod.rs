@@ -35,7 +35,7 @@ use ros2_client::{
     Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
 };
 
-use crate::covariance::{self, PoseCovariance, RandomError, Uncertainty};
+use crate::covariance::{self, Floor, PoseCovariance, RandomError, Uncertainty};
 use crate::link::Link;
 use crate::log::{SessionLog, calibration_of, nominal_of, param};
 use bridge::Bridge;
@@ -290,10 +290,14 @@ fn read_board(link: &mut Link) -> Result<Board, String> {
     })
 }
 
-/// The pose covariance's inputs, and where they come from: the `--calibration` log's
-/// ([`crate::export::Export::uncertainty`]), or the defaults of a calibrated or an uncalibrated
-/// board.
-fn uncertainty(opts: &Options, board: &Board) -> Result<(Uncertainty, String), String> {
+/// The pose covariance's inputs now, and where they come from: the `--calibration` log's
+/// ([`crate::export::Export::uncertainty`], its floor for the calibration's age), or the
+/// defaults of a calibrated or an uncalibrated board; and, for a calibration of today, when its
+/// same-day floor ends and the inputs from then on.
+fn uncertainty(
+    opts: &Options,
+    board: &Board,
+) -> Result<(Uncertainty, String, Option<Aging>), String> {
     if let Some(log) = &opts.calibration {
         let e = crate::export::Export::read(log)?;
         if e.sd.is_none() {
@@ -314,8 +318,17 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<(Uncertainty, String), S
                 e.method.as_deref().unwrap_or("none")
             ));
         }
-        let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd);
-        return Ok((u, format!("{source} from {}", log.display())));
+        let now = wall_clock_s();
+        let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd, Some(now));
+        let aging = e.runs_logged_s.and_then(|t| {
+            let at_s = t + covariance::SAME_DAY_S;
+            let same_day = Floor::for_age(Some(now - t), opts.trust_session_sd) == Floor::SameDay;
+            same_day.then(|| {
+                let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd, Some(at_s));
+                Aging { at_s, u, source }
+            })
+        });
+        return Ok((u, format!("{source} from {}", log.display()), aging));
     }
     let mut random = RandomError::DEFAULT;
     if let Some(m) = opts.slip {
@@ -325,13 +338,33 @@ fn uncertainty(opts: &Options, board: &Board) -> Result<(Uncertainty, String), S
         Ok((
             Uncertainty::nominal(random),
             "defaults for an uncalibrated board".into(),
+            None,
         ))
     } else {
         Ok((
-            Uncertainty::calibrated(None, None, random, false),
+            Uncertainty::calibrated(None, None, random, Floor::BetweenSessions),
             "the between-session drift for a calibrated board (no --calibration log)".into(),
+            None,
         ))
     }
+}
+
+/// A calibration of today: when (Unix seconds) it is a day old, and the pose covariance's
+/// inputs from then on (the between-session floor).
+pub(super) struct Aging {
+    /// When the calibration's oldest run is a day old, Unix seconds.
+    pub at_s: f64,
+    /// The inputs from then on.
+    pub u: Uncertainty,
+    /// Where they come from.
+    pub source: String,
+}
+
+/// The wall clock, Unix seconds (what a session log's `t` is).
+pub(super) fn wall_clock_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// The session log `--log` names (appended to), or none.
@@ -548,7 +581,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
     let mut link = Link::open(&opts.port, session_log(opts)?)?;
     let version = link.handshake()?;
     let board = read_board(&mut link)?;
-    let (u, sd_source) = uncertainty(opts, &board)?;
+    let (u, sd_source, aging) = uncertainty(opts, &board)?;
     let net = network(opts, domain, range)?;
 
     let stream_on = Command::Stream {
@@ -604,6 +637,7 @@ pub fn run(opts: &Options) -> Result<(), String> {
         carried: None,
         next_status: Instant::now(),
         online,
+        aging,
     };
     // Lines typed on stdin go to the board.
     bridge.run(&stdin_lines()).map_err(|e| e.to_string())

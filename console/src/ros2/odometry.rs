@@ -246,6 +246,11 @@ impl Odometer {
     pub fn covariance(&self) -> &PoseCovariance {
         &self.cov
     }
+
+    /// The pose covariance's inputs from now on ([`PoseCovariance::set_uncertainty`]).
+    pub fn set_uncertainty(&mut self, u: crate::covariance::Uncertainty) {
+        self.cov.set_uncertainty(u);
+    }
 }
 
 #[cfg(test)]

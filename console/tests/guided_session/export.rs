@@ -39,30 +39,8 @@ fn export(log: &Path, format: &str, out: &Path) -> String {
     std::fs::read_to_string(out).unwrap()
 }
 
-/// The ROS 2 export of a guided session's log: its `wheel_separation` and wheel radius
-/// multipliers give back the geometry the board applied (its `params` after `apply`) to 1e-9 m,
-/// read back from the YAML; the pose covariance is there, with the unobserved components large.
-/// A plain terminal capture that holds only the board's lines (its `params` reply) exports the
-/// same geometry.
-#[test]
-fn ros2_export() {
-    let sim = Sim::start(&host_sim());
-    let (mut tool, log) = tool_answering(&sim, "export", "0.5m\n1\n");
-    let mut measured = 0;
-    tool.converse(&sim, &mut measured, None);
-    let (ok, text) = tool.finish();
-    assert!(ok, "the session failed:\n{text}");
-    assert!(
-        text.contains("verified: params shows calibration exact"),
-        "{text}"
-    );
-    // The board's applied geometry: the `active` line of its last `params` reply.
-    let entries = json_lines(&log);
-    let rx: Vec<String> = entries
-        .iter()
-        .filter(|v| v["kind"] == "rx")
-        .map(|v| v["line"].as_str().unwrap().to_string())
-        .collect();
+/// The geometry the board applied, `(D_R, D_L, b)`: the `active` line of its last `params` reply.
+fn applied_geometry(rx: &[String]) -> (f64, f64, f64) {
     let active = rx
         .iter()
         .rev()
@@ -78,63 +56,43 @@ fn ros2_export() {
     };
     let (d_r, d_l, b) = (value("d_right"), value("d_left"), value("wheelbase"));
     assert!((d_r / d_l - 0.995).abs() < 1e-5, "{active}");
+    (d_r, d_l, b)
+}
 
-    let check = |yaml: &str| {
-        let e = yaml_entries(yaml);
-        let r = yaml_number(&e, "wheel_radius");
-        let (sep, ml, mr) = (
-            yaml_number(&e, "wheel_separation"),
-            yaml_number(&e, "left_wheel_radius_multiplier"),
-            yaml_number(&e, "right_wheel_radius_multiplier"),
-        );
-        assert!((sep - b).abs() <= 1e-9, "b {sep} vs {b}\n{yaml}");
-        assert!(
-            (2.0 * r * mr - d_r).abs() <= 1e-9,
-            "D_R {} vs {d_r}\n{yaml}",
-            2.0 * r * mr
-        );
-        assert!(
-            (2.0 * r * ml - d_l).abs() <= 1e-9,
-            "D_L {} vs {d_l}\n{yaml}",
-            2.0 * r * ml
-        );
-        assert_eq!(yaml_number(&e, "wheel_separation_multiplier"), 1.0);
-        e
-    };
-    let dir = log.parent().unwrap();
-    let yaml = export(&log, "ros2", &dir.join("diff_drive.yaml"));
-    let e = check(&yaml);
-    assert!(yaml.starts_with("# odocal calibration `exact`"), "{yaml}");
-    assert!(
-        yaml.contains("diff_drive_controller:\n  ros__parameters:\n"),
-        "{yaml}"
+/// Checks that a `diff_drive_controller` YAML gives back `(D_R, D_L, b)` to 1e-9 m; its entries.
+fn check_drop_in(yaml: &str, (d_r, d_l, b): (f64, f64, f64)) -> Vec<(String, String)> {
+    let e = yaml_entries(yaml);
+    let r = yaml_number(&e, "wheel_radius");
+    let (sep, ml, mr) = (
+        yaml_number(&e, "wheel_separation"),
+        yaml_number(&e, "left_wheel_radius_multiplier"),
+        yaml_number(&e, "right_wheel_radius_multiplier"),
     );
-    let cov = &e
-        .iter()
-        .find(|(k, _)| k == "pose_covariance_diagonal")
-        .unwrap()
-        .1;
-    let cov: Vec<f64> = cov
-        .trim_matches(['[', ']'])
+    assert!((sep - b).abs() <= 1e-9, "b {sep} vs {b}\n{yaml}");
+    assert!(
+        (2.0 * r * mr - d_r).abs() <= 1e-9,
+        "D_R {} vs {d_r}\n{yaml}",
+        2.0 * r * mr
+    );
+    assert!(
+        (2.0 * r * ml - d_l).abs() <= 1e-9,
+        "D_L {} vs {d_l}\n{yaml}",
+        2.0 * r * ml
+    );
+    assert_eq!(yaml_number(&e, "wheel_separation_multiplier"), 1.0);
+    e
+}
+
+/// A YAML list of numbers (`[1, 2.5, …]`).
+fn number_list(text: &str) -> Vec<f64> {
+    text.trim_matches(['[', ']'])
         .split(',')
         .map(|v| v.trim().parse().unwrap())
-        .collect();
-    assert_eq!(cov.len(), 6, "{yaml}");
-    assert!(cov[0] > 0.0 && cov[1] > 0.0 && cov[5] > 0.0, "{yaml}");
-    assert!(cov[2..5].iter().all(|&v| v >= 1e3), "{yaml}");
+        .collect()
+}
 
-    // The board's lines alone, as a terminal program captures them (CR LF, echo on).
-    let capture: String = std::iter::once("params".to_string())
-        .chain(rx.iter().cloned())
-        .map(|l| format!("{l}\r\n"))
-        .collect();
-    let capture_file = dir.join("terminal.log");
-    std::fs::write(&capture_file, capture).unwrap();
-    let yaml = export(&capture_file, "ros2", &dir.join("from-terminal.yaml"));
-    check(&yaml);
-
-    // The URDF's joints sit at ±b/2, its wheels have the applied radii.
-    let urdf = export(&log, "urdf", &dir.join("wheels.urdf"));
+/// The URDF's joints sit at ±b/2, its wheels have the applied radii.
+fn check_urdf(urdf: &str, (d_r, d_l, b): (f64, f64, f64)) {
     let attr = |name: &str| -> Vec<f64> {
         urdf.match_indices(&format!("{name}=\""))
             .map(|(i, m)| {
@@ -160,17 +118,13 @@ fn ros2_export() {
         (y[0] - b / 2.0).abs() <= 1e-9 && (y[1] + b / 2.0).abs() <= 1e-9,
         "{urdf}"
     );
-    // The JSON: the runs and the 1σ.
-    let json: serde_json::Value =
-        serde_json::from_str(&export(&log, "json", &dir.join("calibration.json"))).unwrap();
-    assert_eq!(json["runs"].as_array().unwrap().len(), 2);
-    assert!(json["sd"]["e_b"].as_f64().unwrap() >= 0.0);
-    assert_eq!(json["method"], "exact");
+}
 
-    // Drop-in: the controller's name, its wheels, and the twist covariance.
+/// Drop-in: the controller's name, its wheels, and the twist covariance.
+fn check_named_controller(log: &Path, geometry: (f64, f64, f64)) {
     let named = Command::new(env!("CARGO_BIN_EXE_odocal-console"))
         .arg("export")
-        .arg(&log)
+        .arg(log)
         .args(["--controller", "base_controller"])
         .args([
             "--left-wheel",
@@ -186,23 +140,21 @@ fn ros2_export() {
         yaml.contains("base_controller:\n  ros__parameters:\n"),
         "{yaml}"
     );
-    let e = check(&yaml);
+    let e = check_drop_in(&yaml, geometry);
     let value = |key: &str| &e.iter().find(|(k, _)| k == key).unwrap().1;
     assert_eq!(value("left_wheel_names"), "[\"wheel_l_joint\"]");
     assert_eq!(value("right_wheel_names"), "[\"wheel_r_joint\"]");
-    let twist: Vec<f64> = value("twist_covariance_diagonal")
-        .trim_matches(['[', ']'])
-        .split(',')
-        .map(|v| v.trim().parse().unwrap())
-        .collect();
+    let twist = number_list(value("twist_covariance_diagonal"));
     assert!(
         twist.len() == 6 && twist[0] > 0.0 && twist[5] > 0.0,
         "{yaml}"
     );
+}
 
-    // A log whose last `params` reply came before a `reset-params` the board accepted is
-    // refused, naming the line.
-    let mut stale = std::fs::read_to_string(&log).unwrap();
+/// A log whose last `params` reply came before a `reset-params` the board accepted is refused,
+/// naming the line.
+fn check_stale_log_refused(log: &Path, dir: &Path) {
+    let mut stale = std::fs::read_to_string(log).unwrap();
     let line = stale.lines().count() + 1;
     stale.push_str(
         "{\"kind\":\"tx\",\"line\":\"reset-params\",\"t\":0}\n\
@@ -221,6 +173,71 @@ fn ros2_export() {
         why.contains(&format!("stale.jsonl:{line}: `reset-params` came after")),
         "{why}"
     );
+}
+
+/// The ROS 2 export of a guided session's log: its `wheel_separation` and wheel radius
+/// multipliers give back the geometry the board applied (its `params` after `apply`) to 1e-9 m,
+/// read back from the YAML; the pose covariance is there, with the unobserved components large.
+/// A plain terminal capture that holds only the board's lines (its `params` reply) exports the
+/// same geometry.
+#[test]
+fn ros2_export() {
+    let sim = Sim::start(&host_sim());
+    let (mut tool, log) = tool_answering(&sim, "export", "0.5m\n1\n");
+    let mut measured = 0;
+    tool.converse(&sim, &mut measured, None);
+    let (ok, text) = tool.finish();
+    assert!(ok, "the session failed:\n{text}");
+    assert!(
+        text.contains("verified: params shows calibration exact"),
+        "{text}"
+    );
+    let entries = json_lines(&log);
+    let rx: Vec<String> = entries
+        .iter()
+        .filter(|v| v["kind"] == "rx")
+        .map(|v| v["line"].as_str().unwrap().to_string())
+        .collect();
+    let geometry = applied_geometry(&rx);
+
+    let dir = log.parent().unwrap();
+    let yaml = export(&log, "ros2", &dir.join("diff_drive.yaml"));
+    let e = check_drop_in(&yaml, geometry);
+    assert!(yaml.starts_with("# odocal calibration `exact`"), "{yaml}");
+    assert!(
+        yaml.contains("diff_drive_controller:\n  ros__parameters:\n"),
+        "{yaml}"
+    );
+    let cov = &e
+        .iter()
+        .find(|(k, _)| k == "pose_covariance_diagonal")
+        .unwrap()
+        .1;
+    let cov = number_list(cov);
+    assert_eq!(cov.len(), 6, "{yaml}");
+    assert!(cov[0] > 0.0 && cov[1] > 0.0 && cov[5] > 0.0, "{yaml}");
+    assert!(cov[2..5].iter().all(|&v| v >= 1e3), "{yaml}");
+
+    // The board's lines alone, as a terminal program captures them (CR LF, echo on).
+    let capture: String = std::iter::once("params".to_string())
+        .chain(rx.iter().cloned())
+        .map(|l| format!("{l}\r\n"))
+        .collect();
+    let capture_file = dir.join("terminal.log");
+    std::fs::write(&capture_file, capture).unwrap();
+    let yaml = export(&capture_file, "ros2", &dir.join("from-terminal.yaml"));
+    check_drop_in(&yaml, geometry);
+
+    check_urdf(&export(&log, "urdf", &dir.join("wheels.urdf")), geometry);
+    // The JSON: the runs and the 1σ.
+    let json: serde_json::Value =
+        serde_json::from_str(&export(&log, "json", &dir.join("calibration.json"))).unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), 2);
+    assert!(json["sd"]["e_b"].as_f64().unwrap() >= 0.0);
+    assert_eq!(json["method"], "exact");
+
+    check_named_controller(&log, geometry);
+    check_stale_log_refused(&log, dir);
 }
 
 /// The whole procedure on a factory-default board whose right motor is wired the other way

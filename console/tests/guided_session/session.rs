@@ -5,9 +5,14 @@ use super::*;
 #[test]
 fn guided_session() {
     let bin = host_sim();
+    full_session_applied_saved_and_recalibrated(&bin);
+    resumed_on_the_board_after_a_reset(&bin);
+    resumed_on_the_pc_when_the_board_lost_its_runs(&bin);
+}
 
-    // 1. A full session, applied and saved, recalibrated offline from its log.
-    let sim = Sim::start(&bin);
+/// The first part: a full session, applied and saved, recalibrated offline from its log.
+fn full_session_applied_saved_and_recalibrated(bin: &Path) {
+    let sim = Sim::start(bin);
     // The plan from an answers file (L in centimetres, converted) and the first run started
     // with the board's button; the rest by --yes and stdin.
     let (mut tool, log) = tool_answering(&sim, "full", "150cm\n5\nb\n");
@@ -93,10 +98,11 @@ fn guided_session() {
         "{verified} vs {board_row}"
     );
     println!("board:   {board_row}\noffline: {}", row(&exact, "exact"));
-    drop(sim);
+}
 
-    // 2. The tool dies after run 3 and the board is reset; the session resumes from the log.
-    let (sim, log, mut measured) = killed_after_three_runs(&bin, "resumed", false);
+/// The second part: the tool dies after run 3 and the board is reset; the session resumes from the log.
+fn resumed_on_the_board_after_a_reset(bin: &Path) {
+    let (sim, log, mut measured) = killed_after_three_runs(bin, "resumed", false);
     let text = resume(&sim, &log, &mut measured);
     // Every run measured once: a fourth run the killed tool had started (kept in the board's
     // flash across the reset) is measured by the resumed tool; then the check square.
@@ -128,12 +134,13 @@ fn guided_session() {
         "{resumed:#?}"
     );
     assert_eq!(&recalibrate(&log, None), resumed);
-    drop(sim);
+}
 
-    // 3. The same with a board that lost its runs in the reset (firmware without run
-    //    persistence, or the flash wiped): the log keeps them, the missing runs are driven, and
-    //    the calibration of all ten is computed on the PC with the library.
-    let (sim, log, mut measured) = killed_after_three_runs(&bin, "lost", true);
+/// The third part: the same with a board that lost its runs in the reset (firmware without run
+/// persistence, or the flash wiped): the log keeps them, the missing runs are driven, and the
+/// calibration of all ten is computed on the PC with the library.
+fn resumed_on_the_pc_when_the_board_lost_its_runs(bin: &Path) {
+    let (sim, log, mut measured) = killed_after_three_runs(bin, "lost", true);
     // A run the killed tool had started went with them.
     let lost = sim.count("sim: true end pose in the run's start frame: ") - measured;
     measured += lost;

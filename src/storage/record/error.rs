@@ -5,9 +5,12 @@ use core::fmt;
 
 use sequential_storage::map::SerializationError;
 
-use super::ParamRecord;
+use super::{ParamRecord, STORED_FACTOR_RANGE};
 use crate::kinematics::geometry::GeometryError;
+use crate::motion::profile::LimitsError;
+use crate::motion::routine::RunPlan;
 use crate::motion::speed::TuningError;
+use crate::util::decimal::Plain;
 
 /// Why a record was rejected by [`ParamRecord::validate`] or [`MethodName::new`].
 ///
@@ -21,9 +24,9 @@ pub enum RecordError {
     /// The calibrated geometry is invalid.
     CalibratedGeometry(GeometryError),
     /// The calibrated geometry has another encoder resolution than the nominal one, or a
-    /// diameter or wheelbase outside 0.8 ..= 1.25 × nominal.
+    /// diameter or wheelbase outside [`STORED_FACTOR_RANGE`] × nominal.
     CalibrationMismatch,
-    /// `E_d`, `E_b` or `E_s` is not finite or outside 0.8 ..= 1.25.
+    /// `E_d`, `E_b` or `E_s` is not finite or outside [`STORED_FACTOR_RANGE`].
     Factor,
     /// The method name is empty, too long, or not printable ASCII.
     MethodName,
@@ -31,17 +34,11 @@ pub enum RecordError {
     Runs,
     /// The predicted `E_max` is not finite or outside 0 ..= 10 m.
     PredictedError,
-    /// The maximum speed is not finite or outside 0.001 ..= 5 m/s.
-    MaxSpeed,
-    /// The maximum acceleration is not finite or outside 0.001 ..= 20 m/s².
-    MaxAccel,
-    /// The maximum turn rate is not finite or outside 0.001 ..= 20 rad/s.
-    MaxTurnRate,
-    /// The maximum turn acceleration is not finite or outside 0.001 ..= 100 rad/s².
-    MaxTurnAccel,
-    /// The square side is not finite or outside 0.1 ..= 20 m.
+    /// A motion limit is not finite or outside its range.
+    Limits(LimitsError),
+    /// The square side is not finite or outside [`RunPlan::SIDE_RANGE_M`].
     SquareSide,
-    /// Runs per direction outside 1 ..= 50.
+    /// Runs per direction outside [`RunPlan::RUNS_PER_DIRECTION_RANGE`].
     RunsPerDirection,
     /// The speed-loop tuning is invalid.
     Tuning(TuningError),
@@ -56,21 +53,35 @@ impl fmt::Display for RecordError {
         match self {
             RecordError::NominalGeometry(e) => write!(f, "nominal geometry: {e}"),
             RecordError::CalibratedGeometry(e) => write!(f, "calibrated geometry: {e}"),
-            RecordError::CalibrationMismatch => {
-                f.write_str("calibrated geometry must be within 0.8..1.25 x nominal")
-            }
-            RecordError::Factor => f.write_str("E_d, E_b and E_s must be within 0.8..1.25"),
+            RecordError::CalibrationMismatch => write!(
+                f,
+                "calibrated geometry must be within {}..{} x nominal",
+                Plain(*STORED_FACTOR_RANGE.start()),
+                Plain(*STORED_FACTOR_RANGE.end())
+            ),
+            RecordError::Factor => write!(
+                f,
+                "E_d, E_b and E_s must be within {}..{}",
+                Plain(*STORED_FACTOR_RANGE.start()),
+                Plain(*STORED_FACTOR_RANGE.end())
+            ),
             RecordError::MethodName => f.write_str("method name must be 1..12 printable ASCII"),
             RecordError::Runs => f.write_str("run count must be at most 1000"),
             RecordError::PredictedError => f.write_str("predicted E_max must be within 0..10 m"),
-            RecordError::MaxSpeed => f.write_str("max speed must be within 0.001..5 m/s"),
-            RecordError::MaxAccel => f.write_str("max acceleration must be within 0.001..20 m/s2"),
-            RecordError::MaxTurnRate => f.write_str("max turn rate must be within 0.001..20 rad/s"),
-            RecordError::MaxTurnAccel => {
-                f.write_str("max turn acceleration must be within 0.001..100 rad/s2")
+            RecordError::Limits(e) => write!(f, "motion limits: {e}"),
+            RecordError::SquareSide => {
+                let (lo, hi) = RunPlan::SIDE_RANGE_M;
+                write!(
+                    f,
+                    "square side must be within {}..{} m",
+                    Plain(lo),
+                    Plain(hi)
+                )
             }
-            RecordError::SquareSide => f.write_str("square side must be within 0.1..20 m"),
-            RecordError::RunsPerDirection => f.write_str("runs per direction must be within 1..50"),
+            RecordError::RunsPerDirection => {
+                let (lo, hi) = RunPlan::RUNS_PER_DIRECTION_RANGE;
+                write!(f, "runs per direction must be within {lo}..{hi}")
+            }
             RecordError::Tuning(e) => write!(f, "speed tuning: {e}"),
             RecordError::ControlRate => f.write_str(crate::motion::controller::RATE_RULE),
             RecordError::MeasuringNoise => f.write_str("measure_sd or heading_sd out of range"),

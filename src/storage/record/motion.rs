@@ -1,34 +1,26 @@
-//! The plausible ranges of the operator's motion settings as the record checks them: speed and
-//! acceleration limits, the calibration routine's square and the declared measuring noise.
+//! The record's check of the operator's motion settings (speed and acceleration limits, the
+//! calibration routine's square, the declared measuring noise) against the ranges their owners
+//! define, the same ones `set` accepts.
 
 use super::{ParamRecord, RecordError};
 use crate::motion::convention::{HEADING_SD_RANGE_DEG, MEASURE_SD_RANGE_M};
+use crate::motion::routine::RunPlan;
 use crate::util::num::within;
 
 impl ParamRecord {
-    /// Checks that every motion limit and the square plan are finite and within their plausible
-    /// ranges.
+    /// Checks that every motion limit and the square plan are finite and within the ranges
+    /// `set` accepts (the record holds nothing `set` could not have written).
     ///
     /// # Errors
     /// The first offending setting, as a [`RecordError`].
     pub(super) fn validate_motion(&self) -> Result<(), RecordError> {
-        let m = &self.motion;
-        if !within(m.max_speed_mps, 0.001, 5.0) {
-            return Err(RecordError::MaxSpeed);
-        }
-        if !within(m.max_accel_mps2, 0.001, 20.0) {
-            return Err(RecordError::MaxAccel);
-        }
-        if !within(m.max_turn_rate_radps, 0.001, 20.0) {
-            return Err(RecordError::MaxTurnRate);
-        }
-        if !within(m.max_turn_accel_radps2, 0.001, 100.0) {
-            return Err(RecordError::MaxTurnAccel);
-        }
-        if !within(self.square_side_m, 0.1, 20.0) {
+        self.motion.validate().map_err(RecordError::Limits)?;
+        let (side_lo, side_hi) = RunPlan::SIDE_RANGE_M;
+        if !within(self.square_side_m, side_lo as f32, side_hi as f32) {
             return Err(RecordError::SquareSide);
         }
-        if !(1..=50).contains(&self.runs_per_direction) {
+        let (runs_lo, runs_hi) = RunPlan::RUNS_PER_DIRECTION_RANGE;
+        if !(runs_lo..=runs_hi).contains(&self.runs_per_direction) {
             return Err(RecordError::RunsPerDirection);
         }
         Ok(())

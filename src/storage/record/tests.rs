@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::kinematics::geometry::GeometryError;
+use crate::motion::profile::LimitsError;
 use crate::motion::speed::{MotorParams, TuningError};
 
 fn calibrated() -> ParamRecord {
@@ -19,7 +20,7 @@ fn calibrated() -> ParamRecord {
         }),
         motion: MotionLimits::DEFAULT,
         square_side_m: 4.0,
-        runs_per_direction: 7,
+        runs_per_direction: 6,
         wiring: Wiring {
             motor_left_reversed: true,
             encoder_right_reversed: true,
@@ -275,7 +276,10 @@ fn validation_rejects_every_bad_field() {
             |r| calibration(r).method = "a b".try_into().unwrap(),
             RecordError::MethodName,
         ),
-        (|r| r.motion.max_speed_mps = f32::NAN, RecordError::MaxSpeed),
+        (
+            |r| r.motion.max_speed_mps = f32::NAN,
+            RecordError::Limits(LimitsError::Speed),
+        ),
         (|r| r.square_side_m = 0.0, RecordError::SquareSide),
         (|r| r.runs_per_direction = 0, RecordError::RunsPerDirection),
     ];

@@ -5,14 +5,14 @@
 use std::fmt::Write as _;
 
 use odocal::calibration::covariance::{
-    PoseCovariance, RandomError, RandomEstimate, Uncertainty, nees,
+    Floor, PoseCovariance, RandomError, RandomEstimate, Uncertainty, nees,
 };
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::run::Direction;
 
 use super::methods::ParamSet;
-use crate::sim::optiodom::{OptiRun, Session};
+use crate::sim::optiodom::{OptiRun, Session, recorded_days};
 
 /// Errors of one evaluated run against ground truth.
 #[derive(Clone, Debug)]
@@ -174,11 +174,30 @@ pub fn geometry_on(set: &ParamSet, session: &Session) -> Geometry {
     set.geometry.unwrap_or(session.nominal)
 }
 
-/// The uncertainty of odometry with `set`: a calibrated set's relative 1σ (raised to the
-/// between-session floor unless `trust_session`), its fitted `E_s` 1σ or a tape's, and the slip
-/// and scrub its own calibration runs show (`calib`: the sessions it was calibrated on, each
-/// run's end residual against its geometry, `RandomEstimate`); the nominal one's defaults.
-pub fn uncertainty_of(set: &ParamSet, calib: &[Session], trust_session: bool) -> Uncertainty {
+/// How far in time `set`'s calibration lies from `session`, seconds: from the calibration
+/// session recorded farthest from it (a calibration is as old as its oldest runs); `None` when
+/// `set` is not calibrated or a session is undated ([`recorded_days`]).
+pub fn calibration_age_s(set: &ParamSet, calib: &[Session], session: &Session) -> Option<f64> {
+    let at = recorded_days(&session.id)?;
+    let mut age: Option<f64> = None;
+    for s in calib.iter().filter(|s| set.calib_sessions.contains(&s.id)) {
+        let days = (recorded_days(&s.id)? - at).abs();
+        age = Some(age.map_or(days, |a| a.max(days)));
+    }
+    age.map(|days| days * 86_400.0)
+}
+
+/// The uncertainty of odometry with `set` on `session`: a calibrated set's relative 1σ (raised
+/// to the floor for its age on `session`, [`calibration_age_s`], unless `trust_session`), its
+/// fitted `E_s` 1σ or a tape's, and the slip and scrub its own calibration runs show (`calib`:
+/// the sessions it was calibrated on, each run's end residual against its geometry,
+/// `RandomEstimate`); the nominal one's defaults.
+pub fn uncertainty_of(
+    set: &ParamSet,
+    calib: &[Session],
+    trust_session: bool,
+    session: &Session,
+) -> Uncertainty {
     let Some(c) = &set.calibration else {
         return Uncertainty::nominal(RandomError::DEFAULT);
     };
@@ -201,22 +220,24 @@ pub fn uncertainty_of(set: &ParamSet, calib: &[Session], trust_session: bool) ->
     );
     let sd_s = q.sigma_e_s.filter(|s| *s > 0.0).map(|s| s / c.e_s);
     let random = random.random_error().unwrap_or(RandomError::DEFAULT);
-    eprintln!(
-        "DEBUG {} {:?} rel {:?} sd_s {:?}",
-        set.method, random, relative, sd_s
-    );
-    Uncertainty::calibrated(Some(relative), sd_s, random, trust_session)
+    let floor = Floor::for_age(calibration_age_s(set, calib, session), trust_session);
+    Uncertainty::calibrated(Some(relative), sd_s, random, floor)
 }
 
 /// Evaluates `set` on every run of `sessions`, its covariance with `u`.
-pub fn evaluate_set(set: &ParamSet, sessions: &[Session], u: &Uncertainty) -> SetEval {
+pub fn evaluate_set(
+    set: &ParamSet,
+    sessions: &[Session],
+    u: &dyn Fn(&Session) -> Uncertainty,
+) -> SetEval {
     let mut runs = Vec::new();
     let mut per = vec![Means::default(); sessions.len()];
     let mut overall = Means::default();
     for (si, s) in sessions.iter().enumerate() {
         let g = geometry_on(set, s);
+        let u = u(s);
         for (ri, r) in s.runs.iter().enumerate() {
-            let e = evaluate_run(r, &g, u);
+            let e = evaluate_run(r, &g, &u);
             per[si].push(&e);
             overall.push(&e);
             runs.push((si, ri, e));

@@ -355,7 +355,11 @@ pub fn run(args: &ReplayArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     let evals_of: Vec<SetEval> = sets
         .iter()
-        .map(|s| evaluate_set(s, &evals, &uncertainty_of(s, &calib, args.trust_session_sd)))
+        .map(|s| {
+            evaluate_set(s, &evals, &|e| {
+                uncertainty_of(s, &calib, args.trust_session_sd, e)
+            })
+        })
         .collect();
     let mut lines = Vec::new();
     for (set, ev) in sets.iter().zip(&evals_of) {
