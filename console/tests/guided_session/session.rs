@@ -100,7 +100,8 @@ fn full_session_applied_saved_and_recalibrated(bin: &Path) {
     println!("board:   {board_row}\noffline: {}", row(&exact, "exact"));
 }
 
-/// The second part: the tool dies after run 3 and the board is reset; the session resumes from the log.
+/// The second part: the tool dies after run 3 and the board is reset; the session resumes from
+/// the log.
 fn resumed_on_the_board_after_a_reset(bin: &Path) {
     let (sim, log, mut measured) = killed_after_three_runs(bin, "resumed", false);
     let text = resume(&sim, &log, &mut measured);
