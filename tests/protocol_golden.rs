@@ -655,3 +655,25 @@ fn every_parameter_name_round_trips() {
         );
     }
 }
+
+/// The `version` reply reads back as written; a device that is not an odocal board, or one that
+/// does not say its protocol, reads as such.
+#[test]
+fn the_version_reply_reads_back() {
+    use odocal::protocol::record::{PROTOCOL_VERSION, Version, parse_version, write_version};
+    let mut reply = String::new();
+    write_version(&mut reply).unwrap();
+    let text = reply.strip_prefix("ok ").unwrap().trim_end();
+    assert_eq!(
+        parse_version(text),
+        Some(Version {
+            firmware: env!("CARGO_PKG_VERSION"),
+            protocol: Some(PROTOCOL_VERSION),
+        })
+    );
+    assert_eq!(parse_version("marlin 2.1"), None);
+    assert_eq!(
+        parse_version("odocal 0.1.0").map(|v| v.protocol),
+        Some(None)
+    );
+}

@@ -12,9 +12,10 @@ use std::io::{Read, Write};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use odocal::protocol::ErrorCode;
+use odocal::protocol::record::parse_version;
 use odocal::protocol::reply::{self, FinalLine};
 use odocal::protocol::token::{self, EventTag};
+use odocal::protocol::{Command, ErrorCode};
 
 use crate::log::SessionLog;
 
@@ -373,22 +374,23 @@ impl Link {
         self.pending.clear();
         let wait = Duration::from_secs(5);
         let echo = self
-            .command("echo off", wait)
+            .command(&Command::Echo { on: false }.to_string(), wait)
             .map_err(|e| format!("{e}: is this an odocal board at 115200 8N1?"))?;
         if !echo.ok() {
             return Err(format!("unexpected reply to `echo off`: {}", echo.last));
         }
-        let v = self.command("version", wait).map_err(|e| e.to_string())?;
+        let v = self
+            .command(&Command::Version.to_string(), wait)
+            .map_err(|e| e.to_string())?;
         let text = v.text().to_string();
-        let mut w = text.split_whitespace();
-        if !v.ok() || w.next() != Some("odocal") {
+        let Some(version) = v.ok().then(|| parse_version(&text)).flatten() else {
             return Err(format!(
                 "the device on {} is not an odocal board this tool knows (`version`: {}); \
                  update its firmware",
                 self.path, v.last
             ));
-        }
-        let protocol = w.nth(2).and_then(|p| p.parse::<u32>().ok());
+        };
+        let protocol = version.protocol;
         if protocol != Some(odocal::protocol::record::PROTOCOL_VERSION) {
             return Err(format!(
                 "the board speaks protocol {} but this tool speaks {}: update the firmware or \

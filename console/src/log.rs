@@ -197,7 +197,7 @@ pub fn param(lines: &[String], name: &str) -> Option<f64> {
 pub fn calibration_of(lines: &[String]) -> String {
     lines
         .iter()
-        .find_map(|l| l.strip_prefix("calibration "))
+        .find_map(|l| l.strip_prefix(odocal::protocol::token::CALIBRATION))
         .unwrap_or("none")
         .to_string()
 }

@@ -482,7 +482,7 @@ mod tests {
         let u = Uncertainty::calibrated(sd, None, r, Floor::BetweenSessions);
         assert_eq!((u.sd_d, u.sd_b, u.sd_s), (5e-4, 3e-3, TAPE_SCALE_SD));
         let d = Uncertainty::calibrated(sd, None, r, Floor::SameDay);
-        assert_eq!((d.sd_d, d.sd_b), (5e-4, 1e-3));
+        assert_eq!((d.sd_d, d.sd_b), SAME_DAY_FLOOR);
         // A session 1σ above the floor is kept.
         let wide = Uncertainty::calibrated(Some((1e-5, 2e-3)), None, r, Floor::SameDay);
         assert_eq!(wide.sd_b, 2e-3);

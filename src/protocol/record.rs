@@ -51,6 +51,31 @@ pub fn write_version(out: &mut dyn Write) -> fmt::Result {
     )
 }
 
+/// What a `version` reply says.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Version<'a> {
+    /// The firmware's crate version.
+    pub firmware: &'a str,
+    /// The protocol it speaks ([`PROTOCOL_VERSION`] for this one); `None` when it does not
+    /// say (a firmware older than the protocol number).
+    pub protocol: Option<u32>,
+}
+
+/// Reads the text of a `version` reply (after `ok `) as [`write_version`] writes it: `None` for
+/// a device that is not an odocal board.
+pub fn parse_version(text: &str) -> Option<Version<'_>> {
+    let mut w = text.split_whitespace();
+    if w.next() != Some("odocal") {
+        return None;
+    }
+    let firmware = w.next()?;
+    let protocol = match w.next() {
+        Some("protocol") => w.next().and_then(|p| p.parse().ok()),
+        _ => None,
+    };
+    Some(Version { firmware, protocol })
+}
+
 struct Bits(f64);
 
 impl fmt::Display for Bits {

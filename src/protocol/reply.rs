@@ -198,18 +198,30 @@ pub fn write_err(out: &mut dyn Write, code: ErrorCode, message: &dyn fmt::Displa
     write!(out, "{ERR}{}: {}\r\n", code.code(), message)
 }
 
+/// Writes `ok <text>\r\n` with the text `body` writes straight to `out`: for a reply built
+/// piece by piece or longer than [`REPLY_LINE_MAX`] (no line buffer).
+///
+/// # Errors
+/// Only if `out` refuses the text.
+#[inline(never)]
+pub fn write_ok_with(
+    out: &mut dyn Write,
+    body: &mut dyn FnMut(&mut dyn Write) -> fmt::Result,
+) -> fmt::Result {
+    write!(out, "{OK} ")?;
+    body(out)?;
+    out.write_str(EOL)
+}
+
 /// Writes `ok\r\n` or `ok <text>\r\n`.
 ///
 /// # Errors
 /// Only if `out` refuses the text.
 pub fn write_ok(out: &mut dyn Write, text: fmt::Arguments<'_>) -> fmt::Result {
-    let mut line = ReplyLine::new();
-    // A too-long text is cut at the line capacity rather than lost.
-    let _ = line.write_fmt(text);
-    if line.is_empty() {
+    if text.as_str() == Some("") {
         write!(out, "{OK}\r\n")
     } else {
-        write!(out, "{OK} {line}\r\n")
+        write_ok_with(out, &mut |out| out.write_fmt(text))
     }
 }
 

@@ -219,6 +219,10 @@ pub fn is_params_start(data: &str) -> bool {
 /// m` (each value after its parameter's name and `=`).
 pub const ACTIVE: &str = "active ";
 
+/// The `params` reply's line of the applied calibration: `calibration none` or `calibration
+/// <method> E_d=… E_b=… E_s=… runs=… E_max=… mm`.
+pub const CALIBRATION: &str = "calibration ";
+
 /// The header line of the `calibrate` table: `method  E_d  E_b …`.
 pub const TABLE_HEADER: &str = "method ";
 /// The calibrate table's columns after the method's name, in order, as its header names them.

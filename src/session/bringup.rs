@@ -9,6 +9,7 @@
 use core::fmt::{self, Write};
 
 use crate::protocol::refusal::write_refusal;
+use crate::protocol::reply::write_ok;
 
 use super::traits::{Calibrator, Robot};
 use super::{Session, robot_err};
@@ -55,16 +56,22 @@ impl<C: Calibrator> Session<C> {
         }
         match kind {
             CheckKind::Identify(mode) => self.write_identify_started(mode, out),
-            CheckKind::Pulses => write!(
+            CheckKind::Pulses => write_ok(
                 out,
-                "ok bringup motors: wheels must be off the ground; pulsing right then left at {} % duty, 2 s\r\n",
-                (PULSE_DUTY * 100.0) as u32
+                format_args!(
+                    "bringup motors: wheels must be off the ground; pulsing right then left at {} \
+                     % duty, 2 s",
+                    (PULSE_DUTY * 100.0) as u32
+                ),
             ),
-            CheckKind::Push => write!(
+            CheckKind::Push => write_ok(
                 out,
-                "ok bringup push: motors off; push the robot straight forward by hand about {} cm within {} s\r\n",
-                (PUSH_DISTANCE_M * 100.0) as u32,
-                PUSH_MS / 1000
+                format_args!(
+                    "bringup push: motors off; push the robot straight forward by hand about {} \
+                     cm within {} s",
+                    (PUSH_DISTANCE_M * 100.0) as u32,
+                    PUSH_MS / 1000
+                ),
             ),
         }
     }

@@ -23,6 +23,7 @@ use crate::protocol::command::ONLINE;
 use crate::protocol::number::f32_as_written;
 use crate::protocol::outcome::{Ack, ParamOutcome, write_ack, write_param_outcome};
 use crate::protocol::refusal::{Refusal, write_refusal};
+use crate::protocol::reply::write_ok;
 use crate::storage::record::METHOD_NAME_MAX;
 use crate::util::text::keyword_eq;
 
@@ -320,12 +321,14 @@ pub fn write_calibration<C: Calibrator>(
         return write_refusal(out, &Refusal::NoMethodSucceeded);
     }
     calibrator.advice(numbered, nominal, method, out)?;
-    write!(
+    write_ok(
         out,
-        "ok {solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one\r\n",
-        p.cw_measured + p.ccw_measured,
-        p.cw_measured,
-        p.ccw_measured,
+        format_args!(
+            "{solved} solved from {} measured runs (cw {}, ccw {}); apply <method> to use one",
+            p.cw_measured + p.ccw_measured,
+            p.cw_measured,
+            p.ccw_measured,
+        ),
     )
 }
 

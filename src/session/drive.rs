@@ -12,7 +12,7 @@ use crate::protocol::refusal::write_refusal;
 
 use super::traits::{Calibrator, Robot};
 use super::{Session, report, robot_err};
-use crate::protocol::reply::EOL;
+use crate::protocol::reply::write_ok_with;
 use crate::util::num::clamp;
 
 impl<C: Calibrator> Session<C> {
@@ -53,9 +53,7 @@ impl<C: Calibrator> Session<C> {
     /// `pose`: `ok x=… y=… theta_deg=…`.
     pub(super) fn pose(&self, robot: &mut dyn Robot, out: &mut dyn Write) -> fmt::Result {
         let p = robot.pose();
-        write!(out, "ok ")?;
-        report::write_pose(out, &p)?;
-        out.write_str(EOL)
+        write_ok_with(out, &mut |out| report::write_pose(out, &p))
     }
 
     /// `odom reset`: the odometry pose back to the origin.

@@ -16,7 +16,7 @@ use crate::motion::identify::{
     IdentifyFailure, IdentifyMode, IdentifyReport, LEVEL_FRACTIONS, MAX_SPEED_MPS, MotorFit,
 };
 use crate::motion::speed::SpeedTuning;
-use crate::protocol::reply::ErrorCode;
+use crate::protocol::reply::{ErrorCode, write_ok_with};
 use crate::protocol::token::{self, EventTag};
 use crate::util::decimal::Decimal;
 
@@ -59,17 +59,20 @@ impl<C: Calibrator> Session<C> {
             }
         };
         let cap = f64::from(self.settings.motion.max_speed_mps).min(MAX_SPEED_MPS);
-        write!(
-            out,
-            "ok identify {}: {where_}; a slow probe, then steps to {}/{}/{} % of max_speed {} m/s \
-             forward and backward, about {} s\r\n",
-            mode_name(mode),
-            (LEVEL_FRACTIONS[0] * 100.0) as u32,
-            (LEVEL_FRACTIONS[1] * 100.0) as u32,
-            (LEVEL_FRACTIONS[2] * 100.0) as u32,
-            Decimal::fixed(cap, 2),
-            Decimal::fixed(f64::from(mode.duration_ms()) / 1000.0 + 3.0, 0),
-        )
+        // Longer than a reply line buffer: written straight out.
+        write_ok_with(out, &mut |out| {
+            write!(
+                out,
+                "identify {}: {where_}; a slow probe, then steps to {}/{}/{} % of max_speed {} \
+                 m/s forward and backward, about {} s",
+                mode_name(mode),
+                (LEVEL_FRACTIONS[0] * 100.0) as u32,
+                (LEVEL_FRACTIONS[1] * 100.0) as u32,
+                (LEVEL_FRACTIONS[2] * 100.0) as u32,
+                Decimal::fixed(cap, 2),
+                Decimal::fixed(f64::from(mode.duration_ms()) / 1000.0 + 3.0, 0),
+            )
+        })
     }
 
     /// Reports a finished identification and applies its tuning, with the bandwidth by

@@ -13,8 +13,10 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::controller::Status;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
+use crate::protocol::reply::{write_ok, write_ok_with};
 use crate::protocol::token::{
-    self, ACTIVE, DISAGREES, LOWEST_LOO, METHOD_FAILED, RUNS_DISAGREE, TABLE_HEADER, WITH_FLAGGED,
+    self, ACTIVE, CALIBRATION, DISAGREES, LOWEST_LOO, METHOD_FAILED, RUNS_DISAGREE, TABLE_HEADER,
+    WITH_FLAGGED,
 };
 use crate::protocol::{EOL, ParamName};
 use crate::util::decimal::{Decimal, Scientific};
@@ -77,7 +79,7 @@ pub(super) fn write_help(out: &mut dyn Write) -> fmt::Result {
         let description = line.get(tab + 1..).unwrap_or("");
         write!(out, "  {command:<HELP_COLUMN$}{description}\r\n")?;
     }
-    write!(out, "ok {} commands\r\n", HELP.len())
+    write_ok(out, format_args!("{} commands", HELP.len()))
 }
 
 pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
@@ -97,7 +99,21 @@ pub(super) fn write_status<C: Calibrator>(
     pose: &PoseF64,
     session: &Session<C>,
 ) -> fmt::Result {
-    write!(out, "ok state=")?;
+    write_ok_with(out, &mut |out| {
+        write_status_text(out, status, health, pose, session)
+    })
+}
+
+/// The text of the `status` reply: `state=… fault=… x=… … calibration=…` and what there is to
+/// say about the control loop's health and the last reset.
+fn write_status_text<C: Calibrator>(
+    out: &mut dyn Write,
+    status: &Status,
+    health: &Health,
+    pose: &PoseF64,
+    session: &Session<C>,
+) -> fmt::Result {
+    out.write_str("state=")?;
     match *status {
         Status::Idle | Status::Faulted(_) => out.write_str("idle")?,
         Status::Driving => out.write_str("driving")?,
@@ -159,7 +175,7 @@ pub(super) fn write_status<C: Calibrator>(
     if let Some(crash) = &session.last_crash {
         write!(out, " reset=\"{crash}\"")?;
     }
-    out.write_str("\r\n")
+    Ok(())
 }
 
 pub(super) fn write_param_value(out: &mut dyn Write, s: &Settings, name: ParamName) -> fmt::Result {
@@ -200,10 +216,10 @@ pub(super) fn write_params(out: &mut dyn Write, s: &Settings) -> fmt::Result {
         Decimal::fixed(a.wheelbase_m, 9)
     )?;
     match &s.calibration {
-        None => write!(out, "  calibration none\r\n")?,
+        None => write!(out, "  {CALIBRATION}none\r\n")?,
         Some(c) => write!(
             out,
-            "  calibration {} E_d={} E_b={} E_s={} runs={} E_max={} mm\r\n",
+            "  {CALIBRATION}{} E_d={} E_b={} E_s={} runs={} E_max={} mm\r\n",
             c.method,
             Decimal::fixed(c.e_d, 9),
             Decimal::fixed(c.e_b, 9),
@@ -246,10 +262,9 @@ pub(super) fn write_runs(out: &mut dyn Write, runs: &[RunRecord], numbers: &[u16
         }
         out.write_str(EOL)?;
     }
-    write!(
+    write_ok(
         out,
-        "ok {}, {measured} measured\r\n",
-        Count(runs.len(), "run")
+        format_args!("{}, {measured} measured", Count(runs.len(), "run")),
     )
 }
 

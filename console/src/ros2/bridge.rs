@@ -82,7 +82,9 @@ impl Bridge<'_> {
         // The board's own deadman stops a robot the bridge no longer commands; Ctrl-C stops it
         // now.
         let _ = self.link.stop_key();
-        let _ = self.link.send_line("stream off");
+        let _ = self
+            .link
+            .send_line(&Command::Stream { on: None }.to_string());
         for (k, v) in self.stats.summary(self.odometer.clock()) {
             println!("ros2: {k} {v}");
         }

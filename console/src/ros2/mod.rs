@@ -274,7 +274,7 @@ impl Board {
 
 fn read_board(link: &mut Link) -> Result<Board, String> {
     let reply = link
-        .command("params", Duration::from_secs(5))
+        .command(&Command::Params.to_string(), Duration::from_secs(5))
         .map_err(|e| e.to_string())?;
     let nominal = nominal_of(&reply.data).ok_or("the board's `params` reply has no geometry")?;
     let active = crate::export::active_of(&reply.data, nominal.counts_per_rev)
