@@ -293,10 +293,21 @@ mod tests {
         )
     }
 
-    /// The board's `stream` line for board time `t_s`, pose (x, y, θ in degrees) and wheel speeds
-    /// (as the board prints it: 6 decimals of seconds and metres, 4 of degrees and m/s).
+    /// The board's `stream` line for board time `t_s`, pose (x, y, θ in degrees) and wheel speeds,
+    /// by the protocol's own writer.
     fn line(t_s: f64, (x, y, deg): (f64, f64, f64), v_right: f64, v_left: f64) -> String {
-        format!("stream {t_s:.6} {x:+.6} {y:+.6} {deg:+.4} {v_right:+.4} {v_left:+.4}")
+        let mut s = String::new();
+        odocal::protocol::stream::StreamSample {
+            t_us: (t_s * 1e6).round() as u64,
+            x_m: x,
+            y_m: y,
+            theta_rad: deg.to_radians(),
+            v_right_mps: v_right,
+            v_left_mps: v_left,
+        }
+        .write(&mut s)
+        .unwrap();
+        s.trim_end().to_string()
     }
 
     /// The messages of `text`, which arrived at `arrived_s` on the PC's clock.
