@@ -170,14 +170,15 @@ fn stored_limits_are_rederived_at_boot() {
     );
     drop(board);
 
-    // 3 m/s on 100 mm wheels with 200,000 counts per revolution: 1.9 M counts/s, beyond the
-    // 1 M counts/s the encoder inputs follow (1.57 m/s). `set` refuses it; a stored record
-    // that holds it (written by other firmware, or before the rule) is refused at boot.
+    // 1.75 m/s (within `set`'s range) on 100 mm wheels with 200,000 counts per revolution: 1.1 M
+    // counts/s, beyond the 1 M counts/s the encoder inputs follow (1.57 m/s). `set` refuses it; a
+    // stored record that holds it (written by other firmware, or before the rule) is refused at
+    // boot.
     let mut stored = Settings::default();
     stored.nominal.diameter_right_m = 0.1;
     stored.nominal.diameter_left_m = 0.1;
     stored.active = stored.nominal;
-    stored.motion.max_speed_mps = 3.0;
+    stored.motion.max_speed_mps = 1.75;
     stored.motion.max_accel_mps2 = 0.5;
     flash
         .store()
@@ -189,7 +190,7 @@ fn stored_limits_are_rederived_at_boot() {
             .expect("boot");
     assert!(
         out.contains(
-            "max_speed 3 refused (the wheels would turn faster than the encoders can count"
+            "max_speed 1.75 refused (the wheels would turn faster than the encoders can count"
         ) && out.contains("), default used"),
         "{out}"
     );
