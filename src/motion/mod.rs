@@ -1,5 +1,7 @@
-//! Motion: what the control task steps. Owns the motor trait, speed loops, profiles, routines,
-//! run records, wiring corrections, the bring-up check, the motor identification, the button and the [`controller`]. May use [`crate::kinematics`] and [`crate::util`].
+//! Motion: what the control task steps. Owns the motor trait, speed loops, profiles, the paths
+//! and the ticks they command, routines, run records, wiring corrections, the bring-up check,
+//! the motor identification, the button and the [`controller`]. May use [`crate::kinematics`]
+//! and [`crate::util`].
 
 pub mod bringup;
 pub mod button;
