@@ -275,8 +275,13 @@ fn glitch_limit_follows_the_motion_limits_and_refuses_what_the_encoders_cannot_c
     limits.max_speed_mps = 1.5;
     c.set_limits(limits).unwrap();
     assert_eq!(c.config().right_encoder.max_step, 1274);
-    // 2.3 m/s: 2.3 × 1.5 × 200,000 / (π × 0.150) / 1000 = 1,464.3 counts per period.
-    limits.max_speed_mps = 2.3;
+    // A pivot turns each wheel at ω·b/2: 9.2 rad/s on a 0.5 m wheelbase is 2.3 m/s, 2.3 × 1.5 ×
+    // 200,000 / (π × 0.150) / 1000 = 1,464.3 counts per period.
+    let mut wide = Geometry::PAPER_NOMINAL;
+    wide.wheelbase_m = 0.5;
+    c.set_geometry(wide).unwrap();
+    assert_eq!(c.config().right_encoder.max_step, 1274);
+    limits.max_turn_rate_radps = 9.2;
     c.set_limits(limits).unwrap();
     assert_eq!(c.config().right_encoder.max_step, 1465);
     assert_eq!(c.config().left_encoder.max_step, 1465);
@@ -285,21 +290,15 @@ fn glitch_limit_follows_the_motion_limits_and_refuses_what_the_encoders_cannot_c
     plant.pos[0] += 1_400.0;
     plant.pos[1] += 1_400.0;
     assert_eq!(plant.step(&mut c).fault, None);
-    // The encoders count 1,000,000 counts/s: 2.36 m/s on these wheels. 2.4 m/s is refused,
-    // and so is a turn rate whose pivot turns a wheel that fast (12.5 rad/s × 0.1925 m).
-    limits.max_speed_mps = 2.4;
-    assert_eq!(
-        c.set_limits(limits),
-        Err(SetError::Limits(LimitsError::BeyondEncoders))
-    );
-    limits.max_speed_mps = 0.3;
-    limits.max_turn_rate_radps = 12.5;
+    // The encoders count 1,000,000 counts/s: 2.36 m/s on these wheels. A pivot at 9.6 rad/s
+    // (2.4 m/s at each wheel) is refused.
+    limits.max_turn_rate_radps = 9.6;
     assert_eq!(
         c.set_limits(limits),
         Err(SetError::Limits(LimitsError::BeyondEncoders))
     );
     // The refused limits changed nothing.
-    assert_eq!(c.config().limits.max_speed_mps, 2.3);
+    assert_eq!(c.config().limits.max_turn_rate_radps, 9.2);
     assert_eq!(c.config().right_encoder.max_step, 1465);
 }
 

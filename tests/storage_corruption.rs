@@ -120,7 +120,7 @@ fn load_falls_back_to_the_older_valid_record() {
     assert_eq!(
         line,
         "event boot: parameters loaded (previous record; newest: stored parameters invalid: \
-         max speed must be within 0.001..5 m/s), reset: power-on\r\n"
+         motion limits: max speed must be within 0.01..2 m/s), reset: power-on\r\n"
     );
 
     let next = calibrated(3);

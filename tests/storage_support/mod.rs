@@ -105,7 +105,7 @@ pub fn calibrated(n: u32) -> ParamRecord {
             ..MotionLimits::DEFAULT
         },
         square_side_m: 2.0,
-        runs_per_direction: 1 + (n % 9) as u8,
+        runs_per_direction: 1 + (n % 6) as u8,
         wiring: odocal::motion::wiring::Wiring::from_bits((n % 16) as u8)
             .unwrap_or(odocal::motion::wiring::Wiring::STANDARD),
         tuning: {

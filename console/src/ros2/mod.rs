@@ -36,6 +36,7 @@ use ros2_client::{
 };
 
 use crate::covariance::{self, Floor, PoseCovariance, RandomError, Uncertainty};
+use crate::export::Export;
 use crate::link::Link;
 use crate::log::{SessionLog, calibration_of, nominal_of, param};
 use bridge::Bridge;
@@ -299,7 +300,7 @@ fn uncertainty(
     board: &Board,
 ) -> Result<(Uncertainty, String, Option<Aging>), String> {
     if let Some(log) = &opts.calibration {
-        let e = crate::export::Export::read(log)?;
+        let e = Export::read(log)?;
         if e.sd.is_none() {
             return Err(format!(
                 "{}: no 1-sigma of the calibration in it (no `calibrate` table, no runs)",
@@ -320,14 +321,7 @@ fn uncertainty(
         }
         let now = wall_clock_s();
         let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd, Some(now));
-        let aging = e.runs_logged_s.and_then(|t| {
-            let at_s = t + covariance::SAME_DAY_S;
-            let same_day = Floor::for_age(Some(now - t), opts.trust_session_sd) == Floor::SameDay;
-            same_day.then(|| {
-                let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd, Some(at_s));
-                Aging { at_s, u, source }
-            })
-        });
+        let aging = aging_of(&e, opts.slip, opts.trust_session_sd, now);
         return Ok((u, format!("{source} from {}", log.display()), aging));
     }
     let mut random = RandomError::DEFAULT;
@@ -347,6 +341,18 @@ fn uncertainty(
             None,
         ))
     }
+}
+
+/// For a calibration whose runs are less than a day old at `now` (Unix seconds): when they turn
+/// a day old, and the inputs from then on; `None` otherwise.
+fn aging_of(e: &Export, slip: Option<f64>, trust_session: bool, now: f64) -> Option<Aging> {
+    let logged = e.runs_logged_s?;
+    if Floor::for_age(Some(now - logged), trust_session) != Floor::SameDay {
+        return None;
+    }
+    let at_s = logged + covariance::SAME_DAY_S;
+    let (u, source) = e.uncertainty(slip, trust_session, Some(at_s));
+    Some(Aging { at_s, u, source })
 }
 
 /// A calibration of today: when (Unix seconds) it is a day old, and the pose covariance's
@@ -696,6 +702,35 @@ mod tests {
             assert_eq!(dds(Some(ns), "/tf"), "rt/robot1/tf");
             assert_eq!(dds(Some(ns), "cmd_vel"), "rt/robot1/cmd_vel");
         }
+    }
+
+    /// A calibration logged an hour ago widens to the between-session drift a day after its
+    /// runs; one logged two days ago, or trusted as it is, never changes.
+    #[test]
+    fn a_calibration_of_today_ages_a_day_after_its_runs() {
+        let nominal = odocal::kinematics::geometry::Geometry::PAPER_NOMINAL;
+        let logged = 1.7e9;
+        let e = Export {
+            nominal,
+            applied: nominal,
+            method: Some("exact".into()),
+            factors: (1.0, 1.0, 1.0),
+            sd: Some((1e-4, 2e-4)),
+            source: String::new(),
+            side_m: 1.0,
+            max_accel: 0.3,
+            runs: Vec::new(),
+            runs_logged_s: Some(logged),
+            table: Vec::new(),
+        };
+        let a = aging_of(&e, None, false, logged + 3_600.0).unwrap();
+        assert_eq!(a.at_s, logged + covariance::SAME_DAY_S);
+        assert_eq!(
+            (a.u.sd_d, a.u.sd_b),
+            odocal::calibration::covariance::BETWEEN_SESSION_FLOOR
+        );
+        assert!(aging_of(&e, None, false, logged + 2.0 * 86_400.0).is_none());
+        assert!(aging_of(&e, None, true, logged + 3_600.0).is_none());
     }
 
     #[test]
