@@ -100,6 +100,11 @@ pub fn candidate_ports() -> Vec<String> {
     ports
 }
 
+/// Whether `path` is a pseudo-terminal's slave (`/dev/pts/N`, links followed).
+pub fn is_pty(path: &str) -> bool {
+    std::fs::canonicalize(path).is_ok_and(|p| p.starts_with("/dev/pts"))
+}
+
 /// The other processes that have the serial device `path` open, as `name (pid N)`, from
 /// `/proc/<pid>/fd` (Linux; elsewhere, or for processes this user may not inspect, none are
 /// found and the port's own lock is the only guard). For a pseudo-terminal `/dev/pts/<n>`, the
@@ -166,9 +171,9 @@ impl Link {
                 holders.join(", ")
             ));
         }
-        let port = serialport::new(path, BAUD)
+        let mut port = serialport::new(path, BAUD)
             .timeout(Duration::from_millis(100))
-            .open()
+            .open_native()
             .map_err(|e| {
                 // serialport locks the port (TIOCEXCL); so does picocom.
                 let text = e.to_string();
@@ -179,6 +184,15 @@ impl Link {
                 };
                 format!("cannot open {path}: {e}{busy}")
             })?;
+        // A pseudo-terminal (the simulated board) lives as long as its master, and so would the
+        // kernel's exclusive flag of a console that was killed: every later open by a user who
+        // is not root would fail. There the holder check above is the lock; a real port's flag
+        // ends with its last close.
+        if is_pty(path) {
+            port.set_exclusive(false)
+                .map_err(|e| format!("cannot open {path}: {e}"))?;
+        }
+        let port: Box<dyn serialport::SerialPort> = Box::new(port);
         let mut reader = port
             .try_clone()
             .map_err(|e| format!("cannot read {path}: {e}"))?;

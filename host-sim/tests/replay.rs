@@ -322,7 +322,7 @@ fn a_fit_without_a_heading_residual_prints_a_dash_not_nan() {
         .args(["replay", "--method", "exact-path", "--calibrate"])
         .arg(&square)
         .args(["--out"])
-        .arg(std::env::temp_dir().join("odocal-replay-dash"))
+        .arg(std::env::temp_dir().join(format!("odocal-replay-dash-{}", std::process::id())))
         .output()
         .unwrap();
     assert!(out.status.success());

@@ -63,7 +63,7 @@ fn replay_covariance_holds_on_real_runs() {
     args.extend(["--method", "exact", "--format", "json", "--out"].map(Into::into));
     args.push(
         std::env::temp_dir()
-            .join("odocal-replay-nees")
+            .join(format!("odocal-replay-nees-{}", std::process::id()))
             .into_os_string(),
     );
     let rows = json_rows(&sim().args(&args).output().unwrap());
@@ -105,7 +105,7 @@ fn replay_covariance_holds_on_real_runs() {
         );
         args.push(
             std::env::temp_dir()
-                .join("odocal-replay-nees")
+                .join(format!("odocal-replay-nees-{}", std::process::id()))
                 .into_os_string(),
         );
         square_rows.extend(json_rows(&sim().args(&args).output().unwrap()));

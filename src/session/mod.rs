@@ -57,7 +57,7 @@ use crate::protocol::command::UnitSetting;
 use crate::protocol::outcome::{Ack, Outcome, write_ack, write_outcome};
 use crate::protocol::record;
 use crate::protocol::refusal::{InProgress, Refusal, write_refusal};
-use crate::protocol::reply::{ErrorCode, write_err};
+use crate::protocol::reply::{ErrorCode, write_err, write_ok_with};
 use crate::protocol::rx::Received;
 use crate::protocol::unit::{AngleUnit, LengthUnit};
 use crate::protocol::{Command, LineEvent, ParseError};
@@ -463,7 +463,9 @@ impl<C: Calibrator> Session<C> {
                 let status = robot.status();
                 let health = robot.health();
                 let pose = robot.pose();
-                report::write_status(out, &status, &health, &pose, self)
+                write_ok_with(out, &mut |out| {
+                    report::write_status_text(out, &status, &health, &pose, self)
+                })
             }
             Command::Params => report::write_params(out, &self.settings),
             Command::Set { name, value } => self.set(name, value, robot, out),

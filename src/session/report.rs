@@ -13,7 +13,7 @@ use crate::kinematics::reference::PoseF64;
 use crate::motion::controller::Status;
 use crate::motion::run::RunRecord;
 pub(super) use crate::protocol::refusal::write_path;
-use crate::protocol::reply::{write_ok, write_ok_with};
+use crate::protocol::reply::write_ok;
 use crate::protocol::token::{
     self, ACTIVE, CALIBRATION, DISAGREES, LOWEST_LOO, METHOD_FAILED, RUNS_DISAGREE, TABLE_HEADER,
     WITH_FLAGGED,
@@ -92,21 +92,9 @@ pub(super) fn write_pose(out: &mut dyn Write, p: &PoseF64) -> fmt::Result {
     )
 }
 
-pub(super) fn write_status<C: Calibrator>(
-    out: &mut dyn Write,
-    status: &Status,
-    health: &Health,
-    pose: &PoseF64,
-    session: &Session<C>,
-) -> fmt::Result {
-    write_ok_with(out, &mut |out| {
-        write_status_text(out, status, health, pose, session)
-    })
-}
-
-/// The text of the `status` reply: `state=… fault=… x=… … calibration=…` and what there is to
-/// say about the control loop's health and the last reset.
-fn write_status_text<C: Calibrator>(
+/// The text of the `status` reply (after `ok `): `state=… fault=… x=… … calibration=…` and what
+/// there is to say about the control loop's health and the last reset.
+pub(super) fn write_status_text<C: Calibrator>(
     out: &mut dyn Write,
     status: &Status,
     health: &Health,

@@ -541,8 +541,7 @@ fn odometer(opts: &Options, board: &Board, u: Uncertainty) -> Odometer {
         board.max_accel,
     );
     let twist_cov = Covariance(covariance::twist_ros(var_v, var_w));
-    let wire_baud = (!std::fs::canonicalize(&opts.port).is_ok_and(|p| p.starts_with("/dev/pts")))
-        .then_some(crate::link::BAUD);
+    let wire_baud = (!crate::link::is_pty(&opts.port)).then_some(crate::link::BAUD);
     Odometer::new(
         Names {
             odom_frame: format!("{}{}", opts.frame_prefix, opts.odom_frame),
