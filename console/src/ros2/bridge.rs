@@ -214,8 +214,10 @@ impl Bridge<'_> {
             "ros2: no odometry ({}): turning the board's stream on again",
             self.guard.stale().map_or("", guard::Stale::as_str)
         );
+        // A short wait: a board that does not answer (no power) must not hold `/diagnostics`;
+        // the next attempt comes a second later.
         for c in [Command::Echo { on: false }, self.stream_on] {
-            match self.link.command(&c.to_string(), Duration::from_secs(2)) {
+            match self.link.command(&c.to_string(), COMMAND_WAIT) {
                 Ok(_) | Err(LinkError::Timeout(_)) => {}
                 Err(e) => return Err(e),
             }
@@ -277,17 +279,18 @@ impl Bridge<'_> {
 
     /// The board's state and faults and the bridge's own figures on `/diagnostics`.
     fn publish_status(&mut self) -> Result<(), LinkError> {
+        // No reply: the board may have reset under it, or it has no power: said, and the next
+        // second asks again.
         let reply = match self
             .link
             .command(&Command::Status.to_string(), COMMAND_WAIT)
         {
-            Ok(r) => r,
-            // The board may have reset under it: the next second asks again.
-            Err(LinkError::Timeout(_)) => return Ok(()),
+            Ok(r) => Some(r),
+            Err(LinkError::Timeout(_)) => None,
             Err(e) => return Err(e),
         };
         let mut array = status::diagnostics(
-            reply.text(),
+            reply.as_ref().map(|r| r.text()),
             &status::Context {
                 node_name: &self.opts.node_name,
                 port: &self.opts.port,

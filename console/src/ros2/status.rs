@@ -119,17 +119,25 @@ pub(super) struct Context<'a> {
 }
 
 /// The `/diagnostics` message for the board's `status` reply `status` at `now_s` (the PC's
-/// clock): an error while a fault is latched, a warning while `cmd_vel` is refused.
-pub(super) fn diagnostics(status: &str, c: &Context<'_>, now_s: f64) -> DiagnosticArray {
+/// clock): an error while the board does not answer (`None`: no reply in time, a board without
+/// power or hung behind a live USB adapter) or a fault is latched, a warning while `cmd_vel` is
+/// refused.
+pub(super) fn diagnostics(status: Option<&str>, c: &Context<'_>, now_s: f64) -> DiagnosticArray {
     let field = |k: &str| {
         status
+            .unwrap_or("")
             .split_whitespace()
             .find_map(|w| w.strip_prefix(k)?.strip_prefix('='))
             .unwrap_or("?")
             .to_string()
     };
     let (state, fault) = (field("state"), field("fault"));
-    let (level, message) = if fault != "none" {
+    let (level, message) = if status.is_none() {
+        (
+            diagnostic_msgs::ERROR,
+            format!("board not answering: {} (no reply to status)", c.port),
+        )
+    } else if fault != "none" {
         (diagnostic_msgs::ERROR, format!("fault latched: {fault}"))
     } else if let Some(why) = c.guard.stale() {
         // A board that reset or went away: the robot's odometry is gone (ERROR); a stream that

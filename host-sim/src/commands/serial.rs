@@ -284,12 +284,15 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
     let mut image_touched = board.store.flash().bytes_touched();
     // Board time the slices have given and the periods not yet taken, µs.
     let mut budget_us = 0.0;
+    let mut powered = true;
     loop {
         // What has arrived goes to the receive side at once (stop keys act now); lines wait in
         // the board's input queue.
         loop {
             match rx.try_recv() {
-                Ok(Some(bytes)) => board.receive(&bytes, &mut out),
+                // A board without power loses what is sent to it.
+                Ok(Some(bytes)) if powered => board.receive(&bytes, &mut out),
+                Ok(Some(_)) => {}
                 Ok(None) | Err(mpsc::TryRecvError::Disconnected) => {
                     input_done = true;
                     break;
@@ -307,7 +310,12 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                 "" => {}
                 "button" => board.press_button(false, &mut out),
                 "button long" => board.press_button(true, &mut out),
-                "reboot" | "reset" => {
+                "power off" => {
+                    powered = false;
+                    eprintln!("sim: power off: the board is silent until `power on`");
+                }
+                "reboot" | "reset" | "power on" => {
+                    powered = true;
                     drop(board);
                     if let Some(path) = &args.image {
                         flash = SimParamFlash::open(path)
@@ -336,16 +344,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
                         "sim: nothing to play (start the simulator with --replay SESSION_DIR)"
                     ),
                 },
-                "help" => eprintln!(
-                    "sim: button | button long | reboot (or reset) | play (the board's button and \
-                     reset: parameters, runs and measurements survive it; the console is the \
-                     pty; `play` starts --replay's recording)"
-                ),
-                other => {
-                    eprintln!(
-                        "sim: unknown `{other}` (button | button long | reboot | reset | play)"
-                    )
-                }
+                other => control_help(other),
             }
         }
         let settled = |board: &Board| {
@@ -354,13 +353,17 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         };
         // With --fast, each line once the robot is at rest (and, with --settle, the wheels
         // still); a stop key has already stopped the controller on arrival.
-        if !args.fast || settled(&board) {
+        if powered && (!args.fast || settled(&board)) {
             board.process(&mut out, args.fast);
         }
         // 10 ms of wall clock runs K·10 ms of board time (`--speed`; with `--fast` 10 ms a
         // pass), in whole periods of the rate the board runs at now (`set control_hz` retimes
         // it); the rest waits for the next slice.
-        budget_us += if args.fast { 1e4 } else { 1e4 * args.speed };
+        budget_us += match (powered, args.fast) {
+            (false, _) => 0.0,
+            (true, true) => 1e4,
+            (true, false) => 1e4 * args.speed,
+        };
         let mut world = World {
             replay: replay.as_mut(),
             wears: &mut wears,
@@ -368,16 +371,7 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
             truth: truth.as_mut(),
         };
         world.run_periods(&mut board, &mut budget_us, &mut out)?;
-        // Commands (`save`, `measure`, `drop`) and finished runs write the flash.
-        let touched = board.store.flash().bytes_touched();
-        if let Some(path) = &args.image
-            && touched != image_touched
-        {
-            image_touched = touched;
-            let mut image = vec![0u8; SimFlash::CAPACITY];
-            board.store.flash().copy_image(&mut image);
-            std::fs::write(path, image).map_err(|e| format!("{}: {e}", path.display()))?;
-        }
+        write_image(args, &mut board, &mut image_touched)?;
         let still = settled(&board);
         ends.after_slice(&mut board, args, still, &mut out);
         if !out.is_empty() {
@@ -392,6 +386,35 @@ pub fn run(args: &SerialArgs) -> Result<(), String> {
         }
         pace(args, &board, input_done, &mut deadline);
     }
+}
+
+/// The simulator's answer to a control line that is `help` or unknown.
+fn control_help(line: &str) {
+    const LINES: &str = "button | button long | reboot (or reset) | power off | power on | play";
+    if line == "help" {
+        eprintln!(
+            "sim: {LINES} (the board's button; reset: parameters, runs and measurements survive \
+             it; power off: the board stops and is silent, what is sent to it lost, until power \
+             on boots it; the console is the pty; `play` starts --replay's recording)"
+        );
+    } else {
+        eprintln!("sim: unknown `{line}` ({LINES})");
+    }
+}
+
+/// Commands (`save`, `measure`, `drop`) and finished runs write the flash: the image file
+/// (`--image`) follows when the board's flash changed since `touched`.
+fn write_image(args: &SerialArgs, board: &mut Board<'_>, touched: &mut u64) -> Result<(), String> {
+    let now = board.store.flash().bytes_touched();
+    if let Some(path) = &args.image
+        && now != *touched
+    {
+        *touched = now;
+        let mut image = vec![0u8; SimFlash::CAPACITY];
+        board.store.flash().copy_image(&mut image);
+        std::fs::write(path, image).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
 }
 
 fn spawn_reader<R>(mut read: R, tx: mpsc::Sender<Option<Vec<u8>>>)
