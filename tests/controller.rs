@@ -69,7 +69,7 @@ fn refusals_while_not_ready_busy_or_faulted() {
     plant.step(&mut c);
     assert_eq!(
         c.start(PathKind::Line { length_m: f64::NAN }),
-        Err(StartError::Path(odocal::motion::routine::PathError::Size))
+        Err(StartError::Path(odocal::motion::path::PathError::Size))
     );
     c.start(line).unwrap();
     assert_eq!(c.start(line), Err(StartError::Busy));

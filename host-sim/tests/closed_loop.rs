@@ -7,7 +7,7 @@ use odocal::kinematics::encoder::WheelTicks;
 use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::{ArcModel, PoseF64};
 use odocal::motion::controller::{Fault, MotorCommand, Status, Wheel};
-use odocal::motion::routine::{SegmentKind, segment, segment_count};
+use odocal::motion::path::{SegmentKind, segment, segment_count};
 use odocal::motion::run::{Direction, PathKind};
 
 const RATE: u32 = 1000;

@@ -47,17 +47,21 @@ pub enum SegmentKind {
     },
 }
 
+/// The sides, lengths and radii a path may have, metres.
+pub const PATH_SIZE_RANGE_M: (f64, f64) = (0.01, 100.0);
+
 /// Why a path was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum PathError {
-    /// A side, length or radius is not finite or outside 0.01 ..= 100 m.
+    /// A side, length or radius is not finite or outside [`PATH_SIZE_RANGE_M`].
     Size,
 }
 
 impl fmt::Display for PathError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // Written out; `the_size_error_names_the_range` holds it to `PATH_SIZE_RANGE_M`.
         f.write_str(match self {
             PathError::Size => "path size must be within 0.01..100 m",
         })
@@ -74,7 +78,7 @@ pub fn validate_path(path: &PathKind) -> Result<(), PathError> {
         PathKind::Line { length_m } => length_m,
         PathKind::Circle { radius_m, .. } => radius_m,
     };
-    if size.is_finite() && (0.01..=100.0).contains(&size) {
+    if size.is_finite() && (PATH_SIZE_RANGE_M.0..=PATH_SIZE_RANGE_M.1).contains(&size) {
         Ok(())
     } else {
         Err(PathError::Size)
@@ -84,7 +88,7 @@ pub fn validate_path(path: &PathKind) -> Result<(), PathError> {
 /// Number of segments of a path.
 pub fn segment_count(path: &PathKind) -> usize {
     match path {
-        PathKind::Square { .. } => 8,
+        PathKind::Square { .. } => MAX_SEGMENTS,
         PathKind::Line { .. } | PathKind::Circle { .. } => 1,
     }
 }
@@ -161,4 +165,18 @@ pub fn commanded_knots(path: &PathKind, g: &Geometry) -> CommandedKnots {
         let _ = knots.push(at);
     }
     knots
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    use crate::util::decimal::Plain;
+
+    #[test]
+    fn the_size_error_names_the_range() {
+        let (lo, hi) = PATH_SIZE_RANGE_M;
+        let text = format!("path size must be within {}..{} m", Plain(lo), Plain(hi));
+        assert_eq!(PathError::Size.to_string(), text);
+    }
 }

@@ -8,7 +8,8 @@
 //!
 //! The tick targets of a segment ([`crate::motion::path::segment_ticks`]) are computed from the
 //! geometry handed in when the run starts (the current calibrated `D_R`, `D_L`, `b`; the
-//! controller changes it only while idle); references are cumulative ticks since the run start and continue
+//! controller changes it only while idle); references are cumulative ticks since the run start
+//! and continue
 //! from the previous segment's *target*, so tracking errors do not add up along the path. A segment ends when its profile is over and
 //! both wheels have stayed within `settle_tolerance_ticks` of the target for `settle_periods`
 //! periods (or `settle_timeout_periods` have passed since the profile ended): the robot stops at
@@ -33,8 +34,9 @@ use heapless::Vec;
 
 use crate::kinematics::encoder::WheelTicks;
 use crate::kinematics::geometry::Geometry;
-pub use crate::motion::path::{PathError, SegmentKind, segment, segment_count, validate_path};
-use crate::motion::path::{segment_scales, segment_ticks};
+use crate::motion::path::{
+    PathError, SegmentKind, segment, segment_count, segment_scales, segment_ticks, validate_path,
+};
 use crate::motion::profile::{MotionLimits, Trapezoid};
 use crate::motion::run::{Direction, MAX_KNOTS, MAX_RUNS, PathKind};
 use crate::motion::speed::WheelReference;

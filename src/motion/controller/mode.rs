@@ -14,7 +14,8 @@ use crate::motion::bringup::{CheckKind, CheckReport, PulseCheck, PulseStep, Push
 use crate::motion::button::Press;
 use crate::motion::identify::{Identify, IdentifyFailure, IdentifyReport, IdentifyStep};
 use crate::motion::motor::StopMode;
-use crate::motion::routine::{PathError, Routine, RunPlan, validate_path};
+use crate::motion::path::{PathError, validate_path};
+use crate::motion::routine::{Routine, RunPlan};
 use crate::motion::run::{PathKind, RunRecord};
 use crate::motion::speed::WheelReference;
 use crate::util::num::clamp;

@@ -24,7 +24,7 @@ use odocal::kinematics::geometry::Geometry;
 use odocal::kinematics::reference::PoseF64;
 use odocal::motion::controller::{Controller, MotorCommand, Status, StepOutput};
 use odocal::motion::motor::{MotorDriver, StopMode};
-use odocal::motion::routine::SegmentKind;
+use odocal::motion::path::SegmentKind;
 use odocal::plant::{RobotConfig, SimRobot};
 
 use crate::sim::pair::Host;
