@@ -38,7 +38,8 @@ pub struct SessionLog {
     pub path: PathBuf,
 }
 
-fn now_s() -> f64 {
+/// Seconds since the Unix epoch on the PC's clock: a log entry's `t`, and the bridge's clock.
+pub fn now_s() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())

@@ -14,9 +14,7 @@ use super::odometry::Wheels;
 use super::odometry::{Odometer, StreamLine};
 use super::reference::Reference;
 use super::status::{self, Stats};
-use super::{
-    Aging, Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log, wall_clock_s,
-};
+use super::{Aging, Board, CmdVel, DEADMAN_S, Network, Options, drive_line, now_s, session_log};
 use crate::link::{Link, LinkError};
 use crate::online::{ApplyMode, Online, estimator::Estimate};
 
@@ -138,10 +136,7 @@ impl Bridge<'_> {
     /// Once the calibration's runs are a day old, the pose covariance takes the between-session
     /// drift (said on stderr once).
     fn age_calibration(&mut self) {
-        if self
-            .aging
-            .as_ref()
-            .is_some_and(|a| wall_clock_s() >= a.at_s)
+        if self.aging.as_ref().is_some_and(|a| now_s() >= a.at_s)
             && let Some(a) = self.aging.take()
         {
             self.odometer.set_uncertainty(a.u);

@@ -23,7 +23,7 @@ mod status;
 use std::io::BufRead;
 use std::path::PathBuf;
 use std::sync::mpsc;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use odocal::kinematics::geometry::Geometry;
 use odocal::motion::controller::DEFAULT_DEADMAN_MS;
@@ -38,7 +38,7 @@ use ros2_client::{
 use crate::covariance::{self, Floor, PoseCovariance, RandomError, Uncertainty};
 use crate::export::Export;
 use crate::link::Link;
-use crate::log::{SessionLog, calibration_of, nominal_of, param};
+use crate::log::{SessionLog, calibration_of, nominal_of, now_s, param};
 use bridge::Bridge;
 use clock::ClockMap;
 use guard::Guard;
@@ -127,13 +127,6 @@ pub struct Options {
     /// The online calibration (`--reference TOPIC`).
     #[command(flatten)]
     pub online: crate::online::OnlineArgs,
-}
-
-/// Seconds since the Unix epoch on the PC's clock.
-fn now_s() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// Which peers discovery reaches: `ROS_AUTOMATIC_DISCOVERY_RANGE` (Jazzy) or, without it,
@@ -319,7 +312,7 @@ fn uncertainty(
                 e.method.as_deref().unwrap_or("none")
             ));
         }
-        let now = wall_clock_s();
+        let now = now_s();
         let (u, source) = e.uncertainty(opts.slip, opts.trust_session_sd, Some(now));
         let aging = aging_of(&e, opts.slip, opts.trust_session_sd, now);
         return Ok((u, format!("{source} from {}", log.display()), aging));
@@ -364,13 +357,6 @@ pub(super) struct Aging {
     pub u: Uncertainty,
     /// Where they come from.
     pub source: String,
-}
-
-/// The wall clock, Unix seconds (what a session log's `t` is).
-pub(super) fn wall_clock_s() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// The session log `--log` names (appended to), or none.
